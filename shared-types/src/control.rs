@@ -1,0 +1,261 @@
+//! The control service: requests from clients, responses from the server.
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::{SettingsError, WireSettings, WorldSettings, PROTOCOL_VERSION};
+
+/// What a [`ControlRequest`] asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum RequestKind {
+    /// Handshake on connect: checks the protocol version, returns the status.
+    Hello = 1,
+    /// Returns the status (which holds the settings).
+    GetSettings = 2,
+    /// Applies `settings`; returns the frame from which they hold.
+    ApplySettings = 3,
+    /// Returns the status.
+    Status = 4,
+}
+
+impl RequestKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Hello,
+            2 => Self::GetSettings,
+            3 => Self::ApplySettings,
+            4 => Self::Status,
+            _ => return None,
+        })
+    }
+}
+
+/// How the server answered a [`ControlRequest`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ResponseStatus {
+    /// Done.
+    Ok = 0,
+    /// The request's protocol version is not the server's; nothing was done.
+    ProtocolMismatch = 1,
+    /// The settings were refused ([`ControlResponse::settings_error`]); nothing changed.
+    InvalidSettings = 2,
+    /// The request kind is unknown to this server; nothing was done.
+    UnknownRequest = 3,
+    /// Synchronous mode is entered by the tick owner, not by settings alone.
+    SyncNeedsTicker = 4,
+}
+
+impl ResponseStatus {
+    /// The status with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            0 => Self::Ok,
+            1 => Self::ProtocolMismatch,
+            2 => Self::InvalidSettings,
+            3 => Self::UnknownRequest,
+            4 => Self::SyncNeedsTicker,
+            _ => return None,
+        })
+    }
+}
+
+/// A request to the world's server.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ControlRequest/1")]
+pub struct ControlRequest {
+    /// [`PROTOCOL_VERSION`] of the sender.
+    pub protocol_version: u32,
+    /// [`RequestKind`] as `u32`.
+    pub kind: u32,
+    /// Process id of the sender, for the server's log.
+    pub client_pid: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The settings to apply (for [`RequestKind::ApplySettings`]).
+    pub settings: WireSettings,
+}
+
+impl ControlRequest {
+    /// A request of `kind` from this process.
+    pub fn new(kind: RequestKind) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            kind: kind as u32,
+            client_pid: std::process::id(),
+            reserved: 0,
+            settings: WorldSettings::default().into(),
+        }
+    }
+
+    /// A request to apply `settings`.
+    pub fn apply_settings(settings: WorldSettings) -> Self {
+        Self {
+            settings: settings.into(),
+            ..Self::new(RequestKind::ApplySettings)
+        }
+    }
+}
+
+/// Up to 64 bytes of UTF-8 text in a fixed-size field (scene names).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::FixedText/1")]
+pub struct FixedText {
+    /// Bytes in use.
+    pub len: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The text, zero-padded.
+    pub bytes: [u8; 64],
+}
+
+impl FixedText {
+    /// `text` cut to at most 64 bytes at a character boundary.
+    pub fn new(text: &str) -> Self {
+        let mut end = text.len().min(64);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        let mut bytes = [0; 64];
+        bytes[..end].copy_from_slice(&text.as_bytes()[..end]);
+        Self {
+            len: end as u32,
+            reserved: 0,
+            bytes,
+        }
+    }
+
+    /// The text; invalid bytes from a misbehaving peer read as `?`.
+    pub fn to_string_lossy(&self) -> String {
+        let len = (self.len as usize).min(self.bytes.len());
+        String::from_utf8_lossy(&self.bytes[..len]).into_owned()
+    }
+}
+
+/// The world's state as the server reports it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::StatusReport/1")]
+pub struct StatusReport {
+    /// The latest published frame.
+    pub frame: u64,
+    /// Its simulation time in nanoseconds.
+    pub elapsed_ns: u64,
+    /// The current episode.
+    pub episode: u64,
+    /// The server's process id.
+    pub server_pid: u32,
+    /// Actors in the world.
+    pub actor_count: u32,
+    /// The settings in force for the next frame.
+    pub settings: WireSettings,
+    /// The scene the world was loaded from.
+    pub scene: FixedText,
+}
+
+/// The server's answer to one [`ControlRequest`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ControlResponse/1")]
+pub struct ControlResponse {
+    /// [`PROTOCOL_VERSION`] of the server.
+    pub protocol_version: u32,
+    /// [`ResponseStatus`] as `u32`.
+    pub status: u32,
+    /// For [`RequestKind::ApplySettings`]: the first frame computed with the
+    /// new settings.
+    pub effective_frame: u64,
+    /// With [`ResponseStatus::InvalidSettings`]: the error code, see
+    /// [`SettingsError::to_wire`].
+    pub error_code: u32,
+    /// The field the error names.
+    pub error_field: u32,
+    /// The values the error names.
+    pub error_values: [f64; 3],
+    /// The world's state after the request.
+    pub report: StatusReport,
+}
+
+impl ControlResponse {
+    /// A successful response carrying `report`.
+    pub fn ok(report: StatusReport) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            status: ResponseStatus::Ok as u32,
+            effective_frame: 0,
+            error_code: 0,
+            error_field: 0,
+            error_values: [0.0; 3],
+            report,
+        }
+    }
+
+    /// A response with `status` and nothing done.
+    pub fn refused(status: ResponseStatus, report: StatusReport) -> Self {
+        Self {
+            status: status as u32,
+            ..Self::ok(report)
+        }
+    }
+
+    /// A response refusing settings with `error`.
+    pub fn invalid_settings(error: &SettingsError, report: StatusReport) -> Self {
+        let (error_code, error_field, error_values) = error.to_wire();
+        Self {
+            error_code,
+            error_field,
+            error_values,
+            ..Self::refused(ResponseStatus::InvalidSettings, report)
+        }
+    }
+
+    /// The settings error carried by an [`ResponseStatus::InvalidSettings`] response.
+    pub fn settings_error(&self) -> Option<SettingsError> {
+        SettingsError::from_wire(self.error_code, self.error_field, self.error_values)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_text_cuts_at_char_boundaries() {
+        assert_eq!(FixedText::new("boxes:10").to_string_lossy(), "boxes:10");
+        let long = "é".repeat(40); // 80 bytes
+        let cut = FixedText::new(&long).to_string_lossy();
+        assert_eq!(cut, "é".repeat(32));
+        let garbage = FixedText {
+            len: 1000,
+            reserved: 0,
+            bytes: [0xff; 64],
+        };
+        assert_eq!(garbage.to_string_lossy().chars().count(), 64);
+    }
+
+    #[test]
+    fn kinds_and_statuses_round_trip() {
+        for k in [
+            RequestKind::Hello,
+            RequestKind::GetSettings,
+            RequestKind::ApplySettings,
+            RequestKind::Status,
+        ] {
+            assert_eq!(RequestKind::from_u32(k as u32), Some(k));
+        }
+        assert_eq!(RequestKind::from_u32(0), None);
+        for s in [
+            ResponseStatus::Ok,
+            ResponseStatus::ProtocolMismatch,
+            ResponseStatus::InvalidSettings,
+            ResponseStatus::UnknownRequest,
+            ResponseStatus::SyncNeedsTicker,
+        ] {
+            assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
+        }
+    }
+}

@@ -1,0 +1,176 @@
+//! The frame snapshot: a [`FrameHeader`] user header and a slice of [`ActorState`].
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::{WireSettings, NANOS_PER_SECOND};
+
+/// When a frame happened, in simulation time (integer nanoseconds) and wall time.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::Timestamp/1")]
+pub struct Timestamp {
+    /// Frame id: 0 is the initial state, each step adds one.
+    pub frame: u64,
+    /// Simulation time since the episode started, in nanoseconds.
+    pub elapsed_ns: u64,
+    /// Simulation time since the previous frame, in nanoseconds.
+    pub delta_ns: u64,
+    /// Wall-clock seconds since the Unix epoch when the frame was published.
+    pub platform_timestamp: f64,
+}
+
+impl Timestamp {
+    /// Simulation time since the episode started, in seconds.
+    pub fn elapsed_seconds(&self) -> f64 {
+        nanos_to_seconds(self.elapsed_ns)
+    }
+
+    /// Simulation time since the previous frame, in seconds.
+    pub fn delta_seconds(&self) -> f64 {
+        nanos_to_seconds(self.delta_ns)
+    }
+}
+
+fn nanos_to_seconds(nanos: u64) -> f64 {
+    // Split so that large values keep every nanosecond the f64 can hold.
+    (nanos / NANOS_PER_SECOND) as f64 + (nanos % NANOS_PER_SECOND) as f64 * 1e-9
+}
+
+/// The user header of every frame sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::FrameHeader/1")]
+pub struct FrameHeader {
+    /// [`crate::PROTOCOL_VERSION`] of the server that wrote the frame.
+    pub protocol_version: u32,
+    /// Number of [`ActorState`]s in the sample.
+    pub actor_count: u32,
+    /// Episode id: changes when the world is loaded or reloaded.
+    pub episode: u64,
+    /// When the frame happened.
+    pub timestamp: Timestamp,
+    /// The settings this frame was computed with.
+    pub settings: WireSettings,
+    /// How many physics steps computed this frame (0 for the initial frame).
+    pub physics_substeps: u32,
+    /// [`FrameHeader::SUBSTEPS_CAPPED`] and future flags.
+    pub flags: u32,
+}
+
+impl FrameHeader {
+    /// Flag: the frame was longer than `max_substeps * max_substep_delta_time`,
+    /// so its substeps were longer than `max_substep_delta_time`.
+    pub const SUBSTEPS_CAPPED: u32 = 1;
+}
+
+/// What an actor is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum ActorKind {
+    /// Fixed geometry: ground, ramps, walls.
+    Static = 1,
+    /// A dynamic box; `extent` holds its half extents.
+    Box = 2,
+    /// A dynamic sphere; `extent[0]` is its radius.
+    Sphere = 3,
+    /// A dynamic capsule along Y; `extent` is (radius, half height, radius).
+    Capsule = 4,
+}
+
+impl ActorKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Static,
+            2 => Self::Box,
+            3 => Self::Sphere,
+            4 => Self::Capsule,
+            _ => return None,
+        })
+    }
+
+    /// The lower-case name used in CLI output.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Static => "static",
+            Self::Box => "box",
+            Self::Sphere => "sphere",
+            Self::Capsule => "capsule",
+        }
+    }
+}
+
+/// The state of one actor in one frame. World frame: Y up, metres, radians.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ActorState/1")]
+pub struct ActorState {
+    /// Actor id: stable for the actor's life, never reused in a world.
+    pub id: u64,
+    /// [`ActorKind`] as `u32`.
+    pub kind: u32,
+    /// [`ActorState::SLEEPING`] and future flags.
+    pub flags: u32,
+    /// Position of the body origin.
+    pub position: [f32; 3],
+    /// Orientation as a unit quaternion (x, y, z, w).
+    pub rotation: [f32; 4],
+    /// Linear velocity, m/s.
+    pub linear_velocity: [f32; 3],
+    /// Angular velocity, rad/s.
+    pub angular_velocity: [f32; 3],
+    /// Linear acceleration over the last frame, m/s².
+    pub acceleration: [f32; 3],
+    /// Shape size: half extents for boxes, radius for spheres (see [`ActorKind`]).
+    pub extent: [f32; 3],
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl ActorState {
+    /// Flag: the physics engine put the body to sleep (it is at rest).
+    pub const SLEEPING: u32 = 1;
+
+    /// The actor's kind, if this version knows it.
+    pub fn actor_kind(&self) -> Option<ActorKind> {
+        ActorKind::from_u32(self.kind)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_have_no_padding_and_fixed_sizes() {
+        // Pod derives already refuse padding; the sizes are part of the protocol.
+        assert_eq!(std::mem::size_of::<Timestamp>(), 32);
+        assert_eq!(std::mem::size_of::<FrameHeader>(), 80);
+        assert_eq!(std::mem::size_of::<ActorState>(), 96);
+    }
+
+    #[test]
+    fn seconds_are_exact_for_long_runs() {
+        let t = Timestamp {
+            elapsed_ns: 100_000 * NANOS_PER_SECOND,
+            delta_ns: 100_000_000,
+            ..Default::default()
+        };
+        assert_eq!(t.elapsed_seconds(), 100_000.0);
+        assert_eq!(t.delta_seconds(), 0.1);
+    }
+
+    #[test]
+    fn kinds_round_trip() {
+        for kind in [
+            ActorKind::Static,
+            ActorKind::Box,
+            ActorKind::Sphere,
+            ActorKind::Capsule,
+        ] {
+            assert_eq!(ActorKind::from_u32(kind as u32), Some(kind));
+        }
+        assert_eq!(ActorKind::from_u32(0), None);
+    }
+}

@@ -1,0 +1,74 @@
+//! # simbus wire layer
+//!
+//! Everything that crosses a process boundary in simbus is defined here and
+//! nowhere else: the `#[repr(C)]` zero-copy payloads ([`FrameHeader`],
+//! [`ActorState`], [`ControlRequest`], [`ControlResponse`]), the names of the
+//! iceoryx2 services of one world ([`ServiceNames`]), the [`PROTOCOL_VERSION`]
+//! and the validation of [`WorldSettings`].
+//!
+//! The crate holds no logic beyond validation and conversion, so a server and
+//! a client built from the same version agree on every byte.
+//!
+//! ```
+//! use shared_types::{ServiceNames, WorldName, WorldSettings};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let world = WorldName::new("lab")?;
+//! let names = ServiceNames::new(&world);
+//! assert_eq!(names.frames, "simbus/lab/frames");
+//!
+//! let settings = WorldSettings { fixed_delta_seconds: Some(0.05), ..Default::default() };
+//! settings.validate()?;
+//! // 0.2 s frames need 20 substeps of 0.01 s: more than the 10 allowed.
+//! let too_long = WorldSettings { fixed_delta_seconds: Some(0.2), ..Default::default() };
+//! assert!(too_long.validate().is_err());
+//! # Ok(())
+//! # }
+//! ```
+
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs)]
+
+mod control;
+mod frame;
+mod names;
+mod settings;
+
+pub use control::{
+    ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, StatusReport,
+};
+pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
+pub use names::{ServiceNames, WorldName, WorldNameError};
+pub use settings::{
+    seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
+    MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
+};
+
+/// Version of the simbus wire protocol. Every payload carries it; a peer that
+/// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
+/// service it cannot open) instead of misread bytes.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// Nanoseconds in one second: simulation time is kept as integer nanoseconds.
+pub const NANOS_PER_SECOND: u64 = 1_000_000_000;
+
+/// Capacity limits of the services of one world, shared by server and
+/// clients so both open a service with the same quality of service.
+pub mod limits {
+    /// How many frame subscribers (watchers, tools, `on_tick` threads) a world admits.
+    pub const MAX_FRAME_SUBSCRIBERS: usize = 32;
+    /// How many snapshots a subscriber may have queued before the oldest is
+    /// dropped (async) — a reader that drains this often never loses a frame.
+    pub const FRAME_SUBSCRIBER_BUFFER: usize = 16;
+    /// How many snapshots a subscriber may hold at once.
+    pub const FRAME_SUBSCRIBER_BORROWED: usize = 4;
+    /// How many clients the control service admits.
+    pub const MAX_CONTROL_CLIENTS: usize = 64;
+    /// How many listeners an event service admits.
+    pub const MAX_EVENT_LISTENERS: usize = 64;
+    /// How many processes (nodes) may open one service of a world.
+    pub const MAX_NODES: usize = 96;
+    /// Actor slots reserved in the first frame sample; the publisher grows
+    /// its memory when the world holds more.
+    pub const INITIAL_MAX_ACTORS: usize = 64;
+}

@@ -1,0 +1,561 @@
+//! World settings, their validation rules and their wire form.
+
+use std::fmt;
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::NANOS_PER_SECOND;
+
+/// The largest `max_substeps` accepted (CARLA's limit).
+pub const MAX_SUBSTEPS_LIMIT: u32 = 16;
+
+/// The shortest fixed frame or substep accepted: one microsecond. Below it
+/// the integer-nanosecond clock would lose the value's meaning.
+pub const MIN_DELTA_SECONDS: f64 = 1e-6;
+
+/// Frames longer than this are warned about: physics is unreliable below 10 FPS.
+const LONG_FRAME_SECONDS: f64 = 0.1;
+
+/// Substeps longer than this are warned about.
+const LONG_SUBSTEP_SECONDS: f64 = 1.0 / 60.0;
+
+/// Converts seconds to the integer nanoseconds the clock keeps, rounding to
+/// the nearest nanosecond (0.1 s is exactly 100 000 000 ns).
+pub fn seconds_to_nanos(seconds: f64) -> u64 {
+    (seconds * NANOS_PER_SECOND as f64).round() as u64
+}
+
+/// How the world's time moves, as CARLA's `WorldSettings` has it.
+///
+/// The four configurations are `synchronous_mode` × (`fixed_delta_seconds`
+/// set or not). The default is asynchronous with a variable step, with
+/// physics substepping on (0.01 s, at most 10 substeps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldSettings {
+    /// The server computes a frame only after a tick from the ticker.
+    pub synchronous_mode: bool,
+    /// `Some(dt)`: every frame advances exactly `dt` seconds.
+    /// `None` (or `Some(0.0)`): variable step, dt is the wall time since the
+    /// previous frame.
+    pub fixed_delta_seconds: Option<f64>,
+    /// Split each frame into physics substeps of at most
+    /// `max_substep_delta_time`.
+    pub substepping: bool,
+    /// The longest physics substep, in seconds.
+    pub max_substep_delta_time: f64,
+    /// The most physics substeps per frame, 1 to [`MAX_SUBSTEPS_LIMIT`].
+    pub max_substeps: u32,
+}
+
+impl Default for WorldSettings {
+    fn default() -> Self {
+        Self {
+            synchronous_mode: false,
+            fixed_delta_seconds: None,
+            substepping: true,
+            max_substep_delta_time: 0.01,
+            max_substeps: 10,
+        }
+    }
+}
+
+/// A setting, as named in errors and on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SettingsField {
+    /// `fixed_delta_seconds`.
+    FixedDeltaSeconds = 1,
+    /// `max_substep_delta_time`.
+    MaxSubstepDeltaTime = 2,
+    /// `max_substeps`.
+    MaxSubsteps = 3,
+    /// `fps` (fixed_delta_seconds = 1 / fps).
+    Fps = 4,
+}
+
+impl SettingsField {
+    fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::FixedDeltaSeconds,
+            2 => Self::MaxSubstepDeltaTime,
+            3 => Self::MaxSubsteps,
+            4 => Self::Fps,
+            _ => return None,
+        })
+    }
+}
+
+impl fmt::Display for SettingsField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::FixedDeltaSeconds => "fixed_delta_seconds",
+            Self::MaxSubstepDeltaTime => "max_substep_delta_time",
+            Self::MaxSubsteps => "max_substeps",
+            Self::Fps => "fps",
+        })
+    }
+}
+
+/// Why settings were refused. Refused settings change nothing.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    /// A value is NaN or infinite.
+    #[error("{field} = {value} is not a finite number")]
+    NotFinite {
+        /// The setting.
+        field: SettingsField,
+        /// The value given.
+        value: f64,
+    },
+    /// A value is negative.
+    #[error("{field} = {value} is negative; it must be positive (0 means variable step where allowed)")]
+    Negative {
+        /// The setting.
+        field: SettingsField,
+        /// The value given.
+        value: f64,
+    },
+    /// A time is shorter than [`MIN_DELTA_SECONDS`].
+    #[error("{field} = {value} s is shorter than the minimum of {min} s")]
+    TooSmall {
+        /// The setting.
+        field: SettingsField,
+        /// The value given.
+        value: f64,
+        /// The minimum.
+        min: f64,
+    },
+    /// `max_substeps` is outside `1..=16`.
+    #[error("max_substeps = {value} is outside the allowed range 1..={max}")]
+    MaxSubstepsOutOfRange {
+        /// The value given.
+        value: u32,
+        /// The largest allowed value.
+        max: u32,
+    },
+    /// The substep rule `fixed_delta_seconds <= max_substep_delta_time * max_substeps`
+    /// does not hold.
+    #[error(
+        "substep rule violated: fixed_delta_seconds ({fixed} s) must be <= \
+         max_substep_delta_time ({max_dt} s) * max_substeps ({max_substeps}) = {limit} s",
+        limit = max_dt * f64::from(*max_substeps)
+    )]
+    SubstepRule {
+        /// The requested fixed frame time.
+        fixed: f64,
+        /// The requested longest substep.
+        max_dt: f64,
+        /// The requested most substeps.
+        max_substeps: u32,
+    },
+}
+
+/// A setting that is accepted but makes physics unreliable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SettingsWarning {
+    /// Frames longer than 0.1 s (below 10 FPS).
+    LongFrame {
+        /// The frame time.
+        delta_seconds: f64,
+    },
+    /// Physics substeps longer than 1/60 s.
+    LongSubstep {
+        /// The longest substep the settings allow.
+        substep_seconds: f64,
+    },
+}
+
+impl fmt::Display for SettingsWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::LongFrame { delta_seconds } => write!(
+                f,
+                "frame delta {delta_seconds} s is above 0.1 s (below 10 FPS): physics is unreliable"
+            ),
+            Self::LongSubstep { substep_seconds } => write!(
+                f,
+                "physics substep {substep_seconds} s is above 1/60 s: physics may be unreliable"
+            ),
+        }
+    }
+}
+
+fn check_time(field: SettingsField, value: f64) -> Result<(), SettingsError> {
+    if !value.is_finite() {
+        return Err(SettingsError::NotFinite { field, value });
+    }
+    if value < 0.0 {
+        return Err(SettingsError::Negative { field, value });
+    }
+    if value < MIN_DELTA_SECONDS {
+        return Err(SettingsError::TooSmall {
+            field,
+            value,
+            min: MIN_DELTA_SECONDS,
+        });
+    }
+    Ok(())
+}
+
+impl WorldSettings {
+    /// Converts a frame rate to a fixed delta: `fps = 0` means variable step.
+    pub fn delta_from_fps(fps: f64) -> Result<Option<f64>, SettingsError> {
+        let field = SettingsField::Fps;
+        if !fps.is_finite() {
+            return Err(SettingsError::NotFinite { field, value: fps });
+        }
+        if fps < 0.0 {
+            return Err(SettingsError::Negative { field, value: fps });
+        }
+        Ok((fps > 0.0).then(|| 1.0 / fps))
+    }
+
+    /// The same settings with `Some(0.0)` written as `None` (variable step).
+    pub fn normalized(mut self) -> Self {
+        if self.fixed_delta_seconds == Some(0.0) {
+            self.fixed_delta_seconds = None;
+        }
+        self
+    }
+
+    /// The fixed frame time in integer nanoseconds, `None` for variable step.
+    pub fn fixed_delta_nanos(&self) -> Option<u64> {
+        self.normalized().fixed_delta_seconds.map(seconds_to_nanos)
+    }
+
+    /// The longest substep in integer nanoseconds.
+    pub fn max_substep_nanos(&self) -> u64 {
+        seconds_to_nanos(self.max_substep_delta_time)
+    }
+
+    /// Checks every rule; the first broken one is returned.
+    ///
+    /// Rules: times are finite, not negative and at least 1 µs (a fixed delta
+    /// of 0 means variable step); `max_substeps` is in `1..=16`; with
+    /// substepping on, `fixed_delta_seconds <= max_substep_delta_time *
+    /// max_substeps` (compared in integer nanoseconds, so 0.1 = 0.01 × 10
+    /// holds exactly).
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        let settings = self.normalized();
+        if let Some(dt) = settings.fixed_delta_seconds {
+            check_time(SettingsField::FixedDeltaSeconds, dt)?;
+        }
+        check_time(
+            SettingsField::MaxSubstepDeltaTime,
+            settings.max_substep_delta_time,
+        )?;
+        if !(1..=MAX_SUBSTEPS_LIMIT).contains(&settings.max_substeps) {
+            return Err(SettingsError::MaxSubstepsOutOfRange {
+                value: settings.max_substeps,
+                max: MAX_SUBSTEPS_LIMIT,
+            });
+        }
+        if let (true, Some(fixed)) = (settings.substepping, settings.fixed_delta_seconds) {
+            let limit = settings.max_substep_nanos() * u64::from(settings.max_substeps);
+            if seconds_to_nanos(fixed) > limit {
+                return Err(SettingsError::SubstepRule {
+                    fixed,
+                    max_dt: settings.max_substep_delta_time,
+                    max_substeps: settings.max_substeps,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// What is accepted but unwise in these (valid) settings.
+    pub fn warnings(&self) -> Vec<SettingsWarning> {
+        let mut warnings = Vec::new();
+        let fixed = self.normalized().fixed_delta_seconds;
+        if let Some(delta_seconds) = fixed.filter(|dt| *dt > LONG_FRAME_SECONDS) {
+            warnings.push(SettingsWarning::LongFrame { delta_seconds });
+        }
+        let substep_seconds = match (self.substepping, fixed) {
+            (true, Some(dt)) => dt / (dt / self.max_substep_delta_time).ceil().max(1.0),
+            (true, None) => self.max_substep_delta_time,
+            (false, Some(dt)) => dt,
+            (false, None) => 0.0,
+        };
+        if substep_seconds > LONG_SUBSTEP_SECONDS {
+            warnings.push(SettingsWarning::LongSubstep { substep_seconds });
+        }
+        warnings
+    }
+}
+
+/// [`WorldSettings`] as they travel in shared memory.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::WireSettings/1")]
+pub struct WireSettings {
+    /// Fixed frame time in seconds; 0 means variable step.
+    pub fixed_delta_seconds: f64,
+    /// Longest substep in seconds.
+    pub max_substep_delta_time: f64,
+    /// Most substeps per frame.
+    pub max_substeps: u32,
+    /// 1 = synchronous mode.
+    pub synchronous_mode: u8,
+    /// 1 = substepping on.
+    pub substepping: u8,
+    /// Zero.
+    pub reserved: [u8; 2],
+}
+
+impl From<WorldSettings> for WireSettings {
+    fn from(s: WorldSettings) -> Self {
+        Self {
+            fixed_delta_seconds: s.fixed_delta_seconds.unwrap_or(0.0),
+            max_substep_delta_time: s.max_substep_delta_time,
+            max_substeps: s.max_substeps,
+            synchronous_mode: u8::from(s.synchronous_mode),
+            substepping: u8::from(s.substepping),
+            reserved: [0; 2],
+        }
+    }
+}
+
+impl From<WireSettings> for WorldSettings {
+    fn from(w: WireSettings) -> Self {
+        Self {
+            synchronous_mode: w.synchronous_mode != 0,
+            fixed_delta_seconds: (w.fixed_delta_seconds != 0.0).then_some(w.fixed_delta_seconds),
+            substepping: w.substepping != 0,
+            max_substep_delta_time: w.max_substep_delta_time,
+            max_substeps: w.max_substeps,
+        }
+    }
+}
+
+/// Wire codes of [`SettingsError`] variants.
+mod code {
+    pub const NOT_FINITE: u32 = 1;
+    pub const NEGATIVE: u32 = 2;
+    pub const TOO_SMALL: u32 = 3;
+    pub const MAX_SUBSTEPS: u32 = 4;
+    pub const SUBSTEP_RULE: u32 = 5;
+}
+
+impl SettingsError {
+    /// Encodes the error as `(code, field, values)` for a [`crate::ControlResponse`].
+    pub fn to_wire(&self) -> (u32, u32, [f64; 3]) {
+        match *self {
+            Self::NotFinite { field, value } => (code::NOT_FINITE, field as u32, [value, 0.0, 0.0]),
+            Self::Negative { field, value } => (code::NEGATIVE, field as u32, [value, 0.0, 0.0]),
+            Self::TooSmall { field, value, min } => {
+                (code::TOO_SMALL, field as u32, [value, min, 0.0])
+            }
+            Self::MaxSubstepsOutOfRange { value, max } => (
+                code::MAX_SUBSTEPS,
+                SettingsField::MaxSubsteps as u32,
+                [f64::from(value), f64::from(max), 0.0],
+            ),
+            Self::SubstepRule {
+                fixed,
+                max_dt,
+                max_substeps,
+            } => (
+                code::SUBSTEP_RULE,
+                SettingsField::FixedDeltaSeconds as u32,
+                [fixed, max_dt, f64::from(max_substeps)],
+            ),
+        }
+    }
+
+    /// Decodes an error encoded by [`SettingsError::to_wire`]; `None` for
+    /// codes this version does not know.
+    pub fn from_wire(code: u32, field: u32, values: [f64; 3]) -> Option<Self> {
+        let field = SettingsField::from_u32(field);
+        let [a, b, c] = values;
+        Some(match code {
+            code::NOT_FINITE => Self::NotFinite {
+                field: field?,
+                value: a,
+            },
+            code::NEGATIVE => Self::Negative {
+                field: field?,
+                value: a,
+            },
+            code::TOO_SMALL => Self::TooSmall {
+                field: field?,
+                value: a,
+                min: b,
+            },
+            code::MAX_SUBSTEPS => Self::MaxSubstepsOutOfRange {
+                value: a as u32,
+                max: b as u32,
+            },
+            code::SUBSTEP_RULE => Self::SubstepRule {
+                fixed: a,
+                max_dt: b,
+                max_substeps: c as u32,
+            },
+            _ => return None,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixed(dt: f64) -> WorldSettings {
+        WorldSettings {
+            fixed_delta_seconds: Some(dt),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn defaults_are_carla_defaults_and_valid() {
+        let s = WorldSettings::default();
+        assert!(!s.synchronous_mode);
+        assert_eq!(s.fixed_delta_seconds, None);
+        assert!(s.substepping);
+        assert_eq!(s.max_substep_delta_time, 0.01);
+        assert_eq!(s.max_substeps, 10);
+        assert_eq!(s.validate(), Ok(()));
+    }
+
+    #[test]
+    fn non_finite_and_negative_values_are_refused() {
+        let field = SettingsField::FixedDeltaSeconds;
+        assert!(matches!(
+            fixed(f64::NAN).validate(),
+            Err(SettingsError::NotFinite { field: f, .. }) if f == field
+        ));
+        assert!(matches!(
+            fixed(f64::INFINITY).validate(),
+            Err(SettingsError::NotFinite { .. })
+        ));
+        assert_eq!(
+            fixed(-0.1).validate(),
+            Err(SettingsError::Negative { field, value: -0.1 })
+        );
+        let s = WorldSettings {
+            max_substep_delta_time: -1.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::Negative {
+                field: SettingsField::MaxSubstepDeltaTime,
+                ..
+            })
+        ));
+        assert!(matches!(
+            fixed(1e-9).validate(),
+            Err(SettingsError::TooSmall { .. })
+        ));
+    }
+
+    #[test]
+    fn zero_fixed_delta_means_variable_step() {
+        assert_eq!(fixed(0.0).validate(), Ok(()));
+        assert_eq!(fixed(0.0).normalized().fixed_delta_seconds, None);
+        assert_eq!(fixed(0.0).fixed_delta_nanos(), None);
+        assert_eq!(WorldSettings::delta_from_fps(0.0), Ok(None));
+        assert_eq!(WorldSettings::delta_from_fps(20.0), Ok(Some(0.05)));
+        assert!(WorldSettings::delta_from_fps(-1.0).is_err());
+        assert!(WorldSettings::delta_from_fps(f64::NAN).is_err());
+    }
+
+    #[test]
+    fn max_substeps_must_be_within_1_to_16() {
+        for (n, ok) in [(0, false), (1, true), (16, true), (17, false)] {
+            let s = WorldSettings {
+                max_substeps: n,
+                fixed_delta_seconds: Some(0.001),
+                ..Default::default()
+            };
+            assert_eq!(s.validate().is_ok(), ok, "max_substeps = {n}");
+        }
+    }
+
+    #[test]
+    fn substep_rule_is_checked_exactly_and_named() {
+        assert_eq!(fixed(0.1).validate(), Ok(()), "0.1 = 0.01 * 10 holds");
+        let err = fixed(0.100_000_001).validate().unwrap_err();
+        assert_eq!(
+            err,
+            SettingsError::SubstepRule {
+                fixed: 0.100_000_001,
+                max_dt: 0.01,
+                max_substeps: 10
+            }
+        );
+        assert!(err.to_string().contains("substep rule"));
+        assert!(err
+            .to_string()
+            .contains("max_substep_delta_time (0.01 s) * max_substeps (10)"));
+        let off = WorldSettings {
+            substepping: false,
+            ..fixed(0.5)
+        };
+        assert_eq!(off.validate(), Ok(()), "the rule binds only with substepping");
+    }
+
+    #[test]
+    fn warnings_follow_the_limits() {
+        assert!(fixed(0.05).warnings().is_empty());
+        assert!(matches!(
+            fixed(0.12).warnings()[..],
+            [SettingsWarning::LongFrame { .. }]
+        ));
+        let coarse = WorldSettings {
+            substepping: false,
+            ..fixed(0.05)
+        };
+        assert!(matches!(
+            coarse.warnings()[..],
+            [SettingsWarning::LongSubstep { .. }]
+        ));
+    }
+
+    #[test]
+    fn errors_survive_the_wire() {
+        let errors = [
+            SettingsError::NotFinite {
+                field: SettingsField::Fps,
+                value: f64::INFINITY,
+            },
+            SettingsError::Negative {
+                field: SettingsField::FixedDeltaSeconds,
+                value: -2.0,
+            },
+            SettingsError::TooSmall {
+                field: SettingsField::MaxSubstepDeltaTime,
+                value: 1e-9,
+                min: MIN_DELTA_SECONDS,
+            },
+            SettingsError::MaxSubstepsOutOfRange { value: 17, max: 16 },
+            SettingsError::SubstepRule {
+                fixed: 0.5,
+                max_dt: 0.01,
+                max_substeps: 10,
+            },
+        ];
+        for e in errors {
+            let (c, f, v) = e.to_wire();
+            assert_eq!(SettingsError::from_wire(c, f, v), Some(e));
+        }
+        assert_eq!(SettingsError::from_wire(99, 0, [0.0; 3]), None);
+    }
+
+    #[test]
+    fn settings_survive_the_wire() {
+        let s = WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: Some(0.05),
+            substepping: false,
+            max_substep_delta_time: 0.002,
+            max_substeps: 3,
+        };
+        assert_eq!(WorldSettings::from(WireSettings::from(s)), s);
+        assert_eq!(
+            WorldSettings::from(WireSettings::from(WorldSettings::default())),
+            WorldSettings::default()
+        );
+    }
+}

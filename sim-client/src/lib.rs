@@ -1,1 +1,43 @@
-pub fn x(){}
+//! # sim-client
+//!
+//! The simbus client layer: connect to a world by name, read and change its
+//! settings, and receive every frame's snapshot from shared memory.
+//!
+//! ```no_run
+//! use std::time::Duration;
+//! use sim_client::{Client, WaitMode};
+//! use shared_types::WorldSettings;
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let mut client = Client::connect("default", Duration::from_secs(2))?;
+//!
+//! // Switch to a fixed 50 ms step; the answer is the first frame that uses it.
+//! let settings = WorldSettings { fixed_delta_seconds: Some(0.05), ..client.get_settings()? };
+//! let from_frame = client.apply_settings(settings)?;
+//!
+//! client.set_wait_mode(WaitMode::Block); // sleep on the frame-ready event (default)
+//! loop {
+//!     let snapshot = client.wait_for_tick(Duration::from_secs(1))?;
+//!     if snapshot.frame() >= from_frame {
+//!         assert_eq!(snapshot.timestamp().delta_ns, 50_000_000);
+//!         break;
+//!     }
+//! }
+//! # Ok(())
+//! # }
+//! ```
+
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs)]
+
+mod client;
+mod error;
+mod frames;
+pub mod process;
+mod snapshot;
+
+pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
+pub use error::{ApplySettingsError, ConnectError, RequestError, WaitError};
+pub use frames::WaitMode;
+pub use process::process_alive;
+pub use snapshot::WorldSnapshot;

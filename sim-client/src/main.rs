@@ -1,1 +1,102 @@
-fn main(){}
+//! `sim-client`: watch, inspect and configure simbus worlds.
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+use shared_types::WorldName;
+use tracing_subscriber::EnvFilter;
+
+mod cli;
+
+/// Watch, inspect and configure a simbus world.
+///
+/// Every command talks to the server of one world (--world, or SIMBUS_WORLD).
+/// Start one with `sim-server`, or try everything at once with `sim-client demo`.
+#[derive(Debug, Parser)]
+#[command(name = "sim-client", version)]
+struct Args {
+    /// World to talk to.
+    #[arg(long, global = true, env = "SIMBUS_WORLD", default_value = "default")]
+    world: WorldName,
+
+    /// Seconds to wait for the server to answer (and, for `watch`, for each frame).
+    #[arg(long, global = true, value_name = "S", default_value_t = 5.0)]
+    timeout: f64,
+
+    /// More logging (-v debug, -vv trace); RUST_LOG overrides.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print one line per frame as the world publishes them.
+    Watch(cli::watch::WatchArgs),
+    /// Show the world's mode, settings and current frame.
+    Status(cli::status::StatusArgs),
+    /// Change the time settings, like CARLA's config.py.
+    Config(cli::config::ConfigArgs),
+    /// Start a server on the default scene, watch it, and print a live summary.
+    Demo(cli::demo::DemoArgs),
+}
+
+/// How a command failed, for the exit code: 1 for a runtime failure,
+/// 2 for input that was refused.
+pub enum Failure {
+    /// Something went wrong talking to the world.
+    Runtime(anyhow::Error),
+    /// The input was refused (invalid settings, bad flags); nothing changed.
+    Refused(anyhow::Error),
+}
+
+impl<E: Into<anyhow::Error>> From<E> for Failure {
+    fn from(e: E) -> Self {
+        Self::Runtime(e.into())
+    }
+}
+
+fn init_logging(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    init_logging(args.verbose);
+    if !args.timeout.is_finite() || args.timeout <= 0.0 {
+        eprintln!("sim-client: error: --timeout must be a positive number of seconds");
+        return ExitCode::from(2);
+    }
+    let timeout = Duration::from_secs_f64(args.timeout);
+    let result = match args.command {
+        Command::Watch(a) => cli::watch::run(&args.world, timeout, a),
+        Command::Status(a) => cli::status::run(&args.world, timeout, a),
+        Command::Config(a) => cli::config::run(&args.world, timeout, a),
+        Command::Demo(a) => cli::demo::run(timeout, a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Runtime(e)) => {
+            eprintln!("sim-client: error: {e:#}");
+            ExitCode::FAILURE
+        }
+        Err(Failure::Refused(e)) => {
+            eprintln!("sim-client: refused: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

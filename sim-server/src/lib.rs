@@ -1,1 +1,85 @@
-pub fn x(){}
+//! # sim-server
+//!
+//! The simbus server layer: one process owns a rapier3d world, steps it on
+//! the simulation [`clock`], and writes every frame's snapshot straight into
+//! iceoryx2 shared memory for any number of clients.
+//!
+//! - [`clock`]: integer-nanosecond time, fixed / variable step, substep plan.
+//! - [`scene`]: the initial contents of a world (`default`, `empty`, `boxes:N`).
+//! - [`world`]: rapier bodies and the actors that name them.
+//! - [`services`]: the world's iceoryx2 ports.
+//! - [`server`]: the loop that answers requests, paces, steps and publishes.
+//!
+//! ```no_run
+//! use std::sync::atomic::AtomicBool;
+//! use sim_server::{Scene, Server, ServerConfig};
+//! use shared_types::{WorldName, WorldSettings};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let config = ServerConfig {
+//!     world: WorldName::new("lab")?,
+//!     scene: Scene::Default,
+//!     settings: WorldSettings { fixed_delta_seconds: Some(0.05), ..Default::default() },
+//!     realtime: true,
+//!     max_fps: 0.0,
+//!     max_frames: Some(100),
+//! };
+//! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
+//! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());
+//! # Ok(())
+//! # }
+//! ```
+
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs)]
+
+pub mod clock;
+pub mod scene;
+pub mod server;
+pub mod services;
+pub mod world;
+
+pub use scene::{Scene, SceneError};
+pub use server::{RunSummary, Server, ServerConfig};
+
+use shared_types::SettingsError;
+
+/// Why the server could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    /// Another live server already owns the world.
+    #[error("world '{world}' already has a running server; stop it or pick another --world")]
+    AlreadyRunning {
+        /// The world name.
+        world: String,
+    },
+    /// The start settings were refused.
+    #[error("invalid settings: {0}")]
+    Settings(SettingsError),
+    /// Synchronous mode was asked for at start without a ticker.
+    #[error("synchronous mode is entered by the tick owner (sim-client tick), not at server start")]
+    SyncNeedsTicker,
+    /// iceoryx2 refused an operation.
+    #[error("shared-memory transport failed at {what}: {detail}")]
+    Transport {
+        /// What was being done.
+        what: &'static str,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+impl ServerError {
+    pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
+        Self::Transport {
+            what,
+            detail: format!("{error:?}"),
+        }
+    }
+}
+
+impl From<SettingsError> for ServerError {
+    fn from(error: SettingsError) -> Self {
+        Self::Settings(error)
+    }
+}

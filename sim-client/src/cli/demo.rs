@@ -1,0 +1,178 @@
+//! `sim-client demo`: a server on the default scene, watched live.
+
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use anyhow::{anyhow, Context};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use shared_types::{ActorKind, ActorState};
+use sim_client::process::ChildGuard;
+use sim_client::{Client, WorldSnapshot};
+
+use crate::Failure;
+
+/// Start a server on the default scene, watch it, and print a live summary.
+///
+/// The server runs in its own world (demo-<pid>) at wall-clock speed with a
+/// fixed step; the demo stops it and reaps it after --frames frames or Ctrl-C.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Frames to watch before stopping.
+    #[arg(long, value_name = "N", default_value_t = 300)]
+    frames: u64,
+
+    /// Scene for the server: default, empty or boxes:N.
+    #[arg(long, default_value = "default")]
+    scene: String,
+
+    /// Fixed time-step of the server, in seconds.
+    #[arg(long, value_name = "S", default_value_t = 0.02)]
+    delta_seconds: f64,
+
+    /// The sim-server binary (default: next to this sim-client).
+    #[arg(long, value_name = "PATH")]
+    server: Option<PathBuf>,
+}
+
+fn server_binary(explicit: Option<PathBuf>) -> anyhow::Result<PathBuf> {
+    if let Some(path) = explicit {
+        return Ok(path);
+    }
+    let exe = std::env::current_exe().context("locating sim-client")?;
+    let path = exe.with_file_name(format!("sim-server{}", std::env::consts::EXE_SUFFIX));
+    if path.exists() {
+        Ok(path)
+    } else {
+        Err(anyhow!(
+            "sim-server not found at {}; build it with `cargo build --release` (or pass --server PATH)",
+            path.display()
+        ))
+    }
+}
+
+fn length(v: [f32; 3]) -> f32 {
+    v.iter().map(|x| x * x).sum::<f32>().sqrt()
+}
+
+/// One readable line about what the scene is doing.
+fn summary(s: &WorldSnapshot) -> String {
+    let dynamic: Vec<&ActorState> = s
+        .actors
+        .iter()
+        .filter(|a| a.actor_kind() != Some(ActorKind::Static))
+        .collect();
+    let moving = dynamic
+        .iter()
+        .filter(|a| length(a.linear_velocity) > 0.05)
+        .count();
+    let mut line = format!(
+        "t = {:>6.2} s  frame {:>5}  moving {:>2}/{:<2}",
+        s.timestamp().elapsed_seconds(),
+        s.frame(),
+        moving,
+        dynamic.len()
+    );
+    if let Some(sphere) = dynamic
+        .iter()
+        .find(|a| a.actor_kind() == Some(ActorKind::Sphere))
+    {
+        let [x, y, z] = sphere.position;
+        line.push_str(&format!(
+            "  sphere at ({x:>6.2}, {y:>5.2}, {z:>5.2}) {:>5.2} m/s",
+            length(sphere.linear_velocity)
+        ));
+    }
+    if let Some(top) = dynamic
+        .iter()
+        .filter(|a| a.actor_kind() == Some(ActorKind::Box))
+        .map(|a| a.position[1])
+        .reduce(f32::max)
+    {
+        line.push_str(&format!("  highest box {top:>5.2} m"));
+    }
+    line
+}
+
+pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
+    if !(args.delta_seconds.is_finite() && args.delta_seconds > 0.0) {
+        return Err(Failure::Refused(anyhow!(
+            "--delta-seconds must be a positive number of seconds"
+        )));
+    }
+    let interrupted = super::interrupted();
+    let binary = server_binary(args.server)?;
+    let world = format!("demo-{}", std::process::id());
+    let mut command = Command::new(&binary);
+    command
+        .args(["--world", &world, "--scene", &args.scene, "--realtime"])
+        .args(["--fixed-delta-seconds", &args.delta_seconds.to_string()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null());
+    if std::env::var_os("RUST_LOG").is_none() {
+        command.env("RUST_LOG", "warn");
+    }
+    let child = command
+        .spawn()
+        .with_context(|| format!("starting {}", binary.display()))?;
+    let mut server = ChildGuard::new(child, Duration::from_secs(3));
+    println!(
+        "demo: started sim-server (pid {}) on world '{world}', scene {}, fixed step {} s at wall-clock speed",
+        server.id(),
+        args.scene,
+        args.delta_seconds
+    );
+
+    let mut client = match Client::connect(&world, timeout) {
+        Ok(client) => client,
+        Err(e) => {
+            let status = server.stop()?;
+            return Err(anyhow!(e)
+                .context(format!("the demo server did not come up ({status})"))
+                .into());
+        }
+    };
+    let bar = std::io::IsTerminal::is_terminal(&std::io::stdout()).then(|| {
+        let bar = ProgressBar::new(args.frames);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}")
+                .expect("valid template"),
+        );
+        bar
+    });
+    let say = |line: String| match &bar {
+        Some(bar) => bar.println(line),
+        None => println!("{line}"),
+    };
+    let frames_per_line = ((0.5 / args.delta_seconds).round() as u64).max(1);
+    let (mut seen, mut missed) = (0, 0);
+    while seen < args.frames {
+        let snapshot = match super::watch::next_frame(&mut client, timeout) {
+            Ok(Some(snapshot)) => snapshot,
+            Ok(None) => break,
+            Err(e) => return Err(anyhow!(e).into()),
+        };
+        seen += 1;
+        missed += snapshot.missed;
+        if let Some(bar) = &bar {
+            bar.set_position(seen);
+            bar.set_message(format!("t = {:.2} s", snapshot.timestamp().elapsed_seconds()));
+        }
+        if seen == 1 || snapshot.frame() % frames_per_line == 0 {
+            say(summary(&snapshot));
+        }
+    }
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    drop(client);
+    let status = server.stop()?;
+    let how = if interrupted.load(std::sync::atomic::Ordering::Relaxed) {
+        "interrupted"
+    } else {
+        "finished"
+    };
+    println!("demo {how}: watched {seen} frames ({missed} missed); server stopped ({status})");
+    Ok(())
+}

@@ -1,0 +1,67 @@
+//! The `sim-client` subcommands.
+
+pub mod config;
+pub mod demo;
+pub mod status;
+pub mod watch;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+
+use shared_types::WorldSettings;
+
+/// Set by Ctrl-C / SIGTERM; commands stop at their next check.
+pub fn interrupted() -> &'static AtomicBool {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let handler_flag = flag.clone();
+        if let Err(e) = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed)) {
+            tracing::warn!("could not install the Ctrl-C handler: {e}");
+        }
+        flag
+    })
+}
+
+/// The settings as the JSON object `status` and `config --json` print.
+pub fn settings_json(settings: &WorldSettings) -> serde_json::Value {
+    serde_json::json!({
+        "synchronous_mode": settings.synchronous_mode,
+        "fixed_delta_seconds": settings.fixed_delta_seconds,
+        "substepping": settings.substepping,
+        "max_substep_delta_time": settings.max_substep_delta_time,
+        "max_substeps": settings.max_substeps,
+    })
+}
+
+/// The settings as readable lines.
+pub fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, String)> {
+    vec![
+        (
+            "mode",
+            if settings.synchronous_mode {
+                "synchronous (the ticker rules time)".to_owned()
+            } else {
+                "asynchronous".to_owned()
+            },
+        ),
+        (
+            "step",
+            match settings.fixed_delta_seconds {
+                Some(dt) => format!("fixed {dt} s ({:.2} FPS)", 1.0 / dt),
+                None => "variable (follows wall time)".to_owned(),
+            },
+        ),
+        (
+            "substeps",
+            if settings.substepping {
+                format!(
+                    "on: at most {} of {} s",
+                    settings.max_substeps, settings.max_substep_delta_time
+                )
+            } else {
+                "off: one physics step per frame".to_owned()
+            },
+        ),
+    ]
+}

@@ -1,0 +1,62 @@
+//! `sim-client status`: mode, settings, current frame.
+
+use std::time::Duration;
+
+use clap::Args;
+use shared_types::{Timestamp, WorldName, WorldSettings};
+use sim_client::Client;
+
+use crate::Failure;
+
+/// Show the world's mode, settings and current frame.
+#[derive(Debug, Args)]
+pub struct StatusArgs {
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(), Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    let report = client.status()?;
+    let settings = WorldSettings::from(report.settings);
+    let elapsed = Timestamp {
+        elapsed_ns: report.elapsed_ns,
+        ..Default::default()
+    }
+    .elapsed_seconds();
+    if args.json {
+        let mut json = super::settings_json(&settings);
+        let extra = serde_json::json!({
+            "world": world.as_str(),
+            "frame": report.frame,
+            "elapsed_seconds": elapsed,
+            "episode": report.episode,
+            "scene": report.scene.to_string_lossy(),
+            "actors": report.actor_count,
+            "server_pid": report.server_pid,
+            "ticker": null,
+        });
+        if let (Some(json), serde_json::Value::Object(extra)) = (json.as_object_mut(), extra) {
+            json.extend(extra);
+        }
+        println!("{json}");
+        return Ok(());
+    }
+    println!("world     {world} (server pid {})", report.server_pid);
+    println!(
+        "scene     {} ({} actors)",
+        report.scene.to_string_lossy(),
+        report.actor_count
+    );
+    println!(
+        "frame     {} (t = {elapsed:.6} s, episode {})",
+        report.frame, report.episode
+    );
+    for (name, value) in super::settings_lines(&settings) {
+        println!("{name:<9} {value}");
+    }
+    println!("ticker    none");
+    Ok(())
+}

@@ -1,0 +1,114 @@
+//! `sim-client watch`: one line per frame.
+
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use shared_types::WorldName;
+use sim_client::{Client, WaitError, WaitMode, WorldSnapshot};
+
+use crate::Failure;
+
+/// Print one line per frame.
+///
+/// In asynchronous mode a watcher slower than the server skips to the newest
+/// frame and reports how many it missed; in synchronous mode every frame is
+/// printed once, in order.
+#[derive(Debug, Args)]
+pub struct WatchArgs {
+    /// Stop after N frames.
+    #[arg(long, value_name = "N")]
+    frames: Option<u64>,
+
+    /// One JSON object per line.
+    #[arg(long)]
+    json: bool,
+
+    /// Spin on the shared-memory queue instead of sleeping (lowest latency, one core busy).
+    #[arg(long)]
+    spin: bool,
+}
+
+/// The JSON object of one frame.
+pub fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
+    let t = s.timestamp();
+    serde_json::json!({
+        "frame": t.frame,
+        "episode": s.episode(),
+        "elapsed_seconds": t.elapsed_seconds(),
+        "elapsed_ns": t.elapsed_ns,
+        "delta_seconds": t.delta_seconds(),
+        "delta_ns": t.delta_ns,
+        "platform_timestamp": t.platform_timestamp,
+        "actors": s.actors.len(),
+        "physics_substeps": s.header.physics_substeps,
+        "synchronous_mode": s.settings().synchronous_mode,
+        "missed": s.missed,
+    })
+}
+
+fn frame_line(s: &WorldSnapshot) -> String {
+    let t = s.timestamp();
+    let mut line = format!(
+        "frame {:>8}  t = {:>12.6} s  dt = {:.6} s  actors = {}  substeps = {}",
+        t.frame,
+        t.elapsed_seconds(),
+        t.delta_seconds(),
+        s.actors.len(),
+        s.header.physics_substeps,
+    );
+    if s.missed > 0 {
+        line.push_str(&format!("  (missed {})", s.missed));
+    }
+    line
+}
+
+/// Waits for the next frame in slices, so Ctrl-C is noticed promptly.
+/// `Ok(None)` when interrupted.
+pub fn next_frame(
+    client: &mut Client,
+    timeout: Duration,
+) -> Result<Option<WorldSnapshot>, WaitError> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(Duration::from_millis(200));
+        match client.wait_for_tick(slice) {
+            Err(WaitError::Timeout { .. }) if Instant::now() < deadline => continue,
+            Err(WaitError::Timeout {
+                world, last_frame, ..
+            }) => {
+                return Err(WaitError::Timeout {
+                    world,
+                    timeout,
+                    last_frame,
+                })
+            }
+            other => return other.map(Some),
+        }
+    }
+}
+
+pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
+    super::interrupted();
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    if args.spin {
+        client.set_wait_mode(WaitMode::Spin);
+    }
+    let mut seen = 0;
+    while args.frames.is_none_or(|n| seen < n) {
+        let Some(snapshot) = next_frame(&mut client, timeout)? else {
+            break;
+        };
+        seen += 1;
+        if args.json {
+            println!("{}", frame_json(&snapshot));
+        } else {
+            println!("{}", frame_line(&snapshot));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,389 @@
+//! [`Client`]: a connection to one simbus world.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use shared_types::{
+    ControlRequest, ControlResponse, RequestKind, ResponseStatus, ServiceNames, StatusReport,
+    WorldName, WorldSettings, PROTOCOL_VERSION,
+};
+use tracing::{debug, warn};
+
+use crate::frames::{open_with_retry, FrameStream, WaitMode, LIVENESS_PERIOD};
+use crate::{process_alive, ApplySettingsError, ConnectError, RequestError, WaitError, WorldSnapshot};
+
+type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
+
+/// How long a control request waits for its answer unless told otherwise.
+pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// The id of a callback registered with [`Client::on_tick`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct CallbackId(u64);
+
+type TickCallback = Box<dyn FnMut(&WorldSnapshot) + Send>;
+
+/// The thread that calls `on_tick` callbacks, with its own subscription.
+struct TickDispatcher {
+    callbacks: Arc<Mutex<BTreeMap<CallbackId, TickCallback>>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+    next_id: u64,
+}
+
+/// A connection to one simbus world: its settings, its status and its frames.
+///
+/// ```no_run
+/// use std::time::Duration;
+/// use sim_client::Client;
+///
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// let mut client = Client::connect("default", Duration::from_secs(2))?;
+/// let snapshot = client.wait_for_tick(Duration::from_secs(1))?;
+/// println!("frame {} at {:.3} s", snapshot.frame(), snapshot.timestamp().elapsed_seconds());
+/// # Ok(())
+/// # }
+/// ```
+pub struct Client {
+    world: WorldName,
+    node: Node<ipc::Service>,
+    control: ControlClient,
+    control_wake: Notifier<ipc::Service>,
+    frames: FrameStream,
+    server_pid: u32,
+    request_timeout: Duration,
+    dispatcher: Option<TickDispatcher>,
+}
+
+fn client_node() -> Result<Node<ipc::Service>, ConnectError> {
+    let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
+    NodeBuilder::new()
+        .name(&name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| ConnectError::transport("node", e))
+}
+
+impl Client {
+    /// Connects to the server of `world`, waiting up to `timeout` for it to
+    /// appear and answer. Checks that both speak the same protocol version.
+    pub fn connect(world: &str, timeout: Duration) -> Result<Self, ConnectError> {
+        use iceoryx2::service::builder::event::EventOpenError;
+        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
+
+        let world = WorldName::new(world)?;
+        let deadline = Instant::now() + timeout;
+        let world_text = world.to_string();
+        let no_server = || ConnectError::NoServer {
+            world: world_text.clone(),
+            timeout,
+        };
+        let names = ServiceNames::new(&world);
+        let node = client_node()?;
+        let service_name = |name: &str| {
+            ServiceName::new(name).map_err(|e| ConnectError::transport("service name", e))
+        };
+        let control_name = service_name(&names.control)?;
+        let control = open_with_retry(
+            deadline,
+            || {
+                node.service_builder(&control_name)
+                    .request_response::<ControlRequest, ControlResponse>()
+                    .open()
+            },
+            |e| {
+                matches!(
+                    e,
+                    RequestResponseOpenError::DoesNotExist | RequestResponseOpenError::HangsInCreation
+                )
+            },
+        )
+        .map_err(|e| match e {
+            RequestResponseOpenError::IncompatibleRequestOrResponseType => ConnectError::ProtocolMismatch {
+                world: world_text.clone(),
+                detail: "its control messages differ".to_owned(),
+                client: PROTOCOL_VERSION,
+            },
+            e => ConnectError::transport("control service", e),
+        })?
+        .ok_or_else(no_server)?
+        .client_builder()
+        .create()
+        .map_err(|e| ConnectError::transport("control client", e))?;
+        let wake_name = service_name(&names.control_wake)?;
+        let control_wake = open_with_retry(
+            deadline,
+            || node.service_builder(&wake_name).event().open(),
+            |e| matches!(e, EventOpenError::DoesNotExist | EventOpenError::HangsInCreation),
+        )
+        .map_err(|e| ConnectError::transport("control wake-up service", e))?
+        .ok_or_else(no_server)?
+        .notifier_builder()
+        .create()
+        .map_err(|e| ConnectError::transport("control wake-up notifier", e))?;
+        let frames =
+            FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
+
+        let mut client = Self {
+            world,
+            node,
+            control,
+            control_wake,
+            frames,
+            server_pid: 0,
+            request_timeout: DEFAULT_REQUEST_TIMEOUT,
+            dispatcher: None,
+        };
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        let hello = client
+            .request_within(ControlRequest::new(RequestKind::Hello), remaining)
+            .map_err(|e| match e {
+                RequestError::ProtocolMismatch { .. } => ConnectError::ProtocolMismatch {
+                    world: client.world.to_string(),
+                    detail: "it refused our version".to_owned(),
+                    client: PROTOCOL_VERSION,
+                },
+                RequestError::Transport { what, detail } => ConnectError::Transport { what, detail },
+                _ => no_server(),
+            })?;
+        client.server_pid = hello.report.server_pid;
+        debug!(world = %client.world, server_pid = client.server_pid, "connected");
+        Ok(client)
+    }
+
+    /// The world this client is connected to.
+    pub fn world(&self) -> &WorldName {
+        &self.world
+    }
+
+    /// The server's process id.
+    pub fn server_pid(&self) -> u32 {
+        self.server_pid
+    }
+
+    /// How [`Client::wait_for_tick`] waits: blocking (default) or spinning.
+    pub fn set_wait_mode(&mut self, mode: WaitMode) {
+        self.frames.mode = mode;
+    }
+
+    /// How long control requests wait for an answer (default 5 s).
+    pub fn set_request_timeout(&mut self, timeout: Duration) {
+        self.request_timeout = timeout;
+    }
+
+    /// The world's status: current frame, settings, scene, actors.
+    pub fn status(&self) -> Result<StatusReport, RequestError> {
+        Ok(self.request(ControlRequest::new(RequestKind::Status))?.report)
+    }
+
+    /// The settings in force for the next frame.
+    pub fn get_settings(&self) -> Result<WorldSettings, RequestError> {
+        let response = self.request(ControlRequest::new(RequestKind::GetSettings))?;
+        Ok(response.report.settings.into())
+    }
+
+    /// Applies `settings` and returns the first frame computed with them.
+    /// Refused settings come back as [`ApplySettingsError::Invalid`] and
+    /// leave the server's settings unchanged.
+    pub fn apply_settings(&self, settings: WorldSettings) -> Result<u64, ApplySettingsError> {
+        // Check here first: a clear error without a round trip. The server
+        // checks again, since not every sender is this library.
+        settings.validate()?;
+        let response = self.request(ControlRequest::apply_settings(settings))?;
+        match ResponseStatus::from_u32(response.status) {
+            Some(ResponseStatus::Ok) => Ok(response.effective_frame),
+            Some(ResponseStatus::SyncNeedsTicker) => Err(ApplySettingsError::SyncNeedsTicker),
+            Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
+                Some(error) => Err(ApplySettingsError::Invalid(error)),
+                None => Err(RequestError::UnknownRequest.into()),
+            },
+            _ => Err(RequestError::UnknownRequest.into()),
+        }
+    }
+
+    /// Waits up to `timeout` for a frame newer than the last one this client
+    /// received and returns it.
+    ///
+    /// In synchronous mode frames come in order, each once. In asynchronous
+    /// mode a client that fell behind gets the newest frame, and
+    /// [`WorldSnapshot::missed`] says how many it skipped.
+    pub fn wait_for_tick(&mut self, timeout: Duration) -> Result<WorldSnapshot, WaitError> {
+        self.frames
+            .next(timeout, self.world.as_str(), Some(self.server_pid))
+    }
+
+    /// Calls `callback` with every new frame, on a background thread with its
+    /// own subscription, until [`Client::remove_on_tick`] or the client drops.
+    pub fn on_tick(
+        &mut self,
+        callback: impl FnMut(&WorldSnapshot) + Send + 'static,
+    ) -> Result<CallbackId, ConnectError> {
+        if self.dispatcher.is_none() {
+            self.dispatcher = Some(self.start_dispatcher()?);
+        }
+        let dispatcher = self.dispatcher.as_mut().expect("dispatcher just started");
+        dispatcher.next_id += 1;
+        let id = CallbackId(dispatcher.next_id);
+        dispatcher
+            .callbacks
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .insert(id, Box::new(callback));
+        Ok(id)
+    }
+
+    /// Removes a callback; `false` if `id` was not registered.
+    pub fn remove_on_tick(&mut self, id: CallbackId) -> bool {
+        self.dispatcher.as_ref().is_some_and(|d| {
+            d.callbacks
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .remove(&id)
+                .is_some()
+        })
+    }
+
+    fn start_dispatcher(&self) -> Result<TickDispatcher, ConnectError> {
+        let callbacks: Arc<Mutex<BTreeMap<CallbackId, TickCallback>>> = Arc::default();
+        let stop = Arc::new(AtomicBool::new(false));
+        let world = self.world.clone();
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let thread = {
+            let callbacks = callbacks.clone();
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name("simbus-on-tick".into())
+                .spawn(move || {
+                    let opened = client_node().and_then(|node| {
+                        let deadline = Instant::now() + DEFAULT_REQUEST_TIMEOUT;
+                        let names = ServiceNames::new(&world);
+                        let stream = FrameStream::open(&node, &names, world.as_str(), deadline)?;
+                        Ok((node, stream))
+                    });
+                    let (_node, mut stream) = match opened {
+                        Ok((node, Some(stream))) => {
+                            let _ = ready_tx.send(Ok(()));
+                            (node, stream)
+                        }
+                        Ok((_, None)) => {
+                            let _ = ready_tx.send(Err(ConnectError::NoServer {
+                                world: world.to_string(),
+                                timeout: DEFAULT_REQUEST_TIMEOUT,
+                            }));
+                            return;
+                        }
+                        Err(e) => {
+                            let _ = ready_tx.send(Err(e));
+                            return;
+                        }
+                    };
+                    while !stop.load(Ordering::Relaxed) {
+                        match stream.next(Duration::from_millis(100), world.as_str(), None) {
+                            Ok(snapshot) => {
+                                let mut callbacks =
+                                    callbacks.lock().unwrap_or_else(|p| p.into_inner());
+                                for callback in callbacks.values_mut() {
+                                    callback(&snapshot);
+                                }
+                            }
+                            Err(WaitError::Timeout { .. }) => {}
+                            Err(e) => {
+                                warn!("on_tick dispatcher stopped: {e}");
+                                return;
+                            }
+                        }
+                    }
+                })
+                .map_err(|e| ConnectError::transport("on_tick thread", e))?
+        };
+        ready_rx
+            .recv()
+            .map_err(|e| ConnectError::transport("on_tick thread start", e))??;
+        Ok(TickDispatcher {
+            callbacks,
+            stop,
+            thread: Some(thread),
+            next_id: 0,
+        })
+    }
+
+    fn request(&self, request: ControlRequest) -> Result<ControlResponse, RequestError> {
+        self.request_within(request, self.request_timeout)
+    }
+
+    fn request_within(
+        &self,
+        request: ControlRequest,
+        timeout: Duration,
+    ) -> Result<ControlResponse, RequestError> {
+        let pending = self
+            .control
+            .send_copy(request)
+            .map_err(|e| RequestError::transport("control send", e))?;
+        if let Err(e) = self.control_wake.notify() {
+            debug!("control wake-up not delivered: {e:?}");
+        }
+        let start = Instant::now();
+        let mut backoff = Duration::from_micros(10);
+        let mut next_liveness_check = start + LIVENESS_PERIOD;
+        loop {
+            if let Some(response) = pending
+                .receive()
+                .map_err(|e| RequestError::transport("control receive", e))?
+            {
+                let response = *response.payload();
+                if response.protocol_version != PROTOCOL_VERSION
+                    || response.status == ResponseStatus::ProtocolMismatch as u32
+                {
+                    return Err(RequestError::ProtocolMismatch {
+                        client: PROTOCOL_VERSION,
+                    });
+                }
+                if response.status == ResponseStatus::UnknownRequest as u32 {
+                    return Err(RequestError::UnknownRequest);
+                }
+                return Ok(response);
+            }
+            let now = Instant::now();
+            if now.duration_since(start) >= timeout {
+                return Err(RequestError::Timeout {
+                    world: self.world.to_string(),
+                    timeout,
+                });
+            }
+            if self.server_pid != 0 && now >= next_liveness_check {
+                if !process_alive(self.server_pid) {
+                    return Err(RequestError::ServerGone {
+                        world: self.world.to_string(),
+                        pid: self.server_pid,
+                    });
+                }
+                next_liveness_check = now + LIVENESS_PERIOD;
+            }
+            std::thread::sleep(backoff.min(timeout.saturating_sub(now.duration_since(start))));
+            backoff = (backoff * 2).min(Duration::from_millis(1));
+        }
+    }
+
+    /// The iceoryx2 node of this client (for tools that open more ports).
+    pub fn node(&self) -> &Node<ipc::Service> {
+        &self.node
+    }
+}
+
+impl Drop for Client {
+    fn drop(&mut self) {
+        if let Some(mut dispatcher) = self.dispatcher.take() {
+            dispatcher.stop.store(true, Ordering::Relaxed);
+            if let Some(thread) = dispatcher.thread.take() {
+                let _ = thread.join();
+            }
+        }
+    }
+}

@@ -1,0 +1,147 @@
+//! One error enum per client operation.
+
+use std::time::Duration;
+
+use shared_types::{SettingsError, WorldNameError};
+
+/// Why [`crate::Client::connect`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ConnectError {
+    /// The world name is not valid.
+    #[error(transparent)]
+    InvalidWorld(#[from] WorldNameError),
+    /// No server answered within the timeout.
+    #[error("no simbus server answered on world '{world}' within {timeout:?}; start one with `sim-server --world {world}`")]
+    NoServer {
+        /// The world asked for.
+        world: String,
+        /// How long the client waited.
+        timeout: Duration,
+    },
+    /// The server speaks another protocol version.
+    #[error("world '{world}' runs a server with another protocol version ({detail}); this client speaks version {client}")]
+    ProtocolMismatch {
+        /// The world asked for.
+        world: String,
+        /// What differs.
+        detail: String,
+        /// This client's [`shared_types::PROTOCOL_VERSION`].
+        client: u32,
+    },
+    /// iceoryx2 refused an operation.
+    #[error("shared-memory transport failed at {what}: {detail}")]
+    Transport {
+        /// What was being done.
+        what: &'static str,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+/// Why a control request (status, settings) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RequestError {
+    /// The server did not answer in time.
+    #[error("the server of world '{world}' did not answer within {timeout:?}")]
+    Timeout {
+        /// The world.
+        world: String,
+        /// How long the client waited.
+        timeout: Duration,
+    },
+    /// The server process is gone.
+    #[error("the server of world '{world}' (pid {pid}) has exited")]
+    ServerGone {
+        /// The world.
+        world: String,
+        /// The server's process id.
+        pid: u32,
+    },
+    /// The server refused the request's protocol version.
+    #[error("the server refused protocol version {client}")]
+    ProtocolMismatch {
+        /// This client's version.
+        client: u32,
+    },
+    /// The server does not know the request.
+    #[error("the server does not know this request (is it an older version?)")]
+    UnknownRequest,
+    /// iceoryx2 refused an operation.
+    #[error("shared-memory transport failed at {what}: {detail}")]
+    Transport {
+        /// What was being done.
+        what: &'static str,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+/// Why [`crate::Client::apply_settings`] failed. Nothing changed on the server.
+#[derive(Debug, thiserror::Error)]
+pub enum ApplySettingsError {
+    /// The settings break a rule.
+    #[error("invalid settings: {0}")]
+    Invalid(SettingsError),
+    /// Synchronous mode is entered by the tick owner, not through settings.
+    #[error("synchronous mode cannot be entered through settings: it is entered by the tick owner (`sim-client tick`), so a world is never left waiting for ticks nobody sends")]
+    SyncNeedsTicker,
+    /// The request itself failed.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}
+
+/// Why [`crate::Client::wait_for_tick`] returned without a snapshot.
+#[derive(Debug, thiserror::Error)]
+pub enum WaitError {
+    /// No new frame within the timeout.
+    #[error("no new frame from world '{world}' within {timeout:?}{}", last_frame.map(|f| format!(" (last frame seen: {f})")).unwrap_or_default())]
+    Timeout {
+        /// The world.
+        world: String,
+        /// How long the client waited.
+        timeout: Duration,
+        /// The last frame this client saw.
+        last_frame: Option<u64>,
+    },
+    /// The server process is gone.
+    #[error("the server of world '{world}' (pid {pid}) has exited")]
+    ServerGone {
+        /// The world.
+        world: String,
+        /// The server's process id.
+        pid: u32,
+    },
+    /// A frame of another protocol version arrived.
+    #[error("received a frame of protocol version {got}; this client speaks {client}")]
+    ProtocolMismatch {
+        /// The frame's version.
+        got: u32,
+        /// This client's version.
+        client: u32,
+    },
+    /// iceoryx2 refused an operation.
+    #[error("shared-memory transport failed at {what}: {detail}")]
+    Transport {
+        /// What was being done.
+        what: &'static str,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+macro_rules! transport_ctor {
+    ($($t:ty),*) => {$(
+        impl $t {
+            pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
+                Self::Transport { what, detail: format!("{error:?}") }
+            }
+        }
+    )*};
+}
+transport_ctor!(ConnectError, RequestError, WaitError);
+
+impl From<SettingsError> for ApplySettingsError {
+    fn from(error: SettingsError) -> Self {
+        Self::Invalid(error)
+    }
+}

@@ -1,0 +1,219 @@
+//! Receiving frame snapshots: in order in synchronous mode, newest-first with a
+//! missed count in asynchronous mode, blocking on the frame-ready event or
+//! spinning.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use shared_types::limits::FRAME_SUBSCRIBER_BUFFER;
+use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
+
+use crate::{process_alive, ConnectError, WaitError, WorldSnapshot};
+
+/// How a client waits for the next frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WaitMode {
+    /// Sleep on the frame-ready event until the server publishes (no CPU
+    /// burnt while waiting). The default.
+    #[default]
+    Block,
+    /// Poll the shared-memory queue in a tight loop: lowest latency, one core
+    /// busy while waiting.
+    Spin,
+}
+
+/// How often a waiting client checks that the server process still lives.
+pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+
+type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
+
+/// A subscription to a world's frames.
+pub(crate) struct FrameStream {
+    subscriber: FrameSubscriber,
+    ready: Listener<ipc::Service>,
+    /// (episode, frame) of the last snapshot handed out.
+    last: Option<(u64, u64)>,
+    pub(crate) mode: WaitMode,
+}
+
+/// Opens a service, retrying while it does not exist yet, until `deadline`.
+pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
+    deadline: Instant,
+    mut open: impl FnMut() -> Result<T, E>,
+    is_missing: impl Fn(&E) -> bool,
+) -> Result<Option<T>, E> {
+    loop {
+        match open() {
+            Ok(port) => return Ok(Some(port)),
+            Err(e) if is_missing(&e) => {
+                if Instant::now() >= deadline {
+                    return Ok(None);
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+impl FrameStream {
+    /// Subscribes `node` to the frames of the world named by `names`.
+    /// `Ok(None)` when the world's services did not appear before `deadline`.
+    pub(crate) fn open(
+        node: &Node<ipc::Service>,
+        names: &ServiceNames,
+        world: &str,
+        deadline: Instant,
+    ) -> Result<Option<Self>, ConnectError> {
+        use iceoryx2::service::builder::event::EventOpenError;
+        use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError;
+        let frames_name = ServiceName::new(&names.frames)
+            .map_err(|e| ConnectError::transport("service name", e))?;
+        let ready_name = ServiceName::new(&names.frame_ready)
+            .map_err(|e| ConnectError::transport("service name", e))?;
+        let frames = open_with_retry(
+            deadline,
+            || {
+                node.service_builder(&frames_name)
+                    .publish_subscribe::<[ActorState]>()
+                    .user_header::<FrameHeader>()
+                    .open()
+            },
+            |e| {
+                matches!(
+                    e,
+                    PublishSubscribeOpenError::DoesNotExist
+                        | PublishSubscribeOpenError::HangsInCreation
+                )
+            },
+        )
+        .map_err(|e| match e {
+            PublishSubscribeOpenError::IncompatibleTypes => ConnectError::ProtocolMismatch {
+                world: world.to_owned(),
+                detail: "its frame layout differs".to_owned(),
+                client: PROTOCOL_VERSION,
+            },
+            e => ConnectError::transport("frames service", e),
+        })?;
+        let ready = open_with_retry(
+            deadline,
+            || node.service_builder(&ready_name).event().open(),
+            |e| matches!(e, EventOpenError::DoesNotExist | EventOpenError::HangsInCreation),
+        )
+        .map_err(|e| ConnectError::transport("frame-ready service", e))?;
+        let (Some(frames), Some(ready)) = (frames, ready) else {
+            return Ok(None);
+        };
+        let subscriber = frames
+            .subscriber_builder()
+            .buffer_size(FRAME_SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| ConnectError::transport("frames subscriber", e))?;
+        let ready = ready
+            .listener_builder()
+            .create()
+            .map_err(|e| ConnectError::transport("frame-ready listener", e))?;
+        Ok(Some(Self {
+            subscriber,
+            ready,
+            last: None,
+            mode: WaitMode::Block,
+        }))
+    }
+
+    /// The last frame handed out.
+    pub(crate) fn last_frame(&self) -> Option<u64> {
+        self.last.map(|(_, frame)| frame)
+    }
+
+    /// The next snapshot already queued, without waiting.
+    ///
+    /// Synchronous-mode frames come one at a time, in order, so a reader that
+    /// drains its queue between ticks sees every frame once. In asynchronous
+    /// mode the queue is drained and only the newest frame is returned, with
+    /// the number of frames skipped in [`WorldSnapshot::missed`].
+    pub(crate) fn try_next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
+        let previous = self.last;
+        let mut newest: Option<WorldSnapshot> = None;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| WaitError::transport("frame receive", e))?
+        {
+            let header = *sample.user_header();
+            if header.protocol_version != PROTOCOL_VERSION {
+                return Err(WaitError::ProtocolMismatch {
+                    got: header.protocol_version,
+                    client: PROTOCOL_VERSION,
+                });
+            }
+            let key = (header.episode, header.timestamp.frame);
+            if self.last.is_some_and(|last| key <= last) {
+                continue; // already seen (history replay on connect)
+            }
+            self.last = Some(key);
+            newest = Some(WorldSnapshot {
+                header,
+                actors: sample.payload().to_vec(),
+                missed: 0,
+            });
+            if header.settings.synchronous_mode != 0 {
+                break; // in order, one at a time
+            }
+        }
+        if let (Some(snapshot), Some((episode, frame))) = (newest.as_mut(), previous) {
+            if snapshot.episode() == episode {
+                snapshot.missed = snapshot.frame() - frame - 1;
+            }
+        }
+        Ok(newest)
+    }
+
+    /// Waits up to `timeout` for the next snapshot. With a `server_pid`,
+    /// checks every 100 ms that the server still runs and ends the wait with
+    /// [`WaitError::ServerGone`] when it does not.
+    pub(crate) fn next(
+        &mut self,
+        timeout: Duration,
+        world: &str,
+        server_pid: Option<u32>,
+    ) -> Result<WorldSnapshot, WaitError> {
+        let start = Instant::now();
+        let deadline = start + timeout;
+        let mut next_liveness_check = start + LIVENESS_PERIOD;
+        loop {
+            if let Some(snapshot) = self.try_next()? {
+                return Ok(snapshot);
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(WaitError::Timeout {
+                    world: world.to_owned(),
+                    timeout,
+                    last_frame: self.last_frame(),
+                });
+            }
+            if now >= next_liveness_check {
+                if let Some(pid) = server_pid.filter(|pid| !process_alive(*pid)) {
+                    return Err(WaitError::ServerGone {
+                        world: world.to_owned(),
+                        pid,
+                    });
+                }
+                next_liveness_check = now + LIVENESS_PERIOD;
+            }
+            match self.mode {
+                WaitMode::Spin => std::hint::spin_loop(),
+                WaitMode::Block => {
+                    let wait = (deadline - now).min(next_liveness_check - now);
+                    match self.ready.timed_wait(|_| {}, wait) {
+                        Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                        Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
+                    }
+                }
+            }
+        }
+    }
+}

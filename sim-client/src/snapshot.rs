@@ -1,0 +1,45 @@
+//! [`WorldSnapshot`]: one frame of the world, as a client holds it.
+
+use shared_types::{ActorState, FrameHeader, Timestamp, WorldSettings};
+
+/// The state of every actor at one frame, copied out of shared memory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldSnapshot {
+    /// The frame header as the server wrote it.
+    pub header: FrameHeader,
+    /// Every actor, in id order.
+    pub actors: Vec<ActorState>,
+    /// Frames published between the previous snapshot this client received
+    /// and this one that it never saw (always 0 for a reader that keeps up).
+    pub missed: u64,
+}
+
+impl WorldSnapshot {
+    /// The frame id.
+    pub fn frame(&self) -> u64 {
+        self.header.timestamp.frame
+    }
+
+    /// When the frame happened.
+    pub fn timestamp(&self) -> &Timestamp {
+        &self.header.timestamp
+    }
+
+    /// The episode (changes when the world is loaded or reloaded).
+    pub fn episode(&self) -> u64 {
+        self.header.episode
+    }
+
+    /// The settings the frame was computed with.
+    pub fn settings(&self) -> WorldSettings {
+        self.header.settings.into()
+    }
+
+    /// The actor with `id`, if it exists in this frame.
+    pub fn find(&self, id: u64) -> Option<&ActorState> {
+        self.actors
+            .binary_search_by_key(&id, |a| a.id)
+            .ok()
+            .map(|i| &self.actors[i])
+    }
+}

@@ -1,0 +1,193 @@
+//! The simulation clock: integer-nanosecond time, fixed and variable steps,
+//! and the physics substep plan of a frame.
+//!
+//! Time is kept as `u64` nanoseconds so that a million frames of 0.1 s land
+//! exactly on 100 000 s; seconds are only computed for display and physics.
+
+use std::time::Instant;
+
+use shared_types::{seconds_to_nanos, WorldSettings, NANOS_PER_SECOND};
+
+/// How one frame's delta is split into physics steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubstepPlan {
+    /// Physics steps to run, 1 to `max_substeps`.
+    pub count: u32,
+    /// Length of each physics step, in seconds (rapier runs in `f32`).
+    pub substep_seconds: f32,
+    /// The frame was longer than `max_substeps * max_substep_delta_time`, so
+    /// its substeps are longer than `max_substep_delta_time`.
+    pub capped: bool,
+}
+
+impl SubstepPlan {
+    /// The plan for a frame of `delta_ns` under `settings`.
+    ///
+    /// With substepping: `n = ceil(dt / max_substep_delta_time)` steps of
+    /// `dt / n`, with `n` capped at `max_substeps` (then `capped` is set).
+    /// Without substepping: one step of `dt`.
+    pub fn new(delta_ns: u64, settings: &WorldSettings) -> Self {
+        let (count, capped) = if settings.substepping {
+            let needed = delta_ns.div_ceil(settings.max_substep_nanos().max(1)).max(1);
+            let max = u64::from(settings.max_substeps.max(1));
+            (needed.min(max) as u32, needed > max)
+        } else {
+            (1, false)
+        };
+        Self {
+            count,
+            substep_seconds: (delta_ns as f64 / f64::from(count) / NANOS_PER_SECOND as f64) as f32,
+            capped,
+        }
+    }
+}
+
+/// Frame id and simulation time of the world.
+#[derive(Debug, Clone)]
+pub struct Clock {
+    frame: u64,
+    elapsed_ns: u64,
+    delta_ns: u64,
+    last_frame_at: Instant,
+}
+
+impl Clock {
+    /// A clock at frame 0, time 0, whose variable steps count from `now`.
+    pub fn new(now: Instant) -> Self {
+        Self {
+            frame: 0,
+            elapsed_ns: 0,
+            delta_ns: 0,
+            last_frame_at: now,
+        }
+    }
+
+    /// The current frame id.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Simulation time of the current frame, in nanoseconds.
+    pub fn elapsed_ns(&self) -> u64 {
+        self.elapsed_ns
+    }
+
+    /// Simulation time between the previous frame and the current one, in
+    /// nanoseconds (0 for frame 0).
+    pub fn delta_ns(&self) -> u64 {
+        self.delta_ns
+    }
+
+    /// When the current frame was computed (wall clock).
+    pub fn last_frame_at(&self) -> Instant {
+        self.last_frame_at
+    }
+
+    /// The delta of the next frame if it were computed at `now`: the fixed
+    /// step, or the wall time since the previous frame (at least 1 ns).
+    pub fn next_delta_ns(&self, settings: &WorldSettings, now: Instant) -> u64 {
+        settings.fixed_delta_nanos().unwrap_or_else(|| {
+            let wall = now.saturating_duration_since(self.last_frame_at);
+            u64::try_from(wall.as_nanos()).unwrap_or(u64::MAX).max(1)
+        })
+    }
+
+    /// Moves to the next frame, `delta_ns` later, computed at `now`.
+    pub fn advance(&mut self, delta_ns: u64, now: Instant) {
+        self.frame += 1;
+        self.elapsed_ns += delta_ns;
+        self.delta_ns = delta_ns;
+        self.last_frame_at = now;
+    }
+}
+
+/// Frames longer than this (below 10 FPS) make physics unreliable.
+pub const LONG_FRAME_NS: u64 = NANOS_PER_SECOND / 10;
+
+/// Substeps longer than this (1/60 s) make physics unreliable.
+pub fn long_substep(plan: &SubstepPlan) -> bool {
+    seconds_to_nanos(f64::from(plan.substep_seconds)) > NANOS_PER_SECOND / 60
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn settings(substepping: bool, max_dt: f64, max_substeps: u32) -> WorldSettings {
+        WorldSettings {
+            substepping,
+            max_substep_delta_time: max_dt,
+            max_substeps,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn substep_count_is_ceil_of_delta_over_max_substep() {
+        let s = settings(true, 0.01, 10);
+        for (delta_ms, expected) in [(1, 1), (10, 1), (11, 2), (25, 3), (50, 5), (99, 10), (100, 10)]
+        {
+            let plan = SubstepPlan::new(delta_ms * 1_000_000, &s);
+            assert_eq!(plan.count, expected, "dt = {delta_ms} ms");
+            assert!(!plan.capped);
+            let expected_dt = delta_ms as f64 / 1000.0 / expected as f64;
+            assert!((f64::from(plan.substep_seconds) - expected_dt).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn substeps_are_capped_at_max_substeps_and_flagged() {
+        let plan = SubstepPlan::new(250_000_000, &settings(true, 0.01, 10));
+        assert_eq!(plan.count, 10);
+        assert!(plan.capped);
+        assert!((plan.substep_seconds - 0.025).abs() < 1e-7);
+        assert!(long_substep(&plan));
+    }
+
+    #[test]
+    fn without_substepping_one_step_covers_the_frame() {
+        let plan = SubstepPlan::new(50_000_000, &settings(false, 0.01, 10));
+        assert_eq!(plan.count, 1);
+        assert!(!plan.capped);
+        assert!((plan.substep_seconds - 0.05).abs() < 1e-9);
+    }
+
+    #[test]
+    fn max_substeps_bounds_follow_settings() {
+        let plan = SubstepPlan::new(40_000_000, &settings(true, 0.001, 16));
+        assert_eq!(plan.count, 16);
+        assert!(plan.capped);
+        let plan = SubstepPlan::new(16_000_000, &settings(true, 0.001, 16));
+        assert_eq!((plan.count, plan.capped), (16, false));
+        let plan = SubstepPlan::new(3_000_000, &settings(true, 0.001, 1));
+        assert_eq!((plan.count, plan.capped), (1, true));
+    }
+
+    #[test]
+    fn fixed_steps_accumulate_exactly() {
+        let start = Instant::now();
+        let mut clock = Clock::new(start);
+        let s = WorldSettings {
+            fixed_delta_seconds: Some(0.1),
+            ..Default::default()
+        };
+        for _ in 0..1_000_000 {
+            let dt = clock.next_delta_ns(&s, start);
+            clock.advance(dt, start);
+        }
+        assert_eq!(clock.frame(), 1_000_000);
+        assert_eq!(clock.elapsed_ns(), 100_000 * NANOS_PER_SECOND);
+    }
+
+    #[test]
+    fn variable_steps_follow_wall_time() {
+        let start = Instant::now();
+        let mut clock = Clock::new(start);
+        let s = WorldSettings::default();
+        let later = start + Duration::from_millis(16);
+        assert_eq!(clock.next_delta_ns(&s, later), 16_000_000);
+        clock.advance(16_000_000, later);
+        assert_eq!(clock.next_delta_ns(&s, later), 1, "never a zero step");
+    }
+}

@@ -1,0 +1,261 @@
+//! Scenes: the initial contents of a world.
+//!
+//! - `default`: ground, a ramp with a sphere rolling down it into a stack of
+//!   boxes, boxes and a capsule falling and tumbling — something visibly moves
+//!   for several seconds.
+//! - `empty`: nothing at all (measures the bus, not the physics).
+//! - `boxes:N`: ground and N boxes dropped in a grid (physics load).
+
+use std::fmt;
+use std::str::FromStr;
+
+use rapier3d::prelude::*;
+use shared_types::ActorKind;
+
+/// The most boxes `boxes:N` accepts.
+pub const MAX_SCENE_BOXES: u32 = 100_000;
+
+/// A scene a world can be loaded from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scene {
+    /// The demo scene.
+    Default,
+    /// No actors.
+    Empty,
+    /// Ground plus this many boxes.
+    Boxes(u32),
+}
+
+/// Why a scene name was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SceneError {
+    /// Not one of the known scenes.
+    #[error("unknown scene '{0}': expected 'default', 'empty' or 'boxes:N'")]
+    Unknown(String),
+    /// `boxes:N` with N not a number in range.
+    #[error("invalid box count in '{0}': N must be a whole number from 1 to {MAX_SCENE_BOXES}")]
+    BoxCount(String),
+}
+
+impl FromStr for Scene {
+    type Err = SceneError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "default" => Ok(Self::Default),
+            "empty" => Ok(Self::Empty),
+            _ => {
+                let count = s
+                    .strip_prefix("boxes:")
+                    .ok_or_else(|| SceneError::Unknown(s.to_owned()))?;
+                match count.parse::<u32>() {
+                    Ok(n) if (1..=MAX_SCENE_BOXES).contains(&n) => Ok(Self::Boxes(n)),
+                    _ => Err(SceneError::BoxCount(s.to_owned())),
+                }
+            }
+        }
+    }
+}
+
+impl fmt::Display for Scene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Default => f.write_str("default"),
+            Self::Empty => f.write_str("empty"),
+            Self::Boxes(n) => write!(f, "boxes:{n}"),
+        }
+    }
+}
+
+/// One body a scene places, before it is given an actor id.
+#[derive(Debug, Clone)]
+pub struct Placement {
+    /// What the actor is.
+    pub kind: ActorKind,
+    /// Half extents (box), radius (sphere), or (radius, half height, radius) (capsule).
+    pub extent: Vector,
+    /// Where the body starts.
+    pub position: Vector,
+    /// Initial orientation, as a scaled rotation axis (radians).
+    pub rotation: Vector,
+    /// Initial linear velocity.
+    pub linear_velocity: Vector,
+    /// Density, kg/m³ (ignored for static bodies).
+    pub density: f32,
+}
+
+impl Placement {
+    fn new(kind: ActorKind, extent: Vector, position: Vector) -> Self {
+        Self {
+            kind,
+            extent,
+            position,
+            rotation: Vector::ZERO,
+            linear_velocity: Vector::ZERO,
+            density: 1.0,
+        }
+    }
+
+    fn rotated(mut self, rotation: Vector) -> Self {
+        self.rotation = rotation;
+        self
+    }
+
+    fn density(mut self, density: f32) -> Self {
+        self.density = density;
+        self
+    }
+
+    /// The rapier body and collider of this placement.
+    pub fn build(&self) -> (RigidBody, Collider) {
+        let body = match self.kind {
+            ActorKind::Static => RigidBodyBuilder::fixed(),
+            _ => RigidBodyBuilder::dynamic(),
+        }
+        .translation(self.position)
+        .rotation(self.rotation)
+        .linvel(self.linear_velocity)
+        .build();
+        let e = self.extent;
+        let collider = match self.kind {
+            ActorKind::Static | ActorKind::Box => ColliderBuilder::cuboid(e.x, e.y, e.z),
+            ActorKind::Sphere => ColliderBuilder::ball(e.x),
+            ActorKind::Capsule => ColliderBuilder::capsule_y(e.y, e.x),
+        }
+        .density(self.density)
+        .friction(0.6)
+        .restitution(0.1)
+        .build();
+        (body, collider)
+    }
+}
+
+fn ground(half_size: f32) -> Placement {
+    Placement::new(
+        ActorKind::Static,
+        Vector::new(half_size, 0.5, half_size),
+        Vector::new(0.0, -0.5, 0.0),
+    )
+}
+
+impl Scene {
+    /// The bodies of this scene, in actor-id order.
+    pub fn placements(&self) -> Vec<Placement> {
+        match *self {
+            Self::Empty => Vec::new(),
+            Self::Default => default_scene(),
+            Self::Boxes(n) => boxes_scene(n),
+        }
+    }
+}
+
+fn default_scene() -> Vec<Placement> {
+    let half = Vector::splat(0.5);
+    let mut scene = vec![
+        ground(50.0),
+        // A ramp falling towards +x: high end near x = -10, low end near x = -2.
+        Placement::new(
+            ActorKind::Static,
+            Vector::new(4.0, 0.2, 1.5),
+            Vector::new(-6.0, 1.9, 0.0),
+        )
+        .rotated(Vector::new(0.0, 0.0, -0.45)),
+        // A heavy sphere that lands on the top of the ramp and rolls down it.
+        Placement::new(
+            ActorKind::Sphere,
+            Vector::splat(0.5),
+            Vector::new(-9.2, 4.8, 0.0),
+        )
+        .density(4.0),
+    ];
+    // A stack of boxes in the sphere's path.
+    scene.extend((0..5).map(|i| {
+        Placement::new(
+            ActorKind::Box,
+            half,
+            Vector::new(5.0, 0.5 + i as f32, 0.0),
+        )
+    }));
+    // Boxes dropped from height, tumbling onto each other.
+    scene.extend((0..6).map(|i| {
+        let i = i as f32;
+        Placement::new(
+            ActorKind::Box,
+            Vector::new(0.4, 0.3, 0.5),
+            Vector::new(9.0 + 0.3 * i, 3.0 + 1.5 * i, -3.0 + 0.2 * i),
+        )
+        .rotated(Vector::new(0.3 * i, 0.2, 0.5))
+    }));
+    // A capsule falling end over end.
+    scene.push(
+        Placement::new(
+            ActorKind::Capsule,
+            Vector::new(0.3, 0.6, 0.3),
+            Vector::new(2.0, 6.0, 3.0),
+        )
+        .rotated(Vector::new(0.9, 0.0, 0.4)),
+    );
+    scene
+}
+
+fn boxes_scene(n: u32) -> Vec<Placement> {
+    let per_row = (f64::from(n).sqrt().ceil() as u32).clamp(1, 40);
+    let per_layer = per_row * per_row;
+    let spacing = 0.7;
+    let offset = (per_row as f32 - 1.0) * spacing / 2.0;
+    let mut scene = vec![ground(20.0 + per_row as f32)];
+    scene.extend((0..n).map(|i| {
+        let layer = i / per_layer;
+        let row = (i % per_layer) / per_row;
+        let col = i % per_row;
+        Placement::new(
+            ActorKind::Box,
+            Vector::splat(0.25),
+            Vector::new(
+                col as f32 * spacing - offset,
+                1.0 + layer as f32 * spacing,
+                row as f32 * spacing - offset,
+            ),
+        )
+        .rotated(Vector::new(0.0, 0.1 * (i % 7) as f32, 0.0))
+    }));
+    scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_names_parse_and_print_back() {
+        for name in ["default", "empty", "boxes:1", "boxes:1000"] {
+            assert_eq!(name.parse::<Scene>().unwrap().to_string(), name);
+        }
+    }
+
+    #[test]
+    fn bad_scene_names_are_refused_with_the_reason() {
+        assert!(matches!("town".parse::<Scene>(), Err(SceneError::Unknown(_))));
+        for bad in ["boxes:", "boxes:0", "boxes:-3", "boxes:x", "boxes:100001"] {
+            assert!(
+                matches!(bad.parse::<Scene>(), Err(SceneError::BoxCount(_))),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn scenes_hold_what_they_say() {
+        assert!(Scene::Empty.placements().is_empty());
+        let boxes = Scene::Boxes(1000).placements();
+        assert_eq!(boxes.len(), 1001);
+        assert_eq!(
+            boxes.iter().filter(|p| p.kind == ActorKind::Box).count(),
+            1000
+        );
+        let default = Scene::Default.placements();
+        assert!(default.iter().any(|p| p.kind == ActorKind::Sphere));
+        assert!(default.iter().any(|p| p.kind == ActorKind::Capsule));
+        assert!(default.iter().filter(|p| p.kind == ActorKind::Static).count() >= 2);
+    }
+}

@@ -1,0 +1,136 @@
+//! The server's iceoryx2 ports for one world: frame publisher, frame-ready
+//! notifier, control server and its wake-up listener.
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::server::Server;
+use iceoryx2::prelude::*;
+use shared_types::limits::{
+    FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, MAX_CONTROL_CLIENTS,
+    MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS, MAX_NODES,
+};
+use shared_types::{ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, WorldName};
+use tracing::info;
+
+use crate::ServerError;
+
+/// The publisher of frame snapshots.
+pub type FramePublisher = Publisher<ipc::Service, [ActorState], FrameHeader>;
+/// The server end of the control service.
+pub type ControlServer = Server<ipc::Service, ControlRequest, (), ControlResponse, ()>;
+
+/// Every port the server holds for its world.
+pub struct ServerPorts {
+    /// The server's iceoryx2 node (named `sim-server`).
+    pub node: Node<ipc::Service>,
+    /// Frame snapshots.
+    pub frames: FramePublisher,
+    /// Notified after every published frame.
+    pub frame_ready: Notifier<ipc::Service>,
+    /// Control requests.
+    pub control: ControlServer,
+    /// Woken by clients after they send a control request.
+    pub control_wake: Listener<ipc::Service>,
+}
+
+fn service_name(name: &str) -> Result<ServiceName, ServerError> {
+    ServiceName::new(name).map_err(|e| ServerError::transport("service name", e))
+}
+
+impl ServerPorts {
+    /// Creates the node, removes what dead processes left behind, and opens
+    /// (or creates) every service of `world`. Fails with
+    /// [`ServerError::AlreadyRunning`] when a live server holds the world.
+    pub fn open(world: &WorldName, initial_actors: usize) -> Result<Self, ServerError> {
+        let names = ServiceNames::new(world);
+        let node_name =
+            NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| ServerError::transport("node", e))?;
+
+        let cleanup = node.try_cleanup_dead_nodes();
+        if cleanup.cleanups > 0 || cleanup.failed_cleanups > 0 {
+            info!(
+                removed = cleanup.cleanups,
+                failed = cleanup.failed_cleanups,
+                "removed resources left by dead processes"
+            );
+        }
+
+        let control_service = node
+            .service_builder(&service_name(&names.control)?)
+            .request_response::<ControlRequest, ControlResponse>()
+            .max_servers(1)
+            .max_clients(MAX_CONTROL_CLIENTS)
+            .max_nodes(MAX_NODES)
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(2)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("control service", e))?;
+        let control = control_service.server_builder().create().map_err(|e| {
+            use iceoryx2::service::port_factory::server::ServerCreateError;
+            match e {
+                ServerCreateError::ExceedsMaxSupportedServers => ServerError::AlreadyRunning {
+                    world: world.to_string(),
+                },
+                e => ServerError::transport("control server", e),
+            }
+        })?;
+
+        let control_wake = node
+            .service_builder(&service_name(&names.control_wake)?)
+            .event()
+            .max_listeners(MAX_EVENT_LISTENERS)
+            .max_notifiers(MAX_CONTROL_CLIENTS)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("control wake-up service", e))?
+            .listener_builder()
+            .create()
+            .map_err(|e| ServerError::transport("control wake-up listener", e))?;
+
+        let frames = node
+            .service_builder(&service_name(&names.frames)?)
+            .publish_subscribe::<[ActorState]>()
+            .user_header::<FrameHeader>()
+            .max_publishers(1)
+            .max_subscribers(MAX_FRAME_SUBSCRIBERS)
+            .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
+            .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
+            .history_size(1)
+            .enable_safe_overflow(true)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("frames service", e))?
+            .publisher_builder()
+            .initial_max_slice_len(initial_actors.max(INITIAL_MAX_ACTORS))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| ServerError::transport("frames publisher", e))?;
+
+        let frame_ready = node
+            .service_builder(&service_name(&names.frame_ready)?)
+            .event()
+            .max_listeners(MAX_EVENT_LISTENERS)
+            .max_notifiers(4)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("frame-ready service", e))?
+            .notifier_builder()
+            .create()
+            .map_err(|e| ServerError::transport("frame-ready notifier", e))?;
+
+        Ok(Self {
+            node,
+            frames,
+            frame_ready,
+            control,
+            control_wake,
+        })
+    }
+}

@@ -1,1 +1,51 @@
-fn main(){}
+//! `simbus-bench`: latency and throughput of simbus, measured side by side
+//! with baselines in one run on one machine.
+//!
+//! ```text
+//! cargo run --release -p simbus-bench -- frames [--samples N] [--json]
+//! ```
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod frames;
+mod stats;
+mod support;
+
+/// simbus benchmarks. Each prints a table (or --json) of figures measured in
+/// one run on this machine; compare ratios, not absolute numbers, across machines.
+#[derive(Debug, Parser)]
+#[command(name = "simbus-bench")]
+struct Args {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Server frames per second (empty, boxes:1000) and wait_for_tick
+    /// latency, blocking and spinning.
+    Frames(frames::FramesArgs),
+    /// Runs a server (used by the benchmarks to start one in its own process).
+    #[command(hide = true)]
+    Serve(sim_server::cli::ServerArgs),
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let result = match args.command {
+        Command::Frames(a) => frames::run(a),
+        Command::Serve(a) => {
+            sim_server::cli::init_logging(a.verbose);
+            sim_server::cli::run(a)
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("simbus-bench: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -33,8 +33,9 @@ impl Timestamp {
 }
 
 fn nanos_to_seconds(nanos: u64) -> f64 {
-    // Split so that large values keep every nanosecond the f64 can hold.
-    (nanos / NANOS_PER_SECOND) as f64 + (nanos % NANOS_PER_SECOND) as f64 * 1e-9
+    // One correctly rounded division: exact to the nanosecond below 2^53 ns
+    // (104 days), and 1_503_000_000 ns prints as 1.503, not 1.5030000000000001.
+    nanos as f64 / NANOS_PER_SECOND as f64
 }
 
 /// The user header of every frame sample.
@@ -159,6 +160,11 @@ mod tests {
         };
         assert_eq!(t.elapsed_seconds(), 100_000.0);
         assert_eq!(t.delta_seconds(), 0.1);
+        let t = Timestamp {
+            elapsed_ns: 1_503_000_000,
+            ..Default::default()
+        };
+        assert_eq!(t.elapsed_seconds().to_string(), "1.503");
     }
 
     #[test]

@@ -109,7 +109,9 @@ pub enum SettingsError {
         value: f64,
     },
     /// A value is negative.
-    #[error("{field} = {value} is negative; it must be positive (0 means variable step where allowed)")]
+    #[error(
+        "{field} = {value} is negative; it must be positive (0 means variable step where allowed)"
+    )]
     Negative {
         /// The setting.
         field: SettingsField,
@@ -493,7 +495,11 @@ mod tests {
             substepping: false,
             ..fixed(0.5)
         };
-        assert_eq!(off.validate(), Ok(()), "the rule binds only with substepping");
+        assert_eq!(
+            off.validate(),
+            Ok(()),
+            "the rule binds only with substepping"
+        );
     }
 
     #[test]

@@ -16,7 +16,9 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use crate::frames::{open_with_retry, FrameStream, WaitMode, LIVENESS_PERIOD};
-use crate::{process_alive, ApplySettingsError, ConnectError, RequestError, WaitError, WorldSnapshot};
+use crate::{
+    process_alive, ApplySettingsError, ConnectError, RequestError, WaitError, WorldSnapshot,
+};
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
 
@@ -100,16 +102,19 @@ impl Client {
             |e| {
                 matches!(
                     e,
-                    RequestResponseOpenError::DoesNotExist | RequestResponseOpenError::HangsInCreation
+                    RequestResponseOpenError::DoesNotExist
+                        | RequestResponseOpenError::HangsInCreation
                 )
             },
         )
         .map_err(|e| match e {
-            RequestResponseOpenError::IncompatibleRequestOrResponseType => ConnectError::ProtocolMismatch {
-                world: world_text.clone(),
-                detail: "its control messages differ".to_owned(),
-                client: PROTOCOL_VERSION,
-            },
+            RequestResponseOpenError::IncompatibleRequestOrResponseType => {
+                ConnectError::ProtocolMismatch {
+                    world: world_text.clone(),
+                    detail: "its control messages differ".to_owned(),
+                    client: PROTOCOL_VERSION,
+                }
+            }
             e => ConnectError::transport("control service", e),
         })?
         .ok_or_else(no_server)?
@@ -120,7 +125,12 @@ impl Client {
         let control_wake = open_with_retry(
             deadline,
             || node.service_builder(&wake_name).event().open(),
-            |e| matches!(e, EventOpenError::DoesNotExist | EventOpenError::HangsInCreation),
+            |e| {
+                matches!(
+                    e,
+                    EventOpenError::DoesNotExist | EventOpenError::HangsInCreation
+                )
+            },
         )
         .map_err(|e| ConnectError::transport("control wake-up service", e))?
         .ok_or_else(no_server)?
@@ -149,7 +159,9 @@ impl Client {
                     detail: "it refused our version".to_owned(),
                     client: PROTOCOL_VERSION,
                 },
-                RequestError::Transport { what, detail } => ConnectError::Transport { what, detail },
+                RequestError::Transport { what, detail } => {
+                    ConnectError::Transport { what, detail }
+                }
                 _ => no_server(),
             })?;
         client.server_pid = hello.report.server_pid;
@@ -179,7 +191,9 @@ impl Client {
 
     /// The world's status: current frame, settings, scene, actors.
     pub fn status(&self) -> Result<StatusReport, RequestError> {
-        Ok(self.request(ControlRequest::new(RequestKind::Status))?.report)
+        Ok(self
+            .request(ControlRequest::new(RequestKind::Status))?
+            .report)
     }
 
     /// The settings in force for the next frame.

@@ -100,7 +100,12 @@ impl FrameStream {
         let ready = open_with_retry(
             deadline,
             || node.service_builder(&ready_name).event().open(),
-            |e| matches!(e, EventOpenError::DoesNotExist | EventOpenError::HangsInCreation),
+            |e| {
+                matches!(
+                    e,
+                    EventOpenError::DoesNotExist | EventOpenError::HangsInCreation
+                )
+            },
         )
         .map_err(|e| ConnectError::transport("frame-ready service", e))?;
         let (Some(frames), Some(ready)) = (frames, ready) else {

@@ -137,7 +137,10 @@ mod tests {
 
     #[test]
     fn dropping_the_guard_stops_and_reaps_the_child() {
-        let child = std::process::Command::new("sleep").arg("30").spawn().unwrap();
+        let child = std::process::Command::new("sleep")
+            .arg("30")
+            .spawn()
+            .unwrap();
         let pid = child.id();
         drop(ChildGuard::new(child, Duration::from_secs(1)));
         assert!(!process_alive(pid));

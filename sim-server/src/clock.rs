@@ -28,7 +28,9 @@ impl SubstepPlan {
     /// Without substepping: one step of `dt`.
     pub fn new(delta_ns: u64, settings: &WorldSettings) -> Self {
         let (count, capped) = if settings.substepping {
-            let needed = delta_ns.div_ceil(settings.max_substep_nanos().max(1)).max(1);
+            let needed = delta_ns
+                .div_ceil(settings.max_substep_nanos().max(1))
+                .max(1);
             let max = u64::from(settings.max_substeps.max(1));
             (needed.min(max) as u32, needed > max)
         } else {
@@ -126,8 +128,15 @@ mod tests {
     #[test]
     fn substep_count_is_ceil_of_delta_over_max_substep() {
         let s = settings(true, 0.01, 10);
-        for (delta_ms, expected) in [(1, 1), (10, 1), (11, 2), (25, 3), (50, 5), (99, 10), (100, 10)]
-        {
+        for (delta_ms, expected) in [
+            (1, 1),
+            (10, 1),
+            (11, 2),
+            (25, 3),
+            (50, 5),
+            (99, 10),
+            (100, 10),
+        ] {
             let plan = SubstepPlan::new(delta_ms * 1_000_000, &s);
             assert_eq!(plan.count, expected, "dt = {delta_ms} ms");
             assert!(!plan.capped);

@@ -9,6 +9,7 @@
 //! - [`world`]: rapier bodies and the actors that name them.
 //! - [`services`]: the world's iceoryx2 ports.
 //! - [`server`]: the loop that answers requests, paces, steps and publishes.
+//! - [`cli`]: the `sim-server` command line.
 //!
 //! ```no_run
 //! use std::sync::atomic::AtomicBool;
@@ -33,6 +34,7 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
+pub mod cli;
 pub mod clock;
 pub mod scene;
 pub mod server;
@@ -57,7 +59,9 @@ pub enum ServerError {
     #[error("invalid settings: {0}")]
     Settings(SettingsError),
     /// Synchronous mode was asked for at start without a ticker.
-    #[error("synchronous mode is entered by the tick owner (sim-client tick), not at server start")]
+    #[error(
+        "synchronous mode is entered by the tick owner (sim-client tick), not at server start"
+    )]
     SyncNeedsTicker,
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]

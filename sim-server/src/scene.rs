@@ -169,13 +169,9 @@ fn default_scene() -> Vec<Placement> {
         .density(4.0),
     ];
     // A stack of boxes in the sphere's path.
-    scene.extend((0..5).map(|i| {
-        Placement::new(
-            ActorKind::Box,
-            half,
-            Vector::new(5.0, 0.5 + i as f32, 0.0),
-        )
-    }));
+    scene.extend(
+        (0..5).map(|i| Placement::new(ActorKind::Box, half, Vector::new(5.0, 0.5 + i as f32, 0.0))),
+    );
     // Boxes dropped from height, tumbling onto each other.
     scene.extend((0..6).map(|i| {
         let i = i as f32;
@@ -199,7 +195,8 @@ fn default_scene() -> Vec<Placement> {
 }
 
 fn boxes_scene(n: u32) -> Vec<Placement> {
-    let per_row = (f64::from(n).sqrt().ceil() as u32).clamp(1, 40);
+    // A cube of boxes: columns that land on each other and topple.
+    let per_row = (f64::from(n).cbrt().ceil() as u32).clamp(1, 40);
     let per_layer = per_row * per_row;
     let spacing = 0.7;
     let offset = (per_row as f32 - 1.0) * spacing / 2.0;
@@ -235,7 +232,10 @@ mod tests {
 
     #[test]
     fn bad_scene_names_are_refused_with_the_reason() {
-        assert!(matches!("town".parse::<Scene>(), Err(SceneError::Unknown(_))));
+        assert!(matches!(
+            "town".parse::<Scene>(),
+            Err(SceneError::Unknown(_))
+        ));
         for bad in ["boxes:", "boxes:0", "boxes:-3", "boxes:x", "boxes:100001"] {
             assert!(
                 matches!(bad.parse::<Scene>(), Err(SceneError::BoxCount(_))),
@@ -256,6 +256,12 @@ mod tests {
         let default = Scene::Default.placements();
         assert!(default.iter().any(|p| p.kind == ActorKind::Sphere));
         assert!(default.iter().any(|p| p.kind == ActorKind::Capsule));
-        assert!(default.iter().filter(|p| p.kind == ActorKind::Static).count() >= 2);
+        assert!(
+            default
+                .iter()
+                .filter(|p| p.kind == ActorKind::Static)
+                .count()
+                >= 2
+        );
     }
 }

@@ -59,6 +59,8 @@ impl RunSummary {
 const CLEANUP_PERIOD: Duration = Duration::from_secs(1);
 /// The longest the server sleeps without looking at requests and signals.
 const MAX_IDLE_WAIT: Duration = Duration::from_millis(50);
+/// Below this, waits are plain sleeps (event timeouts are this coarse).
+const COARSE_WAIT: Duration = Duration::from_millis(5);
 /// A realtime server that falls this far behind stops trying to catch up.
 const MAX_REALTIME_LAG: Duration = Duration::from_millis(250);
 /// The least time between two "physics unreliable" warnings.
@@ -173,16 +175,28 @@ impl Server {
                 Some(due)
             }
             Some(_) => None,
-            None if self.config.max_fps > 0.0 => {
-                Some(self.clock.last_frame_at() + Duration::from_secs_f64(1.0 / self.config.max_fps))
-            }
+            None if self.config.max_fps > 0.0 => Some(
+                self.clock.last_frame_at() + Duration::from_secs_f64(1.0 / self.config.max_fps),
+            ),
             None => None,
         }
     }
 
     /// Sleeps up to `timeout`, waking early for a control request.
+    ///
+    /// The event listener's timeout is rounded up to the kernel's tick (a few
+    /// milliseconds), so the last stretch before a due frame is a plain,
+    /// precise sleep.
     fn idle(&mut self, timeout: Duration) -> Result<(), ServerError> {
-        match self.ports.control_wake.timed_wait(|_| {}, timeout) {
+        if timeout <= COARSE_WAIT {
+            std::thread::sleep(timeout);
+            return Ok(());
+        }
+        match self
+            .ports
+            .control_wake
+            .timed_wait(|_| {}, timeout - COARSE_WAIT)
+        {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
             Err(e) => Err(ServerError::transport("control wake-up wait", e)),
@@ -293,7 +307,9 @@ impl Server {
                 debug!(client_pid = request.client_pid, "client connected");
                 ControlResponse::ok(self.report())
             }
-            Some(RequestKind::GetSettings | RequestKind::Status) => ControlResponse::ok(self.report()),
+            Some(RequestKind::GetSettings | RequestKind::Status) => {
+                ControlResponse::ok(self.report())
+            }
             Some(RequestKind::ApplySettings) => self.apply_settings(request),
             None => ControlResponse::refused(ResponseStatus::UnknownRequest, self.report()),
         }
@@ -352,7 +368,10 @@ impl Server {
         self.last_cleanup = Instant::now();
         let cleanup = self.ports.node.try_cleanup_dead_nodes();
         if cleanup.cleanups > 0 {
-            info!(removed = cleanup.cleanups, "removed resources of dead clients");
+            info!(
+                removed = cleanup.cleanups,
+                "removed resources of dead clients"
+            );
         }
     }
 }

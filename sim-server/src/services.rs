@@ -10,8 +10,10 @@ use shared_types::limits::{
     FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, MAX_CONTROL_CLIENTS,
     MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS, MAX_NODES,
 };
-use shared_types::{ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, WorldName};
-use tracing::info;
+use shared_types::{
+    ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, WorldName,
+};
+use tracing::{info, warn};
 
 use crate::ServerError;
 
@@ -46,6 +48,18 @@ impl ServerPorts {
         let names = ServiceNames::new(world);
         let node_name =
             NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
+        // Creating a node removes what dead processes left behind; count them
+        // first so the log says it happened.
+        let mut dead = 0u32;
+        let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+            if let NodeState::Dead(_) = state {
+                dead += 1;
+            }
+            CallbackProgression::Continue
+        });
+        if dead > 0 {
+            info!("removing resources left by {dead} dead process(es)");
+        }
         let node = NodeBuilder::new()
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
@@ -53,11 +67,10 @@ impl ServerPorts {
             .map_err(|e| ServerError::transport("node", e))?;
 
         let cleanup = node.try_cleanup_dead_nodes();
-        if cleanup.cleanups > 0 || cleanup.failed_cleanups > 0 {
-            info!(
-                removed = cleanup.cleanups,
+        if cleanup.failed_cleanups > 0 {
+            warn!(
                 failed = cleanup.failed_cleanups,
-                "removed resources left by dead processes"
+                "could not remove the resources of some dead processes (permissions?)"
             );
         }
 

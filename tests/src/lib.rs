@@ -1,1 +1,202 @@
+//! Helpers for simbus's multi-process tests: find the real binaries, give
+//! every test its own world, run processes that are always killed and reaped.
 
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+pub use sim_client::process::{process_alive, send_signal, ChildGuard};
+
+/// A binary of the workspace (`sim-server`, `sim-client`), from the same
+/// target directory as the running test (override with `SIMBUS_BIN_DIR`).
+pub fn bin(name: &str) -> PathBuf {
+    let dir = std::env::var_os("SIMBUS_BIN_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            // target/<profile>/deps/<test-binary>
+            let exe = std::env::current_exe().expect("test binary path");
+            exe.parent()
+                .and_then(|deps| deps.parent())
+                .expect("test binary lives in target/<profile>/deps")
+                .to_path_buf()
+        });
+    let path = dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        path.exists(),
+        "{} not found: run the suite with `cargo test --workspace` (it builds the binaries)",
+        path.display()
+    );
+    path
+}
+
+/// A world name no other test (or test run) uses.
+pub fn unique_world(tag: &str) -> String {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    format!("t-{tag}-{}-{n}", std::process::id())
+}
+
+/// A running process whose stdout lines arrive on a channel. Killed and
+/// reaped on drop, whatever the test did.
+pub struct Proc {
+    pub guard: ChildGuard,
+    lines: mpsc::Receiver<String>,
+    stderr: std::sync::Arc<std::sync::Mutex<String>>,
+}
+
+impl Proc {
+    /// Starts `program` with `args`, stdout and stderr captured.
+    pub fn spawn(program: &str, args: &[&str]) -> Self {
+        let mut child = Command::new(bin(program))
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .env(
+                "RUST_LOG",
+                std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
+            )
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {program}: {e}"));
+        let stdout = child.stdout.take().expect("piped stdout");
+        let mut stderr_pipe = child.stderr.take().expect("piped stderr");
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = stderr_pipe.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                sink.lock()
+                    .unwrap()
+                    .push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+        });
+        Self {
+            guard: ChildGuard::new(child, Duration::from_secs(5)),
+            lines,
+            stderr,
+        }
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.guard.id()
+    }
+
+    /// The next stdout line, waiting up to `timeout`.
+    pub fn line(&self, timeout: Duration) -> Option<String> {
+        self.lines.recv_timeout(timeout).ok()
+    }
+
+    /// What the process wrote to stderr so far.
+    pub fn stderr(&self) -> String {
+        self.stderr.lock().unwrap().clone()
+    }
+
+    /// Waits up to `timeout` for the process to exit by itself, then returns
+    /// its status and every stdout line. Panics (after killing it) if it did not.
+    pub fn finish(mut self, timeout: Duration) -> Finished {
+        let status = self.guard.wait_timeout(timeout).expect("waiting for child");
+        let status = match status {
+            Some(status) => status,
+            None => {
+                self.guard.kill().ok();
+                panic!(
+                    "process {} did not exit within {timeout:?}; stderr:\n{}",
+                    self.pid(),
+                    self.stderr()
+                );
+            }
+        };
+        // Give the reader threads a moment to drain the pipes.
+        let mut stdout = Vec::new();
+        while let Ok(line) = self.lines.recv_timeout(Duration::from_millis(500)) {
+            stdout.push(line);
+        }
+        Finished {
+            status,
+            stdout,
+            stderr: self.stderr(),
+        }
+    }
+}
+
+/// A process that has exited.
+#[derive(Debug)]
+pub struct Finished {
+    pub status: ExitStatus,
+    pub stdout: Vec<String>,
+    pub stderr: String,
+}
+
+impl Finished {
+    /// Each stdout line parsed as JSON.
+    pub fn json(&self) -> Vec<serde_json::Value> {
+        self.stdout
+            .iter()
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+            .collect()
+    }
+
+    /// Asserts a zero exit status, showing stderr if not.
+    pub fn assert_success(&self) -> &Self {
+        assert!(
+            self.status.success(),
+            "exit {:?}; stderr:\n{}",
+            self.status,
+            self.stderr
+        );
+        self
+    }
+}
+
+/// Runs `sim-client --world <world> <args>` to completion (at most 60 s).
+pub fn client(world: &str, args: &[&str]) -> Finished {
+    let mut all = vec!["--world", world];
+    all.extend_from_slice(args);
+    Proc::spawn("sim-client", &all).finish(Duration::from_secs(60))
+}
+
+/// A `sim-server` on `world` with `args`, up and answering when returned.
+pub fn server(world: &str, args: &[&str]) -> Proc {
+    let mut all = vec!["--world", world];
+    all.extend_from_slice(args);
+    let proc = Proc::spawn("sim-server", &all);
+    wait_until_up(world, &proc);
+    proc
+}
+
+/// Waits until the server of `world` answers `status` (at most 30 s).
+pub fn wait_until_up(world: &str, proc: &Proc) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if sim_client::Client::connect(world, Duration::from_millis(500)).is_ok() {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline && process_alive(proc.pid()),
+            "server on {world} did not come up; stderr:\n{}",
+            proc.stderr()
+        );
+    }
+}
+
+/// `status --json` of `world`.
+pub fn status(world: &str) -> serde_json::Value {
+    let out = client(world, &["status", "--json"]);
+    out.assert_success();
+    out.json().pop().expect("one status object")
+}

@@ -119,7 +119,11 @@ pub fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Result<(),
     let mut settings = current;
     if args.changes_anything() {
         settings = args.apply_to(current).map_err(refused_or_runtime)?;
-        effective_frame = Some(client.apply_settings(settings).map_err(refused_or_runtime)?);
+        effective_frame = Some(
+            client
+                .apply_settings(settings)
+                .map_err(refused_or_runtime)?,
+        );
     }
     if args.json {
         let mut json = super::settings_json(&settings);

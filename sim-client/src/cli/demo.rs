@@ -157,7 +157,10 @@ pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
         missed += snapshot.missed;
         if let Some(bar) = &bar {
             bar.set_position(seen);
-            bar.set_message(format!("t = {:.2} s", snapshot.timestamp().elapsed_seconds()));
+            bar.set_message(format!(
+                "t = {:.2} s",
+                snapshot.timestamp().elapsed_seconds()
+            ));
         }
         if seen == 1 || snapshot.frame() % frames_per_line == 0 {
             say(summary(&snapshot));

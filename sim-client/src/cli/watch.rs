@@ -42,6 +42,7 @@ pub fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
         "actors": s.actors.len(),
         "physics_substeps": s.header.physics_substeps,
         "synchronous_mode": s.settings().synchronous_mode,
+        "fixed_delta_seconds": s.settings().fixed_delta_seconds,
         "missed": s.missed,
     })
 }

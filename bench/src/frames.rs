@@ -1,0 +1,133 @@
+//! `frames`: server throughput and snapshot delivery latency.
+
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use clap::Args;
+use shared_types::{WorldName, WorldSettings};
+use sim_client::{Client, WaitMode};
+use sim_server::{Scene, Server, ServerConfig};
+
+use crate::stats::{header, Latencies};
+use crate::support::BenchServer;
+
+#[derive(Debug, Args)]
+pub struct FramesArgs {
+    /// Snapshots measured per wait mode.
+    #[arg(long, default_value_t = 5000)]
+    samples: u64,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Frames per second of an unpaced async fixed-step server (0.01 s) with no
+/// subscribers, run in this process.
+fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
+    let config = ServerConfig {
+        world: WorldName::new(&format!("bench-fps-{}", std::process::id()))?,
+        scene,
+        settings: WorldSettings {
+            fixed_delta_seconds: Some(0.01),
+            ..Default::default()
+        },
+        realtime: false,
+        max_fps: 0.0,
+        max_frames: Some(frames),
+    };
+    let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
+    Ok((
+        summary.frames,
+        summary.wall_seconds,
+        summary.frames_per_second(),
+    ))
+}
+
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// Publish → `wait_for_tick` returned, against a 1 kHz realtime server.
+fn delivery_latency(world: &str, mode: WaitMode, samples: u64) -> anyhow::Result<Latencies> {
+    let mut client = Client::connect(world, Duration::from_secs(10))?;
+    client.set_wait_mode(mode);
+    client.wait_for_tick(Duration::from_secs(5))?;
+    let mut latencies = Latencies::new();
+    while latencies.len() < samples {
+        let snapshot = client.wait_for_tick(Duration::from_secs(5))?;
+        let received = now_ns();
+        let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
+        if snapshot.missed == 0 {
+            latencies.record(received.saturating_sub(published));
+        }
+    }
+    Ok(latencies)
+}
+
+pub fn run(args: FramesArgs) -> anyhow::Result<()> {
+    let runs = [
+        (Scene::Empty, 20_000),
+        (Scene::Boxes(1000), 300),
+        (Scene::Boxes(1000), 3_000),
+    ];
+    let fps: Vec<(Scene, (u64, f64, f64))> = runs
+        .into_iter()
+        .map(|(scene, frames)| Ok((scene, server_fps(scene, frames)?)))
+        .collect::<anyhow::Result<_>>()?;
+
+    let server = BenchServer::start(
+        "latency",
+        &[
+            "--scene",
+            "empty",
+            "--fixed-delta-seconds",
+            "0.001",
+            "--realtime",
+        ],
+    )?;
+    let block = delivery_latency(&server.world, WaitMode::Block, args.samples)?;
+    let spin = delivery_latency(&server.world, WaitMode::Spin, args.samples)?;
+
+    if args.json {
+        let fps_json: Vec<_> = fps
+            .iter()
+            .map(|(scene, (frames, wall, fps))| {
+                serde_json::json!({"scene": scene.to_string(), "frames": frames, "wall_seconds": wall, "fps": fps})
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({
+                "server_fps": fps_json,
+                "wait_for_tick": {"block": block.json(), "spin": spin.json()},
+            })
+        );
+        return Ok(());
+    }
+    println!("server throughput: async, fixed step 0.01 s, unpaced, no subscribers");
+    println!(
+        "{:<14} {:>8} {:>10} {:>12}",
+        "scene", "frames", "wall s", "frames/s"
+    );
+    for (scene, (frames, wall, fps)) in &fps {
+        println!(
+            "{:<14} {frames:>8} {wall:>10.3} {fps:>12.0}",
+            scene.to_string()
+        );
+    }
+    println!();
+    println!(
+        "wait_for_tick latency: frame published -> snapshot in the client ({} samples each, 1 kHz server, empty scene)",
+        args.samples
+    );
+    println!("{}", header("wait mode"));
+    println!("{}", block.row("block (frame-ready event)"));
+    println!("{}", spin.row("spin"));
+    println!(
+        "block / spin at p50: {:.1}x",
+        block.quantile_us(0.5) / spin.quantile_us(0.5).max(0.001)
+    );
+    Ok(())
+}

@@ -1,0 +1,48 @@
+//! Latency histograms and their table rows.
+
+use hdrhistogram::Histogram;
+
+/// Latencies in nanoseconds.
+pub struct Latencies(Histogram<u64>);
+
+impl Latencies {
+    pub fn new() -> Self {
+        Self(Histogram::new_with_bounds(1, 60_000_000_000, 3).expect("valid histogram bounds"))
+    }
+
+    pub fn record(&mut self, nanos: u64) {
+        self.0.saturating_record(nanos.max(1));
+    }
+
+    pub fn quantile_us(&self, q: f64) -> f64 {
+        self.0.value_at_quantile(q) as f64 / 1000.0
+    }
+
+    pub fn len(&self) -> u64 {
+        self.0.len()
+    }
+
+    /// p50, p99, p999 in microseconds.
+    pub fn percentiles_us(&self) -> [f64; 3] {
+        [0.5, 0.99, 0.999].map(|q| self.quantile_us(q))
+    }
+
+    pub fn json(&self) -> serde_json::Value {
+        let [p50, p99, p999] = self.percentiles_us();
+        serde_json::json!({ "samples": self.len(), "p50_us": p50, "p99_us": p99, "p999_us": p999 })
+    }
+
+    /// `name  p50  p99  p999` with microsecond columns.
+    pub fn row(&self, name: &str) -> String {
+        let [p50, p99, p999] = self.percentiles_us();
+        format!("{name:<28} {p50:>10.1} {p99:>10.1} {p999:>10.1}")
+    }
+}
+
+/// The header matching [`Latencies::row`].
+pub fn header(first: &str) -> String {
+    format!(
+        "{first:<28} {:>10} {:>10} {:>10}",
+        "p50 µs", "p99 µs", "p999 µs"
+    )
+}

@@ -1,0 +1,36 @@
+//! Starting a server in its own process for a benchmark.
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use anyhow::Context;
+use sim_client::process::ChildGuard;
+use sim_client::Client;
+
+/// A server child process (this binary's hidden `serve`), stopped on drop.
+pub struct BenchServer {
+    pub world: String,
+    _guard: ChildGuard,
+}
+
+impl BenchServer {
+    /// Starts `serve --world <unique> <args>` and waits until it answers.
+    pub fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
+        let world = format!("bench-{tag}-{}", std::process::id());
+        let child = Command::new(std::env::current_exe()?)
+            .arg("serve")
+            .args(["--world", &world])
+            .args(args)
+            .env("RUST_LOG", "warn")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .spawn()
+            .context("starting the benchmark server")?;
+        let guard = ChildGuard::new(child, Duration::from_secs(5));
+        Client::connect(&world, Duration::from_secs(20)).context("benchmark server")?;
+        Ok(Self {
+            world,
+            _guard: guard,
+        })
+    }
+}

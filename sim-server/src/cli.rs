@@ -1,0 +1,146 @@
+//! The `sim-server` command line, as a library so that tools (the benchmark)
+//! can run a server process with exactly the same options.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::Parser;
+use shared_types::{WorldName, WorldSettings};
+use tracing_subscriber::EnvFilter;
+
+use crate::{Scene, Server, ServerConfig};
+
+/// Run a simbus world: step a rapier3d physics scene and publish every frame
+/// over iceoryx2 shared memory.
+///
+/// Starts in asynchronous mode. Without --fixed-delta-seconds / --fps the step
+/// is variable: each frame advances by the wall time since the previous one.
+/// With a fixed step the server runs as fast as it can, or at wall-clock speed
+/// with --realtime. Stop it with Ctrl-C (or SIGTERM).
+#[derive(Debug, Parser)]
+#[command(name = "sim-server", version)]
+pub struct ServerArgs {
+    /// World name: prefixes every service, so worlds never meet.
+    #[arg(long, env = "SIMBUS_WORLD", default_value = "default")]
+    pub world: WorldName,
+
+    /// Scene to load: default, empty or boxes:N.
+    #[arg(long, default_value = "default")]
+    pub scene: Scene,
+
+    /// Fixed time-step in seconds (0 = variable step).
+    #[arg(long, value_name = "S", conflicts_with = "fps")]
+    pub fixed_delta_seconds: Option<f64>,
+
+    /// Fixed time-step as frames per simulated second (dt = 1/N; 0 = variable).
+    #[arg(long, value_name = "N")]
+    pub fps: Option<f64>,
+
+    /// Run each frame as one physics step, however long.
+    #[arg(long)]
+    pub no_substepping: bool,
+
+    /// Longest physics substep in seconds.
+    #[arg(long, value_name = "S", default_value_t = 0.01)]
+    pub max_substep_delta_time: f64,
+
+    /// Most physics substeps per frame (1..=16).
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub max_substeps: u32,
+
+    /// Fixed step: pace frames so simulation time follows wall time.
+    #[arg(long)]
+    pub realtime: bool,
+
+    /// Variable step: compute at most this many frames per second (0 = no limit).
+    #[arg(long, value_name = "HZ", default_value_t = 100.0)]
+    pub max_fps: f64,
+
+    /// Exit after computing N frames.
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<u64>,
+
+    /// Print a JSON summary (frames, wall_seconds, fps) on exit.
+    #[arg(long)]
+    pub json: bool,
+
+    /// More logging (-v debug, -vv trace); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+impl ServerArgs {
+    /// The start settings these options describe, validated.
+    pub fn settings(&self) -> anyhow::Result<WorldSettings> {
+        let fixed_delta_seconds = match (self.fixed_delta_seconds, self.fps) {
+            (_, Some(fps)) => WorldSettings::delta_from_fps(fps)?,
+            (dt, None) => dt,
+        };
+        let settings = WorldSettings {
+            synchronous_mode: false,
+            fixed_delta_seconds,
+            substepping: !self.no_substepping,
+            max_substep_delta_time: self.max_substep_delta_time,
+            max_substeps: self.max_substeps,
+        };
+        settings.validate()?;
+        Ok(settings.normalized())
+    }
+}
+
+/// Logs to stderr through `tracing`: `RUST_LOG` if set, else info (-v debug,
+/// -vv trace); iceoryx2's own log goes through the same subscriber.
+pub fn init_logging(verbose: u8) {
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    let default = match verbose {
+        0 => "info",
+        1 => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+}
+
+/// Runs a server as the options say, until Ctrl-C / SIGTERM or `--max-frames`.
+pub fn run(args: ServerArgs) -> anyhow::Result<()> {
+    if !args.max_fps.is_finite() || args.max_fps < 0.0 {
+        anyhow::bail!(
+            "--max-fps must be a finite number >= 0, got {}",
+            args.max_fps
+        );
+    }
+    let shutdown = Arc::new(AtomicBool::new(false));
+    let flag = shutdown.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("installing the SIGINT/SIGTERM handler")?;
+
+    let config = ServerConfig {
+        world: args.world.clone(),
+        scene: args.scene,
+        settings: args.settings()?,
+        realtime: args.realtime,
+        max_fps: args.max_fps,
+        max_frames: args.max_frames,
+    };
+    let mut server = Server::start(config)?;
+    let summary = server.run(&shutdown)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "world": args.world.as_str(),
+                "scene": args.scene.to_string(),
+                "frames": summary.frames,
+                "wall_seconds": summary.wall_seconds,
+                "elapsed_seconds": summary.elapsed_seconds,
+                "fps": summary.frames_per_second(),
+            })
+        );
+    }
+    Ok(())
+}

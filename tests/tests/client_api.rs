@@ -1,0 +1,85 @@
+//! The client library against a real server: `wait_for_tick` blocking and
+//! spinning, `on_tick` / `remove_on_tick`, and a clear error when the server
+//! dies while a client waits.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use sim_client::{Client, WaitError, WaitMode};
+use simbus_tests::{server, unique_world};
+
+#[test]
+fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
+    let world = unique_world("wait");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
+    for mode in [WaitMode::Block, WaitMode::Spin] {
+        client.set_wait_mode(mode);
+        let mut last = client.wait_for_tick(Duration::from_secs(5)).unwrap();
+        for _ in 0..20 {
+            let next = client.wait_for_tick(Duration::from_secs(5)).unwrap();
+            assert_eq!(next.frame(), last.frame() + 1 + next.missed, "{mode:?}");
+            assert_eq!(next.actors.len(), 15);
+            last = next;
+        }
+    }
+}
+
+#[test]
+fn on_tick_callbacks_see_every_frame_until_removed() {
+    let world = unique_world("on-tick");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
+    let frames = Arc::new(Mutex::new(Vec::new()));
+    let calls = Arc::new(AtomicU64::new(0));
+    let seen = frames.clone();
+    let id = client
+        .on_tick(move |s| seen.lock().unwrap().push(s.frame()))
+        .unwrap();
+    let counter = calls.clone();
+    let other = client
+        .on_tick(move |_| {
+            counter.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+    while frames.lock().unwrap().len() < 30 {
+        client.wait_for_tick(Duration::from_secs(5)).unwrap();
+    }
+    assert!(client.remove_on_tick(id));
+    assert!(!client.remove_on_tick(id), "removing twice says so");
+    let count = frames.lock().unwrap().len();
+    for _ in 0..10 {
+        client.wait_for_tick(Duration::from_secs(5)).unwrap();
+    }
+    let frames = frames.lock().unwrap().clone();
+    assert!(frames.len() <= count + 1, "no calls after removal");
+    assert!(
+        frames.windows(2).all(|w| w[1] > w[0]),
+        "in order: {frames:?}"
+    );
+    assert!(
+        calls.load(Ordering::Relaxed) >= 30,
+        "the other callback still runs"
+    );
+    assert!(client.remove_on_tick(other));
+}
+
+#[test]
+fn a_server_that_dies_ends_the_wait_with_a_clear_error() {
+    let world = unique_world("dies");
+    let mut server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
+    client.wait_for_tick(Duration::from_secs(5)).unwrap();
+    server.guard.kill().unwrap();
+    match client.wait_for_tick(Duration::from_secs(30)) {
+        Err(WaitError::ServerGone { pid, .. }) => assert_eq!(pid, server.pid()),
+        // Frames published just before the kill may still be queued.
+        Ok(_) => assert!(matches!(
+            (0..100).find_map(|_| client.wait_for_tick(Duration::from_secs(30)).err()),
+            Some(WaitError::ServerGone { .. })
+        )),
+        Err(e) => panic!("expected ServerGone, got {e}"),
+    }
+    assert!(client.status().is_err());
+}

@@ -1,0 +1,129 @@
+//! Process lifecycle: no server is a clear error within the timeout; a server
+//! killed with SIGKILL is replaced cleanly on the same world; a second live
+//! server on a world is refused; two worlds run side by side unaware of each
+//! other.
+
+use std::time::{Duration, Instant};
+
+use simbus_tests::{client, server, status, unique_world, Proc};
+
+#[test]
+fn a_client_without_a_server_fails_clearly_within_its_timeout() {
+    let world = unique_world("nobody");
+    let start = Instant::now();
+    let out = client(&world, &["--timeout", "1", "status"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        out.stderr.contains(&format!(
+            "no simbus server answered on world '{world}' within 1s"
+        )),
+        "{}",
+        out.stderr
+    );
+    assert!(
+        start.elapsed() < Duration::from_secs(30),
+        "the timeout bounds the wait"
+    );
+
+    let start = Instant::now();
+    let out = client(&world, &["--timeout", "1", "watch", "--frames", "1"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        out.stderr.contains("no simbus server answered"),
+        "{}",
+        out.stderr
+    );
+    assert!(start.elapsed() < Duration::from_secs(30));
+}
+
+#[test]
+fn a_server_killed_with_sigkill_is_replaced_cleanly_on_the_same_world() {
+    let world = unique_world("restart");
+    let mut first = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let frame_before = status(&world)["frame"].as_u64().unwrap();
+    assert!(frame_before < 1000);
+    first.guard.kill().unwrap();
+
+    // A client of the dead server learns it is gone instead of hanging.
+    let out = client(&world, &["--timeout", "2", "status"]);
+    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
+
+    let second = server(
+        &world,
+        &["--fixed-delta-seconds", "0.02", "--scene", "empty"],
+    );
+    let now = status(&world);
+    assert_eq!(now["server_pid"].as_u64(), Some(u64::from(second.pid())));
+    assert_eq!(now["scene"], "empty");
+    assert_eq!(now["fixed_delta_seconds"].as_f64(), Some(0.02));
+    let out = client(&world, &["watch", "--frames", "3", "--json"]);
+    out.assert_success();
+    assert_eq!(out.json().len(), 3);
+}
+
+#[test]
+fn a_second_server_on_a_live_world_is_refused() {
+    let world = unique_world("two-servers");
+    let first = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let second = Proc::spawn("sim-server", &["--world", &world]).finish(Duration::from_secs(30));
+    assert!(!second.status.success());
+    assert!(
+        second
+            .stderr
+            .contains(&format!("world '{world}' already has a running server")),
+        "{}",
+        second.stderr
+    );
+    assert_eq!(
+        status(&world)["server_pid"].as_u64(),
+        Some(u64::from(first.pid())),
+        "the first server still owns the world"
+    );
+}
+
+#[test]
+fn two_worlds_run_side_by_side_without_seeing_each_other() {
+    let (a, b) = (unique_world("side-a"), unique_world("side-b"));
+    let server_a = server(
+        &a,
+        &[
+            "--scene",
+            "empty",
+            "--fixed-delta-seconds",
+            "0.01",
+            "--realtime",
+        ],
+    );
+    let server_b = server(
+        &b,
+        &[
+            "--scene",
+            "boxes:20",
+            "--fixed-delta-seconds",
+            "0.02",
+            "--realtime",
+        ],
+    );
+
+    let (status_a, status_b) = (status(&a), status(&b));
+    assert_eq!(
+        status_a["server_pid"].as_u64(),
+        Some(u64::from(server_a.pid()))
+    );
+    assert_eq!(
+        status_b["server_pid"].as_u64(),
+        Some(u64::from(server_b.pid()))
+    );
+    assert_eq!(status_a["actors"], 0);
+    assert_eq!(status_b["actors"], 21);
+
+    client(&a, &["config", "--delta-seconds", "0.03"]).assert_success();
+    assert_eq!(status(&a)["fixed_delta_seconds"].as_f64(), Some(0.03));
+    assert_eq!(status(&b)["fixed_delta_seconds"].as_f64(), Some(0.02));
+
+    for (world, actors) in [(&a, 0), (&b, 21)] {
+        let out = client(world, &["watch", "--frames", "5", "--json"]);
+        out.assert_success();
+        assert!(out.json().iter().all(|f| f["actors"] == actors));
+    }
+}

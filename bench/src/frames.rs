@@ -34,6 +34,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         realtime: false,
         max_fps: 0.0,
         max_frames: Some(frames),
+        on_ticker_loss: Default::default(),
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

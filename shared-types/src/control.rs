@@ -3,7 +3,7 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
-use crate::{SettingsError, WireSettings, WorldSettings, PROTOCOL_VERSION};
+use crate::{SettingsError, TickerInfo, WireSettings, WorldSettings, PROTOCOL_VERSION};
 
 /// What a [`ControlRequest`] asks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,6 +46,8 @@ pub enum ResponseStatus {
     UnknownRequest = 3,
     /// Synchronous mode is entered by the tick owner, not by settings alone.
     SyncNeedsTicker = 4,
+    /// Only the tick owner may do this (or the sender is not the owner).
+    NotOwner = 5,
 }
 
 impl ResponseStatus {
@@ -57,6 +59,7 @@ impl ResponseStatus {
             2 => Self::InvalidSettings,
             3 => Self::UnknownRequest,
             4 => Self::SyncNeedsTicker,
+            5 => Self::NotOwner,
             _ => return None,
         })
     }
@@ -155,6 +158,8 @@ pub struct StatusReport {
     pub settings: WireSettings,
     /// The scene the world was loaded from.
     pub scene: FixedText,
+    /// Who holds tick ownership.
+    pub ticker: TickerInfo,
 }
 
 /// The server's answer to one [`ControlRequest`].
@@ -254,6 +259,7 @@ mod tests {
             ResponseStatus::InvalidSettings,
             ResponseStatus::UnknownRequest,
             ResponseStatus::SyncNeedsTicker,
+            ResponseStatus::NotOwner,
         ] {
             assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
         }

@@ -33,6 +33,7 @@ mod control;
 mod frame;
 mod names;
 mod settings;
+mod tick;
 
 pub use control::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, StatusReport,
@@ -43,6 +44,7 @@ pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
     MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
 };
+pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
 
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a

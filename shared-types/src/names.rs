@@ -97,6 +97,9 @@ pub struct ServiceNames {
     /// Event: clients notify it after sending a control request, so a server
     /// that is idle (paced, or waiting) answers at once.
     pub control_wake: String,
+    /// Request-response admitting one client: [`crate::TickRequest`] →
+    /// [`crate::TickResponse`]. Holding its client port is tick ownership.
+    pub tick: String,
 }
 
 impl ServiceNames {
@@ -108,6 +111,7 @@ impl ServiceNames {
             frame_ready: format!("{prefix}/frames/ready"),
             control: format!("{prefix}/control"),
             control_wake: format!("{prefix}/control/wake"),
+            tick: format!("{prefix}/tick"),
         }
     }
 }
@@ -145,6 +149,7 @@ mod tests {
             (&a.control, &b.control),
             (&a.frame_ready, &b.frame_ready),
             (&a.control_wake, &b.control_wake),
+            (&a.tick, &b.tick),
         ] {
             assert_ne!(x, y);
         }

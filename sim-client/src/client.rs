@@ -15,9 +15,10 @@ use shared_types::{
 };
 use tracing::{debug, warn};
 
-use crate::frames::{open_with_retry, FrameStream, WaitMode, LIVENESS_PERIOD};
+use crate::frames::{open_with_retry, FrameStream, WaitMode};
+use crate::rpc::{await_response, Wait};
 use crate::{
-    process_alive, ApplySettingsError, ConnectError, RequestError, WaitError, WorldSnapshot,
+    ApplySettingsError, ConnectError, RequestError, TickError, Ticker, WaitError, WorldSnapshot,
 };
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
@@ -61,6 +62,23 @@ pub struct Client {
     server_pid: u32,
     request_timeout: Duration,
     dispatcher: Option<TickDispatcher>,
+}
+
+/// This executable's name, as a node name (letters, digits, `-`, `_`).
+fn default_ticker_name() -> String {
+    let name: String = std::env::current_exe()
+        .ok()
+        .and_then(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "ticker".to_owned())
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_'))
+        .take(48)
+        .collect();
+    if name.is_empty() {
+        "ticker".to_owned()
+    } else {
+        name
+    }
 }
 
 fn client_node() -> Result<Node<ipc::Service>, ConnectError> {
@@ -343,46 +361,50 @@ impl Client {
         if let Err(e) = self.control_wake.notify() {
             debug!("control wake-up not delivered: {e:?}");
         }
-        let start = Instant::now();
-        let mut backoff = Duration::from_micros(10);
-        let mut next_liveness_check = start + LIVENESS_PERIOD;
-        loop {
-            if let Some(response) = pending
-                .receive()
-                .map_err(|e| RequestError::transport("control receive", e))?
-            {
-                let response = *response.payload();
-                if response.protocol_version != PROTOCOL_VERSION
-                    || response.status == ResponseStatus::ProtocolMismatch as u32
-                {
-                    return Err(RequestError::ProtocolMismatch {
-                        client: PROTOCOL_VERSION,
-                    });
-                }
-                if response.status == ResponseStatus::UnknownRequest as u32 {
-                    return Err(RequestError::UnknownRequest);
-                }
-                return Ok(response);
-            }
-            let now = Instant::now();
-            if now.duration_since(start) >= timeout {
-                return Err(RequestError::Timeout {
-                    world: self.world.to_string(),
-                    timeout,
-                });
-            }
-            if self.server_pid != 0 && now >= next_liveness_check {
-                if !process_alive(self.server_pid) {
-                    return Err(RequestError::ServerGone {
-                        world: self.world.to_string(),
-                        pid: self.server_pid,
-                    });
-                }
-                next_liveness_check = now + LIVENESS_PERIOD;
-            }
-            std::thread::sleep(backoff.min(timeout.saturating_sub(now.duration_since(start))));
-            backoff = (backoff * 2).min(Duration::from_millis(1));
+        let response = await_response(
+            &pending,
+            timeout,
+            self.world.as_str(),
+            self.server_pid,
+            Wait::Backoff,
+        )?;
+        if response.protocol_version != PROTOCOL_VERSION
+            || response.status == ResponseStatus::ProtocolMismatch as u32
+        {
+            return Err(RequestError::ProtocolMismatch {
+                client: PROTOCOL_VERSION,
+            });
         }
+        if response.status == ResponseStatus::UnknownRequest as u32 {
+            return Err(RequestError::UnknownRequest);
+        }
+        Ok(response)
+    }
+
+    /// Claims tick ownership of the world. Fails with
+    /// [`TickError::NotOwner`], naming the owner, while another client ticks.
+    pub fn claim_ticker(&self) -> Result<Ticker, TickError> {
+        self.claim_ticker_as(&default_ticker_name())
+    }
+
+    /// [`Client::claim_ticker`] with the node name others see as the owner.
+    pub fn claim_ticker_as(&self, node_name: &str) -> Result<Ticker, TickError> {
+        Ticker::claim(
+            &self.world,
+            self.server_pid,
+            node_name,
+            self.request_timeout,
+            || {
+                // The owner may be registering right now: ask a few times.
+                (0..20).find_map(|_| {
+                    let owner = self.status().ok().and_then(|r| r.ticker.active());
+                    if owner.is_none() {
+                        std::thread::sleep(Duration::from_millis(10));
+                    }
+                    owner
+                })
+            },
+        )
     }
 
     /// The iceoryx2 node of this client (for tools that open more ports).

@@ -85,6 +85,9 @@ pub enum ApplySettingsError {
     /// Synchronous mode is entered by the tick owner, not through settings.
     #[error("synchronous mode cannot be entered through settings: it is entered by the tick owner (`sim-client tick`), so a world is never left waiting for ticks nobody sends")]
     SyncNeedsTicker,
+    /// Only the ticker may apply settings through its tick service.
+    #[error("this client is no longer the ticker")]
+    NotTicker,
     /// The request itself failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -143,5 +146,27 @@ transport_ctor!(ConnectError, RequestError, WaitError);
 impl From<SettingsError> for ApplySettingsError {
     fn from(error: SettingsError) -> Self {
         Self::Invalid(error)
+    }
+}
+
+/// Why claiming tick ownership or ticking failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TickError {
+    /// Another client is the ticker (or the server says this one is not).
+    #[error("world '{world}' already has a ticker: {}; only one client may tick", owner.map_or_else(|| "another process holds the tick service".to_owned(), |o| o.to_string()))]
+    NotOwner {
+        /// The world.
+        world: String,
+        /// The current owner, when the server could name it.
+        owner: Option<shared_types::TickerInfo>,
+    },
+    /// The request failed (timeout, server gone, protocol).
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}
+
+impl TickError {
+    pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
+        Self::Request(RequestError::transport(what, error))
     }
 }

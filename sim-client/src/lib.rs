@@ -34,10 +34,13 @@ mod client;
 mod error;
 mod frames;
 pub mod process;
+mod rpc;
 mod snapshot;
+mod ticker;
 
 pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
-pub use error::{ApplySettingsError, ConnectError, RequestError, WaitError};
+pub use error::{ApplySettingsError, ConnectError, RequestError, TickError, WaitError};
 pub use frames::WaitMode;
 pub use process::process_alive;
 pub use snapshot::WorldSnapshot;
+pub use ticker::Ticker;

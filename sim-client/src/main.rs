@@ -40,6 +40,8 @@ enum Command {
     Status(cli::status::StatusArgs),
     /// Change the time settings, like CARLA's config.py.
     Config(cli::config::ConfigArgs),
+    /// Be the ticker: synchronous mode with a fixed step, one frame per tick.
+    Tick(cli::tick::TickArgs),
     /// Start a server on the default scene, watch it, and print a live summary.
     Demo(cli::demo::DemoArgs),
 }
@@ -86,6 +88,7 @@ fn main() -> ExitCode {
         Command::Watch(a) => cli::watch::run(&args.world, timeout, a),
         Command::Status(a) => cli::status::run(&args.world, timeout, a),
         Command::Config(a) => cli::config::run(&args.world, timeout, a),
+        Command::Tick(a) => cli::tick::run(&args.world, timeout, a),
         Command::Demo(a) => cli::demo::run(timeout, a),
     };
     match result {

@@ -9,7 +9,7 @@ use clap::Parser;
 use shared_types::{WorldName, WorldSettings};
 use tracing_subscriber::EnvFilter;
 
-use crate::{Scene, Server, ServerConfig};
+use crate::{OnTickerLoss, Scene, Server, ServerConfig};
 
 /// Run a simbus world: step a rapier3d physics scene and publish every frame
 /// over iceoryx2 shared memory.
@@ -56,6 +56,11 @@ pub struct ServerArgs {
     /// Variable step: compute at most this many frames per second (0 = no limit).
     #[arg(long, value_name = "HZ", default_value_t = 100.0)]
     pub max_fps: f64,
+
+    /// When the ticker dies in synchronous mode: wait for a new ticker, or
+    /// fall back to asynchronous mode.
+    #[arg(long, value_enum, default_value_t = OnTickerLoss::Wait)]
+    pub on_ticker_loss: OnTickerLoss,
 
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
@@ -126,6 +131,7 @@ pub fn run(args: ServerArgs) -> anyhow::Result<()> {
         realtime: args.realtime,
         max_fps: args.max_fps,
         max_frames: args.max_frames,
+        on_ticker_loss: args.on_ticker_loss,
     };
     let mut server = Server::start(config)?;
     let summary = server.run(&shutdown)?;

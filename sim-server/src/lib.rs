@@ -8,6 +8,7 @@
 //! - [`scene`]: the initial contents of a world (`default`, `empty`, `boxes:N`).
 //! - [`world`]: rapier bodies and the actors that name them.
 //! - [`services`]: the world's iceoryx2 ports.
+//! - [`ticker`]: tick ownership and its loss.
 //! - [`server`]: the loop that answers requests, paces, steps and publishes.
 //! - [`cli`]: the `sim-server` command line.
 //!
@@ -24,6 +25,7 @@
 //!     realtime: true,
 //!     max_fps: 0.0,
 //!     max_frames: Some(100),
+//!     on_ticker_loss: Default::default(),
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());
@@ -39,10 +41,12 @@ pub mod clock;
 pub mod scene;
 pub mod server;
 pub mod services;
+pub mod ticker;
 pub mod world;
 
 pub use scene::{Scene, SceneError};
 pub use server::{RunSummary, Server, ServerConfig};
+pub use ticker::OnTickerLoss;
 
 use shared_types::SettingsError;
 

@@ -1,18 +1,25 @@
-//! The server loop: answer control requests, pace, step, publish.
+//! The server loop: answer control and tick requests, pace (async) or wait
+//! for the ticker (sync), step, publish.
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::listener::ListenerWaitError;
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::ipc;
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, FrameHeader, RequestKind, ResponseStatus,
-    StatusReport, Timestamp, WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
+    SettingsError, StatusReport, TickRequest, TickRequestKind, TickResponse, Timestamp,
+    WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 
 use crate::clock::{long_substep, Clock, SubstepPlan, LONG_FRAME_NS};
 use crate::scene::Scene;
 use crate::services::ServerPorts;
+use crate::ticker::{node_process_alive, OnTickerLoss, Owner, TickOwnership};
 use crate::world::World;
 use crate::ServerError;
 
@@ -31,6 +38,8 @@ pub struct ServerConfig {
     pub max_fps: f64,
     /// Stop after computing this many frames.
     pub max_frames: Option<u64>,
+    /// What to do when the ticker dies in synchronous mode.
+    pub on_ticker_loss: OnTickerLoss,
 }
 
 /// What a finished run did.
@@ -65,6 +74,17 @@ const COARSE_WAIT: Duration = Duration::from_millis(5);
 const MAX_REALTIME_LAG: Duration = Duration::from_millis(250);
 /// The least time between two "physics unreliable" warnings.
 const WARN_PERIOD: Duration = Duration::from_secs(5);
+/// How often the server checks that the ticker's process still lives.
+const TICKER_LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+
+/// A tick request waiting for its frame.
+type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
+
+/// Why a settings change was refused.
+enum Refusal {
+    Invalid(SettingsError),
+    Status(ResponseStatus),
+}
 
 /// A running world: physics, clock, settings and the ports that publish them.
 pub struct Server {
@@ -78,6 +98,9 @@ pub struct Server {
     pace_anchor: Option<(Instant, u64)>,
     last_cleanup: Instant,
     last_warning: Option<Instant>,
+    ownership: TickOwnership,
+    pending_ticks: VecDeque<PendingTick>,
+    last_liveness_check: Instant,
 }
 
 fn platform_timestamp() -> f64 {
@@ -110,9 +133,13 @@ impl Server {
             pace_anchor: None,
             last_cleanup: now,
             last_warning: None,
+            ownership: TickOwnership::default(),
+            pending_ticks: VecDeque::new(),
+            last_liveness_check: now,
             config,
         };
         server.publish(0, 0)?;
+        server.notify_frame()?;
         info!(
             world = %server.config.world,
             scene = %server.config.scene,
@@ -136,11 +163,22 @@ impl Server {
                 break;
             }
             self.handle_control()?;
+            self.handle_ticks()?;
             self.housekeeping();
             let now = Instant::now();
+            if self.settings.synchronous_mode {
+                // Synchronous: one frame per tick, nothing without one.
+                if self.pending_ticks.is_empty() {
+                    self.idle(MAX_IDLE_WAIT)?;
+                } else {
+                    self.step_frame(now, 1)?;
+                }
+                continue;
+            }
             match self.next_frame_at(now) {
                 Some(at) if at > now => self.idle((at - now).min(MAX_IDLE_WAIT))?,
-                _ => self.step_frame(now)?,
+                // Asynchronous: a tick just waits for the next frame.
+                _ => self.step_frame(now, self.pending_ticks.len())?,
             }
         }
         let summary = RunSummary {
@@ -188,6 +226,12 @@ impl Server {
     /// milliseconds), so the last stretch before a due frame is a plain,
     /// precise sleep.
     fn idle(&mut self, timeout: Duration) -> Result<(), ServerError> {
+        // A subscriber that joined since the last frame gets the current frame
+        // (the service's history) now, not only when the next frame is sent —
+        // in synchronous mode that may be a long wait.
+        if let Err(e) = self.ports.frames.update_connections() {
+            debug!("connecting new subscribers: {e}");
+        }
         if timeout <= COARSE_WAIT {
             std::thread::sleep(timeout);
             return Ok(());
@@ -203,7 +247,9 @@ impl Server {
         }
     }
 
-    fn step_frame(&mut self, now: Instant) -> Result<(), ServerError> {
+    /// Computes and publishes the next frame, answers the first `ticks`
+    /// pending tick requests with it, then wakes waiting clients.
+    fn step_frame(&mut self, now: Instant, ticks: usize) -> Result<(), ServerError> {
         let delta_ns = self.clock.next_delta_ns(&self.settings, now);
         let plan = SubstepPlan::new(delta_ns, &self.settings);
         let frame = self.clock.frame() + 1;
@@ -218,7 +264,22 @@ impl Server {
             } else {
                 0
             },
-        )
+        )?;
+        for tick in self
+            .pending_ticks
+            .drain(..ticks.min(self.pending_ticks.len()))
+        {
+            let response = TickResponse::new(
+                ResponseStatus::Ok,
+                self.clock.frame(),
+                self.clock.elapsed_ns(),
+                self.ownership.info(),
+            );
+            if let Err(e) = tick.send_copy(response) {
+                debug!("tick response not delivered (ticker gone?): {e:?}");
+            }
+        }
+        self.notify_frame()
     }
 
     fn warn_if_unreliable(&mut self, delta_ns: u64, plan: &SubstepPlan, now: Instant) {
@@ -241,8 +302,7 @@ impl Server {
         );
     }
 
-    /// Writes the current frame straight into loaned shared memory and wakes
-    /// waiting clients.
+    /// Writes the current frame straight into loaned shared memory and sends it.
     fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), ServerError> {
         let count = self.world.actor_count();
         let mut sample = self
@@ -269,6 +329,11 @@ impl Server {
         sample
             .send()
             .map_err(|e| ServerError::transport("frame send", e))?;
+        Ok(())
+    }
+
+    /// Wakes every client blocked on the frame-ready event.
+    fn notify_frame(&self) -> Result<(), ServerError> {
         self.ports
             .frame_ready
             .notify()
@@ -316,25 +381,50 @@ impl Server {
     }
 
     fn apply_settings(&mut self, request: &ControlRequest) -> ControlResponse {
-        let settings = WorldSettings::from(request.settings).normalized();
-        if let Err(error) = settings.validate() {
-            info!(client_pid = request.client_pid, "refused settings: {error}");
-            return ControlResponse::invalid_settings(&error, self.report());
+        let settings = WorldSettings::from(request.settings);
+        match self.change_settings(settings, false, request.client_pid) {
+            Ok(effective_frame) => ControlResponse {
+                effective_frame,
+                ..ControlResponse::ok(self.report())
+            },
+            Err(Refusal::Invalid(error)) => {
+                ControlResponse::invalid_settings(&error, self.report())
+            }
+            Err(Refusal::Status(status)) => ControlResponse::refused(status, self.report()),
         }
-        if settings.synchronous_mode {
+    }
+
+    /// Validates and applies `settings`; returns the first frame computed
+    /// with them. Only the ticker may enter synchronous mode; anyone may keep
+    /// it or leave it.
+    fn change_settings(
+        &mut self,
+        settings: WorldSettings,
+        from_ticker: bool,
+        pid: u32,
+    ) -> Result<u64, Refusal> {
+        let settings = settings.normalized();
+        if let Err(error) = settings.validate() {
+            info!(pid, "refused settings: {error}");
+            return Err(Refusal::Invalid(error));
+        }
+        if settings.synchronous_mode && !self.settings.synchronous_mode && !from_ticker {
             info!(
-                client_pid = request.client_pid,
+                pid,
                 "refused settings: synchronous mode is entered by the tick owner"
             );
-            return ControlResponse::refused(ResponseStatus::SyncNeedsTicker, self.report());
+            return Err(Refusal::Status(ResponseStatus::SyncNeedsTicker));
         }
         for warning in settings.warnings() {
             warn!("{warning}");
         }
+        if settings.synchronous_mode && settings.fixed_delta_seconds.is_none() {
+            warn!("synchronous mode with a variable step: each frame's dt is the time the ticker took; physics is unreliable (set a fixed step)");
+        }
         let effective_frame = self.clock.frame() + 1;
         if settings != self.settings {
             info!(
-                client_pid = request.client_pid,
+                pid,
                 effective_frame,
                 "settings changed: {}",
                 describe(&settings)
@@ -342,9 +432,134 @@ impl Server {
             self.settings = settings;
             self.pace_anchor = None;
         }
-        ControlResponse {
-            effective_frame,
-            ..ControlResponse::ok(self.report())
+        Ok(effective_frame)
+    }
+
+    /// Answers every pending request of the ticker; ticks are queued for
+    /// the frame loop.
+    fn handle_ticks(&mut self) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .ports
+            .tick
+            .receive()
+            .map_err(|e| ServerError::transport("tick receive", e))?
+        {
+            let payload = *request.payload();
+            let origin = request.origin();
+            let respond = |server: &Self, status: ResponseStatus| {
+                TickResponse::new(
+                    status,
+                    server.clock.frame(),
+                    server.clock.elapsed_ns(),
+                    server.ownership.info(),
+                )
+            };
+            let response = if payload.protocol_version != PROTOCOL_VERSION {
+                respond(self, ResponseStatus::ProtocolMismatch)
+            } else {
+                match TickRequestKind::from_u32(payload.kind) {
+                    Some(TickRequestKind::Claim) => {
+                        let candidate = Owner {
+                            client: origin,
+                            pid: payload.pid,
+                            node_name: payload.node_name.to_string_lossy(),
+                            since_frame: self.clock.frame(),
+                        };
+                        match self.ownership.claim(candidate, node_process_alive) {
+                            Ok(owner) => {
+                                info!(
+                                    pid = owner.pid,
+                                    node = %owner.node_name,
+                                    frame = owner.since_frame,
+                                    "ticker claimed ownership"
+                                );
+                                respond(self, ResponseStatus::Ok)
+                            }
+                            Err(current) => {
+                                info!(
+                                    pid = payload.pid,
+                                    owner_pid = current.pid,
+                                    "refused a second ticker"
+                                );
+                                respond(self, ResponseStatus::NotOwner)
+                            }
+                        }
+                    }
+                    Some(TickRequestKind::Release) => {
+                        if self.ownership.release(origin) {
+                            info!(
+                                pid = payload.pid,
+                                frame = self.clock.frame(),
+                                "ticker released ownership"
+                            );
+                            self.pending_ticks.clear();
+                            respond(self, ResponseStatus::Ok)
+                        } else {
+                            respond(self, ResponseStatus::NotOwner)
+                        }
+                    }
+                    Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
+                        self.pending_ticks.push_back(request);
+                        continue;
+                    }
+                    Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
+                        let settings = WorldSettings::from(payload.settings);
+                        match self.change_settings(settings, true, payload.pid) {
+                            Ok(effective_frame) => TickResponse {
+                                effective_frame,
+                                ..respond(self, ResponseStatus::Ok)
+                            },
+                            Err(Refusal::Invalid(error)) => {
+                                respond(self, ResponseStatus::InvalidSettings)
+                                    .with_settings_error(&error)
+                            }
+                            Err(Refusal::Status(status)) => respond(self, status),
+                        }
+                    }
+                    Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
+                        warn!(
+                            pid = payload.pid,
+                            "refused a request from a client that is not the ticker"
+                        );
+                        respond(self, ResponseStatus::NotOwner)
+                    }
+                    None => respond(self, ResponseStatus::UnknownRequest),
+                }
+            };
+            if let Err(e) = request.send_copy(response) {
+                debug!("tick response not delivered (ticker gone?): {e:?}");
+            }
+        }
+        Ok(())
+    }
+
+    /// Drops a ticker whose process died, applying the ticker-loss policy.
+    fn check_ticker(&mut self) {
+        let Some(lost) = self.ownership.take_if_dead(node_process_alive) else {
+            return;
+        };
+        self.pending_ticks.clear();
+        // Frees the dead ticker's port, so a new ticker can claim.
+        self.ports.node.try_cleanup_dead_nodes();
+        let frame = self.clock.frame();
+        match (self.settings.synchronous_mode, self.config.on_ticker_loss) {
+            (true, OnTickerLoss::Async) => {
+                self.settings.synchronous_mode = false;
+                self.pace_anchor = None;
+                warn!(
+                    pid = lost.pid,
+                    node = %lost.node_name,
+                    frame,
+                    "ticker died; falling back to asynchronous mode (--on-ticker-loss async)"
+                );
+            }
+            (true, OnTickerLoss::Wait) => warn!(
+                pid = lost.pid,
+                node = %lost.node_name,
+                frame,
+                "ticker died; staying in synchronous mode until a new ticker claims (--on-ticker-loss wait)"
+            ),
+            (false, _) => info!(pid = lost.pid, node = %lost.node_name, frame, "ticker died"),
         }
     }
 
@@ -357,11 +572,19 @@ impl Server {
             actor_count: self.world.actor_count() as u32,
             settings: WireSettings::from(self.settings),
             scene: FixedText::new(&self.config.scene.to_string()),
+            ticker: self.ownership.info(),
         }
     }
 
-    /// Once a second: remove what dead clients left in the world's services.
+    /// Every 100 ms: is the ticker alive? Once a second: remove what dead
+    /// clients left in the world's services.
     fn housekeeping(&mut self) {
+        if self.ownership.owner().is_some()
+            && self.last_liveness_check.elapsed() >= TICKER_LIVENESS_PERIOD
+        {
+            self.last_liveness_check = Instant::now();
+            self.check_ticker();
+        }
         if self.last_cleanup.elapsed() < CLEANUP_PERIOD {
             return;
         }

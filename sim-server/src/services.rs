@@ -11,7 +11,8 @@ use shared_types::limits::{
     MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS, MAX_NODES,
 };
 use shared_types::{
-    ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, WorldName,
+    ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, TickRequest,
+    TickResponse, WorldName,
 };
 use tracing::{info, warn};
 
@@ -21,6 +22,8 @@ use crate::ServerError;
 pub type FramePublisher = Publisher<ipc::Service, [ActorState], FrameHeader>;
 /// The server end of the control service.
 pub type ControlServer = Server<ipc::Service, ControlRequest, (), ControlResponse, ()>;
+/// The server end of the tick service.
+pub type TickServer = Server<ipc::Service, TickRequest, (), TickResponse, ()>;
 
 /// Every port the server holds for its world.
 pub struct ServerPorts {
@@ -32,8 +35,10 @@ pub struct ServerPorts {
     pub frame_ready: Notifier<ipc::Service>,
     /// Control requests.
     pub control: ControlServer,
-    /// Woken by clients after they send a control request.
+    /// Woken by clients after they send a control or tick request.
     pub control_wake: Listener<ipc::Service>,
+    /// Requests from the ticker (the service admits one client).
+    pub tick: TickServer,
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ServerError> {
@@ -94,6 +99,20 @@ impl ServerPorts {
             }
         })?;
 
+        let tick = node
+            .service_builder(&service_name(&names.tick)?)
+            .request_response::<TickRequest, TickResponse>()
+            .max_servers(1)
+            .max_clients(1)
+            .max_nodes(MAX_NODES)
+            .max_active_requests_per_client(4)
+            .max_response_buffer_size(4)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("tick service", e))?
+            .server_builder()
+            .create()
+            .map_err(|e| ServerError::transport("tick server", e))?;
+
         let control_wake = node
             .service_builder(&service_name(&names.control_wake)?)
             .event()
@@ -144,6 +163,7 @@ impl ServerPorts {
             frame_ready,
             control,
             control_wake,
+            tick,
         })
     }
 }

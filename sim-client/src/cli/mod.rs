@@ -3,6 +3,7 @@
 pub mod config;
 pub mod demo;
 pub mod status;
+pub mod tick;
 pub mod watch;
 
 use std::sync::atomic::{AtomicBool, Ordering};

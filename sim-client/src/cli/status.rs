@@ -36,7 +36,11 @@ pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(),
             "scene": report.scene.to_string_lossy(),
             "actors": report.actor_count,
             "server_pid": report.server_pid,
-            "ticker": null,
+            "ticker": report.ticker.active().map(|t| serde_json::json!({
+                "node": t.node_name.to_string_lossy(),
+                "pid": t.pid,
+                "since_frame": t.since_frame,
+            })),
         });
         if let (Some(json), serde_json::Value::Object(extra)) = (json.as_object_mut(), extra) {
             json.extend(extra);
@@ -57,6 +61,6 @@ pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(),
     for (name, value) in super::settings_lines(&settings) {
         println!("{name:<9} {value}");
     }
-    println!("ticker    none");
+    println!("ticker    {}", report.ticker);
     Ok(())
 }

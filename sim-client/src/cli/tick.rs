@@ -1,0 +1,204 @@
+//! `sim-client tick`: be the ticker — claim ownership, enter synchronous
+//! mode with a fixed step, tick, and leave everything as it was on exit.
+
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::anyhow;
+use clap::Args;
+use shared_types::{WorldName, WorldSettings};
+use sim_client::{ApplySettingsError, Client, Ticker, WaitMode};
+
+use crate::Failure;
+
+/// The node name others see as the owner while this command ticks.
+const NODE_NAME: &str = "sim-client-tick";
+
+/// Be the world's ticker: claim tick ownership, switch the world to
+/// synchronous mode with a fixed step, and tick.
+///
+/// Only one client may tick; a second one is refused with the owner named.
+/// --count and --until-sim-time bound the run, --rate paces it; they combine.
+/// Without a bound it ticks until Ctrl-C. On exit (or Ctrl-C) the world goes
+/// back to asynchronous mode, unless --leave-sync, and ownership is released.
+#[derive(Debug, Args)]
+pub struct TickArgs {
+    /// Stop after N ticks.
+    #[arg(long, value_name = "N")]
+    count: Option<u64>,
+
+    /// At most HZ ticks per wall-clock second (default: as fast as possible).
+    #[arg(long, value_name = "HZ")]
+    rate: Option<f64>,
+
+    /// Stop once simulation time reaches S seconds.
+    #[arg(long, value_name = "S")]
+    until_sim_time: Option<f64>,
+
+    /// Fixed time-step in seconds (default: the world's, else 0.05).
+    #[arg(long, value_name = "S", conflicts_with = "fps")]
+    delta_seconds: Option<f64>,
+
+    /// Fixed time-step as frames per simulated second.
+    #[arg(long, value_name = "N")]
+    fps: Option<f64>,
+
+    /// Accept a variable step in synchronous mode (dt = the ticker's wait; not recommended).
+    #[arg(long)]
+    allow_variable_step: bool,
+
+    /// Leave the world in synchronous mode on exit (it then waits for the next ticker).
+    #[arg(long)]
+    leave_sync: bool,
+
+    /// Spin while waiting for each frame (lowest latency, one core busy).
+    #[arg(long)]
+    spin: bool,
+
+    /// One JSON object per tick.
+    #[arg(long)]
+    json: bool,
+}
+
+impl TickArgs {
+    fn check(&self) -> Result<(), Failure> {
+        let positive = |value: Option<f64>, flag: &str| match value {
+            Some(v) if !(v.is_finite() && v > 0.0) => Err(Failure::Refused(anyhow!(
+                "{flag} must be a positive number, got {v}"
+            ))),
+            _ => Ok(()),
+        };
+        positive(self.rate, "--rate")?;
+        match self.until_sim_time {
+            Some(v) if !(v.is_finite() && v >= 0.0) => Err(Failure::Refused(anyhow!(
+                "--until-sim-time must be a number >= 0, got {v}"
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// The fixed step to tick with; `None` is a variable step.
+    fn delta(&self, current: &WorldSettings) -> Result<Option<f64>, Failure> {
+        let delta = match (self.delta_seconds, self.fps) {
+            (Some(dt), _) => (dt != 0.0).then_some(dt),
+            (None, Some(fps)) => WorldSettings::delta_from_fps(fps)
+                .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?,
+            (None, None) => Some(current.fixed_delta_seconds.unwrap_or(0.05)),
+        };
+        if delta.is_none() && !self.allow_variable_step {
+            return Err(Failure::Refused(anyhow!(
+                "synchronous mode with a variable step makes every frame as long as the ticker's wait, \
+                 so physics is unreliable; give --delta-seconds / --fps, or pass --allow-variable-step"
+            )));
+        }
+        Ok(delta)
+    }
+}
+
+fn refused_or_runtime(e: ApplySettingsError) -> Failure {
+    match e {
+        ApplySettingsError::Request(e) => Failure::Runtime(e.into()),
+        e => Failure::Refused(e.into()),
+    }
+}
+
+pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
+    args.check()?;
+    let interrupted = super::interrupted();
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    let current = client.get_settings()?;
+    let delta = args.delta(&current)?;
+    let mut ticker = client.claim_ticker_as(NODE_NAME)?;
+    if args.spin {
+        ticker.set_wait_mode(WaitMode::Spin);
+    }
+    let sync = WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: delta,
+        ..current
+    };
+    let from = ticker.apply_settings(sync).map_err(refused_or_runtime)?;
+    match delta {
+        Some(dt) => eprintln!(
+            "tick: ticker of world '{world}'; synchronous mode, fixed step {dt} s, from frame {from}"
+        ),
+        None => eprintln!(
+            "tick: warning: synchronous mode with a variable step (--allow-variable-step); physics is unreliable"
+        ),
+    }
+    for warning in sync.warnings() {
+        eprintln!("tick: warning: {warning}");
+    }
+
+    let result = tick_loop(&mut ticker, timeout, &args, interrupted);
+    let restore = if args.leave_sync {
+        Ok(())
+    } else {
+        let async_settings = WorldSettings {
+            synchronous_mode: false,
+            ..sync
+        };
+        ticker
+            .apply_settings(async_settings)
+            .map(|_| ())
+            .map_err(|e| anyhow!(e).context("returning the world to asynchronous mode"))
+    };
+    let release = ticker.release().map_err(|e| anyhow!(e));
+    let ticks = result?;
+    restore?;
+    release?;
+    eprintln!(
+        "tick: {ticks} ticks; released ownership, world left in {} mode",
+        if args.leave_sync {
+            "synchronous"
+        } else {
+            "asynchronous"
+        }
+    );
+    Ok(())
+}
+
+/// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
+fn tick_loop(
+    ticker: &mut Ticker,
+    timeout: Duration,
+    args: &TickArgs,
+    interrupted: &std::sync::atomic::AtomicBool,
+) -> anyhow::Result<u64> {
+    let period = args.rate.map(|hz| Duration::from_secs_f64(1.0 / hz));
+    let until_ns = args.until_sim_time.map(shared_types::seconds_to_nanos);
+    let mut next_at = Instant::now();
+    let mut ticks = 0;
+    loop {
+        if interrupted.load(Ordering::Relaxed) || args.count.is_some_and(|n| ticks >= n) {
+            return Ok(ticks);
+        }
+        if let (Some(until), Some((_, elapsed))) = (until_ns, ticker.last_frame()) {
+            if elapsed >= until {
+                return Ok(ticks);
+            }
+        }
+        if let Some(period) = period {
+            // Sleep in slices so Ctrl-C is noticed.
+            while Instant::now() < next_at && !interrupted.load(Ordering::Relaxed) {
+                std::thread::sleep((next_at - Instant::now()).min(Duration::from_millis(100)));
+            }
+            next_at = next_at.max(Instant::now() - period) + period;
+            if interrupted.load(Ordering::Relaxed) {
+                return Ok(ticks);
+            }
+        }
+        let frame = ticker.tick(timeout)?;
+        ticks += 1;
+        let elapsed = ticker.last_frame().map_or(0, |(_, ns)| ns) as f64 / 1e9;
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({ "frame": frame, "elapsed_seconds": elapsed })
+            );
+        } else {
+            println!("tick  frame {frame:>8}  t = {elapsed:>12.6} s");
+        }
+    }
+}

@@ -1,0 +1,77 @@
+//! Waiting for the answer to a request, with a timeout and a liveness check
+//! of the server, blocking on an event, backing off, or spinning.
+
+use std::fmt::Debug;
+use std::time::{Duration, Instant};
+
+use iceoryx2::pending_response::PendingResponse;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::prelude::*;
+
+use crate::frames::LIVENESS_PERIOD;
+use crate::{process_alive, RequestError};
+
+/// How to pass the time until the answer arrives.
+pub(crate) enum Wait<'a> {
+    /// Sleep 10 µs, doubling up to 1 ms (for rare requests).
+    Backoff,
+    /// Sleep on an event the server notifies right after answering.
+    Event(&'a Listener<ipc::Service>),
+    /// Poll in a tight loop.
+    Spin,
+}
+
+/// The response to `pending`, waiting up to `timeout`. With a known
+/// `server_pid` (non-zero), a dead server ends the wait early.
+pub(crate) fn await_response<Req, Resp>(
+    pending: &PendingResponse<ipc::Service, Req, (), Resp, ()>,
+    timeout: Duration,
+    world: &str,
+    server_pid: u32,
+    wait: Wait<'_>,
+) -> Result<Resp, RequestError>
+where
+    Req: Debug + ZeroCopySend,
+    Resp: Debug + ZeroCopySend + Copy,
+{
+    let start = Instant::now();
+    let deadline = start + timeout;
+    let mut backoff = Duration::from_micros(10);
+    let mut next_liveness_check = start + LIVENESS_PERIOD;
+    loop {
+        if let Some(response) = pending
+            .receive()
+            .map_err(|e| RequestError::transport("response receive", e))?
+        {
+            return Ok(*response.payload());
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            return Err(RequestError::Timeout {
+                world: world.to_owned(),
+                timeout,
+            });
+        }
+        if now >= next_liveness_check {
+            if server_pid != 0 && !process_alive(server_pid) {
+                return Err(RequestError::ServerGone {
+                    world: world.to_owned(),
+                    pid: server_pid,
+                });
+            }
+            next_liveness_check = now + LIVENESS_PERIOD;
+        }
+        let remaining = (deadline - now).min(next_liveness_check - now);
+        match wait {
+            Wait::Spin => std::hint::spin_loop(),
+            Wait::Backoff => {
+                std::thread::sleep(backoff.min(remaining));
+                backoff = (backoff * 2).min(Duration::from_millis(1));
+            }
+            Wait::Event(listener) => match listener.timed_wait(|_| {}, remaining) {
+                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(RequestError::transport("event wait", e)),
+            },
+        }
+    }
+}

@@ -1,0 +1,272 @@
+//! [`Ticker`]: tick ownership of a world, and the ticks themselves.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use shared_types::{
+    ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
+    WorldName, WorldSettings, PROTOCOL_VERSION,
+};
+use tracing::{debug, info};
+
+use crate::frames::open_with_retry;
+use crate::rpc::{await_response, Wait};
+use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
+
+type TickClient = RequestClient<ipc::Service, TickRequest, (), TickResponse, ()>;
+
+/// Tick ownership of one world. Only one `Ticker` exists per world at a time
+/// (the tick service admits a single client); dropping it releases ownership.
+///
+/// ```no_run
+/// use std::time::Duration;
+/// use sim_client::Client;
+/// use shared_types::WorldSettings;
+///
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// let client = Client::connect("default", Duration::from_secs(2))?;
+/// let mut ticker = client.claim_ticker()?; // fails, naming the owner, if someone ticks
+/// let sync = WorldSettings {
+///     synchronous_mode: true,
+///     fixed_delta_seconds: Some(0.05),
+///     ..client.get_settings()?
+/// };
+/// ticker.apply_settings(sync)?;
+/// for _ in 0..100 {
+///     let frame = ticker.tick(Duration::from_secs(1))?; // published when this returns
+///     println!("frame {frame}");
+/// }
+/// ticker.release()?;
+/// # Ok(())
+/// # }
+/// ```
+pub struct Ticker {
+    world: WorldName,
+    port: TickClient,
+    wake: Notifier<ipc::Service>,
+    ready: Listener<ipc::Service>,
+    server_pid: u32,
+    node_name: String,
+    mode: WaitMode,
+    request_timeout: Duration,
+    last: Option<(u64, u64)>,
+    released: bool,
+    // Declared last: ports drop before their node.
+    _node: Node<ipc::Service>,
+}
+
+/// How long dropping a ticker waits for the server to confirm the release.
+const RELEASE_TIMEOUT: Duration = Duration::from_secs(1);
+
+impl Ticker {
+    /// Claims tick ownership of `world`. `owner` names the current ticker
+    /// when the transport refuses a second one.
+    pub(crate) fn claim(
+        world: &WorldName,
+        server_pid: u32,
+        node_name: &str,
+        request_timeout: Duration,
+        owner: impl Fn() -> Option<TickerInfo>,
+    ) -> Result<Self, TickError> {
+        use iceoryx2::service::builder::event::EventOpenError;
+        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
+        use iceoryx2::service::port_factory::client::ClientCreateError;
+
+        let names = ServiceNames::new(world);
+        let name = NodeName::new(node_name).map_err(|e| TickError::transport("node name", e))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| TickError::transport("node", e))?;
+        let service_name =
+            |n: &str| ServiceName::new(n).map_err(|e| TickError::transport("service name", e));
+        let deadline = Instant::now() + request_timeout;
+        let timeout = || {
+            TickError::Request(RequestError::Timeout {
+                world: world.to_string(),
+                timeout: request_timeout,
+            })
+        };
+        let tick_name = service_name(&names.tick)?;
+        let port = open_with_retry(
+            deadline,
+            || {
+                node.service_builder(&tick_name)
+                    .request_response::<TickRequest, TickResponse>()
+                    .open()
+            },
+            |e| matches!(e, RequestResponseOpenError::DoesNotExist),
+        )
+        .map_err(|e| TickError::transport("tick service", e))?
+        .ok_or_else(timeout)?
+        .client_builder()
+        .create()
+        .map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => TickError::NotOwner {
+                world: world.to_string(),
+                owner: owner(),
+            },
+            e => TickError::transport("tick client", e),
+        })?;
+        let open_event = |name: &str| {
+            let name = service_name(name)?;
+            open_with_retry(
+                deadline,
+                || node.service_builder(&name).event().open(),
+                |e| matches!(e, EventOpenError::DoesNotExist),
+            )
+            .map_err(|e| TickError::transport("event service", e))?
+            .ok_or_else(timeout)
+        };
+        let wake = open_event(&names.control_wake)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| TickError::transport("wake-up notifier", e))?;
+        let ready = open_event(&names.frame_ready)?
+            .listener_builder()
+            .create()
+            .map_err(|e| TickError::transport("frame-ready listener", e))?;
+        let mut ticker = Self {
+            world: world.clone(),
+            port,
+            wake,
+            ready,
+            server_pid,
+            node_name: node_name.to_owned(),
+            mode: WaitMode::Block,
+            request_timeout,
+            last: None,
+            released: false,
+            _node: node,
+        };
+        let response = ticker.send(TickRequestKind::Claim, None, request_timeout)?;
+        let response = ticker.expect_ok(response)?;
+        ticker.last = Some((response.frame, response.elapsed_ns));
+        info!(world = %ticker.world, frame = response.frame, "claimed tick ownership");
+        Ok(ticker)
+    }
+
+    /// How [`Ticker::tick`] waits for its frame: blocking (default) or spinning.
+    pub fn set_wait_mode(&mut self, mode: WaitMode) {
+        self.mode = mode;
+    }
+
+    /// The world ticked.
+    pub fn world(&self) -> &WorldName {
+        &self.world
+    }
+
+    /// The last frame this ticker produced (or saw when claiming) and its
+    /// simulation time in nanoseconds.
+    pub fn last_frame(&self) -> Option<(u64, u64)> {
+        self.last
+    }
+
+    /// Asks for the next frame and returns its id once its snapshot is
+    /// published, so a subscriber that then reads sees it. In synchronous
+    /// mode nothing moves without a tick; in asynchronous mode a tick just
+    /// waits for the next frame.
+    pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
+        let response = self.expect_ok(self.send(TickRequestKind::Tick, None, timeout)?)?;
+        self.last = Some((response.frame, response.elapsed_ns));
+        Ok(response.frame)
+    }
+
+    /// Applies `settings`, which may enter synchronous mode (only the ticker
+    /// may). Returns the first frame computed with them.
+    pub fn apply_settings(&mut self, settings: WorldSettings) -> Result<u64, ApplySettingsError> {
+        settings.validate()?;
+        let response = self.send(
+            TickRequestKind::ApplySettings,
+            Some(settings),
+            self.request_timeout,
+        )?;
+        match ResponseStatus::from_u32(response.status) {
+            Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
+                Some(error) => Err(error.into()),
+                None => Err(RequestError::UnknownRequest.into()),
+            },
+            Some(ResponseStatus::NotOwner) => Err(ApplySettingsError::NotTicker),
+            _ => Ok(self
+                .expect_ok(response)
+                .map_err(|_| RequestError::UnknownRequest)?
+                .effective_frame),
+        }
+    }
+
+    /// Gives up tick ownership; another client may then claim it. The world
+    /// keeps its mode: leave synchronous mode first if nobody will tick.
+    pub fn release(mut self) -> Result<(), TickError> {
+        self.released = true;
+        let response = self.send(TickRequestKind::Release, None, self.request_timeout)?;
+        self.expect_ok(response)?;
+        info!(world = %self.world, "released tick ownership");
+        Ok(())
+    }
+
+    /// `response` if the server did what was asked.
+    fn expect_ok(&self, response: TickResponse) -> Result<TickResponse, TickError> {
+        match ResponseStatus::from_u32(response.status) {
+            Some(ResponseStatus::Ok) => Ok(response),
+            Some(ResponseStatus::NotOwner) => Err(TickError::NotOwner {
+                world: self.world.to_string(),
+                owner: response.ticker.active(),
+            }),
+            _ => Err(RequestError::UnknownRequest.into()),
+        }
+    }
+
+    /// Sends one request and waits for its answer, whatever its status.
+    fn send(
+        &self,
+        kind: TickRequestKind,
+        settings: Option<WorldSettings>,
+        timeout: Duration,
+    ) -> Result<TickResponse, RequestError> {
+        let mut request = TickRequest::new(kind, &self.node_name);
+        if let Some(settings) = settings {
+            request.settings = settings.into();
+        }
+        let pending = self
+            .port
+            .send_copy(request)
+            .map_err(|e| RequestError::transport("tick send", e))?;
+        if let Err(e) = self.wake.notify() {
+            debug!("wake-up not delivered: {e:?}");
+        }
+        let wait = match (kind, self.mode) {
+            (TickRequestKind::Tick, WaitMode::Spin) => Wait::Spin,
+            (TickRequestKind::Tick, WaitMode::Block) => Wait::Event(&self.ready),
+            _ => Wait::Backoff,
+        };
+        let response = await_response(
+            &pending,
+            timeout,
+            self.world.as_str(),
+            self.server_pid,
+            wait,
+        )?;
+        if response.protocol_version != PROTOCOL_VERSION
+            || response.status == ResponseStatus::ProtocolMismatch as u32
+        {
+            return Err(RequestError::ProtocolMismatch {
+                client: PROTOCOL_VERSION,
+            });
+        }
+        Ok(response)
+    }
+}
+
+impl Drop for Ticker {
+    fn drop(&mut self) {
+        if !self.released {
+            if let Err(e) = self.send(TickRequestKind::Release, None, RELEASE_TIMEOUT) {
+                debug!("releasing tick ownership on drop: {e}");
+            }
+        }
+    }
+}

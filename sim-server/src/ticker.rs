@@ -1,0 +1,123 @@
+//! Tick ownership: who the ticker is, since when, and whether it still lives.
+//!
+//! The transport already admits a single client on the tick service; this
+//! module is the server's own record of that client, used to check every tick
+//! and settings change against the owner and to notice when the owner's
+//! process has died.
+
+use iceoryx2::identifiers::UniqueClientId;
+use iceoryx2::node::NodeView;
+use iceoryx2::prelude::*;
+use shared_types::{FixedText, TickerInfo};
+
+/// The policy when the ticker dies while the world is in synchronous mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum OnTickerLoss {
+    /// Stay in synchronous mode and wait for a new ticker.
+    #[default]
+    Wait,
+    /// Fall back to asynchronous mode.
+    Async,
+}
+
+/// The current ticker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Owner {
+    /// Its port on the tick service.
+    pub client: UniqueClientId,
+    /// Its process.
+    pub pid: u32,
+    /// Its iceoryx2 node name.
+    pub node_name: String,
+    /// The last frame published before it claimed ownership.
+    pub since_frame: u64,
+}
+
+/// Who, if anyone, holds tick ownership.
+#[derive(Debug, Default)]
+pub struct TickOwnership {
+    owner: Option<Owner>,
+}
+
+/// Whether a process that created an iceoryx2 node is still alive, by
+/// iceoryx2's dead-node detection (it works for SIGKILL too).
+pub fn node_process_alive(pid: u32) -> bool {
+    let mut alive = false;
+    let listed = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::Alive(view) = &state {
+            if view
+                .details()
+                .as_ref()
+                .is_some_and(|d| d.process_id().value() as u32 == pid)
+            {
+                alive = true;
+                return CallbackProgression::Stop;
+            }
+        }
+        CallbackProgression::Continue
+    });
+    // If the node list cannot be read, do not declare anyone dead.
+    alive || listed.is_err()
+}
+
+impl TickOwnership {
+    /// The owner, if any.
+    pub fn owner(&self) -> Option<&Owner> {
+        self.owner.as_ref()
+    }
+
+    /// Whether `client` is the owner.
+    pub fn is_owner(&self, client: UniqueClientId) -> bool {
+        self.owner.as_ref().is_some_and(|o| o.client == client)
+    }
+
+    /// Makes `candidate` the owner, unless another live owner holds it: then
+    /// the current owner is returned as the error. A dead owner is replaced.
+    pub fn claim(
+        &mut self,
+        candidate: Owner,
+        owner_alive: impl Fn(u32) -> bool,
+    ) -> Result<&Owner, Owner> {
+        if let Some(current) = &self.owner {
+            if current.client != candidate.client && owner_alive(current.pid) {
+                return Err(current.clone());
+            }
+            if current.client == candidate.client {
+                return Ok(self.owner.as_ref().expect("owner present"));
+            }
+        }
+        Ok(self.owner.insert(candidate))
+    }
+
+    /// Ends the ownership of `client`; `false` if it was not the owner.
+    pub fn release(&mut self, client: UniqueClientId) -> bool {
+        if self.is_owner(client) {
+            self.owner = None;
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Removes and returns the owner if `owner_alive` says its process died.
+    pub fn take_if_dead(&mut self, owner_alive: impl Fn(u32) -> bool) -> Option<Owner> {
+        if self.owner.as_ref().is_some_and(|o| !owner_alive(o.pid)) {
+            self.owner.take()
+        } else {
+            None
+        }
+    }
+
+    /// The owner as it travels on the wire.
+    pub fn info(&self) -> TickerInfo {
+        match &self.owner {
+            Some(o) => TickerInfo {
+                active: 1,
+                pid: o.pid,
+                since_frame: o.since_frame,
+                node_name: FixedText::new(&o.node_name),
+            },
+            None => TickerInfo::none(),
+        }
+    }
+}

@@ -1,0 +1,315 @@
+//! Synchronous mode and the single-ticker rule: nothing moves without a
+//! tick, each tick is exactly one frame published before `tick` returns,
+//! subscribers that drain between ticks see every frame once, a second
+//! ticker is refused by the transport with the owner named, a dead ticker is
+//! replaced with no frame skipped or repeated, and nobody ever hangs.
+
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+use shared_types::WorldSettings;
+use sim_client::{Client, TickError, Ticker};
+use simbus_tests::{client, server, status, unique_world, Proc};
+
+const T: Duration = Duration::from_secs(10);
+
+/// Claims the ticker of `world` and enters synchronous mode with `dt`.
+fn sync_ticker(client: &Client, dt: f64) -> Ticker {
+    let mut ticker = client.claim_ticker().expect("claim");
+    let settings = WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: Some(dt),
+        ..client.get_settings().unwrap()
+    };
+    ticker.apply_settings(settings).expect("enter sync");
+    ticker
+}
+
+fn frame_of(line: &str) -> u64 {
+    let v: Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {line}"));
+    v["frame"].as_u64().unwrap()
+}
+
+#[test]
+fn nothing_moves_without_a_tick_and_each_tick_publishes_exactly_one_frame() {
+    let world = unique_world("one-frame");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.01"]);
+    let mut client = Client::connect(&world, T).unwrap();
+    let mut ticker = sync_ticker(&client, 0.02);
+    // Drain whatever async frames are queued; then the world is frozen.
+    while client.wait_for_tick(Duration::from_millis(300)).is_ok() {}
+    let frozen = status(&world)["frame"].as_u64().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(status(&world)["frame"].as_u64(), Some(frozen));
+    let start_ns = client.status().unwrap().elapsed_ns;
+
+    for i in 1..=50u64 {
+        let frame = ticker.tick(T).unwrap();
+        assert_eq!(frame, frozen + i);
+        // tick() returned, so the snapshot is already published.
+        let snapshot = client.wait_for_tick(Duration::from_millis(500)).unwrap();
+        assert_eq!(snapshot.frame(), frame);
+        assert_eq!(snapshot.missed, 0);
+        assert_eq!(snapshot.timestamp().delta_ns, 20_000_000);
+        assert_eq!(snapshot.timestamp().elapsed_ns, start_ns + i * 20_000_000);
+        assert!(snapshot.settings().synchronous_mode);
+    }
+    assert_eq!(status(&world)["frame"].as_u64(), Some(frozen + 50));
+}
+
+#[test]
+fn three_subscribers_see_every_frame_once_in_order_across_1000_ticks() {
+    let world = unique_world("subscribers");
+    let _server = server(
+        &world,
+        &["--fixed-delta-seconds", "0.01", "--scene", "boxes:10"],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let mut ticker = sync_ticker(&client, 0.01);
+    let frozen = status(&world)["frame"].as_u64().unwrap();
+    let watchers: Vec<Proc> = (0..3)
+        .map(|_| Proc::spawn("sim-client", &["--world", &world, "watch", "--json"]))
+        .collect();
+    // Each watcher starts with the current frame (the service keeps one).
+    for w in &watchers {
+        let first = w.line(T).expect("watcher connected");
+        assert_eq!(frame_of(&first), frozen);
+    }
+    for i in 1..=1000 {
+        let frame = ticker.tick(T).unwrap();
+        assert_eq!(frame, frozen + i);
+        // The subscribers drain before the next tick: each sees this frame next.
+        for w in &watchers {
+            let line = w.line(T).expect("frame delivered");
+            assert_eq!(frame_of(&line), frame, "{line}");
+            assert!(line.contains("\"missed\":0"), "{line}");
+        }
+    }
+}
+
+#[test]
+fn a_second_ticker_is_refused_naming_the_owner_until_the_first_releases() {
+    let world = unique_world("second");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.01"]);
+    let client = Client::connect(&world, T).unwrap();
+    let first = client.claim_ticker_as("first-ticker").unwrap();
+
+    match client.claim_ticker() {
+        Err(TickError::NotOwner {
+            owner: Some(owner), ..
+        }) => {
+            assert_eq!(owner.pid, std::process::id());
+            assert_eq!(owner.node_name.to_string_lossy(), "first-ticker");
+        }
+        Err(e) => panic!("expected NotOwner, got {e}"),
+        Ok(_) => panic!("a second ticker was admitted"),
+    }
+    let out = client_cli(&world, &["tick", "--count", "1"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        out.stderr.contains(&format!(
+            "already has a ticker: first-ticker (pid {})",
+            std::process::id()
+        )),
+        "{}",
+        out.stderr
+    );
+    let owner = &status(&world)["ticker"];
+    assert_eq!(owner["node"], "first-ticker");
+    assert_eq!(owner["pid"].as_u64(), Some(u64::from(std::process::id())));
+
+    first.release().unwrap();
+    assert_eq!(status(&world)["ticker"], Value::Null);
+    let out = client_cli(&world, &["tick", "--count", "3", "--json"]);
+    out.assert_success();
+    assert_eq!(out.json().len(), 3);
+    assert_eq!(
+        status(&world)["synchronous_mode"],
+        false,
+        "tick restored async mode"
+    );
+}
+
+fn client_cli(world: &str, args: &[&str]) -> simbus_tests::Finished {
+    client(world, args)
+}
+
+#[test]
+fn a_ticker_killed_with_sigkill_is_replaced_and_no_frame_is_skipped_or_repeated() {
+    let world = unique_world("failover");
+    let _server = server(
+        &world,
+        &["--fixed-delta-seconds", "0.01", "--scene", "empty"],
+    );
+    let mut old = Proc::spawn(
+        "sim-client",
+        &["--world", &world, "tick", "--rate", "200", "--json"],
+    );
+    let mut last_ticked = 0;
+    for _ in 0..20 {
+        last_ticked = frame_of(&old.line(T).expect("old ticker ticks"));
+    }
+    let watcher = Proc::spawn("sim-client", &["--world", &world, "watch", "--json"]);
+    let first_seen = frame_of(&watcher.line(T).expect("watcher connected"));
+    assert!(first_seen >= last_ticked);
+    old.guard.kill().unwrap();
+
+    // A new ticker claims as soon as the dead one is noticed.
+    let client = Client::connect(&world, T).unwrap();
+    let start = Instant::now();
+    let mut ticker = loop {
+        match client.claim_ticker() {
+            Ok(ticker) => break ticker,
+            Err(TickError::NotOwner { .. }) if start.elapsed() < Duration::from_secs(10) => {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Err(e) => panic!("no failover within 10 s: {e}"),
+        }
+    };
+    // The world stayed synchronous (--on-ticker-loss wait) and frozen.
+    let frozen = status(&world);
+    assert_eq!(frozen["synchronous_mode"], true);
+    let last = frozen["frame"].as_u64().unwrap();
+    assert_eq!(
+        ticker.tick(T).unwrap(),
+        last + 1,
+        "continues from the next frame"
+    );
+    assert_eq!(ticker.tick(T).unwrap(), last + 2);
+
+    // The watcher saw every frame exactly once across the handover.
+    let mut expected = first_seen + 1;
+    while expected <= last + 2 {
+        let frame = frame_of(&watcher.line(T).expect("frame"));
+        assert_eq!(frame, expected, "no frame skipped or repeated");
+        expected += 1;
+    }
+}
+
+#[test]
+fn a_waiting_server_answers_status_and_config_no_sync_resumes_frames() {
+    let world = unique_world("no-sync");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let client = Client::connect(&world, T).unwrap();
+    let _ticker = sync_ticker(&client, 0.01);
+    let waiting = status(&world);
+    assert_eq!(waiting["synchronous_mode"], true);
+    assert_eq!(
+        status(&world)["frame"],
+        waiting["frame"],
+        "frozen while waiting"
+    );
+
+    // Settings may change in sync mode (it stays sync) …
+    let out = client_cli(&world, &["config", "--delta-seconds", "0.02", "--json"]);
+    out.assert_success();
+    assert_eq!(status(&world)["synchronous_mode"], true);
+    // … and sync mode may be left from outside.
+    client_cli(&world, &["config", "--no-sync"]).assert_success();
+    let out = client_cli(&world, &["watch", "--frames", "5", "--json"]);
+    out.assert_success();
+    let frames = out.json();
+    assert!(frames.iter().all(|f| f["synchronous_mode"] == false));
+    assert!(frames.iter().all(|f| f["delta_ns"] == 20_000_000));
+    assert!(status(&world)["frame"].as_u64() > waiting["frame"].as_u64());
+}
+
+#[test]
+fn tick_without_a_server_fails_clearly_within_its_timeout() {
+    let world = unique_world("tick-nobody");
+    let start = Instant::now();
+    let out = client_cli(&world, &["--timeout", "1", "tick", "--count", "1"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        out.stderr.contains("no simbus server answered"),
+        "{}",
+        out.stderr
+    );
+    assert!(start.elapsed() < Duration::from_secs(30));
+}
+
+#[test]
+fn a_server_killed_mid_tick_makes_the_ticker_fail_cleanly() {
+    let world = unique_world("server-dies");
+    let mut server = server(
+        &world,
+        &["--fixed-delta-seconds", "0.01", "--scene", "empty"],
+    );
+    let ticker = Proc::spawn(
+        "sim-client",
+        &[
+            "--world",
+            &world,
+            "--timeout",
+            "5",
+            "tick",
+            "--rate",
+            "100",
+            "--json",
+        ],
+    );
+    for _ in 0..10 {
+        ticker.line(T).expect("ticking");
+    }
+    server.guard.kill().unwrap();
+    let out = ticker.finish(Duration::from_secs(30));
+    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("has exited") || out.stderr.contains("did not answer"),
+        "{}",
+        out.stderr
+    );
+}
+
+#[test]
+fn on_ticker_loss_async_falls_back_to_asynchronous_mode() {
+    let world = unique_world("loss-async");
+    let _server = server(
+        &world,
+        &[
+            "--fixed-delta-seconds",
+            "0.01",
+            "--realtime",
+            "--on-ticker-loss",
+            "async",
+        ],
+    );
+    let mut ticker = Proc::spawn("sim-client", &["--world", &world, "tick", "--rate", "50"]);
+    ticker.line(T).expect("ticking");
+    assert_eq!(status(&world)["synchronous_mode"], true);
+    ticker.guard.kill().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while status(&world)["synchronous_mode"] == true {
+        assert!(Instant::now() < deadline, "fell back to async");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = client_cli(&world, &["watch", "--frames", "3"]);
+    out.assert_success();
+}
+
+#[test]
+fn the_tick_command_refuses_a_variable_step_unless_allowed() {
+    let world = unique_world("variable-sync");
+    let _server = server(&world, &[]);
+    let out = client_cli(&world, &["tick", "--count", "1", "--delta-seconds", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        out.stderr.contains("--allow-variable-step"),
+        "{}",
+        out.stderr
+    );
+    assert_eq!(status(&world)["synchronous_mode"], false, "nothing changed");
+    let out = client_cli(
+        &world,
+        &[
+            "tick",
+            "--count",
+            "2",
+            "--delta-seconds",
+            "0",
+            "--allow-variable-step",
+        ],
+    );
+    out.assert_success();
+    assert!(out.stderr.contains("warning"), "{}", out.stderr);
+}

@@ -35,6 +35,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         max_fps: 0.0,
         max_frames: Some(frames),
         on_ticker_loss: Default::default(),
+        spin: false,
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

@@ -2,16 +2,20 @@
 //! with baselines in one run on one machine.
 //!
 //! ```text
+//! cargo run --release -p simbus-bench -- tick [--iterations N] [--json]
 //! cargo run --release -p simbus-bench -- frames [--samples N] [--json]
+//! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod failover;
 mod frames;
 mod stats;
 mod support;
+mod tick;
 
 /// simbus benchmarks. Each prints a table (or --json) of figures measured in
 /// one run on this machine; compare ratios, not absolute numbers, across machines.
@@ -27,6 +31,15 @@ enum Command {
     /// Server frames per second (empty, boxes:1000) and wait_for_tick
     /// latency, blocking and spinning.
     Frames(frames::FramesArgs),
+    /// Tick round trip: raw iceoryx2 ping-pong (the floor), simbus spin and
+    /// blocking, and the same exchange over TCP loopback.
+    Tick(tick::TickArgs),
+    /// Ticker failover: time from SIGKILL of the ticker until the server
+    /// notices, and until a new ticker holds ownership.
+    Failover(failover::FailoverArgs),
+    /// The other end of a baseline (used by the benchmarks).
+    #[command(hide = true)]
+    Peer(tick::PeerArgs),
     /// Runs a server (used by the benchmarks to start one in its own process).
     #[command(hide = true)]
     Serve(sim_server::cli::ServerArgs),
@@ -36,6 +49,9 @@ fn main() -> ExitCode {
     let args = Args::parse();
     let result = match args.command {
         Command::Frames(a) => frames::run(a),
+        Command::Tick(a) => tick::run(a),
+        Command::Failover(a) => failover::run(a),
+        Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);
             sim_server::cli::run(a)

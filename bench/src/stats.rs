@@ -37,6 +37,13 @@ impl Latencies {
         let [p50, p99, p999] = self.percentiles_us();
         format!("{name:<28} {p50:>10.1} {p99:>10.1} {p999:>10.1}")
     }
+
+    /// `name  p50  max` in milliseconds (for small samples).
+    pub fn row_ms(&self, name: &str) -> String {
+        let p50 = self.quantile_us(0.5) / 1000.0;
+        let max = self.0.max() as f64 / 1e6;
+        format!("{name:<28} {p50:>10.1} {max:>10.1}")
+    }
 }
 
 /// The header matching [`Latencies::row`].

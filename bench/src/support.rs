@@ -21,7 +21,7 @@ impl BenchServer {
             .arg("serve")
             .args(["--world", &world])
             .args(args)
-            .env("RUST_LOG", "warn")
+            .env("RUST_LOG", "error")
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .spawn()

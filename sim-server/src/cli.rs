@@ -62,6 +62,11 @@ pub struct ServerArgs {
     #[arg(long, value_enum, default_value_t = OnTickerLoss::Wait)]
     pub on_ticker_loss: OnTickerLoss,
 
+    /// Synchronous mode: poll for ticks instead of sleeping (lowest tick
+    /// latency; one core busy while waiting).
+    #[arg(long)]
+    pub spin: bool,
+
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u64>,
@@ -132,6 +137,7 @@ pub fn run(args: ServerArgs) -> anyhow::Result<()> {
         max_fps: args.max_fps,
         max_frames: args.max_frames,
         on_ticker_loss: args.on_ticker_loss,
+        spin: args.spin,
     };
     let mut server = Server::start(config)?;
     let summary = server.run(&shutdown)?;

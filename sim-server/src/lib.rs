@@ -26,6 +26,7 @@
 //!     max_fps: 0.0,
 //!     max_frames: Some(100),
 //!     on_ticker_loss: Default::default(),
+//!     spin: false,
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());

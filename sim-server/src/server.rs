@@ -40,6 +40,9 @@ pub struct ServerConfig {
     pub max_frames: Option<u64>,
     /// What to do when the ticker dies in synchronous mode.
     pub on_ticker_loss: OnTickerLoss,
+    /// Synchronous mode: poll for ticks instead of sleeping on the wake-up
+    /// event (lowest tick latency, one core busy while waiting).
+    pub spin: bool,
 }
 
 /// What a finished run did.
@@ -74,6 +77,8 @@ const COARSE_WAIT: Duration = Duration::from_millis(5);
 const MAX_REALTIME_LAG: Duration = Duration::from_millis(250);
 /// The least time between two "physics unreliable" warnings.
 const WARN_PERIOD: Duration = Duration::from_secs(5);
+/// How often new subscribers are connected while no frame is sent.
+const CONNECTION_PERIOD: Duration = Duration::from_millis(10);
 /// How often the server checks that the ticker's process still lives.
 const TICKER_LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
@@ -101,6 +106,7 @@ pub struct Server {
     ownership: TickOwnership,
     pending_ticks: VecDeque<PendingTick>,
     last_liveness_check: Instant,
+    last_connection_update: Instant,
 }
 
 fn platform_timestamp() -> f64 {
@@ -136,6 +142,7 @@ impl Server {
             ownership: TickOwnership::default(),
             pending_ticks: VecDeque::new(),
             last_liveness_check: now,
+            last_connection_update: now,
             config,
         };
         server.publish(0, 0)?;
@@ -169,7 +176,11 @@ impl Server {
             if self.settings.synchronous_mode {
                 // Synchronous: one frame per tick, nothing without one.
                 if self.pending_ticks.is_empty() {
-                    self.idle(MAX_IDLE_WAIT)?;
+                    if self.config.spin {
+                        std::hint::spin_loop();
+                    } else {
+                        self.idle(MAX_IDLE_WAIT)?;
+                    }
                 } else {
                     self.step_frame(now, 1)?;
                 }
@@ -226,12 +237,6 @@ impl Server {
     /// milliseconds), so the last stretch before a due frame is a plain,
     /// precise sleep.
     fn idle(&mut self, timeout: Duration) -> Result<(), ServerError> {
-        // A subscriber that joined since the last frame gets the current frame
-        // (the service's history) now, not only when the next frame is sent —
-        // in synchronous mode that may be a long wait.
-        if let Err(e) = self.ports.frames.update_connections() {
-            debug!("connecting new subscribers: {e}");
-        }
         if timeout <= COARSE_WAIT {
             std::thread::sleep(timeout);
             return Ok(());
@@ -576,9 +581,18 @@ impl Server {
         }
     }
 
-    /// Every 100 ms: is the ticker alive? Once a second: remove what dead
-    /// clients left in the world's services.
+    /// Every 10 ms: connect new subscribers. Every 100 ms: is the ticker
+    /// alive? Once a second: remove what dead clients left in the services.
     fn housekeeping(&mut self) {
+        if self.last_connection_update.elapsed() >= CONNECTION_PERIOD {
+            self.last_connection_update = Instant::now();
+            // A subscriber that joined since the last frame gets the current
+            // frame (the service's history) now, not only when the next frame
+            // is sent: in synchronous mode that may be a long wait.
+            if let Err(e) = self.ports.frames.update_connections() {
+                debug!("connecting new subscribers: {e}");
+            }
+        }
         if self.ownership.owner().is_some()
             && self.last_liveness_check.elapsed() >= TICKER_LIVENESS_PERIOD
         {

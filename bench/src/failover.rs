@@ -1,0 +1,91 @@
+//! `failover`: how long after a ticker is SIGKILLed the server notices, and
+//! how long until a new ticker holds ownership.
+
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use sim_client::{Client, TickError};
+
+use crate::stats::Latencies;
+use crate::support::BenchServer;
+use crate::tick::spawn_peer;
+
+#[derive(Debug, Args)]
+pub struct FailoverArgs {
+    /// Kills measured per figure.
+    #[arg(long, default_value_t = 20)]
+    trials: u64,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Starts a ticker process, waits until it ticks, SIGKILLs it, and returns
+/// the instant of the kill.
+fn kill_a_ticker(world: &str) -> anyhow::Result<Instant> {
+    let (mut ticker, ready) = spawn_peer("ticker", world)?;
+    anyhow::ensure!(ready == "ready", "the ticker did not start: {ready}");
+    std::thread::sleep(Duration::from_millis(20));
+    ticker.kill()?;
+    Ok(Instant::now())
+}
+
+pub fn run(args: FailoverArgs) -> anyhow::Result<()> {
+    let server = BenchServer::start(
+        "failover",
+        &["--scene", "empty", "--fixed-delta-seconds", "0.01"],
+    )?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let deadline = Duration::from_secs(10);
+
+    // (1) The server's own detection: status shows no ticker.
+    let mut noticed = Latencies::new();
+    for _ in 0..args.trials {
+        let killed = kill_a_ticker(&server.world)?;
+        while client.status()?.ticker.active().is_some() {
+            anyhow::ensure!(
+                killed.elapsed() < deadline,
+                "the dead ticker was never noticed"
+            );
+            std::thread::sleep(Duration::from_micros(200));
+        }
+        noticed.record(killed.elapsed().as_nanos() as u64);
+    }
+
+    // (2) A new ticker trying right after the kill: when its claim succeeds.
+    let mut replaced = Latencies::new();
+    for _ in 0..args.trials {
+        let killed = kill_a_ticker(&server.world)?;
+        let ticker = loop {
+            match client.claim_ticker() {
+                Ok(ticker) => break ticker,
+                Err(TickError::NotOwner { .. }) if killed.elapsed() < deadline => {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                Err(e) => return Err(e.into()),
+            }
+        };
+        replaced.record(killed.elapsed().as_nanos() as u64);
+        ticker.release()?;
+    }
+
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "trials": args.trials,
+                "server_notices_dead_ticker": noticed.json(),
+                "new_ticker_claims": replaced.json(),
+            })
+        );
+        return Ok(());
+    }
+    println!(
+        "ticker failover: SIGKILL of the ticker -> ... ({} trials each)",
+        args.trials
+    );
+    println!("{:<28} {:>10} {:>10}", "after the kill", "p50 ms", "max ms");
+    println!("{}", noticed.row_ms("server notices (status)"));
+    println!("{}", replaced.row_ms("a new ticker holds it"));
+    Ok(())
+}

@@ -1,0 +1,326 @@
+//! `tick`: the synchronous tick round trip against its floor and against TCP.
+//!
+//! In one run, on one machine, each between two processes:
+//! (a) raw iceoryx2 ping-pong (u64 there, u64 back) — the floor;
+//! (b) simbus: `Ticker::tick` sent → that frame's snapshot received, on an
+//!     empty scene, spinning and blocking;
+//! (c) the same exchange (an 8-byte tick, a frame header back) over TCP
+//!     loopback, the transport CARLA uses.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use clap::Args;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use shared_types::{FrameHeader, WorldSettings};
+use sim_client::process::ChildGuard;
+use sim_client::{Client, WaitMode};
+
+use crate::stats::{header, Latencies};
+use crate::support::BenchServer;
+
+#[derive(Debug, Args)]
+pub struct TickArgs {
+    /// Round trips measured per row (after a warm-up of 10%).
+    #[arg(long, default_value_t = 20_000)]
+    iterations: u64,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// The other end of the raw ping-pong and TCP baselines.
+#[derive(Debug, Args)]
+pub struct PeerArgs {
+    /// `iceoryx-spin`, `iceoryx-block` or `tcp`.
+    #[arg(long)]
+    kind: String,
+    /// Service prefix for the iceoryx2 kinds.
+    #[arg(long, default_value = "bench")]
+    name: String,
+}
+
+const WARMUP_FRACTION: u64 = 10;
+
+fn measure(
+    iterations: u64,
+    mut round_trip: impl FnMut() -> anyhow::Result<()>,
+) -> anyhow::Result<Latencies> {
+    for _ in 0..iterations / WARMUP_FRACTION {
+        round_trip()?;
+    }
+    let mut latencies = Latencies::new();
+    for _ in 0..iterations {
+        let start = Instant::now();
+        round_trip()?;
+        latencies.record(start.elapsed().as_nanos() as u64);
+    }
+    Ok(latencies)
+}
+
+struct RawPorts {
+    _node: Node<ipc::Service>,
+    tx: Publisher<ipc::Service, u64, ()>,
+    rx: Subscriber<ipc::Service, u64, ()>,
+    notifier: Notifier<ipc::Service>,
+    listener: Listener<ipc::Service>,
+}
+
+/// Opens `name/{a,b}` pub-sub and `name/{a,b}/event`; `side` sends on one and
+/// receives on the other.
+fn raw_ports(name: &str, send_on: &str, receive_on: &str) -> anyhow::Result<RawPorts> {
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let pubsub = |n: String| -> anyhow::Result<_> {
+        node.service_builder(&ServiceName::new(&n).map_err(|e| anyhow::anyhow!("{e:?}"))?)
+            .publish_subscribe::<u64>()
+            .open_or_create()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+    };
+    let event = |n: String| -> anyhow::Result<_> {
+        node.service_builder(&ServiceName::new(&n).map_err(|e| anyhow::anyhow!("{e:?}"))?)
+            .event()
+            .open_or_create()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+    };
+    let tx = pubsub(format!("{name}/{send_on}"))?
+        .publisher_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let rx = pubsub(format!("{name}/{receive_on}"))?
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let notifier = event(format!("{name}/{send_on}/event"))?
+        .notifier_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let listener = event(format!("{name}/{receive_on}/event"))?
+        .listener_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    Ok(RawPorts {
+        _node: node,
+        tx,
+        rx,
+        notifier,
+        listener,
+    })
+}
+
+impl RawPorts {
+    fn send(&self, value: u64, notify: bool) -> anyhow::Result<()> {
+        self.tx
+            .send_copy(value)
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        if notify {
+            self.notifier
+                .notify()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        }
+        Ok(())
+    }
+
+    fn receive(&self, block: bool) -> anyhow::Result<u64> {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(sample) = self.rx.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+                return Ok(*sample.payload());
+            }
+            anyhow::ensure!(
+                Instant::now() < deadline,
+                "ping-pong peer stopped answering"
+            );
+            if block {
+                self.listener
+                    .timed_wait(|_| {}, Duration::from_millis(100))
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            } else {
+                std::hint::spin_loop();
+            }
+        }
+    }
+}
+
+/// The hidden `peer` command: echoes (or ticks) until it is stopped.
+pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
+    match args.kind.as_str() {
+        "ticker" => {
+            let client = Client::connect(&args.name, Duration::from_secs(10))?;
+            let mut ticker = client.claim_ticker_as("bench-ticker")?;
+            ticker.apply_settings(WorldSettings {
+                synchronous_mode: true,
+                fixed_delta_seconds: Some(0.01),
+                ..client.get_settings()?
+            })?;
+            println!("ready");
+            loop {
+                ticker.tick(Duration::from_secs(10))?;
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        "tcp" => {
+            let listener = TcpListener::bind("127.0.0.1:0")?;
+            println!("{}", listener.local_addr()?.port());
+            let (mut stream, _) = listener.accept()?;
+            stream.set_nodelay(true)?;
+            let frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
+            let mut tick = [0u8; 8];
+            while stream.read_exact(&mut tick).is_ok() {
+                stream.write_all(&frame)?;
+            }
+            Ok(())
+        }
+        kind => {
+            let block = kind == "iceoryx-block";
+            let ports = raw_ports(&args.name, "pong", "ping")?;
+            println!("ready");
+            loop {
+                let value = ports.receive(block)?;
+                ports.send(value, block)?;
+            }
+        }
+    }
+}
+
+pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, String)> {
+    let mut child = Command::new(std::env::current_exe()?)
+        .args(["peer", "--kind", kind, "--name", name])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting the benchmark peer")?;
+    let stdout = child.stdout.take().context("peer stdout")?;
+    let guard = ChildGuard::new(child, Duration::from_secs(2));
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line)?;
+    Ok((guard, line.trim().to_owned()))
+}
+
+fn raw_ping_pong(block: bool, iterations: u64) -> anyhow::Result<Latencies> {
+    let kind = if block {
+        "iceoryx-block"
+    } else {
+        "iceoryx-spin"
+    };
+    let name = format!("bench-raw-{kind}-{}", std::process::id());
+    let ports = raw_ports(&name, "ping", "pong")?;
+    let (_peer, _) = spawn_peer(kind, &name)?;
+    let mut n = 0;
+    measure(iterations, || {
+        n += 1;
+        ports.send(n, block)?;
+        anyhow::ensure!(ports.receive(block)? == n, "ping-pong out of order");
+        Ok(())
+    })
+}
+
+fn tcp_round_trip(iterations: u64) -> anyhow::Result<Latencies> {
+    let (_peer, port) = spawn_peer("tcp", "tcp")?;
+    let mut stream = TcpStream::connect(("127.0.0.1", port.parse::<u16>()?))?;
+    stream.set_nodelay(true)?;
+    let mut frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
+    let mut tick = 0u64;
+    measure(iterations, || {
+        tick += 1;
+        stream.write_all(&tick.to_le_bytes())?;
+        stream.read_exact(&mut frame)?;
+        Ok(())
+    })
+}
+
+/// `server_spin`: the server polls for ticks; `mode`: how the ticker and
+/// the subscriber wait.
+fn simbus_round_trip(
+    server_spin: bool,
+    mode: WaitMode,
+    iterations: u64,
+) -> anyhow::Result<Latencies> {
+    let mut server_args = vec!["--scene", "empty", "--fixed-delta-seconds", "0.01"];
+    if server_spin {
+        server_args.push("--spin");
+    }
+    let server = BenchServer::start(&format!("tick-{server_spin}-{mode:?}"), &server_args)?;
+    let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
+    client.set_wait_mode(mode);
+    let mut ticker = client.claim_ticker()?;
+    ticker.set_wait_mode(mode);
+    ticker.apply_settings(WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: Some(0.01),
+        ..client.get_settings()?
+    })?;
+    // Drain the frames published before synchronous mode began.
+    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    let timeout = Duration::from_secs(10);
+    measure(iterations, || {
+        let frame = ticker.tick(timeout)?;
+        let snapshot = client.wait_for_tick(timeout)?;
+        anyhow::ensure!(
+            snapshot.frame() == frame,
+            "snapshot of frame {} after tick {frame}",
+            snapshot.frame()
+        );
+        Ok(())
+    })
+}
+
+pub fn run(args: TickArgs) -> anyhow::Result<()> {
+    let n = args.iterations;
+    let rows = [
+        ("(a) raw iceoryx2, spin", raw_ping_pong(false, n)?),
+        ("(a) raw iceoryx2, block", raw_ping_pong(true, n)?),
+        (
+            "(b) simbus, all spin",
+            simbus_round_trip(true, WaitMode::Spin, n)?,
+        ),
+        (
+            "(b) simbus, client spin",
+            simbus_round_trip(false, WaitMode::Spin, n)?,
+        ),
+        (
+            "(b) simbus, block",
+            simbus_round_trip(false, WaitMode::Block, n)?,
+        ),
+        ("(c) TCP loopback", tcp_round_trip(n)?),
+    ];
+    let p50 = |i: usize| rows[i].1.quantile_us(0.5);
+    let ratios = [
+        ("b/a simbus all spin / raw spin", p50(2) / p50(0)),
+        ("b/a simbus block / raw block", p50(4) / p50(1)),
+        ("c/b TCP / simbus all spin", p50(5) / p50(2)),
+        ("c/b TCP / simbus block", p50(5) / p50(4)),
+    ];
+    if args.json {
+        let mut json = serde_json::Map::new();
+        for (name, latencies) in &rows {
+            json.insert((*name).into(), latencies.json());
+        }
+        for (name, ratio) in ratios {
+            json.insert(name.into(), ratio.into());
+        }
+        json.insert("iterations".into(), n.into());
+        println!("{}", serde_json::Value::Object(json));
+        return Ok(());
+    }
+    println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
+    println!("all spin: server --spin, ticker and subscriber spin; client spin: the server sleeps on its wake-up event");
+    println!("{}", header("exchange"));
+    for (name, latencies) in &rows {
+        println!("{}", latencies.row(name));
+    }
+    println!();
+    for (name, ratio) in ratios {
+        println!("{name:<32} {ratio:>6.2}x at p50");
+    }
+    Ok(())
+}

@@ -36,6 +36,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         max_frames: Some(frames),
         on_ticker_loss: Default::default(),
         spin: false,
+        seed: 0,
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

@@ -17,6 +17,11 @@ pub enum RequestKind {
     ApplySettings = 3,
     /// Returns the status.
     Status = 4,
+    /// Loads `scene` as a new episode (settings kept unless
+    /// [`ControlRequest::RESET_SETTINGS`]).
+    LoadWorld = 5,
+    /// Restores the current scene's initial state as a new episode.
+    ReloadWorld = 6,
 }
 
 impl RequestKind {
@@ -27,6 +32,8 @@ impl RequestKind {
             2 => Self::GetSettings,
             3 => Self::ApplySettings,
             4 => Self::Status,
+            5 => Self::LoadWorld,
+            6 => Self::ReloadWorld,
             _ => return None,
         })
     }
@@ -48,6 +55,8 @@ pub enum ResponseStatus {
     SyncNeedsTicker = 4,
     /// Only the tick owner may do this (or the sender is not the owner).
     NotOwner = 5,
+    /// The scene name is not one the server knows; nothing changed.
+    UnknownScene = 6,
 }
 
 impl ResponseStatus {
@@ -60,6 +69,7 @@ impl ResponseStatus {
             3 => Self::UnknownRequest,
             4 => Self::SyncNeedsTicker,
             5 => Self::NotOwner,
+            6 => Self::UnknownScene,
             _ => return None,
         })
     }
@@ -76,10 +86,12 @@ pub struct ControlRequest {
     pub kind: u32,
     /// Process id of the sender, for the server's log.
     pub client_pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// [`ControlRequest::RESET_SETTINGS`] and future flags.
+    pub flags: u32,
     /// The settings to apply (for [`RequestKind::ApplySettings`]).
     pub settings: WireSettings,
+    /// The scene to load (for [`RequestKind::LoadWorld`]).
+    pub scene: FixedText,
 }
 
 impl ControlRequest {
@@ -89,8 +101,30 @@ impl ControlRequest {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
             client_pid: std::process::id(),
-            reserved: 0,
+            flags: 0,
             settings: WorldSettings::default().into(),
+            scene: FixedText::new(""),
+        }
+    }
+
+    /// Flag for load and reload: reset the settings to the defaults.
+    pub const RESET_SETTINGS: u32 = 1;
+
+    /// A request to load `scene` (`None`: reload the current one).
+    pub fn load_world(scene: Option<&str>, reset_settings: bool) -> Self {
+        let kind = if scene.is_some() {
+            RequestKind::LoadWorld
+        } else {
+            RequestKind::ReloadWorld
+        };
+        Self {
+            flags: if reset_settings {
+                Self::RESET_SETTINGS
+            } else {
+                0
+            },
+            scene: FixedText::new(scene.unwrap_or("")),
+            ..Self::new(kind)
         }
     }
 
@@ -160,6 +194,12 @@ pub struct StatusReport {
     pub scene: FixedText,
     /// Who holds tick ownership.
     pub ticker: TickerInfo,
+    /// The seed the scene was built with (0: none).
+    pub seed: u64,
+    /// Lockstep participants the server waits for in synchronous mode.
+    pub participants: u32,
+    /// Zero.
+    pub reserved: u32,
 }
 
 /// The server's answer to one [`ControlRequest`].
@@ -249,6 +289,8 @@ mod tests {
             RequestKind::GetSettings,
             RequestKind::ApplySettings,
             RequestKind::Status,
+            RequestKind::LoadWorld,
+            RequestKind::ReloadWorld,
         ] {
             assert_eq!(RequestKind::from_u32(k as u32), Some(k));
         }
@@ -260,6 +302,7 @@ mod tests {
             ResponseStatus::UnknownRequest,
             ResponseStatus::SyncNeedsTicker,
             ResponseStatus::NotOwner,
+            ResponseStatus::UnknownScene,
         ] {
             assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
         }

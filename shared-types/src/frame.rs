@@ -77,6 +77,8 @@ pub enum ActorKind {
     Sphere = 3,
     /// A dynamic capsule along Y; `extent` is (radius, half height, radius).
     Capsule = 4,
+    /// A four-wheeled ray-cast vehicle; `extent` holds the chassis half extents.
+    Vehicle = 5,
 }
 
 impl ActorKind {
@@ -87,8 +89,22 @@ impl ActorKind {
             2 => Self::Box,
             3 => Self::Sphere,
             4 => Self::Capsule,
+            5 => Self::Vehicle,
             _ => return None,
         })
+    }
+
+    /// The kind named `name` (as printed by [`ActorKind::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [
+            Self::Static,
+            Self::Box,
+            Self::Sphere,
+            Self::Capsule,
+            Self::Vehicle,
+        ]
+        .into_iter()
+        .find(|k| k.name() == name)
     }
 
     /// The lower-case name used in CLI output.
@@ -98,6 +114,7 @@ impl ActorKind {
             Self::Box => "box",
             Self::Sphere => "sphere",
             Self::Capsule => "capsule",
+            Self::Vehicle => "vehicle",
         }
     }
 }
@@ -132,6 +149,8 @@ pub struct ActorState {
 impl ActorState {
     /// Flag: the physics engine put the body to sleep (it is at rest).
     pub const SLEEPING: u32 = 1;
+    /// Flag: the actor's physics is disabled (it does not move or collide).
+    pub const PHYSICS_DISABLED: u32 = 2;
 
     /// The actor's kind, if this version knows it.
     pub fn actor_kind(&self) -> Option<ActorKind> {
@@ -174,6 +193,7 @@ mod tests {
             ActorKind::Box,
             ActorKind::Sphere,
             ActorKind::Capsule,
+            ActorKind::Vehicle,
         ] {
             assert_eq!(ActorKind::from_u32(kind as u32), Some(kind));
         }

@@ -29,16 +29,22 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
+mod command;
 mod control;
 mod frame;
+mod lockstep;
 mod names;
 mod settings;
 mod tick;
 
+pub use command::{
+    BatchHeader, BatchResponseHeader, Command, CommandKind, CommandResult, CommandStatus,
+};
 pub use control::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, StatusReport,
 };
 pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
+pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
@@ -73,4 +79,8 @@ pub mod limits {
     /// Actor slots reserved in the first frame sample; the publisher grows
     /// its memory when the world holds more.
     pub const INITIAL_MAX_ACTORS: usize = 64;
+    /// Commands reserved in the first batch sample; it grows as needed.
+    pub const INITIAL_MAX_BATCH: usize = 64;
+    /// Batches one client may have in flight.
+    pub const MAX_BATCHES_IN_FLIGHT: usize = 16;
 }

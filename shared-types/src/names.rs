@@ -100,6 +100,11 @@ pub struct ServiceNames {
     /// Request-response admitting one client: [`crate::TickRequest`] →
     /// [`crate::TickResponse`]. Holding its client port is tick ownership.
     pub tick: String,
+    /// Request-response: a slice of [`crate::Command`] with a
+    /// [`crate::BatchHeader`] → a slice of [`crate::CommandResult`].
+    pub batch: String,
+    /// Request-response: [`crate::LockstepRequest`] → [`crate::LockstepResponse`].
+    pub lockstep: String,
 }
 
 impl ServiceNames {
@@ -112,6 +117,8 @@ impl ServiceNames {
             control: format!("{prefix}/control"),
             control_wake: format!("{prefix}/control/wake"),
             tick: format!("{prefix}/tick"),
+            batch: format!("{prefix}/batch"),
+            lockstep: format!("{prefix}/lockstep"),
         }
     }
 }

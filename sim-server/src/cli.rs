@@ -67,6 +67,15 @@ pub struct ServerArgs {
     #[arg(long)]
     pub spin: bool,
 
+    /// Start in synchronous mode, waiting for the first ticker (needs a fixed
+    /// step), so a run is deterministic from frame 0.
+    #[arg(long)]
+    pub sync: bool,
+
+    /// Seed for the scene's placement: the same seed, the same world.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub seed: u64,
+
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u64>,
@@ -88,13 +97,18 @@ impl ServerArgs {
             (dt, None) => dt,
         };
         let settings = WorldSettings {
-            synchronous_mode: false,
+            synchronous_mode: self.sync,
             fixed_delta_seconds,
             substepping: !self.no_substepping,
             max_substep_delta_time: self.max_substep_delta_time,
             max_substeps: self.max_substeps,
         };
         settings.validate()?;
+        if self.sync && settings.normalized().fixed_delta_seconds.is_none() {
+            anyhow::bail!(
+                "--sync needs a fixed step (--fixed-delta-seconds or --fps): in synchronous mode a variable step makes every frame as long as the ticker's wait"
+            );
+        }
         Ok(settings.normalized())
     }
 }
@@ -138,6 +152,7 @@ pub fn run(args: ServerArgs) -> anyhow::Result<()> {
         max_frames: args.max_frames,
         on_ticker_loss: args.on_ticker_loss,
         spin: args.spin,
+        seed: args.seed,
     };
     let mut server = Server::start(config)?;
     let summary = server.run(&shutdown)?;

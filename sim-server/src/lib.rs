@@ -9,6 +9,7 @@
 //! - [`world`]: rapier bodies and the actors that name them.
 //! - [`services`]: the world's iceoryx2 ports.
 //! - [`ticker`]: tick ownership and its loss.
+//! - [`lockstep`]: participants the server waits for in synchronous mode.
 //! - [`server`]: the loop that answers requests, paces, steps and publishes.
 //! - [`cli`]: the `sim-server` command line.
 //!
@@ -27,6 +28,7 @@
 //!     max_frames: Some(100),
 //!     on_ticker_loss: Default::default(),
 //!     spin: false,
+//!     seed: 0,
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());
@@ -39,6 +41,7 @@
 
 pub mod cli;
 pub mod clock;
+pub mod lockstep;
 pub mod scene;
 pub mod server;
 pub mod services;

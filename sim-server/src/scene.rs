@@ -1,14 +1,16 @@
 //! Scenes: the initial contents of a world.
 //!
 //! - `default`: ground, a ramp with a sphere rolling down it into a stack of
-//!   boxes, boxes and a capsule falling and tumbling — something visibly moves
-//!   for several seconds.
+//!   boxes, boxes and a capsule falling and tumbling, two vehicles —
+//!   something visibly moves for several seconds.
 //! - `empty`: nothing at all (measures the bus, not the physics).
 //! - `boxes:N`: ground and N boxes dropped in a grid (physics load).
 
 use std::fmt;
 use std::str::FromStr;
 
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
 use shared_types::ActorKind;
 
@@ -118,7 +120,9 @@ impl Placement {
         .build();
         let e = self.extent;
         let collider = match self.kind {
-            ActorKind::Static | ActorKind::Box => ColliderBuilder::cuboid(e.x, e.y, e.z),
+            ActorKind::Static | ActorKind::Box | ActorKind::Vehicle => {
+                ColliderBuilder::cuboid(e.x, e.y, e.z)
+            }
             ActorKind::Sphere => ColliderBuilder::ball(e.x),
             ActorKind::Capsule => ColliderBuilder::capsule_y(e.y, e.x),
         }
@@ -139,13 +143,27 @@ fn ground(half_size: f32) -> Placement {
 }
 
 impl Scene {
-    /// The bodies of this scene, in actor-id order.
-    pub fn placements(&self) -> Vec<Placement> {
-        match *self {
+    /// The bodies of this scene, in actor-id order. A non-zero `seed` moves
+    /// every dynamic body by up to 0.2 m and turns it by up to 0.2 rad,
+    /// the same way for the same seed.
+    pub fn placements(&self, seed: u64) -> Vec<Placement> {
+        let mut placements = match *self {
             Self::Empty => Vec::new(),
             Self::Default => default_scene(),
             Self::Boxes(n) => boxes_scene(n),
+        };
+        if seed != 0 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut jitter = |scale: f32| rng.random_range(-scale..=scale);
+            for p in placements
+                .iter_mut()
+                .filter(|p| p.kind != ActorKind::Static)
+            {
+                p.position += Vector::new(jitter(0.2), 0.0, jitter(0.2));
+                p.rotation += Vector::new(0.0, jitter(0.2), 0.0);
+            }
         }
+        placements
     }
 }
 
@@ -181,6 +199,15 @@ fn default_scene() -> Vec<Placement> {
             Vector::new(9.0 + 0.3 * i, 3.0 + 1.5 * i, -3.0 + 0.2 * i),
         )
         .rotated(Vector::new(0.3 * i, 0.2, 0.5))
+    }));
+    // Two vehicles on open ground, facing +x (the autopilot drives them).
+    scene.extend([-8.0, 8.0].map(|z| {
+        Placement::new(
+            ActorKind::Vehicle,
+            Vector::new(1.0, 0.25, 0.5),
+            Vector::new(-4.0, 1.0, z),
+        )
+        .density(100.0)
     }));
     // A capsule falling end over end.
     scene.push(
@@ -224,6 +251,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn seeds_move_dynamic_bodies_reproducibly() {
+        let positions = |seed| {
+            Scene::Default
+                .placements(seed)
+                .iter()
+                .map(|p| p.position.to_array())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(positions(7), positions(7));
+        assert_ne!(positions(7), positions(8));
+        assert_ne!(positions(7), positions(0));
+        // Static geometry never moves.
+        assert_eq!(positions(7)[..2], positions(0)[..2]);
+    }
+
+    #[test]
     fn scene_names_parse_and_print_back() {
         for name in ["default", "empty", "boxes:1", "boxes:1000"] {
             assert_eq!(name.parse::<Scene>().unwrap().to_string(), name);
@@ -246,14 +289,21 @@ mod tests {
 
     #[test]
     fn scenes_hold_what_they_say() {
-        assert!(Scene::Empty.placements().is_empty());
-        let boxes = Scene::Boxes(1000).placements();
+        assert!(Scene::Empty.placements(0).is_empty());
+        let boxes = Scene::Boxes(1000).placements(0);
         assert_eq!(boxes.len(), 1001);
         assert_eq!(
             boxes.iter().filter(|p| p.kind == ActorKind::Box).count(),
             1000
         );
-        let default = Scene::Default.placements();
+        let default = Scene::Default.placements(0);
+        assert_eq!(
+            default
+                .iter()
+                .filter(|p| p.kind == ActorKind::Vehicle)
+                .count(),
+            2
+        );
         assert!(default.iter().any(|p| p.kind == ActorKind::Sphere));
         assert!(default.iter().any(|p| p.kind == ActorKind::Capsule));
         assert!(

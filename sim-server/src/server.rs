@@ -10,13 +10,15 @@ use iceoryx2::port::listener::ListenerWaitError;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::ipc;
 use shared_types::{
-    ControlRequest, ControlResponse, FixedText, FrameHeader, RequestKind, ResponseStatus,
-    SettingsError, StatusReport, TickRequest, TickRequestKind, TickResponse, Timestamp,
-    WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
+    BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ControlRequest,
+    ControlResponse, FixedText, FrameHeader, LockstepKind, LockstepRequest, LockstepResponse,
+    RequestKind, ResponseStatus, SettingsError, StatusReport, TickRequest, TickRequestKind,
+    TickResponse, Timestamp, WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 
 use crate::clock::{long_substep, Clock, SubstepPlan, LONG_FRAME_NS};
+use crate::lockstep::Participants;
 use crate::scene::Scene;
 use crate::services::ServerPorts;
 use crate::ticker::{node_process_alive, OnTickerLoss, Owner, TickOwnership};
@@ -43,6 +45,8 @@ pub struct ServerConfig {
     /// Synchronous mode: poll for ticks instead of sleeping on the wake-up
     /// event (lowest tick latency, one core busy while waiting).
     pub spin: bool,
+    /// Seed of the scene's placement (0: none); kept across reloads.
+    pub seed: u64,
 }
 
 /// What a finished run did.
@@ -84,6 +88,17 @@ const TICKER_LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
 /// A tick request waiting for its frame.
 type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
+/// A batch request (already applied) waiting for the answer.
+type PendingBatch =
+    ActiveRequest<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// A request for one frame step, answered once the frame is published.
+enum PendingStep {
+    /// `Ticker::tick`.
+    Tick(PendingTick),
+    /// `apply_batch_sync(.., tick = true)`, with the batch's results.
+    Batch(PendingBatch, Vec<CommandResult>),
+}
 
 /// Why a settings change was refused.
 enum Refusal {
@@ -104,7 +119,9 @@ pub struct Server {
     last_cleanup: Instant,
     last_warning: Option<Instant>,
     ownership: TickOwnership,
-    pending_ticks: VecDeque<PendingTick>,
+    participants: Participants,
+    pending_steps: VecDeque<PendingStep>,
+    frames_computed: u64,
     last_liveness_check: Instant,
     last_connection_update: Instant,
 }
@@ -121,13 +138,10 @@ impl Server {
     pub fn start(config: ServerConfig) -> Result<Self, ServerError> {
         let settings = config.settings.normalized();
         settings.validate()?;
-        if settings.synchronous_mode {
-            return Err(ServerError::SyncNeedsTicker);
-        }
         for warning in settings.warnings() {
             warn!("{warning}");
         }
-        let world = World::new(config.scene);
+        let world = World::new(&config.scene.placements(config.seed));
         let ports = ServerPorts::open(&config.world, world.actor_count())?;
         let now = Instant::now();
         let mut server = Self {
@@ -140,7 +154,9 @@ impl Server {
             last_cleanup: now,
             last_warning: None,
             ownership: TickOwnership::default(),
-            pending_ticks: VecDeque::new(),
+            participants: Participants::default(),
+            pending_steps: VecDeque::new(),
+            frames_computed: 0,
             last_liveness_check: now,
             last_connection_update: now,
             config,
@@ -160,22 +176,26 @@ impl Server {
     /// Runs until `shutdown` is set or `max_frames` frames were computed.
     pub fn run(&mut self, shutdown: &AtomicBool) -> Result<RunSummary, ServerError> {
         let started = Instant::now();
-        let first_frame = self.clock.frame();
+        let first_frame = self.frames_computed;
         while !shutdown.load(Ordering::Relaxed) {
             if self
                 .config
                 .max_frames
-                .is_some_and(|max| self.clock.frame() - first_frame >= max)
+                .is_some_and(|max| self.frames_computed - first_frame >= max)
             {
                 break;
             }
             self.handle_control()?;
+            self.handle_batches()?;
+            self.handle_lockstep()?;
             self.handle_ticks()?;
             self.housekeeping();
             let now = Instant::now();
             if self.settings.synchronous_mode {
-                // Synchronous: one frame per tick, nothing without one.
-                if self.pending_ticks.is_empty() {
+                // Synchronous: one frame per tick, nothing without one, and
+                // not before every lockstep participant is done.
+                if self.pending_steps.is_empty() || !self.participants.all_done(self.clock.frame())
+                {
                     if self.config.spin {
                         std::hint::spin_loop();
                     } else {
@@ -189,11 +209,11 @@ impl Server {
             match self.next_frame_at(now) {
                 Some(at) if at > now => self.idle((at - now).min(MAX_IDLE_WAIT))?,
                 // Asynchronous: a tick just waits for the next frame.
-                _ => self.step_frame(now, self.pending_ticks.len())?,
+                _ => self.step_frame(now, self.pending_steps.len())?,
             }
         }
         let summary = RunSummary {
-            frames: self.clock.frame() - first_frame,
+            frames: self.frames_computed - first_frame,
             wall_seconds: started.elapsed().as_secs_f64(),
             elapsed_seconds: Timestamp {
                 elapsed_ns: self.clock.elapsed_ns(),
@@ -262,6 +282,7 @@ impl Server {
         self.warn_if_unreliable(delta_ns, &plan, now);
         self.world.step(&plan);
         self.clock.advance(delta_ns, now);
+        self.frames_computed += 1;
         self.publish(
             plan.count,
             if plan.capped {
@@ -270,18 +291,24 @@ impl Server {
                 0
             },
         )?;
-        for tick in self
-            .pending_ticks
-            .drain(..ticks.min(self.pending_ticks.len()))
-        {
-            let response = TickResponse::new(
-                ResponseStatus::Ok,
-                self.clock.frame(),
-                self.clock.elapsed_ns(),
-                self.ownership.info(),
-            );
-            if let Err(e) = tick.send_copy(response) {
-                debug!("tick response not delivered (ticker gone?): {e:?}");
+        let count = ticks.min(self.pending_steps.len());
+        let steps: Vec<PendingStep> = self.pending_steps.drain(..count).collect();
+        for step in steps {
+            match step {
+                PendingStep::Tick(tick) => {
+                    let response = TickResponse::new(
+                        ResponseStatus::Ok,
+                        self.clock.frame(),
+                        self.clock.elapsed_ns(),
+                        self.ownership.info(),
+                    );
+                    if let Err(e) = tick.send_copy(response) {
+                        debug!("tick response not delivered (ticker gone?): {e:?}");
+                    }
+                }
+                PendingStep::Batch(request, results) => {
+                    respond_batch(&request, ResponseStatus::Ok, self.clock.frame(), &results)
+                }
             }
         }
         self.notify_frame()
@@ -381,6 +408,29 @@ impl Server {
                 ControlResponse::ok(self.report())
             }
             Some(RequestKind::ApplySettings) => self.apply_settings(request),
+            Some(kind @ (RequestKind::LoadWorld | RequestKind::ReloadWorld)) => {
+                let scene = match kind {
+                    RequestKind::LoadWorld => match request.scene.to_string_lossy().parse() {
+                        Ok(scene) => scene,
+                        Err(e) => {
+                            info!(client_pid = request.client_pid, "refused to load: {e}");
+                            return ControlResponse::refused(
+                                ResponseStatus::UnknownScene,
+                                self.report(),
+                            );
+                        }
+                    },
+                    _ => self.config.scene,
+                };
+                let reset = request.flags & ControlRequest::RESET_SETTINGS != 0;
+                match self.load_world(scene, reset, request.client_pid) {
+                    Ok(()) => ControlResponse::ok(self.report()),
+                    Err(e) => {
+                        warn!("loading {scene} failed: {e}");
+                        ControlResponse::refused(ResponseStatus::UnknownRequest, self.report())
+                    }
+                }
+            }
             None => ControlResponse::refused(ResponseStatus::UnknownRequest, self.report()),
         }
     }
@@ -497,14 +547,14 @@ impl Server {
                                 frame = self.clock.frame(),
                                 "ticker released ownership"
                             );
-                            self.pending_ticks.clear();
+                            self.drop_pending_ticks();
                             respond(self, ResponseStatus::Ok)
                         } else {
                             respond(self, ResponseStatus::NotOwner)
                         }
                     }
                     Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
-                        self.pending_ticks.push_back(request);
+                        self.pending_steps.push_back(PendingStep::Tick(request));
                         continue;
                     }
                     Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
@@ -538,12 +588,151 @@ impl Server {
         Ok(())
     }
 
+    /// Forgets the ticker's pending ticks (it released or died); ticking
+    /// batches are answered as refused.
+    fn drop_pending_ticks(&mut self) {
+        for step in self.pending_steps.drain(..) {
+            if let PendingStep::Batch(request, results) = step {
+                respond_batch(
+                    &request,
+                    ResponseStatus::NotOwner,
+                    self.clock.frame(),
+                    &results,
+                );
+            }
+        }
+    }
+
+    /// Applies every pending batch, in arrival order, at this frame boundary.
+    fn handle_batches(&mut self) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .ports
+            .batch
+            .receive()
+            .map_err(|e| ServerError::transport("batch receive", e))?
+        {
+            let header = *request.user_header();
+            let next_frame = self.clock.frame() + 1;
+            if header.protocol_version != PROTOCOL_VERSION {
+                respond_batch(&request, ResponseStatus::ProtocolMismatch, next_frame, &[]);
+                continue;
+            }
+            let tick = header.flags & BatchHeader::TICK != 0;
+            let ticker_pid = self.ownership.owner().map(|o| o.pid);
+            if tick && ticker_pid != Some(header.pid) {
+                warn!(
+                    pid = header.pid,
+                    "refused a ticking batch from a process that is not the ticker"
+                );
+                respond_batch(&request, ResponseStatus::NotOwner, next_frame, &[]);
+                continue;
+            }
+            let results: Vec<CommandResult> = request
+                .payload()
+                .iter()
+                .map(|c| self.world.apply(c))
+                .collect();
+            let failed = results
+                .iter()
+                .filter(|r| r.status != CommandStatus::Ok as u32)
+                .count();
+            debug!(
+                pid = header.pid,
+                commands = results.len(),
+                failed,
+                tick,
+                "batch applied"
+            );
+            if tick {
+                self.pending_steps
+                    .push_back(PendingStep::Batch(request, results));
+            } else {
+                respond_batch(&request, ResponseStatus::Ok, next_frame, &results);
+            }
+        }
+        Ok(())
+    }
+
+    /// Joins, leaves and "done with frame N" of lockstep participants.
+    fn handle_lockstep(&mut self) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .ports
+            .lockstep
+            .receive()
+            .map_err(|e| ServerError::transport("lockstep receive", e))?
+        {
+            let payload: LockstepRequest = *request.payload();
+            let origin = request.origin();
+            let status = if payload.protocol_version != PROTOCOL_VERSION {
+                ResponseStatus::ProtocolMismatch
+            } else {
+                match LockstepKind::from_u32(payload.kind) {
+                    Some(LockstepKind::Join) => {
+                        let name = payload.name.to_string_lossy();
+                        info!(pid = payload.pid, %name, frame = self.clock.frame(), "lockstep participant joined");
+                        self.participants.join(origin, payload.pid, name);
+                        ResponseStatus::Ok
+                    }
+                    Some(LockstepKind::Leave) => {
+                        if self.participants.leave(origin) {
+                            info!(pid = payload.pid, "lockstep participant left");
+                        }
+                        ResponseStatus::Ok
+                    }
+                    Some(LockstepKind::Done) => {
+                        // A "done" for an earlier episode means nothing now.
+                        if payload.episode == self.episode {
+                            self.participants.done(origin, payload.frame);
+                        }
+                        ResponseStatus::Ok
+                    }
+                    None => ResponseStatus::UnknownRequest,
+                }
+            };
+            let response = LockstepResponse {
+                protocol_version: PROTOCOL_VERSION,
+                status: status as u32,
+                frame: self.clock.frame(),
+                episode: self.episode,
+            };
+            if let Err(e) = request.send_copy(response) {
+                debug!("lockstep response not delivered: {e:?}");
+            }
+        }
+        Ok(())
+    }
+
+    /// Replaces the world with `scene`'s initial state as a new episode,
+    /// starting again at frame 0; settings are kept unless `reset`.
+    fn load_world(&mut self, scene: Scene, reset: bool, pid: u32) -> Result<(), ServerError> {
+        let now = Instant::now();
+        self.world = World::new(&scene.placements(self.config.seed));
+        self.config.scene = scene;
+        self.clock = Clock::new(now);
+        self.episode += 1;
+        self.pace_anchor = None;
+        self.participants.new_episode();
+        if reset {
+            self.settings = WorldSettings::default();
+        }
+        info!(
+            pid,
+            %scene,
+            episode = self.episode,
+            actors = self.world.actor_count(),
+            "world loaded: {}",
+            describe(&self.settings)
+        );
+        self.publish(0, 0)?;
+        self.notify_frame()
+    }
+
     /// Drops a ticker whose process died, applying the ticker-loss policy.
     fn check_ticker(&mut self) {
         let Some(lost) = self.ownership.take_if_dead(node_process_alive) else {
             return;
         };
-        self.pending_ticks.clear();
+        self.drop_pending_ticks();
         // Frees the dead ticker's port, so a new ticker can claim.
         self.ports.node.try_cleanup_dead_nodes();
         let frame = self.clock.frame();
@@ -578,6 +767,9 @@ impl Server {
             settings: WireSettings::from(self.settings),
             scene: FixedText::new(&self.config.scene.to_string()),
             ticker: self.ownership.info(),
+            seed: self.config.seed,
+            participants: self.participants.len() as u32,
+            reserved: 0,
         }
     }
 
@@ -593,11 +785,19 @@ impl Server {
                 debug!("connecting new subscribers: {e}");
             }
         }
-        if self.ownership.owner().is_some()
+        if (self.ownership.owner().is_some() || !self.participants.is_empty())
             && self.last_liveness_check.elapsed() >= TICKER_LIVENESS_PERIOD
         {
             self.last_liveness_check = Instant::now();
             self.check_ticker();
+            for dead in self.participants.drop_dead(node_process_alive) {
+                warn!(
+                    pid = dead.pid,
+                    name = %dead.name,
+                    frame = self.clock.frame(),
+                    "lockstep participant died; no longer waiting for it"
+                );
+            }
         }
         if self.last_cleanup.elapsed() < CLEANUP_PERIOD {
             return;
@@ -610,6 +810,31 @@ impl Server {
                 "removed resources of dead clients"
             );
         }
+    }
+}
+
+/// Answers a batch with `status`, the frame it concerns and its results.
+fn respond_batch(
+    request: &PendingBatch,
+    status: ResponseStatus,
+    frame: u64,
+    results: &[CommandResult],
+) {
+    let response = request
+        .loan_slice_uninit(results.len())
+        .map(|mut response| {
+            *response.user_header_mut() = BatchResponseHeader {
+                protocol_version: PROTOCOL_VERSION,
+                status: status as u32,
+                frame,
+            };
+            response.write_from_slice(results)
+        });
+    match response.map(|r| r.send()) {
+        Ok(Ok(())) => {}
+        // Fire-and-forget batches have nobody waiting for the answer.
+        Ok(Err(e)) => debug!("batch response not delivered: {e:?}"),
+        Err(e) => debug!("batch response not loaned: {e:?}"),
     }
 }
 

@@ -7,11 +7,13 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
 use shared_types::limits::{
-    FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, MAX_CONTROL_CLIENTS,
-    MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS, MAX_NODES,
+    FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, INITIAL_MAX_BATCH,
+    MAX_BATCHES_IN_FLIGHT, MAX_CONTROL_CLIENTS, MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS,
+    MAX_NODES,
 };
 use shared_types::{
-    ActorState, ControlRequest, ControlResponse, FrameHeader, ServiceNames, TickRequest,
+    ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
+    ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, ServiceNames, TickRequest,
     TickResponse, WorldName,
 };
 use tracing::{info, warn};
@@ -24,6 +26,11 @@ pub type FramePublisher = Publisher<ipc::Service, [ActorState], FrameHeader>;
 pub type ControlServer = Server<ipc::Service, ControlRequest, (), ControlResponse, ()>;
 /// The server end of the tick service.
 pub type TickServer = Server<ipc::Service, TickRequest, (), TickResponse, ()>;
+/// The server end of the batch service.
+pub type BatchServer =
+    Server<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+/// The server end of the lockstep service.
+pub type LockstepServer = Server<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
 
 /// Every port the server holds for its world.
 pub struct ServerPorts {
@@ -39,6 +46,10 @@ pub struct ServerPorts {
     pub control_wake: Listener<ipc::Service>,
     /// Requests from the ticker (the service admits one client).
     pub tick: TickServer,
+    /// Command batches.
+    pub batch: BatchServer,
+    /// Lockstep participants.
+    pub lockstep: LockstepServer,
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ServerError> {
@@ -113,6 +124,42 @@ impl ServerPorts {
             .create()
             .map_err(|e| ServerError::transport("tick server", e))?;
 
+        let batch = node
+            .service_builder(&service_name(&names.batch)?)
+            .request_response::<[Command], [CommandResult]>()
+            .request_user_header::<BatchHeader>()
+            .response_user_header::<BatchResponseHeader>()
+            .max_servers(1)
+            .max_clients(MAX_CONTROL_CLIENTS)
+            .max_nodes(MAX_NODES)
+            .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
+            .max_response_buffer_size(2)
+            // A batch is never dropped: a sender that outruns the server waits.
+            .enable_safe_overflow_for_requests(false)
+            .enable_fire_and_forget_requests(true)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("batch service", e))?
+            .server_builder()
+            .initial_max_slice_len(INITIAL_MAX_BATCH)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ServerError::transport("batch server", e))?;
+
+        let lockstep = node
+            .service_builder(&service_name(&names.lockstep)?)
+            .request_response::<LockstepRequest, LockstepResponse>()
+            .max_servers(1)
+            .max_clients(MAX_CONTROL_CLIENTS)
+            .max_nodes(MAX_NODES)
+            .max_active_requests_per_client(4)
+            .max_response_buffer_size(2)
+            .enable_fire_and_forget_requests(true)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("lockstep service", e))?
+            .server_builder()
+            .create()
+            .map_err(|e| ServerError::transport("lockstep server", e))?;
+
         let control_wake = node
             .service_builder(&service_name(&names.control_wake)?)
             .event()
@@ -164,6 +211,8 @@ impl ServerPorts {
             control,
             control_wake,
             tick,
+            batch,
+            lockstep,
         })
     }
 }

@@ -1,0 +1,344 @@
+//! Commands on actors, sent in batches; one result per command.
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::PROTOCOL_VERSION;
+
+/// What a [`Command`] does. Vectors are in world coordinates (Y up).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum CommandKind {
+    /// Spawn a dynamic box: `vector` = position, `rotation` = quaternion
+    /// (x, y, z, w; all zero = identity), `params[0..3]` = half extents.
+    SpawnBox = 1,
+    /// Spawn a dynamic sphere: `params[0]` = radius.
+    SpawnSphere = 2,
+    /// Spawn a dynamic capsule along Y: `params[0]` = radius, `params[1]` = half height.
+    SpawnCapsule = 3,
+    /// Spawn a four-wheeled ray-cast vehicle (chassis 2 × 0.5 × 1 m, facing +X).
+    SpawnVehicle = 4,
+    /// Remove `actor`.
+    Destroy = 5,
+    /// Teleport `actor`: `vector` = position, `rotation` = quaternion.
+    SetTransform = 6,
+    /// Set `actor`'s velocity: `vector` = linear (m/s), `rotation[0..3]` = angular (rad/s).
+    SetTargetVelocity = 7,
+    /// Push `actor` with `vector` newtons during the next frame.
+    ApplyForce = 8,
+    /// Kick `actor` with an impulse of `vector` N·s, at once.
+    ApplyImpulse = 9,
+    /// Twist `actor` with `vector` N·m during the next frame.
+    ApplyTorque = 10,
+    /// Enable (`flags` bit 0 set) or disable `actor`'s physics simulation.
+    SetPhysics = 11,
+    /// Enable (`flags` bit 0 set) or disable gravity on `actor`.
+    SetGravity = 12,
+    /// Drive a vehicle: `params` = throttle 0..1, steer -1..1 (positive
+    /// left), brake 0..1; `flags` bit 0 = hand brake. Holds until changed.
+    VehicleControl = 13,
+}
+
+impl CommandKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        use CommandKind::*;
+        [
+            SpawnBox,
+            SpawnSphere,
+            SpawnCapsule,
+            SpawnVehicle,
+            Destroy,
+            SetTransform,
+            SetTargetVelocity,
+            ApplyForce,
+            ApplyImpulse,
+            ApplyTorque,
+            SetPhysics,
+            SetGravity,
+            VehicleControl,
+        ]
+        .into_iter()
+        .find(|k| *k as u32 == value)
+    }
+
+    /// Whether the command creates an actor.
+    pub fn spawns(&self) -> bool {
+        matches!(
+            self,
+            Self::SpawnBox | Self::SpawnSphere | Self::SpawnCapsule | Self::SpawnVehicle
+        )
+    }
+}
+
+/// One command in a batch. Build it with the constructors.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::Command/1")]
+pub struct Command {
+    /// [`CommandKind`] as `u32`.
+    pub kind: u32,
+    /// Kind-specific flags (see [`CommandKind`]).
+    pub flags: u32,
+    /// The actor acted on (0 for spawns).
+    pub actor: u64,
+    /// Position, velocity, force, impulse or torque.
+    pub vector: [f32; 3],
+    /// Zero.
+    pub reserved: u32,
+    /// Orientation (x, y, z, w), or angular velocity in the first three.
+    pub rotation: [f32; 4],
+    /// Sizes or vehicle control.
+    pub params: [f32; 4],
+}
+
+impl Command {
+    fn new(kind: CommandKind, actor: u64) -> Self {
+        Self {
+            kind: kind as u32,
+            actor,
+            ..Self::default()
+        }
+    }
+
+    /// Spawn a box with half extents `half` at `at`.
+    pub fn spawn_box(at: [f32; 3], half: [f32; 3]) -> Self {
+        Self {
+            vector: at,
+            params: [half[0], half[1], half[2], 0.0],
+            ..Self::new(CommandKind::SpawnBox, 0)
+        }
+    }
+
+    /// Spawn a sphere of `radius` at `at`.
+    pub fn spawn_sphere(at: [f32; 3], radius: f32) -> Self {
+        Self {
+            vector: at,
+            params: [radius, 0.0, 0.0, 0.0],
+            ..Self::new(CommandKind::SpawnSphere, 0)
+        }
+    }
+
+    /// Spawn a capsule along Y at `at`.
+    pub fn spawn_capsule(at: [f32; 3], radius: f32, half_height: f32) -> Self {
+        Self {
+            vector: at,
+            params: [radius, half_height, 0.0, 0.0],
+            ..Self::new(CommandKind::SpawnCapsule, 0)
+        }
+    }
+
+    /// Spawn a vehicle at `at`, facing +X.
+    pub fn spawn_vehicle(at: [f32; 3]) -> Self {
+        Self {
+            vector: at,
+            ..Self::new(CommandKind::SpawnVehicle, 0)
+        }
+    }
+
+    /// Remove `actor`.
+    pub fn destroy(actor: u64) -> Self {
+        Self::new(CommandKind::Destroy, actor)
+    }
+
+    /// Teleport `actor` to `position` with orientation `rotation` (x, y, z, w).
+    pub fn set_transform(actor: u64, position: [f32; 3], rotation: [f32; 4]) -> Self {
+        Self {
+            vector: position,
+            rotation,
+            ..Self::new(CommandKind::SetTransform, actor)
+        }
+    }
+
+    /// Set `actor`'s linear and angular velocity.
+    pub fn set_target_velocity(actor: u64, linear: [f32; 3], angular: [f32; 3]) -> Self {
+        Self {
+            vector: linear,
+            rotation: [angular[0], angular[1], angular[2], 0.0],
+            ..Self::new(CommandKind::SetTargetVelocity, actor)
+        }
+    }
+
+    /// Push `actor` with `force` newtons during the next frame.
+    pub fn apply_force(actor: u64, force: [f32; 3]) -> Self {
+        Self {
+            vector: force,
+            ..Self::new(CommandKind::ApplyForce, actor)
+        }
+    }
+
+    /// Kick `actor` with `impulse` N·s.
+    pub fn apply_impulse(actor: u64, impulse: [f32; 3]) -> Self {
+        Self {
+            vector: impulse,
+            ..Self::new(CommandKind::ApplyImpulse, actor)
+        }
+    }
+
+    /// Twist `actor` with `torque` N·m during the next frame.
+    pub fn apply_torque(actor: u64, torque: [f32; 3]) -> Self {
+        Self {
+            vector: torque,
+            ..Self::new(CommandKind::ApplyTorque, actor)
+        }
+    }
+
+    /// Enable or disable `actor`'s physics.
+    pub fn set_physics(actor: u64, enabled: bool) -> Self {
+        Self {
+            flags: u32::from(enabled),
+            ..Self::new(CommandKind::SetPhysics, actor)
+        }
+    }
+
+    /// Enable or disable gravity on `actor`.
+    pub fn set_gravity(actor: u64, enabled: bool) -> Self {
+        Self {
+            flags: u32::from(enabled),
+            ..Self::new(CommandKind::SetGravity, actor)
+        }
+    }
+
+    /// Drive vehicle `actor`.
+    pub fn vehicle_control(
+        actor: u64,
+        throttle: f32,
+        steer: f32,
+        brake: f32,
+        hand_brake: bool,
+    ) -> Self {
+        Self {
+            flags: u32::from(hand_brake),
+            params: [throttle, steer, brake, 0.0],
+            ..Self::new(CommandKind::VehicleControl, actor)
+        }
+    }
+}
+
+/// How one command ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum CommandStatus {
+    /// Executed.
+    Ok = 0,
+    /// No actor has this id (never had, or destroyed).
+    UnknownActor = 1,
+    /// A value is NaN, infinite or out of range.
+    InvalidArgument = 2,
+    /// The command needs a vehicle and the actor is not one.
+    NotAVehicle = 3,
+    /// The command kind is unknown to this server.
+    UnknownCommand = 4,
+    /// The actor is static and cannot be changed.
+    StaticActor = 5,
+}
+
+impl CommandStatus {
+    /// The status with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        use CommandStatus::*;
+        [
+            Ok,
+            UnknownActor,
+            InvalidArgument,
+            NotAVehicle,
+            UnknownCommand,
+            StaticActor,
+        ]
+        .into_iter()
+        .find(|s| *s as u32 == value)
+    }
+}
+
+impl std::fmt::Display for CommandStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Ok => "ok",
+            Self::UnknownActor => "unknown actor",
+            Self::InvalidArgument => "invalid argument (NaN, infinite or out of range)",
+            Self::NotAVehicle => "the actor is not a vehicle",
+            Self::UnknownCommand => "unknown command",
+            Self::StaticActor => "the actor is static",
+        })
+    }
+}
+
+/// The result of one command: the actor it concerned (the new id for a
+/// spawn) and its [`CommandStatus`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::CommandResult/1")]
+pub struct CommandResult {
+    /// The actor (new id for spawns; 0 when a spawn failed).
+    pub actor: u64,
+    /// [`CommandStatus`] as `u32`.
+    pub status: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+/// The user header of a batch request.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::BatchHeader/1")]
+pub struct BatchHeader {
+    /// [`PROTOCOL_VERSION`] of the sender.
+    pub protocol_version: u32,
+    /// Process id of the sender (a ticking batch must come from the ticker's process).
+    pub pid: u32,
+    /// [`BatchHeader::TICK`] and future flags.
+    pub flags: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl BatchHeader {
+    /// Flag: after applying the batch, step one frame (ticker only).
+    pub const TICK: u32 = 1;
+
+    /// A header from this process.
+    pub fn new(tick: bool) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            pid: std::process::id(),
+            flags: if tick { Self::TICK } else { 0 },
+            reserved: 0,
+        }
+    }
+}
+
+/// The user header of a batch response.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::BatchResponseHeader/1")]
+pub struct BatchResponseHeader {
+    /// [`PROTOCOL_VERSION`] of the server.
+    pub protocol_version: u32,
+    /// [`crate::ResponseStatus`] of the batch as a whole.
+    pub status: u32,
+    /// The first frame that shows the batch's effects. With
+    /// [`BatchHeader::TICK`], the frame that was stepped.
+    pub frame: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_are_fixed() {
+        assert_eq!(std::mem::size_of::<Command>(), 64);
+        assert_eq!(std::mem::size_of::<CommandResult>(), 16);
+    }
+
+    #[test]
+    fn kinds_and_statuses_round_trip() {
+        for v in 1..=13 {
+            assert_eq!(CommandKind::from_u32(v).map(|k| k as u32), Some(v));
+        }
+        assert_eq!(CommandKind::from_u32(14), None);
+        for v in 0..=5 {
+            assert_eq!(CommandStatus::from_u32(v).map(|s| s as u32), Some(v));
+        }
+    }
+}

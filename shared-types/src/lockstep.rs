@@ -1,0 +1,83 @@
+//! The lockstep service: participants that the server waits for, frame by
+//! frame, in synchronous mode.
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::{FixedText, PROTOCOL_VERSION};
+
+/// What a [`LockstepRequest`] asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum LockstepKind {
+    /// Become a participant. The server then waits for its `Done` for the
+    /// current frame before stepping.
+    Join = 1,
+    /// Stop being a participant.
+    Leave = 2,
+    /// Done with `frame` of `episode` (its commands for the next frame are sent).
+    Done = 3,
+}
+
+impl LockstepKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Join,
+            2 => Self::Leave,
+            3 => Self::Done,
+            _ => return None,
+        })
+    }
+}
+
+/// A request on the lockstep service.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::LockstepRequest/1")]
+pub struct LockstepRequest {
+    /// [`PROTOCOL_VERSION`] of the sender.
+    pub protocol_version: u32,
+    /// [`LockstepKind`] as `u32`.
+    pub kind: u32,
+    /// The participant's process id.
+    pub pid: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// For `Done`: the frame finished.
+    pub frame: u64,
+    /// For `Done`: the episode of that frame.
+    pub episode: u64,
+    /// The participant's name, for logs and status.
+    pub name: FixedText,
+}
+
+impl LockstepRequest {
+    /// A request of `kind` from this process.
+    pub fn new(kind: LockstepKind, name: &str, episode: u64, frame: u64) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            kind: kind as u32,
+            pid: std::process::id(),
+            reserved: 0,
+            frame,
+            episode,
+            name: FixedText::new(name),
+        }
+    }
+}
+
+/// The server's answer on the lockstep service.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::LockstepResponse/1")]
+pub struct LockstepResponse {
+    /// [`PROTOCOL_VERSION`] of the server.
+    pub protocol_version: u32,
+    /// [`crate::ResponseStatus`] as `u32`.
+    pub status: u32,
+    /// The current frame (for `Join`: the frame to report `Done` for first).
+    pub frame: u64,
+    /// The current episode.
+    pub episode: u64,
+}

@@ -15,10 +15,13 @@ use shared_types::{
 };
 use tracing::{debug, warn};
 
+use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::{open_with_retry, FrameStream, WaitMode};
 use crate::rpc::{await_response, Wait};
 use crate::{
-    ApplySettingsError, ConnectError, RequestError, TickError, Ticker, WaitError, WorldSnapshot,
+    ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
+    WaitError,
+    WorldSnapshot,
 };
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
@@ -54,13 +57,14 @@ struct TickDispatcher {
 /// # }
 /// ```
 pub struct Client {
-    world: WorldName,
+    pub(crate) world: WorldName,
     node: Node<ipc::Service>,
     control: ControlClient,
-    control_wake: Notifier<ipc::Service>,
-    frames: FrameStream,
-    server_pid: u32,
-    request_timeout: Duration,
+    pub(crate) control_wake: Notifier<ipc::Service>,
+    pub(crate) batch: BatchClient,
+    pub(crate) frames: FrameStream,
+    pub(crate) server_pid: u32,
+    pub(crate) request_timeout: Duration,
     dispatcher: Option<TickDispatcher>,
 }
 
@@ -157,12 +161,14 @@ impl Client {
         .map_err(|e| ConnectError::transport("control wake-up notifier", e))?;
         let frames =
             FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
+        let batch = open_batch_client(&node, &names.batch)?;
 
         let mut client = Self {
             world,
             node,
             control,
             control_wake,
+            batch,
             frames,
             server_pid: 0,
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
@@ -235,6 +241,30 @@ impl Client {
                 Some(error) => Err(ApplySettingsError::Invalid(error)),
                 None => Err(RequestError::UnknownRequest.into()),
             },
+            _ => Err(RequestError::UnknownRequest.into()),
+        }
+    }
+
+    /// Loads `scene` (`default`, `empty`, `boxes:N`) as a new episode that
+    /// starts at frame 0; settings are kept unless `reset_settings`.
+    pub fn load_world(&self, scene: &str, reset_settings: bool) -> Result<StatusReport, LoadWorldError> {
+        self.load(ControlRequest::load_world(Some(scene), reset_settings), scene)
+    }
+
+    /// Restores the current scene's initial state (actors, ids, physics) as
+    /// a new episode that starts at frame 0; settings are kept unless
+    /// `reset_settings`.
+    pub fn reload_world(&self, reset_settings: bool) -> Result<StatusReport, LoadWorldError> {
+        self.load(ControlRequest::load_world(None, reset_settings), "")
+    }
+
+    fn load(&self, request: ControlRequest, scene: &str) -> Result<StatusReport, LoadWorldError> {
+        let response = self.request(request)?;
+        match ResponseStatus::from_u32(response.status) {
+            Some(ResponseStatus::Ok) => Ok(response.report),
+            Some(ResponseStatus::UnknownScene) => Err(LoadWorldError::UnknownScene {
+                scene: scene.to_owned(),
+            }),
             _ => Err(RequestError::UnknownRequest.into()),
         }
     }
@@ -405,6 +435,12 @@ impl Client {
                 })
             },
         )
+    }
+
+    /// Joins the world's lockstep as `name`: in synchronous mode the server
+    /// then waits for this participant's [`Participant::done`] every frame.
+    pub fn join_lockstep(&self, name: &str) -> Result<Participant, RequestError> {
+        Participant::join(&self.world, self.server_pid, name, self.request_timeout)
     }
 
     /// The iceoryx2 node of this client (for tools that open more ports).

@@ -170,3 +170,17 @@ impl TickError {
         Self::Request(RequestError::transport(what, error))
     }
 }
+
+/// Why [`crate::Client::load_world`] or [`crate::Client::reload_world`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadWorldError {
+    /// The server knows no such scene; nothing changed.
+    #[error("unknown scene '{scene}': expected 'default', 'empty' or 'boxes:N'")]
+    UnknownScene {
+        /// The scene asked for.
+        scene: String,
+    },
+    /// The request failed.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}

@@ -128,6 +128,11 @@ impl FrameStream {
         }))
     }
 
+    /// The frame-ready listener (for waits that end with a frame).
+    pub(crate) fn ready(&self) -> &Listener<ipc::Service> {
+        &self.ready
+    }
+
     /// The last frame handed out.
     pub(crate) fn last_frame(&self) -> Option<u64> {
         self.last.map(|(_, frame)| frame)

@@ -30,17 +30,23 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
+mod batch;
 mod client;
 mod error;
 mod frames;
+mod lockstep;
 pub mod process;
 mod rpc;
 mod snapshot;
 mod ticker;
 
 pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
-pub use error::{ApplySettingsError, ConnectError, RequestError, TickError, WaitError};
+pub use batch::{BatchError, BatchResponse, CommandError};
+pub use error::{
+    ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, WaitError,
+};
 pub use frames::WaitMode;
+pub use lockstep::Participant;
 pub use process::process_alive;
 pub use snapshot::WorldSnapshot;
 pub use ticker::Ticker;

@@ -42,6 +42,16 @@ enum Command {
     Config(cli::config::ConfigArgs),
     /// Be the ticker: synchronous mode with a fixed step, one frame per tick.
     Tick(cli::tick::TickArgs),
+    /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
+    Spawn(cli::actors::SpawnArgs),
+    /// Destroy an actor.
+    Destroy(cli::actors::DestroyArgs),
+    /// Reload the current scene as a new episode.
+    Reload(cli::actors::ReloadArgs),
+    /// Load a scene as a new episode.
+    Load(cli::actors::LoadArgs),
+    /// Drive the world's vehicles as a lockstep participant (seeded).
+    Autopilot(cli::autopilot::AutopilotArgs),
     /// Start a server on the default scene, watch it, and print a live summary.
     Demo(cli::demo::DemoArgs),
 }
@@ -89,6 +99,11 @@ fn main() -> ExitCode {
         Command::Status(a) => cli::status::run(&args.world, timeout, a),
         Command::Config(a) => cli::config::run(&args.world, timeout, a),
         Command::Tick(a) => cli::tick::run(&args.world, timeout, a),
+        Command::Spawn(a) => cli::actors::spawn(&args.world, timeout, a),
+        Command::Destroy(a) => cli::actors::destroy(&args.world, timeout, a),
+        Command::Reload(a) => cli::actors::reload(&args.world, timeout, a),
+        Command::Load(a) => cli::actors::load(&args.world, timeout, a),
+        Command::Autopilot(a) => cli::autopilot::run(&args.world, timeout, a),
         Command::Demo(a) => cli::demo::run(timeout, a),
     };
     match result {

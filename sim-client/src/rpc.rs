@@ -34,16 +34,36 @@ where
     Req: Debug + ZeroCopySend,
     Resp: Debug + ZeroCopySend + Copy,
 {
+    await_with(
+        || {
+            pending
+                .receive()
+                .map(|response| response.map(|r| *r.payload()))
+                .map_err(|e| RequestError::transport("response receive", e))
+        },
+        timeout,
+        world,
+        server_pid,
+        wait,
+    )
+}
+
+/// Calls `receive` until it yields, waiting between calls as `wait` says,
+/// for at most `timeout`; a dead server (non-zero `server_pid`) ends it early.
+pub(crate) fn await_with<T>(
+    mut receive: impl FnMut() -> Result<Option<T>, RequestError>,
+    timeout: Duration,
+    world: &str,
+    server_pid: u32,
+    wait: Wait<'_>,
+) -> Result<T, RequestError> {
     let start = Instant::now();
     let deadline = start + timeout;
     let mut backoff = Duration::from_micros(10);
     let mut next_liveness_check = start + LIVENESS_PERIOD;
     loop {
-        if let Some(response) = pending
-            .receive()
-            .map_err(|e| RequestError::transport("response receive", e))?
-        {
-            return Ok(*response.payload());
+        if let Some(response) = receive()? {
+            return Ok(response);
         }
         let now = Instant::now();
         if now >= deadline {

@@ -35,6 +35,19 @@ impl WorldSnapshot {
         self.header.settings.into()
     }
 
+    /// A 64-bit digest of the frame: its id, simulation time and every
+    /// actor's state, bit for bit (xxh3). Two runs that print the same
+    /// digests frame after frame computed identical worlds.
+    pub fn digest(&self) -> u64 {
+        let t = self.timestamp();
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        hasher.update(&t.frame.to_le_bytes());
+        hasher.update(&t.elapsed_ns.to_le_bytes());
+        hasher.update(&t.delta_ns.to_le_bytes());
+        hasher.update(bytemuck::cast_slice(&self.actors));
+        hasher.digest()
+    }
+
     /// The actor with `id`, if it exists in this frame.
     pub fn find(&self, id: u64) -> Option<&ActorState> {
         self.actors

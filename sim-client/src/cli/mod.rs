@@ -1,5 +1,7 @@
 //! The `sim-client` subcommands.
 
+pub mod actors;
+pub mod autopilot;
 pub mod config;
 pub mod demo;
 pub mod status;

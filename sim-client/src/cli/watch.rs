@@ -26,6 +26,11 @@ pub struct WatchArgs {
     /// Spin on the shared-memory queue instead of sleeping (lowest latency, one core busy).
     #[arg(long)]
     spin: bool,
+
+    /// Print `frame F digest D` per frame (the digest covers the frame's
+    /// time and every actor's state, bit for bit): `diff` two runs' output.
+    #[arg(long)]
+    digest: bool,
 }
 
 /// The JSON object of one frame.
@@ -44,6 +49,7 @@ pub fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
         "synchronous_mode": s.settings().synchronous_mode,
         "fixed_delta_seconds": s.settings().fixed_delta_seconds,
         "missed": s.missed,
+        "digest": format!("{:016x}", s.digest()),
     })
 }
 
@@ -107,6 +113,8 @@ pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), 
         seen += 1;
         if args.json {
             println!("{}", frame_json(&snapshot));
+        } else if args.digest {
+            println!("frame {} digest {:016x}", snapshot.frame(), snapshot.digest());
         } else {
             println!("{}", frame_line(&snapshot));
         }

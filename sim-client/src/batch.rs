@@ -1,0 +1,190 @@
+//! Commands in batches: fire and forget, or with one result per command.
+
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::prelude::*;
+use shared_types::limits::INITIAL_MAX_BATCH;
+use shared_types::{
+    BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
+    PROTOCOL_VERSION,
+};
+use tracing::debug;
+
+use crate::rpc::{await_with, Wait};
+use crate::{Client, ConnectError, RequestError};
+
+pub(crate) type BatchClient =
+    RequestClient<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// The answer to [`Client::apply_batch_sync`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BatchResponse {
+    /// The first frame that shows the batch's effects (with `tick`: the
+    /// frame that was stepped).
+    pub frame: u64,
+    /// One result per command, in order.
+    pub results: Vec<CommandResult>,
+}
+
+impl BatchResponse {
+    /// The commands that failed: (index in the batch, what went wrong).
+    pub fn errors(&self) -> Vec<(usize, CommandStatus)> {
+        self.results
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| match CommandStatus::from_u32(r.status) {
+                Some(CommandStatus::Ok) => None,
+                status => Some((i, status.unwrap_or(CommandStatus::UnknownCommand))),
+            })
+            .collect()
+    }
+}
+
+/// Why a batch as a whole failed (single commands fail in their results).
+#[derive(Debug, thiserror::Error)]
+pub enum BatchError {
+    /// `tick = true` from a process that is not the ticker.
+    #[error("only the ticker's process may apply a batch with tick = true")]
+    NotTicker,
+    /// The request failed.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}
+
+/// Why a single command (spawn, destroy) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CommandError {
+    /// The server refused the command.
+    #[error("actor {actor}: {status}")]
+    Refused {
+        /// The actor named by the command.
+        actor: u64,
+        /// What went wrong.
+        status: CommandStatus,
+    },
+    /// The batch failed.
+    #[error(transparent)]
+    Batch(#[from] BatchError),
+}
+
+pub(crate) fn open_batch_client(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<BatchClient, ConnectError> {
+    let name = ServiceName::new(name).map_err(|e| ConnectError::transport("service name", e))?;
+    node.service_builder(&name)
+        .request_response::<[Command], [CommandResult]>()
+        .request_user_header::<BatchHeader>()
+        .response_user_header::<BatchResponseHeader>()
+        .open()
+        .map_err(|e| ConnectError::transport("batch service", e))?
+        .client_builder()
+        .initial_max_slice_len(INITIAL_MAX_BATCH)
+        .allocation_strategy(AllocationStrategy::PowerOfTwo)
+        .create()
+        .map_err(|e| ConnectError::transport("batch client", e))
+}
+
+impl Client {
+    fn send_batch(
+        &self,
+        commands: &[Command],
+        tick: bool,
+    ) -> Result<
+        iceoryx2::pending_response::PendingResponse<
+            ipc::Service,
+            [Command],
+            BatchHeader,
+            [CommandResult],
+            BatchResponseHeader,
+        >,
+        RequestError,
+    > {
+        let mut request = self
+            .batch
+            .loan_slice_uninit(commands.len())
+            .map_err(|e| RequestError::transport("batch loan", e))?;
+        *request.user_header_mut() = BatchHeader::new(tick);
+        let pending = request
+            .write_from_slice(commands)
+            .send()
+            .map_err(|e| RequestError::transport("batch send", e))?;
+        if let Err(e) = self.control_wake.notify() {
+            debug!("wake-up not delivered: {e:?}");
+        }
+        Ok(pending)
+    }
+
+    /// Sends `commands` to be applied, in order, at the next frame boundary,
+    /// and returns without waiting (CARLA's `apply_batch`). Batches from one
+    /// client are applied in the order sent; none is dropped.
+    pub fn apply_batch(&self, commands: &[Command]) -> Result<(), RequestError> {
+        self.send_batch(commands, false).map(drop)
+    }
+
+    /// Applies `commands` atomically at the next frame boundary, in order,
+    /// and returns one result per command and the frame that first shows
+    /// them. With `tick`, one frame is then stepped (only the ticker's
+    /// process may ask), and `frame` is that frame.
+    pub fn apply_batch_sync(
+        &self,
+        commands: &[Command],
+        tick: bool,
+    ) -> Result<BatchResponse, BatchError> {
+        let pending = self.send_batch(commands, tick)?;
+        let wait = if tick {
+            Wait::Event(self.frames.ready())
+        } else {
+            Wait::Backoff
+        };
+        // The response is a slice: read it in place and copy the results out.
+        let (header, results) = await_with(
+            || {
+                pending
+                    .receive()
+                    .map(|r| r.map(|r| (*r.user_header(), r.payload().to_vec())))
+                    .map_err(|e| RequestError::transport("batch receive", e))
+            },
+            self.request_timeout,
+            self.world.as_str(),
+            self.server_pid,
+            wait,
+        )?;
+        if header.protocol_version != PROTOCOL_VERSION
+            || header.status == ResponseStatus::ProtocolMismatch as u32
+        {
+            return Err(RequestError::ProtocolMismatch {
+                client: PROTOCOL_VERSION,
+            }
+            .into());
+        }
+        if header.status == ResponseStatus::NotOwner as u32 {
+            return Err(BatchError::NotTicker);
+        }
+        Ok(BatchResponse {
+            frame: header.frame,
+            results,
+        })
+    }
+
+    fn single(&self, command: Command) -> Result<u64, CommandError> {
+        let response = self.apply_batch_sync(&[command], false)?;
+        let result = response.results.first().copied().unwrap_or_default();
+        match CommandStatus::from_u32(result.status) {
+            Some(CommandStatus::Ok) => Ok(result.actor),
+            status => Err(CommandError::Refused {
+                actor: command.actor,
+                status: status.unwrap_or(CommandStatus::UnknownCommand),
+            }),
+        }
+    }
+
+    /// Spawns an actor (a `Command::spawn_*`) and returns its id.
+    pub fn spawn_actor(&self, spawn: Command) -> Result<u64, CommandError> {
+        self.single(spawn)
+    }
+
+    /// Removes actor `id`.
+    pub fn destroy(&self, id: u64) -> Result<(), CommandError> {
+        self.single(Command::destroy(id)).map(drop)
+    }
+}

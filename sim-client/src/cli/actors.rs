@@ -1,0 +1,145 @@
+//! `sim-client spawn | destroy | reload | load`: actors and worlds.
+
+use std::time::Duration;
+
+use anyhow::anyhow;
+use clap::Args;
+use shared_types::{ActorKind, Command, WorldName};
+use sim_client::{BatchError, Client, CommandError, LoadWorldError};
+
+use crate::Failure;
+
+/// Spawn an actor and print its id.
+#[derive(Debug, Args)]
+pub struct SpawnArgs {
+    /// box, sphere, capsule or vehicle.
+    kind: String,
+    /// Where, as x,y,z in metres (Y up).
+    #[arg(long, value_name = "X,Y,Z", default_value = "0,5,0", allow_hyphen_values = true)]
+    at: String,
+    /// Print {"id": N, "kind": ..., "frame": F}.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Destroy an actor.
+#[derive(Debug, Args)]
+pub struct DestroyArgs {
+    /// The actor id.
+    id: u64,
+}
+
+/// Reload the current scene as a new episode (frame 0, initial state).
+#[derive(Debug, Args)]
+pub struct ReloadArgs {
+    /// Also reset the settings to the defaults (async, variable step).
+    #[arg(long)]
+    reset_settings: bool,
+}
+
+/// Load a scene as a new episode.
+#[derive(Debug, Args)]
+pub struct LoadArgs {
+    /// default, empty or boxes:N.
+    scene: String,
+    /// Also reset the settings to the defaults (async, variable step).
+    #[arg(long)]
+    reset_settings: bool,
+}
+
+fn parse_point(text: &str) -> Result<[f32; 3], Failure> {
+    let parts: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| Failure::Refused(anyhow!("--at takes x,y,z (three numbers), got '{text}'")))?;
+    match parts[..] {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
+        _ => Err(Failure::Refused(anyhow!(
+            "--at takes x,y,z (three finite numbers), got '{text}'"
+        ))),
+    }
+}
+
+fn command_failure(e: CommandError) -> Failure {
+    match e {
+        CommandError::Refused { .. } | CommandError::Batch(BatchError::NotTicker) => {
+            Failure::Refused(e.into())
+        }
+        e => Failure::Runtime(e.into()),
+    }
+}
+
+pub fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Result<(), Failure> {
+    let at = parse_point(&args.at)?;
+    let command = match ActorKind::from_name(&args.kind) {
+        Some(ActorKind::Box) => Command::spawn_box(at, [0.5; 3]),
+        Some(ActorKind::Sphere) => Command::spawn_sphere(at, 0.5),
+        Some(ActorKind::Capsule) => Command::spawn_capsule(at, 0.3, 0.5),
+        Some(ActorKind::Vehicle) => Command::spawn_vehicle(at),
+        _ => {
+            return Err(Failure::Refused(anyhow!(
+                "unknown actor kind '{}': expected box, sphere, capsule or vehicle",
+                args.kind
+            )))
+        }
+    };
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    let response = client
+        .apply_batch_sync(&[command], false)
+        .map_err(|e| command_failure(e.into()))?;
+    let result = response.results[0];
+    if let Some((_, status)) = response.errors().first() {
+        return Err(Failure::Refused(anyhow!("spawn refused: {status}")));
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({ "id": result.actor, "kind": args.kind, "frame": response.frame })
+        );
+    } else {
+        println!(
+            "spawned {} {} at ({}, {}, {}); it appears in frame {}",
+            args.kind, result.actor, at[0], at[1], at[2], response.frame
+        );
+    }
+    Ok(())
+}
+
+pub fn destroy(world: &WorldName, timeout: Duration, args: DestroyArgs) -> Result<(), Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    client.destroy(args.id).map_err(command_failure)?;
+    println!("destroyed actor {}", args.id);
+    Ok(())
+}
+
+fn loaded(result: Result<shared_types::StatusReport, LoadWorldError>) -> Result<(), Failure> {
+    match result {
+        Ok(report) => {
+            println!(
+                "loaded {} as episode {} ({} actors), frame {}",
+                report.scene.to_string_lossy(),
+                report.episode,
+                report.actor_count,
+                report.frame
+            );
+            Ok(())
+        }
+        Err(e @ LoadWorldError::UnknownScene { .. }) => Err(Failure::Refused(e.into())),
+        Err(e) => Err(Failure::Runtime(e.into())),
+    }
+}
+
+pub fn reload(world: &WorldName, timeout: Duration, args: ReloadArgs) -> Result<(), Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    loaded(client.reload_world(args.reset_settings))
+}
+
+pub fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    loaded(client.load_world(&args.scene, args.reset_settings))
+}

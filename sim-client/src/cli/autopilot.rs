@@ -1,0 +1,81 @@
+//! `sim-client autopilot`: a lockstep participant that drives the world's
+//! vehicles with seeded randomness (CARLA's Traffic Manager, kept in step).
+
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use anyhow::anyhow;
+use clap::Args;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shared_types::{ActorKind, Command, WorldName};
+use sim_client::{Client, WaitError};
+
+use crate::Failure;
+
+/// Drive every vehicle in the world with seeded random throttle and steer.
+///
+/// Joins the lockstep: in synchronous mode the server waits, every frame,
+/// until the autopilot has sent its commands for the next frame. The same
+/// seed gives the same driving, and every new episode (reload) starts the
+/// random sequence again, so runs repeat bit for bit.
+#[derive(Debug, Args)]
+pub struct AutopilotArgs {
+    /// Seed of the random driving.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// New controls every N frames.
+    #[arg(long, value_name = "N", default_value_t = 50)]
+    every: u64,
+    /// Stop after N frames (default: until Ctrl-C or the server goes away).
+    #[arg(long, value_name = "N")]
+    frames: Option<u64>,
+}
+
+pub fn run(world: &WorldName, timeout: Duration, args: AutopilotArgs) -> Result<(), Failure> {
+    if args.every == 0 {
+        return Err(Failure::Refused(anyhow!("--every must be at least 1")));
+    }
+    let interrupted = super::interrupted();
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    let participant = client.join_lockstep("autopilot")?;
+    let (episode, frame) = participant.joined_at();
+    eprintln!("autopilot: driving world '{world}' from episode {episode} frame {frame}, seed {}", args.seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
+    let mut episode = None;
+    let mut handled = 0;
+    while args.frames.is_none_or(|n| handled < n) && !interrupted.load(Ordering::Relaxed) {
+        let snapshot = match client.wait_for_tick(Duration::from_millis(200)) {
+            Ok(snapshot) => snapshot,
+            Err(WaitError::Timeout { .. }) => continue,
+            Err(e) => return Err(anyhow!(e).into()),
+        };
+        if episode != Some(snapshot.episode()) {
+            // Every episode drives the same way from its frame 0.
+            episode = Some(snapshot.episode());
+            rng = ChaCha8Rng::seed_from_u64(args.seed);
+        }
+        if snapshot.frame() % args.every == 0 {
+            let controls: Vec<Command> = snapshot
+                .actors
+                .iter()
+                .filter(|a| a.actor_kind() == Some(ActorKind::Vehicle))
+                .map(|a| {
+                    let throttle = rng.random_range(0.2..=1.0);
+                    let steer = rng.random_range(-0.6..=0.6);
+                    Command::vehicle_control(a.id, throttle, steer, 0.0, false)
+                })
+                .collect();
+            if !controls.is_empty() {
+                client
+                    .apply_batch_sync(&controls, false)
+                    .map_err(|e| anyhow!(e))?;
+            }
+        }
+        participant.done(snapshot.episode(), snapshot.frame())?;
+        handled += 1;
+    }
+    eprintln!("autopilot: handled {handled} frames");
+    Ok(())
+}

@@ -1,0 +1,180 @@
+//! [`Participant`]: a client the server waits for, frame by frame, in
+//! synchronous mode.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use shared_types::{
+    LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
+    PROTOCOL_VERSION,
+};
+use tracing::{debug, info};
+
+use crate::frames::open_with_retry;
+use crate::rpc::{await_response, Wait};
+use crate::RequestError;
+
+type LockstepClient = RequestClient<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
+
+/// Membership in a world's lockstep: in synchronous mode the server steps
+/// frame N+1 only when the tick has arrived **and** every participant has
+/// called [`Participant::done`] for frame N. A participant that dies is
+/// dropped by the server. Dropping the handle leaves.
+///
+/// ```no_run
+/// use std::time::Duration;
+/// use sim_client::Client;
+///
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// let mut client = Client::connect("default", Duration::from_secs(2))?;
+/// let participant = client.join_lockstep("my-traffic")?;
+/// loop {
+///     let snapshot = client.wait_for_tick(Duration::from_secs(5))?;
+///     // ... send this frame's commands with client.apply_batch_sync(..) ...
+///     participant.done(snapshot.episode(), snapshot.frame())?;
+/// }
+/// # }
+/// ```
+pub struct Participant {
+    world: WorldName,
+    port: LockstepClient,
+    wake: Notifier<ipc::Service>,
+    name: String,
+    server_pid: u32,
+    joined: (u64, u64),
+    // Declared last: ports drop before their node.
+    _node: Node<ipc::Service>,
+}
+
+impl Participant {
+    pub(crate) fn join(
+        world: &WorldName,
+        server_pid: u32,
+        name: &str,
+        timeout: Duration,
+    ) -> Result<Self, RequestError> {
+        use iceoryx2::service::builder::event::EventOpenError;
+        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
+        let names = ServiceNames::new(world);
+        let node = NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| RequestError::transport("node", e))?;
+        let deadline = Instant::now() + timeout;
+        let service_name =
+            |n: &str| ServiceName::new(n).map_err(|e| RequestError::transport("service name", e));
+        let missing = || RequestError::Timeout {
+            world: world.to_string(),
+            timeout,
+        };
+        let lockstep_name = service_name(&names.lockstep)?;
+        let port = open_with_retry(
+            deadline,
+            || {
+                node.service_builder(&lockstep_name)
+                    .request_response::<LockstepRequest, LockstepResponse>()
+                    .open()
+            },
+            |e| matches!(e, RequestResponseOpenError::DoesNotExist),
+        )
+        .map_err(|e| RequestError::transport("lockstep service", e))?
+        .ok_or_else(missing)?
+        .client_builder()
+        .create()
+        .map_err(|e| RequestError::transport("lockstep client", e))?;
+        let wake_name = service_name(&names.control_wake)?;
+        let wake = open_with_retry(
+            deadline,
+            || node.service_builder(&wake_name).event().open(),
+            |e| matches!(e, EventOpenError::DoesNotExist),
+        )
+        .map_err(|e| RequestError::transport("wake-up service", e))?
+        .ok_or_else(missing)?
+        .notifier_builder()
+        .create()
+        .map_err(|e| RequestError::transport("wake-up notifier", e))?;
+        let mut participant = Self {
+            world: world.clone(),
+            port,
+            wake,
+            name: name.to_owned(),
+            server_pid,
+            joined: (0, 0),
+            _node: node,
+        };
+        let response = participant.request(LockstepKind::Join, 0, 0, Some(timeout))?;
+        participant.joined = (response.episode, response.frame);
+        info!(world = %participant.world, frame = response.frame, "joined the lockstep");
+        Ok(participant)
+    }
+
+    /// The (episode, frame) current when this participant joined: the first
+    /// frame the server waits for its `done`.
+    pub fn joined_at(&self) -> (u64, u64) {
+        self.joined
+    }
+
+    /// Done with `frame` of `episode`: the server may step past it (once
+    /// the tick is there and every other participant is done too). Send the
+    /// frame's commands *before* (with `apply_batch_sync`) so they land in
+    /// the next step.
+    pub fn done(&self, episode: u64, frame: u64) -> Result<(), RequestError> {
+        self.request(LockstepKind::Done, episode, frame, None).map(drop)
+    }
+
+    /// Leaves the lockstep: the server stops waiting for this participant.
+    pub fn leave(self) {
+        // Drop sends the leave.
+    }
+
+    /// Sends a request; waits for the answer only with a `timeout`.
+    fn request(
+        &self,
+        kind: LockstepKind,
+        episode: u64,
+        frame: u64,
+        timeout: Option<Duration>,
+    ) -> Result<LockstepResponse, RequestError> {
+        let pending = self
+            .port
+            .send_copy(LockstepRequest::new(kind, &self.name, episode, frame))
+            .map_err(|e| RequestError::transport("lockstep send", e))?;
+        if let Err(e) = self.wake.notify() {
+            debug!("wake-up not delivered: {e:?}");
+        }
+        let Some(timeout) = timeout else {
+            // Fire and forget: a later "done" supersedes an earlier one.
+            return Ok(LockstepResponse {
+                protocol_version: PROTOCOL_VERSION,
+                status: ResponseStatus::Ok as u32,
+                frame,
+                episode,
+            });
+        };
+        let response = await_response(
+            &pending,
+            timeout,
+            self.world.as_str(),
+            self.server_pid,
+            Wait::Backoff,
+        )?;
+        if response.protocol_version != PROTOCOL_VERSION
+            || response.status != ResponseStatus::Ok as u32
+        {
+            return Err(RequestError::ProtocolMismatch {
+                client: PROTOCOL_VERSION,
+            });
+        }
+        Ok(response)
+    }
+}
+
+impl Drop for Participant {
+    fn drop(&mut self) {
+        if let Err(e) = self.request(LockstepKind::Leave, 0, 0, None) {
+            debug!("leaving the lockstep: {e}");
+        }
+    }
+}

@@ -82,5 +82,7 @@ pub mod limits {
     /// Commands reserved in the first batch sample; it grows as needed.
     pub const INITIAL_MAX_BATCH: usize = 64;
     /// Batches one client may have in flight.
-    pub const MAX_BATCHES_IN_FLIGHT: usize = 16;
+    pub const MAX_BATCHES_IN_FLIGHT: usize = 4;
+    /// How many clients may send batches at once (each costs the server memory).
+    pub const MAX_BATCH_CLIENTS: usize = 16;
 }

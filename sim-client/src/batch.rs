@@ -15,6 +15,14 @@ use crate::{Client, ConnectError, RequestError};
 pub(crate) type BatchClient =
     RequestClient<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
+type PendingBatch = iceoryx2::pending_response::PendingResponse<
+    ipc::Service,
+    [Command],
+    BatchHeader,
+    [CommandResult],
+    BatchResponseHeader,
+>;
+
 /// The answer to [`Client::apply_batch_sync`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct BatchResponse {
@@ -89,16 +97,7 @@ impl Client {
         &self,
         commands: &[Command],
         tick: bool,
-    ) -> Result<
-        iceoryx2::pending_response::PendingResponse<
-            ipc::Service,
-            [Command],
-            BatchHeader,
-            [CommandResult],
-            BatchResponseHeader,
-        >,
-        RequestError,
-    > {
+    ) -> Result<PendingBatch, RequestError> {
         let mut request = self
             .batch
             .loan_slice_uninit(commands.len())

@@ -20,8 +20,7 @@ use crate::frames::{open_with_retry, FrameStream, WaitMode};
 use crate::rpc::{await_response, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
-    WaitError,
-    WorldSnapshot,
+    WaitError, WorldSnapshot,
 };
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
@@ -247,8 +246,15 @@ impl Client {
 
     /// Loads `scene` (`default`, `empty`, `boxes:N`) as a new episode that
     /// starts at frame 0; settings are kept unless `reset_settings`.
-    pub fn load_world(&self, scene: &str, reset_settings: bool) -> Result<StatusReport, LoadWorldError> {
-        self.load(ControlRequest::load_world(Some(scene), reset_settings), scene)
+    pub fn load_world(
+        &self,
+        scene: &str,
+        reset_settings: bool,
+    ) -> Result<StatusReport, LoadWorldError> {
+        self.load(
+            ControlRequest::load_world(Some(scene), reset_settings),
+            scene,
+        )
     }
 
     /// Restores the current scene's initial state (actors, ids, physics) as

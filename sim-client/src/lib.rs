@@ -40,8 +40,8 @@ mod rpc;
 mod snapshot;
 mod ticker;
 
-pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
 pub use batch::{BatchError, BatchResponse, CommandError};
+pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, WaitError,
 };

@@ -121,7 +121,8 @@ impl Participant {
     /// frame's commands *before* (with `apply_batch_sync`) so they land in
     /// the next step.
     pub fn done(&self, episode: u64, frame: u64) -> Result<(), RequestError> {
-        self.request(LockstepKind::Done, episode, frame, None).map(drop)
+        self.request(LockstepKind::Done, episode, frame, None)
+            .map(drop)
     }
 
     /// Leaves the lockstep: the server stops waiting for this participant.

@@ -8,8 +8,8 @@ use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
 use shared_types::limits::{
     FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, INITIAL_MAX_BATCH,
-    MAX_BATCHES_IN_FLIGHT, MAX_CONTROL_CLIENTS, MAX_EVENT_LISTENERS, MAX_FRAME_SUBSCRIBERS,
-    MAX_NODES,
+    MAX_BATCHES_IN_FLIGHT, MAX_BATCH_CLIENTS, MAX_CONTROL_CLIENTS, MAX_EVENT_LISTENERS,
+    MAX_FRAME_SUBSCRIBERS, MAX_NODES,
 };
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
@@ -130,10 +130,10 @@ impl ServerPorts {
             .request_user_header::<BatchHeader>()
             .response_user_header::<BatchResponseHeader>()
             .max_servers(1)
-            .max_clients(MAX_CONTROL_CLIENTS)
+            .max_clients(MAX_BATCH_CLIENTS)
             .max_nodes(MAX_NODES)
             .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
-            .max_response_buffer_size(2)
+            .max_response_buffer_size(1)
             // A batch is never dropped: a sender that outruns the server waits.
             .enable_safe_overflow_for_requests(false)
             .enable_fire_and_forget_requests(true)

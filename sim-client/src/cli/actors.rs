@@ -15,7 +15,12 @@ pub struct SpawnArgs {
     /// box, sphere, capsule or vehicle.
     kind: String,
     /// Where, as x,y,z in metres (Y up).
-    #[arg(long, value_name = "X,Y,Z", default_value = "0,5,0", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        default_value = "0,5,0",
+        allow_hyphen_values = true
+    )]
     at: String,
     /// Print {"id": N, "kind": ..., "frame": F}.
     #[arg(long)]

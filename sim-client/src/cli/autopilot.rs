@@ -41,7 +41,10 @@ pub fn run(world: &WorldName, timeout: Duration, args: AutopilotArgs) -> Result<
     client.set_request_timeout(timeout);
     let participant = client.join_lockstep("autopilot")?;
     let (episode, frame) = participant.joined_at();
-    eprintln!("autopilot: driving world '{world}' from episode {episode} frame {frame}, seed {}", args.seed);
+    eprintln!(
+        "autopilot: driving world '{world}' from episode {episode} frame {frame}, seed {}",
+        args.seed
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
     let mut episode = None;
     let mut handled = 0;

@@ -114,7 +114,11 @@ pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), 
         if args.json {
             println!("{}", frame_json(&snapshot));
         } else if args.digest {
-            println!("frame {} digest {:016x}", snapshot.frame(), snapshot.digest());
+            println!(
+                "frame {} digest {:016x}",
+                snapshot.frame(),
+                snapshot.digest()
+            );
         } else {
             println!("{}", frame_line(&snapshot));
         }

@@ -1,0 +1,194 @@
+//! Batches, actors and worlds: `apply_batch_sync` answers every command, with
+//! errors only on the invalid ones, and the valid ones show in exactly the
+//! reported frame; fire-and-forget batches are never lost; actor ids are
+//! stable and never reused; reload restores the scene as a new episode and
+//! keeps or resets the settings as asked.
+
+use std::time::Duration;
+
+use shared_types::{ActorKind, Command, CommandStatus, WorldSettings};
+use sim_client::{BatchError, Client};
+use simbus_tests::{client, server, status, unique_world};
+
+const T: Duration = Duration::from_secs(10);
+
+fn sync_world(tag: &str) -> (String, simbus_tests::Proc, Client) {
+    let world = unique_world(tag);
+    let proc = server(&world, &["--sync", "--fixed-delta-seconds", "0.02"]);
+    let client = Client::connect(&world, T).unwrap();
+    (world, proc, client)
+}
+
+#[test]
+fn a_mixed_batch_fails_only_its_invalid_commands_and_takes_effect_at_the_reported_frame() {
+    let (_world, _server, mut client) = sync_world("mixed");
+    let mut ticker = client.claim_ticker().unwrap();
+    let frame0 = client.wait_for_tick(T).unwrap();
+    assert_eq!(frame0.frame(), 0);
+    let count = frame0.actors.len();
+
+    let batch = [
+        Command::spawn_box([40.0, 30.0, 40.0], [0.5; 3]),
+        Command::apply_force(9999, [1.0, 0.0, 0.0]),
+        Command::set_transform(4, [-20.0, 15.0, 20.0], [0.0, 0.0, 0.0, 1.0]),
+        Command::apply_impulse(3, [f32::NAN, 0.0, 0.0]),
+        Command::vehicle_control(4, 1.0, 0.0, 0.0, false),
+        Command::destroy(9),
+        Command::spawn_sphere([0.0, 5.0, 0.0], -1.0),
+    ];
+    let response = client.apply_batch_sync(&batch, false).unwrap();
+    assert_eq!(response.results.len(), batch.len());
+    assert_eq!(response.frame, 1, "the batch shows from the next frame");
+    assert_eq!(
+        response.errors(),
+        vec![
+            (1, CommandStatus::UnknownActor),
+            (3, CommandStatus::InvalidArgument),
+            (4, CommandStatus::NotAVehicle),
+            (6, CommandStatus::InvalidArgument),
+        ]
+    );
+    let new_id = response.results[0].actor;
+    assert_eq!(new_id as usize, count + 1, "the next id");
+
+    // Nothing moved yet: the world waits for the tick.
+    assert_eq!(ticker.tick(T).unwrap(), 1);
+    let frame1 = client.wait_for_tick(T).unwrap();
+    assert_eq!(frame1.frame(), 1);
+    let spawned = frame1.find(new_id).expect("spawned actor in frame 1");
+    assert_eq!(spawned.actor_kind(), Some(ActorKind::Box));
+    assert_eq!((spawned.position[0], spawned.position[2]), (40.0, 40.0));
+    let moved = frame1.find(4).unwrap();
+    assert!((moved.position[0] + 20.0).abs() < 1e-3 && (moved.position[2] - 20.0).abs() < 1e-3);
+    assert!(
+        frame0.find(9).is_some() && frame1.find(9).is_none(),
+        "destroyed in frame 1"
+    );
+
+    // Ids are never reused: destroy the new actor, spawn again.
+    client.destroy(new_id).unwrap();
+    let again = client
+        .spawn_actor(Command::spawn_capsule([0.0, 9.0, 0.0], 0.3, 0.5))
+        .unwrap();
+    assert_eq!(again, new_id + 1);
+    assert!(client.destroy(new_id).is_err(), "an unknown id is an error");
+
+    // With tick = true the batch is applied and one frame stepped.
+    let response = client
+        .apply_batch_sync(&[Command::apply_impulse(again, [0.0, 5.0, 0.0])], true)
+        .unwrap();
+    assert_eq!(response.frame, 2);
+    let frame2 = client.wait_for_tick(T).unwrap();
+    assert_eq!(frame2.frame(), 2);
+    assert!(frame2.find(again).unwrap().linear_velocity[1] > 4.0);
+    drop(ticker);
+}
+
+#[test]
+fn only_the_ticker_may_tick_with_a_batch() {
+    let (_world, _server, client) = sync_world("batch-tick");
+    assert!(matches!(
+        client.apply_batch_sync(&[], true),
+        Err(BatchError::NotTicker)
+    ));
+    assert_eq!(client.status().unwrap().frame, 0, "nothing stepped");
+}
+
+#[test]
+fn fire_and_forget_batches_are_never_lost() {
+    let (_world, _server, mut client) = sync_world("forget");
+    let mut ticker = client.claim_ticker().unwrap();
+    let before = client.wait_for_tick(T).unwrap().actors.len();
+    for batch in 0..20 {
+        let commands: Vec<Command> = (0..50)
+            .map(|i| Command::spawn_sphere([(batch * 2) as f32, 20.0, i as f32], 0.2))
+            .collect();
+        client.apply_batch(&commands).unwrap();
+    }
+    // A synchronous batch queues behind them: once it is answered, all were applied.
+    client.apply_batch_sync(&[], false).unwrap();
+    ticker.tick(T).unwrap();
+    let after = client.wait_for_tick(T).unwrap();
+    assert_eq!(after.actors.len(), before + 1000);
+}
+
+#[test]
+fn reload_restores_the_scene_as_a_new_episode_and_keeps_or_resets_settings() {
+    let world = unique_world("reload");
+    let _server = server(
+        &world,
+        &["--fixed-delta-seconds", "0.01", "--realtime", "--seed", "5"],
+    );
+    client(&world, &["config", "--delta-seconds", "0.05"]).assert_success();
+    let spawned = client(&world, &["spawn", "vehicle", "--at", "0,2,-20", "--json"]);
+    spawned.assert_success();
+    let id = spawned.json()[0]["id"].as_u64().unwrap();
+    assert_eq!(id, 18);
+    let before = status(&world);
+    assert_eq!(before["actors"], 18);
+
+    let out = client(&world, &["reload"]);
+    out.assert_success();
+    let after = status(&world);
+    assert_eq!(after["actors"], 17, "the spawned vehicle is gone");
+    assert_eq!(
+        after["episode"].as_u64(),
+        Some(before["episode"].as_u64().unwrap() + 1)
+    );
+    assert!(
+        after["frame"].as_u64().unwrap() < 50,
+        "a new episode starts at frame 0"
+    );
+    assert_eq!(
+        after["fixed_delta_seconds"].as_f64(),
+        Some(0.05),
+        "settings survive reload"
+    );
+
+    client(&world, &["reload", "--reset-settings"]).assert_success();
+    let reset = status(&world);
+    assert_eq!(reset["fixed_delta_seconds"], serde_json::Value::Null);
+    assert_eq!(reset["synchronous_mode"], false);
+
+    client(&world, &["load", "boxes:5"]).assert_success();
+    let loaded = status(&world);
+    assert_eq!(
+        (loaded["scene"].as_str(), loaded["actors"].as_u64()),
+        (Some("boxes:5"), Some(6))
+    );
+
+    let out = client(&world, &["load", "town10"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        out.stderr.contains("unknown scene 'town10'"),
+        "{}",
+        out.stderr
+    );
+    let out = client(&world, &["destroy", "999"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        out.stderr.contains("actor 999: unknown actor"),
+        "{}",
+        out.stderr
+    );
+    let out = client(&world, &["spawn", "tank"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        status(&world)["actors"],
+        6,
+        "refused commands changed nothing"
+    );
+}
+
+#[test]
+fn settings_survive_reload_through_the_library_too() {
+    let (_world, _server, client) = sync_world("reload-lib");
+    let ticker = client.claim_ticker().unwrap();
+    let settings = client.get_settings().unwrap();
+    assert!(settings.synchronous_mode);
+    client.reload_world(false).unwrap();
+    assert_eq!(client.get_settings().unwrap(), settings);
+    client.reload_world(true).unwrap();
+    assert_eq!(client.get_settings().unwrap(), WorldSettings::default());
+    drop(ticker);
+}

@@ -5,12 +5,14 @@
 //! cargo run --release -p simbus-bench -- tick [--iterations N] [--json]
 //! cargo run --release -p simbus-bench -- frames [--samples N] [--json]
 //! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
+//! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod commands;
 mod failover;
 mod frames;
 mod stats;
@@ -37,6 +39,9 @@ enum Command {
     /// Ticker failover: time from SIGKILL of the ticker until the server
     /// notices, and until a new ticker holds ownership.
     Failover(failover::FailoverArgs),
+    /// Cost of a batch of 1000 commands (vs 1000 single commands) and of a
+    /// lockstep participant on the tick round trip.
+    Commands(commands::CommandsArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
@@ -51,6 +56,7 @@ fn main() -> ExitCode {
         Command::Frames(a) => frames::run(a),
         Command::Tick(a) => tick::run(a),
         Command::Failover(a) => failover::run(a),
+        Command::Commands(a) => commands::run(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);

@@ -154,6 +154,7 @@ impl RawPorts {
 /// The hidden `peer` command: echoes (or ticks) until it is stopped.
 pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
     match args.kind.as_str() {
+        "participant" => crate::commands::participant(&args.name),
         "ticker" => {
             let client = Client::connect(&args.name, Duration::from_secs(10))?;
             let mut ticker = client.claim_ticker_as("bench-ticker")?;

@@ -93,11 +93,7 @@ pub(crate) fn open_batch_client(
 }
 
 impl Client {
-    fn send_batch(
-        &self,
-        commands: &[Command],
-        tick: bool,
-    ) -> Result<PendingBatch, RequestError> {
+    fn send_batch(&self, commands: &[Command], tick: bool) -> Result<PendingBatch, RequestError> {
         let mut request = self
             .batch
             .loan_slice_uninit(commands.len())

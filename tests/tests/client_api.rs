@@ -20,7 +20,7 @@ fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
         for _ in 0..20 {
             let next = client.wait_for_tick(Duration::from_secs(5)).unwrap();
             assert_eq!(next.frame(), last.frame() + 1 + next.missed, "{mode:?}");
-            assert_eq!(next.actors.len(), 15);
+            assert_eq!(next.actors.len(), 17, "the default scene");
             last = next;
         }
     }

@@ -16,7 +16,8 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use crate::batch::{open_batch_client, BatchClient};
-use crate::frames::{open_with_retry, FrameStream, WaitMode};
+use crate::frames::{FrameStream, WaitMode};
+use crate::open::{open_event, open_with_retry};
 use crate::rpc::{await_response, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
@@ -97,7 +98,6 @@ impl Client {
     /// Connects to the server of `world`, waiting up to `timeout` for it to
     /// appear and answer. Checks that both speak the same protocol version.
     pub fn connect(world: &str, timeout: Duration) -> Result<Self, ConnectError> {
-        use iceoryx2::service::builder::event::EventOpenError;
         use iceoryx2::service::builder::request_response::RequestResponseOpenError;
 
         let world = WorldName::new(world)?;
@@ -142,22 +142,12 @@ impl Client {
         .client_builder()
         .create()
         .map_err(|e| ConnectError::transport("control client", e))?;
-        let wake_name = service_name(&names.control_wake)?;
-        let control_wake = open_with_retry(
-            deadline,
-            || node.service_builder(&wake_name).event().open(),
-            |e| {
-                matches!(
-                    e,
-                    EventOpenError::DoesNotExist | EventOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| ConnectError::transport("control wake-up service", e))?
-        .ok_or_else(no_server)?
-        .notifier_builder()
-        .create()
-        .map_err(|e| ConnectError::transport("control wake-up notifier", e))?;
+        let control_wake = open_event(&node, &names.control_wake, deadline)
+            .map_err(|e| ConnectError::transport(e.what, e.detail))?
+            .ok_or_else(no_server)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| ConnectError::transport("control wake-up notifier", e))?;
         let frames =
             FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
         let batch = open_batch_client(&node, &names.batch)?;
@@ -205,6 +195,14 @@ impl Client {
     /// How [`Client::wait_for_tick`] waits: blocking (default) or spinning.
     pub fn set_wait_mode(&mut self, mode: WaitMode) {
         self.frames.mode = mode;
+    }
+
+    /// In asynchronous mode, hand out every queued frame in order instead of
+    /// skipping to the newest (a reader more than 16 frames behind still
+    /// loses the oldest, counted in [`WorldSnapshot::missed`]). Synchronous
+    /// mode is always in order.
+    pub fn set_every_frame(&mut self, every_frame: bool) {
+        self.frames.every_frame = every_frame;
     }
 
     /// How long control requests wait for an answer (default 5 s).

@@ -10,6 +10,7 @@ use iceoryx2::prelude::*;
 use shared_types::limits::FRAME_SUBSCRIBER_BUFFER;
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
+use crate::open::{open_event, open_with_retry};
 use crate::{process_alive, ConnectError, WaitError, WorldSnapshot};
 
 /// How a client waits for the next frame.
@@ -36,26 +37,8 @@ pub(crate) struct FrameStream {
     /// (episode, frame) of the last snapshot handed out.
     last: Option<(u64, u64)>,
     pub(crate) mode: WaitMode,
-}
-
-/// Opens a service, retrying while it does not exist yet, until `deadline`.
-pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
-    deadline: Instant,
-    mut open: impl FnMut() -> Result<T, E>,
-    is_missing: impl Fn(&E) -> bool,
-) -> Result<Option<T>, E> {
-    loop {
-        match open() {
-            Ok(port) => return Ok(Some(port)),
-            Err(e) if is_missing(&e) => {
-                if Instant::now() >= deadline {
-                    return Ok(None);
-                }
-                std::thread::sleep(Duration::from_millis(10));
-            }
-            Err(e) => return Err(e),
-        }
-    }
+    /// Hand out every queued frame in order, in asynchronous mode too.
+    pub(crate) every_frame: bool,
 }
 
 impl FrameStream {
@@ -67,11 +50,8 @@ impl FrameStream {
         world: &str,
         deadline: Instant,
     ) -> Result<Option<Self>, ConnectError> {
-        use iceoryx2::service::builder::event::EventOpenError;
         use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError;
         let frames_name = ServiceName::new(&names.frames)
-            .map_err(|e| ConnectError::transport("service name", e))?;
-        let ready_name = ServiceName::new(&names.frame_ready)
             .map_err(|e| ConnectError::transport("service name", e))?;
         let frames = open_with_retry(
             deadline,
@@ -97,17 +77,8 @@ impl FrameStream {
             },
             e => ConnectError::transport("frames service", e),
         })?;
-        let ready = open_with_retry(
-            deadline,
-            || node.service_builder(&ready_name).event().open(),
-            |e| {
-                matches!(
-                    e,
-                    EventOpenError::DoesNotExist | EventOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| ConnectError::transport("frame-ready service", e))?;
+        let ready = open_event(node, &names.frame_ready, deadline)
+            .map_err(|e| ConnectError::transport(e.what, e.detail))?;
         let (Some(frames), Some(ready)) = (frames, ready) else {
             return Ok(None);
         };
@@ -125,6 +96,7 @@ impl FrameStream {
             ready,
             last: None,
             mode: WaitMode::Block,
+            every_frame: false,
         }))
     }
 
@@ -140,10 +112,11 @@ impl FrameStream {
 
     /// The next snapshot already queued, without waiting.
     ///
-    /// Synchronous-mode frames come one at a time, in order, so a reader that
-    /// drains its queue between ticks sees every frame once. In asynchronous
-    /// mode the queue is drained and only the newest frame is returned, with
-    /// the number of frames skipped in [`WorldSnapshot::missed`].
+    /// Synchronous-mode frames (and every frame with `every_frame`) come one
+    /// at a time, in order, so a reader that drains its queue between ticks
+    /// sees every frame once. Otherwise, in asynchronous mode, the queue is
+    /// drained and only the newest frame is returned, with the number of
+    /// frames skipped in [`WorldSnapshot::missed`].
     pub(crate) fn try_next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
         let previous = self.last;
         let mut newest: Option<WorldSnapshot> = None;
@@ -169,7 +142,7 @@ impl FrameStream {
                 actors: sample.payload().to_vec(),
                 missed: 0,
             });
-            if header.settings.synchronous_mode != 0 {
+            if self.every_frame || header.settings.synchronous_mode != 0 {
                 break; // in order, one at a time
             }
         }

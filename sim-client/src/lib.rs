@@ -35,6 +35,7 @@ mod client;
 mod error;
 mod frames;
 mod lockstep;
+mod open;
 pub mod process;
 mod rpc;
 mod snapshot;

@@ -12,7 +12,7 @@ use shared_types::{
 };
 use tracing::{debug, info};
 
-use crate::frames::open_with_retry;
+use crate::open::{open_event, open_with_retry};
 use crate::rpc::{await_response, Wait};
 use crate::RequestError;
 
@@ -55,7 +55,6 @@ impl Participant {
         name: &str,
         timeout: Duration,
     ) -> Result<Self, RequestError> {
-        use iceoryx2::service::builder::event::EventOpenError;
         use iceoryx2::service::builder::request_response::RequestResponseOpenError;
         let names = ServiceNames::new(world);
         let node = NodeBuilder::new()
@@ -77,24 +76,25 @@ impl Participant {
                     .request_response::<LockstepRequest, LockstepResponse>()
                     .open()
             },
-            |e| matches!(e, RequestResponseOpenError::DoesNotExist),
+            |e| {
+                matches!(
+                    e,
+                    RequestResponseOpenError::DoesNotExist
+                        | RequestResponseOpenError::HangsInCreation
+                )
+            },
         )
         .map_err(|e| RequestError::transport("lockstep service", e))?
         .ok_or_else(missing)?
         .client_builder()
         .create()
         .map_err(|e| RequestError::transport("lockstep client", e))?;
-        let wake_name = service_name(&names.control_wake)?;
-        let wake = open_with_retry(
-            deadline,
-            || node.service_builder(&wake_name).event().open(),
-            |e| matches!(e, EventOpenError::DoesNotExist),
-        )
-        .map_err(|e| RequestError::transport("wake-up service", e))?
-        .ok_or_else(missing)?
-        .notifier_builder()
-        .create()
-        .map_err(|e| RequestError::transport("wake-up notifier", e))?;
+        let wake = open_event(&node, &names.control_wake, deadline)
+            .map_err(|e| RequestError::transport(e.what, e.detail))?
+            .ok_or_else(missing)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| RequestError::transport("wake-up notifier", e))?;
         let mut participant = Self {
             world: world.clone(),
             port,

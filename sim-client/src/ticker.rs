@@ -12,7 +12,7 @@ use shared_types::{
 };
 use tracing::{debug, info};
 
-use crate::frames::open_with_retry;
+use crate::open::{open_event, open_with_retry};
 use crate::rpc::{await_response, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
@@ -71,7 +71,6 @@ impl Ticker {
         request_timeout: Duration,
         owner: impl Fn() -> Option<TickerInfo>,
     ) -> Result<Self, TickError> {
-        use iceoryx2::service::builder::event::EventOpenError;
         use iceoryx2::service::builder::request_response::RequestResponseOpenError;
         use iceoryx2::service::port_factory::client::ClientCreateError;
 
@@ -99,7 +98,13 @@ impl Ticker {
                     .request_response::<TickRequest, TickResponse>()
                     .open()
             },
-            |e| matches!(e, RequestResponseOpenError::DoesNotExist),
+            |e| {
+                matches!(
+                    e,
+                    RequestResponseOpenError::DoesNotExist
+                        | RequestResponseOpenError::HangsInCreation
+                )
+            },
         )
         .map_err(|e| TickError::transport("tick service", e))?
         .ok_or_else(timeout)?
@@ -112,21 +117,16 @@ impl Ticker {
             },
             e => TickError::transport("tick client", e),
         })?;
-        let open_event = |name: &str| {
-            let name = service_name(name)?;
-            open_with_retry(
-                deadline,
-                || node.service_builder(&name).event().open(),
-                |e| matches!(e, EventOpenError::DoesNotExist),
-            )
-            .map_err(|e| TickError::transport("event service", e))?
-            .ok_or_else(timeout)
+        let open = |name: &str| {
+            open_event(&node, name, deadline)
+                .map_err(|e| TickError::transport(e.what, e.detail))?
+                .ok_or_else(timeout)
         };
-        let wake = open_event(&names.control_wake)?
+        let wake = open(&names.control_wake)?
             .notifier_builder()
             .create()
             .map_err(|e| TickError::transport("wake-up notifier", e))?;
-        let ready = open_event(&names.frame_ready)?
+        let ready = open(&names.frame_ready)?
             .listener_builder()
             .create()
             .map_err(|e| TickError::transport("frame-ready listener", e))?;

@@ -107,7 +107,10 @@ fn unpaced_fixed_step_time_is_exact_thousands_of_frames_in() {
 fn variable_step_deltas_sum_to_elapsed_and_follow_wall_time() {
     let world = unique_world("variable");
     let _server = server(&world, &["--max-fps", "50"]);
-    let out = client(&world, &["watch", "--frames", "60", "--json"]);
+    let out = client(
+        &world,
+        &["watch", "--frames", "60", "--json", "--every-frame"],
+    );
     out.assert_success();
     let frames = out.json();
     let mut checked = 0;

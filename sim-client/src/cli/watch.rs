@@ -11,8 +11,8 @@ use crate::Failure;
 /// Print one line per frame.
 ///
 /// In asynchronous mode a watcher slower than the server skips to the newest
-/// frame and reports how many it missed; in synchronous mode every frame is
-/// printed once, in order.
+/// frame and reports how many it missed (unless --every-frame); in
+/// synchronous mode every frame is printed once, in order.
 #[derive(Debug, Args)]
 pub struct WatchArgs {
     /// Stop after N frames.
@@ -26,6 +26,12 @@ pub struct WatchArgs {
     /// Spin on the shared-memory queue instead of sleeping (lowest latency, one core busy).
     #[arg(long)]
     spin: bool,
+
+    /// Print every frame in order in asynchronous mode too, instead of
+    /// skipping to the newest (16 frames of slack; beyond that frames are
+    /// lost and counted as missed).
+    #[arg(long)]
+    every_frame: bool,
 
     /// Print `frame F digest D` per frame (the digest covers the frame's
     /// time and every actor's state, bit for bit): `diff` two runs' output.
@@ -105,6 +111,7 @@ pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), 
     if args.spin {
         client.set_wait_mode(WaitMode::Spin);
     }
+    client.set_every_frame(args.every_frame);
     let mut seen = 0;
     while args.frames.is_none_or(|n| seen < n) {
         let Some(snapshot) = next_frame(&mut client, timeout)? else {

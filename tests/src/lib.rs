@@ -45,6 +45,7 @@ pub struct Proc {
     pub guard: ChildGuard,
     lines: mpsc::Receiver<String>,
     stderr: std::sync::Arc<std::sync::Mutex<String>>,
+    stderr_reader: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Proc {
@@ -73,7 +74,7 @@ impl Proc {
         });
         let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
         let sink = stderr.clone();
-        std::thread::spawn(move || {
+        let stderr_reader = std::thread::spawn(move || {
             let mut buf = [0u8; 4096];
             while let Ok(n) = stderr_pipe.read(&mut buf) {
                 if n == 0 {
@@ -88,6 +89,7 @@ impl Proc {
             guard: ChildGuard::new(child, Duration::from_secs(5)),
             lines,
             stderr,
+            stderr_reader: Some(stderr_reader),
         }
     }
 
@@ -121,10 +123,13 @@ impl Proc {
                 );
             }
         };
-        // Give the reader threads a moment to drain the pipes.
+        // The pipes close when the process exits: read them to the end.
         let mut stdout = Vec::new();
-        while let Ok(line) = self.lines.recv_timeout(Duration::from_millis(500)) {
+        while let Ok(line) = self.lines.recv_timeout(Duration::from_secs(10)) {
             stdout.push(line);
+        }
+        if let Some(reader) = self.stderr_reader.take() {
+            reader.join().expect("stderr reader");
         }
         Finished {
             status,

@@ -22,16 +22,26 @@ fn three_watchers_of_a_realtime_server_see_the_same_consecutive_frames() {
         &[
             "--realtime",
             "--fixed-delta-seconds",
-            "0.02",
+            "0.1",
             "--scene",
             "default",
         ],
     );
+    // --every-frame: 16 queued frames (1.6 s) of slack for a watcher the
+    // machine schedules late, instead of skipping to the newest frame.
     let watchers: Vec<Proc> = (0..3)
         .map(|_| {
             Proc::spawn(
                 "sim-client",
-                &["--world", &world, "watch", "--frames", "60", "--json"],
+                &[
+                    "--world",
+                    &world,
+                    "watch",
+                    "--frames",
+                    "30",
+                    "--json",
+                    "--every-frame",
+                ],
             )
         })
         .collect();
@@ -46,7 +56,7 @@ fn three_watchers_of_a_realtime_server_see_the_same_consecutive_frames() {
 
     let mut by_frame: BTreeMap<u64, Vec<&Value>> = BTreeMap::new();
     for run in &runs {
-        assert_eq!(run.len(), 60);
+        assert_eq!(run.len(), 30);
         for pair in run.windows(2) {
             assert_eq!(
                 u64_of(&pair[1], "frame"),
@@ -64,7 +74,7 @@ fn three_watchers_of_a_realtime_server_see_the_same_consecutive_frames() {
     }
     let shared: Vec<_> = by_frame.values().filter(|seen| seen.len() == 3).collect();
     assert!(
-        shared.len() >= 40,
+        shared.len() >= 20,
         "the watchers overlap on {} frames only",
         shared.len()
     );

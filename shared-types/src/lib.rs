@@ -34,6 +34,7 @@ mod control;
 mod frame;
 mod lockstep;
 mod names;
+mod sensor;
 mod settings;
 mod tick;
 
@@ -46,6 +47,10 @@ pub use control::{
 pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
+pub use sensor::{
+    ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
+    SensorRequestKind, SensorResponseHeader, SensorSpec, SENSOR_ERRORS,
+};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
     MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
@@ -83,6 +88,11 @@ pub mod limits {
     pub const INITIAL_MAX_BATCH: usize = 64;
     /// Batches one client may have in flight.
     pub const MAX_BATCHES_IN_FLIGHT: usize = 4;
+    /// Subscribers one sensor admits.
+    pub const MAX_SENSOR_SUBSCRIBERS: usize = 4;
+    /// Captures a sensor subscriber may have queued (a reader that drains
+    /// this often never loses one).
+    pub const SENSOR_SUBSCRIBER_BUFFER: usize = 4;
     /// How many clients may send batches at once (each costs the server memory).
     pub const MAX_BATCH_CLIENTS: usize = 16;
 }

@@ -105,6 +105,9 @@ pub struct ServiceNames {
     pub batch: String,
     /// Request-response: [`crate::LockstepRequest`] → [`crate::LockstepResponse`].
     pub lockstep: String,
+    /// Request-response: [`crate::SensorRequest`] → a slice of [`crate::SensorInfo`].
+    pub sensors: String,
+    prefix: String,
 }
 
 impl ServiceNames {
@@ -119,7 +122,17 @@ impl ServiceNames {
             tick: format!("{prefix}/tick"),
             batch: format!("{prefix}/batch"),
             lockstep: format!("{prefix}/lockstep"),
+            sensors: format!("{prefix}/sensors"),
+            prefix,
         }
+    }
+}
+
+impl ServiceNames {
+    /// Publish-subscribe of sensor `id`: a [`crate::SensorHeader`] user
+    /// header and a slice of its kind's payload.
+    pub fn sensor(&self, id: u64) -> String {
+        format!("{}/sensor/{id}", self.prefix)
     }
 }
 

@@ -38,6 +38,7 @@ mod lockstep;
 mod open;
 pub mod process;
 mod rpc;
+mod sensor;
 mod snapshot;
 mod ticker;
 
@@ -49,5 +50,6 @@ pub use error::{
 pub use frames::WaitMode;
 pub use lockstep::Participant;
 pub use process::process_alive;
+pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use snapshot::WorldSnapshot;
 pub use ticker::Ticker;

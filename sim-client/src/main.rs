@@ -52,6 +52,8 @@ enum Command {
     Load(cli::actors::LoadArgs),
     /// Drive the world's vehicles as a lockstep participant (seeded).
     Autopilot(cli::autopilot::AutopilotArgs),
+    /// Sensors: spawn, list, watch, destroy.
+    Sensor(cli::sensor::SensorArgs),
     /// Start a server on the default scene, watch it, and print a live summary.
     Demo(cli::demo::DemoArgs),
 }
@@ -104,6 +106,7 @@ fn main() -> ExitCode {
         Command::Reload(a) => cli::actors::reload(&args.world, timeout, a),
         Command::Load(a) => cli::actors::load(&args.world, timeout, a),
         Command::Autopilot(a) => cli::autopilot::run(&args.world, timeout, a),
+        Command::Sensor(a) => cli::sensor::run(&args.world, timeout, a),
         Command::Demo(a) => cli::demo::run(timeout, a),
     };
     match result {

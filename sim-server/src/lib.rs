@@ -10,6 +10,7 @@
 //! - [`services`]: the world's iceoryx2 ports.
 //! - [`ticker`]: tick ownership and its loss.
 //! - [`lockstep`]: participants the server waits for in synchronous mode.
+//! - [`sensors`]: depth camera, lidar and IMU, written straight into shared memory.
 //! - [`server`]: the loop that answers requests, paces, steps and publishes.
 //! - [`cli`]: the `sim-server` command line.
 //!
@@ -43,6 +44,7 @@ pub mod cli;
 pub mod clock;
 pub mod lockstep;
 pub mod scene;
+pub mod sensors;
 pub mod server;
 pub mod services;
 pub mod ticker;

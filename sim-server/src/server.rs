@@ -12,14 +12,16 @@ use iceoryx2::prelude::ipc;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ControlRequest,
     ControlResponse, FixedText, FrameHeader, LockstepKind, LockstepRequest, LockstepResponse,
-    RequestKind, ResponseStatus, SettingsError, StatusReport, TickRequest, TickRequestKind,
-    TickResponse, Timestamp, WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
+    RequestKind, ResponseStatus, SensorInfo, SensorRequestKind, SensorResponseHeader, ServiceNames,
+    SettingsError, StatusReport, TickRequest, TickRequestKind, TickResponse, Timestamp,
+    WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 
 use crate::clock::{long_substep, Clock, SubstepPlan, LONG_FRAME_NS};
 use crate::lockstep::Participants;
 use crate::scene::Scene;
+use crate::sensors::Sensors;
 use crate::services::ServerPorts;
 use crate::ticker::{node_process_alive, OnTickerLoss, Owner, TickOwnership};
 use crate::world::World;
@@ -122,6 +124,8 @@ pub struct Server {
     participants: Participants,
     pending_steps: VecDeque<PendingStep>,
     frames_computed: u64,
+    sensors: Sensors,
+    names: ServiceNames,
     last_liveness_check: Instant,
     last_connection_update: Instant,
 }
@@ -157,6 +161,8 @@ impl Server {
             participants: Participants::default(),
             pending_steps: VecDeque::new(),
             frames_computed: 0,
+            sensors: Sensors::default(),
+            names: ServiceNames::new(&config.world),
             last_liveness_check: now,
             last_connection_update: now,
             config,
@@ -188,6 +194,7 @@ impl Server {
             self.handle_control()?;
             self.handle_batches()?;
             self.handle_lockstep()?;
+            self.handle_sensor_requests()?;
             self.handle_ticks()?;
             self.housekeeping();
             let now = Instant::now();
@@ -290,6 +297,13 @@ impl Server {
             } else {
                 0
             },
+        )?;
+        // Sensors capture this frame before anyone hears it is done.
+        self.sensors.capture(
+            &self.world,
+            self.clock.frame(),
+            self.clock.elapsed_ns(),
+            self.episode,
         )?;
         let count = ticks.min(self.pending_steps.len());
         let steps: Vec<PendingStep> = self.pending_steps.drain(..count).collect();
@@ -702,6 +716,63 @@ impl Server {
         Ok(())
     }
 
+    /// Spawns, destroys and lists sensors.
+    fn handle_sensor_requests(&mut self) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .ports
+            .sensors
+            .receive()
+            .map_err(|e| ServerError::transport("sensor receive", e))?
+        {
+            let payload = *request.payload();
+            let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) = if payload
+                .protocol_version
+                != PROTOCOL_VERSION
+            {
+                (ResponseStatus::ProtocolMismatch, 0, Vec::new())
+            } else {
+                match SensorRequestKind::from_u32(payload.kind) {
+                    Some(SensorRequestKind::Spawn) => match self.sensors.spawn(
+                        &self.ports.node,
+                        &self.names,
+                        payload.spec,
+                        &self.world,
+                        self.clock.elapsed_ns(),
+                    )? {
+                        Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
+                        Err(refusal) => {
+                            (ResponseStatus::UnknownRequest, refusal as u32, Vec::new())
+                        }
+                    },
+                    Some(SensorRequestKind::Destroy) => {
+                        if self.sensors.destroy(payload.id) {
+                            (ResponseStatus::Ok, 0, Vec::new())
+                        } else {
+                            (ResponseStatus::UnknownRequest, 3, Vec::new())
+                        }
+                    }
+                    Some(SensorRequestKind::List) => (ResponseStatus::Ok, 0, self.sensors.list()),
+                    None => (ResponseStatus::UnknownRequest, 0, Vec::new()),
+                }
+            };
+            let response = request.loan_slice_uninit(infos.len()).map(|mut response| {
+                *response.user_header_mut() = SensorResponseHeader {
+                    protocol_version: PROTOCOL_VERSION,
+                    status: status as u32,
+                    error,
+                    reserved: 0,
+                };
+                response.write_from_slice(&infos)
+            });
+            match response.map(|r| r.send()) {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => debug!("sensor response not delivered: {e:?}"),
+                Err(e) => debug!("sensor response not loaned: {e:?}"),
+            }
+        }
+        Ok(())
+    }
+
     /// Replaces the world with `scene`'s initial state as a new episode,
     /// starting again at frame 0; settings are kept unless `reset`.
     fn load_world(&mut self, scene: Scene, reset: bool, pid: u32) -> Result<(), ServerError> {
@@ -712,6 +783,7 @@ impl Server {
         self.episode += 1;
         self.pace_anchor = None;
         self.participants.new_episode();
+        self.sensors.new_episode();
         if reset {
             self.settings = WorldSettings::default();
         }

@@ -13,8 +13,8 @@ use shared_types::limits::{
 };
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
-    ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, ServiceNames, TickRequest,
-    TickResponse, WorldName,
+    ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, SensorInfo, SensorRequest,
+    SensorResponseHeader, ServiceNames, TickRequest, TickResponse, WorldName,
 };
 use tracing::{info, warn};
 
@@ -29,6 +29,8 @@ pub type TickServer = Server<ipc::Service, TickRequest, (), TickResponse, ()>;
 /// The server end of the batch service.
 pub type BatchServer =
     Server<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+/// The server end of the sensor service.
+pub type SensorServer = Server<ipc::Service, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 /// The server end of the lockstep service.
 pub type LockstepServer = Server<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
 
@@ -50,6 +52,8 @@ pub struct ServerPorts {
     pub batch: BatchServer,
     /// Lockstep participants.
     pub lockstep: LockstepServer,
+    /// Sensor spawn, destroy and list.
+    pub sensors: SensorServer,
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ServerError> {
@@ -160,6 +164,23 @@ impl ServerPorts {
             .create()
             .map_err(|e| ServerError::transport("lockstep server", e))?;
 
+        let sensors = node
+            .service_builder(&service_name(&names.sensors)?)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .max_servers(1)
+            .max_clients(MAX_BATCH_CLIENTS)
+            .max_nodes(MAX_NODES)
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(1)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("sensor service", e))?
+            .server_builder()
+            .initial_max_slice_len(16)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ServerError::transport("sensor server", e))?;
+
         let control_wake = node
             .service_builder(&service_name(&names.control_wake)?)
             .event()
@@ -213,6 +234,7 @@ impl ServerPorts {
             tick,
             batch,
             lockstep,
+            sensors,
         })
     }
 }

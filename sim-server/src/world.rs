@@ -293,6 +293,44 @@ impl World {
         }
     }
 
+    /// The rapier body of actor `id`.
+    pub fn body_of(&self, id: u64) -> Option<RigidBodyHandle> {
+        self.index_of(id).map(|i| self.actors[i].body)
+    }
+
+    /// The pose of actor `id`.
+    pub fn pose_of(&self, id: u64) -> Option<Pose> {
+        self.body_of(id).map(|b| *self.physics.bodies[b].position())
+    }
+
+    /// Linear acceleration over the last frame and angular velocity of actor
+    /// `id` (world frame); zeros for id 0, the world itself.
+    pub fn motion_of(&self, id: u64) -> Option<(Vector, Vector)> {
+        if id == 0 {
+            return Some((Vector::ZERO, Vector::ZERO));
+        }
+        let actor = &self.actors[self.index_of(id)?];
+        Some((actor.acceleration, self.physics.bodies[actor.body].angvel()))
+    }
+
+    /// Distance to the first collider along `direction` (unit) from `origin`,
+    /// up to `max`, ignoring the body `exclude`.
+    pub fn cast_ray(
+        &self,
+        origin: Vector,
+        direction: Vector,
+        max: f32,
+        exclude: Option<RigidBodyHandle>,
+    ) -> Option<f32> {
+        let mut filter = QueryFilter::default();
+        if let Some(body) = exclude {
+            filter = filter.exclude_rigid_body(body);
+        }
+        self.physics
+            .cast_ray(&Ray::new(origin, direction), max, true, filter)
+            .map(|(_, distance)| distance)
+    }
+
     /// The state of the actor at `index` (in id order), as published.
     pub fn actor_state(&self, index: usize) -> ActorState {
         let actor = &self.actors[index];

@@ -1,0 +1,396 @@
+//! Sensors: their specification, the header of every capture, and the
+//! payload element of each kind. Each sensor publishes on its own service
+//! (`ServiceNames::sensor`), written by the server straight into shared memory.
+
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::PROTOCOL_VERSION;
+
+/// What a sensor measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum SensorKind {
+    /// Ray-cast depth camera: one `f32` planar depth (metres) per pixel,
+    /// row by row from the top left; `far` where nothing is hit.
+    Depth = 1,
+    /// Ray-cast lidar: [`LidarPoint`]s in the sensor frame.
+    Lidar = 2,
+    /// Inertial measurement unit: one [`ImuMeasurement`].
+    Imu = 3,
+}
+
+impl SensorKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Depth,
+            2 => Self::Lidar,
+            3 => Self::Imu,
+            _ => return None,
+        })
+    }
+
+    /// The lower-case name used on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Lidar => "lidar",
+            Self::Imu => "imu",
+        }
+    }
+
+    /// The kind named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Depth, Self::Lidar, Self::Imu]
+            .into_iter()
+            .find(|k| k.name() == name)
+    }
+}
+
+/// How to build a sensor. Frames: X forward, Y up, Z right of the sensor
+/// (its rotation turns that into the parent's frame).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SensorSpec/1")]
+pub struct SensorSpec {
+    /// [`SensorKind`] as `u32`.
+    pub kind: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The actor it rides on (0: fixed in the world).
+    pub attach_to: u64,
+    /// Position relative to the parent.
+    pub position: [f32; 3],
+    /// Zero.
+    pub reserved2: u32,
+    /// Orientation relative to the parent, quaternion (x, y, z, w); zeros = identity.
+    pub rotation: [f32; 4],
+    /// Capture period in simulation seconds (0: every frame).
+    pub sensor_tick: f64,
+    /// Depth: width, height, horizontal field of view (degrees), far range.
+    /// Lidar: channels, points per channel, range, upper fov, lower fov
+    /// (degrees), rotation frequency (Hz).
+    pub params: [f32; 8],
+}
+
+impl SensorSpec {
+    fn new(kind: SensorKind, position: [f32; 3], params: [f32; 8]) -> Self {
+        Self {
+            kind: kind as u32,
+            position,
+            params,
+            ..Self::default()
+        }
+    }
+
+    /// A depth camera of `width` × `height` pixels, horizontal field of view
+    /// `fov_degrees`, reading `far` metres where nothing is hit.
+    pub fn depth(position: [f32; 3], width: u32, height: u32, fov_degrees: f32, far: f32) -> Self {
+        Self::new(
+            SensorKind::Depth,
+            position,
+            [
+                width as f32,
+                height as f32,
+                fov_degrees,
+                far,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            ],
+        )
+    }
+
+    /// A lidar with `channels` × `points_per_channel` rays per full turn.
+    pub fn lidar(
+        position: [f32; 3],
+        channels: u32,
+        points_per_channel: u32,
+        range: f32,
+        upper_fov: f32,
+        lower_fov: f32,
+    ) -> Self {
+        Self::new(
+            SensorKind::Lidar,
+            position,
+            [
+                channels as f32,
+                points_per_channel as f32,
+                range,
+                upper_fov,
+                lower_fov,
+                10.0,
+                0.0,
+                0.0,
+            ],
+        )
+    }
+
+    /// An IMU.
+    pub fn imu(position: [f32; 3]) -> Self {
+        Self::new(SensorKind::Imu, position, [0.0; 8])
+    }
+
+    /// Attached to actor `id`.
+    pub fn attached_to(mut self, id: u64) -> Self {
+        self.attach_to = id;
+        self
+    }
+
+    /// Captures every `seconds` of simulation time (0: every frame).
+    pub fn every(mut self, seconds: f64) -> Self {
+        self.sensor_tick = seconds;
+        self
+    }
+
+    /// The kind, if known.
+    pub fn sensor_kind(&self) -> Option<SensorKind> {
+        SensorKind::from_u32(self.kind)
+    }
+
+    /// How many payload elements one capture holds (pixels, lidar slots, 1).
+    pub fn elements(&self) -> usize {
+        let p = self.params;
+        match self.sensor_kind() {
+            Some(SensorKind::Depth) => p[0] as usize * p[1] as usize,
+            Some(SensorKind::Lidar) => p[0] as usize * p[1] as usize,
+            _ => 1,
+        }
+    }
+
+    /// Why this spec cannot build a sensor, if it cannot.
+    pub fn check(&self) -> Result<(), &'static str> {
+        let p = self.params;
+        let finite = self
+            .position
+            .iter()
+            .chain(&self.rotation)
+            .chain(&p)
+            .all(|v| v.is_finite());
+        if !finite || !self.sensor_tick.is_finite() || self.sensor_tick < 0.0 {
+            return Err("values must be finite and sensor_tick >= 0");
+        }
+        let whole = |v: f32, max: f32| v >= 1.0 && v <= max && v.fract() == 0.0;
+        match self.sensor_kind() {
+            Some(SensorKind::Depth) => {
+                if !(whole(p[0], 8192.0) && whole(p[1], 8192.0)) {
+                    return Err("depth width and height must be whole numbers in 1..=8192");
+                }
+                if !(p[2] > 0.0 && p[2] < 180.0) {
+                    return Err("depth field of view must be in (0, 180) degrees");
+                }
+                if p[3] <= 0.0 {
+                    return Err("depth far range must be positive");
+                }
+            }
+            Some(SensorKind::Lidar) => {
+                if !(whole(p[0], 256.0) && whole(p[1], 65536.0)) {
+                    return Err(
+                        "lidar channels must be in 1..=256 and points per channel in 1..=65536",
+                    );
+                }
+                if p[2] <= 0.0 || p[3] < p[4] || p[3].abs() > 90.0 || p[4].abs() > 90.0 {
+                    return Err(
+                        "lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90",
+                    );
+                }
+            }
+            Some(SensorKind::Imu) => {}
+            None => return Err("unknown sensor kind"),
+        }
+        Ok(())
+    }
+}
+
+/// One lidar return in the sensor frame, and its intensity (1 near, 0 at range).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::LidarPoint/1")]
+pub struct LidarPoint {
+    /// Forward.
+    pub x: f32,
+    /// Up.
+    pub y: f32,
+    /// Right.
+    pub z: f32,
+    /// 1 at the sensor, 0 at the range limit.
+    pub intensity: f32,
+}
+
+/// One IMU reading, in the sensor frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ImuMeasurement/1")]
+pub struct ImuMeasurement {
+    /// Specific force (m/s²): acceleration minus gravity, so at rest it reads +9.81 up.
+    pub accelerometer: [f32; 3],
+    /// Angular velocity (rad/s).
+    pub gyroscope: [f32; 3],
+}
+
+/// The user header of every capture.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SensorHeader/1")]
+pub struct SensorHeader {
+    /// [`PROTOCOL_VERSION`] of the server.
+    pub protocol_version: u32,
+    /// [`SensorKind`] as `u32`.
+    pub kind: u32,
+    /// The sensor's id.
+    pub sensor_id: u64,
+    /// The frame captured.
+    pub frame: u64,
+    /// Its simulation time, in nanoseconds.
+    pub elapsed_ns: u64,
+    /// Its episode.
+    pub episode: u64,
+    /// Captures of this sensor so far, this one included (gaps = missed).
+    pub sequence: u64,
+    /// Sensor position in the world at capture.
+    pub position: [f32; 3],
+    /// Valid payload elements (lidar: returns; the rest of the slice is zero).
+    pub count: u32,
+    /// Sensor orientation in the world at capture (x, y, z, w).
+    pub rotation: [f32; 4],
+    /// Depth: width and height in pixels. Lidar: channels and points per channel.
+    pub size: [u32; 2],
+    /// Zero.
+    pub reserved: [u32; 2],
+}
+
+impl SensorHeader {
+    /// A header for `kind` from sensor `sensor_id`.
+    pub fn new(kind: SensorKind, sensor_id: u64) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            kind: kind as u32,
+            sensor_id,
+            ..Self::default()
+        }
+    }
+}
+
+/// What the server knows about one sensor (answer of spawn and list).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SensorInfo/1")]
+pub struct SensorInfo {
+    /// The sensor's id (sensor ids are their own sequence, from 1).
+    pub id: u64,
+    /// How it was built.
+    pub spec: SensorSpec,
+    /// Captures so far.
+    pub captures: u64,
+}
+
+/// What a [`SensorRequest`] asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SensorRequestKind {
+    /// Build a sensor from `spec`.
+    Spawn = 1,
+    /// Remove sensor `id`.
+    Destroy = 2,
+    /// List every sensor.
+    List = 3,
+}
+
+impl SensorRequestKind {
+    /// The kind with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Spawn,
+            2 => Self::Destroy,
+            3 => Self::List,
+            _ => return None,
+        })
+    }
+}
+
+/// A request on the sensor service.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SensorRequest/1")]
+pub struct SensorRequest {
+    /// [`PROTOCOL_VERSION`] of the sender.
+    pub protocol_version: u32,
+    /// [`SensorRequestKind`] as `u32`.
+    pub kind: u32,
+    /// The sensor to destroy.
+    pub id: u64,
+    /// The sensor to spawn.
+    pub spec: SensorSpec,
+}
+
+impl SensorRequest {
+    /// A request of `kind`.
+    pub fn new(kind: SensorRequestKind, id: u64, spec: SensorSpec) -> Self {
+        Self {
+            protocol_version: PROTOCOL_VERSION,
+            kind: kind as u32,
+            id,
+            spec,
+        }
+    }
+}
+
+/// The user header of a sensor-service answer (its payload: [`SensorInfo`]s).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SensorResponseHeader/1")]
+pub struct SensorResponseHeader {
+    /// [`PROTOCOL_VERSION`] of the server.
+    pub protocol_version: u32,
+    /// [`crate::ResponseStatus`] as `u32`.
+    pub status: u32,
+    /// Why a spawn was refused (index into [`SENSOR_ERRORS`]; 0 = none).
+    pub error: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+/// Reasons a sensor request is refused, by [`SensorResponseHeader::error`].
+pub const SENSOR_ERRORS: [&str; 4] = [
+    "",
+    "invalid sensor specification",
+    "unknown actor to attach to",
+    "unknown sensor",
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_are_checked() {
+        assert!(SensorSpec::depth([0.0; 3], 640, 480, 90.0, 100.0)
+            .check()
+            .is_ok());
+        assert!(SensorSpec::depth([0.0; 3], 0, 480, 90.0, 100.0)
+            .check()
+            .is_err());
+        assert!(SensorSpec::depth([0.0; 3], 64, 48, 180.0, 100.0)
+            .check()
+            .is_err());
+        assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, 10.0, -30.0)
+            .check()
+            .is_ok());
+        assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, -30.0, 10.0)
+            .check()
+            .is_err());
+        assert!(SensorSpec::imu([f32::NAN, 0.0, 0.0]).check().is_err());
+        assert!(SensorSpec::imu([0.0; 3]).every(-1.0).check().is_err());
+        assert_eq!(SensorSpec::depth([0.0; 3], 4, 3, 60.0, 10.0).elements(), 12);
+    }
+
+    #[test]
+    fn kinds_round_trip() {
+        for k in [SensorKind::Depth, SensorKind::Lidar, SensorKind::Imu] {
+            assert_eq!(SensorKind::from_u32(k as u32), Some(k));
+            assert_eq!(SensorKind::from_name(k.name()), Some(k));
+        }
+    }
+}

@@ -1,0 +1,407 @@
+//! [`Sensor`]: a subscription to one sensor's captures, read in place in
+//! shared memory.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use shared_types::limits::SENSOR_SUBSCRIBER_BUFFER;
+use shared_types::{
+    ImuMeasurement, LidarPoint, ResponseStatus, SensorHeader, SensorInfo, SensorKind,
+    SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, ServiceNames,
+    PROTOCOL_VERSION, SENSOR_ERRORS,
+};
+
+use crate::open::{open_event, open_with_retry};
+use crate::rpc::{await_with, Wait};
+use crate::{process_alive, Client, RequestError, WaitError};
+
+type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
+
+enum Port {
+    Depth(Sub<f32>),
+    Lidar(Sub<LidarPoint>),
+    Imu(Sub<ImuMeasurement>),
+}
+
+/// One capture, borrowed from shared memory: nothing is copied until you do.
+pub enum Capture {
+    /// A depth image: `f32` planar depths, row by row.
+    Depth(Sample<ipc::Service, [f32], SensorHeader>),
+    /// A lidar scan.
+    Lidar(Sample<ipc::Service, [LidarPoint], SensorHeader>),
+    /// An IMU reading.
+    Imu(Sample<ipc::Service, [ImuMeasurement], SensorHeader>),
+}
+
+impl Capture {
+    /// The capture's header: sensor, frame, simulation time, pose at capture.
+    pub fn header(&self) -> &SensorHeader {
+        match self {
+            Self::Depth(s) => s.user_header(),
+            Self::Lidar(s) => s.user_header(),
+            Self::Imu(s) => s.user_header(),
+        }
+    }
+
+    /// The depth image in place (width × height, row-major), if a depth capture.
+    pub fn depth(&self) -> Option<&[f32]> {
+        match self {
+            Self::Depth(s) => Some(s.payload()),
+            _ => None,
+        }
+    }
+
+    /// The lidar returns in place (sensor frame), if a lidar capture.
+    pub fn points(&self) -> Option<&[LidarPoint]> {
+        match self {
+            Self::Lidar(s) => {
+                let count = (s.user_header().count as usize).min(s.payload().len());
+                Some(&s.payload()[..count])
+            }
+            _ => None,
+        }
+    }
+
+    /// The IMU reading, if an IMU capture.
+    pub fn imu(&self) -> Option<&ImuMeasurement> {
+        match self {
+            Self::Imu(s) => s.payload().first(),
+            _ => None,
+        }
+    }
+
+    /// The payload's bytes in place.
+    pub fn bytes(&self) -> &[u8] {
+        match self {
+            Self::Depth(s) => bytemuck::cast_slice(s.payload()),
+            Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
+            Self::Imu(s) => bytemuck::cast_slice(s.payload()),
+        }
+    }
+}
+
+/// Why a sensor request failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    /// The server refused: invalid spec, unknown actor, unknown sensor.
+    #[error("sensor refused: {0}")]
+    Refused(&'static str),
+    /// The request failed.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}
+
+/// A subscription to one sensor. In synchronous mode, a reader that drains
+/// its queue before the next tick gets every capture, in order, each once;
+/// a reader that must never miss one joins the lockstep, so the server
+/// waits for it. Slower readers lose the oldest captures (4 are kept),
+/// counted by [`Sensor::missed`].
+pub struct Sensor {
+    info: SensorInfo,
+    port: Port,
+    ready: Listener<ipc::Service>,
+    world: String,
+    server_pid: u32,
+    last_sequence: Option<u64>,
+    missed: u64,
+    _node: Node<ipc::Service>,
+}
+
+impl Sensor {
+    fn open(client: &Client, info: SensorInfo) -> Result<Self, RequestError> {
+        let names = ServiceNames::new(&client.world);
+        let node = NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| RequestError::transport("node", e))?;
+        let deadline = Instant::now() + client.request_timeout;
+        let name = ServiceName::new(&names.sensor(info.id))
+            .map_err(|e| RequestError::transport("service name", e))?;
+        fn subscribe<T: std::fmt::Debug + ZeroCopySend + 'static>(
+            node: &Node<ipc::Service>,
+            name: &ServiceName,
+            deadline: Instant,
+        ) -> Result<Sub<T>, RequestError> {
+            use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError as E;
+            open_with_retry(
+                deadline,
+                || {
+                    node.service_builder(name)
+                        .publish_subscribe::<[T]>()
+                        .user_header::<SensorHeader>()
+                        .open()
+                },
+                |e| matches!(e, E::DoesNotExist | E::HangsInCreation),
+            )
+            .map_err(|e| RequestError::transport("sensor service", e))?
+            .ok_or(RequestError::transport("sensor service", "does not exist"))?
+            .subscriber_builder()
+            .buffer_size(SENSOR_SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| RequestError::transport("sensor subscriber", e))
+        }
+        let port = match info.spec.sensor_kind() {
+            Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &name, deadline)?),
+            Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &name, deadline)?),
+            Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &name, deadline)?),
+            None => return Err(RequestError::UnknownRequest),
+        };
+        let ready = open_event(&node, &names.frame_ready, deadline)
+            .map_err(|e| RequestError::transport(e.what, e.detail))?
+            .ok_or(RequestError::transport(
+                "frame-ready service",
+                "does not exist",
+            ))?
+            .listener_builder()
+            .create()
+            .map_err(|e| RequestError::transport("frame-ready listener", e))?;
+        Ok(Self {
+            info,
+            port,
+            ready,
+            world: client.world.to_string(),
+            server_pid: client.server_pid,
+            last_sequence: None,
+            missed: 0,
+            _node: node,
+        })
+    }
+
+    /// The sensor's id.
+    pub fn id(&self) -> u64 {
+        self.info.id
+    }
+
+    /// How it was built.
+    pub fn spec(&self) -> &SensorSpec {
+        &self.info.spec
+    }
+
+    /// Captures lost since this subscription began (the reader fell more
+    /// than 4 captures behind).
+    pub fn missed(&self) -> u64 {
+        self.missed
+    }
+
+    /// The next queued capture, without waiting.
+    pub fn try_recv(&mut self) -> Result<Option<Capture>, WaitError> {
+        let capture = match &self.port {
+            Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
+            Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
+            Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
+        }
+        .map_err(|e| WaitError::transport("sensor receive", e))?;
+        if let Some(capture) = &capture {
+            let header = capture.header();
+            if header.protocol_version != PROTOCOL_VERSION {
+                return Err(WaitError::ProtocolMismatch {
+                    got: header.protocol_version,
+                    client: PROTOCOL_VERSION,
+                });
+            }
+            if let Some(last) = self.last_sequence {
+                self.missed += header.sequence.saturating_sub(last + 1);
+            }
+            self.last_sequence = Some(header.sequence);
+        }
+        Ok(capture)
+    }
+
+    /// Waits up to `timeout` for the next capture.
+    pub fn recv(&mut self, timeout: Duration) -> Result<Capture, WaitError> {
+        let deadline = Instant::now() + timeout;
+        let mut next_check = Instant::now() + Duration::from_millis(100);
+        loop {
+            if let Some(capture) = self.try_recv()? {
+                return Ok(capture);
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(WaitError::Timeout {
+                    world: self.world.clone(),
+                    timeout,
+                    last_frame: None,
+                });
+            }
+            if now >= next_check {
+                if !process_alive(self.server_pid) {
+                    return Err(WaitError::ServerGone {
+                        world: self.world.clone(),
+                        pid: self.server_pid,
+                    });
+                }
+                next_check = now + Duration::from_millis(100);
+            }
+            let wait = (deadline - now).min(next_check - now);
+            match self.ready.timed_wait(|_| {}, wait) {
+                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
+            }
+        }
+    }
+
+    /// Every capture queued now, oldest first (drain before the next tick).
+    pub fn queue(&mut self) -> impl Iterator<Item = Capture> + '_ {
+        std::iter::from_fn(move || self.try_recv().ok().flatten())
+    }
+
+    /// Calls `callback` with every capture on a background thread with its
+    /// own subscription, until the returned handle is dropped.
+    pub fn listen(
+        client: &Client,
+        id: u64,
+        mut callback: impl FnMut(&Capture) + Send + 'static,
+    ) -> Result<Listening, SensorError> {
+        let info = client.sensor_info(id)?;
+        let world = client.world.clone();
+        let timeout = client.request_timeout;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let flag = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let client = match Client::connect(world.as_str(), timeout) {
+                Ok(c) => c,
+                Err(e) => {
+                    let _ = ready_tx.send(Err(RequestError::transport("listen", e)));
+                    return;
+                }
+            };
+            let mut sensor = match Sensor::open(&client, info) {
+                Ok(s) => {
+                    let _ = ready_tx.send(Ok(()));
+                    s
+                }
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                    return;
+                }
+            };
+            while !flag.load(std::sync::atomic::Ordering::Relaxed) {
+                match sensor.recv(Duration::from_millis(100)) {
+                    Ok(capture) => callback(&capture),
+                    Err(WaitError::Timeout { .. }) => {}
+                    Err(_) => return,
+                }
+            }
+        });
+        ready_rx
+            .recv()
+            .map_err(|e| RequestError::transport("listen thread", e))??;
+        Ok(Listening {
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+/// A running [`Sensor::listen`]; dropping it stops the callbacks.
+pub struct Listening {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Listening {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Client {
+    fn sensor_request(&self, request: SensorRequest) -> Result<Vec<SensorInfo>, SensorError> {
+        let names = ServiceNames::new(&self.world);
+        let name = ServiceName::new(&names.sensors)
+            .map_err(|e| RequestError::transport("service name", e))?;
+        let port = self
+            .node()
+            .service_builder(&name)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .open()
+            .map_err(|e| RequestError::transport("sensor service", e))?
+            .client_builder()
+            .create()
+            .map_err(|e| RequestError::transport("sensor client", e))?;
+        let pending = port
+            .send_copy(request)
+            .map_err(|e| RequestError::transport("sensor send", e))?;
+        let _ = self.control_wake.notify();
+        let (header, infos) = await_with(
+            || {
+                pending
+                    .receive()
+                    .map(|r| r.map(|r| (*r.user_header(), r.payload().to_vec())))
+                    .map_err(|e| RequestError::transport("sensor receive", e))
+            },
+            self.request_timeout,
+            self.world.as_str(),
+            self.server_pid,
+            Wait::Backoff,
+        )?;
+        if header.protocol_version != PROTOCOL_VERSION
+            || header.status == ResponseStatus::ProtocolMismatch as u32
+        {
+            return Err(RequestError::ProtocolMismatch {
+                client: PROTOCOL_VERSION,
+            }
+            .into());
+        }
+        if header.status != ResponseStatus::Ok as u32 {
+            let reason = SENSOR_ERRORS
+                .get(header.error as usize)
+                .copied()
+                .filter(|r| !r.is_empty())
+                .unwrap_or("unknown request");
+            return Err(SensorError::Refused(reason));
+        }
+        Ok(infos)
+    }
+
+    /// Builds a sensor from `spec` and subscribes to it.
+    pub fn spawn_sensor(&self, spec: SensorSpec) -> Result<Sensor, SensorError> {
+        spec.check().map_err(SensorError::Refused)?;
+        let info = self
+            .sensor_request(SensorRequest::new(SensorRequestKind::Spawn, 0, spec))?
+            .first()
+            .copied()
+            .ok_or(SensorError::Refused("no sensor returned"))?;
+        Ok(Sensor::open(self, info)?)
+    }
+
+    /// Subscribes to the existing sensor `id`.
+    pub fn sensor(&self, id: u64) -> Result<Sensor, SensorError> {
+        let info = self.sensor_info(id)?;
+        Ok(Sensor::open(self, info)?)
+    }
+
+    fn sensor_info(&self, id: u64) -> Result<SensorInfo, SensorError> {
+        self.list_sensors()?
+            .into_iter()
+            .find(|s| s.id == id)
+            .ok_or(SensorError::Refused(SENSOR_ERRORS[3]))
+    }
+
+    /// Every sensor of the world.
+    pub fn list_sensors(&self) -> Result<Vec<SensorInfo>, SensorError> {
+        self.sensor_request(SensorRequest::new(
+            SensorRequestKind::List,
+            0,
+            SensorSpec::default(),
+        ))
+    }
+
+    /// Removes sensor `id` from the world (CARLA's `sensor.stop()` + destroy).
+    pub fn destroy_sensor(&self, id: u64) -> Result<(), SensorError> {
+        self.sensor_request(SensorRequest::new(
+            SensorRequestKind::Destroy,
+            id,
+            SensorSpec::default(),
+        ))
+        .map(drop)
+    }
+}

@@ -1,0 +1,334 @@
+//! Sensors: a depth camera and a lidar that ray-cast the rapier world, and an
+//! IMU. Each writes its capture **directly into the loaned shared-memory
+//! sample** of its own iceoryx2 service — no intermediate buffer, no copy.
+
+use std::mem::MaybeUninit;
+
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::prelude::*;
+use rapier3d::prelude::{Pose, Rotation, Vector};
+use shared_types::limits::{MAX_NODES, MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::{
+    seconds_to_nanos, ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorSpec,
+    ServiceNames,
+};
+use tracing::{debug, info};
+
+use crate::world::World;
+use crate::ServerError;
+
+type Port<T> = Publisher<ipc::Service, [T], SensorHeader>;
+
+/// A sensor's publisher, typed by what it captures.
+enum SensorPort {
+    Depth(Port<f32>),
+    Lidar(Port<LidarPoint>),
+    Imu(Port<ImuMeasurement>),
+}
+
+/// One sensor.
+struct Sensor {
+    id: u64,
+    spec: SensorSpec,
+    port: SensorPort,
+    /// Simulation time of the next capture, in nanoseconds.
+    next_capture_ns: u64,
+    captures: u64,
+}
+
+/// Why a sensor could not be spawned (index into `shared_types::SENSOR_ERRORS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SpawnRefusal {
+    /// The spec breaks a rule.
+    InvalidSpec = 1,
+    /// `attach_to` names no actor.
+    UnknownActor = 2,
+}
+
+/// Every sensor of a world.
+#[derive(Default)]
+pub struct Sensors {
+    list: Vec<Sensor>,
+    next_id: u64,
+}
+
+fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    elements: usize,
+) -> Result<Port<T>, ServerError> {
+    let name =
+        ServiceName::new(name).map_err(|e| ServerError::transport("sensor service name", e))?;
+    node.service_builder(&name)
+        .publish_subscribe::<[T]>()
+        .user_header::<SensorHeader>()
+        .max_publishers(1)
+        .max_subscribers(MAX_SENSOR_SUBSCRIBERS)
+        .subscriber_max_buffer_size(SENSOR_SUBSCRIBER_BUFFER)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(0)
+        .enable_safe_overflow(true)
+        .max_nodes(MAX_NODES)
+        .payload_alignment(Alignment::new(16).expect("16 is a power of two"))
+        .open_or_create()
+        .map_err(|e| ServerError::transport("sensor service", e))?
+        .publisher_builder()
+        .initial_max_slice_len(elements)
+        .max_loaned_samples(1)
+        .create()
+        .map_err(|e| ServerError::transport("sensor publisher", e))
+}
+
+fn rotation_of(q: [f32; 4]) -> Rotation {
+    if q == [0.0; 4] {
+        Rotation::IDENTITY
+    } else {
+        Rotation::from_xyzw(q[0], q[1], q[2], q[3]).normalize()
+    }
+}
+
+impl Sensors {
+    /// Builds a sensor from `spec` and opens its service.
+    pub fn spawn(
+        &mut self,
+        node: &Node<ipc::Service>,
+        names: &ServiceNames,
+        spec: SensorSpec,
+        world: &World,
+        now_ns: u64,
+    ) -> Result<Result<SensorInfo, SpawnRefusal>, ServerError> {
+        let Some(kind) = spec.sensor_kind().filter(|_| spec.check().is_ok()) else {
+            return Ok(Err(SpawnRefusal::InvalidSpec));
+        };
+        if spec.attach_to != 0 && world.body_of(spec.attach_to).is_none() {
+            return Ok(Err(SpawnRefusal::UnknownActor));
+        }
+        let id = self.next_id + 1;
+        let name = names.sensor(id);
+        let elements = spec.elements();
+        let port = match kind {
+            SensorKind::Depth => SensorPort::Depth(open_port(node, &name, elements)?),
+            SensorKind::Lidar => SensorPort::Lidar(open_port(node, &name, elements)?),
+            SensorKind::Imu => SensorPort::Imu(open_port(node, &name, 1)?),
+        };
+        self.next_id = id;
+        let next_capture_ns = next_capture_after(now_ns, &spec);
+        info!(
+            id,
+            kind = kind.name(),
+            attach_to = spec.attach_to,
+            elements,
+            "sensor spawned"
+        );
+        let sensor = Sensor {
+            id,
+            spec,
+            port,
+            next_capture_ns,
+            captures: 0,
+        };
+        let info = sensor.info();
+        self.list.push(sensor);
+        Ok(Ok(info))
+    }
+
+    /// Removes sensor `id`; `false` if there is none.
+    pub fn destroy(&mut self, id: u64) -> bool {
+        let before = self.list.len();
+        self.list.retain(|s| s.id != id);
+        let removed = self.list.len() != before;
+        if removed {
+            info!(id, "sensor destroyed");
+        }
+        removed
+    }
+
+    /// Every sensor.
+    pub fn list(&self) -> Vec<SensorInfo> {
+        self.list.iter().map(Sensor::info).collect()
+    }
+
+    /// A new episode: simulation time starts again at 0.
+    pub fn new_episode(&mut self) {
+        for sensor in &mut self.list {
+            sensor.next_capture_ns = next_capture_after(0, &sensor.spec);
+        }
+    }
+
+    /// Captures and publishes every sensor due at this frame.
+    pub fn capture(
+        &mut self,
+        world: &World,
+        frame: u64,
+        elapsed_ns: u64,
+        episode: u64,
+    ) -> Result<(), ServerError> {
+        for sensor in &mut self.list {
+            if elapsed_ns < sensor.next_capture_ns {
+                continue;
+            }
+            sensor.next_capture_ns = next_capture_after(elapsed_ns, &sensor.spec);
+            let Some(pose) = sensor_pose(world, &sensor.spec) else {
+                debug!(id = sensor.id, "sensor's actor is gone; no capture");
+                continue;
+            };
+            sensor.captures += 1;
+            let kind = sensor.spec.sensor_kind().expect("checked at spawn");
+            let mut header = SensorHeader::new(kind, sensor.id);
+            header.frame = frame;
+            header.elapsed_ns = elapsed_ns;
+            header.episode = episode;
+            header.sequence = sensor.captures;
+            header.position = pose.translation.to_array();
+            header.rotation = pose.rotation.to_array();
+            let p = sensor.spec.params;
+            header.size = [p[0] as u32, p[1] as u32];
+            match &sensor.port {
+                SensorPort::Depth(port) => publish(port, header, |slots, header| {
+                    header.count = slots.len() as u32;
+                    depth_into(world, &sensor.spec, pose, slots)
+                })?,
+                SensorPort::Lidar(port) => publish(port, header, |slots, header| {
+                    header.count = lidar_into(world, &sensor.spec, pose, slots) as u32;
+                })?,
+                SensorPort::Imu(port) => publish(port, header, |slots, header| {
+                    header.count = 1;
+                    header.size = [1, 1];
+                    slots[0].write(imu(world, &sensor.spec, pose));
+                })?,
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Sensor {
+    fn info(&self) -> SensorInfo {
+        SensorInfo {
+            id: self.id,
+            spec: self.spec,
+            captures: self.captures,
+        }
+    }
+}
+
+/// When a sensor captures next after `now_ns`: the next frame (sensor_tick
+/// 0), or the next multiple of its period, so captures land on multiples.
+fn next_capture_after(now_ns: u64, spec: &SensorSpec) -> u64 {
+    let period = seconds_to_nanos(spec.sensor_tick);
+    now_ns
+        .checked_div(period)
+        .map_or(now_ns + 1, |periods| (periods + 1) * period)
+}
+
+/// Loans a sample, lets `fill` write every element in place, and sends it.
+fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    port: &Port<T>,
+    header: SensorHeader,
+    fill: impl FnOnce(&mut [MaybeUninit<T>], &mut SensorHeader),
+) -> Result<(), ServerError> {
+    let elements = port.initial_max_slice_len();
+    let mut sample = port
+        .loan_slice_uninit(elements)
+        .map_err(|e| ServerError::transport("sensor loan", e))?;
+    let mut header = header;
+    fill(sample.payload_mut(), &mut header);
+    *sample.user_header_mut() = header;
+    // SAFETY: every `fill` above writes each of the `elements` slots (depth:
+    // one value per pixel; lidar: the returns, then zeros; IMU: slot 0 of 1).
+    let sample = unsafe { sample.assume_init() };
+    sample
+        .send()
+        .map_err(|e| ServerError::transport("sensor send", e))?;
+    Ok(())
+}
+
+/// The sensor's pose in the world: its parent's pose (or the origin) times
+/// its relative pose.
+fn sensor_pose(world: &World, spec: &SensorSpec) -> Option<Pose> {
+    let relative = Pose::from_parts(
+        Vector::from_array(spec.position),
+        rotation_of(spec.rotation),
+    );
+    if spec.attach_to == 0 {
+        return Some(relative);
+    }
+    let parent = world.pose_of(spec.attach_to)?;
+    Some(parent * relative)
+}
+
+/// Ray-casts one planar depth per pixel straight into `slots`.
+fn depth_into(world: &World, spec: &SensorSpec, pose: Pose, slots: &mut [MaybeUninit<f32>]) {
+    let [w, h, fov, far, ..] = spec.params;
+    let (width, height) = (w as usize, h as usize);
+    let focal = (w / 2.0) / (fov.to_radians() / 2.0).tan();
+    let exclude = world.body_of(spec.attach_to);
+    for (v, row) in slots.chunks_mut(width).take(height).enumerate() {
+        let up = h / 2.0 - v as f32 - 0.5;
+        for (u, slot) in row.iter_mut().enumerate() {
+            let right = u as f32 + 0.5 - w / 2.0;
+            let direction = Vector::new(focal, up, right).normalize();
+            let distance =
+                world.cast_ray(pose.translation, pose.rotation * direction, far, exclude);
+            // Planar depth: distance along the optical axis (+X).
+            slot.write(distance.map_or(far, |d| d * direction.x));
+        }
+    }
+}
+
+/// Ray-casts a full turn of `channels` × `points_per_channel` rays; writes
+/// the returns first, then zeros. Returns how many returns there are.
+fn lidar_into(
+    world: &World,
+    spec: &SensorSpec,
+    pose: Pose,
+    slots: &mut [MaybeUninit<LidarPoint>],
+) -> usize {
+    let [channels, per_channel, range, upper, lower, ..] = spec.params;
+    let (channels, per_channel) = (channels as usize, per_channel as usize);
+    let exclude = world.body_of(spec.attach_to);
+    let mut hits = 0;
+    for c in 0..channels {
+        let elevation = if channels > 1 {
+            upper - (upper - lower) * c as f32 / (channels - 1) as f32
+        } else {
+            upper
+        }
+        .to_radians();
+        for i in 0..per_channel {
+            let azimuth = std::f32::consts::TAU * i as f32 / per_channel as f32;
+            let direction = Vector::new(
+                elevation.cos() * azimuth.cos(),
+                elevation.sin(),
+                elevation.cos() * azimuth.sin(),
+            );
+            if let Some(distance) =
+                world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
+            {
+                let point = direction * distance;
+                slots[hits].write(LidarPoint {
+                    x: point.x,
+                    y: point.y,
+                    z: point.z,
+                    intensity: 1.0 - distance / range,
+                });
+                hits += 1;
+            }
+        }
+    }
+    for slot in &mut slots[hits..] {
+        slot.write(LidarPoint::default());
+    }
+    hits
+}
+
+/// Specific force and angular velocity of the parent, in the sensor frame.
+fn imu(world: &World, spec: &SensorSpec, pose: Pose) -> ImuMeasurement {
+    let (acceleration, angular_velocity) = world.motion_of(spec.attach_to).unwrap_or_default();
+    let gravity = Vector::new(0.0, -9.81, 0.0);
+    let inverse = pose.rotation.inverse();
+    ImuMeasurement {
+        accelerometer: (inverse * (acceleration - gravity)).to_array(),
+        gyroscope: (inverse * angular_velocity).to_array(),
+    }
+}

@@ -1,0 +1,199 @@
+//! Sensors: a depth camera reads the distance to a box and the far range
+//! elsewhere; a lidar over flat ground returns points on the plane; in
+//! synchronous mode every capture arrives once, stamped with its frame, at
+//! exactly the frames its period implies; two readers see the same bytes of
+//! an 8 MiB capture; a reader killed with SIGKILL stalls nothing.
+
+use std::time::Duration;
+
+use shared_types::{Command, SensorSpec};
+use sim_client::{Client, Ticker};
+use simbus_tests::{server, unique_world, Proc};
+
+const T: Duration = Duration::from_secs(20);
+
+fn sync_world(tag: &str, scene: &str) -> (Proc, Client, Ticker) {
+    let world = unique_world(tag);
+    let proc = server(
+        &world,
+        &["--sync", "--fixed-delta-seconds", "0.02", "--scene", scene],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let ticker = client.claim_ticker().unwrap();
+    (proc, client, ticker)
+}
+
+#[test]
+fn a_depth_camera_reads_the_distance_to_a_box_and_far_elsewhere() {
+    let (_server, client, mut ticker) = sync_world("depth", "empty");
+    let spawned = client
+        .apply_batch_sync(
+            &[Command::spawn_box([10.0, 5.0, 0.0], [1.0, 1.0, 1.0])],
+            false,
+        )
+        .unwrap();
+    let id = spawned.results[0].actor;
+    client
+        .apply_batch_sync(&[Command::set_gravity(id, false)], false)
+        .unwrap();
+    let (w, h) = (64usize, 48usize);
+    let mut camera = client
+        .spawn_sensor(SensorSpec::depth(
+            [0.0, 5.0, 0.0],
+            w as u32,
+            h as u32,
+            60.0,
+            100.0,
+        ))
+        .unwrap();
+    let frame = ticker.tick(T).unwrap();
+    let capture = camera.recv(T).unwrap();
+    assert_eq!(capture.header().frame, frame);
+    assert_eq!(capture.header().size, [w as u32, h as u32]);
+    let depth = capture.depth().unwrap();
+    assert_eq!(depth.len(), w * h);
+    // The box's near face is 9 m ahead, square to the optical axis: planar
+    // depth is 9 m at every pixel that sees it (tolerance 1 mm).
+    for (u, v) in [
+        (w / 2, h / 2),
+        (w / 2 - 2, h / 2 + 2),
+        (w / 2 + 3, h / 2 - 1),
+    ] {
+        let d = depth[v * w + u];
+        assert!((d - 9.0).abs() < 1e-3, "pixel ({u}, {v}) reads {d}");
+    }
+    for (u, v) in [(0, 0), (w - 1, h - 1), (0, h / 2), (w - 1, 0)] {
+        assert_eq!(depth[v * w + u], 100.0, "pixel ({u}, {v}) sees nothing");
+    }
+}
+
+#[test]
+fn a_lidar_over_flat_ground_returns_points_on_the_plane() {
+    let (_server, client, mut ticker) = sync_world("lidar", "boxes:1");
+    let position = [15.0, 2.0, 15.0];
+    let mut lidar = client
+        .spawn_sensor(SensorSpec::lidar(position, 16, 360, 50.0, -10.0, -40.0))
+        .unwrap();
+    ticker.tick(T).unwrap();
+    let capture = lidar.recv(T).unwrap();
+    let points = capture.points().unwrap();
+    assert!(points.len() > 16 * 360 / 2, "{} returns", points.len());
+    for p in points {
+        // Identity orientation: the world point is the sensor position plus p.
+        let y = position[1] + p.y;
+        assert!(y.abs() < 1e-3, "a return {y} m off the ground: {p:?}");
+        assert!(p.intensity > 0.0 && p.intensity < 1.0);
+    }
+}
+
+#[test]
+fn in_sync_mode_every_capture_arrives_once_at_the_frames_its_period_implies() {
+    let (_server, client, mut ticker) = sync_world("periods", "default");
+    let periods = [0.0, 0.04, 0.1];
+    let mut sensors: Vec<_> = periods
+        .iter()
+        .map(|&p| {
+            client
+                .spawn_sensor(SensorSpec::imu([0.0, 1.0, 0.0]).attached_to(3).every(p))
+                .unwrap()
+        })
+        .collect();
+    let mut counts = [0u64; 3];
+    for _ in 0..1000 {
+        let frame = ticker.tick(T).unwrap();
+        let elapsed_ns = frame * 20_000_000;
+        for (i, sensor) in sensors.iter_mut().enumerate() {
+            let captures: Vec<_> = sensor.queue().map(|c| *c.header()).collect();
+            let period_ns = (periods[i] * 1e9).round() as u64;
+            let due = period_ns == 0 || elapsed_ns % period_ns == 0;
+            assert_eq!(
+                captures.len(),
+                usize::from(due),
+                "sensor {i} at frame {frame}"
+            );
+            for header in captures {
+                assert_eq!(header.frame, frame, "stamped with its frame");
+                assert_eq!(header.elapsed_ns, elapsed_ns);
+                counts[i] += 1;
+                assert_eq!(header.sequence, counts[i], "none lost, none repeated");
+            }
+        }
+    }
+    assert_eq!(counts, [1000, 500, 200]);
+    assert!(sensors.iter().all(|s| s.missed() == 0));
+}
+
+#[test]
+fn two_readers_see_the_same_bytes_of_an_8_mib_capture() {
+    let (_server, client, mut ticker) = sync_world("eight-mib", "empty");
+    let spec = SensorSpec::depth([0.0, 1.0, 0.0], 2048, 1024, 90.0, 100.0);
+    let mut first = client.spawn_sensor(spec).unwrap();
+    let mut second = client.sensor(first.id()).unwrap();
+    client
+        .apply_batch_sync(&[Command::spawn_sphere([5.0, 1.0, 0.0], 1.0)], false)
+        .unwrap();
+    ticker.tick(T).unwrap();
+    let a = first.recv(T).unwrap();
+    let b = second.recv(T).unwrap();
+    assert_eq!(a.bytes().len(), 8 * 1024 * 1024);
+    assert_eq!(a.header(), b.header());
+    assert!(a.bytes() == b.bytes(), "the same bytes for both readers");
+    assert!(
+        a.depth().unwrap().iter().any(|d| *d < 100.0),
+        "the sphere is in view"
+    );
+}
+
+#[test]
+fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
+    let world = unique_world("dead-reader");
+    let _server = server(
+        &world,
+        &[
+            "--sync",
+            "--fixed-delta-seconds",
+            "0.02",
+            "--scene",
+            "empty",
+        ],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let sensor = client
+        .spawn_sensor(SensorSpec::depth([0.0; 3], 256, 256, 90.0, 50.0))
+        .unwrap();
+    let id = sensor.id().to_string();
+    let mut readers: Vec<Proc> = (0..3)
+        .map(|_| {
+            Proc::spawn(
+                "sim-client",
+                &["--world", &world, "sensor", "watch", &id, "--json"],
+            )
+        })
+        .collect();
+    // Tick until every reader has subscribed and received a capture.
+    let mut waiting: Vec<&Proc> = readers.iter().collect();
+    for _ in 0..400 {
+        ticker.tick(T).unwrap();
+        waiting.retain(|r| r.line(Duration::from_millis(50)).is_none());
+        if waiting.is_empty() {
+            break;
+        }
+    }
+    assert!(waiting.is_empty(), "every reader received a capture");
+    for reader in &mut readers {
+        reader.guard.kill().unwrap();
+    }
+    // The world goes on, every tick within its timeout...
+    for _ in 0..50 {
+        ticker.tick(Duration::from_secs(5)).unwrap();
+    }
+    // ... and the dead readers' places are free again for new ones.
+    let mut fresh: Vec<_> = (0..3)
+        .map(|_| client.sensor(sensor.id()).unwrap())
+        .collect();
+    let frame = ticker.tick(T).unwrap();
+    for reader in &mut fresh {
+        assert_eq!(reader.recv(T).unwrap().header().frame, frame);
+    }
+}

@@ -6,6 +6,7 @@
 //! cargo run --release -p simbus-bench -- frames [--samples N] [--json]
 //! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
 //! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
+//! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
 //! ```
 
 use std::process::ExitCode;
@@ -15,6 +16,7 @@ use clap::{Parser, Subcommand};
 mod commands;
 mod failover;
 mod frames;
+mod sensors;
 mod stats;
 mod support;
 mod tick;
@@ -42,6 +44,9 @@ enum Command {
     /// Cost of a batch of 1000 commands (vs 1000 single commands) and of a
     /// lockstep participant on the tick round trip.
     Commands(commands::CommandsArgs),
+    /// Sensor delivery latency from 8 B to 8 MiB against TCP loopback, and
+    /// the frame time with a depth camera and a lidar.
+    Sensors(sensors::SensorsArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
@@ -57,6 +62,7 @@ fn main() -> ExitCode {
         Command::Tick(a) => tick::run(a),
         Command::Failover(a) => failover::run(a),
         Command::Commands(a) => commands::run(a),
+        Command::Sensors(a) => sensors::run(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);

@@ -155,6 +155,7 @@ impl RawPorts {
 pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
     match args.kind.as_str() {
         "participant" => crate::commands::participant(&args.name),
+        "tcp-blob" => crate::sensors::tcp_blob_peer(),
         "ticker" => {
             let client = Client::connect(&args.name, Duration::from_secs(10))?;
             let mut ticker = client.claim_ticker_as("bench-ticker")?;

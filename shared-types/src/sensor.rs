@@ -257,8 +257,8 @@ pub struct SensorHeader {
     pub rotation: [f32; 4],
     /// Depth: width and height in pixels. Lidar: channels and points per channel.
     pub size: [u32; 2],
-    /// Zero.
-    pub reserved: [u32; 2],
+    /// Wall-clock seconds since the Unix epoch when the capture was published.
+    pub platform_timestamp: f64,
 }
 
 impl SensorHeader {

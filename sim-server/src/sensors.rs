@@ -233,6 +233,9 @@ fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .map_err(|e| ServerError::transport("sensor loan", e))?;
     let mut header = header;
     fill(sample.payload_mut(), &mut header);
+    header.platform_timestamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
     *sample.user_header_mut() = header;
     // SAFETY: every `fill` above writes each of the `elements` slots (depth:
     // one value per pixel; lidar: the returns, then zeros; IMU: slot 0 of 1).

@@ -1,0 +1,196 @@
+//! `sensors`: capture delivery latency from 8 B to 8 MiB over simbus and
+//! over TCP loopback, and the server's frame time with a 640x480 depth camera
+//! and a 64x1024 lidar on the default scene.
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use clap::Args;
+use shared_types::{SensorSpec, WorldSettings};
+use sim_client::{Client, Ticker, WaitMode};
+
+use crate::stats::{header, Latencies};
+use crate::support::BenchServer;
+use crate::tick::spawn_peer;
+
+#[derive(Debug, Args)]
+pub struct SensorsArgs {
+    /// Captures measured per size.
+    #[arg(long, default_value_t = 200)]
+    samples: u64,
+    /// Ticks measured per frame-time row.
+    #[arg(long, default_value_t = 100)]
+    frames: u64,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Payload sizes and the depth image that has them (4 bytes per pixel).
+const SIZES: [(&str, u32, u32); 4] = [
+    ("8 B", 2, 1),
+    ("64 KiB", 128, 128),
+    ("1 MiB", 512, 512),
+    ("8 MiB", 2048, 1024),
+];
+
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+fn sync_ticker(client: &Client) -> anyhow::Result<Ticker> {
+    let mut ticker = client.claim_ticker()?;
+    ticker.apply_settings(WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: Some(0.01),
+        ..client.get_settings()?
+    })?;
+    Ok(ticker)
+}
+
+/// The TCP peer: for each 8-byte size request, sends its send time and that
+/// many bytes.
+pub fn tcp_blob_peer() -> anyhow::Result<()> {
+    let listener = TcpListener::bind("127.0.0.1:0")?;
+    println!("{}", listener.local_addr()?.port());
+    let (mut stream, _) = listener.accept()?;
+    stream.set_nodelay(true)?;
+    let mut request = [0u8; 8];
+    let mut blob = Vec::new();
+    while stream.read_exact(&mut request).is_ok() {
+        let size = u64::from_le_bytes(request) as usize;
+        blob.resize(8 + size, 7);
+        blob[..8].copy_from_slice(&now_ns().to_le_bytes());
+        stream.write_all(&blob)?;
+    }
+    Ok(())
+}
+
+fn tcp_latency(bytes: usize, samples: u64) -> anyhow::Result<Latencies> {
+    let (_peer, port) = spawn_peer("tcp-blob", "tcp")?;
+    let mut stream = TcpStream::connect(("127.0.0.1", port.parse::<u16>()?))?;
+    stream.set_nodelay(true)?;
+    let mut buffer = vec![0u8; 8 + bytes];
+    let mut latencies = Latencies::new();
+    for i in 0..samples + samples / 10 {
+        stream.write_all(&(bytes as u64).to_le_bytes())?;
+        stream.read_exact(&mut buffer)?;
+        let sent = u64::from_le_bytes(buffer[..8].try_into()?);
+        if i >= samples / 10 {
+            latencies.record(now_ns().saturating_sub(sent));
+        }
+    }
+    Ok(latencies)
+}
+
+pub fn run(args: SensorsArgs) -> anyhow::Result<()> {
+    // Delivery latency: capture published -> header and data readable.
+    let server = BenchServer::start("sensors", &["--scene", "empty"])?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let mut ticker = sync_ticker(&client)?;
+    // Spin: measure the transport, not how deeply an idle core slept.
+    ticker.set_wait_mode(WaitMode::Spin);
+    let timeout = Duration::from_secs(10);
+    let mut rows = Vec::new();
+    for (label, width, height) in SIZES {
+        let mut sensor =
+            client.spawn_sensor(SensorSpec::depth([0.0; 3], width, height, 90.0, 100.0))?;
+        let mut latencies = Latencies::new();
+        for i in 0..args.samples + args.samples / 10 {
+            ticker.tick(timeout)?;
+            let capture = sensor.recv(timeout)?;
+            let depth = capture.depth().expect("a depth capture");
+            // Read the data in place: first and last value.
+            anyhow::ensure!(
+                depth[0] > 0.0 && depth[depth.len() - 1] > 0.0,
+                "empty capture"
+            );
+            let received = now_ns();
+            let published = (capture.header().platform_timestamp * 1e9) as u64;
+            if i >= args.samples / 10 {
+                latencies.record(received.saturating_sub(published));
+            }
+        }
+        client.destroy_sensor(sensor.id())?;
+        let bytes = (width * height * 4) as usize;
+        rows.push((label, bytes, latencies, tcp_latency(bytes, args.samples)?));
+    }
+    ticker.release()?;
+    drop(client);
+    drop(server);
+
+    // Frame time on the default scene with and without the sensors.
+    let server = BenchServer::start("sensor-frames", &["--scene", "default"])?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let mut ticker = sync_ticker(&client)?;
+    let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
+        let mut latencies = Latencies::new();
+        for _ in 0..args.frames {
+            let start = Instant::now();
+            ticker.tick(timeout)?;
+            latencies.record(start.elapsed().as_nanos() as u64);
+        }
+        Ok((label, latencies))
+    };
+    let mut frames = vec![frame_time("no sensors")?];
+    let depth = client.spawn_sensor(SensorSpec::depth([-4.0, 3.0, 0.0], 640, 480, 90.0, 100.0))?;
+    frames.push(frame_time("+ depth 640x480")?);
+    let lidar = client.spawn_sensor(SensorSpec::lidar(
+        [0.0, 3.0, 0.0],
+        64,
+        1024,
+        50.0,
+        10.0,
+        -30.0,
+    ))?;
+    frames.push(frame_time("+ lidar 64x1024")?);
+    drop((depth, lidar));
+
+    let p50 = |l: &Latencies| l.quantile_us(0.5);
+    if args.json {
+        let delivery: Vec<_> = rows
+            .iter()
+            .map(|(label, bytes, simbus, tcp)| {
+                serde_json::json!({"size": label, "bytes": bytes, "simbus": simbus.json(), "tcp": tcp.json(),
+                    "tcp_over_simbus_p50": p50(tcp) / p50(simbus)})
+            })
+            .collect();
+        let frame_json: Vec<_> = frames
+            .iter()
+            .map(|(label, l)| serde_json::json!({"sensors": label, "tick": l.json()}))
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"delivery": delivery, "frame_time": frame_json})
+        );
+        return Ok(());
+    }
+    println!(
+        "sensor delivery: capture published -> header and data readable in the subscriber ({} captures each, spinning reader)",
+        args.samples
+    );
+    println!(
+        "{:<8} {:>14} {:>14} {:>14} {:>14} {:>10}",
+        "size", "simbus p50 µs", "simbus p99 µs", "TCP p50 µs", "TCP p99 µs", "TCP/simbus"
+    );
+    for (label, _, simbus, tcp) in &rows {
+        println!(
+            "{label:<8} {:>14.1} {:>14.1} {:>14.1} {:>14.1} {:>9.1}x",
+            p50(simbus),
+            simbus.quantile_us(0.99),
+            p50(tcp),
+            tcp.quantile_us(0.99),
+            p50(tcp) / p50(simbus)
+        );
+    }
+    println!();
+    println!("server frame time on the default scene (sync tick round trip, release build)");
+    println!("{}", header("sensors"));
+    for (label, latencies) in &frames {
+        println!("{}", latencies.row(label));
+    }
+    Ok(())
+}

@@ -197,3 +197,100 @@ fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
         assert_eq!(reader.recv(T).unwrap().header().frame, frame);
     }
 }
+
+#[test]
+fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
+    let world = unique_world("sensor-cli");
+    let _server = server(&world, &["--fixed-delta-seconds", "0.05", "--realtime"]);
+    let out = simbus_tests::client(
+        &world,
+        &[
+            "sensor",
+            "spawn",
+            "depth",
+            "--size",
+            "32,24",
+            "--at=-12,3,0",
+            "--json",
+        ],
+    );
+    out.assert_success();
+    let id = out.json()[0]["id"].as_u64().unwrap();
+    let lidar = simbus_tests::client(
+        &world,
+        &["sensor", "spawn", "lidar", "--attach", "3", "--json"],
+    );
+    lidar.assert_success();
+
+    let list = simbus_tests::client(&world, &["sensor", "list", "--json"]);
+    list.assert_success();
+    let kinds: Vec<_> = list
+        .json()
+        .iter()
+        .map(|s| s["kind"].as_str().unwrap().to_owned())
+        .collect();
+    assert_eq!(kinds, ["depth", "lidar"]);
+
+    let watched = simbus_tests::client(
+        &world,
+        &[
+            "sensor",
+            "watch",
+            &id.to_string(),
+            "--captures",
+            "3",
+            "--json",
+        ],
+    );
+    watched.assert_success();
+    let captures = watched.json();
+    assert_eq!(captures.len(), 3);
+    assert!(captures.iter().all(|c| c["bytes"] == 32 * 24 * 4));
+    assert!(captures
+        .windows(2)
+        .all(|w| w[1]["frame"].as_u64() > w[0]["frame"].as_u64()));
+
+    let dir = std::env::temp_dir().join(&world);
+    let saved = simbus_tests::client(
+        &world,
+        &[
+            "sensor",
+            "save",
+            &id.to_string(),
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+    );
+    saved.assert_success();
+    let png = std::fs::read_dir(&dir)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    assert_eq!(&std::fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+    std::fs::remove_dir_all(&dir).ok();
+
+    for (args, message) in [
+        (
+            &["sensor", "spawn", "radar"][..],
+            "unknown sensor kind 'radar'",
+        ),
+        (
+            &["sensor", "spawn", "depth", "--size", "0,10"][..],
+            "width and height",
+        ),
+        (
+            &["sensor", "spawn", "imu", "--attach", "999"][..],
+            "unknown actor",
+        ),
+        (
+            &["sensor", "watch", "77", "--captures", "1"][..],
+            "unknown sensor",
+        ),
+    ] {
+        let out = simbus_tests::client(&world, args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", out.stderr);
+        assert!(out.stderr.contains(message), "{args:?}: {}", out.stderr);
+    }
+}

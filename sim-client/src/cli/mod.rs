@@ -4,6 +4,7 @@ pub mod actors;
 pub mod autopilot;
 pub mod config;
 pub mod demo;
+pub mod pictures;
 pub mod sensor;
 pub mod status;
 pub mod tick;

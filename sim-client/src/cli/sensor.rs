@@ -24,6 +24,8 @@ enum SensorCommand {
     List(ListArgs),
     /// One line per capture of a sensor.
     Watch(WatchArgs),
+    /// Write captures as pictures: depth as PNG, lidar as PLY and a top-down PNG.
+    Save(SaveArgs),
     /// Remove a sensor.
     Destroy {
         /// The sensor id.
@@ -76,6 +78,18 @@ struct WatchArgs {
     json: bool,
 }
 
+#[derive(Debug, Args)]
+struct SaveArgs {
+    /// The sensor id.
+    id: u64,
+    /// How many captures to save.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    frames: u64,
+    /// Directory to write into (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: std::path::PathBuf,
+}
+
 fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
     let values: Vec<f32> = text
         .split(',')
@@ -124,6 +138,7 @@ pub fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(),
             Ok(())
         }
         SensorCommand::Watch(a) => watch(&client, a),
+        SensorCommand::Save(a) => save(&client, a),
         SensorCommand::Destroy { id } => {
             client.destroy_sensor(id).map_err(failure)?;
             println!("destroyed sensor {id}");
@@ -195,6 +210,48 @@ fn watch(client: &Client, a: WatchArgs) -> Result<(), Failure> {
                 capture.bytes().len(),
                 h.count
             );
+        }
+    }
+    Ok(())
+}
+
+fn save(client: &Client, a: SaveArgs) -> Result<(), Failure> {
+    std::fs::create_dir_all(&a.out)?;
+    let mut sensor = client.sensor(a.id).map_err(failure)?;
+    let params = sensor.spec().params;
+    for _ in 0..a.frames {
+        let capture = sensor.recv(Duration::from_secs(30))?;
+        let h = *capture.header();
+        let stem = a
+            .out
+            .join(format!("sensor{}-frame{}", h.sensor_id, h.frame));
+        if let Some(depth) = capture.depth() {
+            let path = stem.with_extension("png");
+            super::pictures::save_depth(
+                &path,
+                depth,
+                h.size[0] as usize,
+                h.size[1] as usize,
+                params[3],
+            )?;
+            println!(
+                "wrote {} (depth, white = near, legend 0..{} m)",
+                path.display(),
+                params[3]
+            );
+        } else if let Some(points) = capture.points() {
+            let ply = stem.with_extension("ply");
+            super::pictures::save_ply(&ply, points)?;
+            let png = stem.with_extension("png");
+            super::pictures::save_lidar_top_down(&png, points, params[2])?;
+            println!(
+                "wrote {} and {} ({} points)",
+                ply.display(),
+                png.display(),
+                points.len()
+            );
+        } else if let Some(imu) = capture.imu() {
+            println!("frame {}: imu {imu:?} (nothing to draw)", h.frame);
         }
     }
     Ok(())

@@ -37,6 +37,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         on_ticker_loss: Default::default(),
         spin: false,
         seed: 0,
+        lockstep_timeout: Duration::from_secs(10),
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

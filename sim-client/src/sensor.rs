@@ -1,6 +1,8 @@
 //! [`Sensor`]: a subscription to one sensor's captures, read in place in
 //! shared memory.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -248,45 +250,46 @@ impl Sensor {
         std::iter::from_fn(move || self.try_recv().ok().flatten())
     }
 
-    /// Calls `callback` with every capture on a background thread with its
-    /// own subscription, until the returned handle is dropped.
+    /// Calls `callback` with every capture, on a background thread with its
+    /// own subscription (CARLA's `sensor.listen`), until the returned
+    /// handle is stopped or dropped.
     pub fn listen(
-        client: &Client,
-        id: u64,
+        &self,
         mut callback: impl FnMut(&Capture) + Send + 'static,
     ) -> Result<Listening, SensorError> {
-        let info = client.sensor_info(id)?;
-        let world = client.world.clone();
-        let timeout = client.request_timeout;
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let info = self.info;
+        let world = self.world.clone();
+        let stop = Arc::new(AtomicBool::new(false));
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let client = match Client::connect(world.as_str(), timeout) {
-                Ok(c) => c,
-                Err(e) => {
-                    let _ = ready_tx.send(Err(RequestError::transport("listen", e)));
-                    return;
+        let thread = std::thread::Builder::new()
+            .name(format!("simbus-sensor-{}", info.id))
+            .spawn(move || {
+                let opened = Client::connect(&world, crate::DEFAULT_REQUEST_TIMEOUT)
+                    .map_err(|e| RequestError::transport("listen connect", e))
+                    .and_then(|client| Sensor::open(&client, info));
+                let mut sensor = match opened {
+                    Ok(sensor) => {
+                        let _ = ready_tx.send(Ok(()));
+                        sensor
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                        return;
+                    }
+                };
+                while !flag.load(Ordering::Relaxed) {
+                    match sensor.recv(Duration::from_millis(100)) {
+                        Ok(capture) => callback(&capture),
+                        Err(WaitError::Timeout { .. }) => {}
+                        Err(e) => {
+                            tracing::warn!("sensor {} listener stopped: {e}", info.id);
+                            return;
+                        }
+                    }
                 }
-            };
-            let mut sensor = match Sensor::open(&client, info) {
-                Ok(s) => {
-                    let _ = ready_tx.send(Ok(()));
-                    s
-                }
-                Err(e) => {
-                    let _ = ready_tx.send(Err(e));
-                    return;
-                }
-            };
-            while !flag.load(std::sync::atomic::Ordering::Relaxed) {
-                match sensor.recv(Duration::from_millis(100)) {
-                    Ok(capture) => callback(&capture),
-                    Err(WaitError::Timeout { .. }) => {}
-                    Err(_) => return,
-                }
-            }
-        });
+            })
+            .map_err(|e| RequestError::transport("listen thread", e))?;
         ready_rx
             .recv()
             .map_err(|e| RequestError::transport("listen thread", e))??;
@@ -297,15 +300,21 @@ impl Sensor {
     }
 }
 
-/// A running [`Sensor::listen`]; dropping it stops the callbacks.
+/// A running [`Sensor::listen`]; [`Listening::stop`] or dropping it ends
+/// the callbacks.
 pub struct Listening {
-    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    stop: Arc<AtomicBool>,
     thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Listening {
+    /// Stops the callbacks (CARLA's `sensor.stop()`); the sensor stays in the world.
+    pub fn stop(self) {}
 }
 
 impl Drop for Listening {
     fn drop(&mut self) {
-        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.stop.store(true, Ordering::Relaxed);
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }

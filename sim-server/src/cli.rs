@@ -76,6 +76,10 @@ pub struct ServerArgs {
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
 
+    /// Drop a lockstep participant that keeps a tick waiting this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub lockstep_timeout: f64,
+
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u64>,
@@ -132,6 +136,12 @@ pub fn init_logging(verbose: u8) {
 
 /// Runs a server as the options say, until Ctrl-C / SIGTERM or `--max-frames`.
 pub fn run(args: ServerArgs) -> anyhow::Result<()> {
+    if !(args.lockstep_timeout.is_finite() && args.lockstep_timeout > 0.0) {
+        anyhow::bail!(
+            "--lockstep-timeout must be a positive number of seconds, got {}",
+            args.lockstep_timeout
+        );
+    }
     if !args.max_fps.is_finite() || args.max_fps < 0.0 {
         anyhow::bail!(
             "--max-fps must be a finite number >= 0, got {}",
@@ -153,6 +163,7 @@ pub fn run(args: ServerArgs) -> anyhow::Result<()> {
         on_ticker_loss: args.on_ticker_loss,
         spin: args.spin,
         seed: args.seed,
+        lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
     };
     let mut server = Server::start(config)?;
     let summary = server.run(&shutdown)?;

@@ -30,6 +30,7 @@
 //!     on_ticker_loss: Default::default(),
 //!     spin: false,
 //!     seed: 0,
+//!     lockstep_timeout: std::time::Duration::from_secs(10),
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());

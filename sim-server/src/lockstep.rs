@@ -76,6 +76,16 @@ impl Participants {
         }
     }
 
+    /// Removes and returns the participants not yet done with `frame`.
+    pub fn drop_not_done(&mut self, frame: u64) -> Vec<Participant> {
+        let (late, done) = self
+            .list
+            .drain(..)
+            .partition(|p| p.done.is_none_or(|d| d < frame));
+        self.list = done;
+        late
+    }
+
     /// Removes and returns the participants whose process died.
     pub fn drop_dead(&mut self, alive: impl Fn(u32) -> bool) -> Vec<Participant> {
         let (dead, living) = self.list.drain(..).partition(|p| !alive(p.pid));

@@ -49,6 +49,9 @@ pub struct ServerConfig {
     pub spin: bool,
     /// Seed of the scene's placement (0: none); kept across reloads.
     pub seed: u64,
+    /// A lockstep participant that keeps a tick waiting this long is
+    /// dropped (a hung reader must not stop the world).
+    pub lockstep_timeout: Duration,
 }
 
 /// What a finished run did.
@@ -126,6 +129,8 @@ pub struct Server {
     frames_computed: u64,
     sensors: Sensors,
     names: ServiceNames,
+    /// Since when a tick waits for lockstep participants.
+    waiting_for_participants_since: Option<Instant>,
     last_liveness_check: Instant,
     last_connection_update: Instant,
 }
@@ -162,6 +167,7 @@ impl Server {
             pending_steps: VecDeque::new(),
             frames_computed: 0,
             sensors: Sensors::default(),
+            waiting_for_participants_since: None,
             names: ServiceNames::new(&config.world),
             last_liveness_check: now,
             last_connection_update: now,
@@ -201,14 +207,18 @@ impl Server {
             if self.settings.synchronous_mode {
                 // Synchronous: one frame per tick, nothing without one, and
                 // not before every lockstep participant is done.
-                if self.pending_steps.is_empty() || !self.participants.all_done(self.clock.frame())
-                {
+                let ticked = !self.pending_steps.is_empty();
+                if !ticked || !self.participants.all_done(self.clock.frame()) {
+                    if ticked {
+                        self.drop_late_participants(now);
+                    }
                     if self.config.spin {
                         std::hint::spin_loop();
                     } else {
                         self.idle(MAX_IDLE_WAIT)?;
                     }
                 } else {
+                    self.waiting_for_participants_since = None;
                     self.step_frame(now, 1)?;
                 }
                 continue;
@@ -714,6 +724,24 @@ impl Server {
             }
         }
         Ok(())
+    }
+
+    /// Drops the participants that kept a tick waiting past the lockstep timeout.
+    fn drop_late_participants(&mut self, now: Instant) {
+        let since = *self.waiting_for_participants_since.get_or_insert(now);
+        if now.duration_since(since) < self.config.lockstep_timeout {
+            return;
+        }
+        self.waiting_for_participants_since = None;
+        for late in self.participants.drop_not_done(self.clock.frame()) {
+            warn!(
+                pid = late.pid,
+                name = %late.name,
+                frame = self.clock.frame(),
+                timeout = ?self.config.lockstep_timeout,
+                "lockstep participant did not report done in time; no longer waiting for it"
+            );
+        }
     }
 
     /// Spawns, destroys and lists sensors.

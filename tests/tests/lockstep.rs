@@ -53,3 +53,36 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
     assert!(next > frozen);
     assert_eq!(client.status().unwrap().participants, 0, "dropped");
 }
+
+#[test]
+fn a_hung_participant_is_dropped_after_the_lockstep_timeout() {
+    let world = unique_world("hung");
+    let _server = server(
+        &world,
+        &[
+            "--sync",
+            "--fixed-delta-seconds",
+            "0.02",
+            "--lockstep-timeout",
+            "1",
+        ],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let autopilot = Proc::spawn("sim-client", &["--world", &world, "autopilot"]);
+    let deadline = Instant::now() + T;
+    while client.status().unwrap().participants != 1 {
+        assert!(Instant::now() < deadline, "the autopilot joined");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    ticker.tick(T).unwrap();
+    // Alive but hung: only the timeout can release the world.
+    send_signal(autopilot.pid(), libc::SIGSTOP).unwrap();
+    for _ in 0..3 {
+        ticker
+            .tick(T)
+            .expect("the world goes on after the lockstep timeout");
+    }
+    assert_eq!(client.status().unwrap().participants, 0, "dropped");
+    send_signal(autopilot.pid(), libc::SIGCONT).unwrap();
+}

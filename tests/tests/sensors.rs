@@ -294,3 +294,43 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
         assert!(out.stderr.contains(message), "{args:?}: {}", out.stderr);
     }
 }
+
+#[test]
+fn listen_calls_back_with_every_capture_until_stopped() {
+    let (_server, client, mut ticker) = sync_world("listen", "empty");
+    let camera = client
+        .spawn_sensor(SensorSpec::depth([0.0; 3], 8, 8, 60.0, 10.0))
+        .unwrap();
+    let frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let seen = frames.clone();
+    let listening = camera
+        .listen(move |c| {
+            seen.lock()
+                .unwrap()
+                .push((c.header().frame, c.bytes().len()))
+        })
+        .unwrap();
+    let mut ticked = Vec::new();
+    for _ in 0..20 {
+        ticked.push(ticker.tick(T).unwrap());
+        // Give the callback thread the capture before the next tick.
+        let deadline = std::time::Instant::now() + T;
+        while frames.lock().unwrap().len() < ticked.len() {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "callback for {ticked:?}"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    listening.stop();
+    ticker.tick(T).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let frames = frames.lock().unwrap().clone();
+    assert_eq!(
+        frames.iter().map(|f| f.0).collect::<Vec<_>>(),
+        ticked,
+        "every capture once, none after stop"
+    );
+    assert!(frames.iter().all(|f| f.1 == 8 * 8 * 4));
+}

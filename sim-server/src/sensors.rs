@@ -4,6 +4,8 @@
 
 use std::mem::MaybeUninit;
 
+use rayon::prelude::*;
+
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use rapier3d::prelude::{Pose, Rotation, Vector};
@@ -266,17 +268,22 @@ fn depth_into(world: &World, spec: &SensorSpec, pose: Pose, slots: &mut [MaybeUn
     let (width, height) = (w as usize, h as usize);
     let focal = (w / 2.0) / (fov.to_radians() / 2.0).tan();
     let exclude = world.body_of(spec.attach_to);
-    for (v, row) in slots.chunks_mut(width).take(height).enumerate() {
-        let up = h / 2.0 - v as f32 - 0.5;
-        for (u, slot) in row.iter_mut().enumerate() {
-            let right = u as f32 + 0.5 - w / 2.0;
-            let direction = Vector::new(focal, up, right).normalize();
-            let distance =
-                world.cast_ray(pose.translation, pose.rotation * direction, far, exclude);
-            // Planar depth: distance along the optical axis (+X).
-            slot.write(distance.map_or(far, |d| d * direction.x));
-        }
-    }
+    // Rows in parallel, each written in place into the shared-memory sample.
+    slots
+        .par_chunks_mut(width)
+        .take(height)
+        .enumerate()
+        .for_each(|(v, row)| {
+            let up = h / 2.0 - v as f32 - 0.5;
+            for (u, slot) in row.iter_mut().enumerate() {
+                let right = u as f32 + 0.5 - w / 2.0;
+                let direction = Vector::new(focal, up, right).normalize();
+                let distance =
+                    world.cast_ray(pose.translation, pose.rotation * direction, far, exclude);
+                // Planar depth: distance along the optical axis (+X).
+                slot.write(distance.map_or(far, |d| d * direction.x));
+            }
+        });
 }
 
 /// Ray-casts a full turn of `channels` × `points_per_channel` rays; writes

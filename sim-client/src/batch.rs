@@ -9,7 +9,7 @@ use shared_types::{
 };
 use tracing::debug;
 
-use crate::rpc::{await_with, Wait};
+use crate::rpc::{await_slice_response, Wait};
 use crate::{Client, ConnectError, RequestError};
 
 pub(crate) type BatchClient =
@@ -132,13 +132,8 @@ impl Client {
             Wait::Backoff
         };
         // The response is a slice: read it in place and copy the results out.
-        let (header, results) = await_with(
-            || {
-                pending
-                    .receive()
-                    .map(|r| r.map(|r| (*r.user_header(), r.payload().to_vec())))
-                    .map_err(|e| RequestError::transport("batch receive", e))
-            },
+        let (header, results) = await_slice_response(
+            &pending,
             self.request_timeout,
             self.world.as_str(),
             self.server_pid,

@@ -48,6 +48,34 @@ where
     )
 }
 
+/// The response header and a copy of the slice payload of `pending`.
+pub(crate) fn await_slice_response<Req, ReqHeader, Resp, RespHeader>(
+    pending: &PendingResponse<ipc::Service, Req, ReqHeader, [Resp], RespHeader>,
+    timeout: Duration,
+    world: &str,
+    server_pid: u32,
+    wait: Wait<'_>,
+) -> Result<(RespHeader, Vec<Resp>), RequestError>
+where
+    Req: Debug + IceoryxSend + ?Sized,
+    ReqHeader: Debug + ZeroCopySend,
+    Resp: Debug + ZeroCopySend + Copy,
+    RespHeader: Debug + ZeroCopySend + Copy,
+{
+    await_with(
+        || {
+            pending
+                .receive()
+                .map(|r| r.map(|r| (*r.user_header(), r.payload().to_vec())))
+                .map_err(|e| RequestError::transport("response receive", e))
+        },
+        timeout,
+        world,
+        server_pid,
+        wait,
+    )
+}
+
 /// Calls `receive` until it yields, waiting between calls as `wait` says,
 /// for at most `timeout`; a dead server (non-zero `server_pid`) ends it early.
 pub(crate) fn await_with<T>(

@@ -17,7 +17,7 @@ use shared_types::{
 };
 
 use crate::open::{open_event, open_with_retry};
-use crate::rpc::{await_with, Wait};
+use crate::rpc::{await_slice_response, Wait};
 use crate::{process_alive, Client, RequestError, WaitError};
 
 type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
@@ -340,13 +340,8 @@ impl Client {
             .send_copy(request)
             .map_err(|e| RequestError::transport("sensor send", e))?;
         let _ = self.control_wake.notify();
-        let (header, infos) = await_with(
-            || {
-                pending
-                    .receive()
-                    .map(|r| r.map(|r| (*r.user_header(), r.payload().to_vec())))
-                    .map_err(|e| RequestError::transport("sensor receive", e))
-            },
+        let (header, infos) = await_slice_response(
+            &pending,
             self.request_timeout,
             self.world.as_str(),
             self.server_pid,

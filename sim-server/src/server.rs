@@ -315,9 +315,10 @@ impl Server {
             self.clock.elapsed_ns(),
             self.episode,
         )?;
-        let count = ticks.min(self.pending_steps.len());
-        let steps: Vec<PendingStep> = self.pending_steps.drain(..count).collect();
-        for step in steps {
+        for _ in 0..ticks {
+            let Some(step) = self.pending_steps.pop_front() else {
+                break;
+            };
             match step {
                 PendingStep::Tick(tick) => {
                     let response = TickResponse::new(

@@ -49,7 +49,7 @@ pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorRequestKind, SensorResponseHeader, SensorSpec, SENSOR_ERRORS,
+    SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES, SENSOR_ERRORS,
 };
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,

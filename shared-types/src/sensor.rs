@@ -7,6 +7,10 @@ use iceoryx2::prelude::ZeroCopySend;
 
 use crate::PROTOCOL_VERSION;
 
+/// The largest capture a sensor may publish (its shared memory holds a few
+/// dozen of them).
+pub const MAX_CAPTURE_BYTES: usize = 32 * 1024 * 1024;
+
 /// What a sensor measures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(u32)]
@@ -160,6 +164,16 @@ impl SensorSpec {
         }
     }
 
+    /// The bytes of one capture's payload.
+    pub fn payload_bytes(&self) -> usize {
+        let element = match self.sensor_kind() {
+            Some(SensorKind::Depth) => std::mem::size_of::<f32>(),
+            Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
+            _ => std::mem::size_of::<ImuMeasurement>(),
+        };
+        self.elements() * element
+    }
+
     /// Why this spec cannot build a sensor, if it cannot.
     pub fn check(&self) -> Result<(), &'static str> {
         let p = self.params;
@@ -199,6 +213,9 @@ impl SensorSpec {
             }
             Some(SensorKind::Imu) => {}
             None => return Err("unknown sensor kind"),
+        }
+        if self.payload_bytes() > MAX_CAPTURE_BYTES {
+            return Err("a capture may hold at most 32 MiB");
         }
         Ok(())
     }
@@ -353,11 +370,12 @@ pub struct SensorResponseHeader {
 }
 
 /// Reasons a sensor request is refused, by [`SensorResponseHeader::error`].
-pub const SENSOR_ERRORS: [&str; 4] = [
+pub const SENSOR_ERRORS: [&str; 5] = [
     "",
     "invalid sensor specification",
     "unknown actor to attach to",
     "unknown sensor",
+    "no shared memory for the sensor's captures",
 ];
 
 #[cfg(test)]
@@ -384,6 +402,16 @@ mod tests {
         assert!(SensorSpec::imu([f32::NAN, 0.0, 0.0]).check().is_err());
         assert!(SensorSpec::imu([0.0; 3]).every(-1.0).check().is_err());
         assert_eq!(SensorSpec::depth([0.0; 3], 4, 3, 60.0, 10.0).elements(), 12);
+        // 2048 x 1024 x 4 B = 8 MiB is fine; 8192 x 8192 x 4 B = 256 MiB is not.
+        assert!(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 10.0)
+            .check()
+            .is_ok());
+        assert!(SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0)
+            .check()
+            .is_err());
+        assert!(SensorSpec::lidar([0.0; 3], 256, 65536, 50.0, 10.0, -30.0)
+            .check()
+            .is_err());
     }
 
     #[test]

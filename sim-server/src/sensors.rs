@@ -14,7 +14,7 @@ use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorSpec,
     ServiceNames,
 };
-use tracing::{debug, info};
+use tracing::{debug, info, warn};
 
 use crate::world::World;
 use crate::ServerError;
@@ -45,6 +45,8 @@ pub enum SpawnRefusal {
     InvalidSpec = 1,
     /// `attach_to` names no actor.
     UnknownActor = 2,
+    /// The shared memory for its captures could not be had.
+    NoMemory = 4,
 }
 
 /// Every sensor of a world.
@@ -109,9 +111,16 @@ impl Sensors {
         let name = names.sensor(id);
         let elements = spec.elements();
         let port = match kind {
-            SensorKind::Depth => SensorPort::Depth(open_port(node, &name, elements)?),
-            SensorKind::Lidar => SensorPort::Lidar(open_port(node, &name, elements)?),
-            SensorKind::Imu => SensorPort::Imu(open_port(node, &name, 1)?),
+            SensorKind::Depth => open_port(node, &name, elements).map(SensorPort::Depth),
+            SensorKind::Lidar => open_port(node, &name, elements).map(SensorPort::Lidar),
+            SensorKind::Imu => open_port(node, &name, 1).map(SensorPort::Imu),
+        };
+        let port = match port {
+            Ok(port) => port,
+            Err(e) => {
+                warn!(id, "refused a sensor: {e}");
+                return Ok(Err(SpawnRefusal::NoMemory));
+            }
         };
         self.next_id = id;
         let next_capture_ns = next_capture_after(now_ns, &spec);
@@ -158,13 +167,7 @@ impl Sensors {
     }
 
     /// Captures and publishes every sensor due at this frame.
-    pub fn capture(
-        &mut self,
-        world: &World,
-        frame: u64,
-        elapsed_ns: u64,
-        episode: u64,
-    ) -> Result<(), ServerError> {
+    pub fn capture(&mut self, world: &World, frame: u64, elapsed_ns: u64, episode: u64) {
         for sensor in &mut self.list {
             if elapsed_ns < sensor.next_capture_ns {
                 continue;
@@ -185,22 +188,25 @@ impl Sensors {
             header.rotation = pose.rotation.to_array();
             let p = sensor.spec.params;
             header.size = [p[0] as u32, p[1] as u32];
-            match &sensor.port {
+            let published = match &sensor.port {
                 SensorPort::Depth(port) => publish(port, header, |slots, header| {
                     header.count = slots.len() as u32;
                     depth_into(world, &sensor.spec, pose, slots)
-                })?,
+                }),
                 SensorPort::Lidar(port) => publish(port, header, |slots, header| {
                     header.count = lidar_into(world, &sensor.spec, pose, slots) as u32;
-                })?,
+                }),
                 SensorPort::Imu(port) => publish(port, header, |slots, header| {
                     header.count = 1;
                     header.size = [1, 1];
                     slots[0].write(imu(world, &sensor.spec, pose));
-                })?,
+                }),
+            };
+            // A lost capture shows as a gap in the sequence; the world goes on.
+            if let Err(e) = published {
+                warn!(id = sensor.id, frame, "capture not published: {e}");
             }
         }
-        Ok(())
     }
 }
 

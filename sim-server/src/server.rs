@@ -314,7 +314,7 @@ impl Server {
             self.clock.frame(),
             self.clock.elapsed_ns(),
             self.episode,
-        )?;
+        );
         for _ in 0..ticks {
             let Some(step) = self.pending_steps.pop_front() else {
                 break;

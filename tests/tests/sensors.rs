@@ -281,6 +281,10 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
             "width and height",
         ),
         (
+            &["sensor", "spawn", "depth", "--size", "8192,8192"][..],
+            "at most 32 MiB",
+        ),
+        (
             &["sensor", "spawn", "imu", "--attach", "999"][..],
             "unknown actor",
         ),

@@ -35,12 +35,29 @@ struct Args {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Print one line per frame as the world publishes them.
+    ///
+    /// In asynchronous mode a watcher slower than the server skips to the
+    /// newest frame and says how many it missed (unless --every-frame); in
+    /// synchronous mode every frame is printed once, in order.
     Watch(cli::watch::WatchArgs),
     /// Show the world's mode, settings and current frame.
     Status(cli::status::StatusArgs),
     /// Change the time settings, like CARLA's config.py.
+    ///
+    /// Changes hold from the frame printed. Invalid settings are refused with
+    /// the rule they break (exit 2), and nothing changes. Synchronous mode can
+    /// be left here (--no-sync) but not entered: the tick owner enters it
+    /// (`sim-client tick`), so a world is never left waiting for ticks nobody
+    /// sends.
     Config(cli::config::ConfigArgs),
     /// Be the ticker: synchronous mode with a fixed step, one frame per tick.
+    ///
+    /// Claims tick ownership (only one client may tick: a second one is
+    /// refused with the owner named), switches the world to synchronous mode
+    /// with a fixed step and ticks. --count and --until-sim-time bound the
+    /// run, --rate paces it; without a bound it ticks until Ctrl-C. On exit
+    /// the world returns to asynchronous mode (unless --leave-sync) and
+    /// ownership is released.
     Tick(cli::tick::TickArgs),
     /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
     Spawn(cli::actors::SpawnArgs),
@@ -51,10 +68,21 @@ enum Command {
     /// Load a scene as a new episode.
     Load(cli::actors::LoadArgs),
     /// Drive the world's vehicles as a lockstep participant (seeded).
+    ///
+    /// In synchronous mode the server waits, every frame, until the autopilot
+    /// has sent its commands for the next frame. The same seed drives the same
+    /// way, and every new episode starts the random sequence again, so runs
+    /// repeat bit for bit.
     Autopilot(cli::autopilot::AutopilotArgs),
-    /// Sensors: spawn, list, watch, destroy.
+    /// Sensors: spawn, list, watch, save pictures, destroy.
+    ///
+    /// Depth camera, lidar and IMU, written by the server straight into shared
+    /// memory and read in place.
     Sensor(cli::sensor::SensorArgs),
     /// Start a server on the default scene, watch it, and print a live summary.
+    ///
+    /// The server runs in its own world (demo-<pid>) at wall-clock speed with
+    /// a fixed step; the demo stops and reaps it after --frames frames or Ctrl-C.
     Demo(cli::demo::DemoArgs),
 }
 

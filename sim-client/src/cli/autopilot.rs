@@ -13,12 +13,7 @@ use sim_client::{Client, WaitError};
 
 use crate::Failure;
 
-/// Drive every vehicle in the world with seeded random throttle and steer.
-///
-/// Joins the lockstep: in synchronous mode the server waits, every frame,
-/// until the autopilot has sent its commands for the next frame. The same
-/// seed gives the same driving, and every new episode (reload) starts the
-/// random sequence again, so runs repeat bit for bit.
+/// Options of `sim-client autopilot` (described on the command).
 #[derive(Debug, Args)]
 pub struct AutopilotArgs {
     /// Seed of the random driving.

@@ -9,12 +9,7 @@ use sim_client::{ApplySettingsError, Client};
 
 use crate::Failure;
 
-/// Change the world's time settings, like CARLA's config.py.
-///
-/// Changes take effect from the frame printed. Invalid settings are refused
-/// with the rule they break, and nothing changes. Synchronous mode can be
-/// left here (--no-sync) but not entered: it is entered by the tick owner
-/// (`sim-client tick`), so a world is never left waiting for ticks nobody sends.
+/// Options of `sim-client config` (described on the command).
 #[derive(Debug, Args)]
 pub struct ConfigArgs {
     /// Fixed time-step in seconds (0 = variable step).

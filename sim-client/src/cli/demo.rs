@@ -13,10 +13,7 @@ use sim_client::{Client, WorldSnapshot};
 
 use crate::Failure;
 
-/// Start a server on the default scene, watch it, and print a live summary.
-///
-/// The server runs in its own world (demo-<pid>) at wall-clock speed with a
-/// fixed step; the demo stops it and reaps it after --frames frames or Ctrl-C.
+/// Options of `sim-client demo` (described on the command).
 #[derive(Debug, Args)]
 pub struct DemoArgs {
     /// Frames to watch before stopping.

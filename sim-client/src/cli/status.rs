@@ -36,6 +36,8 @@ pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(),
             "scene": report.scene.to_string_lossy(),
             "actors": report.actor_count,
             "server_pid": report.server_pid,
+            "participants": report.participants,
+            "seed": report.seed,
             "ticker": report.ticker.active().map(|t| serde_json::json!({
                 "node": t.node_name.to_string_lossy(),
                 "pid": t.pid,
@@ -62,5 +64,9 @@ pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(),
         println!("{name:<9} {value}");
     }
     println!("ticker    {}", report.ticker);
+    println!("lockstep  {} participant(s)", report.participants);
+    if report.seed != 0 {
+        println!("seed      {}", report.seed);
+    }
     Ok(())
 }

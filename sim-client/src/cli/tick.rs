@@ -14,13 +14,7 @@ use crate::Failure;
 /// The node name others see as the owner while this command ticks.
 const NODE_NAME: &str = "sim-client-tick";
 
-/// Be the world's ticker: claim tick ownership, switch the world to
-/// synchronous mode with a fixed step, and tick.
-///
-/// Only one client may tick; a second one is refused with the owner named.
-/// --count and --until-sim-time bound the run, --rate paces it; they combine.
-/// Without a bound it ticks until Ctrl-C. On exit (or Ctrl-C) the world goes
-/// back to asynchronous mode, unless --leave-sync, and ownership is released.
+/// Options of `sim-client tick` (described on the command).
 #[derive(Debug, Args)]
 pub struct TickArgs {
     /// Stop after N ticks.

@@ -8,11 +8,7 @@ use sim_client::{Client, WaitError, WaitMode, WorldSnapshot};
 
 use crate::Failure;
 
-/// Print one line per frame.
-///
-/// In asynchronous mode a watcher slower than the server skips to the newest
-/// frame and reports how many it missed (unless --every-frame); in
-/// synchronous mode every frame is printed once, in order.
+/// Options of `sim-client watch` (described on the command).
 #[derive(Debug, Args)]
 pub struct WatchArgs {
     /// Stop after N frames.

@@ -74,7 +74,7 @@ pub struct SensorSpec {
     pub sensor_tick: f64,
     /// Depth: width, height, horizontal field of view (degrees), far range.
     /// Lidar: channels, points per channel, range, upper fov, lower fov
-    /// (degrees), rotation frequency (Hz).
+    /// (degrees), rotation frequency (Hz; 0 = a full turn every capture).
     pub params: [f32; 8],
 }
 
@@ -107,7 +107,8 @@ impl SensorSpec {
         )
     }
 
-    /// A lidar with `channels` × `points_per_channel` rays per full turn.
+    /// A lidar with `channels` × `points_per_channel` rays per full turn,
+    /// taking a full turn every capture (see [`SensorSpec::rotating`]).
     pub fn lidar(
         position: [f32; 3],
         channels: u32,
@@ -125,11 +126,18 @@ impl SensorSpec {
                 range,
                 upper_fov,
                 lower_fov,
-                10.0,
+                0.0,
                 0.0,
                 0.0,
             ],
         )
+    }
+
+    /// A lidar spinning at `hz`: each capture covers `hz × Δt` of a turn
+    /// (CARLA's partial scans); 0 takes a full turn every capture.
+    pub fn rotating(mut self, hz: f32) -> Self {
+        self.params[5] = hz;
+        self
     }
 
     /// An IMU.
@@ -209,6 +217,9 @@ impl SensorSpec {
                     return Err(
                         "lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90",
                     );
+                }
+                if p[5] < 0.0 {
+                    return Err("lidar rotation frequency must be >= 0 Hz");
                 }
             }
             Some(SensorKind::Imu) => {}

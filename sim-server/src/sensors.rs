@@ -35,6 +35,10 @@ struct Sensor {
     port: SensorPort,
     /// Simulation time of the next capture, in nanoseconds.
     next_capture_ns: u64,
+    /// Simulation time of the previous capture (or the spawn).
+    last_capture_ns: u64,
+    /// Lidar: the column (azimuth step) the next sweep starts at.
+    lidar_column: usize,
     captures: u64,
 }
 
@@ -136,6 +140,8 @@ impl Sensors {
             spec,
             port,
             next_capture_ns,
+            last_capture_ns: now_ns,
+            lidar_column: 0,
             captures: 0,
         };
         let info = sensor.info();
@@ -163,6 +169,7 @@ impl Sensors {
     pub fn new_episode(&mut self) {
         for sensor in &mut self.list {
             sensor.next_capture_ns = next_capture_after(0, &sensor.spec);
+            sensor.last_capture_ns = 0;
         }
     }
 
@@ -173,6 +180,8 @@ impl Sensors {
                 continue;
             }
             sensor.next_capture_ns = next_capture_after(elapsed_ns, &sensor.spec);
+            let since_last_ns = elapsed_ns - sensor.last_capture_ns.min(elapsed_ns);
+            sensor.last_capture_ns = elapsed_ns;
             let Some(pose) = sensor_pose(world, &sensor.spec) else {
                 debug!(id = sensor.id, "sensor's actor is gone; no capture");
                 continue;
@@ -193,9 +202,13 @@ impl Sensors {
                     header.count = slots.len() as u32;
                     depth_into(world, &sensor.spec, pose, slots)
                 }),
-                SensorPort::Lidar(port) => publish(port, header, |slots, header| {
-                    header.count = lidar_into(world, &sensor.spec, pose, slots) as u32;
-                }),
+                SensorPort::Lidar(port) => {
+                    let sweep = lidar_sweep(&sensor.spec, sensor.lidar_column, since_last_ns);
+                    sensor.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel;
+                    publish(port, header, |slots, header| {
+                        header.count = lidar_into(world, &sensor.spec, pose, sweep, slots) as u32;
+                    })
+                }
                 SensorPort::Imu(port) => publish(port, header, |slots, header| {
                     header.count = 1;
                     header.size = [1, 1];
@@ -292,16 +305,44 @@ fn depth_into(world: &World, spec: &SensorSpec, pose: Pose, slots: &mut [MaybeUn
         });
 }
 
-/// Ray-casts a full turn of `channels` × `points_per_channel` rays; writes
-/// the returns first, then zeros. Returns how many returns there are.
+/// The part of a lidar turn one capture covers: `columns` azimuth steps from
+/// `start`, of `per_channel` in a full turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sweep {
+    start: usize,
+    columns: usize,
+    per_channel: usize,
+}
+
+/// A lidar spinning at `rotation_frequency` Hz covers `frequency × Δt` of a
+/// turn per capture (CARLA's partial scans); 0 Hz is a full turn every capture.
+fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -> Sweep {
+    let per_channel = spec.params[1] as usize;
+    let frequency = f64::from(spec.params[5]);
+    let columns = if frequency > 0.0 {
+        let turns = frequency * since_last_ns as f64 * 1e-9;
+        ((turns * per_channel as f64).round() as usize).clamp(1, per_channel)
+    } else {
+        per_channel
+    };
+    Sweep {
+        start: start % per_channel.max(1),
+        columns,
+        per_channel,
+    }
+}
+
+/// Ray-casts `channels` × `sweep.columns` rays; writes the returns first,
+/// then zeros. Returns how many returns there are.
 fn lidar_into(
     world: &World,
     spec: &SensorSpec,
     pose: Pose,
+    sweep: Sweep,
     slots: &mut [MaybeUninit<LidarPoint>],
 ) -> usize {
-    let [channels, per_channel, range, upper, lower, ..] = spec.params;
-    let (channels, per_channel) = (channels as usize, per_channel as usize);
+    let [channels, _, range, upper, lower, ..] = spec.params;
+    let (channels, per_channel) = (channels as usize, sweep.per_channel);
     let exclude = world.body_of(spec.attach_to);
     let mut hits = 0;
     for c in 0..channels {
@@ -311,7 +352,8 @@ fn lidar_into(
             upper
         }
         .to_radians();
-        for i in 0..per_channel {
+        for column in sweep.start..sweep.start + sweep.columns {
+            let i = column % per_channel;
             let azimuth = std::f32::consts::TAU * i as f32 / per_channel as f32;
             let direction = Vector::new(
                 elevation.cos() * azimuth.cos(),
@@ -346,5 +388,29 @@ fn imu(world: &World, spec: &SensorSpec, pose: Pose) -> ImuMeasurement {
     ImuMeasurement {
         accelerometer: (inverse * (acceleration - gravity)).to_array(),
         gyroscope: (inverse * angular_velocity).to_array(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spinning_lidar_covers_frequency_times_dt_of_a_turn() {
+        let spec = SensorSpec::lidar([0.0; 3], 4, 1000, 50.0, 10.0, -10.0).rotating(10.0);
+        // 10 Hz over 20 ms: a fifth of the turn.
+        let sweep = lidar_sweep(&spec, 0, 20_000_000);
+        assert_eq!((sweep.start, sweep.columns), (0, 200));
+        let next = lidar_sweep(&spec, 900, 20_000_000);
+        assert_eq!(
+            (next.start, next.columns),
+            (900, 200),
+            "wraps around the turn"
+        );
+        // Never more than a full turn, never nothing.
+        assert_eq!(lidar_sweep(&spec, 0, 5_000_000_000).columns, 1000);
+        assert_eq!(lidar_sweep(&spec, 0, 1).columns, 1);
+        let full = SensorSpec::lidar([0.0; 3], 4, 1000, 50.0, 10.0, -10.0);
+        assert_eq!(lidar_sweep(&full, 0, 20_000_000).columns, 1000);
     }
 }

@@ -54,6 +54,10 @@ struct SpawnArgs {
     /// Depth: image width and height.
     #[arg(long, value_name = "W,H", default_value = "640,480")]
     size: String,
+    /// Lidar: turns per simulated second; each capture covers hz × dt of a
+    /// turn (0: a full turn every capture).
+    #[arg(long, value_name = "HZ", default_value_t = 0.0)]
+    rotation_frequency: f32,
     /// Print {"id": N, ...}.
     #[arg(long)]
     json: bool,
@@ -154,7 +158,9 @@ fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
             let [w, h] = numbers::<2>(&a.size, "--size")?;
             SensorSpec::depth(at, w as u32, h as u32, 90.0, 100.0)
         }
-        Some(SensorKind::Lidar) => SensorSpec::lidar(at, 32, 512, 50.0, 10.0, -30.0),
+        Some(SensorKind::Lidar) => {
+            SensorSpec::lidar(at, 32, 512, 50.0, 10.0, -30.0).rotating(a.rotation_frequency)
+        }
         Some(SensorKind::Imu) => SensorSpec::imu(at),
         None => {
             return Err(Failure::Refused(anyhow!(

@@ -5,11 +5,10 @@ use iceoryx2::prelude::*;
 use shared_types::limits::INITIAL_MAX_BATCH;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
-    PROTOCOL_VERSION,
 };
 use tracing::debug;
 
-use crate::rpc::{await_slice_response, Wait};
+use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{Client, ConnectError, RequestError};
 
 pub(crate) type BatchClient =
@@ -139,14 +138,7 @@ impl Client {
             self.server_pid,
             wait,
         )?;
-        if header.protocol_version != PROTOCOL_VERSION
-            || header.status == ResponseStatus::ProtocolMismatch as u32
-        {
-            return Err(RequestError::ProtocolMismatch {
-                client: PROTOCOL_VERSION,
-            }
-            .into());
-        }
+        check_protocol(header.protocol_version, header.status)?;
         if header.status == ResponseStatus::NotOwner as u32 {
             return Err(BatchError::NotTicker);
         }

@@ -18,7 +18,7 @@ use tracing::{debug, warn};
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::{FrameStream, WaitMode};
 use crate::open::{open_event, open_with_retry};
-use crate::rpc::{await_response, Wait};
+use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
     WaitError, WorldSnapshot,
@@ -402,13 +402,7 @@ impl Client {
             self.server_pid,
             Wait::Backoff,
         )?;
-        if response.protocol_version != PROTOCOL_VERSION
-            || response.status == ResponseStatus::ProtocolMismatch as u32
-        {
-            return Err(RequestError::ProtocolMismatch {
-                client: PROTOCOL_VERSION,
-            });
-        }
+        check_protocol(response.protocol_version, response.status)?;
         if response.status == ResponseStatus::UnknownRequest as u32 {
             return Err(RequestError::UnknownRequest);
         }

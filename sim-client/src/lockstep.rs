@@ -13,7 +13,7 @@ use shared_types::{
 use tracing::{debug, info};
 
 use crate::open::{open_event, open_with_retry};
-use crate::rpc::{await_response, Wait};
+use crate::rpc::{await_response, check_protocol, Wait};
 use crate::RequestError;
 
 type LockstepClient = RequestClient<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
@@ -161,12 +161,9 @@ impl Participant {
             self.server_pid,
             Wait::Backoff,
         )?;
-        if response.protocol_version != PROTOCOL_VERSION
-            || response.status != ResponseStatus::Ok as u32
-        {
-            return Err(RequestError::ProtocolMismatch {
-                client: PROTOCOL_VERSION,
-            });
+        check_protocol(response.protocol_version, response.status)?;
+        if response.status != ResponseStatus::Ok as u32 {
+            return Err(RequestError::UnknownRequest);
         }
         Ok(response)
     }

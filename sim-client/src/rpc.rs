@@ -8,8 +8,21 @@ use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::prelude::*;
 
+use shared_types::{ResponseStatus, PROTOCOL_VERSION};
+
 use crate::frames::LIVENESS_PERIOD;
 use crate::{process_alive, RequestError};
+
+/// Refuses an answer from a server of another protocol version, or one that
+/// refused ours.
+pub(crate) fn check_protocol(version: u32, status: u32) -> Result<(), RequestError> {
+    if version != PROTOCOL_VERSION || status == ResponseStatus::ProtocolMismatch as u32 {
+        return Err(RequestError::ProtocolMismatch {
+            client: PROTOCOL_VERSION,
+        });
+    }
+    Ok(())
+}
 
 /// How to pass the time until the answer arrives.
 pub(crate) enum Wait<'a> {

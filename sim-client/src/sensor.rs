@@ -17,7 +17,7 @@ use shared_types::{
 };
 
 use crate::open::{open_event, open_with_retry};
-use crate::rpc::{await_slice_response, Wait};
+use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{process_alive, Client, RequestError, WaitError};
 
 type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
@@ -347,14 +347,7 @@ impl Client {
             self.server_pid,
             Wait::Backoff,
         )?;
-        if header.protocol_version != PROTOCOL_VERSION
-            || header.status == ResponseStatus::ProtocolMismatch as u32
-        {
-            return Err(RequestError::ProtocolMismatch {
-                client: PROTOCOL_VERSION,
-            }
-            .into());
-        }
+        check_protocol(header.protocol_version, header.status)?;
         if header.status != ResponseStatus::Ok as u32 {
             let reason = SENSOR_ERRORS
                 .get(header.error as usize)

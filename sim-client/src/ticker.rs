@@ -8,12 +8,12 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
-    WorldName, WorldSettings, PROTOCOL_VERSION,
+    WorldName, WorldSettings,
 };
 use tracing::{debug, info};
 
 use crate::open::{open_event, open_with_retry};
-use crate::rpc::{await_response, Wait};
+use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
 type TickClient = RequestClient<ipc::Service, TickRequest, (), TickResponse, ()>;
@@ -250,13 +250,7 @@ impl Ticker {
             self.server_pid,
             wait,
         )?;
-        if response.protocol_version != PROTOCOL_VERSION
-            || response.status == ResponseStatus::ProtocolMismatch as u32
-        {
-            return Err(RequestError::ProtocolMismatch {
-                client: PROTOCOL_VERSION,
-            });
-        }
+        check_protocol(response.protocol_version, response.status)?;
         Ok(response)
     }
 }

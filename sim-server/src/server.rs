@@ -300,6 +300,14 @@ impl Server {
         self.world.step(&plan);
         self.clock.advance(delta_ns, now);
         self.frames_computed += 1;
+        // Sensors first: whoever sees the frame's snapshot (or hears the
+        // tick is done) finds its captures already queued.
+        self.sensors.capture(
+            &self.world,
+            self.clock.frame(),
+            self.clock.elapsed_ns(),
+            self.episode,
+        );
         self.publish(
             plan.count,
             if plan.capped {
@@ -308,13 +316,6 @@ impl Server {
                 0
             },
         )?;
-        // Sensors capture this frame before anyone hears it is done.
-        self.sensors.capture(
-            &self.world,
-            self.clock.frame(),
-            self.clock.elapsed_ns(),
-            self.episode,
-        );
         for _ in 0..ticks {
             let Some(step) = self.pending_steps.pop_front() else {
                 break;

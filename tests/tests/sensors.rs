@@ -338,3 +338,56 @@ fn listen_calls_back_with_every_capture_until_stopped() {
     );
     assert!(frames.iter().all(|f| f.1 == 8 * 8 * 4));
 }
+
+#[test]
+fn a_lockstep_reader_gets_every_capture_and_its_death_stalls_nothing() {
+    let world = unique_world("lockstep-reader");
+    let _server = server(
+        &world,
+        &[
+            "--sync",
+            "--fixed-delta-seconds",
+            "0.02",
+            "--scene",
+            "empty",
+        ],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let sensor = client
+        .spawn_sensor(SensorSpec::depth([0.0; 3], 64, 64, 90.0, 50.0))
+        .unwrap();
+    let mut reader = Proc::spawn(
+        "sim-client",
+        &[
+            "--world",
+            &world,
+            "sensor",
+            "watch",
+            &sensor.id().to_string(),
+            "--lockstep",
+            "--json",
+        ],
+    );
+    let deadline = std::time::Instant::now() + T;
+    while client.status().unwrap().participants != 1 {
+        assert!(std::time::Instant::now() < deadline, "the reader joined");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // However fast the ticker, the server waits for the reader: every
+    // capture arrives, in order, stamped with its frame.
+    let ticked: Vec<u64> = (0..30).map(|_| ticker.tick(T).unwrap()).collect();
+    for frame in &ticked {
+        let line = reader.line(T).expect("a capture for every frame");
+        let capture: serde_json::Value = serde_json::from_str(&line).unwrap();
+        assert_eq!(capture["frame"].as_u64(), Some(*frame));
+        assert_eq!(capture["missed"], 0);
+    }
+    reader.guard.kill().unwrap();
+    for _ in 0..10 {
+        ticker
+            .tick(Duration::from_secs(5))
+            .expect("the world goes on without the dead reader");
+    }
+    assert_eq!(client.status().unwrap().participants, 0);
+}

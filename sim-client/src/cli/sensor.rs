@@ -5,7 +5,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use shared_types::{SensorKind, SensorSpec, WorldName};
-use sim_client::{Client, SensorError};
+use sim_client::{Capture, Client, SensorError};
 
 use crate::Failure;
 
@@ -80,6 +80,10 @@ struct WatchArgs {
     /// One JSON object per capture (frame, bytes, ...).
     #[arg(long)]
     json: bool,
+    /// Join the lockstep: in synchronous mode the server waits for this
+    /// reader every frame, so it never misses a capture however slow it is.
+    #[arg(long)]
+    lockstep: bool,
 }
 
 #[derive(Debug, Args)]
@@ -183,40 +187,61 @@ fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+fn print_capture(capture: &Capture, missed: u64, json: bool) {
+    let h = capture.header();
+    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
+                "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
+                "bytes": capture.bytes().len(), "missed": missed,
+                "position": h.position})
+        );
+    } else {
+        println!(
+            "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {} bytes  {} values",
+            h.sensor_id,
+            h.frame,
+            h.elapsed_ns as f64 / 1e9,
+            h.sequence,
+            capture.bytes().len(),
+            h.count
+        );
+    }
+}
+
 fn watch(client: &Client, a: WatchArgs) -> Result<(), Failure> {
     let interrupted = super::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
+    let running = || !interrupted.load(std::sync::atomic::Ordering::Relaxed);
     let mut seen = 0;
-    while a.captures.is_none_or(|n| seen < n)
-        && !interrupted.load(std::sync::atomic::Ordering::Relaxed)
-    {
+    if a.lockstep {
+        // Follow every frame: read its captures, then report it done.
+        let mut frames = Client::connect(client.world().as_str(), Duration::from_secs(5))?;
+        let participant = frames.join_lockstep("sensor-watch")?;
+        while a.captures.is_none_or(|n| seen < n) && running() {
+            let snapshot = match frames.wait_for_tick(Duration::from_millis(200)) {
+                Ok(s) => s,
+                Err(sim_client::WaitError::Timeout { .. }) => continue,
+                Err(e) => return Err(anyhow!(e).into()),
+            };
+            while let Some(capture) = sensor.try_recv()? {
+                print_capture(&capture, sensor.missed(), a.json);
+                seen += 1;
+            }
+            participant.done(snapshot.episode(), snapshot.frame())?;
+        }
+        return Ok(());
+    }
+    while a.captures.is_none_or(|n| seen < n) && running() {
         let capture = match sensor.recv(Duration::from_millis(200)) {
             Ok(c) => c,
             Err(sim_client::WaitError::Timeout { .. }) => continue,
             Err(e) => return Err(anyhow!(e).into()),
         };
+        print_capture(&capture, sensor.missed(), a.json);
         seen += 1;
-        let h = capture.header();
-        let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
-        if a.json {
-            println!(
-                "{}",
-                serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
-                    "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
-                    "bytes": capture.bytes().len(), "missed": sensor.missed(),
-                    "position": h.position})
-            );
-        } else {
-            println!(
-                "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {} bytes  {} values",
-                h.sensor_id,
-                h.frame,
-                h.elapsed_ns as f64 / 1e9,
-                h.sequence,
-                capture.bytes().len(),
-                h.count
-            );
-        }
     }
     Ok(())
 }

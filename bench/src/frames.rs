@@ -36,6 +36,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         max_frames: Some(frames),
         on_ticker_loss: Default::default(),
         spin: false,
+        spin_window: Duration::ZERO,
         seed: 0,
         lockstep_timeout: Duration::from_secs(10),
     };

@@ -240,18 +240,16 @@ fn tcp_round_trip(iterations: u64) -> anyhow::Result<Latencies> {
     })
 }
 
-/// `server_spin`: the server polls for ticks; `mode`: how the ticker and
-/// the subscriber wait.
+/// `server`: extra server flags (how it waits for ticks); `mode`: how the
+/// ticker and the subscriber wait.
 fn simbus_round_trip(
-    server_spin: bool,
+    server: &[&str],
     mode: WaitMode,
     iterations: u64,
 ) -> anyhow::Result<Latencies> {
     let mut server_args = vec!["--scene", "empty", "--fixed-delta-seconds", "0.01"];
-    if server_spin {
-        server_args.push("--spin");
-    }
-    let server = BenchServer::start(&format!("tick-{server_spin}-{mode:?}"), &server_args)?;
+    server_args.extend_from_slice(server);
+    let server = BenchServer::start(&format!("tick-{mode:?}"), &server_args)?;
     let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
     client.set_wait_mode(mode);
     let mut ticker = client.claim_ticker()?;
@@ -283,15 +281,15 @@ pub fn run(args: TickArgs) -> anyhow::Result<()> {
         ("(a) raw iceoryx2, block", raw_ping_pong(true, n)?),
         (
             "(b) simbus, all spin",
-            simbus_round_trip(true, WaitMode::Spin, n)?,
+            simbus_round_trip(&["--spin"], WaitMode::Spin, n)?,
         ),
         (
-            "(b) simbus, client spin",
-            simbus_round_trip(false, WaitMode::Spin, n)?,
+            "(b) simbus, hybrid",
+            simbus_round_trip(&[], WaitMode::Hybrid, n)?,
         ),
         (
             "(b) simbus, block",
-            simbus_round_trip(false, WaitMode::Block, n)?,
+            simbus_round_trip(&["--spin-window-us", "0"], WaitMode::Block, n)?,
         ),
         ("(c) TCP loopback", tcp_round_trip(n)?),
     ];
@@ -300,6 +298,7 @@ pub fn run(args: TickArgs) -> anyhow::Result<()> {
         ("b/a simbus all spin / raw spin", p50(2) / p50(0)),
         ("b/a simbus block / raw block", p50(4) / p50(1)),
         ("c/b TCP / simbus all spin", p50(5) / p50(2)),
+        ("c/b TCP / simbus hybrid", p50(5) / p50(3)),
         ("c/b TCP / simbus block", p50(5) / p50(4)),
     ];
     if args.json {
@@ -315,7 +314,8 @@ pub fn run(args: TickArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
-    println!("all spin: server --spin, ticker and subscriber spin; client spin: the server sleeps on its wake-up event");
+    println!("all spin: server --spin, clients spin; hybrid: server polls 100 µs after a frame, clients 100 µs, then both sleep;");
+    println!("block: server --spin-window-us 0 and blocking clients (every hop a kernel wake-up)");
     println!("{}", header("exchange"));
     for (name, latencies) in &rows {
         println!("{}", latencies.row(name));

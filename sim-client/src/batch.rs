@@ -126,7 +126,7 @@ impl Client {
     ) -> Result<BatchResponse, BatchError> {
         let pending = self.send_batch(commands, tick)?;
         let wait = if tick {
-            Wait::Event(self.frames.ready())
+            Wait::for_mode(self.frames.mode, self.frames.ready())
         } else {
             Wait::Backoff
         };

@@ -23,7 +23,14 @@ pub enum WaitMode {
     /// Poll the shared-memory queue in a tight loop: lowest latency, one core
     /// busy while waiting.
     Spin,
+    /// Poll for up to 100 µs, then sleep on the event: an answer that comes
+    /// quickly (a tick in a tight loop) costs no kernel wake-up, and a long
+    /// wait burns no CPU.
+    Hybrid,
 }
+
+/// How long [`WaitMode::Hybrid`] polls before it sleeps.
+pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
 
 /// How often a waiting client checks that the server process still lives.
 pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
@@ -189,7 +196,8 @@ impl FrameStream {
             }
             match self.mode {
                 WaitMode::Spin => std::hint::spin_loop(),
-                WaitMode::Block => {
+                WaitMode::Hybrid if now - start < HYBRID_SPIN => std::hint::spin_loop(),
+                WaitMode::Block | WaitMode::Hybrid => {
                     let wait = (deadline - now).min(next_liveness_check - now);
                     match self.ready.timed_wait(|_| {}, wait) {
                         Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}

@@ -10,7 +10,8 @@ use iceoryx2::prelude::*;
 
 use shared_types::{ResponseStatus, PROTOCOL_VERSION};
 
-use crate::frames::LIVENESS_PERIOD;
+use crate::frames::{HYBRID_SPIN, LIVENESS_PERIOD};
+use crate::WaitMode;
 use crate::{process_alive, RequestError};
 
 /// Refuses an answer from a server of another protocol version, or one that
@@ -32,6 +33,19 @@ pub(crate) enum Wait<'a> {
     Event(&'a Listener<ipc::Service>),
     /// Poll in a tight loop.
     Spin,
+    /// Poll for [`HYBRID_SPIN`], then sleep on the event.
+    Hybrid(&'a Listener<ipc::Service>),
+}
+
+impl<'a> Wait<'a> {
+    /// The wait for an answer announced by `listener`, as `mode` says.
+    pub(crate) fn for_mode(mode: WaitMode, listener: &'a Listener<ipc::Service>) -> Self {
+        match mode {
+            WaitMode::Block => Wait::Event(listener),
+            WaitMode::Spin => Wait::Spin,
+            WaitMode::Hybrid => Wait::Hybrid(listener),
+        }
+    }
 }
 
 /// The response to `pending`, waiting up to `timeout`. With a known
@@ -125,14 +139,17 @@ pub(crate) fn await_with<T>(
         let remaining = (deadline - now).min(next_liveness_check - now);
         match wait {
             Wait::Spin => std::hint::spin_loop(),
+            Wait::Hybrid(_) if now - start < HYBRID_SPIN => std::hint::spin_loop(),
             Wait::Backoff => {
                 std::thread::sleep(backoff.min(remaining));
                 backoff = (backoff * 2).min(Duration::from_millis(1));
             }
-            Wait::Event(listener) => match listener.timed_wait(|_| {}, remaining) {
-                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                Err(e) => return Err(RequestError::transport("event wait", e)),
-            },
+            Wait::Event(listener) | Wait::Hybrid(listener) => {
+                match listener.timed_wait(|_| {}, remaining) {
+                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => return Err(RequestError::transport("event wait", e)),
+                }
+            }
         }
     }
 }

@@ -239,8 +239,7 @@ impl Ticker {
             debug!("wake-up not delivered: {e:?}");
         }
         let wait = match (kind, self.mode) {
-            (TickRequestKind::Tick, WaitMode::Spin) => Wait::Spin,
-            (TickRequestKind::Tick, WaitMode::Block) => Wait::Event(&self.ready),
+            (TickRequestKind::Tick, mode) => Wait::for_mode(mode, &self.ready),
             _ => Wait::Backoff,
         };
         let response = await_response(

@@ -76,6 +76,11 @@ pub struct ServerArgs {
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
 
+    /// Synchronous mode: after each frame, poll this many microseconds for
+    /// the next tick before sleeping (0: always sleep).
+    #[arg(long, value_name = "US", default_value_t = 100)]
+    pub spin_window_us: u64,
+
     /// Drop a lockstep participant that keeps a tick waiting this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub lockstep_timeout: f64,
@@ -162,6 +167,7 @@ pub fn run(args: ServerArgs) -> anyhow::Result<()> {
         max_frames: args.max_frames,
         on_ticker_loss: args.on_ticker_loss,
         spin: args.spin,
+        spin_window: std::time::Duration::from_micros(args.spin_window_us),
         seed: args.seed,
         lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
     };

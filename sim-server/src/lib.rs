@@ -29,6 +29,7 @@
 //!     max_frames: Some(100),
 //!     on_ticker_loss: Default::default(),
 //!     spin: false,
+//!     spin_window: std::time::Duration::from_micros(100),
 //!     seed: 0,
 //!     lockstep_timeout: std::time::Duration::from_secs(10),
 //! };

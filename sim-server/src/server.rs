@@ -47,6 +47,9 @@ pub struct ServerConfig {
     /// Synchronous mode: poll for ticks instead of sleeping on the wake-up
     /// event (lowest tick latency, one core busy while waiting).
     pub spin: bool,
+    /// Synchronous mode: after each frame, poll this long for the next tick
+    /// before sleeping (a ticker in a tight loop then costs no kernel wake-up).
+    pub spin_window: Duration,
     /// Seed of the scene's placement (0: none); kept across reloads.
     pub seed: u64,
     /// A lockstep participant that keeps a tick waiting this long is
@@ -212,7 +215,9 @@ impl Server {
                     if ticked {
                         self.drop_late_participants(now);
                     }
-                    if self.config.spin {
+                    let just_stepped =
+                        self.clock.last_frame_at().elapsed() < self.config.spin_window;
+                    if self.config.spin || just_stepped {
                         std::hint::spin_loop();
                     } else {
                         self.idle(MAX_IDLE_WAIT)?;

@@ -46,8 +46,13 @@ pub struct TickArgs {
     leave_sync: bool,
 
     /// Spin while waiting for each frame (lowest latency, one core busy).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "hybrid")]
     spin: bool,
+
+    /// Poll 100 µs for each frame, then sleep (near-spin latency in a tight
+    /// loop, no CPU burnt while the server is slow).
+    #[arg(long)]
+    hybrid: bool,
 
     /// One JSON object per tick.
     #[arg(long)]
@@ -106,6 +111,8 @@ pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), F
     let mut ticker = client.claim_ticker_as(NODE_NAME)?;
     if args.spin {
         ticker.set_wait_mode(WaitMode::Spin);
+    } else if args.hybrid {
+        ticker.set_wait_mode(WaitMode::Hybrid);
     }
     let sync = WorldSettings {
         synchronous_mode: true,

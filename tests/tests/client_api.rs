@@ -14,7 +14,7 @@ fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
     let world = unique_world("wait");
     let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
     let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
-    for mode in [WaitMode::Block, WaitMode::Spin] {
+    for mode in [WaitMode::Block, WaitMode::Spin, WaitMode::Hybrid] {
         client.set_wait_mode(mode);
         let mut last = client.wait_for_tick(Duration::from_secs(5)).unwrap();
         for _ in 0..20 {

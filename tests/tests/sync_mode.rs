@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use shared_types::WorldSettings;
-use sim_client::{Client, TickError, Ticker};
+use sim_client::{Client, TickError, Ticker, WaitMode};
 use simbus_tests::{client, server, status, unique_world, Proc};
 
 const T: Duration = Duration::from_secs(10);
@@ -44,6 +44,8 @@ fn nothing_moves_without_a_tick_and_each_tick_publishes_exactly_one_frame() {
     let start_ns = client.status().unwrap().elapsed_ns;
 
     for i in 1..=50u64 {
+        // Every wait mode ticks the same way.
+        ticker.set_wait_mode([WaitMode::Block, WaitMode::Spin, WaitMode::Hybrid][i as usize % 3]);
         let frame = ticker.tick(T).unwrap();
         assert_eq!(frame, frozen + i);
         // tick() returned, so the snapshot is already published.

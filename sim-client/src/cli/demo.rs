@@ -7,7 +7,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use shared_types::{ActorKind, ActorState};
+use shared_types::{ActorKind, ActorState, Command as SimCommand};
 use sim_client::process::ChildGuard;
 use sim_client::{Client, WorldSnapshot};
 
@@ -89,7 +89,31 @@ fn summary(s: &WorldSnapshot) -> String {
     {
         line.push_str(&format!("  highest box {top:>5.2} m"));
     }
+    let cars: Vec<String> = dynamic
+        .iter()
+        .filter(|a| a.actor_kind() == Some(ActorKind::Vehicle))
+        .map(|a| format!("{:.1}", length(a.linear_velocity)))
+        .collect();
+    if !cars.is_empty() {
+        line.push_str(&format!("  cars {} m/s", cars.join("/")));
+    }
     line
+}
+
+/// Puts the scene's cars on the road: throttle, one steering left, one right.
+fn drive_cars(client: &Client, snapshot: &WorldSnapshot) -> Result<(), Failure> {
+    let controls: Vec<SimCommand> = snapshot
+        .actors
+        .iter()
+        .filter(|a| a.actor_kind() == Some(ActorKind::Vehicle))
+        .enumerate()
+        .map(|(i, car)| {
+            let steer = if i % 2 == 0 { 0.25 } else { -0.25 };
+            SimCommand::vehicle_control(car.id, 0.3, steer, 0.0, false)
+        })
+        .collect();
+    client.apply_batch(&controls)?;
+    Ok(())
 }
 
 pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
@@ -158,6 +182,9 @@ pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
                 "t = {:.2} s",
                 snapshot.timestamp().elapsed_seconds()
             ));
+        }
+        if seen == 1 {
+            drive_cars(&client, &snapshot)?;
         }
         if seen == 1 || snapshot.frame() % frames_per_line == 0 {
             say(summary(&snapshot));

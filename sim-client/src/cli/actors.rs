@@ -40,6 +40,9 @@ pub struct ReloadArgs {
     /// Also reset the settings to the defaults (async, variable step).
     #[arg(long)]
     reset_settings: bool,
+    /// Print {"scene", "episode", "frame", "actors"}.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Load a scene as a new episode.
@@ -50,6 +53,9 @@ pub struct LoadArgs {
     /// Also reset the settings to the defaults (async, variable step).
     #[arg(long)]
     reset_settings: bool,
+    /// Print {"scene", "episode", "frame", "actors"}.
+    #[arg(long)]
+    json: bool,
 }
 
 fn parse_point(text: &str) -> Result<[f32; 3], Failure> {
@@ -120,8 +126,19 @@ pub fn destroy(world: &WorldName, timeout: Duration, args: DestroyArgs) -> Resul
     Ok(())
 }
 
-fn loaded(result: Result<shared_types::StatusReport, LoadWorldError>) -> Result<(), Failure> {
+fn loaded(
+    result: Result<shared_types::StatusReport, LoadWorldError>,
+    json: bool,
+) -> Result<(), Failure> {
     match result {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::json!({"scene": report.scene.to_string_lossy(), "episode": report.episode,
+                    "frame": report.frame, "actors": report.actor_count})
+            );
+            Ok(())
+        }
         Ok(report) => {
             println!(
                 "loaded {} as episode {} ({} actors), frame {}",
@@ -140,11 +157,14 @@ fn loaded(result: Result<shared_types::StatusReport, LoadWorldError>) -> Result<
 pub fn reload(world: &WorldName, timeout: Duration, args: ReloadArgs) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
-    loaded(client.reload_world(args.reset_settings))
+    loaded(client.reload_world(args.reset_settings), args.json)
 }
 
 pub fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
-    loaded(client.load_world(&args.scene, args.reset_settings))
+    loaded(
+        client.load_world(&args.scene, args.reset_settings),
+        args.json,
+    )
 }

@@ -11,7 +11,7 @@
 //! - [`ticker`]: tick ownership and its loss.
 //! - [`lockstep`]: participants the server waits for in synchronous mode.
 //! - [`sensors`]: depth camera, lidar and IMU, written straight into shared memory.
-//! - [`server`]: the loop that answers requests, paces, steps and publishes.
+//! - [`server`]: the loop that paces, steps and publishes, and its answers to requests.
 //! - [`cli`]: the `sim-server` command line.
 //!
 //! ```no_run

@@ -153,7 +153,10 @@ fn reload_restores_the_scene_as_a_new_episode_and_keeps_or_resets_settings() {
     let out = client(&world, &["load", "boxes:5", "--json"]);
     out.assert_success();
     let report = &out.json()[0];
-    assert_eq!((report["scene"].as_str(), report["frame"].as_u64()), (Some("boxes:5"), Some(0)));
+    assert_eq!(
+        (report["scene"].as_str(), report["frame"].as_u64()),
+        (Some("boxes:5"), Some(0))
+    );
     let loaded = status(&world);
     assert_eq!(
         (loaded["scene"].as_str(), loaded["actors"].as_u64()),

@@ -1,5 +1,5 @@
-//! The server loop: answer control and tick requests, pace (async) or wait
-//! for the ticker (sync), step, publish.
+//! The server loop: pace (async) or wait for the ticker (sync), step,
+//! capture sensors, publish. The answers to requests live in [`requests`].
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,11 +10,9 @@ use iceoryx2::port::listener::ListenerWaitError;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::ipc;
 use shared_types::{
-    BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ControlRequest,
-    ControlResponse, FixedText, FrameHeader, LockstepKind, LockstepRequest, LockstepResponse,
-    RequestKind, ResponseStatus, SensorInfo, SensorRequestKind, SensorResponseHeader, ServiceNames,
-    SettingsError, StatusReport, TickRequest, TickRequestKind, TickResponse, Timestamp,
-    WireSettings, WorldName, WorldSettings, PROTOCOL_VERSION,
+    CommandResult, FixedText, FrameHeader, ResponseStatus, ServiceNames, SettingsError,
+    StatusReport, TickRequest, TickResponse, Timestamp, WireSettings, WorldName, WorldSettings,
+    PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 
@@ -23,9 +21,13 @@ use crate::lockstep::Participants;
 use crate::scene::Scene;
 use crate::sensors::Sensors;
 use crate::services::ServerPorts;
-use crate::ticker::{node_process_alive, OnTickerLoss, Owner, TickOwnership};
+use crate::ticker::{node_process_alive, OnTickerLoss, TickOwnership};
 use crate::world::World;
 use crate::ServerError;
+
+mod requests;
+
+use requests::{respond_batch, PendingBatch};
 
 /// How a server is started.
 #[derive(Debug, Clone)]
@@ -96,9 +98,6 @@ const TICKER_LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
 /// A tick request waiting for its frame.
 type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
-/// A batch request (already applied) waiting for the answer.
-type PendingBatch =
-    ActiveRequest<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
 /// A request for one frame step, answered once the frame is published.
 enum PendingStep {
@@ -404,335 +403,6 @@ impl Server {
         Ok(())
     }
 
-    /// Answers every pending control request.
-    fn handle_control(&mut self) -> Result<(), ServerError> {
-        while let Some(request) = self
-            .ports
-            .control
-            .receive()
-            .map_err(|e| ServerError::transport("control receive", e))?
-        {
-            let response = self.answer(request.payload());
-            if let Err(e) = request.send_copy(response) {
-                debug!("control response not delivered (client gone?): {e:?}");
-            }
-        }
-        Ok(())
-    }
-
-    fn answer(&mut self, request: &ControlRequest) -> ControlResponse {
-        if request.protocol_version != PROTOCOL_VERSION {
-            warn!(
-                client_pid = request.client_pid,
-                client_version = request.protocol_version,
-                "refused a request: protocol version {} is not the server's {PROTOCOL_VERSION}",
-                request.protocol_version
-            );
-            return ControlResponse::refused(ResponseStatus::ProtocolMismatch, self.report());
-        }
-        match RequestKind::from_u32(request.kind) {
-            Some(RequestKind::Hello) => {
-                debug!(client_pid = request.client_pid, "client connected");
-                ControlResponse::ok(self.report())
-            }
-            Some(RequestKind::GetSettings | RequestKind::Status) => {
-                ControlResponse::ok(self.report())
-            }
-            Some(RequestKind::ApplySettings) => self.apply_settings(request),
-            Some(kind @ (RequestKind::LoadWorld | RequestKind::ReloadWorld)) => {
-                let scene = match kind {
-                    RequestKind::LoadWorld => match request.scene.to_string_lossy().parse() {
-                        Ok(scene) => scene,
-                        Err(e) => {
-                            info!(client_pid = request.client_pid, "refused to load: {e}");
-                            return ControlResponse::refused(
-                                ResponseStatus::UnknownScene,
-                                self.report(),
-                            );
-                        }
-                    },
-                    _ => self.config.scene,
-                };
-                let reset = request.flags & ControlRequest::RESET_SETTINGS != 0;
-                match self.load_world(scene, reset, request.client_pid) {
-                    Ok(()) => ControlResponse::ok(self.report()),
-                    Err(e) => {
-                        warn!("loading {scene} failed: {e}");
-                        ControlResponse::refused(ResponseStatus::UnknownRequest, self.report())
-                    }
-                }
-            }
-            None => ControlResponse::refused(ResponseStatus::UnknownRequest, self.report()),
-        }
-    }
-
-    fn apply_settings(&mut self, request: &ControlRequest) -> ControlResponse {
-        let settings = WorldSettings::from(request.settings);
-        match self.change_settings(settings, false, request.client_pid) {
-            Ok(effective_frame) => ControlResponse {
-                effective_frame,
-                ..ControlResponse::ok(self.report())
-            },
-            Err(Refusal::Invalid(error)) => {
-                ControlResponse::invalid_settings(&error, self.report())
-            }
-            Err(Refusal::Status(status)) => ControlResponse::refused(status, self.report()),
-        }
-    }
-
-    /// Validates and applies `settings`; returns the first frame computed
-    /// with them. Only the ticker may enter synchronous mode; anyone may keep
-    /// it or leave it.
-    fn change_settings(
-        &mut self,
-        settings: WorldSettings,
-        from_ticker: bool,
-        pid: u32,
-    ) -> Result<u64, Refusal> {
-        let settings = settings.normalized();
-        if let Err(error) = settings.validate() {
-            info!(pid, "refused settings: {error}");
-            return Err(Refusal::Invalid(error));
-        }
-        if settings.synchronous_mode && !self.settings.synchronous_mode && !from_ticker {
-            info!(
-                pid,
-                "refused settings: synchronous mode is entered by the tick owner"
-            );
-            return Err(Refusal::Status(ResponseStatus::SyncNeedsTicker));
-        }
-        for warning in settings.warnings() {
-            warn!("{warning}");
-        }
-        if settings.synchronous_mode && settings.fixed_delta_seconds.is_none() {
-            warn!("synchronous mode with a variable step: each frame's dt is the time the ticker took; physics is unreliable (set a fixed step)");
-        }
-        let effective_frame = self.clock.frame() + 1;
-        if settings != self.settings {
-            info!(
-                pid,
-                effective_frame,
-                "settings changed: {}",
-                describe(&settings)
-            );
-            self.settings = settings;
-            self.pace_anchor = None;
-        }
-        Ok(effective_frame)
-    }
-
-    /// Answers every pending request of the ticker; ticks are queued for
-    /// the frame loop.
-    fn handle_ticks(&mut self) -> Result<(), ServerError> {
-        while let Some(request) = self
-            .ports
-            .tick
-            .receive()
-            .map_err(|e| ServerError::transport("tick receive", e))?
-        {
-            let payload = *request.payload();
-            let origin = request.origin();
-            let respond = |server: &Self, status: ResponseStatus| {
-                TickResponse::new(
-                    status,
-                    server.clock.frame(),
-                    server.clock.elapsed_ns(),
-                    server.ownership.info(),
-                )
-            };
-            let response = if payload.protocol_version != PROTOCOL_VERSION {
-                respond(self, ResponseStatus::ProtocolMismatch)
-            } else {
-                match TickRequestKind::from_u32(payload.kind) {
-                    Some(TickRequestKind::Claim) => {
-                        let candidate = Owner {
-                            client: origin,
-                            pid: payload.pid,
-                            node_name: payload.node_name.to_string_lossy(),
-                            since_frame: self.clock.frame(),
-                        };
-                        match self.ownership.claim(candidate, node_process_alive) {
-                            Ok(owner) => {
-                                info!(
-                                    pid = owner.pid,
-                                    node = %owner.node_name,
-                                    frame = owner.since_frame,
-                                    "ticker claimed ownership"
-                                );
-                                respond(self, ResponseStatus::Ok)
-                            }
-                            Err(current) => {
-                                info!(
-                                    pid = payload.pid,
-                                    owner_pid = current.pid,
-                                    "refused a second ticker"
-                                );
-                                respond(self, ResponseStatus::NotOwner)
-                            }
-                        }
-                    }
-                    Some(TickRequestKind::Release) => {
-                        if self.ownership.release(origin) {
-                            info!(
-                                pid = payload.pid,
-                                frame = self.clock.frame(),
-                                "ticker released ownership"
-                            );
-                            self.drop_pending_ticks();
-                            respond(self, ResponseStatus::Ok)
-                        } else {
-                            respond(self, ResponseStatus::NotOwner)
-                        }
-                    }
-                    Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
-                        self.pending_steps.push_back(PendingStep::Tick(request));
-                        continue;
-                    }
-                    Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
-                        let settings = WorldSettings::from(payload.settings);
-                        match self.change_settings(settings, true, payload.pid) {
-                            Ok(effective_frame) => TickResponse {
-                                effective_frame,
-                                ..respond(self, ResponseStatus::Ok)
-                            },
-                            Err(Refusal::Invalid(error)) => {
-                                respond(self, ResponseStatus::InvalidSettings)
-                                    .with_settings_error(&error)
-                            }
-                            Err(Refusal::Status(status)) => respond(self, status),
-                        }
-                    }
-                    Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
-                        warn!(
-                            pid = payload.pid,
-                            "refused a request from a client that is not the ticker"
-                        );
-                        respond(self, ResponseStatus::NotOwner)
-                    }
-                    None => respond(self, ResponseStatus::UnknownRequest),
-                }
-            };
-            if let Err(e) = request.send_copy(response) {
-                debug!("tick response not delivered (ticker gone?): {e:?}");
-            }
-        }
-        Ok(())
-    }
-
-    /// Forgets the ticker's pending ticks (it released or died); ticking
-    /// batches are answered as refused.
-    fn drop_pending_ticks(&mut self) {
-        for step in self.pending_steps.drain(..) {
-            if let PendingStep::Batch(request, results) = step {
-                respond_batch(
-                    &request,
-                    ResponseStatus::NotOwner,
-                    self.clock.frame(),
-                    &results,
-                );
-            }
-        }
-    }
-
-    /// Applies every pending batch, in arrival order, at this frame boundary.
-    fn handle_batches(&mut self) -> Result<(), ServerError> {
-        while let Some(request) = self
-            .ports
-            .batch
-            .receive()
-            .map_err(|e| ServerError::transport("batch receive", e))?
-        {
-            let header = *request.user_header();
-            let next_frame = self.clock.frame() + 1;
-            if header.protocol_version != PROTOCOL_VERSION {
-                respond_batch(&request, ResponseStatus::ProtocolMismatch, next_frame, &[]);
-                continue;
-            }
-            let tick = header.flags & BatchHeader::TICK != 0;
-            let ticker_pid = self.ownership.owner().map(|o| o.pid);
-            if tick && ticker_pid != Some(header.pid) {
-                warn!(
-                    pid = header.pid,
-                    "refused a ticking batch from a process that is not the ticker"
-                );
-                respond_batch(&request, ResponseStatus::NotOwner, next_frame, &[]);
-                continue;
-            }
-            let results: Vec<CommandResult> = request
-                .payload()
-                .iter()
-                .map(|c| self.world.apply(c))
-                .collect();
-            let failed = results
-                .iter()
-                .filter(|r| r.status != CommandStatus::Ok as u32)
-                .count();
-            debug!(
-                pid = header.pid,
-                commands = results.len(),
-                failed,
-                tick,
-                "batch applied"
-            );
-            if tick {
-                self.pending_steps
-                    .push_back(PendingStep::Batch(request, results));
-            } else {
-                respond_batch(&request, ResponseStatus::Ok, next_frame, &results);
-            }
-        }
-        Ok(())
-    }
-
-    /// Joins, leaves and "done with frame N" of lockstep participants.
-    fn handle_lockstep(&mut self) -> Result<(), ServerError> {
-        while let Some(request) = self
-            .ports
-            .lockstep
-            .receive()
-            .map_err(|e| ServerError::transport("lockstep receive", e))?
-        {
-            let payload: LockstepRequest = *request.payload();
-            let origin = request.origin();
-            let status = if payload.protocol_version != PROTOCOL_VERSION {
-                ResponseStatus::ProtocolMismatch
-            } else {
-                match LockstepKind::from_u32(payload.kind) {
-                    Some(LockstepKind::Join) => {
-                        let name = payload.name.to_string_lossy();
-                        info!(pid = payload.pid, %name, frame = self.clock.frame(), "lockstep participant joined");
-                        self.participants.join(origin, payload.pid, name);
-                        ResponseStatus::Ok
-                    }
-                    Some(LockstepKind::Leave) => {
-                        if self.participants.leave(origin) {
-                            info!(pid = payload.pid, "lockstep participant left");
-                        }
-                        ResponseStatus::Ok
-                    }
-                    Some(LockstepKind::Done) => {
-                        // A "done" for an earlier episode means nothing now.
-                        if payload.episode == self.episode {
-                            self.participants.done(origin, payload.frame);
-                        }
-                        ResponseStatus::Ok
-                    }
-                    None => ResponseStatus::UnknownRequest,
-                }
-            };
-            let response = LockstepResponse {
-                protocol_version: PROTOCOL_VERSION,
-                status: status as u32,
-                frame: self.clock.frame(),
-                episode: self.episode,
-            };
-            if let Err(e) = request.send_copy(response) {
-                debug!("lockstep response not delivered: {e:?}");
-            }
-        }
-        Ok(())
-    }
-
     /// Drops the participants that kept a tick waiting past the lockstep timeout.
     fn drop_late_participants(&mut self, now: Instant) {
         let since = *self.waiting_for_participants_since.get_or_insert(now);
@@ -749,89 +419,6 @@ impl Server {
                 "lockstep participant did not report done in time; no longer waiting for it"
             );
         }
-    }
-
-    /// Spawns, destroys and lists sensors.
-    fn handle_sensor_requests(&mut self) -> Result<(), ServerError> {
-        while let Some(request) = self
-            .ports
-            .sensors
-            .receive()
-            .map_err(|e| ServerError::transport("sensor receive", e))?
-        {
-            let payload = *request.payload();
-            let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) = if payload
-                .protocol_version
-                != PROTOCOL_VERSION
-            {
-                (ResponseStatus::ProtocolMismatch, 0, Vec::new())
-            } else {
-                match SensorRequestKind::from_u32(payload.kind) {
-                    Some(SensorRequestKind::Spawn) => match self.sensors.spawn(
-                        &self.ports.node,
-                        &self.names,
-                        payload.spec,
-                        &self.world,
-                        self.clock.elapsed_ns(),
-                    )? {
-                        Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
-                        Err(refusal) => {
-                            (ResponseStatus::UnknownRequest, refusal as u32, Vec::new())
-                        }
-                    },
-                    Some(SensorRequestKind::Destroy) => {
-                        if self.sensors.destroy(payload.id) {
-                            (ResponseStatus::Ok, 0, Vec::new())
-                        } else {
-                            (ResponseStatus::UnknownRequest, 3, Vec::new())
-                        }
-                    }
-                    Some(SensorRequestKind::List) => (ResponseStatus::Ok, 0, self.sensors.list()),
-                    None => (ResponseStatus::UnknownRequest, 0, Vec::new()),
-                }
-            };
-            let response = request.loan_slice_uninit(infos.len()).map(|mut response| {
-                *response.user_header_mut() = SensorResponseHeader {
-                    protocol_version: PROTOCOL_VERSION,
-                    status: status as u32,
-                    error,
-                    reserved: 0,
-                };
-                response.write_from_slice(&infos)
-            });
-            match response.map(|r| r.send()) {
-                Ok(Ok(())) => {}
-                Ok(Err(e)) => debug!("sensor response not delivered: {e:?}"),
-                Err(e) => debug!("sensor response not loaned: {e:?}"),
-            }
-        }
-        Ok(())
-    }
-
-    /// Replaces the world with `scene`'s initial state as a new episode,
-    /// starting again at frame 0; settings are kept unless `reset`.
-    fn load_world(&mut self, scene: Scene, reset: bool, pid: u32) -> Result<(), ServerError> {
-        let now = Instant::now();
-        self.world = World::new(&scene.placements(self.config.seed));
-        self.config.scene = scene;
-        self.clock = Clock::new(now);
-        self.episode += 1;
-        self.pace_anchor = None;
-        self.participants.new_episode();
-        self.sensors.new_episode();
-        if reset {
-            self.settings = WorldSettings::default();
-        }
-        info!(
-            pid,
-            %scene,
-            episode = self.episode,
-            actors = self.world.actor_count(),
-            "world loaded: {}",
-            describe(&self.settings)
-        );
-        self.publish(0, 0)?;
-        self.notify_frame()
     }
 
     /// Drops a ticker whose process died, applying the ticker-loss policy.
@@ -917,31 +504,6 @@ impl Server {
                 "removed resources of dead clients"
             );
         }
-    }
-}
-
-/// Answers a batch with `status`, the frame it concerns and its results.
-fn respond_batch(
-    request: &PendingBatch,
-    status: ResponseStatus,
-    frame: u64,
-    results: &[CommandResult],
-) {
-    let response = request
-        .loan_slice_uninit(results.len())
-        .map(|mut response| {
-            *response.user_header_mut() = BatchResponseHeader {
-                protocol_version: PROTOCOL_VERSION,
-                status: status as u32,
-                frame,
-            };
-            response.write_from_slice(results)
-        });
-    match response.map(|r| r.send()) {
-        Ok(Ok(())) => {}
-        // Fire-and-forget batches have nobody waiting for the answer.
-        Ok(Err(e)) => debug!("batch response not delivered: {e:?}"),
-        Err(e) => debug!("batch response not loaned: {e:?}"),
     }
 }
 

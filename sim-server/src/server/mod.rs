@@ -1,5 +1,5 @@
 //! The server loop: pace (async) or wait for the ticker (sync), step,
-//! capture sensors, publish. The answers to requests live in [`requests`].
+//! capture sensors, publish. The answers to requests live in `server/requests.rs`.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -127,3 +127,36 @@ fn two_worlds_run_side_by_side_without_seeing_each_other() {
         assert!(out.json().iter().all(|f| f["actors"] == actors));
     }
 }
+
+#[test]
+fn the_demo_runs_a_server_watches_it_and_reaps_it() {
+    let demo = Proc::spawn(
+        "sim-client",
+        &["demo", "--frames", "40", "--delta-seconds", "0.01"],
+    );
+    let out = demo.finish(Duration::from_secs(60));
+    out.assert_success();
+    let started = &out.stdout[0];
+    assert!(
+        started.starts_with("demo: started sim-server (pid "),
+        "{started}"
+    );
+    let pid: u32 = started["demo: started sim-server (pid ".len()..]
+        .split(')')
+        .next()
+        .and_then(|p| p.parse().ok())
+        .expect("the server's pid");
+    assert!(out
+        .stdout
+        .iter()
+        .any(|l| l.contains("frame") && l.contains("cars")));
+    let last = out.stdout.last().unwrap();
+    assert!(
+        last.starts_with("demo finished: watched 40 frames") && last.contains("exit status: 0"),
+        "{last}"
+    );
+    assert!(
+        !simbus_tests::process_alive(pid),
+        "the demo's server is gone"
+    );
+}

@@ -28,6 +28,16 @@ pub enum ConnectError {
         /// This client's [`shared_types::PROTOCOL_VERSION`].
         client: u32,
     },
+    /// The world admits no more clients of this kind right now.
+    #[error("world '{world}' already has the most {what} it admits ({max}); close one and retry")]
+    Full {
+        /// The world.
+        world: String,
+        /// What is full.
+        what: &'static str,
+        /// The limit.
+        max: usize,
+    },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]
     Transport {
@@ -66,6 +76,14 @@ pub enum RequestError {
     /// The server does not know the request.
     #[error("the server does not know this request (is it an older version?)")]
     UnknownRequest,
+    /// No more clients of this kind fit right now.
+    #[error("the most {what} admitted ({max}) are already there; close one and retry")]
+    Full {
+        /// What is full.
+        what: &'static str,
+        /// The limit.
+        max: usize,
+    },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]
     Transport {

@@ -6,8 +6,9 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
-use shared_types::limits::FRAME_SUBSCRIBER_BUFFER;
+use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_FRAME_SUBSCRIBERS};
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{open_event, open_with_retry};
@@ -93,7 +94,14 @@ impl FrameStream {
             .subscriber_builder()
             .buffer_size(FRAME_SUBSCRIBER_BUFFER)
             .create()
-            .map_err(|e| ConnectError::transport("frames subscriber", e))?;
+            .map_err(|e| match e {
+                SubscriberCreateError::ExceedsMaxSupportedSubscribers => ConnectError::Full {
+                    world: world.to_owned(),
+                    what: "frame subscribers",
+                    max: MAX_FRAME_SUBSCRIBERS,
+                },
+                e => ConnectError::transport("frames subscriber", e),
+            })?;
         let ready = ready
             .listener_builder()
             .create()

@@ -7,9 +7,10 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
-use shared_types::limits::SENSOR_SUBSCRIBER_BUFFER;
+use shared_types::limits::{MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorHeader, SensorInfo, SensorKind,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, ServiceNames,
@@ -143,7 +144,13 @@ impl Sensor {
             .subscriber_builder()
             .buffer_size(SENSOR_SUBSCRIBER_BUFFER)
             .create()
-            .map_err(|e| RequestError::transport("sensor subscriber", e))
+            .map_err(|e| match e {
+                SubscriberCreateError::ExceedsMaxSupportedSubscribers => RequestError::Full {
+                    what: "readers of this sensor",
+                    max: MAX_SENSOR_SUBSCRIBERS,
+                },
+                e => RequestError::transport("sensor subscriber", e),
+            })
         }
         let port = match info.spec.sensor_kind() {
             Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &name, deadline)?),

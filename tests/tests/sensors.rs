@@ -188,10 +188,19 @@ fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
     for _ in 0..50 {
         ticker.tick(Duration::from_secs(5)).unwrap();
     }
-    // ... and the dead readers' places are free again for new ones.
+    // ... and the dead readers' places are free again for new ones (the
+    // sensor admits 4 readers: `sensor` itself and 3 more).
     let mut fresh: Vec<_> = (0..3)
         .map(|_| client.sensor(sensor.id()).unwrap())
         .collect();
+    match client.sensor(sensor.id()) {
+        Err(e) => assert!(
+            e.to_string()
+                .contains("the most readers of this sensor admitted (4)"),
+            "{e}"
+        ),
+        Ok(_) => panic!("a fifth reader was admitted"),
+    }
     let frame = ticker.tick(T).unwrap();
     for reader in &mut fresh {
         assert_eq!(reader.recv(T).unwrap().header().frame, frame);

@@ -27,7 +27,8 @@ pub(crate) fn check_protocol(version: u32, status: u32) -> Result<(), RequestErr
 
 /// How to pass the time until the answer arrives.
 pub(crate) enum Wait<'a> {
-    /// Sleep 10 µs, doubling up to 1 ms (for rare requests).
+    /// Poll for [`HYBRID_SPIN`], then sleep 10 µs, doubling up to 1 ms (for
+    /// requests without an event).
     Backoff,
     /// Sleep on an event the server notifies right after answering.
     Event(&'a Listener<ipc::Service>),
@@ -140,6 +141,8 @@ pub(crate) fn await_with<T>(
         match wait {
             Wait::Spin => std::hint::spin_loop(),
             Wait::Hybrid(_) if now - start < HYBRID_SPIN => std::hint::spin_loop(),
+            // An answer usually comes within microseconds: poll briefly first.
+            Wait::Backoff if now - start < HYBRID_SPIN => std::hint::spin_loop(),
             Wait::Backoff => {
                 std::thread::sleep(backoff.min(remaining));
                 backoff = (backoff * 2).min(Duration::from_millis(1));

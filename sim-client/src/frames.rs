@@ -134,7 +134,8 @@ impl FrameStream {
     /// frames skipped in [`WorldSnapshot::missed`].
     pub(crate) fn try_next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
         let previous = self.last;
-        let mut newest: Option<WorldSnapshot> = None;
+        // Only the newest sample is copied out; skipped ones are just released.
+        let mut newest = None;
         while let Some(sample) = self
             .subscriber
             .receive()
@@ -152,21 +153,26 @@ impl FrameStream {
                 continue; // already seen (history replay on connect)
             }
             self.last = Some(key);
-            newest = Some(WorldSnapshot {
+            let in_order = self.every_frame || header.settings.synchronous_mode != 0;
+            newest = Some(sample);
+            if in_order {
+                break; // one at a time
+            }
+        }
+        Ok(newest.map(|sample| {
+            let header = *sample.user_header();
+            let missed = match previous {
+                Some((episode, frame)) if episode == header.episode => {
+                    header.timestamp.frame - frame - 1
+                }
+                _ => 0,
+            };
+            WorldSnapshot {
                 header,
                 actors: sample.payload().to_vec(),
-                missed: 0,
-            });
-            if self.every_frame || header.settings.synchronous_mode != 0 {
-                break; // in order, one at a time
+                missed,
             }
-        }
-        if let (Some(snapshot), Some((episode, frame))) = (newest.as_mut(), previous) {
-            if snapshot.episode() == episode {
-                snapshot.missed = snapshot.frame() - frame - 1;
-            }
-        }
-        Ok(newest)
+        }))
     }
 
     /// Waits up to `timeout` for the next snapshot. With a `server_pid`,

@@ -17,7 +17,7 @@ use tracing::{debug, warn};
 
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::{FrameStream, WaitMode};
-use crate::open::{open_event, open_with_retry};
+use crate::open::{open_with_retry, wake_notifier};
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
@@ -142,12 +142,9 @@ impl Client {
         .client_builder()
         .create()
         .map_err(|e| ConnectError::transport("control client", e))?;
-        let control_wake = open_event(&node, &names.control_wake, deadline)
+        let control_wake = wake_notifier(&node, &names, deadline)
             .map_err(|e| ConnectError::transport(e.what, e.detail))?
-            .ok_or_else(no_server)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| ConnectError::transport("control wake-up notifier", e))?;
+            .ok_or_else(no_server)?;
         let frames =
             FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
         let batch = open_batch_client(&node, &names.batch)?;

@@ -11,7 +11,7 @@ use iceoryx2::prelude::*;
 use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_FRAME_SUBSCRIBERS};
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
-use crate::open::{open_event, open_with_retry};
+use crate::open::{frame_ready_listener, open_with_retry};
 use crate::{process_alive, ConnectError, WaitError, WorldSnapshot};
 
 /// How a client waits for the next frame.
@@ -85,7 +85,7 @@ impl FrameStream {
             },
             e => ConnectError::transport("frames service", e),
         })?;
-        let ready = open_event(node, &names.frame_ready, deadline)
+        let ready = frame_ready_listener(node, names, deadline)
             .map_err(|e| ConnectError::transport(e.what, e.detail))?;
         let (Some(frames), Some(ready)) = (frames, ready) else {
             return Ok(None);
@@ -102,10 +102,6 @@ impl FrameStream {
                 },
                 e => ConnectError::transport("frames subscriber", e),
             })?;
-        let ready = ready
-            .listener_builder()
-            .create()
-            .map_err(|e| ConnectError::transport("frame-ready listener", e))?;
         Ok(Some(Self {
             subscriber,
             ready,

@@ -12,7 +12,7 @@ use shared_types::{
 };
 use tracing::{debug, info};
 
-use crate::open::{open_event, open_with_retry};
+use crate::open::{open_with_retry, wake_notifier};
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::RequestError;
 
@@ -89,12 +89,9 @@ impl Participant {
         .client_builder()
         .create()
         .map_err(|e| RequestError::transport("lockstep client", e))?;
-        let wake = open_event(&node, &names.control_wake, deadline)
+        let wake = wake_notifier(&node, &names, deadline)
             .map_err(|e| RequestError::transport(e.what, e.detail))?
-            .ok_or_else(missing)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| RequestError::transport("wake-up notifier", e))?;
+            .ok_or_else(missing)?;
         let mut participant = Self {
             world: world.clone(),
             port,

@@ -3,9 +3,12 @@
 
 use std::time::{Duration, Instant};
 
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::event::EventOpenError;
 use iceoryx2::service::port_factory::event::PortFactory as EventService;
+use shared_types::ServiceNames;
 
 /// Opens a service, retrying while `is_missing` says it does not exist yet,
 /// until `deadline`. `Ok(None)` when it never appeared.
@@ -35,8 +38,40 @@ pub(crate) struct OpenFailure {
     pub detail: String,
 }
 
+/// The notifier that wakes an idle server after a request was sent.
+/// `Ok(None)` when the world's service did not appear before `deadline`.
+pub(crate) fn wake_notifier(
+    node: &Node<ipc::Service>,
+    names: &ServiceNames,
+    deadline: Instant,
+) -> Result<Option<Notifier<ipc::Service>>, OpenFailure> {
+    open_event(node, &names.control_wake, deadline)?
+        .map(|service| service.notifier_builder().create())
+        .transpose()
+        .map_err(|e| OpenFailure {
+            what: "wake-up notifier",
+            detail: format!("{e:?}"),
+        })
+}
+
+/// A listener woken after every published frame (and its captures).
+/// `Ok(None)` when the world's service did not appear before `deadline`.
+pub(crate) fn frame_ready_listener(
+    node: &Node<ipc::Service>,
+    names: &ServiceNames,
+    deadline: Instant,
+) -> Result<Option<Listener<ipc::Service>>, OpenFailure> {
+    open_event(node, &names.frame_ready, deadline)?
+        .map(|service| service.listener_builder().create())
+        .transpose()
+        .map_err(|e| OpenFailure {
+            what: "frame-ready listener",
+            detail: format!("{e:?}"),
+        })
+}
+
 /// Opens the event service `name`, waiting until `deadline` for it to appear.
-pub(crate) fn open_event(
+fn open_event(
     node: &Node<ipc::Service>,
     name: &str,
     deadline: Instant,

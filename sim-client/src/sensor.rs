@@ -17,7 +17,7 @@ use shared_types::{
     PROTOCOL_VERSION, SENSOR_ERRORS,
 };
 
-use crate::open::{open_event, open_with_retry};
+use crate::open::{frame_ready_listener, open_with_retry};
 use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{process_alive, Client, RequestError, WaitError};
 
@@ -158,15 +158,12 @@ impl Sensor {
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &name, deadline)?),
             None => return Err(RequestError::UnknownRequest),
         };
-        let ready = open_event(&node, &names.frame_ready, deadline)
+        let ready = frame_ready_listener(&node, &names, deadline)
             .map_err(|e| RequestError::transport(e.what, e.detail))?
             .ok_or(RequestError::transport(
                 "frame-ready service",
                 "does not exist",
-            ))?
-            .listener_builder()
-            .create()
-            .map_err(|e| RequestError::transport("frame-ready listener", e))?;
+            ))?;
         Ok(Self {
             info,
             port,

@@ -12,7 +12,7 @@ use shared_types::{
 };
 use tracing::{debug, info};
 
-use crate::open::{open_event, open_with_retry};
+use crate::open::{frame_ready_listener, open_with_retry, wake_notifier};
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
@@ -117,19 +117,12 @@ impl Ticker {
             },
             e => TickError::transport("tick client", e),
         })?;
-        let open = |name: &str| {
-            open_event(&node, name, deadline)
-                .map_err(|e| TickError::transport(e.what, e.detail))?
-                .ok_or_else(timeout)
-        };
-        let wake = open(&names.control_wake)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| TickError::transport("wake-up notifier", e))?;
-        let ready = open(&names.frame_ready)?
-            .listener_builder()
-            .create()
-            .map_err(|e| TickError::transport("frame-ready listener", e))?;
+        let wake = wake_notifier(&node, &names, deadline)
+            .map_err(|e| TickError::transport(e.what, e.detail))?
+            .ok_or_else(timeout)?;
+        let ready = frame_ready_listener(&node, &names, deadline)
+            .map_err(|e| TickError::transport(e.what, e.detail))?
+            .ok_or_else(timeout)?;
         let mut ticker = Self {
             world: world.clone(),
             port,

@@ -205,3 +205,20 @@ pub fn status(world: &str) -> serde_json::Value {
     out.assert_success();
     out.json().pop().expect("one status object")
 }
+
+/// Runs `sim-client --world <world> --timeout 1 <args>` where no server
+/// runs, and asserts it ends by itself (no hang: it is killed and the test
+/// fails after 30 s) with exit code 1 and a message naming the problem.
+pub fn assert_fails_without_server(world: &str, args: &[&str]) {
+    let mut all = vec!["--world", world, "--timeout", "1"];
+    all.extend_from_slice(args);
+    let out = Proc::spawn("sim-client", &all).finish(Duration::from_secs(30));
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {}", out.stderr);
+    assert!(
+        out.stderr.contains(&format!(
+            "no simbus server answered on world '{world}' within 1s"
+        )),
+        "{args:?}: {}",
+        out.stderr
+    );
+}

@@ -146,19 +146,8 @@ fn two_readers_see_the_same_bytes_of_an_8_mib_capture() {
 
 #[test]
 fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
-    let world = unique_world("dead-reader");
-    let _server = server(
-        &world,
-        &[
-            "--sync",
-            "--fixed-delta-seconds",
-            "0.02",
-            "--scene",
-            "empty",
-        ],
-    );
-    let client = Client::connect(&world, T).unwrap();
-    let mut ticker = client.claim_ticker().unwrap();
+    let (_server, client, mut ticker) = sync_world("dead-reader", "empty");
+    let world = client.world().to_string();
     let sensor = client
         .spawn_sensor(SensorSpec::depth([0.0; 3], 256, 256, 90.0, 50.0))
         .unwrap();
@@ -350,19 +339,8 @@ fn listen_calls_back_with_every_capture_until_stopped() {
 
 #[test]
 fn a_lockstep_reader_gets_every_capture_and_its_death_stalls_nothing() {
-    let world = unique_world("lockstep-reader");
-    let _server = server(
-        &world,
-        &[
-            "--sync",
-            "--fixed-delta-seconds",
-            "0.02",
-            "--scene",
-            "empty",
-        ],
-    );
-    let client = Client::connect(&world, T).unwrap();
-    let mut ticker = client.claim_ticker().unwrap();
+    let (_server, client, mut ticker) = sync_world("lockstep-reader", "empty");
+    let world = client.world().to_string();
     let sensor = client
         .spawn_sensor(SensorSpec::depth([0.0; 3], 64, 64, 90.0, 50.0))
         .unwrap();

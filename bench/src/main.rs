@@ -66,7 +66,7 @@ fn main() -> ExitCode {
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);
-            sim_server::cli::run(a)
+            sim_server::cli::run(a).map_err(|e| anyhow::anyhow!("{e}"))
         }
     };
     match result {

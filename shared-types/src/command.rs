@@ -255,7 +255,10 @@ impl std::fmt::Display for CommandStatus {
         f.write_str(match self {
             Self::Ok => "ok",
             Self::UnknownActor => "unknown actor",
-            Self::InvalidArgument => "invalid argument (NaN, infinite or out of range)",
+            Self::InvalidArgument => {
+                "invalid argument: values must be finite; sizes in (0, 1000] m, positions \
+                 within +-100000 m of the origin, throttle and brake in 0..=1, steer in -1..=1"
+            }
             Self::NotAVehicle => "the actor is not a vehicle",
             Self::UnknownCommand => "unknown command",
             Self::StaticActor => "the actor is static",

@@ -57,6 +57,16 @@ pub enum ResponseStatus {
     NotOwner = 5,
     /// The scene name is not one the server knows; nothing changed.
     UnknownScene = 6,
+    /// Tick service: this client's tick ownership ended because another
+    /// client left synchronous mode (`TickResponse::revoked_by` names it).
+    Revoked = 7,
+    /// Tick service, an interim answer: the tick waits for a lockstep
+    /// participant (`TickResponse::waiting_for`), which the server drops
+    /// after `TickResponse::lockstep_timeout_ns`. The final answer follows.
+    WaitingForParticipants = 8,
+    /// Lockstep service: the sender is not (or no longer) a participant;
+    /// the server dropped it or it never joined.
+    NotParticipant = 9,
 }
 
 impl ResponseStatus {
@@ -70,6 +80,9 @@ impl ResponseStatus {
             4 => Self::SyncNeedsTicker,
             5 => Self::NotOwner,
             6 => Self::UnknownScene,
+            7 => Self::Revoked,
+            8 => Self::WaitingForParticipants,
+            9 => Self::NotParticipant,
             _ => return None,
         })
     }
@@ -78,7 +91,7 @@ impl ResponseStatus {
 /// A request to the world's server.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlRequest/1")]
+#[type_name("simbus::ControlRequest/2")]
 pub struct ControlRequest {
     /// [`PROTOCOL_VERSION`] of the sender.
     pub protocol_version: u32,
@@ -92,6 +105,9 @@ pub struct ControlRequest {
     pub settings: WireSettings,
     /// The scene to load (for [`RequestKind::LoadWorld`]).
     pub scene: FixedText,
+    /// The sender's name (its executable), for logs and for telling a
+    /// ticker who ended synchronous mode.
+    pub client_name: FixedText,
 }
 
 impl ControlRequest {
@@ -104,6 +120,7 @@ impl ControlRequest {
             flags: 0,
             settings: WorldSettings::default().into(),
             scene: FixedText::new(""),
+            client_name: FixedText::new(""),
         }
     }
 
@@ -303,6 +320,9 @@ mod tests {
             ResponseStatus::SyncNeedsTicker,
             ResponseStatus::NotOwner,
             ResponseStatus::UnknownScene,
+            ResponseStatus::Revoked,
+            ResponseStatus::WaitingForParticipants,
+            ResponseStatus::NotParticipant,
         ] {
             assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
         }

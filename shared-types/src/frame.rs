@@ -41,7 +41,7 @@ fn nanos_to_seconds(nanos: u64) -> f64 {
 /// The user header of every frame sample.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::FrameHeader/1")]
+#[type_name("simbus::FrameHeader/2")]
 pub struct FrameHeader {
     /// [`crate::PROTOCOL_VERSION`] of the server that wrote the frame.
     pub protocol_version: u32,
@@ -57,6 +57,11 @@ pub struct FrameHeader {
     pub physics_substeps: u32,
     /// [`FrameHeader::SUBSTEPS_CAPPED`] and future flags.
     pub flags: u32,
+    /// The first actor id of this episode. Ids are never reused within one
+    /// server's life, so a reloaded scene's actors get new ids; the frame
+    /// digest counts ids from this one, so a reload digests like a fresh
+    /// server.
+    pub first_actor_id: u64,
 }
 
 impl FrameHeader {

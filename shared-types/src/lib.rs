@@ -31,7 +31,9 @@
 
 mod command;
 mod control;
+pub mod environment;
 mod frame;
+pub mod input;
 mod lockstep;
 mod names;
 mod sensor;
@@ -49,7 +51,8 @@ pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES, SENSOR_ERRORS,
+    SensorEnd, SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES,
+    MAX_SENSOR_TICK_SECONDS, SENSOR_ERRORS,
 };
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
@@ -60,7 +63,7 @@ pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// Nanoseconds in one second: simulation time is kept as integer nanoseconds.
 pub const NANOS_PER_SECOND: u64 = 1_000_000_000;
@@ -95,4 +98,11 @@ pub mod limits {
     pub const SENSOR_SUBSCRIBER_BUFFER: usize = 4;
     /// How many clients may send batches at once (each costs the server memory).
     pub const MAX_BATCH_CLIENTS: usize = 16;
+    /// The largest size (half extent, radius) of an actor, metres.
+    pub const MAX_ACTOR_EXTENT: f32 = 1000.0;
+    /// The farthest an actor may be placed from the origin on any axis, metres.
+    pub const MAX_ACTOR_POSITION: f32 = 100_000.0;
+    /// The longest wait any command-line flag accepts, seconds (about 31
+    /// years: longer than any run, short enough to add to a clock).
+    pub const MAX_WAIT_SECONDS: f64 = 1e9;
 }

@@ -182,7 +182,8 @@ impl SensorSpec {
         self.elements() * element
     }
 
-    /// Why this spec cannot build a sensor, if it cannot.
+    /// Why this spec cannot build a sensor, if it cannot. The message
+    /// states the limit that was broken.
     pub fn check(&self) -> Result<(), &'static str> {
         let p = self.params;
         let finite = self
@@ -191,14 +192,24 @@ impl SensorSpec {
             .chain(&self.rotation)
             .chain(&p)
             .all(|v| v.is_finite());
-        if !finite || !self.sensor_tick.is_finite() || self.sensor_tick < 0.0 {
-            return Err("values must be finite and sensor_tick >= 0");
+        if !finite {
+            return Err("position, rotation and parameters must be finite numbers");
+        }
+        if !(self.sensor_tick.is_finite()
+            && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&self.sensor_tick))
+        {
+            return Err(
+                "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)",
+            );
         }
         let whole = |v: f32, max: f32| v >= 1.0 && v <= max && v.fract() == 0.0;
         match self.sensor_kind() {
             Some(SensorKind::Depth) => {
-                if !(whole(p[0], 8192.0) && whole(p[1], 8192.0)) {
-                    return Err("depth width and height must be whole numbers in 1..=8192");
+                if !(whole(p[0], 8192.0) && whole(p[1], 8192.0))
+                    || self.payload_bytes() > MAX_CAPTURE_BYTES
+                {
+                    return Err("depth width and height must be whole numbers in 1..=8192 \
+                         with width x height at most 8388608 pixels (32 MiB per capture)");
                 }
                 if !(p[2] > 0.0 && p[2] < 180.0) {
                     return Err("depth field of view must be in (0, 180) degrees");
@@ -208,10 +219,11 @@ impl SensorSpec {
                 }
             }
             Some(SensorKind::Lidar) => {
-                if !(whole(p[0], 256.0) && whole(p[1], 65536.0)) {
-                    return Err(
-                        "lidar channels must be in 1..=256 and points per channel in 1..=65536",
-                    );
+                if !(whole(p[0], 256.0) && whole(p[1], 65536.0))
+                    || self.payload_bytes() > MAX_CAPTURE_BYTES
+                {
+                    return Err("lidar channels must be in 1..=256 and points per channel in \
+                         1..=65536, with channels x points at most 2097152 (32 MiB per capture)");
                 }
                 if p[2] <= 0.0 || p[3] < p[4] || p[3].abs() > 90.0 || p[4].abs() > 90.0 {
                     return Err(
@@ -225,10 +237,49 @@ impl SensorSpec {
             Some(SensorKind::Imu) => {}
             None => return Err("unknown sensor kind"),
         }
-        if self.payload_bytes() > MAX_CAPTURE_BYTES {
-            return Err("a capture may hold at most 32 MiB");
-        }
         Ok(())
+    }
+}
+
+/// The longest capture period: the clock's range (`u64` nanoseconds).
+pub const MAX_SENSOR_TICK_SECONDS: f64 = 18_446_744_073.0;
+
+/// Why a sensor's stream ended (in the header of its last capture,
+/// flagged [`SensorHeader::END_OF_STREAM`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SensorEnd {
+    /// Destroyed on request.
+    Destroyed = 1,
+    /// The actor it rode on was destroyed (a sensor dies with its parent).
+    ParentDestroyed = 2,
+    /// The world was loaded or reloaded: a new episode has no old sensors.
+    EpisodeEnded = 3,
+    /// The server stopped.
+    ServerStopped = 4,
+}
+
+impl SensorEnd {
+    /// The reason with wire value `value`, if this version knows it.
+    pub fn from_u32(value: u32) -> Option<Self> {
+        Some(match value {
+            1 => Self::Destroyed,
+            2 => Self::ParentDestroyed,
+            3 => Self::EpisodeEnded,
+            4 => Self::ServerStopped,
+            _ => return None,
+        })
+    }
+}
+
+impl std::fmt::Display for SensorEnd {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Destroyed => "it was destroyed",
+            Self::ParentDestroyed => "the actor it rode on was destroyed",
+            Self::EpisodeEnded => "the world was loaded or reloaded (a new episode starts without sensors)",
+            Self::ServerStopped => "the server stopped",
+        })
     }
 }
 
@@ -261,7 +312,7 @@ pub struct ImuMeasurement {
 /// The user header of every capture.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::SensorHeader/1")]
+#[type_name("simbus::SensorHeader/2")]
 pub struct SensorHeader {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -285,11 +336,25 @@ pub struct SensorHeader {
     pub rotation: [f32; 4],
     /// Depth: width and height in pixels. Lidar: channels and points per channel.
     pub size: [u32; 2],
+    /// [`SensorHeader::END_OF_STREAM`] and future flags.
+    pub flags: u32,
+    /// With [`SensorHeader::END_OF_STREAM`]: why, as [`SensorEnd`].
+    pub end_reason: u32,
     /// Wall-clock seconds since the Unix epoch when the capture was published.
     pub platform_timestamp: f64,
 }
 
 impl SensorHeader {
+    /// Flag: the sensor is gone and this empty capture is its last; the
+    /// reason is in `end_reason`.
+    pub const END_OF_STREAM: u32 = 1;
+
+    /// Why the stream ended, if this is its last (empty) capture.
+    pub fn end(&self) -> Option<SensorEnd> {
+        (self.flags & Self::END_OF_STREAM != 0)
+            .then(|| SensorEnd::from_u32(self.end_reason).unwrap_or(SensorEnd::Destroyed))
+    }
+
     /// A header for `kind` from sensor `sensor_id`.
     pub fn new(kind: SensorKind, sensor_id: u64) -> Self {
         Self {
@@ -423,6 +488,11 @@ mod tests {
         assert!(SensorSpec::lidar([0.0; 3], 256, 65536, 50.0, 10.0, -30.0)
             .check()
             .is_err());
+        // One limit, stated where it is broken.
+        let too_big = SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0).check();
+        assert!(too_big.unwrap_err().contains("8388608 pixels"));
+        let forever = SensorSpec::imu([0.0; 3]).every(1e300).check();
+        assert!(forever.unwrap_err().contains("18446744073"));
     }
 
     #[test]

@@ -86,6 +86,16 @@ impl SettingsField {
     }
 }
 
+impl SettingsField {
+    /// What sign the field must have, in words.
+    fn sign_rule(self) -> &'static str {
+        match self {
+            Self::FixedDeltaSeconds | Self::Fps => "it must be >= 0 (0 means variable step)",
+            Self::MaxSubstepDeltaTime | Self::MaxSubsteps => "it must be positive",
+        }
+    }
+}
+
 impl fmt::Display for SettingsField {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
@@ -109,9 +119,7 @@ pub enum SettingsError {
         value: f64,
     },
     /// A value is negative.
-    #[error(
-        "{field} = {value} is negative; it must be positive (0 means variable step where allowed)"
-    )]
+    #[error("{field} = {value} is negative; {}", field.sign_rule())]
     Negative {
         /// The setting.
         field: SettingsField,

@@ -120,7 +120,7 @@ impl TickRequest {
 /// The server's answer on the tick service.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::TickResponse/1")]
+#[type_name("simbus::TickResponse/2")]
 pub struct TickResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -140,6 +140,15 @@ pub struct TickResponse {
     pub error_values: [f64; 3],
     /// The ticker after the request.
     pub ticker: TickerInfo,
+    /// With [`ResponseStatus::WaitingForParticipants`]: the participant the
+    /// tick waits for (`since_frame`: the frame it has not reported done).
+    pub waiting_for: TickerInfo,
+    /// With [`ResponseStatus::WaitingForParticipants`]: how long the server
+    /// waits for a participant before it drops it, in nanoseconds.
+    pub lockstep_timeout_ns: u64,
+    /// With [`ResponseStatus::Revoked`]: the client that left synchronous
+    /// mode (`since_frame`: the frame at which it did).
+    pub revoked_by: TickerInfo,
 }
 
 impl TickResponse {
@@ -155,6 +164,9 @@ impl TickResponse {
             error_field: 0,
             error_values: [0.0; 3],
             ticker,
+            waiting_for: TickerInfo::none(),
+            lockstep_timeout_ns: 0,
+            revoked_by: TickerInfo::none(),
         }
     }
 

@@ -2,14 +2,14 @@
 
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
-use shared_types::limits::INITIAL_MAX_BATCH;
+use shared_types::limits::{INITIAL_MAX_BATCH, MAX_BATCH_CLIENTS};
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
 };
 use tracing::debug;
 
 use crate::rpc::{await_slice_response, check_protocol, Wait};
-use crate::{Client, ConnectError, RequestError};
+use crate::{Client, RequestError};
 
 pub(crate) type BatchClient =
     RequestClient<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
@@ -76,25 +76,32 @@ pub enum CommandError {
 pub(crate) fn open_batch_client(
     node: &Node<ipc::Service>,
     name: &str,
-) -> Result<BatchClient, ConnectError> {
-    let name = ServiceName::new(name).map_err(|e| ConnectError::transport("service name", e))?;
+) -> Result<BatchClient, RequestError> {
+    use iceoryx2::service::port_factory::client::ClientCreateError;
+    let name = ServiceName::new(name).map_err(|e| RequestError::transport("service name", e))?;
     node.service_builder(&name)
         .request_response::<[Command], [CommandResult]>()
         .request_user_header::<BatchHeader>()
         .response_user_header::<BatchResponseHeader>()
         .open()
-        .map_err(|e| ConnectError::transport("batch service", e))?
+        .map_err(|e| RequestError::transport("batch service", e))?
         .client_builder()
         .initial_max_slice_len(INITIAL_MAX_BATCH)
         .allocation_strategy(AllocationStrategy::PowerOfTwo)
         .create()
-        .map_err(|e| ConnectError::transport("batch client", e))
+        .map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
+                what: "clients sending command batches",
+                max: MAX_BATCH_CLIENTS,
+            },
+            e => RequestError::transport("batch client", e),
+        })
 }
 
 impl Client {
     fn send_batch(&self, commands: &[Command], tick: bool) -> Result<PendingBatch, RequestError> {
         let mut request = self
-            .batch
+            .batch()?
             .loan_slice_uninit(commands.len())
             .map_err(|e| RequestError::transport("batch loan", e))?;
         *request.user_header_mut() = BatchHeader::new(tick);

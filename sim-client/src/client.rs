@@ -1,5 +1,6 @@
 //! [`Client`]: a connection to one simbus world.
 
+use std::cell::OnceCell;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -10,8 +11,8 @@ use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
-    ControlRequest, ControlResponse, RequestKind, ResponseStatus, ServiceNames, StatusReport,
-    WorldName, WorldSettings, PROTOCOL_VERSION,
+    ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
+    StatusReport, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, warn};
 
@@ -61,11 +62,20 @@ pub struct Client {
     node: Node<ipc::Service>,
     control: ControlClient,
     pub(crate) control_wake: Notifier<ipc::Service>,
-    pub(crate) batch: BatchClient,
+    /// Opened on the first batch: a client that never sends a command
+    /// holds no batch port.
+    batch: OnceCell<BatchClient>,
+    names: ServiceNames,
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
     pub(crate) request_timeout: Duration,
     dispatcher: Option<TickDispatcher>,
+}
+
+/// This executable's name, as the server's logs and a revoked ticker see it.
+fn process_name() -> &'static str {
+    static NAME: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    NAME.get_or_init(default_ticker_name)
 }
 
 /// This executable's name, as a node name (letters, digits, `-`, `_`).
@@ -86,6 +96,7 @@ fn default_ticker_name() -> String {
 }
 
 fn client_node() -> Result<Node<ipc::Service>, ConnectError> {
+    shared_types::environment::prepare().map_err(ConnectError::SharedDirectory)?;
     let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
     NodeBuilder::new()
         .name(&name)
@@ -141,20 +152,29 @@ impl Client {
         .ok_or_else(no_server)?
         .client_builder()
         .create()
-        .map_err(|e| ConnectError::transport("control client", e))?;
+        .map_err(|e| {
+            use iceoryx2::service::port_factory::client::ClientCreateError;
+            match e {
+                ClientCreateError::ExceedsMaxSupportedClients => ConnectError::Full {
+                    world: world_text.clone(),
+                    what: "clients (control ports)",
+                    max: shared_types::limits::MAX_CONTROL_CLIENTS,
+                },
+                e => ConnectError::transport("control client", e),
+            }
+        })?;
         let control_wake = wake_notifier(&node, &names, deadline)
             .map_err(|e| ConnectError::transport(e.what, e.detail))?
             .ok_or_else(no_server)?;
         let frames =
             FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
-        let batch = open_batch_client(&node, &names.batch)?;
-
         let mut client = Self {
             world,
             node,
             control,
             control_wake,
-            batch,
+            batch: OnceCell::new(),
+            names,
             frames,
             server_pid: 0,
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
@@ -172,6 +192,12 @@ impl Client {
                 RequestError::Transport { what, detail } => {
                     ConnectError::Transport { what, detail }
                 }
+                // The services are there, so a server created them: it is
+                // alive but not answering (stopped, or overloaded).
+                RequestError::Timeout { .. } => ConnectError::NotAnswering {
+                    world: client.world.to_string(),
+                    timeout,
+                },
                 _ => no_server(),
             })?;
         client.server_pid = hello.report.server_pid;
@@ -231,6 +257,9 @@ impl Client {
         match ResponseStatus::from_u32(response.status) {
             Some(ResponseStatus::Ok) => Ok(response.effective_frame),
             Some(ResponseStatus::SyncNeedsTicker) => Err(ApplySettingsError::SyncNeedsTicker),
+            Some(ResponseStatus::NotOwner) => Err(ApplySettingsError::TickerHolds {
+                owner: response.report.ticker,
+            }),
             Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
                 Some(error) => Err(ApplySettingsError::Invalid(error)),
                 None => Err(RequestError::UnknownRequest.into()),
@@ -382,9 +411,10 @@ impl Client {
 
     fn request_within(
         &self,
-        request: ControlRequest,
+        mut request: ControlRequest,
         timeout: Duration,
     ) -> Result<ControlResponse, RequestError> {
+        request.client_name = FixedText::new(process_name());
         let pending = self
             .control
             .send_copy(request)
@@ -436,6 +466,15 @@ impl Client {
     /// then waits for this participant's [`Participant::done`] every frame.
     pub fn join_lockstep(&self, name: &str) -> Result<Participant, RequestError> {
         Participant::join(&self.world, self.server_pid, name, self.request_timeout)
+    }
+
+    /// The batch port, opened on first use.
+    pub(crate) fn batch(&self) -> Result<&BatchClient, RequestError> {
+        if let Some(batch) = self.batch.get() {
+            return Ok(batch);
+        }
+        let batch = open_batch_client(&self.node, &self.names.batch)?;
+        Ok(self.batch.get_or_init(|| batch))
     }
 
     /// The iceoryx2 node of this client (for tools that open more ports).

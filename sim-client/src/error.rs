@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use shared_types::{SettingsError, WorldNameError};
+use shared_types::{SensorEnd, SettingsError, TickerInfo, WorldNameError};
 
 /// Why [`crate::Client::connect`] failed.
 #[derive(Debug, thiserror::Error)]
@@ -18,6 +18,18 @@ pub enum ConnectError {
         /// How long the client waited.
         timeout: Duration,
     },
+    /// The world's server exists but did not answer in time (stopped with
+    /// SIGSTOP, or overloaded).
+    #[error("the server of world '{world}' exists but did not answer within {timeout:?} (is it stopped, or overloaded?)")]
+    NotAnswering {
+        /// The world asked for.
+        world: String,
+        /// How long the client waited.
+        timeout: Duration,
+    },
+    /// iceoryx2's shared directory cannot be used by this user.
+    #[error("{0}")]
+    SharedDirectory(String),
     /// The server speaks another protocol version.
     #[error("world '{world}' runs a server with another protocol version ({detail}); this client speaks version {client}")]
     ProtocolMismatch {
@@ -76,6 +88,12 @@ pub enum RequestError {
     /// The server does not know the request.
     #[error("the server does not know this request (is it an older version?)")]
     UnknownRequest,
+    /// This lockstep participant was dropped by the server.
+    #[error("dropped from the lockstep of world '{world}': the server no longer waits for this participant (it kept a tick waiting past the server's --lockstep-timeout, or left); frames went on without it")]
+    NotParticipant {
+        /// The world.
+        world: String,
+    },
     /// No more clients of this kind fit right now.
     #[error("the most {what} admitted ({max}) are already there; close one and retry")]
     Full {
@@ -106,6 +124,12 @@ pub enum ApplySettingsError {
     /// Only the ticker may apply settings through its tick service.
     #[error("this client is no longer the ticker")]
     NotTicker,
+    /// A ticker holds the world: only it changes settings.
+    #[error("world has a ticker: {owner}; while it ticks only it changes settings (anyone may leave synchronous mode with `sim-client config --no-sync`, which ends its ownership)")]
+    TickerHolds {
+        /// The ticker.
+        owner: TickerInfo,
+    },
     /// The request itself failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -131,6 +155,26 @@ pub enum WaitError {
         world: String,
         /// The server's process id.
         pid: u32,
+    },
+    /// No capture from a sensor within the timeout.
+    #[error("no capture from sensor {sensor} of world '{world}' within {timeout:?}{}", last_frame.map(|f| format!(" (last capture: frame {f})")).unwrap_or_else(|| " (none yet; is the world ticking, and is the sensor's period shorter than that?)".to_owned()))]
+    NoCapture {
+        /// The sensor.
+        sensor: u64,
+        /// The world.
+        world: String,
+        /// How long the client waited.
+        timeout: Duration,
+        /// The frame of the last capture this reader received.
+        last_frame: Option<u64>,
+    },
+    /// The sensor is gone: its stream ended.
+    #[error("sensor {sensor} ended: {reason}")]
+    SensorEnded {
+        /// The sensor.
+        sensor: u64,
+        /// Why.
+        reason: SensorEnd,
     },
     /// A frame of another protocol version arrived.
     #[error("received a frame of protocol version {got}; this client speaks {client}")]
@@ -177,6 +221,26 @@ pub enum TickError {
         world: String,
         /// The current owner, when the server could name it.
         owner: Option<shared_types::TickerInfo>,
+    },
+    /// Another client left synchronous mode, which ended this ticker's
+    /// ownership.
+    #[error("synchronous mode of world '{world}' was turned off by {} (pid {}) at frame {}; this client is no longer the ticker", by.node_name.to_string_lossy(), by.pid, by.since_frame)]
+    Revoked {
+        /// The world.
+        world: String,
+        /// Who left synchronous mode, and at which frame.
+        by: TickerInfo,
+    },
+    /// The tick waited for a lockstep participant longer than the server's
+    /// lockstep timeout (plus a margin) without an answer.
+    #[error("the tick of world '{world}' waited {waited:?} for lockstep participant {} (pid {}) and got no answer", participant.node_name.to_string_lossy(), participant.pid)]
+    HeldUp {
+        /// The world.
+        world: String,
+        /// The participant the server said it waits for.
+        participant: TickerInfo,
+        /// How long the tick waited.
+        waited: Duration,
     },
     /// The request failed (timeout, server gone, protocol).
     #[error(transparent)]

@@ -3,12 +3,14 @@
 
 use std::time::{Duration, Instant};
 
+use std::cell::RefCell;
+
+use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
-    PROTOCOL_VERSION,
 };
 use tracing::{debug, info};
 
@@ -17,6 +19,7 @@ use crate::rpc::{await_response, check_protocol, Wait};
 use crate::RequestError;
 
 type LockstepClient = RequestClient<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
+type PendingDone = PendingResponse<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
 
 /// Membership in a world's lockstep: in synchronous mode the server steps
 /// frame N+1 only when the tick has arrived **and** every participant has
@@ -44,6 +47,9 @@ pub struct Participant {
     name: String,
     server_pid: u32,
     joined: (u64, u64),
+    /// The answer to the last `done`, read at the next one: a participant
+    /// the server dropped learns it there.
+    last_done: RefCell<Option<PendingDone>>,
     // Declared last: ports drop before their node.
     _node: Node<ipc::Service>,
 }
@@ -99,9 +105,10 @@ impl Participant {
             name: name.to_owned(),
             server_pid,
             joined: (0, 0),
+            last_done: RefCell::new(None),
             _node: node,
         };
-        let response = participant.request(LockstepKind::Join, 0, 0, Some(timeout))?;
+        let response = participant.request(LockstepKind::Join, 0, 0, timeout)?;
         participant.joined = (response.episode, response.frame);
         info!(world = %participant.world, frame = response.frame, "joined the lockstep");
         Ok(participant)
@@ -117,9 +124,41 @@ impl Participant {
     /// the tick is there and every other participant is done too). Send the
     /// frame's commands *before* (with `apply_batch_sync`) so they land in
     /// the next step.
+    ///
+    /// Does not wait for the server. Fails with
+    /// [`RequestError::NotParticipant`] when the server answered an earlier
+    /// `done` saying it no longer waits for this participant (it was
+    /// dropped after the lockstep timeout): frames went on without it.
     pub fn done(&self, episode: u64, frame: u64) -> Result<(), RequestError> {
-        self.request(LockstepKind::Done, episode, frame, None)
-            .map(drop)
+        self.check()?;
+        let pending = self.send(LockstepKind::Done, episode, frame)?;
+        *self.last_done.borrow_mut() = Some(pending);
+        Ok(())
+    }
+
+    /// Whether the server still counts this participant, from the answer
+    /// to the last [`Participant::done`] if it has come (no waiting).
+    pub fn check(&self) -> Result<(), RequestError> {
+        let mut last = self.last_done.borrow_mut();
+        let Some(pending) = last.as_ref() else {
+            return Ok(());
+        };
+        let answer = pending
+            .receive()
+            .map_err(|e| RequestError::transport("lockstep receive", e))?;
+        let Some(answer) = answer else {
+            return Ok(()); // not answered yet
+        };
+        let response = *answer.payload();
+        drop(answer);
+        *last = None;
+        check_protocol(response.protocol_version, response.status)?;
+        if response.status == ResponseStatus::NotParticipant as u32 {
+            return Err(RequestError::NotParticipant {
+                world: self.world.to_string(),
+            });
+        }
+        Ok(())
     }
 
     /// Leaves the lockstep: the server stops waiting for this participant.
@@ -127,14 +166,7 @@ impl Participant {
         // Drop sends the leave.
     }
 
-    /// Sends a request; waits for the answer only with a `timeout`.
-    fn request(
-        &self,
-        kind: LockstepKind,
-        episode: u64,
-        frame: u64,
-        timeout: Option<Duration>,
-    ) -> Result<LockstepResponse, RequestError> {
+    fn send(&self, kind: LockstepKind, episode: u64, frame: u64) -> Result<PendingDone, RequestError> {
         let pending = self
             .port
             .send_copy(LockstepRequest::new(kind, &self.name, episode, frame))
@@ -142,15 +174,18 @@ impl Participant {
         if let Err(e) = self.wake.notify() {
             debug!("wake-up not delivered: {e:?}");
         }
-        let Some(timeout) = timeout else {
-            // Fire and forget: a later "done" supersedes an earlier one.
-            return Ok(LockstepResponse {
-                protocol_version: PROTOCOL_VERSION,
-                status: ResponseStatus::Ok as u32,
-                frame,
-                episode,
-            });
-        };
+        Ok(pending)
+    }
+
+    /// Sends a request and waits up to `timeout` for its answer.
+    fn request(
+        &self,
+        kind: LockstepKind,
+        episode: u64,
+        frame: u64,
+        timeout: Duration,
+    ) -> Result<LockstepResponse, RequestError> {
+        let pending = self.send(kind, episode, frame)?;
         let response = await_response(
             &pending,
             timeout,
@@ -168,7 +203,9 @@ impl Participant {
 
 impl Drop for Participant {
     fn drop(&mut self) {
-        if let Err(e) = self.request(LockstepKind::Leave, 0, 0, None) {
+        // Fire and forget: the server drops the participant either way
+        // once this process is gone.
+        if let Err(e) = self.send(LockstepKind::Leave, 0, 0) {
             debug!("leaving the lockstep: {e}");
         }
     }

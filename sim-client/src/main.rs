@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use shared_types::WorldName;
+use shared_types::{input, WorldName};
 use tracing_subscriber::EnvFilter;
 
 mod cli;
@@ -16,13 +16,14 @@ mod cli;
 #[derive(Debug, Parser)]
 #[command(name = "sim-client", version)]
 struct Args {
-    /// World to talk to.
-    #[arg(long, global = true, env = "SIMBUS_WORLD", default_value = "default")]
-    world: WorldName,
+    /// World to talk to [default: default; `demo`: a new world demo-<pid>].
+    #[arg(long, global = true, env = "SIMBUS_WORLD")]
+    world: Option<WorldName>,
 
-    /// Seconds to wait for the server to answer (and, for `watch`, for each frame).
-    #[arg(long, global = true, value_name = "S", default_value_t = 5.0)]
-    timeout: f64,
+    /// Seconds to wait for the server to answer, and for each frame or
+    /// capture a command waits for.
+    #[arg(long, global = true, value_name = "S", default_value = "5", allow_negative_numbers = true, value_parser = input::timeout)]
+    timeout: Duration,
 
     /// More logging (-v debug, -vv trace); RUST_LOG overrides.
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
@@ -119,23 +120,24 @@ fn init_logging(verbose: u8) {
 fn main() -> ExitCode {
     let args = Args::parse();
     init_logging(args.verbose);
-    if !args.timeout.is_finite() || args.timeout <= 0.0 {
-        eprintln!("sim-client: error: --timeout must be a positive number of seconds");
-        return ExitCode::from(2);
-    }
-    let timeout = Duration::from_secs_f64(args.timeout);
+    let timeout = args.timeout;
+    let world = args
+        .world
+        .clone()
+        .unwrap_or_else(|| WorldName::new("default").expect("'default' is a valid world name"));
+    let world = &world;
     let result = match args.command {
-        Command::Watch(a) => cli::watch::run(&args.world, timeout, a),
-        Command::Status(a) => cli::status::run(&args.world, timeout, a),
-        Command::Config(a) => cli::config::run(&args.world, timeout, a),
-        Command::Tick(a) => cli::tick::run(&args.world, timeout, a),
-        Command::Spawn(a) => cli::actors::spawn(&args.world, timeout, a),
-        Command::Destroy(a) => cli::actors::destroy(&args.world, timeout, a),
-        Command::Reload(a) => cli::actors::reload(&args.world, timeout, a),
-        Command::Load(a) => cli::actors::load(&args.world, timeout, a),
-        Command::Autopilot(a) => cli::autopilot::run(&args.world, timeout, a),
-        Command::Sensor(a) => cli::sensor::run(&args.world, timeout, a),
-        Command::Demo(a) => cli::demo::run(timeout, a),
+        Command::Watch(a) => cli::watch::run(world, timeout, a),
+        Command::Status(a) => cli::status::run(world, timeout, a),
+        Command::Config(a) => cli::config::run(world, timeout, a),
+        Command::Tick(a) => cli::tick::run(world, timeout, a),
+        Command::Spawn(a) => cli::actors::spawn(world, timeout, a),
+        Command::Destroy(a) => cli::actors::destroy(world, timeout, a),
+        Command::Reload(a) => cli::actors::reload(world, timeout, a),
+        Command::Load(a) => cli::actors::load(world, timeout, a),
+        Command::Autopilot(a) => cli::autopilot::run(world, timeout, a),
+        Command::Sensor(a) => cli::sensor::run(world, timeout, a),
+        Command::Demo(a) => cli::demo::run(args.world, timeout, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

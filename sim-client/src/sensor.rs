@@ -12,7 +12,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use shared_types::limits::{MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
-    ImuMeasurement, LidarPoint, ResponseStatus, SensorHeader, SensorInfo, SensorKind,
+    ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, ServiceNames,
     PROTOCOL_VERSION, SENSOR_ERRORS,
 };
@@ -109,6 +109,10 @@ pub struct Sensor {
     world: String,
     server_pid: u32,
     last_sequence: Option<u64>,
+    /// The frame of the last capture received.
+    last_frame: Option<u64>,
+    /// Set once the server said the stream ended.
+    ended: Option<SensorEnd>,
     missed: u64,
     _node: Node<ipc::Service>,
 }
@@ -171,6 +175,8 @@ impl Sensor {
             world: client.world.to_string(),
             server_pid: client.server_pid,
             last_sequence: None,
+            last_frame: None,
+            ended: None,
             missed: 0,
             _node: node,
         })
@@ -194,6 +200,12 @@ impl Sensor {
 
     /// The next queued capture, without waiting.
     pub fn try_recv(&mut self) -> Result<Option<Capture>, WaitError> {
+        if let Some(reason) = self.ended {
+            return Err(WaitError::SensorEnded {
+                sensor: self.info.id,
+                reason,
+            });
+        }
         let capture = match &self.port {
             Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
             Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
@@ -208,6 +220,16 @@ impl Sensor {
                     client: PROTOCOL_VERSION,
                 });
             }
+            if let Some(reason) = header.end() {
+                self.ended = Some(reason);
+            }
+            if let Some(reason) = self.ended {
+                return Err(WaitError::SensorEnded {
+                    sensor: self.info.id,
+                    reason,
+                });
+            }
+            self.last_frame = Some(header.frame);
             if let Some(last) = self.last_sequence {
                 self.missed += header.sequence.saturating_sub(last + 1);
             }
@@ -216,7 +238,10 @@ impl Sensor {
         Ok(capture)
     }
 
-    /// Waits up to `timeout` for the next capture.
+    /// Waits up to `timeout` for the next capture. Ends with
+    /// [`WaitError::NoCapture`] when none came, and with
+    /// [`WaitError::SensorEnded`] once the sensor is gone (destroyed, its
+    /// parent destroyed, the world reloaded, the server stopped).
     pub fn recv(&mut self, timeout: Duration) -> Result<Capture, WaitError> {
         let deadline = Instant::now() + timeout;
         let mut next_check = Instant::now() + Duration::from_millis(100);
@@ -226,10 +251,11 @@ impl Sensor {
             }
             let now = Instant::now();
             if now >= deadline {
-                return Err(WaitError::Timeout {
+                return Err(WaitError::NoCapture {
+                    sensor: self.info.id,
                     world: self.world.clone(),
                     timeout,
-                    last_frame: None,
+                    last_frame: self.last_frame,
                 });
             }
             if now >= next_check {
@@ -285,7 +311,7 @@ impl Sensor {
                 while !flag.load(Ordering::Relaxed) {
                     match sensor.recv(Duration::from_millis(100)) {
                         Ok(capture) => callback(&capture),
-                        Err(WaitError::Timeout { .. }) => {}
+                        Err(WaitError::NoCapture { .. }) => {}
                         Err(e) => {
                             tracing::warn!("sensor {} listener stopped: {e}", info.id);
                             return;

@@ -36,7 +36,8 @@ impl WorldSnapshot {
     }
 
     /// A 64-bit digest of the frame: its id, simulation time and every
-    /// actor's state, bit for bit (xxh3). Two runs that print the same
+    /// actor's state, bit for bit (xxh3), with actor ids counted from the
+    /// episode's first actor id. Two runs that print the same
     /// digests frame after frame computed identical worlds.
     pub fn digest(&self) -> u64 {
         let t = self.timestamp();
@@ -44,7 +45,16 @@ impl WorldSnapshot {
         hasher.update(&t.frame.to_le_bytes());
         hasher.update(&t.elapsed_ns.to_le_bytes());
         hasher.update(&t.delta_ns.to_le_bytes());
-        hasher.update(bytemuck::cast_slice(&self.actors));
+        // Ids count from the episode's first one: a reloaded world (whose
+        // actors get new ids) digests like a fresh server.
+        let first = self.header.first_actor_id;
+        for actor in &self.actors {
+            let relative = ActorState {
+                id: actor.id.wrapping_sub(first),
+                ..*actor
+            };
+            hasher.update(bytemuck::bytes_of(&relative));
+        }
         hasher.digest()
     }
 

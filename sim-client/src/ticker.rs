@@ -2,6 +2,7 @@
 
 use std::time::{Duration, Instant};
 
+use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -10,13 +11,18 @@ use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
     WorldName, WorldSettings,
 };
-use tracing::{debug, info};
+use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, open_with_retry, wake_notifier};
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
 type TickClient = RequestClient<ipc::Service, TickRequest, (), TickResponse, ()>;
+type PendingTick = PendingResponse<ipc::Service, TickRequest, (), TickResponse, ()>;
+
+/// How much longer than the server's lockstep timeout a held-up tick
+/// waits, for the server to drop the participant and step.
+const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 
 /// Tick ownership of one world. Only one `Ticker` exists per world at a time
 /// (the tick service admits a single client); dropping it releases ownership.
@@ -163,10 +169,57 @@ impl Ticker {
     /// published, so a subscriber that then reads sees it. In synchronous
     /// mode nothing moves without a tick; in asynchronous mode a tick just
     /// waits for the next frame.
+    ///
+    /// A tick held up by a lockstep participant is told so by the server
+    /// (which drops a participant after its `--lockstep-timeout`); it then
+    /// waits that long too, whatever `timeout` says, so the two never race.
     pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
-        let response = self.expect_ok(self.send(TickRequestKind::Tick, None, timeout)?)?;
-        self.last = Some((response.frame, response.elapsed_ns));
-        Ok(response.frame)
+        let started = Instant::now();
+        let pending = self.start(TickRequestKind::Tick, None)?;
+        let mut deadline = started + timeout;
+        let mut waiting_for = None;
+        loop {
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            let response = match await_response(
+                &pending,
+                remaining,
+                self.world.as_str(),
+                self.server_pid,
+                Wait::for_mode(self.mode, &self.ready),
+            ) {
+                Err(RequestError::Timeout { .. }) if waiting_for.is_some() => {
+                    return Err(TickError::HeldUp {
+                        world: self.world.to_string(),
+                        participant: waiting_for.unwrap_or_else(TickerInfo::none),
+                        waited: started.elapsed(),
+                    })
+                }
+                Err(RequestError::Timeout { world, .. }) => {
+                    return Err(RequestError::Timeout { world, timeout }.into())
+                }
+                other => other?,
+            };
+            check_protocol(response.protocol_version, response.status)?;
+            if response.status == ResponseStatus::WaitingForParticipants as u32 {
+                let participant = response.waiting_for;
+                let patience = Duration::from_nanos(response.lockstep_timeout_ns)
+                    .saturating_add(PARTICIPANT_DROP_MARGIN);
+                warn!(
+                    world = %self.world,
+                    frame = participant.since_frame,
+                    "the tick waits for lockstep participant {} (pid {}); the server drops it after {:?}",
+                    participant.node_name.to_string_lossy(),
+                    participant.pid,
+                    Duration::from_nanos(response.lockstep_timeout_ns),
+                );
+                deadline = deadline.max(Instant::now() + patience);
+                waiting_for = Some(participant);
+                continue;
+            }
+            let response = self.expect_ok(response)?;
+            self.last = Some((response.frame, response.elapsed_ns));
+            return Ok(response.frame);
+        }
     }
 
     /// Applies `settings`, which may enter synchronous mode (only the ticker
@@ -183,7 +236,9 @@ impl Ticker {
                 Some(error) => Err(error.into()),
                 None => Err(RequestError::UnknownRequest.into()),
             },
-            Some(ResponseStatus::NotOwner) => Err(ApplySettingsError::NotTicker),
+            Some(ResponseStatus::NotOwner | ResponseStatus::Revoked) => {
+                Err(ApplySettingsError::NotTicker)
+            }
             _ => Ok(self
                 .expect_ok(response)
                 .map_err(|_| RequestError::UnknownRequest)?
@@ -205,6 +260,10 @@ impl Ticker {
     fn expect_ok(&self, response: TickResponse) -> Result<TickResponse, TickError> {
         match ResponseStatus::from_u32(response.status) {
             Some(ResponseStatus::Ok) => Ok(response),
+            Some(ResponseStatus::Revoked) => Err(TickError::Revoked {
+                world: self.world.to_string(),
+                by: response.revoked_by,
+            }),
             Some(ResponseStatus::NotOwner) => Err(TickError::NotOwner {
                 world: self.world.to_string(),
                 owner: response.ticker.active(),
@@ -213,13 +272,12 @@ impl Ticker {
         }
     }
 
-    /// Sends one request and waits for its answer, whatever its status.
-    fn send(
+    /// Sends one request and wakes the server.
+    fn start(
         &self,
         kind: TickRequestKind,
         settings: Option<WorldSettings>,
-        timeout: Duration,
-    ) -> Result<TickResponse, RequestError> {
+    ) -> Result<PendingTick, RequestError> {
         let mut request = TickRequest::new(kind, &self.node_name);
         if let Some(settings) = settings {
             request.settings = settings.into();
@@ -231,16 +289,24 @@ impl Ticker {
         if let Err(e) = self.wake.notify() {
             debug!("wake-up not delivered: {e:?}");
         }
-        let wait = match (kind, self.mode) {
-            (TickRequestKind::Tick, mode) => Wait::for_mode(mode, &self.ready),
-            _ => Wait::Backoff,
-        };
+        Ok(pending)
+    }
+
+    /// Sends one request (not a tick) and waits for its answer, whatever
+    /// its status.
+    fn send(
+        &self,
+        kind: TickRequestKind,
+        settings: Option<WorldSettings>,
+        timeout: Duration,
+    ) -> Result<TickResponse, RequestError> {
+        let pending = self.start(kind, settings)?;
         let response = await_response(
             &pending,
             timeout,
             self.world.as_str(),
             self.server_pid,
-            wait,
+            Wait::Backoff,
         )?;
         check_protocol(response.protocol_version, response.status)?;
         Ok(response)

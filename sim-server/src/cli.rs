@@ -4,9 +4,11 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use std::time::Duration;
+
 use anyhow::Context;
 use clap::Parser;
-use shared_types::{WorldName, WorldSettings};
+use shared_types::{input, WorldName, WorldSettings};
 use tracing_subscriber::EnvFilter;
 
 use crate::{OnTickerLoss, Scene, Server, ServerConfig};
@@ -29,12 +31,20 @@ pub struct ServerArgs {
     #[arg(long, default_value = "default")]
     pub scene: Scene,
 
-    /// Fixed time-step in seconds (0 = variable step).
-    #[arg(long, value_name = "S", conflicts_with = "fps")]
+    /// Fixed time-step in seconds (0 = variable step). Also spelled
+    /// --fixed-delta-seconds, CARLA's name.
+    #[arg(
+        long = "delta-seconds",
+        visible_alias = "fixed-delta-seconds",
+        value_name = "S",
+        conflicts_with = "fps",
+        allow_negative_numbers = true,
+        value_parser = input::seconds
+    )]
     pub fixed_delta_seconds: Option<f64>,
 
     /// Fixed time-step as frames per simulated second (dt = 1/N; 0 = variable).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
     pub fps: Option<f64>,
 
     /// Run each frame as one physics step, however long.
@@ -42,11 +52,11 @@ pub struct ServerArgs {
     pub no_substepping: bool,
 
     /// Longest physics substep in seconds.
-    #[arg(long, value_name = "S", default_value_t = 0.01)]
+    #[arg(long, value_name = "S", default_value_t = 0.01, allow_negative_numbers = true, value_parser = input::seconds)]
     pub max_substep_delta_time: f64,
 
     /// Most physics substeps per frame (1..=16).
-    #[arg(long, value_name = "N", default_value_t = 10)]
+    #[arg(long, value_name = "N", default_value_t = 10, allow_negative_numbers = true, value_parser = input::max_substeps)]
     pub max_substeps: u32,
 
     /// Fixed step: pace frames so simulation time follows wall time.
@@ -54,7 +64,7 @@ pub struct ServerArgs {
     pub realtime: bool,
 
     /// Variable step: compute at most this many frames per second (0 = no limit).
-    #[arg(long, value_name = "HZ", default_value_t = 100.0)]
+    #[arg(long, value_name = "HZ", default_value_t = 100.0, allow_negative_numbers = true, value_parser = max_fps)]
     pub max_fps: f64,
 
     /// When the ticker dies in synchronous mode: wait for a new ticker, or
@@ -78,12 +88,14 @@ pub struct ServerArgs {
 
     /// Synchronous mode: after each frame, poll this many microseconds for
     /// the next tick before sleeping (0: always sleep).
-    #[arg(long, value_name = "US", default_value_t = 100)]
-    pub spin_window_us: u64,
+    #[arg(long = "spin-window-us", value_name = "US", default_value = "100", value_parser = input::micros)]
+    pub spin_window: Duration,
 
-    /// Drop a lockstep participant that keeps a tick waiting this many seconds.
-    #[arg(long, value_name = "S", default_value_t = 10.0)]
-    pub lockstep_timeout: f64,
+    /// Drop a lockstep participant that keeps a tick waiting this many
+    /// seconds. A tick held up by a participant is told so, and waits for
+    /// this long too, whatever its own timeout.
+    #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
+    pub lockstep_timeout: Duration,
 
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
@@ -122,6 +134,43 @@ impl ServerArgs {
     }
 }
 
+/// `--max-fps`: 0 (no limit) or a rate whose period a clock can wait for.
+fn max_fps(text: &str) -> Result<f64, String> {
+    match input::seconds(text)? {
+        0.0 => Ok(0.0),
+        _ => input::rate(text),
+    }
+}
+
+/// Why a server run failed: input refused before anything started (exit
+/// 2), or a failure while starting or running (exit 1).
+#[derive(Debug)]
+pub enum RunError {
+    /// Invalid settings or flags; nothing was started.
+    Refused(anyhow::Error),
+    /// The server could not start or stopped on an error.
+    Failed(anyhow::Error),
+}
+
+impl RunError {
+    /// The process exit code for this failure.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Self::Refused(_) => 2,
+            Self::Failed(_) => 1,
+        }
+    }
+}
+
+impl std::fmt::Display for RunError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Refused(e) => write!(f, "refused: {e:#}"),
+            Self::Failed(e) => write!(f, "error: {e:#}"),
+        }
+    }
+}
+
 /// Logs to stderr through `tracing`: `RUST_LOG` if set, else info (-v debug,
 /// -vv trace); iceoryx2's own log goes through the same subscriber.
 pub fn init_logging(verbose: u8) {
@@ -140,39 +189,34 @@ pub fn init_logging(verbose: u8) {
 }
 
 /// Runs a server as the options say, until Ctrl-C / SIGTERM or `--max-frames`.
-pub fn run(args: ServerArgs) -> anyhow::Result<()> {
-    if !(args.lockstep_timeout.is_finite() && args.lockstep_timeout > 0.0) {
-        anyhow::bail!(
-            "--lockstep-timeout must be a positive number of seconds, got {}",
-            args.lockstep_timeout
-        );
-    }
-    if !args.max_fps.is_finite() || args.max_fps < 0.0 {
-        anyhow::bail!(
-            "--max-fps must be a finite number >= 0, got {}",
-            args.max_fps
-        );
-    }
+pub fn run(args: ServerArgs) -> Result<(), RunError> {
+    let settings = args.settings().map_err(RunError::Refused)?;
     let shutdown = Arc::new(AtomicBool::new(false));
     let flag = shutdown.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the SIGINT/SIGTERM handler")?;
+        .context("installing the SIGINT/SIGTERM handler")
+        .map_err(RunError::Failed)?;
 
     let config = ServerConfig {
         world: args.world.clone(),
         scene: args.scene,
-        settings: args.settings()?,
+        settings,
         realtime: args.realtime,
         max_fps: args.max_fps,
         max_frames: args.max_frames,
         on_ticker_loss: args.on_ticker_loss,
         spin: args.spin,
-        spin_window: std::time::Duration::from_micros(args.spin_window_us),
+        spin_window: args.spin_window,
         seed: args.seed,
-        lockstep_timeout: std::time::Duration::from_secs_f64(args.lockstep_timeout),
+        lockstep_timeout: args.lockstep_timeout,
     };
-    let mut server = Server::start(config)?;
-    let summary = server.run(&shutdown)?;
+    let mut server = Server::start(config).map_err(|e| match e {
+        crate::ServerError::Settings(e) => RunError::Refused(e.into()),
+        e => RunError::Failed(e.into()),
+    })?;
+    let summary = server
+        .run(&shutdown)
+        .map_err(|e| RunError::Failed(e.into()))?;
     if args.json {
         println!(
             "{}",

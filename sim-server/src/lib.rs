@@ -67,6 +67,9 @@ pub enum ServerError {
         /// The world name.
         world: String,
     },
+    /// iceoryx2's shared directory cannot be used by this user.
+    #[error("{0}")]
+    SharedDirectory(String),
     /// The start settings were refused.
     #[error("invalid settings: {0}")]
     Settings(SettingsError),

@@ -46,6 +46,11 @@ impl Participants {
         }
     }
 
+    /// Whether `client` is a participant.
+    pub fn contains(&self, client: UniqueClientId) -> bool {
+        self.list.iter().any(|p| p.client == client)
+    }
+
     /// Removes `client`; `false` if it was not a participant.
     pub fn leave(&mut self, client: UniqueClientId) -> bool {
         let before = self.list.len();
@@ -67,6 +72,11 @@ impl Participants {
     /// Whether every participant is done with `frame`.
     pub fn all_done(&self, frame: u64) -> bool {
         self.list.iter().all(|p| p.done.is_some_and(|d| d >= frame))
+    }
+
+    /// The first participant not yet done with `frame`.
+    pub fn first_not_done(&self, frame: u64) -> Option<&Participant> {
+        self.list.iter().find(|p| p.done.is_none_or(|d| d < frame))
     }
 
     /// A new episode starts at frame 0: everyone must report it anew.

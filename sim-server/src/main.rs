@@ -11,8 +11,8 @@ fn main() -> ExitCode {
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("sim-server: error: {e:#}");
-            ExitCode::FAILURE
+            eprintln!("sim-server: {e}");
+            ExitCode::from(e.exit_code())
         }
     }
 }

@@ -11,8 +11,8 @@ use iceoryx2::prelude::*;
 use rapier3d::prelude::{Pose, Rotation, Vector};
 use shared_types::limits::{MAX_NODES, MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
-    seconds_to_nanos, ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorSpec,
-    ServiceNames,
+    seconds_to_nanos, ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind,
+    SensorSpec, ServiceNames,
 };
 use tracing::{debug, info, warn};
 
@@ -149,15 +149,14 @@ impl Sensors {
         Ok(Ok(info))
     }
 
-    /// Removes sensor `id`; `false` if there is none.
-    pub fn destroy(&mut self, id: u64) -> bool {
-        let before = self.list.len();
-        self.list.retain(|s| s.id != id);
-        let removed = self.list.len() != before;
-        if removed {
-            info!(id, "sensor destroyed");
-        }
-        removed
+    /// Removes sensor `id`, telling its readers; `false` if there is none.
+    pub fn destroy(&mut self, id: u64, frame: u64, episode: u64) -> bool {
+        let Some(index) = self.list.iter().position(|s| s.id == id) else {
+            return false;
+        };
+        let sensor = self.list.remove(index);
+        sensor.end(SensorEnd::Destroyed, frame, episode);
+        true
     }
 
     /// Every sensor.
@@ -165,11 +164,30 @@ impl Sensors {
         self.list.iter().map(Sensor::info).collect()
     }
 
-    /// A new episode: simulation time starts again at 0.
-    pub fn new_episode(&mut self) {
-        for sensor in &mut self.list {
-            sensor.next_capture_ns = next_capture_after(0, &sensor.spec);
-            sensor.last_capture_ns = 0;
+    /// Ends the sensors whose parent actor is gone: a sensor dies with the
+    /// actor it rides on, as in CARLA.
+    pub fn end_orphans(&mut self, world: &World, frame: u64, episode: u64) {
+        if !self
+            .list
+            .iter()
+            .any(|s| s.spec.attach_to != 0 && world.body_of(s.spec.attach_to).is_none())
+        {
+            return;
+        }
+        let (orphans, living) = std::mem::take(&mut self.list)
+            .into_iter()
+            .partition(|s| s.spec.attach_to != 0 && world.body_of(s.spec.attach_to).is_none());
+        self.list = living;
+        for sensor in orphans {
+            sensor.end(SensorEnd::ParentDestroyed, frame, episode);
+        }
+    }
+
+    /// Ends every sensor, telling its readers `reason` (a new episode starts
+    /// without sensors; the server stops). Sensor ids are not reused.
+    pub fn end_all(&mut self, reason: SensorEnd, frame: u64, episode: u64) {
+        for sensor in self.list.drain(..) {
+            sensor.end(reason, frame, episode);
         }
     }
 
@@ -224,6 +242,27 @@ impl Sensors {
 }
 
 impl Sensor {
+    /// Publishes the empty last capture that tells readers why the stream
+    /// ended, then drops the publisher.
+    fn end(self, reason: SensorEnd, frame: u64, episode: u64) {
+        info!(id = self.id, frame, "sensor ended: {reason}");
+        let kind = self.spec.sensor_kind().unwrap_or(SensorKind::Imu);
+        let mut header = SensorHeader::new(kind, self.id);
+        header.frame = frame;
+        header.episode = episode;
+        header.sequence = self.captures + 1;
+        header.flags = SensorHeader::END_OF_STREAM;
+        header.end_reason = reason as u32;
+        let sent = match &self.port {
+            SensorPort::Depth(port) => send_end(port, header),
+            SensorPort::Lidar(port) => send_end(port, header),
+            SensorPort::Imu(port) => send_end(port, header),
+        };
+        if let Err(e) = sent {
+            warn!(id = self.id, "could not tell the sensor's readers it ended: {e}");
+        }
+    }
+
     fn info(&self) -> SensorInfo {
         SensorInfo {
             id: self.id,
@@ -240,6 +279,23 @@ fn next_capture_after(now_ns: u64, spec: &SensorSpec) -> u64 {
     now_ns
         .checked_div(period)
         .map_or(now_ns + 1, |periods| (periods + 1) * period)
+}
+
+/// Sends an empty sample with `header` (an end-of-stream marker).
+fn send_end<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    port: &Port<T>,
+    header: SensorHeader,
+) -> Result<(), ServerError> {
+    let mut sample = port
+        .loan_slice_uninit(0)
+        .map_err(|e| ServerError::transport("sensor loan", e))?;
+    *sample.user_header_mut() = header;
+    // SAFETY: the slice has no elements, so there is nothing to initialise.
+    let sample = unsafe { sample.assume_init() };
+    sample
+        .send()
+        .map_err(|e| ServerError::transport("sensor send", e))?;
+    Ok(())
 }
 
 /// Loans a sample, lets `fill` write every element in place, and sends it.

@@ -65,6 +65,7 @@ impl ServerPorts {
     /// (or creates) every service of `world`. Fails with
     /// [`ServerError::AlreadyRunning`] when a live server holds the world.
     pub fn open(world: &WorldName, initial_actors: usize) -> Result<Self, ServerError> {
+        shared_types::environment::prepare().map_err(ServerError::SharedDirectory)?;
         let names = ServiceNames::new(world);
         let node_name =
             NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;

@@ -37,6 +37,9 @@ pub struct Owner {
 #[derive(Debug, Default)]
 pub struct TickOwnership {
     owner: Option<Owner>,
+    /// A ticker whose ownership another client ended by leaving
+    /// synchronous mode, and who did it: its next request is told so.
+    revoked: Option<(UniqueClientId, TickerInfo)>,
 }
 
 /// Whether a process that created an iceoryx2 node is still alive, by
@@ -77,26 +80,48 @@ impl TickOwnership {
         &mut self,
         candidate: Owner,
         owner_alive: impl Fn(u32) -> bool,
-    ) -> Result<&Owner, Owner> {
+    ) -> Result<Owner, Owner> {
         if let Some(current) = &self.owner {
             if current.client != candidate.client && owner_alive(current.pid) {
                 return Err(current.clone());
             }
-            if current.client == candidate.client {
-                return Ok(self.owner.as_ref().expect("owner present"));
-            }
         }
-        Ok(self.owner.insert(candidate))
+        self.revoked = None;
+        match &self.owner {
+            Some(current) if current.client == candidate.client => Ok(current.clone()),
+            _ => Ok(self.owner.insert(candidate).clone()),
+        }
     }
 
-    /// Ends the ownership of `client`; `false` if it was not the owner.
+    /// Ends the ownership of `client`; `false` if it was not the owner. A
+    /// revoked ticker's release is accepted (and forgets the revocation).
     pub fn release(&mut self, client: UniqueClientId) -> bool {
+        if self.revoked_by(client).is_some() {
+            self.revoked = None;
+            return true;
+        }
         if self.is_owner(client) {
             self.owner = None;
             true
         } else {
             false
         }
+    }
+
+    /// Ends the current ownership because `by` left synchronous mode;
+    /// returns the owner it ended.
+    pub fn revoke(&mut self, by: TickerInfo) -> Option<Owner> {
+        let owner = self.owner.take()?;
+        self.revoked = Some((owner.client, by));
+        Some(owner)
+    }
+
+    /// Who ended `client`'s ownership, if it was revoked.
+    pub fn revoked_by(&self, client: UniqueClientId) -> Option<TickerInfo> {
+        self.revoked
+            .as_ref()
+            .filter(|(revoked, _)| *revoked == client)
+            .map(|(_, by)| *by)
     }
 
     /// Removes and returns the owner if `owner_alive` says its process died.

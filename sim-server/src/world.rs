@@ -3,6 +3,7 @@
 
 use rapier3d::control::{DynamicRayCastVehicleController, WheelTuning};
 use rapier3d::prelude::*;
+use shared_types::limits::{MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION};
 use shared_types::{ActorKind, ActorState, Command, CommandKind, CommandResult, CommandStatus};
 
 use crate::clock::SubstepPlan;
@@ -39,8 +40,6 @@ const MAX_ENGINE_FORCE: f32 = 300.0;
 const MAX_BRAKE: f32 = 40.0;
 /// Front-wheel angle at full steer, radians.
 const MAX_STEER: f32 = 0.5;
-/// The largest size or distance a command may carry, metres.
-const MAX_EXTENT: f32 = 1000.0;
 
 /// The rapier world and its actors, in id order.
 pub struct World {
@@ -49,6 +48,8 @@ pub struct World {
     vehicles: Vec<Vehicle>,
     /// Bodies given a one-frame force or torque, cleared after the frame.
     pushed: Vec<RigidBodyHandle>,
+    /// The id of this world's first actor (the scene's first placement).
+    first_id: u64,
     next_id: u64,
 }
 
@@ -75,14 +76,18 @@ fn result(actor: u64, status: CommandStatus) -> CommandResult {
 }
 
 impl World {
-    /// A world holding `placements`. Actor ids start at 1 in their order.
-    pub fn new(placements: &[Placement]) -> Self {
+    /// A world holding `placements`, with actor ids from `first_id` in
+    /// their order. A server passes the previous world's
+    /// [`World::next_id`], so ids are never reused within its life.
+    pub fn new(placements: &[Placement], first_id: u64) -> Self {
+        let first_id = first_id.max(1);
         let mut world = Self {
             physics: PhysicsWorld::new(),
             actors: Vec::new(),
             vehicles: Vec::new(),
             pushed: Vec::new(),
-            next_id: 1,
+            first_id,
+            next_id: first_id,
         };
         for placement in placements {
             world.insert(placement);
@@ -115,6 +120,16 @@ impl World {
             });
         }
         id
+    }
+
+    /// The id of this world's first actor.
+    pub fn first_id(&self) -> u64 {
+        self.first_id
+    }
+
+    /// The id the next actor will get.
+    pub fn next_id(&self) -> u64 {
+        self.next_id
     }
 
     /// Number of actors.
@@ -212,8 +227,8 @@ impl World {
             _ => (ActorKind::Vehicle, VEHICLE_HALF_EXTENTS),
         };
         let position = command.vector;
-        if extent.iter().any(|e| !(*e > 0.0 && *e <= MAX_EXTENT))
-            || position.iter().any(|p| p.abs() > MAX_EXTENT * 100.0)
+        if extent.iter().any(|e| !(*e > 0.0 && *e <= MAX_ACTOR_EXTENT))
+            || position.iter().any(|p| p.abs() > MAX_ACTOR_POSITION)
         {
             return result(0, CommandStatus::InvalidArgument);
         }
@@ -400,7 +415,7 @@ mod tests {
 
     #[test]
     fn ids_follow_scene_order_from_one() {
-        let world = World::new(&Scene::Default.placements(0));
+        let world = World::new(&Scene::Default.placements(0), 1);
         let ids: Vec<u64> = (0..world.actor_count())
             .map(|i| world.actor_state(i).id)
             .collect();
@@ -409,7 +424,7 @@ mod tests {
 
     #[test]
     fn things_fall_under_gravity() {
-        let mut world = World::new(&Scene::Default.placements(0));
+        let mut world = World::new(&Scene::Default.placements(0), 1);
         let capsule = (0..world.actor_count())
             .find(|&i| world.actor_state(i).kind == ActorKind::Capsule as u32)
             .unwrap();
@@ -427,7 +442,7 @@ mod tests {
     #[test]
     fn same_steps_give_identical_states() {
         let run = || {
-            let mut world = World::new(&Scene::Boxes(50).placements(0));
+            let mut world = World::new(&Scene::Boxes(50).placements(0), 1);
             let plan = fixed_plan(0.02);
             for _ in 0..100 {
                 world.step(&plan);
@@ -445,7 +460,7 @@ mod tests {
 
     #[test]
     fn spawned_ids_are_new_and_never_reused() {
-        let mut world = World::new(&Scene::Empty.placements(0));
+        let mut world = World::new(&Scene::Empty.placements(0), 1);
         let a = world.apply(&Command::spawn_box([0.0, 1.0, 0.0], [0.5; 3]));
         let b = world.apply(&Command::spawn_sphere([2.0, 1.0, 0.0], 0.5));
         assert_eq!((a.actor, b.actor), (1, 2));
@@ -462,7 +477,7 @@ mod tests {
 
     #[test]
     fn bad_commands_are_refused_and_change_nothing() {
-        let mut world = World::new(&Scene::Default.placements(0));
+        let mut world = World::new(&Scene::Default.placements(0), 1);
         let before: Vec<_> = (0..world.actor_count())
             .map(|i| world.actor_state(i))
             .collect();
@@ -514,7 +529,7 @@ mod tests {
 
     #[test]
     fn forces_last_one_frame_and_impulses_act_at_once() {
-        let mut world = World::new(&Scene::Empty.placements(0));
+        let mut world = World::new(&Scene::Empty.placements(0), 1);
         let id = world
             .apply(&Command::spawn_box([0.0, 10.0, 0.0], [0.5; 3]))
             .actor;
@@ -533,7 +548,7 @@ mod tests {
 
     #[test]
     fn a_vehicle_drives_forward_with_throttle_and_turns_with_steer() {
-        let mut world = World::new(&Scene::Empty.placements(0));
+        let mut world = World::new(&Scene::Empty.placements(0), 1);
         world.insert(&Placement {
             kind: ActorKind::Static,
             extent: Vector::new(100.0, 0.5, 100.0),

@@ -15,7 +15,10 @@ const FRAMES: u64 = 2000;
 
 /// The scripted commands of the scenario at `frame` (applied before it is
 /// stepped). `variant` changes one force, to show the digests notice.
-fn commands_at(frame: u64, variant: bool) -> Vec<Command> {
+/// Actors are named by their place in the episode (1 = its first actor):
+/// ids are never reused, so a reloaded scene's actors have new ids.
+fn commands_at(frame: u64, variant: bool, first_id: u64) -> Vec<Command> {
+    let id = |nth: u64| first_id + nth - 1;
     match frame {
         10 => vec![
             Command::spawn_box([3.0, 4.0, 2.0], [0.4, 0.4, 0.4]),
@@ -23,27 +26,28 @@ fn commands_at(frame: u64, variant: bool) -> Vec<Command> {
             Command::spawn_vehicle([-10.0, 1.0, 14.0]),
         ],
         50 => vec![Command::apply_impulse(
-            3,
+            id(3),
             [2.0, if variant { 3.1 } else { 3.0 }, 0.0],
         )],
         // The spawned vehicle is the first id after the scene's actors.
-        120 => vec![Command::vehicle_control(20, 0.8, 0.3, 0.0, false)],
+        120 => vec![Command::vehicle_control(id(20), 0.8, 0.3, 0.0, false)],
         400 => vec![
-            Command::apply_force(4, [0.0, 30.0, 5.0]),
-            Command::apply_torque(5, [0.0, 2.0, 0.0]),
+            Command::apply_force(id(4), [0.0, 30.0, 5.0]),
+            Command::apply_torque(id(5), [0.0, 2.0, 0.0]),
         ],
         900 => vec![Command::set_target_velocity(
-            19,
+            id(19),
             [0.0, 5.0, 0.0],
             [1.0, 0.0, 0.0],
         )],
-        1500 => vec![Command::vehicle_control(20, 0.0, 0.0, 1.0, true)],
+        1500 => vec![Command::vehicle_control(id(20), 0.0, 0.0, 1.0, true)],
         _ => Vec::new(),
     }
 }
 
-/// Ticks `FRAMES` frames through the scenario and returns every frame's digest.
-fn run_scenario(client: &mut Client, variant: bool) -> Vec<u64> {
+/// Ticks `FRAMES` frames through the scenario and returns the episode's
+/// first actor id and every frame's digest.
+fn run_scenario(client: &mut Client, variant: bool) -> (u64, Vec<u64>) {
     let mut ticker = client.claim_ticker().expect("claim");
     // The autopilot must be in the lockstep before the first step.
     let deadline = Instant::now() + T;
@@ -55,7 +59,7 @@ fn run_scenario(client: &mut Client, variant: bool) -> Vec<u64> {
     assert_eq!(first.frame(), 0, "the episode starts at frame 0");
     let mut digests = vec![first.digest()];
     for frame in 1..=FRAMES {
-        let commands = commands_at(frame, variant);
+        let commands = commands_at(frame, variant, first.header.first_actor_id);
         if !commands.is_empty() {
             let response = client.apply_batch_sync(&commands, false).expect("batch");
             assert!(
@@ -71,7 +75,7 @@ fn run_scenario(client: &mut Client, variant: bool) -> Vec<u64> {
         digests.push(snapshot.digest());
     }
     ticker.release().unwrap();
-    digests
+    (first.header.first_actor_id, digests)
 }
 
 struct World {
@@ -108,8 +112,8 @@ fn first_difference(a: &[u64], b: &[u64]) -> Option<usize> {
 fn the_same_scenario_is_bit_identical_across_processes_and_after_reload() {
     let mut a = world("det-a", "7");
     let mut b = world("det-b", "7");
-    let run_a = run_scenario(&mut a.client, false);
-    let run_b = run_scenario(&mut b.client, false);
+    let (first_a, run_a) = run_scenario(&mut a.client, false);
+    let (_, run_b) = run_scenario(&mut b.client, false);
     assert_eq!(run_a.len() as u64, FRAMES + 1);
     assert_eq!(
         first_difference(&run_a, &run_b),
@@ -119,7 +123,10 @@ fn the_same_scenario_is_bit_identical_across_processes_and_after_reload() {
 
     let report = a.client.reload_world(false).expect("reload");
     assert_eq!((report.frame, report.episode), (0, 2));
-    let again = run_scenario(&mut a.client, false);
+    let (first_again, again) = run_scenario(&mut a.client, false);
+    // The scenario's last spawn was the episode's 20th actor: the reloaded
+    // scene's ids come after every id the first episode used.
+    assert_eq!(first_again, first_a + 20, "actor ids are never reused");
     assert_eq!(
         first_difference(&run_a, &again),
         None,
@@ -129,7 +136,7 @@ fn the_same_scenario_is_bit_identical_across_processes_and_after_reload() {
 
     // The check can fail: one changed impulse changes every frame after it.
     b.client.reload_world(false).expect("reload");
-    let changed = run_scenario(&mut b.client, true);
+    let (_, changed) = run_scenario(&mut b.client, true);
     assert_eq!(first_difference(&run_a, &changed), Some(50));
 }
 
@@ -137,7 +144,7 @@ fn the_same_scenario_is_bit_identical_across_processes_and_after_reload() {
 fn a_changed_seed_changes_the_digests() {
     let mut a = world("seed-a", "7");
     let mut c = world("seed-c", "8");
-    let run_a = run_scenario(&mut a.client, false);
-    let run_c = run_scenario(&mut c.client, false);
+    let (_, run_a) = run_scenario(&mut a.client, false);
+    let (_, run_c) = run_scenario(&mut c.client, false);
     assert_eq!(first_difference(&run_a, &run_c), Some(0));
 }

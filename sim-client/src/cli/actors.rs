@@ -4,6 +4,7 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::Args;
+use shared_types::limits::MAX_ACTOR_POSITION;
 use shared_types::{ActorKind, Command, WorldName};
 use sim_client::{BatchError, Client, CommandError, LoadWorldError};
 
@@ -58,18 +59,15 @@ pub struct LoadArgs {
     json: bool,
 }
 
+/// `--at x,y,z`, within the reach of the world.
 fn parse_point(text: &str) -> Result<[f32; 3], Failure> {
-    let parts: Vec<f32> = text
-        .split(',')
-        .map(|p| p.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| Failure::Refused(anyhow!("--at takes x,y,z (three numbers), got '{text}'")))?;
-    match parts[..] {
-        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
-        _ => Err(Failure::Refused(anyhow!(
-            "--at takes x,y,z (three finite numbers), got '{text}'"
-        ))),
+    let point = super::numbers::<3>(text, "--at")?;
+    if point.iter().any(|v| v.abs() > MAX_ACTOR_POSITION) {
+        return Err(Failure::Refused(anyhow!(
+            "--at {text} is out of range: positions must be within +-{MAX_ACTOR_POSITION} m of the origin"
+        )));
     }
+    Ok(point)
 }
 
 fn command_failure(e: CommandError) -> Failure {
@@ -100,10 +98,14 @@ pub fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Result<()
     let response = client
         .apply_batch_sync(&[command], false)
         .map_err(|e| command_failure(e.into()))?;
-    let result = response.results[0];
     if let Some((_, status)) = response.errors().first() {
         return Err(Failure::Refused(anyhow!("spawn refused: {status}")));
     }
+    let Some(result) = response.results.first() else {
+        return Err(Failure::Runtime(anyhow!(
+            "the server answered the spawn without a result"
+        )));
+    };
     if args.json {
         println!(
             "{}",

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::Args;
-use shared_types::{WorldName, WorldSettings};
+use shared_types::{input, WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client};
 
 use crate::Failure;
@@ -13,14 +13,16 @@ use crate::Failure;
 #[derive(Debug, Args)]
 pub struct ConfigArgs {
     /// Fixed time-step in seconds (0 = variable step).
-    #[arg(long, value_name = "S", conflicts_with = "fps")]
+    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::seconds)]
     delta_seconds: Option<f64>,
 
     /// Fixed time-step as frames per simulated second (0 = variable step).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
     fps: Option<f64>,
 
-    /// Leave synchronous mode: the server stops waiting for ticks.
+    /// Leave synchronous mode: the server stops waiting for ticks. Anyone
+    /// may; it ends the ticker's ownership, and the ticker's next tick fails
+    /// naming this client. (Other changes are the ticker's while it ticks.)
     #[arg(long)]
     no_sync: bool,
 
@@ -37,11 +39,11 @@ pub struct ConfigArgs {
     substepping: bool,
 
     /// Longest physics substep in seconds.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::seconds)]
     max_substep_delta_time: Option<f64>,
 
     /// Most physics substeps per frame (1..=16).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::max_substeps)]
     max_substeps: Option<u32>,
 
     /// Print the settings (after any change).

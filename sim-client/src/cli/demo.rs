@@ -7,7 +7,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use shared_types::{ActorKind, ActorState, Command as SimCommand};
+use shared_types::{input, ActorKind, ActorState, Command as SimCommand, WorldName};
 use sim_client::process::ChildGuard;
 use sim_client::{Client, WorldSnapshot};
 
@@ -25,7 +25,7 @@ pub struct DemoArgs {
     scene: String,
 
     /// Fixed time-step of the server, in seconds.
-    #[arg(long, value_name = "S", default_value_t = 0.02)]
+    #[arg(long, value_name = "S", default_value_t = 0.02, allow_negative_numbers = true, value_parser = input::seconds)]
     delta_seconds: f64,
 
     /// The sim-server binary (default: next to this sim-client).
@@ -116,7 +116,57 @@ fn drive_cars(client: &Client, snapshot: &WorldSnapshot) -> Result<(), Failure> 
     Ok(())
 }
 
-pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
+/// Makes `command`'s process receive SIGTERM when this process dies, so a
+/// demo killed even with SIGKILL takes its server with it.
+fn die_with_parent(command: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    let parent = std::process::id();
+    // SAFETY: the closure runs in the forked child before exec and calls
+    // only async-signal-safe functions (prctl, getppid, _exit); it
+    // allocates nothing and touches no lock.
+    unsafe {
+        command.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The parent may have died before prctl took effect.
+            if libc::getppid() as u32 != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+}
+
+/// Connects to the demo server's world, giving up at once if the server
+/// exits (it refused its options, or the world is taken).
+fn connect(world: &str, server: &mut ChildGuard, timeout: Duration) -> Result<Client, Failure> {
+    let deadline = std::time::Instant::now() + timeout;
+    loop {
+        if let Some(status) = server.try_wait()? {
+            return Err(Failure::Runtime(anyhow!(
+                "the demo server exited at once ({status}); its message is above"
+            )));
+        }
+        let slice = deadline
+            .saturating_duration_since(std::time::Instant::now())
+            .min(Duration::from_millis(200));
+        match Client::connect(world, slice) {
+            // Another server may own the world: then ours exits at once.
+            Ok(client) if client.server_pid() != server.id() => {}
+            Ok(client) => return Ok(client),
+            Err(_) if std::time::Instant::now() < deadline => continue,
+            Err(e) => {
+                let status = server.stop()?;
+                return Err(anyhow!(e)
+                    .context(format!("the demo server did not come up ({status})"))
+                    .into());
+            }
+        }
+    }
+}
+
+pub fn run(world: Option<WorldName>, timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
     if !(args.delta_seconds.is_finite() && args.delta_seconds > 0.0) {
         return Err(Failure::Refused(anyhow!(
             "--delta-seconds must be a positive number of seconds"
@@ -124,20 +174,25 @@ pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
     }
     let interrupted = super::interrupted();
     let binary = server_binary(args.server)?;
-    let world = format!("demo-{}", std::process::id());
+    let world = world.map_or_else(
+        || format!("demo-{}", std::process::id()),
+        |w| w.as_str().to_owned(),
+    );
     let mut command = Command::new(&binary);
     command
         .args(["--world", &world, "--scene", &args.scene, "--realtime"])
-        .args(["--fixed-delta-seconds", &args.delta_seconds.to_string()])
+        .args(["--delta-seconds", &args.delta_seconds.to_string()])
         .stdin(Stdio::null())
         .stdout(Stdio::null());
     if std::env::var_os("RUST_LOG").is_none() {
         command.env("RUST_LOG", "warn");
     }
+    die_with_parent(&mut command);
     let child = command
         .spawn()
         .with_context(|| format!("starting {}", binary.display()))?;
     let mut server = ChildGuard::new(child, Duration::from_secs(3));
+    let mut client = connect(&world, &mut server, timeout)?;
     println!(
         "demo: started sim-server (pid {}) on world '{world}', scene {}, fixed step {} s at wall-clock speed",
         server.id(),
@@ -145,15 +200,6 @@ pub fn run(timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
         args.delta_seconds
     );
 
-    let mut client = match Client::connect(&world, timeout) {
-        Ok(client) => client,
-        Err(e) => {
-            let status = server.stop()?;
-            return Err(anyhow!(e)
-                .context(format!("the demo server did not come up ({status})"))
-                .into());
-        }
-    };
     let bar = std::io::IsTerminal::is_terminal(&std::io::stdout()).then(|| {
         let bar = ProgressBar::new(args.frames);
         bar.set_style(

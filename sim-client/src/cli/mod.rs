@@ -13,7 +13,10 @@ pub mod watch;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
+use anyhow::anyhow;
 use shared_types::WorldSettings;
+
+use crate::Failure;
 
 /// Set by Ctrl-C / SIGTERM; commands stop at their next check.
 pub fn interrupted() -> &'static AtomicBool {
@@ -25,6 +28,24 @@ pub fn interrupted() -> &'static AtomicBool {
             tracing::warn!("could not install the Ctrl-C handler: {e}");
         }
         flag
+    })
+}
+
+/// `N` comma-separated finite numbers, as a flag like `--at x,y,z` takes them.
+pub fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(()))
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            Failure::Refused(anyhow!(
+                "{flag} takes {N} comma-separated finite numbers, got '{text}'"
+            ))
+        })?;
+    values.try_into().map_err(|_| {
+        Failure::Refused(anyhow!(
+            "{flag} takes {N} comma-separated finite numbers, got '{text}'"
+        ))
     })
 }
 

@@ -42,15 +42,21 @@ impl Canvas {
         }
     }
 
-    /// Writes `number` at (x, y) in 2× scaled 3×5 digits.
-    fn number(&mut self, x: usize, y: usize, number: u32, value: u8) {
+    /// Writes `number` at (x, y) in 3×5 digits scaled `scale` times.
+    fn number(&mut self, x: usize, y: usize, number: u32, value: u8, scale: usize) {
         for (i, digit) in number.to_string().bytes().enumerate() {
-            let glyph = DIGITS[(digit - b'0') as usize];
+            let glyph = DIGITS[usize::from(digit - b'0')];
             for (row, bits) in glyph.iter().enumerate() {
                 for col in 0..3 {
                     if bits & (4 >> col) != 0 {
-                        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                            self.set(x + i * 8 + col * 2 + dx, y + row * 2 + dy, value);
+                        for dy in 0..scale {
+                            for dx in 0..scale {
+                                self.set(
+                                    x + i * 4 * scale + col * scale + dx,
+                                    y + row * scale + dy,
+                                    value,
+                                );
+                            }
                         }
                     }
                 }
@@ -58,29 +64,34 @@ impl Canvas {
         }
     }
 
-    /// A legend under the picture: a gradient from 0 to `max` metres with
-    /// labelled ticks, near = white.
+    /// A legend under the picture, [`legend_height`] high: a gradient from
+    /// 0 to `max` metres with labelled ticks, near = white. Digits grow
+    /// with the picture so they stay readable.
     fn legend(&mut self, top: usize, max: f32) {
-        let (left, right) = (8, self.width.saturating_sub(8));
-        let span = (right - left).max(1);
+        let scale = text_scale(self.width);
+        let (left, right) = (4 * scale, self.width.saturating_sub(4 * scale));
+        let span = right.saturating_sub(left).max(1);
+        let bar = 4 * scale;
         for x in left..right {
             let shade = 255 - (255 * (x - left) / span) as u8;
-            for y in top..top + 8 {
+            for y in top..top + bar {
                 self.set(x, y, shade);
             }
         }
         let ticks = 4;
         for t in 0..=ticks {
             let x = left + span * t / ticks;
-            for y in top + 8..top + 12 {
-                self.set(x, y, 255);
+            for y in top + bar..top + bar + 2 * scale {
+                for dx in 0..scale.div_ceil(2) {
+                    self.set(x + dx, y, 255);
+                }
             }
             let label = (max * t as f32 / ticks as f32).round() as u32;
-            let width = 8 * label.to_string().len();
+            let width = 4 * scale * label.to_string().len();
             let at = x
                 .saturating_sub(width / 2)
                 .min(self.width.saturating_sub(width));
-            self.number(at, top + 14, label, 255);
+            self.number(at, top + bar + 3 * scale, label, 255, scale);
         }
     }
 
@@ -94,31 +105,76 @@ impl Canvas {
     }
 }
 
-/// Height of the legend strip under a picture.
-const LEGEND: usize = 32;
+/// How many pixels a legend digit's dot is: 2 up to 320 pixels wide, then
+/// growing with the width.
+fn text_scale(width: usize) -> usize {
+    (width / 160).max(2)
+}
 
-/// A depth image as PNG: near white, far black, with a 0..`far` m legend.
+/// Height of the legend strip under a picture `width` pixels wide.
+fn legend_height(width: usize) -> usize {
+    let scale = text_scale(width);
+    4 * scale + 3 * scale + 5 * scale + 2 * scale
+}
+
+/// The legend's range for a depth image: the farthest hit below `far`,
+/// rounded up to a readable number (1, 2 or 5 × a power of ten).
+fn depth_range(depth: &[f32], far: f32) -> f32 {
+    let farthest = depth
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d < far)
+        .fold(0.0f32, f32::max);
+    if farthest <= 0.0 {
+        return far;
+    }
+    let power = 10f32.powf(farthest.log10().floor());
+    let nice = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * power)
+        .find(|v| *v >= farthest)
+        .unwrap_or(farthest);
+    nice.min(far)
+}
+
+/// A depth image as PNG: near white, far black, with a legend of the
+/// range the grey scale spans: `range`, or the farthest hit (rounded up).
+/// Returns that range.
 pub fn save_depth(
     path: &Path,
     depth: &[f32],
     width: usize,
     height: usize,
     far: f32,
-) -> anyhow::Result<()> {
-    let mut canvas = Canvas::new(width.max(96), height + LEGEND, 0);
+    range: Option<f32>,
+) -> anyhow::Result<f32> {
+    anyhow::ensure!(
+        width.checked_mul(height) == Some(depth.len()),
+        "the capture's header says {width}x{height} pixels but it holds {} values",
+        depth.len()
+    );
+    let range = match range {
+        Some(r) if r.is_finite() && r > 0.0 => r,
+        Some(r) => anyhow::bail!("--range must be a positive number of metres, got {r}"),
+        None => depth_range(depth, far),
+    };
+    let picture_width = width.max(96);
+    let legend = legend_height(picture_width);
+    let mut canvas = Canvas::new(picture_width, height + legend + 4, 0);
     for (i, d) in depth.iter().enumerate().take(width * height) {
-        let shade = 255.0 * (1.0 - (d / far).clamp(0.0, 1.0));
+        let shade = 255.0 * (1.0 - (d / range).clamp(0.0, 1.0));
         canvas.set(i % width, i / width, shade as u8);
     }
-    canvas.legend(height + 4, far);
-    canvas.save(path)
+    canvas.legend(height + 4, range);
+    canvas.save(path)?;
+    Ok(range)
 }
 
 /// A lidar scan seen from above as PNG (sensor at the centre, X up the
 /// image), brightness by distance, with a 0..`range` m legend.
 pub fn save_lidar_top_down(path: &Path, points: &[LidarPoint], range: f32) -> anyhow::Result<()> {
     let size = 400;
-    let mut canvas = Canvas::new(size, size + LEGEND, 0);
+    let mut canvas = Canvas::new(size, size + legend_height(size) + 4, 0);
     let scale = (size as f32 / 2.0) / range;
     for p in points {
         let distance = (p.x * p.x + p.z * p.z).sqrt();

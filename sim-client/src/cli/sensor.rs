@@ -1,11 +1,11 @@
 //! `sim-client sensor spawn | list | watch`.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use anyhow::anyhow;
+use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
-use shared_types::{SensorKind, SensorSpec, WorldName};
-use sim_client::{Capture, Client, SensorError};
+use shared_types::{input, SensorKind, SensorSpec, WorldName};
+use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
 
 use crate::Failure;
 
@@ -33,14 +33,16 @@ enum SensorCommand {
     },
 }
 
+/// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
 #[derive(Debug, Args)]
 struct SpawnArgs {
-    /// depth (640x480, 90° fov, 100 m), lidar (32 x 512, 50 m, +10°..-30°) or imu.
+    /// depth, lidar or imu.
     kind: String,
-    /// Actor to ride on (default: fixed in the world).
+    /// Actor to ride on (default: fixed in the world). The sensor is
+    /// destroyed with it.
     #[arg(long, value_name = "ID", default_value_t = 0)]
     attach: u64,
-    /// Position relative to the actor (or the world), x,y,z.
+    /// Position relative to the actor (or the world), x,y,z in metres.
     #[arg(
         long,
         value_name = "X,Y,Z",
@@ -48,16 +50,41 @@ struct SpawnArgs {
         allow_hyphen_values = true
     )]
     at: String,
+    /// Orientation relative to the actor (or the world): yaw (about Y,
+    /// positive turns X toward -Z, i.e. left), pitch (about Z, positive
+    /// looks up), roll (about X), in degrees.
+    #[arg(
+        long,
+        value_name = "YAW,PITCH,ROLL",
+        default_value = "0,0,0",
+        allow_hyphen_values = true
+    )]
+    rotation: String,
     /// Capture period in simulation seconds (0: every frame).
-    #[arg(long, value_name = "S", default_value_t = 0.0)]
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true, value_parser = input::seconds)]
     sensor_tick: f64,
-    /// Depth: image width and height.
-    #[arg(long, value_name = "W,H", default_value = "640,480")]
-    size: String,
+    /// Depth: image width and height in pixels [default: 640,480].
+    #[arg(long, value_name = "W,H")]
+    size: Option<String>,
+    /// Depth: horizontal field of view in degrees [default: 90].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    fov: Option<f32>,
+    /// Depth: far range; lidar: range, in metres [default: depth 100, lidar 50].
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    range: Option<f32>,
+    /// Lidar: channels (rings) [default: 32].
+    #[arg(long, value_name = "N")]
+    channels: Option<u32>,
+    /// Lidar: points per channel in a full turn [default: 512].
+    #[arg(long, value_name = "N")]
+    points: Option<u32>,
+    /// Lidar: elevation of the top and bottom channels, degrees [default: 10,-30].
+    #[arg(long, value_name = "UPPER,LOWER", allow_hyphen_values = true)]
+    fov_range: Option<String>,
     /// Lidar: turns per simulated second; each capture covers hz × dt of a
-    /// turn (0: a full turn every capture).
-    #[arg(long, value_name = "HZ", default_value_t = 0.0)]
-    rotation_frequency: f32,
+    /// turn (0: a full turn every capture) [default: 0].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    rotation_frequency: Option<f32>,
     /// Print {"id": N, ...}.
     #[arg(long)]
     json: bool,
@@ -92,27 +119,14 @@ struct SaveArgs {
     id: u64,
     /// How many captures to save.
     #[arg(long, value_name = "N", default_value_t = 1)]
-    frames: u64,
+    captures: u64,
     /// Directory to write into (created if missing).
     #[arg(long, value_name = "DIR")]
     out: std::path::PathBuf,
-}
-
-fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
-    let values: Vec<f32> = text
-        .split(',')
-        .map(|p| p.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| {
-            Failure::Refused(anyhow!(
-                "{flag} takes {N} comma-separated numbers, got '{text}'"
-            ))
-        })?;
-    values.try_into().map_err(|_| {
-        Failure::Refused(anyhow!(
-            "{flag} takes {N} comma-separated numbers, got '{text}'"
-        ))
-    })
+    /// Depth: the range the picture's grey scale spans, metres (default:
+    /// the farthest hit in the image, so a 20 m scene is not all white).
+    #[arg(long, value_name = "M")]
+    range: Option<f32>,
 }
 
 fn failure(e: SensorError) -> Failure {
@@ -137,16 +151,24 @@ pub fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(),
                             "sensor_tick": s.spec.sensor_tick, "captures": s.captures})
                     );
                 } else {
+                    let on = match s.spec.attach_to {
+                        0 => "in the world".to_owned(),
+                        id => format!("on actor {id}"),
+                    };
+                    let every = match s.spec.sensor_tick {
+                        0.0 => "every frame".to_owned(),
+                        t => format!("every {} s", seconds_text(t)),
+                    };
                     println!(
-                        "sensor {:>3}  {kind:<5}  on actor {:<4} every {} s  {} captures",
-                        s.id, s.spec.attach_to, s.spec.sensor_tick, s.captures
+                        "sensor {:>3}  {kind:<5}  {on:<14} {every}  {} captures",
+                        s.id, s.captures
                     );
                 }
             }
             Ok(())
         }
-        SensorCommand::Watch(a) => watch(&client, a),
-        SensorCommand::Save(a) => save(&client, a),
+        SensorCommand::Watch(a) => watch(&client, a, timeout),
+        SensorCommand::Save(a) => save(&client, a, timeout),
         SensorCommand::Destroy { id } => {
             client.destroy_sensor(id).map_err(failure)?;
             println!("destroyed sensor {id}");
@@ -155,26 +177,99 @@ pub fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(),
     }
 }
 
-fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
-    let at = numbers::<3>(&a.at, "--at")?;
-    let spec = match SensorKind::from_name(&a.kind) {
-        Some(SensorKind::Depth) => {
-            let [w, h] = numbers::<2>(&a.size, "--size")?;
-            SensorSpec::depth(at, w as u32, h as u32, 90.0, 100.0)
-        }
-        Some(SensorKind::Lidar) => {
-            SensorSpec::lidar(at, 32, 512, 50.0, 10.0, -30.0).rotating(a.rotation_frequency)
-        }
-        Some(SensorKind::Imu) => SensorSpec::imu(at),
-        None => {
+/// A unit quaternion (x, y, z, w) from yaw about Y, pitch about Z and
+/// roll about X, in degrees, applied in that order (yaw outermost).
+fn quaternion(yaw: f32, pitch: f32, roll: f32) -> [f32; 4] {
+    let half = |deg: f32| (deg.to_radians() / 2.0).sin_cos();
+    let (sy, cy) = half(yaw);
+    let (sp, cp) = half(pitch);
+    let (sr, cr) = half(roll);
+    // q = q_yaw(Y) * q_pitch(Z) * q_roll(X)
+    let mul = |a: [f32; 4], b: [f32; 4]| {
+        let [ax, ay, az, aw] = a;
+        let [bx, by, bz, bw] = b;
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    };
+    mul(mul([0.0, sy, 0.0, cy], [0.0, 0.0, sp, cp]), [sr, 0.0, 0.0, cr])
+}
+
+/// Refuses a flag that does not belong to `kind`.
+fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(), Failure> {
+    for (flag, present, kinds) in given {
+        if *present && !kinds.contains(&kind) {
+            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
             return Err(Failure::Refused(anyhow!(
-                "unknown sensor kind '{}': expected depth, lidar or imu",
-                a.kind
-            )))
+                "{flag} applies to {} sensors, not to {}",
+                names.join(" and "),
+                kind.name()
+            )));
         }
+    }
+    Ok(())
+}
+
+fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
+    use SensorKind::{Depth, Lidar};
+    let at = super::numbers::<3>(&a.at, "--at")?;
+    let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
+    let Some(kind) = SensorKind::from_name(&a.kind) else {
+        return Err(Failure::Refused(anyhow!(
+            "unknown sensor kind '{}': expected depth, lidar or imu",
+            a.kind
+        )));
+    };
+    only_for(
+        kind,
+        &[
+            ("--size", a.size.is_some(), &[Depth]),
+            ("--fov", a.fov.is_some(), &[Depth]),
+            ("--range", a.range.is_some(), &[Depth, Lidar]),
+            ("--channels", a.channels.is_some(), &[Lidar]),
+            ("--points", a.points.is_some(), &[Lidar]),
+            ("--fov-range", a.fov_range.is_some(), &[Lidar]),
+            ("--rotation-frequency", a.rotation_frequency.is_some(), &[Lidar]),
+        ],
+    )?;
+    let mut spec = match kind {
+        SensorKind::Depth => {
+            let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
+            SensorSpec::depth(
+                at,
+                w as u32,
+                h as u32,
+                a.fov.unwrap_or(90.0),
+                a.range.unwrap_or(100.0),
+            )
+        }
+        SensorKind::Lidar => {
+            let [upper, lower] = super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
+            SensorSpec::lidar(
+                at,
+                a.channels.unwrap_or(32),
+                a.points.unwrap_or(512),
+                a.range.unwrap_or(50.0),
+                upper,
+                lower,
+            )
+            .rotating(a.rotation_frequency.unwrap_or(0.0))
+        }
+        SensorKind::Imu => SensorSpec::imu(at),
     }
     .attached_to(a.attach)
     .every(a.sensor_tick);
+    // Whole-number checks happen on the spec; a fractional size must not
+    // be truncated into a valid one first.
+    if let Some(size) = &a.size {
+        let [w, h] = super::numbers::<2>(size, "--size")?;
+        spec.params[0] = w;
+        spec.params[1] = h;
+    }
+    spec.rotation = quaternion(yaw, pitch, roll);
     let sensor = client.spawn_sensor(spec).map_err(failure)?;
     if a.json {
         println!(
@@ -185,6 +280,15 @@ fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
         println!("spawned {} sensor {}", a.kind, sensor.id());
     }
     Ok(())
+}
+
+/// Seconds as people read them: 0.05, 2, 1e300 (not 301 digits).
+fn seconds_text(seconds: f64) -> String {
+    if seconds != 0.0 && !(1e-4..1e6).contains(&seconds.abs()) {
+        format!("{seconds:e}")
+    } else {
+        format!("{seconds}")
+    }
 }
 
 fn print_capture(capture: &Capture, missed: u64, json: bool) {
@@ -211,20 +315,20 @@ fn print_capture(capture: &Capture, missed: u64, json: bool) {
     }
 }
 
-fn watch(client: &Client, a: WatchArgs) -> Result<(), Failure> {
+/// Every wait of `sensor watch` honours --timeout: no capture (or frame)
+/// within it is an error, and so is the sensor's end.
+fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure> {
     let interrupted = super::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     let running = || !interrupted.load(std::sync::atomic::Ordering::Relaxed);
     let mut seen = 0;
     if a.lockstep {
         // Follow every frame: read its captures, then report it done.
-        let mut frames = Client::connect(client.world().as_str(), Duration::from_secs(5))?;
+        let mut frames = Client::connect(client.world().as_str(), timeout)?;
         let participant = frames.join_lockstep("sensor-watch")?;
         while a.captures.is_none_or(|n| seen < n) && running() {
-            let snapshot = match frames.wait_for_tick(Duration::from_millis(200)) {
-                Ok(s) => s,
-                Err(sim_client::WaitError::Timeout { .. }) => continue,
-                Err(e) => return Err(anyhow!(e).into()),
+            let Some(snapshot) = super::watch::next_frame(&mut frames, timeout)? else {
+                break;
             };
             while let Some(capture) = sensor.try_recv()? {
                 print_capture(&capture, sensor.missed(), a.json);
@@ -235,10 +339,8 @@ fn watch(client: &Client, a: WatchArgs) -> Result<(), Failure> {
         return Ok(());
     }
     while a.captures.is_none_or(|n| seen < n) && running() {
-        let capture = match sensor.recv(Duration::from_millis(200)) {
-            Ok(c) => c,
-            Err(sim_client::WaitError::Timeout { .. }) => continue,
-            Err(e) => return Err(anyhow!(e).into()),
+        let Some(capture) = next_capture(&mut sensor, timeout)? else {
+            break;
         };
         print_capture(&capture, sensor.missed(), a.json);
         seen += 1;
@@ -246,35 +348,72 @@ fn watch(client: &Client, a: WatchArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-fn save(client: &Client, a: SaveArgs) -> Result<(), Failure> {
-    std::fs::create_dir_all(&a.out)?;
+/// The next capture within `timeout`, waiting in slices so Ctrl-C is
+/// noticed; `None` when interrupted.
+fn next_capture(sensor: &mut Sensor, timeout: Duration) -> Result<Option<Capture>, WaitError> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(Duration::from_millis(200));
+        match sensor.recv(slice) {
+            Err(WaitError::NoCapture { .. }) if Instant::now() < deadline => continue,
+            Err(WaitError::NoCapture {
+                sensor,
+                world,
+                last_frame,
+                ..
+            }) => {
+                return Err(WaitError::NoCapture {
+                    sensor,
+                    world,
+                    timeout,
+                    last_frame,
+                })
+            }
+            other => return other.map(Some),
+        }
+    }
+}
+
+fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("creating the directory {}", a.out.display()))?;
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     let params = sensor.spec().params;
-    for _ in 0..a.frames {
-        let capture = sensor.recv(Duration::from_secs(30))?;
+    for _ in 0..a.captures {
+        let Some(capture) = next_capture(&mut sensor, timeout)? else {
+            break;
+        };
         let h = *capture.header();
         let stem = a
             .out
             .join(format!("sensor{}-frame{}", h.sensor_id, h.frame));
         if let Some(depth) = capture.depth() {
             let path = stem.with_extension("png");
-            super::pictures::save_depth(
+            let range = super::pictures::save_depth(
                 &path,
                 depth,
                 h.size[0] as usize,
                 h.size[1] as usize,
                 params[3],
-            )?;
+                a.range,
+            )
+            .with_context(|| format!("writing {}", path.display()))?;
             println!(
-                "wrote {} (depth, white = near, legend 0..{} m)",
+                "wrote {} (depth, white = near, legend 0..{range} m)",
                 path.display(),
-                params[3]
             );
         } else if let Some(points) = capture.points() {
             let ply = stem.with_extension("ply");
-            super::pictures::save_ply(&ply, points)?;
+            super::pictures::save_ply(&ply, points)
+                .with_context(|| format!("writing {}", ply.display()))?;
             let png = stem.with_extension("png");
-            super::pictures::save_lidar_top_down(&png, points, params[2])?;
+            super::pictures::save_lidar_top_down(&png, points, params[2])
+                .with_context(|| format!("writing {}", png.display()))?;
             println!(
                 "wrote {} and {} ({} points)",
                 ply.display(),

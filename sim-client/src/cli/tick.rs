@@ -6,8 +6,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::Args;
-use shared_types::{WorldName, WorldSettings};
-use sim_client::{ApplySettingsError, Client, Ticker, WaitMode};
+use shared_types::{input, WorldName, WorldSettings};
+use sim_client::{ApplySettingsError, Client, TickError, Ticker, WaitMode};
 
 use crate::Failure;
 
@@ -22,20 +22,26 @@ pub struct TickArgs {
     count: Option<u64>,
 
     /// At most HZ ticks per wall-clock second (default: as fast as possible).
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rate)]
     rate: Option<f64>,
 
     /// Stop once simulation time reaches S seconds.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::sim_time)]
     until_sim_time: Option<f64>,
 
     /// Fixed time-step in seconds (default: the world's, else 0.05).
-    #[arg(long, value_name = "S", conflicts_with = "fps")]
+    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::seconds)]
     delta_seconds: Option<f64>,
 
     /// Fixed time-step as frames per simulated second.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
     fps: Option<f64>,
+
+    /// Before the first tick, wait (up to --timeout) until N lockstep
+    /// participants (autopilot, `watch --lockstep`, ...) have joined, so
+    /// none misses the first frame.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    participants: u32,
 
     /// Accept a variable step in synchronous mode (dt = the ticker's wait; not recommended).
     #[arg(long)]
@@ -60,22 +66,6 @@ pub struct TickArgs {
 }
 
 impl TickArgs {
-    fn check(&self) -> Result<(), Failure> {
-        let positive = |value: Option<f64>, flag: &str| match value {
-            Some(v) if !(v.is_finite() && v > 0.0) => Err(Failure::Refused(anyhow!(
-                "{flag} must be a positive number, got {v}"
-            ))),
-            _ => Ok(()),
-        };
-        positive(self.rate, "--rate")?;
-        match self.until_sim_time {
-            Some(v) if !(v.is_finite() && v >= 0.0) => Err(Failure::Refused(anyhow!(
-                "--until-sim-time must be a number >= 0, got {v}"
-            ))),
-            _ => Ok(()),
-        }
-    }
-
     /// The fixed step to tick with; `None` is a variable step.
     fn delta(&self, current: &WorldSettings) -> Result<Option<f64>, Failure> {
         let delta = match (self.delta_seconds, self.fps) {
@@ -102,23 +92,30 @@ fn refused_or_runtime(e: ApplySettingsError) -> Failure {
 }
 
 pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
-    args.check()?;
     let interrupted = super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let current = client.get_settings()?;
     let delta = args.delta(&current)?;
-    let mut ticker = client.claim_ticker_as(NODE_NAME)?;
-    if args.spin {
-        ticker.set_wait_mode(WaitMode::Spin);
-    } else if args.hybrid {
-        ticker.set_wait_mode(WaitMode::Hybrid);
+    if args.count == Some(0) {
+        eprintln!("tick: --count 0: nothing to do; the world is unchanged");
+        return Ok(());
     }
     let sync = WorldSettings {
         synchronous_mode: true,
         fixed_delta_seconds: delta,
         ..current
     };
+    // Refuse bad input before anything changes, ownership included.
+    sync.validate()
+        .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
+    wait_for_participants(&client, args.participants, timeout)?;
+    let mut ticker = client.claim_ticker_as(NODE_NAME)?;
+    if args.spin {
+        ticker.set_wait_mode(WaitMode::Spin);
+    } else if args.hybrid {
+        ticker.set_wait_mode(WaitMode::Hybrid);
+    }
     let from = ticker.apply_settings(sync).map_err(refused_or_runtime)?;
     match delta {
         Some(dt) => eprintln!(
@@ -132,21 +129,31 @@ pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), F
         eprintln!("tick: warning: {warning}");
     }
 
-    let result = tick_loop(&mut ticker, timeout, &args, interrupted);
+    let result = match tick_loop(&mut ticker, timeout, &args, interrupted) {
+        Err(revoked @ TickError::Revoked { .. }) => {
+            // Ownership is gone and the world already left synchronous
+            // mode: nothing to put back.
+            let _ = ticker.release();
+            return Err(Failure::Runtime(revoked.into()));
+        }
+        other => other,
+    };
+    // Put back the settings this run changed: the world's own step and
+    // asynchronous mode (or stay synchronous with --leave-sync).
     let restore = if args.leave_sync {
         Ok(())
     } else {
-        let async_settings = WorldSettings {
+        let before = WorldSettings {
             synchronous_mode: false,
-            ..sync
+            ..current
         };
         ticker
-            .apply_settings(async_settings)
+            .apply_settings(before)
             .map(|_| ())
-            .map_err(|e| anyhow!(e).context("returning the world to asynchronous mode"))
+            .map_err(|e| anyhow!(e).context("restoring the world's settings"))
     };
     let release = ticker.release().map_err(|e| anyhow!(e));
-    let ticks = result?;
+    let ticks = result.map_err(anyhow::Error::from)?;
     restore?;
     release?;
     eprintln!(
@@ -154,10 +161,31 @@ pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), F
         if args.leave_sync {
             "synchronous"
         } else {
-            "asynchronous"
+            "asynchronous, with its settings as before"
         }
     );
     Ok(())
+}
+
+/// Waits until at least `count` lockstep participants have joined.
+fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> Result<(), Failure> {
+    if count == 0 {
+        return Ok(());
+    }
+    let deadline = Instant::now() + timeout;
+    loop {
+        let joined = client.status()?.participants;
+        if joined >= count {
+            return Ok(());
+        }
+        if Instant::now() >= deadline {
+            return Err(Failure::Runtime(anyhow!(
+                "only {joined} of {count} lockstep participants joined within {timeout:?}"
+            )));
+        }
+        // Joins are rare and this runs once: a short poll of the status.
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
@@ -166,7 +194,8 @@ fn tick_loop(
     timeout: Duration,
     args: &TickArgs,
     interrupted: &std::sync::atomic::AtomicBool,
-) -> anyhow::Result<u64> {
+) -> Result<u64, TickError> {
+    // --rate was checked to give a period a clock can wait for.
     let period = args.rate.map(|hz| Duration::from_secs_f64(1.0 / hz));
     let until_ns = args.until_sim_time.map(shared_types::seconds_to_nanos);
     let mut next_at = Instant::now();

@@ -31,8 +31,17 @@ pub struct WatchArgs {
 
     /// Print `frame F digest D` per frame (the digest covers the frame's
     /// time and every actor's state, bit for bit): `diff` two runs' output.
+    /// A frame this watcher did not see is printed as a `missed` line, and
+    /// the command then exits 1: a digest list with gaps proves nothing.
     #[arg(long)]
     digest: bool,
+
+    /// Join the lockstep: in synchronous mode the server waits for this
+    /// watcher every frame, so it sees every frame however fast the ticker
+    /// ticks (use it with --digest). If the server drops it (it stopped
+    /// reading for longer than --lockstep-timeout) it says so and exits 1.
+    #[arg(long)]
+    lockstep: bool,
 }
 
 /// The JSON object of one frame.
@@ -104,19 +113,34 @@ pub fn next_frame(
 pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
     super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
     if args.spin {
         client.set_wait_mode(WaitMode::Spin);
     }
     client.set_every_frame(args.every_frame);
-    let mut seen = 0;
+    let participant = if args.lockstep {
+        Some(client.join_lockstep("watch")?)
+    } else {
+        None
+    };
+    let (mut seen, mut missed) = (0, 0);
     while args.frames.is_none_or(|n| seen < n) {
         let Some(snapshot) = next_frame(&mut client, timeout)? else {
             break;
         };
         seen += 1;
+        missed += snapshot.missed;
         if args.json {
             println!("{}", frame_json(&snapshot));
         } else if args.digest {
+            if snapshot.missed > 0 {
+                println!(
+                    "missed {} frames ({}..={})",
+                    snapshot.missed,
+                    snapshot.frame() - snapshot.missed,
+                    snapshot.frame() - 1
+                );
+            }
             println!(
                 "frame {} digest {:016x}",
                 snapshot.frame(),
@@ -125,6 +149,15 @@ pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), 
         } else {
             println!("{}", frame_line(&snapshot));
         }
+        if let Some(participant) = &participant {
+            participant.done(snapshot.episode(), snapshot.frame())?;
+        }
+    }
+    if args.digest && missed > 0 {
+        return Err(Failure::Runtime(anyhow::anyhow!(
+            "missed {missed} frames, so the digests have gaps; in synchronous mode add \
+             --lockstep so the server waits for this watcher"
+        )));
     }
     Ok(())
 }

@@ -10,9 +10,9 @@ use iceoryx2::port::listener::ListenerWaitError;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::ipc;
 use shared_types::{
-    CommandResult, FixedText, FrameHeader, ResponseStatus, ServiceNames, SettingsError,
-    StatusReport, TickRequest, TickResponse, Timestamp, WireSettings, WorldName, WorldSettings,
-    PROTOCOL_VERSION,
+    CommandResult, FixedText, FrameHeader, ResponseStatus, SensorEnd, ServiceNames,
+    SettingsError, StatusReport, TickRequest, TickResponse, TickerInfo, Timestamp, WireSettings,
+    WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 
@@ -95,6 +95,10 @@ const WARN_PERIOD: Duration = Duration::from_secs(5);
 const CONNECTION_PERIOD: Duration = Duration::from_millis(10);
 /// How often the server checks that the ticker's process still lives.
 const TICKER_LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+/// A tick held up by a lockstep participant this long is told which one,
+/// and how long the server will wait for it, so the ticker's own timeout
+/// can wait that long too.
+const WAIT_NOTICE_AFTER: Duration = Duration::from_millis(200);
 
 /// A tick request waiting for its frame.
 type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
@@ -133,6 +137,8 @@ pub struct Server {
     names: ServiceNames,
     /// Since when a tick waits for lockstep participants.
     waiting_for_participants_since: Option<Instant>,
+    /// Whether the waiting tick was told which participant it waits for.
+    ticker_told_of_wait: bool,
     last_liveness_check: Instant,
     last_connection_update: Instant,
 }
@@ -152,7 +158,7 @@ impl Server {
         for warning in settings.warnings() {
             warn!("{warning}");
         }
-        let world = World::new(&config.scene.placements(config.seed));
+        let world = World::new(&config.scene.placements(config.seed), 1);
         let ports = ServerPorts::open(&config.world, world.actor_count())?;
         let now = Instant::now();
         let mut server = Self {
@@ -170,6 +176,7 @@ impl Server {
             frames_computed: 0,
             sensors: Sensors::default(),
             waiting_for_participants_since: None,
+            ticker_told_of_wait: false,
             names: ServiceNames::new(&config.world),
             last_liveness_check: now,
             last_connection_update: now,
@@ -213,6 +220,7 @@ impl Server {
                 if !ticked || !self.participants.all_done(self.clock.frame()) {
                     if ticked {
                         self.drop_late_participants(now);
+                        self.tell_ticker_who_it_waits_for(now);
                     }
                     let just_stepped =
                         self.clock.last_frame_at().elapsed() < self.config.spin_window;
@@ -223,6 +231,7 @@ impl Server {
                     }
                 } else {
                     self.waiting_for_participants_since = None;
+                    self.ticker_told_of_wait = false;
                     self.step_frame(now, 1)?;
                 }
                 continue;
@@ -233,6 +242,9 @@ impl Server {
                 _ => self.step_frame(now, self.pending_steps.len())?,
             }
         }
+        // Readers of the sensors learn why their stream ended.
+        self.sensors
+            .end_all(SensorEnd::ServerStopped, self.clock.frame(), self.episode);
         let summary = RunSummary {
             frames: self.frames_computed - first_frame,
             wall_seconds: started.elapsed().as_secs_f64(),
@@ -385,6 +397,7 @@ impl Server {
             settings: self.settings.into(),
             physics_substeps,
             flags,
+            first_actor_id: self.world.first_id(),
         };
         let world = &self.world;
         let sample = sample.write_from_fn(|i| world.actor_state(i));
@@ -410,6 +423,7 @@ impl Server {
             return;
         }
         self.waiting_for_participants_since = None;
+        self.ticker_told_of_wait = false;
         for late in self.participants.drop_not_done(self.clock.frame()) {
             warn!(
                 pid = late.pid,
@@ -421,12 +435,57 @@ impl Server {
         }
     }
 
+    /// Once a tick has waited [`WAIT_NOTICE_AFTER`] for lockstep
+    /// participants, sends the ticker an interim answer naming the first it
+    /// waits for and the lockstep timeout. Off the hot path: a tick that is
+    /// not held up sends nothing.
+    fn tell_ticker_who_it_waits_for(&mut self, now: Instant) {
+        let Some(since) = self.waiting_for_participants_since else {
+            return;
+        };
+        if self.ticker_told_of_wait || now.duration_since(since) < WAIT_NOTICE_AFTER {
+            return;
+        }
+        self.ticker_told_of_wait = true;
+        let Some(late) = self.participants.first_not_done(self.clock.frame()) else {
+            return;
+        };
+        let waiting_for = TickerInfo {
+            active: 1,
+            pid: late.pid,
+            since_frame: self.clock.frame(),
+            node_name: FixedText::new(&late.name),
+        };
+        info!(
+            pid = late.pid,
+            name = %late.name,
+            frame = self.clock.frame(),
+            "a tick waits for a lockstep participant"
+        );
+        if let Some(PendingStep::Tick(tick)) = self.pending_steps.front() {
+            let response = TickResponse {
+                waiting_for,
+                lockstep_timeout_ns: u64::try_from(self.config.lockstep_timeout.as_nanos())
+                    .unwrap_or(u64::MAX),
+                ..TickResponse::new(
+                    ResponseStatus::WaitingForParticipants,
+                    self.clock.frame(),
+                    self.clock.elapsed_ns(),
+                    self.ownership.info(),
+                )
+            };
+            if let Err(e) = tick.send_copy(response) {
+                debug!("interim tick answer not delivered: {e:?}");
+            }
+        }
+    }
+
     /// Drops a ticker whose process died, applying the ticker-loss policy.
     fn check_ticker(&mut self) {
         let Some(lost) = self.ownership.take_if_dead(node_process_alive) else {
             return;
         };
-        self.drop_pending_ticks();
+        self.drop_pending_ticks(ResponseStatus::NotOwner, TickerInfo::none());
         // Frees the dead ticker's port, so a new ticker can claim.
         self.ports.node.try_cleanup_dead_nodes();
         let frame = self.clock.frame();

@@ -10,8 +10,8 @@ use iceoryx2::prelude::ipc;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ControlRequest,
     ControlResponse, LockstepKind, LockstepRequest, LockstepResponse, RequestKind, ResponseStatus,
-    SensorInfo, SensorRequestKind, SensorResponseHeader, TickRequestKind, TickResponse,
-    WorldSettings, PROTOCOL_VERSION,
+    SensorEnd, SensorInfo, SensorRequestKind, SensorResponseHeader, TickRequestKind, TickResponse,
+    TickerInfo, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, info, warn};
 
@@ -90,7 +90,42 @@ impl Server {
     }
 
     fn apply_settings(&mut self, request: &ControlRequest) -> ControlResponse {
-        let settings = WorldSettings::from(request.settings);
+        let settings = WorldSettings::from(request.settings).normalized();
+        // While a ticker holds the world only it changes settings; anyone
+        // may leave synchronous mode (CARLA's escape hatch), which ends the
+        // ticker's ownership.
+        if let Some(owner) = self.ownership.owner() {
+            let leaving_sync = self.settings.synchronous_mode
+                && settings
+                    == WorldSettings {
+                        synchronous_mode: false,
+                        ..self.settings
+                    };
+            if leaving_sync {
+                let by = TickerInfo {
+                    active: 1,
+                    pid: request.client_pid,
+                    since_frame: self.clock.frame(),
+                    node_name: request.client_name,
+                };
+                warn!(
+                    pid = request.client_pid,
+                    name = %request.client_name.to_string_lossy(),
+                    ticker_pid = owner.pid,
+                    frame = self.clock.frame(),
+                    "another client left synchronous mode; the ticker's ownership ends"
+                );
+                self.ownership.revoke(by);
+                self.drop_pending_ticks(ResponseStatus::Revoked, by);
+            } else if settings != self.settings {
+                info!(
+                    pid = request.client_pid,
+                    ticker_pid = owner.pid,
+                    "refused settings: the ticker holds the world"
+                );
+                return ControlResponse::refused(ResponseStatus::NotOwner, self.report());
+            }
+        }
         match self.change_settings(settings, false, request.client_pid) {
             Ok(effective_frame) => ControlResponse {
                 effective_frame,
@@ -163,10 +198,21 @@ impl Server {
                     server.ownership.info(),
                 )
             };
+            let kind = TickRequestKind::from_u32(payload.kind);
+            let revoked_by = self.ownership.revoked_by(origin);
             let response = if payload.protocol_version != PROTOCOL_VERSION {
                 respond(self, ResponseStatus::ProtocolMismatch)
+            } else if let (
+                Some(by),
+                Some(TickRequestKind::Tick | TickRequestKind::ApplySettings),
+            ) = (revoked_by, kind)
+            {
+                TickResponse {
+                    revoked_by: by,
+                    ..respond(self, ResponseStatus::Revoked)
+                }
             } else {
-                match TickRequestKind::from_u32(payload.kind) {
+                match kind {
                     Some(TickRequestKind::Claim) => {
                         let candidate = Owner {
                             client: origin,
@@ -201,7 +247,10 @@ impl Server {
                                 frame = self.clock.frame(),
                                 "ticker released ownership"
                             );
-                            self.drop_pending_ticks();
+                            self.drop_pending_ticks(
+                                ResponseStatus::NotOwner,
+                                TickerInfo::none(),
+                            );
                             respond(self, ResponseStatus::Ok)
                         } else {
                             respond(self, ResponseStatus::NotOwner)
@@ -242,17 +291,28 @@ impl Server {
         Ok(())
     }
 
-    /// Forgets the ticker's pending ticks (it released or died); ticking
-    /// batches are answered as refused.
-    pub(super) fn drop_pending_ticks(&mut self) {
+    /// Answers the ticker's pending ticks and ticking batches with
+    /// `status` (it released, died or was revoked by `revoked_by`).
+    pub(super) fn drop_pending_ticks(&mut self, status: ResponseStatus, revoked_by: TickerInfo) {
         for step in self.pending_steps.drain(..) {
-            if let PendingStep::Batch(request, results) = step {
-                respond_batch(
-                    &request,
-                    ResponseStatus::NotOwner,
-                    self.clock.frame(),
-                    &results,
-                );
+            match step {
+                PendingStep::Tick(tick) => {
+                    let response = TickResponse {
+                        revoked_by,
+                        ..TickResponse::new(
+                            status,
+                            self.clock.frame(),
+                            self.clock.elapsed_ns(),
+                            self.ownership.info(),
+                        )
+                    };
+                    if let Err(e) = tick.send_copy(response) {
+                        debug!("tick answer not delivered (ticker gone?): {e:?}");
+                    }
+                }
+                PendingStep::Batch(request, results) => {
+                    respond_batch(&request, status, self.clock.frame(), &results)
+                }
             }
         }
     }
@@ -297,6 +357,9 @@ impl Server {
                 tick,
                 "batch applied"
             );
+            // A sensor dies with the actor it rides on.
+            self.sensors
+                .end_orphans(&self.world, self.clock.frame(), self.episode);
             if tick {
                 self.pending_steps
                     .push_back(PendingStep::Batch(request, results));
@@ -334,11 +397,17 @@ impl Server {
                         ResponseStatus::Ok
                     }
                     Some(LockstepKind::Done) => {
-                        // A "done" for an earlier episode means nothing now.
-                        if payload.episode == self.episode {
-                            self.participants.done(origin, payload.frame);
+                        if !self.participants.contains(origin) {
+                            // Dropped (hung past the timeout) or never joined:
+                            // the answer tells it so.
+                            ResponseStatus::NotParticipant
+                        } else {
+                            // A "done" for an earlier episode means nothing now.
+                            if payload.episode == self.episode {
+                                self.participants.done(origin, payload.frame);
+                            }
+                            ResponseStatus::Ok
                         }
-                        ResponseStatus::Ok
                     }
                     None => ResponseStatus::UnknownRequest,
                 }
@@ -385,7 +454,10 @@ impl Server {
                         }
                     },
                     Some(SensorRequestKind::Destroy) => {
-                        if self.sensors.destroy(payload.id) {
+                        if self
+                            .sensors
+                            .destroy(payload.id, self.clock.frame(), self.episode)
+                        {
                             (ResponseStatus::Ok, 0, Vec::new())
                         } else {
                             (ResponseStatus::UnknownRequest, 3, Vec::new())
@@ -417,13 +489,17 @@ impl Server {
     /// starting again at frame 0; settings are kept unless `reset`.
     fn load_world(&mut self, scene: Scene, reset: bool, pid: u32) -> Result<(), ServerError> {
         let now = Instant::now();
-        self.world = World::new(&scene.placements(self.config.seed));
+        // Sensors belong to the episode: their readers learn it ended.
+        self.sensors
+            .end_all(SensorEnd::EpisodeEnded, self.clock.frame(), self.episode);
+        // Ids go on from the last episode's: never reused in a server's life.
+        let first_id = self.world.next_id();
+        self.world = World::new(&scene.placements(self.config.seed), first_id);
         self.config.scene = scene;
         self.clock = Clock::new(now);
         self.episode += 1;
         self.pace_anchor = None;
         self.participants.new_episode();
-        self.sensors.new_episode();
         if reset {
             self.settings = WorldSettings::default();
         }

@@ -1,0 +1,72 @@
+//! The machine-wide setup iceoryx2 needs before a process creates its
+//! node: which configuration to use, and whether this user may use the
+//! shared directory another user created.
+//!
+//! iceoryx2 keeps its node and service files under one root directory
+//! (`/tmp/iceoryx2/` by default), created with mode 0750 by whichever user
+//! came first. Another user then cannot create a node at all, and iceoryx2
+//! says only `InternalError`. [`prepare`] turns that into a message naming
+//! the directory and the fix: give each user its own root path and prefix in
+//! an iceoryx2 configuration file, and point `SIMBUS_IOX2_CONFIG` at it.
+
+use std::sync::OnceLock;
+
+use iceoryx2::config::Config;
+use iceoryx2::prelude::*;
+
+/// The environment variable naming an iceoryx2 TOML configuration file that
+/// every simbus process loads before it creates a node.
+pub const CONFIG_ENV: &str = "SIMBUS_IOX2_CONFIG";
+
+/// Loads the configuration `SIMBUS_IOX2_CONFIG` names (once per process)
+/// and checks that this user can use iceoryx2's root directory. The error
+/// is a sentence for people: what is wrong and how to fix it.
+pub fn prepare() -> Result<(), String> {
+    static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
+    LOADED.get_or_init(load_config).clone()?;
+    match unusable_root() {
+        Some(problem) => Err(problem),
+        None => Ok(()),
+    }
+}
+
+fn load_config() -> Result<(), String> {
+    let Some(path) = std::env::var_os(CONFIG_ENV) else {
+        return Ok(());
+    };
+    let text = path.to_string_lossy().into_owned();
+    let file = FilePath::new(text.as_bytes())
+        .map_err(|e| format!("{CONFIG_ENV}={text} is not a usable file path: {e:?}"))?;
+    Config::setup_global_config_from_file(&file)
+        .map(drop)
+        .map_err(|e| format!("{CONFIG_ENV}={text}: cannot load this iceoryx2 configuration: {e:?}"))
+}
+
+/// iceoryx2's root directory, as configured.
+pub fn root_directory() -> std::path::PathBuf {
+    let root = Config::global_config().global.root_path();
+    std::path::PathBuf::from(String::from_utf8_lossy(root.as_bytes()).into_owned())
+}
+
+/// `Some(why)` when the root directory exists but this user cannot use it.
+fn unusable_root() -> Option<String> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let root = root_directory();
+    let metadata = std::fs::metadata(&root).ok()?;
+    let nodes = root.join("nodes");
+    match std::fs::read_dir(&nodes) {
+        Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => {}
+        _ => return None,
+    }
+    // /proc/self belongs to the process's effective user.
+    let uid = std::fs::metadata("/proc/self").map_or(u32::MAX, |m| m.uid());
+    Some(format!(
+        "this user (uid {uid}) cannot use iceoryx2's shared directory {} (owned by uid {}, mode {:04o}): \
+         it belongs to the user who first ran an iceoryx2 program. Give each user its own: write a file \
+         with `[global]` `root-path = \"/tmp/iceoryx2-{uid}/\"` and `prefix = \"iox2_{uid}_\"`, and set \
+         {CONFIG_ENV}=/path/to/that.toml for every simbus process (server and clients) of this user",
+        root.display(),
+        metadata.uid(),
+        metadata.permissions().mode() & 0o7777,
+    ))
+}

@@ -171,7 +171,7 @@ mod tests {
     fn layouts_have_no_padding_and_fixed_sizes() {
         // Pod derives already refuse padding; the sizes are part of the protocol.
         assert_eq!(std::mem::size_of::<Timestamp>(), 32);
-        assert_eq!(std::mem::size_of::<FrameHeader>(), 80);
+        assert_eq!(std::mem::size_of::<FrameHeader>(), 88);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
     }
 

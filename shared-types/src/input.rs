@@ -57,7 +57,10 @@ pub fn rate(text: &str) -> Result<f64, String> {
         return Err(format!("must be a positive, finite number of Hz, got {text}"));
     }
     wait(1.0 / hz).map_err(|_| {
-        format!("{text} Hz means one tick every {:e} s; the longest period is {MAX_WAIT_SECONDS:e} s", 1.0 / hz)
+        format!(
+            "{text} Hz means one tick every {:.0e} s; the longest period is {MAX_WAIT_SECONDS:e} s",
+            1.0 / hz
+        )
     })?;
     Ok(hz)
 }

@@ -1,5 +1,7 @@
 //! Commands in batches: fire and forget, or with one result per command.
 
+use std::time::Duration;
+
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
 use shared_types::limits::{INITIAL_MAX_BATCH, MAX_BATCH_CLIENTS};
@@ -99,9 +101,34 @@ pub(crate) fn open_batch_client(
 }
 
 impl Client {
+    /// Sends an empty batch on `port` and waits up to `timeout` for its answer.
+    pub(crate) fn round_trip_empty_batch(
+        &self,
+        port: &BatchClient,
+        timeout: Duration,
+    ) -> Result<(), RequestError> {
+        let pending = self.send_batch_on(port, &[], false)?;
+        let (header, _) = await_slice_response(
+            &pending,
+            timeout,
+            self.world.as_str(),
+            self.server_pid,
+            Wait::Backoff,
+        )?;
+        check_protocol(header.protocol_version, header.status)
+    }
+
     fn send_batch(&self, commands: &[Command], tick: bool) -> Result<PendingBatch, RequestError> {
-        let mut request = self
-            .batch()?
+        self.send_batch_on(self.batch()?, commands, tick)
+    }
+
+    fn send_batch_on(
+        &self,
+        port: &BatchClient,
+        commands: &[Command],
+        tick: bool,
+    ) -> Result<PendingBatch, RequestError> {
+        let mut request = port
             .loan_slice_uninit(commands.len())
             .map_err(|e| RequestError::transport("batch loan", e))?;
         *request.user_header_mut() = BatchHeader::new(tick);

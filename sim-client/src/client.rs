@@ -27,6 +27,9 @@ use crate::{
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
 
+/// How long one attempt of the first empty batch of a new batch port waits.
+const BATCH_HANDSHAKE_ATTEMPT: Duration = Duration::from_millis(100);
+
 /// How long a control request waits for its answer unless told otherwise.
 pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -474,7 +477,18 @@ impl Client {
             return Ok(batch);
         }
         let batch = open_batch_client(&self.node, &self.names.batch)?;
-        Ok(self.batch.get_or_init(|| batch))
+        let batch = self.batch.get_or_init(|| batch);
+        // A request sent before the server has connected to a new port may
+        // go unanswered: an empty batch, retried until answered, makes sure
+        // both directions are connected before the first real one.
+        let deadline = Instant::now() + self.request_timeout;
+        loop {
+            match self.round_trip_empty_batch(batch, BATCH_HANDSHAKE_ATTEMPT) {
+                Ok(()) => return Ok(batch),
+                Err(RequestError::Timeout { .. }) if Instant::now() < deadline => continue,
+                Err(e) => return Err(e),
+            }
+        }
     }
 
     /// The iceoryx2 node of this client (for tools that open more ports).

@@ -109,7 +109,7 @@ fn fire_and_forget_batches_are_never_lost() {
     client.apply_batch_sync(&[], false).unwrap();
     ticker.tick(T).unwrap();
     let after = client.wait_for_tick(T).unwrap();
-    assert_eq!(after.actors.len(), before + 1000);
+    assert_eq!(after.actors.len(), before + 1000, "frame {}", after.frame());
 }
 
 #[test]

@@ -4,10 +4,25 @@
 
 use std::time::{Duration, Instant};
 
-use sim_client::{Client, TickError};
+use sim_client::Client;
 use simbus_tests::{send_signal, server, unique_world, Proc};
 
 const T: Duration = Duration::from_secs(10);
+
+/// Waits until `pid` is stopped (state `T` in /proc), so a SIGSTOP has
+/// taken effect.
+fn wait_until_stopped(pid: u32) {
+    let deadline = Instant::now() + T;
+    loop {
+        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+        let state = stat.rfind(')').and_then(|i| stat[i + 1..].split_whitespace().next());
+        if state == Some("T") {
+            return;
+        }
+        assert!(Instant::now() < deadline, "{pid} did not stop");
+        std::thread::yield_now();
+    }
+}
 
 #[test]
 fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
@@ -27,31 +42,76 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
 
     // Freeze the participant: the server must wait for it.
     send_signal(autopilot.pid(), libc::SIGSTOP).unwrap();
-    let mut waited = false;
-    for _ in 0..3 {
-        match ticker.tick(Duration::from_millis(500)) {
-            Ok(_) => continue, // it may have been done with this frame already
-            Err(TickError::Request(_)) => {
-                waited = true;
-                break;
-            }
-            Err(e) => panic!("{e}"),
-        }
-    }
-    assert!(waited, "the server waited for the frozen participant");
+    wait_until_stopped(autopilot.pid());
     let frozen = client.status().unwrap().frame;
-    std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(
-        client.status().unwrap().frame,
-        frozen,
-        "no step without the participant"
-    );
-
-    autopilot.guard.kill().unwrap();
-    // The stale tick is now stepped, and the next tick completes.
-    let next = ticker.tick(T).expect("the world goes on");
-    assert!(next > frozen);
+    std::thread::scope(|scope| {
+        // Meanwhile (ports are per thread): look, then kill the participant.
+        let observer = scope.spawn(|| {
+            let observer = Client::connect(&world, T).unwrap();
+            std::thread::sleep(Duration::from_millis(300));
+            let frame = observer.status().unwrap().frame;
+            autopilot.guard.kill().unwrap();
+            frame
+        });
+        // It may have reported the frozen frame done before it stopped, so
+        // one more step may happen; the next one waits until it is gone.
+        ticker.tick(T).expect("the world goes on");
+        assert_eq!(ticker.tick(T).expect("the world goes on"), frozen + 2);
+        let seen = observer.join().unwrap();
+        assert!(seen <= frozen + 1, "no step without the participant: {seen} after {frozen}");
+    });
     assert_eq!(client.status().unwrap().participants, 0, "dropped");
+}
+
+/// The defaults must compose: a ticker whose own timeout is shorter than
+/// the server's lockstep timeout is told which participant holds it up and
+/// waits for the server to drop it, instead of failing first and leaving
+/// the participant in place. The dropped reader, resumed, learns it was
+/// dropped and exits with an error instead of carrying on out of step.
+#[test]
+fn a_tick_held_up_by_a_hung_reader_outwaits_its_own_timeout_and_the_reader_learns_it_was_dropped() {
+    let world = unique_world("held-up");
+    let _server = server(
+        &world,
+        &["--sync", "--delta-seconds", "0.02", "--lockstep-timeout", "2"],
+    );
+    let client = Client::connect(&world, T).unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let watcher = Proc::spawn("sim-client", &["--world", &world, "watch", "--lockstep"]);
+    let deadline = Instant::now() + T;
+    while client.status().unwrap().participants != 1 {
+        assert!(Instant::now() < deadline, "the watcher joined");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for frame in 1..=5 {
+        assert_eq!(ticker.tick(T).unwrap(), frame);
+    }
+    send_signal(watcher.pid(), libc::SIGSTOP).unwrap();
+    // Shorter than the lockstep timeout: before, this tick failed first.
+    let short = Duration::from_millis(500);
+    let frame = ticker
+        .tick(short)
+        .expect("the tick waits for the server to drop the hung reader");
+    assert_eq!(frame, 6);
+    assert_eq!(client.status().unwrap().participants, 0, "dropped");
+
+    send_signal(watcher.pid(), libc::SIGCONT).unwrap();
+    // The world goes on; the resumed reader finds out at its next report.
+    let mut watcher = watcher;
+    let status = loop {
+        if let Some(status) = watcher.guard.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline + T, "the dropped watcher carried on");
+        ticker.tick(T).unwrap();
+    };
+    let out = watcher.finish(T);
+    assert_eq!(status.code(), Some(1), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("dropped from the lockstep"),
+        "{}",
+        out.stderr
+    );
 }
 
 #[test]

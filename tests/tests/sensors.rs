@@ -280,7 +280,7 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
         ),
         (
             &["sensor", "spawn", "depth", "--size", "8192,8192"][..],
-            "at most 32 MiB",
+            "width x height at most 8388608 pixels (32 MiB per capture)",
         ),
         (
             &["sensor", "spawn", "imu", "--attach", "999"][..],

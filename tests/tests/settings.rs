@@ -73,11 +73,15 @@ fn every_invalid_setting_is_refused_with_its_rule_and_changes_nothing() {
         (&["--fps=-20"], "fps = -20 is negative"),
         (
             &["--max-substeps", "0"],
-            "max_substeps = 0 is outside the allowed range 1..=16",
+            "must be a whole number in 1..=16, got 0",
         ),
         (
-            &["--max-substeps", "17"],
-            "max_substeps = 17 is outside the allowed range 1..=16",
+            &["--max-substeps=-1"],
+            "must be a whole number in 1..=16, got -1",
+        ),
+        (
+            &["--delta-seconds", "-1"],
+            "fixed_delta_seconds = -1 is negative; it must be >= 0 (0 means variable step)",
         ),
         (
             &["--max-substep-delta-time=-0.01"],

@@ -202,11 +202,12 @@ fn a_waiting_server_answers_status_and_config_no_sync_resumes_frames() {
         "frozen while waiting"
     );
 
-    // Settings may change in sync mode (it stays sync) …
+    // While the ticker holds the world, only it changes settings …
     let out = client_cli(&world, &["config", "--delta-seconds", "0.02", "--json"]);
-    out.assert_success();
+    assert_eq!(out.status.code(), Some(2), "{}", out.stderr);
     assert_eq!(status(&world)["synchronous_mode"], true);
-    // … and sync mode may be left from outside.
+    assert_eq!(status(&world)["fixed_delta_seconds"], 0.01);
+    // … but anyone may leave sync mode.
     client_cli(&world, &["config", "--no-sync"]).assert_success();
     let out = client_cli(&world, &["watch", "--frames", "6", "--json"]);
     out.assert_success();
@@ -220,7 +221,7 @@ fn a_waiting_server_answers_status_and_config_no_sync_resumes_frames() {
         .collect();
     assert!(new.len() >= 5, "frames flow again: {new:?}");
     assert!(new.iter().all(|f| f["synchronous_mode"] == false));
-    assert!(new.iter().all(|f| f["delta_ns"] == 20_000_000));
+    assert!(new.iter().all(|f| f["delta_ns"] == 10_000_000));
     assert!(status(&world)["frame"].as_u64() > waiting["frame"].as_u64());
 }
 

@@ -137,10 +137,18 @@ fn failure(e: SensorError) -> Failure {
 }
 
 pub fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
+    // A spec is checked before any server is asked.
+    let spawning = match &args.command {
+        SensorCommand::Spawn(a) => Some(spec(a)?),
+        _ => None,
+    };
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     match args.command {
-        SensorCommand::Spawn(a) => spawn(&client, a),
+        SensorCommand::Spawn(a) => match spawning {
+            Some(spec) => spawn(&client, spec, &a),
+            None => Ok(()),
+        },
         SensorCommand::List(a) => {
             for s in client.list_sensors().map_err(failure)? {
                 let kind = s.spec.sensor_kind().map_or("?", |k| k.name());
@@ -213,7 +221,8 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
     Ok(())
 }
 
-fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
+/// The spec `a` describes, checked.
+fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     use SensorKind::{Depth, Lidar};
     let at = super::numbers::<3>(&a.at, "--at")?;
     let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
@@ -270,6 +279,12 @@ fn spawn(client: &Client, a: SpawnArgs) -> Result<(), Failure> {
         spec.params[1] = h;
     }
     spec.rotation = quaternion(yaw, pitch, roll);
+    spec.check()
+        .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;
+    Ok(spec)
+}
+
+fn spawn(client: &Client, spec: SensorSpec, a: &SpawnArgs) -> Result<(), Failure> {
     let sensor = client.spawn_sensor(spec).map_err(failure)?;
     if a.json {
         println!(

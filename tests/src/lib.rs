@@ -32,6 +32,19 @@ pub fn bin(name: &str) -> PathBuf {
     path
 }
 
+/// Sends `signal` to every process of the process group `pgid`.
+pub fn send_signal_to_group(pgid: u32, signal: i32) -> std::io::Result<()> {
+    let pgid = libc::pid_t::try_from(pgid)
+        .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;
+    // SAFETY: kill(2) with a negative pid signals a process group; it has no
+    // memory-safety preconditions, a stale group yields ESRCH.
+    if unsafe { libc::kill(-pgid, signal) } == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 /// A world name no other test (or test run) uses.
 pub fn unique_world(tag: &str) -> String {
     static COUNTER: AtomicU32 = AtomicU32::new(0);

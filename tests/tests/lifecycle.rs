@@ -138,3 +138,70 @@ fn the_demo_runs_a_server_watches_it_and_reaps_it() {
         "the demo's server is gone"
     );
 }
+
+/// The pid in the demo's first line, `demo: started sim-server (pid P) ...`.
+fn demo_server_pid(line: &str) -> u32 {
+    line.strip_prefix("demo: started sim-server (pid ")
+        .and_then(|rest| rest.split(')').next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("not the demo's first line: {line}"))
+}
+
+#[test]
+fn a_demo_killed_with_sigkill_takes_its_server_with_it() {
+    let world = unique_world("demo-kill");
+    let mut demo = Proc::spawn(
+        "sim-client",
+        &["--world", &world, "demo", "--frames", "100000"],
+    );
+    let first = demo
+        .line(Duration::from_secs(30))
+        .unwrap_or_else(|| panic!("the demo started: {}", demo.stderr()));
+    assert!(first.contains(&format!("on world '{world}'")), "--world is used: {first}");
+    let server = demo_server_pid(&first);
+    assert!(simbus_tests::process_alive(server));
+    demo.guard.kill().unwrap();
+    // The kernel sends the orphaned server SIGTERM; it finishes its frame
+    // and exits (a server never reaped by us stays a zombie of init, which
+    // process_alive counts as gone).
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while simbus_tests::process_alive(server) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the demo's server {server} outlived the demo"
+        );
+        std::thread::yield_now();
+    }
+}
+
+#[test]
+fn a_demo_whose_server_refuses_its_scene_says_so_at_once() {
+    let out = Proc::spawn("sim-client", &["demo", "--scene", "boxes:0"])
+        .finish(Duration::from_secs(30));
+    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
+    assert!(out.stderr.contains("invalid box count"), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("the demo server exited at once"),
+        "{}",
+        out.stderr
+    );
+    assert!(!out.stderr.contains("start one with"), "{}", out.stderr);
+}
+
+#[test]
+fn a_stopped_server_is_reported_as_not_answering_not_as_missing() {
+    let world = unique_world("sigstop");
+    let server = server(&world, &[]);
+    simbus_tests::send_signal(server.pid(), libc::SIGSTOP).unwrap();
+    let out = Proc::spawn("sim-client", &["--world", &world, "--timeout", "1", "status"])
+        .finish(Duration::from_secs(30));
+    simbus_tests::send_signal(server.pid(), libc::SIGCONT).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
+    assert!(
+        out.stderr.contains(&format!(
+            "the server of world '{world}' exists but did not answer within 1s"
+        )),
+        "{}",
+        out.stderr
+    );
+}

@@ -204,3 +204,23 @@ pub fn save_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_depth_legend_spans_the_scene_not_the_far_range() {
+        // A 20 m scene seen by a 100 m camera: the grey scale spans 20 m.
+        let mut depth = vec![100.0; 64];
+        depth[3] = 4.0;
+        depth[9] = 17.5;
+        assert_eq!(depth_range(&depth, 100.0), 20.0);
+        assert_eq!(depth_range(&[100.0; 4], 100.0), 100.0, "nothing hit");
+        assert_eq!(depth_range(&[0.3, 100.0], 100.0), 0.5);
+        // The legend's digits grow with the picture.
+        assert_eq!(text_scale(320), 2);
+        assert_eq!(text_scale(2048), 12);
+        assert!(legend_height(2048) > legend_height(320));
+    }
+}

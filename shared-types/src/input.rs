@@ -54,7 +54,9 @@ pub fn wait(seconds: f64) -> Result<Duration, String> {
 pub fn rate(text: &str) -> Result<f64, String> {
     let hz = number(text)?;
     if !(hz.is_finite() && hz > 0.0) {
-        return Err(format!("must be a positive, finite number of Hz, got {text}"));
+        return Err(format!(
+            "must be a positive, finite number of Hz, got {text}"
+        ));
     }
     wait(1.0 / hz).map_err(|_| {
         format!(

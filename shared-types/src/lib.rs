@@ -50,8 +50,8 @@ pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
-    ImuMeasurement, LidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorEnd, SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES,
+    ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRequest,
+    SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES,
     MAX_SENSOR_TICK_SECONDS, SENSOR_ERRORS,
 };
 pub use settings::{

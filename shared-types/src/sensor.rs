@@ -222,8 +222,10 @@ impl SensorSpec {
                 if !(whole(p[0], 256.0) && whole(p[1], 65536.0))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
-                    return Err("lidar channels must be in 1..=256 and points per channel in \
-                         1..=65536, with channels x points at most 2097152 (32 MiB per capture)");
+                    return Err(
+                        "lidar channels must be in 1..=256 and points per channel in \
+                         1..=65536, with channels x points at most 2097152 (32 MiB per capture)",
+                    );
                 }
                 if p[2] <= 0.0 || p[3] < p[4] || p[3].abs() > 90.0 || p[4].abs() > 90.0 {
                     return Err(
@@ -277,7 +279,9 @@ impl std::fmt::Display for SensorEnd {
         f.write_str(match self {
             Self::Destroyed => "it was destroyed",
             Self::ParentDestroyed => "the actor it rode on was destroyed",
-            Self::EpisodeEnded => "the world was loaded or reloaded (a new episode starts without sensors)",
+            Self::EpisodeEnded => {
+                "the world was loaded or reloaded (a new episode starts without sensors)"
+            }
             Self::ServerStopped => "the server stopped",
         })
     }

@@ -233,12 +233,14 @@ pub enum TickError {
     },
     /// The tick waited for a lockstep participant longer than the server's
     /// lockstep timeout (plus a margin) without an answer.
-    #[error("the tick of world '{world}' waited {waited:?} for lockstep participant {} (pid {}) and got no answer", participant.node_name.to_string_lossy(), participant.pid)]
+    #[error("the tick of world '{world}' waited {waited:?} for lockstep participant {participant} (pid {pid}) and got no answer")]
     HeldUp {
         /// The world.
         world: String,
-        /// The participant the server said it waits for.
-        participant: TickerInfo,
+        /// The name of the participant the server said it waits for.
+        participant: String,
+        /// Its process id.
+        pid: u32,
         /// How long the tick waited.
         waited: Duration,
     },

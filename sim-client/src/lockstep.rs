@@ -166,7 +166,12 @@ impl Participant {
         // Drop sends the leave.
     }
 
-    fn send(&self, kind: LockstepKind, episode: u64, frame: u64) -> Result<PendingDone, RequestError> {
+    fn send(
+        &self,
+        kind: LockstepKind,
+        episode: u64,
+        frame: u64,
+    ) -> Result<PendingDone, RequestError> {
         let pending = self
             .port
             .send_copy(LockstepRequest::new(kind, &self.name, episode, frame))

@@ -188,11 +188,13 @@ impl Ticker {
                 Wait::for_mode(self.mode, &self.ready),
             ) {
                 Err(RequestError::Timeout { .. }) if waiting_for.is_some() => {
+                    let participant = waiting_for.unwrap_or_else(TickerInfo::none);
                     return Err(TickError::HeldUp {
                         world: self.world.to_string(),
-                        participant: waiting_for.unwrap_or_else(TickerInfo::none),
+                        participant: participant.node_name.to_string_lossy(),
+                        pid: participant.pid,
                         waited: started.elapsed(),
-                    })
+                    });
                 }
                 Err(RequestError::Timeout { world, .. }) => {
                     return Err(RequestError::Timeout { world, timeout }.into())

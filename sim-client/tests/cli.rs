@@ -44,11 +44,26 @@ fn huge_negative_and_odd_numbers_are_refused_with_exit_2_not_a_panic() {
         (&["--timeout", "inf", "status"], "positive, finite number"),
         (&["tick", "--rate", "1e-30"], "one tick every 1e30 s"),
         (&["tick", "--rate", "0"], "positive, finite number of Hz"),
-        (&["tick", "--until-sim-time", "inf"], "must be a finite number of seconds"),
-        (&["config", "--max-substeps=-1"], "must be a whole number in 1..=16"),
-        (&["sensor", "spawn", "imu", "--sensor-tick", "1e300"], "18446744073"),
-        (&["sensor", "spawn", "imu", "--size", "4,4"], "--size applies to depth sensors"),
-        (&["sensor", "spawn", "depth", "--size", "8192,8192"], "at most 8388608 pixels"),
+        (
+            &["tick", "--until-sim-time", "inf"],
+            "must be a finite number of seconds",
+        ),
+        (
+            &["config", "--max-substeps=-1"],
+            "must be a whole number in 1..=16",
+        ),
+        (
+            &["sensor", "spawn", "imu", "--sensor-tick", "1e300"],
+            "18446744073",
+        ),
+        (
+            &["sensor", "spawn", "imu", "--size", "4,4"],
+            "--size applies to depth sensors",
+        ),
+        (
+            &["sensor", "spawn", "depth", "--size", "8192,8192"],
+            "at most 8388608 pixels",
+        ),
         (&["spawn", "box", "--at", "1e9,0,0"], "within +-100000 m"),
     ];
     for (args, message) in cases {

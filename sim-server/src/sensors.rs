@@ -259,7 +259,10 @@ impl Sensor {
             SensorPort::Imu(port) => send_end(port, header),
         };
         if let Err(e) = sent {
-            warn!(id = self.id, "could not tell the sensor's readers it ended: {e}");
+            warn!(
+                id = self.id,
+                "could not tell the sensor's readers it ended: {e}"
+            );
         }
     }
 

@@ -157,7 +157,10 @@ fn a_demo_killed_with_sigkill_takes_its_server_with_it() {
     let first = demo
         .line(Duration::from_secs(30))
         .unwrap_or_else(|| panic!("the demo started: {}", demo.stderr()));
-    assert!(first.contains(&format!("on world '{world}'")), "--world is used: {first}");
+    assert!(
+        first.contains(&format!("on world '{world}'")),
+        "--world is used: {first}"
+    );
     let server = demo_server_pid(&first);
     assert!(simbus_tests::process_alive(server));
     demo.guard.kill().unwrap();
@@ -176,8 +179,8 @@ fn a_demo_killed_with_sigkill_takes_its_server_with_it() {
 
 #[test]
 fn a_demo_whose_server_refuses_its_scene_says_so_at_once() {
-    let out = Proc::spawn("sim-client", &["demo", "--scene", "boxes:0"])
-        .finish(Duration::from_secs(30));
+    let out =
+        Proc::spawn("sim-client", &["demo", "--scene", "boxes:0"]).finish(Duration::from_secs(30));
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
     assert!(out.stderr.contains("invalid box count"), "{}", out.stderr);
     assert!(
@@ -193,8 +196,11 @@ fn a_stopped_server_is_reported_as_not_answering_not_as_missing() {
     let world = unique_world("sigstop");
     let server = server(&world, &[]);
     simbus_tests::send_signal(server.pid(), libc::SIGSTOP).unwrap();
-    let out = Proc::spawn("sim-client", &["--world", &world, "--timeout", "1", "status"])
-        .finish(Duration::from_secs(30));
+    let out = Proc::spawn(
+        "sim-client",
+        &["--world", &world, "--timeout", "1", "status"],
+    )
+    .finish(Duration::from_secs(30));
     simbus_tests::send_signal(server.pid(), libc::SIGCONT).unwrap();
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
     assert!(

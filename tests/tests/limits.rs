@@ -25,7 +25,11 @@ fn twenty_watchers_leave_status_spawn_and_tick_working() {
     client(&world, &["spawn", "box"]).assert_success();
     client(&world, &["tick", "--count", "2"]).assert_success();
     for watcher in &watchers {
-        assert!(watcher.line(T).is_some(), "still watching: {}", watcher.stderr());
+        assert!(
+            watcher.line(T).is_some(),
+            "still watching: {}",
+            watcher.stderr()
+        );
     }
 }
 
@@ -41,7 +45,9 @@ fn a_batch_sender_past_the_limit_is_told_which_limit() {
         })
         .collect();
     let one_more = Client::connect(&world, T).unwrap();
-    one_more.status().expect("a client past the batch limit still asks status");
+    one_more
+        .status()
+        .expect("a client past the batch limit still asks status");
     match one_more.apply_batch_sync(&[], false) {
         Err(BatchError::Request(e @ RequestError::Full { .. })) => {
             let message = e.to_string();

@@ -15,7 +15,9 @@ fn wait_until_stopped(pid: u32) {
     let deadline = Instant::now() + T;
     loop {
         let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let state = stat.rfind(')').and_then(|i| stat[i + 1..].split_whitespace().next());
+        let state = stat
+            .rfind(')')
+            .and_then(|i| stat[i + 1..].split_whitespace().next());
         if state == Some("T") {
             return;
         }
@@ -58,7 +60,10 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
         ticker.tick(T).expect("the world goes on");
         assert_eq!(ticker.tick(T).expect("the world goes on"), frozen + 2);
         let seen = observer.join().unwrap();
-        assert!(seen <= frozen + 1, "no step without the participant: {seen} after {frozen}");
+        assert!(
+            seen <= frozen + 1,
+            "no step without the participant: {seen} after {frozen}"
+        );
     });
     assert_eq!(client.status().unwrap().participants, 0, "dropped");
 }
@@ -73,7 +78,13 @@ fn a_tick_held_up_by_a_hung_reader_outwaits_its_own_timeout_and_the_reader_learn
     let world = unique_world("held-up");
     let _server = server(
         &world,
-        &["--sync", "--delta-seconds", "0.02", "--lockstep-timeout", "2"],
+        &[
+            "--sync",
+            "--delta-seconds",
+            "0.02",
+            "--lockstep-timeout",
+            "2",
+        ],
     );
     let client = Client::connect(&world, T).unwrap();
     let mut ticker = client.claim_ticker().unwrap();
@@ -102,7 +113,10 @@ fn a_tick_held_up_by_a_hung_reader_outwaits_its_own_timeout_and_the_reader_learn
         if let Some(status) = watcher.guard.try_wait().unwrap() {
             break status;
         }
-        assert!(Instant::now() < deadline + T, "the dropped watcher carried on");
+        assert!(
+            Instant::now() < deadline + T,
+            "the dropped watcher carried on"
+        );
         ticker.tick(T).unwrap();
     };
     let out = watcher.finish(T);

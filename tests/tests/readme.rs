@@ -15,7 +15,10 @@ fn readme_block(marker: &str) -> String {
     let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"))
         .expect("README.md");
     let after = &readme[readme.find(marker).expect("marker in README")..];
-    let start = after.find("```sh\n").expect("a ```sh block after the marker") + 6;
+    let start = after
+        .find("```sh\n")
+        .expect("a ```sh block after the marker")
+        + 6;
     let end = after[start..].find("```").expect("the block ends") + start;
     after[start..end].to_owned()
 }
@@ -78,10 +81,24 @@ fn the_determinism_recipe_passes_as_pasted() {
     let mut stderr = String::new();
     use std::io::Read;
     let child = group.0.child_mut();
-    child.stdout.take().unwrap().read_to_string(&mut stdout).unwrap();
-    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut stdout)
+        .unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
     assert!(status.success(), "{status}\n{stdout}\n{stderr}");
-    assert_eq!(stdout.trim_end().lines().last(), Some("identical"), "{stdout}\n{stderr}");
+    assert_eq!(
+        stdout.trim_end().lines().last(),
+        Some("identical"),
+        "{stdout}\n{stderr}"
+    );
     for world in [&a, &b] {
         let digests = std::fs::read_to_string(dir.join(format!("{world}.digest"))).unwrap();
         let frames: Vec<u64> = digests
@@ -91,7 +108,11 @@ fn the_determinism_recipe_passes_as_pasted() {
                 line.split(' ').nth(1).unwrap().parse().unwrap()
             })
             .collect();
-        assert_eq!(frames, (0..=1000).collect::<Vec<_>>(), "every frame, once, in order");
+        assert_eq!(
+            frames,
+            (0..=1000).collect::<Vec<_>>(),
+            "every frame, once, in order"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -15,7 +15,10 @@ const T: Duration = Duration::from_secs(20);
 fn sensor_ids(world: &str) -> Vec<u64> {
     let out = client(world, &["sensor", "list", "--json"]);
     out.assert_success();
-    out.json().iter().map(|s| s["id"].as_u64().unwrap()).collect()
+    out.json()
+        .iter()
+        .map(|s| s["id"].as_u64().unwrap())
+        .collect()
 }
 
 #[test]
@@ -65,7 +68,10 @@ fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
         ),
         "{ended}"
     );
-    assert!(sensor_ids(&world).is_empty(), "the sensor is no longer listed");
+    assert!(
+        sensor_ids(&world).is_empty(),
+        "the sensor is no longer listed"
+    );
 }
 
 #[test]
@@ -101,7 +107,10 @@ fn a_reload_ends_every_sensor_and_new_actors_never_reuse_an_id() {
             "{ended}"
         );
     }
-    assert!(sensor_ids(&world).is_empty(), "a new episode has no sensors");
+    assert!(
+        sensor_ids(&world).is_empty(),
+        "a new episode has no sensors"
+    );
 
     // The reloaded scene and anything spawned after it get ids never used
     // before: nothing inherits the old parent's id.
@@ -126,18 +135,31 @@ fn sensor_watch_and_save_give_up_after_the_timeout_when_nothing_comes() {
     let out = client(&world, &["--timeout", "1", "sensor", "watch", &id]);
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
     assert!(
-        out.stderr
-            .contains(&format!("no capture from sensor {id} of world '{world}' within 1s")),
+        out.stderr.contains(&format!(
+            "no capture from sensor {id} of world '{world}' within 1s"
+        )),
         "{}",
         out.stderr
     );
     let dir = std::env::temp_dir().join(format!("simbus-save-{}", std::process::id()));
     let out = client(
         &world,
-        &["--timeout", "1", "sensor", "save", &id, "--out", dir.to_str().unwrap()],
+        &[
+            "--timeout",
+            "1",
+            "sensor",
+            "save",
+            &id,
+            "--out",
+            dir.to_str().unwrap(),
+        ],
     );
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
-    assert!(out.stderr.contains("no capture from sensor"), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("no capture from sensor"),
+        "{}",
+        out.stderr
+    );
     let _ = std::fs::remove_dir_all(&dir);
 
     // A period longer than the run: the same clear timeout, and a readable

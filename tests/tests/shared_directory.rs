@@ -67,9 +67,13 @@ fn another_user_gets_the_directory_and_the_fix_named_and_the_fix_works() {
     let client = runnable_copy(&dir, "sim-client");
     let sim_server = runnable_copy(&dir, "sim-server");
 
-    let out = as_nobody(&client, &["--world", &world, "--timeout", "1", "status"], &[])
-        .output()
-        .unwrap();
+    let out = as_nobody(
+        &client,
+        &["--world", &world, "--timeout", "1", "status"],
+        &[],
+    )
+    .output()
+    .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
@@ -98,9 +102,13 @@ fn another_user_gets_the_directory_and_the_fix_named_and_the_fix_works() {
         .spawn()
         .unwrap();
     let mut own_server = ChildGuard::new(own_server, Duration::from_secs(5));
-    let out = as_nobody(&client, &["--world", &world, "--timeout", "10", "status", "--json"], &env)
-        .output()
-        .unwrap();
+    let out = as_nobody(
+        &client,
+        &["--world", &world, "--timeout", "10", "status", "--json"],
+        &env,
+    )
+    .output()
+    .unwrap();
     let stopped = own_server.stop().unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -115,5 +123,8 @@ fn another_user_gets_the_directory_and_the_fix_named_and_the_fix_works() {
         Some(u64::from(own_server.id())),
         "nobody's own server answered, not root's"
     );
-    assert!(stopped.success(), "nobody's server stopped cleanly: {stopped}");
+    assert!(
+        stopped.success(),
+        "nobody's server stopped cleanly: {stopped}"
+    );
 }

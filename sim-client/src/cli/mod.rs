@@ -35,7 +35,13 @@ pub fn interrupted() -> &'static AtomicBool {
 pub fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
     let values: Vec<f32> = text
         .split(',')
-        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(()))
+        .map(|p| {
+            p.trim()
+                .parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or(())
+        })
         .collect::<Result<_, _>>()
         .map_err(|_| {
             Failure::Refused(anyhow!(

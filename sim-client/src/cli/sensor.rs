@@ -203,7 +203,10 @@ fn quaternion(yaw: f32, pitch: f32, roll: f32) -> [f32; 4] {
             aw * bw - ax * bx - ay * by - az * bz,
         ]
     };
-    mul(mul([0.0, sy, 0.0, cy], [0.0, 0.0, sp, cp]), [sr, 0.0, 0.0, cr])
+    mul(
+        mul([0.0, sy, 0.0, cy], [0.0, 0.0, sp, cp]),
+        [sr, 0.0, 0.0, cr],
+    )
 }
 
 /// Refuses a flag that does not belong to `kind`.
@@ -241,7 +244,11 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             ("--channels", a.channels.is_some(), &[Lidar]),
             ("--points", a.points.is_some(), &[Lidar]),
             ("--fov-range", a.fov_range.is_some(), &[Lidar]),
-            ("--rotation-frequency", a.rotation_frequency.is_some(), &[Lidar]),
+            (
+                "--rotation-frequency",
+                a.rotation_frequency.is_some(),
+                &[Lidar],
+            ),
         ],
     )?;
     let mut spec = match kind {
@@ -256,7 +263,8 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             )
         }
         SensorKind::Lidar => {
-            let [upper, lower] = super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
+            let [upper, lower] =
+                super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
             SensorSpec::lidar(
                 at,
                 a.channels.unwrap_or(32),

@@ -10,9 +10,9 @@ use iceoryx2::port::listener::ListenerWaitError;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::ipc;
 use shared_types::{
-    CommandResult, FixedText, FrameHeader, ResponseStatus, SensorEnd, ServiceNames,
-    SettingsError, StatusReport, TickRequest, TickResponse, TickerInfo, Timestamp, WireSettings,
-    WorldName, WorldSettings, PROTOCOL_VERSION,
+    CommandResult, FixedText, FrameHeader, ResponseStatus, SensorEnd, ServiceNames, SettingsError,
+    StatusReport, TickRequest, TickResponse, TickerInfo, Timestamp, WireSettings, WorldName,
+    WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, debug_span, info, warn};
 

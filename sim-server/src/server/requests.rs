@@ -202,10 +202,8 @@ impl Server {
             let revoked_by = self.ownership.revoked_by(origin);
             let response = if payload.protocol_version != PROTOCOL_VERSION {
                 respond(self, ResponseStatus::ProtocolMismatch)
-            } else if let (
-                Some(by),
-                Some(TickRequestKind::Tick | TickRequestKind::ApplySettings),
-            ) = (revoked_by, kind)
+            } else if let (Some(by), Some(TickRequestKind::Tick | TickRequestKind::ApplySettings)) =
+                (revoked_by, kind)
             {
                 TickResponse {
                     revoked_by: by,
@@ -247,10 +245,7 @@ impl Server {
                                 frame = self.clock.frame(),
                                 "ticker released ownership"
                             );
-                            self.drop_pending_ticks(
-                                ResponseStatus::NotOwner,
-                                TickerInfo::none(),
-                            );
+                            self.drop_pending_ticks(ResponseStatus::NotOwner, TickerInfo::none());
                             respond(self, ResponseStatus::Ok)
                         } else {
                             respond(self, ResponseStatus::NotOwner)

@@ -16,7 +16,7 @@ use crate::{OnTickerLoss, Scene, Server, ServerConfig};
 /// Run a simbus world: step a rapier3d physics scene and publish every frame
 /// over iceoryx2 shared memory.
 ///
-/// Starts in asynchronous mode. Without --fixed-delta-seconds / --fps the step
+/// Starts in asynchronous mode. Without --delta-seconds / --fps the step
 /// is variable: each frame advances by the wall time since the previous one.
 /// With a fixed step the server runs as fast as it can, or at wall-clock speed
 /// with --realtime. Stop it with Ctrl-C (or SIGTERM).

@@ -148,3 +148,38 @@ fn a_changed_seed_changes_the_digests() {
     let (_, run_c) = run_scenario(&mut c.client, false);
     assert_eq!(first_difference(&run_a, &run_c), Some(0));
 }
+
+/// A digest list with gaps proves nothing: a `watch --digest` that falls
+/// more than its queue behind (here: stopped while the ticker runs) prints
+/// which frames it missed and exits 1, instead of dropping them silently.
+#[test]
+fn a_digest_watcher_that_misses_frames_says_so_and_fails() {
+    let name = unique_world("digest-gap");
+    let _server = server(&name, &["--sync", "--delta-seconds", "0.02"]);
+    let client = Client::connect(&name, T).unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let mut watcher = Proc::spawn(
+        "sim-client",
+        &["--world", &name, "watch", "--digest", "--frames", "60"],
+    );
+    assert!(watcher.line(T).is_some_and(|l| l.starts_with("frame 0 digest")));
+    simbus_tests::send_signal(watcher.pid(), libc::SIGSTOP).unwrap();
+    // Far more than the 16 frames a subscriber queues.
+    for _ in 0..40 {
+        ticker.tick(T).unwrap();
+    }
+    simbus_tests::send_signal(watcher.pid(), libc::SIGCONT).unwrap();
+    let deadline = Instant::now() + T;
+    while watcher.guard.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "the watcher ended");
+        ticker.tick(T).unwrap();
+    }
+    let out = watcher.finish(T);
+    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
+    assert!(
+        out.stdout.iter().any(|l| l.starts_with("missed ")),
+        "the gap is in the output: {:?}",
+        out.stdout
+    );
+    assert!(out.stderr.contains("the digests have gaps"), "{}", out.stderr);
+}

@@ -162,7 +162,9 @@ fn a_digest_watcher_that_misses_frames_says_so_and_fails() {
         "sim-client",
         &["--world", &name, "watch", "--digest", "--frames", "60"],
     );
-    assert!(watcher.line(T).is_some_and(|l| l.starts_with("frame 0 digest")));
+    assert!(watcher
+        .line(T)
+        .is_some_and(|l| l.starts_with("frame 0 digest")));
     simbus_tests::send_signal(watcher.pid(), libc::SIGSTOP).unwrap();
     // Far more than the 16 frames a subscriber queues.
     for _ in 0..40 {
@@ -181,5 +183,9 @@ fn a_digest_watcher_that_misses_frames_says_so_and_fails() {
         "the gap is in the output: {:?}",
         out.stdout
     );
-    assert!(out.stderr.contains("the digests have gaps"), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("the digests have gaps"),
+        "{}",
+        out.stderr
+    );
 }

@@ -39,6 +39,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         spin_window: Duration::ZERO,
         seed: 0,
         lockstep_timeout: Duration::from_secs(10),
+        limits: Default::default(),
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

@@ -193,7 +193,7 @@ impl FixedText {
 /// The world's state as the server reports it.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::StatusReport/1")]
+#[type_name("simbus::StatusReport/2")]
 pub struct StatusReport {
     /// The latest published frame.
     pub frame: u64,
@@ -215,6 +215,10 @@ pub struct StatusReport {
     pub seed: u64,
     /// Lockstep participants the server waits for in synchronous mode.
     pub participants: u32,
+    /// Clients of each kind the world admits (`--max-clients`).
+    pub max_clients: u32,
+    /// Readers each sensor admits (`--max-sensor-readers`).
+    pub max_sensor_readers: u32,
     /// Zero.
     pub reserved: u32,
 }

@@ -62,6 +62,11 @@ pub struct FrameHeader {
     /// digest counts ids from this one, so a reload digests like a fresh
     /// server.
     pub first_actor_id: u64,
+    /// The server's process id: a client that only reads frames watches it
+    /// to notice the server's death.
+    pub server_pid: u32,
+    /// Zero.
+    pub reserved: u32,
 }
 
 impl FrameHeader {
@@ -171,7 +176,7 @@ mod tests {
     fn layouts_have_no_padding_and_fixed_sizes() {
         // Pod derives already refuse padding; the sizes are part of the protocol.
         assert_eq!(std::mem::size_of::<Timestamp>(), 32);
-        assert_eq!(std::mem::size_of::<FrameHeader>(), 88);
+        assert_eq!(std::mem::size_of::<FrameHeader>(), 96);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
     }
 

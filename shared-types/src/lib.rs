@@ -70,20 +70,84 @@ pub const NANOS_PER_SECOND: u64 = 1_000_000_000;
 
 /// Capacity limits of the services of one world, shared by server and
 /// clients so both open a service with the same quality of service.
+///
+/// The server sizes every service of its world from one [`WorldLimits`]
+/// (`sim-server --max-clients N --max-sensor-readers M`); a client past a
+/// limit gets an error naming the flag that raises it.
 pub mod limits {
-    /// How many frame subscribers (watchers, tools, `on_tick` threads) a world admits.
-    pub const MAX_FRAME_SUBSCRIBERS: usize = 32;
+    /// The most clients a world admits by default (`--max-clients`).
+    pub const DEFAULT_MAX_CLIENTS: usize = 64;
+    /// The most readers one sensor admits by default (`--max-sensor-readers`).
+    pub const DEFAULT_MAX_SENSOR_READERS: usize = 16;
+    /// The largest `--max-clients` a server accepts.
+    pub const MAX_MAX_CLIENTS: usize = 1024;
+    /// The largest `--max-sensor-readers` a server accepts.
+    pub const MAX_MAX_SENSOR_READERS: usize = 256;
+    /// The flag that raises the number of clients.
+    pub const MAX_CLIENTS_FLAG: &str = "--max-clients";
+    /// The flag that raises the number of readers per sensor.
+    pub const MAX_SENSOR_READERS_FLAG: &str = "--max-sensor-readers";
+
+    /// How many clients (and readers per sensor) a world admits, and what
+    /// that means for each service.
+    ///
+    /// Every per-client service admits `max_clients` ports of its kind:
+    /// frame subscribers, control, batch, lockstep and sensor-request
+    /// clients, wake-up notifiers. A client and each sensor it reads hold a
+    /// frame-ready listener, so event services admit `2 × max_clients`
+    /// listeners, and `2 × max_clients + 16` processes' nodes may open a
+    /// service (a client, its ticker, its participant, its sensors).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct WorldLimits {
+        /// Clients of each kind (`--max-clients`).
+        pub max_clients: usize,
+        /// Readers of each sensor (`--max-sensor-readers`).
+        pub max_sensor_readers: usize,
+    }
+
+    impl Default for WorldLimits {
+        fn default() -> Self {
+            Self {
+                max_clients: DEFAULT_MAX_CLIENTS,
+                max_sensor_readers: DEFAULT_MAX_SENSOR_READERS,
+            }
+        }
+    }
+
+    impl WorldLimits {
+        /// Listeners of each event service.
+        pub fn event_listeners(&self) -> usize {
+            2 * self.max_clients
+        }
+
+        /// Nodes (processes' iceoryx2 nodes) that may open one service.
+        pub fn nodes(&self) -> usize {
+            2 * self.max_clients + 16
+        }
+
+        /// Checks both limits against `1..=MAX_*`.
+        pub fn validate(&self) -> Result<(), String> {
+            if !(1..=MAX_MAX_CLIENTS).contains(&self.max_clients) {
+                return Err(format!(
+                    "{MAX_CLIENTS_FLAG} must be in 1..={MAX_MAX_CLIENTS}, got {}",
+                    self.max_clients
+                ));
+            }
+            if !(1..=MAX_MAX_SENSOR_READERS).contains(&self.max_sensor_readers) {
+                return Err(format!(
+                    "{MAX_SENSOR_READERS_FLAG} must be in 1..={MAX_MAX_SENSOR_READERS}, got {}",
+                    self.max_sensor_readers
+                ));
+            }
+            Ok(())
+        }
+    }
+
     /// How many snapshots a subscriber may have queued before the oldest is
     /// dropped (async) — a reader that drains this often never loses a frame.
     pub const FRAME_SUBSCRIBER_BUFFER: usize = 16;
     /// How many snapshots a subscriber may hold at once.
     pub const FRAME_SUBSCRIBER_BORROWED: usize = 4;
-    /// How many clients the control service admits.
-    pub const MAX_CONTROL_CLIENTS: usize = 64;
-    /// How many listeners an event service admits.
-    pub const MAX_EVENT_LISTENERS: usize = 64;
-    /// How many processes (nodes) may open one service of a world.
-    pub const MAX_NODES: usize = 96;
     /// Actor slots reserved in the first frame sample; the publisher grows
     /// its memory when the world holds more.
     pub const INITIAL_MAX_ACTORS: usize = 64;
@@ -91,13 +155,9 @@ pub mod limits {
     pub const INITIAL_MAX_BATCH: usize = 64;
     /// Batches one client may have in flight.
     pub const MAX_BATCHES_IN_FLIGHT: usize = 4;
-    /// Subscribers one sensor admits.
-    pub const MAX_SENSOR_SUBSCRIBERS: usize = 4;
     /// Captures a sensor subscriber may have queued (a reader that drains
     /// this often never loses one).
     pub const SENSOR_SUBSCRIBER_BUFFER: usize = 4;
-    /// How many clients may send batches at once (each costs the server memory).
-    pub const MAX_BATCH_CLIENTS: usize = 16;
     /// The largest size (half extent, radius) of an actor, metres.
     pub const MAX_ACTOR_EXTENT: f32 = 1000.0;
     /// The farthest an actor may be placed from the origin on any axis, metres.

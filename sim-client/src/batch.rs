@@ -4,11 +4,10 @@ use std::time::Duration;
 
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
-use shared_types::limits::{INITIAL_MAX_BATCH, MAX_BATCH_CLIENTS};
+use shared_types::limits::{INITIAL_MAX_BATCH, MAX_CLIENTS_FLAG};
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
 };
-use tracing::debug;
 
 use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{Client, RequestError};
@@ -81,12 +80,14 @@ pub(crate) fn open_batch_client(
 ) -> Result<BatchClient, RequestError> {
     use iceoryx2::service::port_factory::client::ClientCreateError;
     let name = ServiceName::new(name).map_err(|e| RequestError::transport("service name", e))?;
-    node.service_builder(&name)
+    let service = node
+        .service_builder(&name)
         .request_response::<[Command], [CommandResult]>()
         .request_user_header::<BatchHeader>()
         .response_user_header::<BatchResponseHeader>()
         .open()
-        .map_err(|e| RequestError::transport("batch service", e))?
+        .map_err(|e| RequestError::transport("batch service", e))?;
+    service
         .client_builder()
         .initial_max_slice_len(INITIAL_MAX_BATCH)
         .allocation_strategy(AllocationStrategy::PowerOfTwo)
@@ -94,7 +95,8 @@ pub(crate) fn open_batch_client(
         .map_err(|e| match e {
             ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
                 what: "clients sending command batches",
-                max: MAX_BATCH_CLIENTS,
+                max: service.static_config().max_clients(),
+                flag: MAX_CLIENTS_FLAG,
             },
             e => RequestError::transport("batch client", e),
         })
@@ -136,9 +138,7 @@ impl Client {
             .write_from_slice(commands)
             .send()
             .map_err(|e| RequestError::transport("batch send", e))?;
-        if let Err(e) = self.control_wake.notify() {
-            debug!("wake-up not delivered: {e:?}");
-        }
+        self.wake_server()?;
         Ok(pending)
     }
 

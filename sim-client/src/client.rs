@@ -14,11 +14,12 @@ use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
     StatusReport, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
+use shared_types::limits::MAX_CLIENTS_FLAG;
 use tracing::{debug, warn};
 
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::{FrameStream, WaitMode};
-use crate::open::{open_with_retry, wake_notifier};
+use crate::open::{open_with_retry, wake_notifier, OpenFailure};
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
@@ -26,6 +27,12 @@ use crate::{
 };
 
 type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
+
+/// The control port and the notifier that wakes the server after a request.
+pub(crate) struct ControlPort {
+    client: ControlClient,
+    pub(crate) wake: Notifier<ipc::Service>,
+}
 
 /// How long one attempt of the first empty batch of a new batch port waits.
 const BATCH_HANDSHAKE_ATTEMPT: Duration = Duration::from_millis(100);
@@ -63,12 +70,15 @@ struct TickDispatcher {
 pub struct Client {
     pub(crate) world: WorldName,
     node: Node<ipc::Service>,
-    control: ControlClient,
-    pub(crate) control_wake: Notifier<ipc::Service>,
+    /// Opened on the first request: a client that only watches frames
+    /// holds a frame subscription and a listener, nothing else.
+    control: OnceCell<ControlPort>,
     /// Opened on the first batch: a client that never sends a command
     /// holds no batch port.
     batch: OnceCell<BatchClient>,
-    names: ServiceNames,
+    /// Opened on the first sensor request.
+    pub(crate) sensor_port: OnceCell<crate::sensor::SensorRequestClient>,
+    pub(crate) names: ServiceNames,
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
     pub(crate) request_timeout: Duration,
@@ -110,27 +120,66 @@ fn client_node() -> Result<Node<ipc::Service>, ConnectError> {
 
 impl Client {
     /// Connects to the server of `world`, waiting up to `timeout` for it to
-    /// appear and answer. Checks that both speak the same protocol version.
+    /// appear and publish its current frame, which carries the protocol
+    /// version (checked) and the server's pid (watched in every wait).
+    ///
+    /// Only the frame subscription and its listener are opened here; the
+    /// control, batch and sensor ports open on first use and stay open.
     pub fn connect(world: &str, timeout: Duration) -> Result<Self, ConnectError> {
-        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
-
         let world = WorldName::new(world)?;
         let deadline = Instant::now() + timeout;
-        let world_text = world.to_string();
-        let no_server = || ConnectError::NoServer {
-            world: world_text.clone(),
-            timeout,
-        };
         let names = ServiceNames::new(&world);
         let node = client_node()?;
-        let service_name = |name: &str| {
-            ServiceName::new(name).map_err(|e| ConnectError::transport("service name", e))
-        };
-        let control_name = service_name(&names.control)?;
-        let control = open_with_retry(
+        let mut frames = FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(
+            || ConnectError::NoServer {
+                world: world.to_string(),
+                timeout,
+            },
+        )?;
+        let header = frames
+            .first_header(deadline)
+            .map_err(|e| ConnectError::transport("first frame", e))?
+            .ok_or_else(|| ConnectError::NotAnswering {
+                world: world.to_string(),
+                timeout,
+            })?;
+        if header.protocol_version != PROTOCOL_VERSION {
+            return Err(ConnectError::ProtocolMismatch {
+                world: world.to_string(),
+                detail: format!("its frames are version {}", header.protocol_version),
+                client: PROTOCOL_VERSION,
+            });
+        }
+        debug!(%world, server_pid = header.server_pid, "connected");
+        Ok(Self {
+            world,
+            node,
+            control: OnceCell::new(),
+            batch: OnceCell::new(),
+            sensor_port: OnceCell::new(),
+            names,
+            frames,
+            server_pid: header.server_pid,
+            request_timeout: DEFAULT_REQUEST_TIMEOUT,
+            dispatcher: None,
+        })
+    }
+
+    /// The control port, opened on first use.
+    pub(crate) fn control(&self) -> Result<&ControlPort, RequestError> {
+        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
+        use iceoryx2::service::port_factory::client::ClientCreateError;
+        if let Some(port) = self.control.get() {
+            return Ok(port);
+        }
+        let deadline = Instant::now() + self.request_timeout;
+        let name = ServiceName::new(&self.names.control)
+            .map_err(|e| RequestError::transport("service name", e))?;
+        let service = open_with_retry(
             deadline,
             || {
-                node.service_builder(&control_name)
+                self.node
+                    .service_builder(&name)
                     .request_response::<ControlRequest, ControlResponse>()
                     .open()
             },
@@ -144,68 +193,39 @@ impl Client {
         )
         .map_err(|e| match e {
             RequestResponseOpenError::IncompatibleRequestOrResponseType => {
-                ConnectError::ProtocolMismatch {
-                    world: world_text.clone(),
-                    detail: "its control messages differ".to_owned(),
+                RequestError::ProtocolMismatch {
                     client: PROTOCOL_VERSION,
                 }
             }
-            e => ConnectError::transport("control service", e),
+            e => RequestError::transport("control service", e),
         })?
-        .ok_or_else(no_server)?
-        .client_builder()
-        .create()
-        .map_err(|e| {
-            use iceoryx2::service::port_factory::client::ClientCreateError;
-            match e {
-                ClientCreateError::ExceedsMaxSupportedClients => ConnectError::Full {
-                    world: world_text.clone(),
-                    what: "clients (control ports)",
-                    max: shared_types::limits::MAX_CONTROL_CLIENTS,
-                },
-                e => ConnectError::transport("control client", e),
-            }
+        .ok_or_else(|| RequestError::ServerGone {
+            world: self.world.to_string(),
+            pid: self.server_pid,
         })?;
-        let control_wake = wake_notifier(&node, &names, deadline)
-            .map_err(|e| ConnectError::transport(e.what, e.detail))?
-            .ok_or_else(no_server)?;
-        let frames =
-            FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(no_server)?;
-        let mut client = Self {
-            world,
-            node,
-            control,
-            control_wake,
-            batch: OnceCell::new(),
-            names,
-            frames,
-            server_pid: 0,
-            request_timeout: DEFAULT_REQUEST_TIMEOUT,
-            dispatcher: None,
-        };
-        let remaining = deadline.saturating_duration_since(Instant::now());
-        let hello = client
-            .request_within(ControlRequest::new(RequestKind::Hello), remaining)
-            .map_err(|e| match e {
-                RequestError::ProtocolMismatch { .. } => ConnectError::ProtocolMismatch {
-                    world: client.world.to_string(),
-                    detail: "it refused our version".to_owned(),
-                    client: PROTOCOL_VERSION,
-                },
-                RequestError::Transport { what, detail } => {
-                    ConnectError::Transport { what, detail }
-                }
-                // The services are there, so a server created them: it is
-                // alive but not answering (stopped, or overloaded).
-                RequestError::Timeout { .. } => ConnectError::NotAnswering {
-                    world: client.world.to_string(),
-                    timeout,
-                },
-                _ => no_server(),
+        let client = service.client_builder().create().map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
+                what: "clients sending requests",
+                max: service.static_config().max_clients(),
+                flag: MAX_CLIENTS_FLAG,
+            },
+            e => RequestError::transport("control client", e),
+        })?;
+        let wake = wake_notifier(&self.node, &self.names, deadline)
+            .map_err(OpenFailure::into_request)?
+            .ok_or_else(|| RequestError::ServerGone {
+                world: self.world.to_string(),
+                pid: self.server_pid,
             })?;
-        client.server_pid = hello.report.server_pid;
-        debug!(world = %client.world, server_pid = client.server_pid, "connected");
-        Ok(client)
+        Ok(self.control.get_or_init(|| ControlPort { client, wake }))
+    }
+
+    /// Wakes the server after a request was sent on any port.
+    pub(crate) fn wake_server(&self) -> Result<(), RequestError> {
+        if let Err(e) = self.control()?.wake.notify() {
+            debug!("wake-up not delivered: {e:?}");
+        }
+        Ok(())
     }
 
     /// The world this client is connected to.
@@ -418,11 +438,12 @@ impl Client {
         timeout: Duration,
     ) -> Result<ControlResponse, RequestError> {
         request.client_name = FixedText::new(process_name());
-        let pending = self
-            .control
+        let port = self.control()?;
+        let pending = port
+            .client
             .send_copy(request)
             .map_err(|e| RequestError::transport("control send", e))?;
-        if let Err(e) = self.control_wake.notify() {
+        if let Err(e) = port.wake.notify() {
             debug!("control wake-up not delivered: {e:?}");
         }
         let response = await_response(

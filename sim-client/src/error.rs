@@ -41,7 +41,7 @@ pub enum ConnectError {
         client: u32,
     },
     /// The world admits no more clients of this kind right now.
-    #[error("world '{world}' already has the most {what} it admits ({max}); close one and retry")]
+    #[error("world '{world}' already has the most {what} it admits ({max}); close one, or start its server with a larger {flag}")]
     Full {
         /// The world.
         world: String,
@@ -49,6 +49,8 @@ pub enum ConnectError {
         what: &'static str,
         /// The limit.
         max: usize,
+        /// The `sim-server` flag that raises it.
+        flag: &'static str,
     },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]
@@ -95,12 +97,14 @@ pub enum RequestError {
         world: String,
     },
     /// No more clients of this kind fit right now.
-    #[error("the most {what} admitted ({max}) are already there; close one and retry")]
+    #[error("the most {what} admitted ({max}) are already there; close one, or start the server with a larger {flag}")]
     Full {
         /// What is full.
         what: &'static str,
         /// The limit.
         max: usize,
+        /// The `sim-server` flag that raises it.
+        flag: &'static str,
     },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]

@@ -8,7 +8,8 @@ use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
-use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_FRAME_SUBSCRIBERS};
+use iceoryx2::sample::Sample;
+use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_CLIENTS_FLAG};
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{frame_ready_listener, open_with_retry};
@@ -33,14 +34,21 @@ pub enum WaitMode {
 /// How long [`WaitMode::Hybrid`] polls before it sleeps.
 pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
 
+/// How often a connecting client looks for the server's current frame.
+const FIRST_FRAME_POLL: Duration = Duration::from_millis(2);
+
 /// How often a waiting client checks that the server process still lives.
 pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
 type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
+type FrameSample = Sample<ipc::Service, [ActorState], FrameHeader>;
 
 /// A subscription to a world's frames.
 pub(crate) struct FrameStream {
     subscriber: FrameSubscriber,
+    /// A frame taken off the queue by [`FrameStream::first_header`], handed
+    /// out first.
+    stash: Option<FrameSample>,
     ready: Listener<ipc::Service>,
     /// (episode, frame) of the last snapshot handed out.
     last: Option<(u64, u64)>,
@@ -85,9 +93,7 @@ impl FrameStream {
             },
             e => ConnectError::transport("frames service", e),
         })?;
-        let ready = frame_ready_listener(node, names, deadline)
-            .map_err(|e| ConnectError::transport(e.what, e.detail))?;
-        let (Some(frames), Some(ready)) = (frames, ready) else {
+        let Some(frames) = frames else {
             return Ok(None);
         };
         let subscriber = frames
@@ -98,12 +104,18 @@ impl FrameStream {
                 SubscriberCreateError::ExceedsMaxSupportedSubscribers => ConnectError::Full {
                     world: world.to_owned(),
                     what: "frame subscribers",
-                    max: MAX_FRAME_SUBSCRIBERS,
+                    max: frames.static_config().max_subscribers(),
+                    flag: MAX_CLIENTS_FLAG,
                 },
                 e => ConnectError::transport("frames subscriber", e),
             })?;
+        let Some(ready) = frame_ready_listener(node, names, deadline).map_err(|e| e.into_connect(world))?
+        else {
+            return Ok(None);
+        };
         Ok(Some(Self {
             subscriber,
+            stash: None,
             ready,
             last: None,
             mode: WaitMode::Block,
@@ -132,11 +144,13 @@ impl FrameStream {
         let previous = self.last;
         // Only the newest sample is copied out; skipped ones are just released.
         let mut newest = None;
-        while let Some(sample) = self
-            .subscriber
-            .receive()
-            .map_err(|e| WaitError::transport("frame receive", e))?
-        {
+        while let Some(sample) = match self.stash.take() {
+            Some(sample) => Some(sample),
+            None => self
+                .subscriber
+                .receive()
+                .map_err(|e| WaitError::transport("frame receive", e))?,
+        } {
             let header = *sample.user_header();
             if header.protocol_version != PROTOCOL_VERSION {
                 return Err(WaitError::ProtocolMismatch {
@@ -169,6 +183,37 @@ impl FrameStream {
                 missed,
             }
         }))
+    }
+
+    /// Waits until `deadline` for the first frame (a new subscriber gets the
+    /// server's current one within milliseconds) and returns its header,
+    /// keeping the frame for the next [`FrameStream::try_next`]. `None` when
+    /// nothing came: the server is stopped or gone.
+    pub(crate) fn first_header(
+        &mut self,
+        deadline: Instant,
+    ) -> Result<Option<FrameHeader>, WaitError> {
+        loop {
+            if let Some(sample) = self
+                .subscriber
+                .receive()
+                .map_err(|e| WaitError::transport("frame receive", e))?
+            {
+                let header = *sample.user_header();
+                self.stash = Some(sample);
+                return Ok(Some(header));
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(None);
+            }
+            // The current frame arrives without an event: look again soon.
+            let wait = (deadline - now).min(FIRST_FRAME_POLL);
+            match self.ready.timed_wait(|_| {}, wait) {
+                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
+            }
+        }
     }
 
     /// Waits up to `timeout` for the next snapshot. With a `server_pid`,

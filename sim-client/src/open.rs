@@ -8,7 +8,10 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::event::EventOpenError;
 use iceoryx2::service::port_factory::event::PortFactory as EventService;
+use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::ServiceNames;
+
+use crate::{ConnectError, RequestError};
 
 /// Opens a service, retrying while `is_missing` says it does not exist yet,
 /// until `deadline`. `Ok(None)` when it never appeared.
@@ -36,6 +39,49 @@ pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
 pub(crate) struct OpenFailure {
     pub what: &'static str,
     pub detail: String,
+    /// The port kind was full: its limit and the flag that raises it.
+    pub full: Option<(usize, &'static str)>,
+}
+
+impl OpenFailure {
+    fn new(what: &'static str, error: impl std::fmt::Debug) -> Self {
+        Self {
+            what,
+            detail: format!("{error:?}"),
+            full: None,
+        }
+    }
+
+    /// As a [`ConnectError`] of `world`.
+    pub(crate) fn into_connect(self, world: &str) -> ConnectError {
+        match self.full {
+            Some((max, flag)) => ConnectError::Full {
+                world: world.to_owned(),
+                what: self.what,
+                max,
+                flag,
+            },
+            None => ConnectError::Transport {
+                what: self.what,
+                detail: self.detail,
+            },
+        }
+    }
+
+    /// As a [`RequestError`].
+    pub(crate) fn into_request(self) -> RequestError {
+        match self.full {
+            Some((max, flag)) => RequestError::Full {
+                what: self.what,
+                max,
+                flag,
+            },
+            None => RequestError::Transport {
+                what: self.what,
+                detail: self.detail,
+            },
+        }
+    }
 }
 
 /// The notifier that wakes an idle server after a request was sent.
@@ -45,12 +91,21 @@ pub(crate) fn wake_notifier(
     names: &ServiceNames,
     deadline: Instant,
 ) -> Result<Option<Notifier<ipc::Service>>, OpenFailure> {
-    open_event(node, &names.control_wake, deadline)?
-        .map(|service| service.notifier_builder().create())
-        .transpose()
-        .map_err(|e| OpenFailure {
-            what: "wake-up notifier",
-            detail: format!("{e:?}"),
+    use iceoryx2::port::notifier::NotifierCreateError;
+    let Some(service) = open_event(node, &names.control_wake, deadline)? else {
+        return Ok(None);
+    };
+    let max = service.static_config().max_notifiers();
+    service
+        .notifier_builder()
+        .create()
+        .map(Some)
+        .map_err(|e| match e {
+            NotifierCreateError::ExceedsMaxSupportedNotifiers => OpenFailure {
+                full: Some((max, MAX_CLIENTS_FLAG)),
+                ..OpenFailure::new("wake-up notifiers (clients that send requests)", e)
+            },
+            e => OpenFailure::new("wake-up notifier", e),
         })
 }
 
@@ -61,12 +116,21 @@ pub(crate) fn frame_ready_listener(
     names: &ServiceNames,
     deadline: Instant,
 ) -> Result<Option<Listener<ipc::Service>>, OpenFailure> {
-    open_event(node, &names.frame_ready, deadline)?
-        .map(|service| service.listener_builder().create())
-        .transpose()
-        .map_err(|e| OpenFailure {
-            what: "frame-ready listener",
-            detail: format!("{e:?}"),
+    use iceoryx2::port::listener::ListenerCreateError;
+    let Some(service) = open_event(node, &names.frame_ready, deadline)? else {
+        return Ok(None);
+    };
+    let max = service.static_config().max_listeners();
+    service
+        .listener_builder()
+        .create()
+        .map(Some)
+        .map_err(|e| match e {
+            ListenerCreateError::ExceedsMaxSupportedListeners => OpenFailure {
+                full: Some((max, MAX_CLIENTS_FLAG)),
+                ..OpenFailure::new("frame-ready listeners (clients and sensor readers)", e)
+            },
+            e => OpenFailure::new("frame-ready listener", e),
         })
 }
 
@@ -76,10 +140,7 @@ fn open_event(
     name: &str,
     deadline: Instant,
 ) -> Result<Option<EventService<ipc::Service>>, OpenFailure> {
-    let service_name = ServiceName::new(name).map_err(|e| OpenFailure {
-        what: "service name",
-        detail: format!("{e:?}"),
-    })?;
+    let service_name = ServiceName::new(name).map_err(|e| OpenFailure::new("service name", e))?;
     open_with_retry(
         deadline,
         || node.service_builder(&service_name).event().open(),
@@ -90,8 +151,11 @@ fn open_event(
             )
         },
     )
-    .map_err(|e| OpenFailure {
-        what: "event service",
-        detail: format!("{e:?}"),
+    .map_err(|e| match e {
+        EventOpenError::ExceedsMaxNumberOfNodes => OpenFailure::new(
+            "event service: more processes than the world admits (raise sim-server --max-clients)",
+            e,
+        ),
+        e => OpenFailure::new("event service", e),
     })
 }

@@ -10,18 +10,27 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
-use shared_types::limits::{MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::limits::{MAX_CLIENTS_FLAG, MAX_SENSOR_READERS_FLAG, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, ServiceNames,
     PROTOCOL_VERSION, SENSOR_ERRORS,
 };
 
-use crate::open::{frame_ready_listener, open_with_retry};
+use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
 use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{process_alive, Client, RequestError, WaitError};
 
 type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
+
+/// The client port of the world's sensor service (spawn, list, destroy).
+pub(crate) type SensorRequestClient = iceoryx2::port::client::Client<
+    ipc::Service,
+    SensorRequest,
+    (),
+    [SensorInfo],
+    SensorResponseHeader,
+>;
 
 enum Port {
     Depth(Sub<f32>),
@@ -133,7 +142,7 @@ impl Sensor {
             deadline: Instant,
         ) -> Result<Sub<T>, RequestError> {
             use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError as E;
-            open_with_retry(
+            let service = open_with_retry(
                 deadline,
                 || {
                     node.service_builder(name)
@@ -144,17 +153,19 @@ impl Sensor {
                 |e| matches!(e, E::DoesNotExist | E::HangsInCreation),
             )
             .map_err(|e| RequestError::transport("sensor service", e))?
-            .ok_or(RequestError::transport("sensor service", "does not exist"))?
-            .subscriber_builder()
-            .buffer_size(SENSOR_SUBSCRIBER_BUFFER)
-            .create()
-            .map_err(|e| match e {
-                SubscriberCreateError::ExceedsMaxSupportedSubscribers => RequestError::Full {
-                    what: "readers of this sensor",
-                    max: MAX_SENSOR_SUBSCRIBERS,
-                },
-                e => RequestError::transport("sensor subscriber", e),
-            })
+            .ok_or(RequestError::transport("sensor service", "does not exist"))?;
+            service
+                .subscriber_builder()
+                .buffer_size(SENSOR_SUBSCRIBER_BUFFER)
+                .create()
+                .map_err(|e| match e {
+                    SubscriberCreateError::ExceedsMaxSupportedSubscribers => RequestError::Full {
+                        what: "readers of this sensor",
+                        max: service.static_config().max_subscribers(),
+                        flag: MAX_SENSOR_READERS_FLAG,
+                    },
+                    e => RequestError::transport("sensor subscriber", e),
+                })
         }
         let port = match info.spec.sensor_kind() {
             Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &name, deadline)?),
@@ -163,7 +174,7 @@ impl Sensor {
             None => return Err(RequestError::UnknownRequest),
         };
         let ready = frame_ready_listener(&node, &names, deadline)
-            .map_err(|e| RequestError::transport(e.what, e.detail))?
+            .map_err(OpenFailure::into_request)?
             .ok_or(RequestError::transport(
                 "frame-ready service",
                 "does not exist",
@@ -352,24 +363,38 @@ impl Drop for Listening {
 }
 
 impl Client {
-    fn sensor_request(&self, request: SensorRequest) -> Result<Vec<SensorInfo>, SensorError> {
-        let names = ServiceNames::new(&self.world);
-        let name = ServiceName::new(&names.sensors)
+    /// The sensor-request port, opened on first use and kept.
+    fn sensor_port(&self) -> Result<&SensorRequestClient, RequestError> {
+        use iceoryx2::service::port_factory::client::ClientCreateError;
+        if let Some(port) = self.sensor_port.get() {
+            return Ok(port);
+        }
+        let name = ServiceName::new(&self.names.sensors)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let port = self
+        let service = self
             .node()
             .service_builder(&name)
             .request_response::<SensorRequest, [SensorInfo]>()
             .response_user_header::<SensorResponseHeader>()
             .open()
-            .map_err(|e| RequestError::transport("sensor service", e))?
-            .client_builder()
-            .create()
-            .map_err(|e| RequestError::transport("sensor client", e))?;
-        let pending = port
+            .map_err(|e| RequestError::transport("sensor service", e))?;
+        let port = service.client_builder().create().map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
+                what: "clients sending sensor requests",
+                max: service.static_config().max_clients(),
+                flag: MAX_CLIENTS_FLAG,
+            },
+            e => RequestError::transport("sensor client", e),
+        })?;
+        Ok(self.sensor_port.get_or_init(|| port))
+    }
+
+    fn sensor_request(&self, request: SensorRequest) -> Result<Vec<SensorInfo>, SensorError> {
+        let pending = self
+            .sensor_port()?
             .send_copy(request)
             .map_err(|e| RequestError::transport("sensor send", e))?;
-        let _ = self.control_wake.notify();
+        self.wake_server()?;
         let (header, infos) = await_slice_response(
             &pending,
             self.request_timeout,

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
+use shared_types::limits::{self, WorldLimits};
 use shared_types::{input, WorldName, WorldSettings};
 use tracing_subscriber::EnvFilter;
 
@@ -96,6 +97,16 @@ pub struct ServerArgs {
     /// this long too, whatever its own timeout.
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
     pub lockstep_timeout: Duration,
+
+    /// How many clients of each kind the world admits: frame subscribers,
+    /// control, batch, lockstep and sensor-request clients (each costs
+    /// shared memory; see the README's limits table).
+    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_CLIENTS)]
+    pub max_clients: usize,
+
+    /// How many readers each sensor admits.
+    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_SENSOR_READERS)]
+    pub max_sensor_readers: usize,
 
     /// Exit after computing N frames.
     #[arg(long, value_name = "N")]
@@ -191,6 +202,13 @@ pub fn init_logging(verbose: u8) {
 /// Runs a server as the options say, until Ctrl-C / SIGTERM or `--max-frames`.
 pub fn run(args: ServerArgs) -> Result<(), RunError> {
     let settings = args.settings().map_err(RunError::Refused)?;
+    let limits = WorldLimits {
+        max_clients: args.max_clients,
+        max_sensor_readers: args.max_sensor_readers,
+    };
+    limits
+        .validate()
+        .map_err(|e| RunError::Refused(anyhow::anyhow!(e)))?;
     let shutdown = Arc::new(AtomicBool::new(false));
     let flag = shutdown.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
@@ -209,6 +227,7 @@ pub fn run(args: ServerArgs) -> Result<(), RunError> {
         spin_window: args.spin_window,
         seed: args.seed,
         lockstep_timeout: args.lockstep_timeout,
+        limits,
     };
     let mut server = Server::start(config).map_err(|e| match e {
         crate::ServerError::Settings(e) => RunError::Refused(e.into()),

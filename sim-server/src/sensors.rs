@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use rapier3d::prelude::{Pose, Rotation, Vector};
-use shared_types::limits::{MAX_NODES, MAX_SENSOR_SUBSCRIBERS, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::limits::SENSOR_SUBSCRIBER_BUFFER;
 use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorSpec, ServiceNames,
@@ -54,16 +54,18 @@ pub enum SpawnRefusal {
 }
 
 /// Every sensor of a world.
-#[derive(Default)]
 pub struct Sensors {
     list: Vec<Sensor>,
     next_id: u64,
+    /// Readers each sensor admits (`--max-sensor-readers`).
+    max_readers: usize,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
     node: &Node<ipc::Service>,
     name: &str,
     elements: usize,
+    max_readers: usize,
 ) -> Result<Port<T>, ServerError> {
     let name =
         ServiceName::new(name).map_err(|e| ServerError::transport("sensor service name", e))?;
@@ -71,12 +73,12 @@ fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .publish_subscribe::<[T]>()
         .user_header::<SensorHeader>()
         .max_publishers(1)
-        .max_subscribers(MAX_SENSOR_SUBSCRIBERS)
+        .max_subscribers(max_readers)
         .subscriber_max_buffer_size(SENSOR_SUBSCRIBER_BUFFER)
         .subscriber_max_borrowed_samples(2)
         .history_size(0)
         .enable_safe_overflow(true)
-        .max_nodes(MAX_NODES)
+        .max_nodes(max_readers + 16)
         .payload_alignment(Alignment::new(16).expect("16 is a power of two"))
         .open_or_create()
         .map_err(|e| ServerError::transport("sensor service", e))?
@@ -96,6 +98,15 @@ fn rotation_of(q: [f32; 4]) -> Rotation {
 }
 
 impl Sensors {
+    /// No sensors yet; each will admit `max_readers` readers.
+    pub fn new(max_readers: usize) -> Self {
+        Self {
+            list: Vec::new(),
+            next_id: 0,
+            max_readers,
+        }
+    }
+
     /// Builds a sensor from `spec` and opens its service.
     pub fn spawn(
         &mut self,
@@ -115,9 +126,13 @@ impl Sensors {
         let name = names.sensor(id);
         let elements = spec.elements();
         let port = match kind {
-            SensorKind::Depth => open_port(node, &name, elements).map(SensorPort::Depth),
-            SensorKind::Lidar => open_port(node, &name, elements).map(SensorPort::Lidar),
-            SensorKind::Imu => open_port(node, &name, 1).map(SensorPort::Imu),
+            SensorKind::Depth => {
+                open_port(node, &name, elements, self.max_readers).map(SensorPort::Depth)
+            }
+            SensorKind::Lidar => {
+                open_port(node, &name, elements, self.max_readers).map(SensorPort::Lidar)
+            }
+            SensorKind::Imu => open_port(node, &name, 1, self.max_readers).map(SensorPort::Imu),
         };
         let port = match port {
             Ok(port) => port,

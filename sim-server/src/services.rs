@@ -7,9 +7,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
 use shared_types::limits::{
-    FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS, INITIAL_MAX_BATCH,
-    MAX_BATCHES_IN_FLIGHT, MAX_BATCH_CLIENTS, MAX_CONTROL_CLIENTS, MAX_EVENT_LISTENERS,
-    MAX_FRAME_SUBSCRIBERS, MAX_NODES,
+    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
+    INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT,
 };
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
@@ -64,7 +63,12 @@ impl ServerPorts {
     /// Creates the node, removes what dead processes left behind, and opens
     /// (or creates) every service of `world`. Fails with
     /// [`ServerError::AlreadyRunning`] when a live server holds the world.
-    pub fn open(world: &WorldName, initial_actors: usize) -> Result<Self, ServerError> {
+    pub fn open(
+        world: &WorldName,
+        initial_actors: usize,
+        limits: &WorldLimits,
+    ) -> Result<Self, ServerError> {
+        let (clients, nodes) = (limits.max_clients, limits.nodes());
         shared_types::environment::prepare().map_err(ServerError::SharedDirectory)?;
         let names = ServiceNames::new(world);
         let node_name =
@@ -99,8 +103,8 @@ impl ServerPorts {
             .service_builder(&service_name(&names.control)?)
             .request_response::<ControlRequest, ControlResponse>()
             .max_servers(1)
-            .max_clients(MAX_CONTROL_CLIENTS)
-            .max_nodes(MAX_NODES)
+            .max_clients(clients)
+            .max_nodes(nodes)
             .max_active_requests_per_client(2)
             .max_response_buffer_size(2)
             .open_or_create()
@@ -120,7 +124,7 @@ impl ServerPorts {
             .request_response::<TickRequest, TickResponse>()
             .max_servers(1)
             .max_clients(1)
-            .max_nodes(MAX_NODES)
+            .max_nodes(nodes)
             .max_active_requests_per_client(4)
             .max_response_buffer_size(4)
             .open_or_create()
@@ -135,8 +139,8 @@ impl ServerPorts {
             .request_user_header::<BatchHeader>()
             .response_user_header::<BatchResponseHeader>()
             .max_servers(1)
-            .max_clients(MAX_BATCH_CLIENTS)
-            .max_nodes(MAX_NODES)
+            .max_clients(clients)
+            .max_nodes(nodes)
             .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
             .max_response_buffer_size(1)
             // A batch is never dropped: a sender that outruns the server waits.
@@ -154,8 +158,8 @@ impl ServerPorts {
             .service_builder(&service_name(&names.lockstep)?)
             .request_response::<LockstepRequest, LockstepResponse>()
             .max_servers(1)
-            .max_clients(MAX_CONTROL_CLIENTS)
-            .max_nodes(MAX_NODES)
+            .max_clients(clients)
+            .max_nodes(nodes)
             .max_active_requests_per_client(4)
             .max_response_buffer_size(2)
             .enable_fire_and_forget_requests(true)
@@ -170,8 +174,8 @@ impl ServerPorts {
             .request_response::<SensorRequest, [SensorInfo]>()
             .response_user_header::<SensorResponseHeader>()
             .max_servers(1)
-            .max_clients(MAX_BATCH_CLIENTS)
-            .max_nodes(MAX_NODES)
+            .max_clients(clients)
+            .max_nodes(nodes)
             .max_active_requests_per_client(2)
             .max_response_buffer_size(1)
             .open_or_create()
@@ -185,9 +189,9 @@ impl ServerPorts {
         let control_wake = node
             .service_builder(&service_name(&names.control_wake)?)
             .event()
-            .max_listeners(MAX_EVENT_LISTENERS)
-            .max_notifiers(MAX_CONTROL_CLIENTS)
-            .max_nodes(MAX_NODES)
+            .max_listeners(limits.event_listeners())
+            .max_notifiers(clients)
+            .max_nodes(nodes)
             .open_or_create()
             .map_err(|e| ServerError::transport("control wake-up service", e))?
             .listener_builder()
@@ -199,12 +203,12 @@ impl ServerPorts {
             .publish_subscribe::<[ActorState]>()
             .user_header::<FrameHeader>()
             .max_publishers(1)
-            .max_subscribers(MAX_FRAME_SUBSCRIBERS)
+            .max_subscribers(clients)
             .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
             .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
             .history_size(1)
             .enable_safe_overflow(true)
-            .max_nodes(MAX_NODES)
+            .max_nodes(nodes)
             .open_or_create()
             .map_err(|e| ServerError::transport("frames service", e))?
             .publisher_builder()
@@ -217,9 +221,9 @@ impl ServerPorts {
         let frame_ready = node
             .service_builder(&service_name(&names.frame_ready)?)
             .event()
-            .max_listeners(MAX_EVENT_LISTENERS)
+            .max_listeners(limits.event_listeners())
             .max_notifiers(4)
-            .max_nodes(MAX_NODES)
+            .max_nodes(nodes)
             .open_or_create()
             .map_err(|e| ServerError::transport("frame-ready service", e))?
             .notifier_builder()

@@ -16,6 +16,8 @@ use shared_types::{
 };
 use tracing::{debug, debug_span, info, warn};
 
+use shared_types::limits::WorldLimits;
+
 use crate::clock::{long_substep, Clock, SubstepPlan, LONG_FRAME_NS};
 use crate::lockstep::Participants;
 use crate::scene::Scene;
@@ -57,6 +59,8 @@ pub struct ServerConfig {
     /// A lockstep participant that keeps a tick waiting this long is
     /// dropped (a hung reader must not stop the world).
     pub lockstep_timeout: Duration,
+    /// How many clients (and readers per sensor) the world admits.
+    pub limits: WorldLimits,
 }
 
 /// What a finished run did.
@@ -159,7 +163,7 @@ impl Server {
             warn!("{warning}");
         }
         let world = World::new(&config.scene.placements(config.seed), 1);
-        let ports = ServerPorts::open(&config.world, world.actor_count())?;
+        let ports = ServerPorts::open(&config.world, world.actor_count(), &config.limits)?;
         let now = Instant::now();
         let mut server = Self {
             ports,
@@ -174,7 +178,7 @@ impl Server {
             participants: Participants::default(),
             pending_steps: VecDeque::new(),
             frames_computed: 0,
-            sensors: Sensors::default(),
+            sensors: Sensors::new(config.limits.max_sensor_readers),
             waiting_for_participants_since: None,
             ticker_told_of_wait: false,
             names: ServiceNames::new(&config.world),
@@ -398,6 +402,8 @@ impl Server {
             physics_substeps,
             flags,
             first_actor_id: self.world.first_id(),
+            server_pid: std::process::id(),
+            reserved: 0,
         };
         let world = &self.world;
         let sample = sample.write_from_fn(|i| world.actor_state(i));
@@ -522,6 +528,8 @@ impl Server {
             ticker: self.ownership.info(),
             seed: self.config.seed,
             participants: self.participants.len() as u32,
+            max_clients: self.config.limits.max_clients as u32,
+            max_sensor_readers: self.config.limits.max_sensor_readers as u32,
             reserved: 0,
         }
     }

@@ -32,6 +32,7 @@
 //!     spin_window: std::time::Duration::from_micros(100),
 //!     seed: 0,
 //!     lockstep_timeout: std::time::Duration::from_secs(10),
+//!     limits: Default::default(),
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());

@@ -16,7 +16,15 @@ fn sync_world(tag: &str, scene: &str) -> (Proc, Client, Ticker) {
     let world = unique_world(tag);
     let proc = server(
         &world,
-        &["--sync", "--fixed-delta-seconds", "0.02", "--scene", scene],
+        &[
+            "--sync",
+            "--delta-seconds",
+            "0.02",
+            "--scene",
+            scene,
+            "--max-sensor-readers",
+            "4",
+        ],
     );
     let client = Client::connect(&world, T).unwrap();
     let ticker = client.claim_ticker().unwrap();
@@ -185,7 +193,8 @@ fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
     match client.sensor(sensor.id()) {
         Err(e) => assert!(
             e.to_string()
-                .contains("the most readers of this sensor admitted (4)"),
+                .contains("the most readers of this sensor admitted (4)")
+                && e.to_string().contains("--max-sensor-readers"),
             "{e}"
         ),
         Ok(_) => panic!("a fifth reader was admitted"),

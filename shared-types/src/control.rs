@@ -67,6 +67,9 @@ pub enum ResponseStatus {
     /// Lockstep service: the sender is not (or no longer) a participant;
     /// the server dropped it or it never joined.
     NotParticipant = 9,
+    /// Loading or reloading the world failed on the server (its log says
+    /// why); the world is unchanged.
+    LoadFailed = 10,
 }
 
 impl ResponseStatus {
@@ -83,6 +86,7 @@ impl ResponseStatus {
             7 => Self::Revoked,
             8 => Self::WaitingForParticipants,
             9 => Self::NotParticipant,
+            10 => Self::LoadFailed,
             _ => return None,
         })
     }
@@ -327,6 +331,7 @@ mod tests {
             ResponseStatus::Revoked,
             ResponseStatus::WaitingForParticipants,
             ResponseStatus::NotParticipant,
+            ResponseStatus::LoadFailed,
         ] {
             assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
         }

@@ -10,11 +10,11 @@ use std::time::{Duration, Instant};
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
+use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
     StatusReport, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
-use shared_types::limits::MAX_CLIENTS_FLAG;
 use tracing::{debug, warn};
 
 use crate::batch::{open_batch_client, BatchClient};
@@ -130,12 +130,13 @@ impl Client {
         let deadline = Instant::now() + timeout;
         let names = ServiceNames::new(&world);
         let node = client_node()?;
-        let mut frames = FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(
-            || ConnectError::NoServer {
-                world: world.to_string(),
-                timeout,
-            },
-        )?;
+        let mut frames =
+            FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(|| {
+                ConnectError::NoServer {
+                    world: world.to_string(),
+                    timeout,
+                }
+            })?;
         let header = frames
             .first_header(deadline)
             .map_err(|e| ConnectError::transport("first frame", e))?

@@ -109,7 +109,8 @@ impl FrameStream {
                 },
                 e => ConnectError::transport("frames subscriber", e),
             })?;
-        let Some(ready) = frame_ready_listener(node, names, deadline).map_err(|e| e.into_connect(world))?
+        let Some(ready) =
+            frame_ready_listener(node, names, deadline).map_err(|e| e.into_connect(world))?
         else {
             return Ok(None);
         };

@@ -4,9 +4,10 @@
 //! Time is kept as `u64` nanoseconds so that a million frames of 0.1 s land
 //! exactly on 100 000 s; seconds are only computed for display and physics.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use shared_types::{seconds_to_nanos, WorldSettings, NANOS_PER_SECOND};
+use tracing::warn;
 
 /// How one frame's delta is split into physics steps.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,6 +101,63 @@ impl Clock {
         self.elapsed_ns += delta_ns;
         self.delta_ns = delta_ns;
         self.last_frame_at = now;
+    }
+}
+
+/// A realtime server that falls this far behind stops trying to catch up.
+const MAX_REALTIME_LAG: Duration = Duration::from_millis(250);
+
+/// When the next frame is due in asynchronous mode: at once (fixed step,
+/// unpaced), on the wall clock (fixed step, `--realtime`), or at most
+/// `max_fps` frames a second (variable step).
+#[derive(Debug, Clone)]
+pub struct Pacer {
+    realtime: bool,
+    max_fps: f64,
+    /// Wall instant and simulation time that correspond (realtime).
+    anchor: Option<(Instant, u64)>,
+}
+
+impl Pacer {
+    /// A pacer for `--realtime` and `--max-fps` (0: no limit).
+    pub fn new(realtime: bool, max_fps: f64) -> Self {
+        Self {
+            realtime,
+            max_fps,
+            anchor: None,
+        }
+    }
+
+    /// Forgets the wall/simulation correspondence (settings changed, new
+    /// episode, sync mode left): pacing starts again from the next frame.
+    pub fn reset(&mut self) {
+        self.anchor = None;
+    }
+
+    /// When the next frame of `clock` is due under `settings`; `None` for now.
+    pub fn next_frame_at(
+        &mut self,
+        clock: &Clock,
+        settings: &WorldSettings,
+        now: Instant,
+    ) -> Option<Instant> {
+        match settings.fixed_delta_nanos() {
+            Some(dt) if self.realtime => {
+                let (wall, sim) = *self.anchor.get_or_insert((now, clock.elapsed_ns()));
+                let due = wall + Duration::from_nanos(clock.elapsed_ns() + dt - sim);
+                if now.saturating_duration_since(due) > MAX_REALTIME_LAG {
+                    warn!("realtime pacing fell behind by more than {MAX_REALTIME_LAG:?}; resynchronising");
+                    self.anchor = None;
+                }
+                Some(due)
+            }
+            Some(_) => None,
+            // --max-fps was checked to give a period a clock can wait for.
+            None if self.max_fps > 0.0 => {
+                Some(clock.last_frame_at() + Duration::from_secs_f64(1.0 / self.max_fps))
+            }
+            None => None,
+        }
     }
 }
 

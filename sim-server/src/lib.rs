@@ -4,27 +4,42 @@
 //! the simulation [`clock`], and writes every frame's snapshot straight into
 //! iceoryx2 shared memory for any number of clients.
 //!
-//! - [`clock`]: integer-nanosecond time, fixed / variable step, substep plan.
+//! One domain, one module — each owns its iceoryx2 port(s), its state and
+//! its request handling; the [`server`] loop only orders them:
+//!
+//! - [`config`]: how the server was started (immutable); [`state`]: what
+//!   changes while it runs (settings, scene, episode, pacing).
+//! - [`clock`]: integer-nanosecond time, fixed / variable step, substep
+//!   plan, and the pacing of asynchronous frames.
 //! - [`scene`]: the initial contents of a world (`default`, `empty`, `boxes:N`).
-//! - [`world`]: rapier bodies and the actors that name them.
-//! - [`services`]: the world's iceoryx2 ports.
-//! - [`ticker`]: tick ownership and its loss.
+//! - [`world`]: rapier bodies and the actors that name them;
+//!   [`commands`]: what each wire command does to them; [`vehicles`]: the
+//!   ray-cast vehicles.
+//! - [`frames`]: publishing each frame's snapshot.
+//! - [`control`]: status, settings, load and reload — and the wake-up event
+//!   the loop sleeps on.
+//! - [`ticker`]: the tick service, tick ownership, its loss and revocation.
+//! - [`batches`]: command batches.
 //! - [`lockstep`]: participants the server waits for in synchronous mode.
 //! - [`sensors`]: depth camera, lidar and IMU, written straight into shared memory.
-//! - [`server`]: the loop that paces, steps and publishes, and its answers to requests.
+//! - [`ports`], [`liveness`]: the node the domains open their ports on, and
+//!   which client processes still live.
 //! - [`cli`]: the `sim-server` command line.
 //!
-//! ```no_run
+//! A server runs in-process too (this example computes 100 frames as fast
+//! as it can and returns):
+//!
+//! ```
 //! use std::sync::atomic::AtomicBool;
 //! use sim_server::{Scene, Server, ServerConfig};
 //! use shared_types::{WorldName, WorldSettings};
 //!
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let config = ServerConfig {
-//!     world: WorldName::new("lab")?,
+//!     world: WorldName::new(&format!("doc-lab-{}", std::process::id()))?,
 //!     scene: Scene::Default,
 //!     settings: WorldSettings { fixed_delta_seconds: Some(0.05), ..Default::default() },
-//!     realtime: true,
+//!     realtime: false,
 //!     max_fps: 0.0,
 //!     max_frames: Some(100),
 //!     on_ticker_loss: Default::default(),
@@ -35,7 +50,8 @@
 //!     limits: Default::default(),
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
-//! println!("{} frames at {:.0} FPS", summary.frames, summary.frames_per_second());
+//! assert_eq!(summary.frames, 100);
+//! assert!((summary.elapsed_seconds - 5.0).abs() < 1e-9);
 //! # Ok(())
 //! # }
 //! ```
@@ -43,18 +59,27 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
+pub mod batches;
 pub mod cli;
 pub mod clock;
+pub mod commands;
+pub mod config;
+pub mod control;
+pub mod frames;
+pub mod liveness;
 pub mod lockstep;
+pub mod ports;
 pub mod scene;
 pub mod sensors;
 pub mod server;
-pub mod services;
+pub mod state;
 pub mod ticker;
+pub mod vehicles;
 pub mod world;
 
+pub use config::ServerConfig;
 pub use scene::{Scene, SceneError};
-pub use server::{RunSummary, Server, ServerConfig};
+pub use server::{RunSummary, Server};
 pub use ticker::OnTickerLoss;
 
 use shared_types::SettingsError;
@@ -74,11 +99,6 @@ pub enum ServerError {
     /// The start settings were refused.
     #[error("invalid settings: {0}")]
     Settings(SettingsError),
-    /// Synchronous mode was asked for at start without a ticker.
-    #[error(
-        "synchronous mode is entered by the tick owner (sim-client tick), not at server start"
-    )]
-    SyncNeedsTicker,
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}: {detail}")]
     Transport {

@@ -1,7 +1,196 @@
-//! Lockstep participants: clients the server waits for, frame by frame, in
-//! synchronous mode (CARLA's Traffic Manager, kept in step by the bus).
+//! The lockstep domain: participants the server waits for, frame by frame,
+//! in synchronous mode (CARLA's Traffic Manager, kept in step by the bus),
+//! their service, and what happens to one that dies or hangs.
+
+use std::time::{Duration, Instant};
 
 use iceoryx2::identifiers::UniqueClientId;
+use iceoryx2::port::server::Server as RequestServer;
+use iceoryx2::prelude::*;
+use shared_types::limits::WorldLimits;
+use shared_types::{
+    FixedText, LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, PROTOCOL_VERSION,
+};
+use tracing::{debug, info, warn};
+
+use crate::clock::Clock;
+use crate::liveness::Sweep;
+use crate::ports::{service_name, Transport};
+use crate::ticker::Ticker;
+use crate::ServerError;
+
+/// A tick held up by a participant this long is told which one, and how
+/// long the server will wait for it, so the ticker's own timeout can wait
+/// that long too.
+const WAIT_NOTICE_AFTER: Duration = Duration::from_millis(200);
+
+type LockstepServer = RequestServer<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
+
+/// The lockstep service and its participants.
+#[derive(Debug)]
+pub struct Lockstep {
+    port: LockstepServer,
+    participants: Participants,
+    /// Since when a tick waits for participants.
+    waiting_since: Option<Instant>,
+    /// Whether the waiting tick was told which participant it waits for.
+    told: bool,
+}
+
+impl Lockstep {
+    /// Opens the lockstep service.
+    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+        let port = transport
+            .node
+            .service_builder(&service_name(&transport.names.lockstep)?)
+            .request_response::<LockstepRequest, LockstepResponse>()
+            .max_servers(1)
+            .max_clients(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(4)
+            .max_response_buffer_size(2)
+            .enable_fire_and_forget_requests(true)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("lockstep service", e))?
+            .server_builder()
+            .create()
+            .map_err(|e| ServerError::transport("lockstep server", e))?;
+        Ok(Self {
+            port,
+            participants: Participants::default(),
+            waiting_since: None,
+            told: false,
+        })
+    }
+
+    /// How many participants there are.
+    pub fn len(&self) -> usize {
+        self.participants.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.participants.is_empty()
+    }
+
+    /// Whether every participant is done with `frame` (the world may step).
+    pub fn all_done(&self, frame: u64) -> bool {
+        self.participants.all_done(frame)
+    }
+
+    /// A new episode starts at frame 0: everyone must report it anew.
+    pub fn new_episode(&mut self) {
+        self.participants.new_episode();
+    }
+
+    /// Joins, leaves and "done with frame N" of participants. A "done"
+    /// from a client that is not (or no longer) a participant is answered
+    /// `NotParticipant`, so a dropped one learns it.
+    pub fn handle(&mut self, episode: u64, clock: &Clock) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .port
+            .receive()
+            .map_err(|e| ServerError::transport("lockstep receive", e))?
+        {
+            let payload: LockstepRequest = *request.payload();
+            let origin = request.origin();
+            let status = if payload.protocol_version != PROTOCOL_VERSION {
+                ResponseStatus::ProtocolMismatch
+            } else {
+                match LockstepKind::from_u32(payload.kind) {
+                    Some(LockstepKind::Join) => {
+                        let name = payload.name.to_string_lossy();
+                        info!(pid = payload.pid, %name, frame = clock.frame(), "lockstep participant joined");
+                        self.participants.join(origin, payload.pid, name);
+                        ResponseStatus::Ok
+                    }
+                    Some(LockstepKind::Leave) => {
+                        if self.participants.leave(origin) {
+                            info!(pid = payload.pid, "lockstep participant left");
+                        }
+                        ResponseStatus::Ok
+                    }
+                    Some(LockstepKind::Done) if !self.participants.contains(origin) => {
+                        // Dropped (hung past the timeout) or never joined.
+                        ResponseStatus::NotParticipant
+                    }
+                    Some(LockstepKind::Done) => {
+                        // A "done" for an earlier episode means nothing now.
+                        if payload.episode == episode {
+                            self.participants.done(origin, payload.frame);
+                        }
+                        ResponseStatus::Ok
+                    }
+                    None => ResponseStatus::UnknownRequest,
+                }
+            };
+            let response = LockstepResponse {
+                protocol_version: PROTOCOL_VERSION,
+                status: status as u32,
+                frame: clock.frame(),
+                episode,
+            };
+            if let Err(e) = request.send_copy(response) {
+                debug!("lockstep response not delivered: {e:?}");
+            }
+        }
+        Ok(())
+    }
+
+    /// A tick waits for participants at `now`: after [`WAIT_NOTICE_AFTER`]
+    /// the ticker is told which one; after `timeout` the late ones are
+    /// dropped (a hung reader must not stop the world).
+    pub fn held_up(&mut self, now: Instant, timeout: Duration, ticker: &Ticker, clock: &Clock) {
+        let since = *self.waiting_since.get_or_insert(now);
+        let waited = now.duration_since(since);
+        if waited >= timeout {
+            self.waiting_since = None;
+            self.told = false;
+            for late in self.participants.drop_not_done(clock.frame()) {
+                warn!(
+                    pid = late.pid,
+                    name = %late.name,
+                    frame = clock.frame(),
+                    ?timeout,
+                    "lockstep participant did not report done in time; no longer waiting for it"
+                );
+            }
+            return;
+        }
+        if self.told || waited < WAIT_NOTICE_AFTER {
+            return;
+        }
+        self.told = true;
+        if let Some(late) = self.participants.first_not_done(clock.frame()) {
+            info!(
+                pid = late.pid,
+                name = %late.name,
+                frame = clock.frame(),
+                "a tick waits for a lockstep participant"
+            );
+            let participant = Ticker::named(late.pid, FixedText::new(&late.name), clock.frame());
+            ticker.tell_held_up(participant, timeout, clock);
+        }
+    }
+
+    /// The world stepped: no tick waits any more.
+    pub fn stepped(&mut self) {
+        self.waiting_since = None;
+        self.told = false;
+    }
+
+    /// Drops the participants whose process died (by `sweep`).
+    pub fn drop_dead(&mut self, sweep: &Sweep, frame: u64) {
+        for dead in self.participants.drop_dead(|pid| sweep.alive(pid)) {
+            warn!(
+                pid = dead.pid,
+                name = %dead.name,
+                frame,
+                "lockstep participant died; no longer waiting for it"
+            );
+        }
+    }
+}
 
 /// One participant and the last frame it reported done in this episode.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,7 +207,7 @@ pub struct Participant {
 
 /// Every participant of a world.
 #[derive(Debug, Default)]
-pub struct Participants {
+struct Participants {
     list: Vec<Participant>,
 }
 

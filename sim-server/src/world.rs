@@ -1,77 +1,47 @@
-//! The physics world: rapier bodies, the actors that name them, vehicles,
-//! and the commands that change them.
+//! The physics world: rapier bodies and the actors that name them. What
+//! each wire command does to them is in [`crate::commands`]; the vehicles
+//! are in [`crate::vehicles`].
 
-use rapier3d::control::{DynamicRayCastVehicleController, WheelTuning};
 use rapier3d::prelude::*;
-use shared_types::limits::{MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION};
-use shared_types::{ActorKind, ActorState, Command, CommandKind, CommandResult, CommandStatus};
+use shared_types::{ActorKind, ActorState};
 
 use crate::clock::SubstepPlan;
 use crate::scene::Placement;
+use crate::vehicles::Vehicles;
 
 /// One actor: a rapier body with a stable simbus id.
 #[derive(Debug, Clone)]
-struct Actor {
-    id: u64,
-    kind: ActorKind,
-    body: RigidBodyHandle,
-    extent: [f32; 3],
+pub(crate) struct Actor {
+    pub(crate) id: u64,
+    pub(crate) kind: ActorKind,
+    pub(crate) body: RigidBodyHandle,
+    pub(crate) extent: [f32; 3],
     /// Linear velocity at the previous frame, for the acceleration.
     previous_velocity: Vector,
     /// Linear acceleration over the last frame.
     acceleration: Vector,
 }
 
-/// A vehicle's controller and the control it holds until told otherwise.
-struct Vehicle {
-    actor: u64,
-    controller: DynamicRayCastVehicleController,
-    throttle: f32,
-    steer: f32,
-    brake: f32,
-    hand_brake: bool,
-}
-
-/// Chassis half extents of a spawned vehicle: 2 m long (X), 0.5 m high, 1 m wide.
-const VEHICLE_HALF_EXTENTS: [f32; 3] = [1.0, 0.25, 0.5];
-/// Engine force per driven (rear) wheel at full throttle, newtons.
-const MAX_ENGINE_FORCE: f32 = 300.0;
-/// Brake force per wheel at full brake.
-const MAX_BRAKE: f32 = 40.0;
-/// Front-wheel angle at full steer, radians.
-const MAX_STEER: f32 = 0.5;
-
 /// The rapier world and its actors, in id order.
 pub struct World {
-    physics: PhysicsWorld,
-    actors: Vec<Actor>,
-    vehicles: Vec<Vehicle>,
+    pub(crate) physics: PhysicsWorld,
+    pub(crate) actors: Vec<Actor>,
+    pub(crate) vehicles: Vehicles,
     /// Bodies given a one-frame force or torque, cleared after the frame.
-    pushed: Vec<RigidBodyHandle>,
+    pub(crate) pushed: Vec<RigidBodyHandle>,
     /// The id of this world's first actor (the scene's first placement).
     first_id: u64,
     next_id: u64,
 }
 
-fn finite(values: &[f32]) -> bool {
-    values.iter().all(|v| v.is_finite())
-}
-
-/// `q` as a unit quaternion; all zeros means identity. `None` if unusable.
-fn rotation_of(q: [f32; 4]) -> Option<Rotation> {
-    if q == [0.0; 4] {
-        return Some(Rotation::IDENTITY);
-    }
-    let rotation = Rotation::from_xyzw(q[0], q[1], q[2], q[3]);
-    let length = rotation.length();
-    (finite(&q) && length > 1e-6).then(|| rotation / length)
-}
-
-fn result(actor: u64, status: CommandStatus) -> CommandResult {
-    CommandResult {
-        actor,
-        status: status as u32,
-        reserved: 0,
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("actors", &self.actors.len())
+            .field("vehicles", &self.vehicles)
+            .field("first_id", &self.first_id)
+            .field("next_id", &self.next_id)
+            .finish()
     }
 }
 
@@ -84,7 +54,7 @@ impl World {
         let mut world = Self {
             physics: PhysicsWorld::new(),
             actors: Vec::new(),
-            vehicles: Vec::new(),
+            vehicles: Vehicles::default(),
             pushed: Vec::new(),
             first_id,
             next_id: first_id,
@@ -95,7 +65,7 @@ impl World {
         world
     }
 
-    fn insert(&mut self, placement: &Placement) -> u64 {
+    pub(crate) fn insert(&mut self, placement: &Placement) -> u64 {
         let (body, collider) = placement.build();
         let (body, _) = self.physics.insert(body, collider);
         let id = self.next_id;
@@ -110,14 +80,7 @@ impl World {
             acceleration: Vector::ZERO,
         });
         if placement.kind == ActorKind::Vehicle {
-            self.vehicles.push(Vehicle {
-                actor: id,
-                controller: vehicle_controller(body, e),
-                throttle: 0.0,
-                steer: 0.0,
-                brake: 0.0,
-                hand_brake: false,
-            });
+            self.vehicles.add(id, body, e);
         }
         id
     }
@@ -137,117 +100,8 @@ impl World {
         self.actors.len()
     }
 
-    fn index_of(&self, id: u64) -> Option<usize> {
+    pub(crate) fn index_of(&self, id: u64) -> Option<usize> {
         self.actors.binary_search_by_key(&id, |a| a.id).ok()
-    }
-
-    /// Applies one command; its result names the actor (the new one for a
-    /// spawn) and what went wrong, if anything. A failed command changes nothing.
-    pub fn apply(&mut self, command: &Command) -> CommandResult {
-        let Some(kind) = CommandKind::from_u32(command.kind) else {
-            return result(command.actor, CommandStatus::UnknownCommand);
-        };
-        if !finite(&command.vector) || !finite(&command.rotation) || !finite(&command.params) {
-            return result(command.actor, CommandStatus::InvalidArgument);
-        }
-        if kind.spawns() {
-            return self.spawn(kind, command);
-        }
-        let Some(index) = self.index_of(command.actor) else {
-            return result(command.actor, CommandStatus::UnknownActor);
-        };
-        let actor = &self.actors[index];
-        let (id, handle) = (actor.id, actor.body);
-        if actor.kind == ActorKind::Static && kind != CommandKind::Destroy {
-            return result(id, CommandStatus::StaticActor);
-        }
-        let v = Vector::from_array(command.vector);
-        let body = &mut self.physics.bodies[handle];
-        match kind {
-            CommandKind::Destroy => {
-                self.physics.remove_body(handle);
-                self.actors.remove(index);
-                self.vehicles.retain(|vehicle| vehicle.actor != id);
-            }
-            CommandKind::SetTransform => {
-                let Some(rotation) = rotation_of(command.rotation) else {
-                    return result(id, CommandStatus::InvalidArgument);
-                };
-                body.set_position(Pose::from_parts(v, rotation), true);
-            }
-            CommandKind::SetTargetVelocity => {
-                let [x, y, z, _] = command.rotation;
-                body.set_linvel(v, true);
-                body.set_angvel(Vector::new(x, y, z), true);
-            }
-            CommandKind::ApplyForce => {
-                body.add_force(v, true);
-                self.pushed.push(handle);
-            }
-            CommandKind::ApplyImpulse => body.apply_impulse(v, true),
-            CommandKind::ApplyTorque => {
-                body.add_torque(v, true);
-                self.pushed.push(handle);
-            }
-            CommandKind::SetPhysics => body.set_enabled(command.flags & 1 != 0),
-            CommandKind::SetGravity => {
-                body.set_gravity_scale(if command.flags & 1 != 0 { 1.0 } else { 0.0 }, true)
-            }
-            CommandKind::VehicleControl => {
-                let [throttle, steer, brake, _] = command.params;
-                if !((0.0..=1.0).contains(&throttle)
-                    && (-1.0..=1.0).contains(&steer)
-                    && (0.0..=1.0).contains(&brake))
-                {
-                    return result(id, CommandStatus::InvalidArgument);
-                }
-                let Some(vehicle) = self.vehicles.iter_mut().find(|v| v.actor == id) else {
-                    return result(id, CommandStatus::NotAVehicle);
-                };
-                vehicle.throttle = throttle;
-                vehicle.steer = steer;
-                vehicle.brake = brake;
-                vehicle.hand_brake = command.flags & 1 != 0;
-                body.wake_up(true);
-            }
-            CommandKind::SpawnBox
-            | CommandKind::SpawnSphere
-            | CommandKind::SpawnCapsule
-            | CommandKind::SpawnVehicle => unreachable!("spawns handled above"),
-        }
-        result(id, CommandStatus::Ok)
-    }
-
-    fn spawn(&mut self, kind: CommandKind, command: &Command) -> CommandResult {
-        let [a, b, c, _] = command.params;
-        let (actor_kind, extent) = match kind {
-            CommandKind::SpawnBox => (ActorKind::Box, [a, b, c]),
-            CommandKind::SpawnSphere => (ActorKind::Sphere, [a, a, a]),
-            CommandKind::SpawnCapsule => (ActorKind::Capsule, [a, b, a]),
-            _ => (ActorKind::Vehicle, VEHICLE_HALF_EXTENTS),
-        };
-        let position = command.vector;
-        if extent.iter().any(|e| !(*e > 0.0 && *e <= MAX_ACTOR_EXTENT))
-            || position.iter().any(|p| p.abs() > MAX_ACTOR_POSITION)
-        {
-            return result(0, CommandStatus::InvalidArgument);
-        }
-        let Some(rotation) = rotation_of(command.rotation) else {
-            return result(0, CommandStatus::InvalidArgument);
-        };
-        let placement = Placement {
-            kind: actor_kind,
-            extent: Vector::from_array(extent),
-            position: Vector::from_array(position),
-            rotation: rotation.to_scaled_axis(),
-            linear_velocity: Vector::ZERO,
-            density: if actor_kind == ActorKind::Vehicle {
-                100.0
-            } else {
-                1.0
-            },
-        };
-        result(self.insert(&placement), CommandStatus::Ok)
     }
 
     /// Advances physics by one frame: `plan.count` rapier steps of
@@ -256,7 +110,8 @@ impl World {
     pub fn step(&mut self, plan: &SubstepPlan) {
         self.physics.integration_parameters.dt = plan.substep_seconds;
         for _ in 0..plan.count {
-            self.update_vehicles(plan.substep_seconds);
+            self.vehicles
+                .update(&mut self.physics, plan.substep_seconds);
             self.physics.step();
         }
         for handle in self.pushed.drain(..) {
@@ -274,37 +129,6 @@ impl World {
                 Vector::ZERO
             };
             actor.previous_velocity = velocity;
-        }
-    }
-
-    fn update_vehicles(&mut self, dt: f32) {
-        for vehicle in &mut self.vehicles {
-            let chassis = vehicle.controller.chassis;
-            for (i, wheel) in vehicle.controller.wheels_mut().iter_mut().enumerate() {
-                let front = i < 2;
-                wheel.steering = if front {
-                    vehicle.steer * MAX_STEER
-                } else {
-                    0.0
-                };
-                wheel.engine_force = if front {
-                    0.0
-                } else {
-                    vehicle.throttle * MAX_ENGINE_FORCE
-                };
-                wheel.brake = if vehicle.hand_brake && !front {
-                    MAX_BRAKE * 4.0
-                } else {
-                    vehicle.brake * MAX_BRAKE
-                };
-            }
-            let queries = self.physics.broad_phase.as_query_pipeline_mut(
-                self.physics.narrow_phase.query_dispatcher(),
-                &mut self.physics.bodies,
-                &mut self.physics.colliders,
-                QueryFilter::exclude_dynamic().exclude_rigid_body(chassis),
-            );
-            vehicle.controller.update_vehicle(dt, queries);
         }
     }
 
@@ -373,31 +197,10 @@ impl World {
     }
 }
 
-/// A four-wheeled controller for the chassis `body` with half extents `half`.
-fn vehicle_controller(body: RigidBodyHandle, half: Vector) -> DynamicRayCastVehicleController {
-    let mut controller = DynamicRayCastVehicleController::new(body);
-    let tuning = WheelTuning {
-        suspension_stiffness: 40.0,
-        suspension_damping: 4.0,
-        friction_slip: 1.5,
-        ..WheelTuning::default()
-    };
-    let (x, y, z) = (half.x * 0.7, -half.y, half.z);
-    // Front wheels first (steered), then the driven rear wheels.
-    for position in [
-        Vector::new(x, y, z),
-        Vector::new(x, y, -z),
-        Vector::new(-x, y, z),
-        Vector::new(-x, y, -z),
-    ] {
-        controller.add_wheel(position, -Vector::Y, Vector::Z, 0.3, 0.3, &tuning);
-    }
-    controller
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use shared_types::{Command, CommandStatus};
     use crate::scene::Scene;
     use shared_types::WorldSettings;
 

@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest, ControlResponse,
-    LockstepRequest, LockstepResponse, SensorInfo, SensorRequest, SensorResponseHeader,
-    SensorSpec, ServiceNames, WorldName,
+    LockstepRequest, LockstepResponse, SensorInfo, SensorRequest, SensorResponseHeader, SensorSpec,
+    ServiceNames, WorldName,
 };
 use sim_client::{Client, ConnectError, RequestError, SensorError};
 use simbus_tests::{client, server, unique_world, Proc};
@@ -63,7 +63,11 @@ fn a_watcher_holds_no_command_sensor_lockstep_or_control_port() {
     assert_eq!(request_clients(&world), [0, 0, 0, 0], "a watcher's ports");
     // A client that asks, spawns and reads sensors opens exactly those.
     let api = Client::connect(&world, T).unwrap();
-    assert_eq!(request_clients(&world), [0, 0, 0, 0], "connecting opens none");
+    assert_eq!(
+        request_clients(&world),
+        [0, 0, 0, 0],
+        "connecting opens none"
+    );
     api.status().unwrap();
     api.spawn_actor(Command::spawn_box([0.0, 3.0, 0.0], [0.5; 3]))
         .unwrap();
@@ -137,15 +141,25 @@ fn sixty_four_watchers_a_ticker_and_sixteen_sensor_readers_share_one_world() {
             Proc::spawn(
                 "sim-client",
                 &[
-                    "--world", &world, "--timeout", "60", "watch", "--lockstep", "--digest",
-                    "--frames", &frames,
+                    "--world",
+                    &world,
+                    "--timeout",
+                    "60",
+                    "watch",
+                    "--lockstep",
+                    "--digest",
+                    "--frames",
+                    &frames,
                 ],
             )
         })
         .collect();
     let deadline = Instant::now() + T;
     while api.status().unwrap().participants < WATCHERS as u32 {
-        assert!(Instant::now() < deadline, "the watchers joined the lockstep");
+        assert!(
+            Instant::now() < deadline,
+            "the watchers joined the lockstep"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     let mut ticker = api.claim_ticker().unwrap();

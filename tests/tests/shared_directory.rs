@@ -113,7 +113,11 @@ fn another_user_gets_the_directory_and_the_fix_named_and_the_fix_works() {
     let _ = std::fs::remove_dir_all(&dir);
     // iceoryx2 keeps one small management file per prefix in /dev/shm.
     let prefix = format!("iox2_t{}_", std::process::id());
-    for entry in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+    for entry in std::fs::read_dir("/dev/shm")
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         if entry.file_name().to_string_lossy().starts_with(&prefix) {
             let _ = std::fs::remove_file(entry.path());
         }

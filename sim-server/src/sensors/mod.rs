@@ -1,25 +1,33 @@
-//! Sensors: a depth camera and a lidar that ray-cast the rapier world, and an
-//! IMU. Each writes its capture **directly into the loaned shared-memory
-//! sample** of its own iceoryx2 service — no intermediate buffer, no copy.
+//! The sensor domain: a depth camera and a lidar that ray-cast the rapier
+//! world, and an IMU. Each writes its capture **directly into the loaned
+//! shared-memory sample** of its own iceoryx2 service — no intermediate
+//! buffer, no copy. The sensor service spawns, lists and destroys them; a
+//! sensor ends with its parent actor, its episode and the server, and its
+//! readers are told why.
+
+mod capture;
 
 use std::mem::MaybeUninit;
 
-use rayon::prelude::*;
-
 use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
-use rapier3d::prelude::{Pose, Rotation, Vector};
-use shared_types::limits::SENSOR_SUBSCRIBER_BUFFER;
+use shared_types::limits::{WorldLimits, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
-    seconds_to_nanos, ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind,
-    SensorSpec, ServiceNames,
+    seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
+    SensorInfo, SensorKind, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
+    PROTOCOL_VERSION,
 };
 use tracing::{debug, info, warn};
 
+use crate::clock::Clock;
+use crate::ports::{service_name, Transport};
 use crate::world::World;
 use crate::ServerError;
 
 type Port<T> = Publisher<ipc::Service, [T], SensorHeader>;
+type SensorServer =
+    RequestServer<ipc::Service, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 
 /// A sensor's publisher, typed by what it captures.
 enum SensorPort {
@@ -53,8 +61,9 @@ pub enum SpawnRefusal {
     NoMemory = 4,
 }
 
-/// Every sensor of a world.
+/// Every sensor of a world, and the service that manages them.
 pub struct Sensors {
+    port: SensorServer,
     list: Vec<Sensor>,
     next_id: u64,
     /// Readers each sensor admits (`--max-sensor-readers`).
@@ -89,41 +98,118 @@ fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .map_err(|e| ServerError::transport("sensor publisher", e))
 }
 
-fn rotation_of(q: [f32; 4]) -> Rotation {
-    if q == [0.0; 4] {
-        Rotation::IDENTITY
-    } else {
-        Rotation::from_xyzw(q[0], q[1], q[2], q[3]).normalize()
+impl std::fmt::Debug for Sensors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Sensors")
+            .field("sensors", &self.list.len())
+            .field("next_id", &self.next_id)
+            .field("max_readers", &self.max_readers)
+            .finish()
     }
 }
 
 impl Sensors {
-    /// No sensors yet; each will admit `max_readers` readers.
-    pub fn new(max_readers: usize) -> Self {
-        Self {
+    /// Opens the sensor service; no sensors yet, each will admit
+    /// `limits.max_sensor_readers` readers.
+    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+        let port = transport
+            .node
+            .service_builder(&service_name(&transport.names.sensors)?)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .max_servers(1)
+            .max_clients(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(1)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("sensor service", e))?
+            .server_builder()
+            .initial_max_slice_len(16)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ServerError::transport("sensor server", e))?;
+        Ok(Self {
+            port,
             list: Vec::new(),
             next_id: 0,
-            max_readers,
+            max_readers: limits.max_sensor_readers,
+        })
+    }
+
+    /// Spawns, destroys and lists sensors.
+    pub fn handle(
+        &mut self,
+        transport: &Transport,
+        world: &World,
+        clock: &Clock,
+        episode: u64,
+    ) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .port
+            .receive()
+            .map_err(|e| ServerError::transport("sensor receive", e))?
+        {
+            let payload = *request.payload();
+            let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) =
+                if payload.protocol_version != PROTOCOL_VERSION {
+                    (ResponseStatus::ProtocolMismatch, 0, Vec::new())
+                } else {
+                    match SensorRequestKind::from_u32(payload.kind) {
+                        Some(SensorRequestKind::Spawn) => {
+                            match self.spawn(transport, payload.spec, world, clock.elapsed_ns()) {
+                                Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
+                                Err(refusal) => {
+                                    (ResponseStatus::UnknownRequest, refusal as u32, Vec::new())
+                                }
+                            }
+                        }
+                        Some(SensorRequestKind::Destroy) => {
+                            if self.destroy(payload.id, clock.frame(), episode) {
+                                (ResponseStatus::Ok, 0, Vec::new())
+                            } else {
+                                (ResponseStatus::UnknownRequest, 3, Vec::new())
+                            }
+                        }
+                        Some(SensorRequestKind::List) => (ResponseStatus::Ok, 0, self.list()),
+                        None => (ResponseStatus::UnknownRequest, 0, Vec::new()),
+                    }
+                };
+            let response = request.loan_slice_uninit(infos.len()).map(|mut response| {
+                *response.user_header_mut() = SensorResponseHeader {
+                    protocol_version: PROTOCOL_VERSION,
+                    status: status as u32,
+                    error,
+                    reserved: 0,
+                };
+                response.write_from_slice(&infos)
+            });
+            match response.map(|r| r.send()) {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => debug!("sensor response not delivered: {e:?}"),
+                Err(e) => debug!("sensor response not loaned: {e:?}"),
+            }
         }
+        Ok(())
     }
 
     /// Builds a sensor from `spec` and opens its service.
-    pub fn spawn(
+    fn spawn(
         &mut self,
-        node: &Node<ipc::Service>,
-        names: &ServiceNames,
+        transport: &Transport,
         spec: SensorSpec,
         world: &World,
         now_ns: u64,
-    ) -> Result<Result<SensorInfo, SpawnRefusal>, ServerError> {
+    ) -> Result<SensorInfo, SpawnRefusal> {
         let Some(kind) = spec.sensor_kind().filter(|_| spec.check().is_ok()) else {
-            return Ok(Err(SpawnRefusal::InvalidSpec));
+            return Err(SpawnRefusal::InvalidSpec);
         };
         if spec.attach_to != 0 && world.body_of(spec.attach_to).is_none() {
-            return Ok(Err(SpawnRefusal::UnknownActor));
+            return Err(SpawnRefusal::UnknownActor);
         }
         let id = self.next_id + 1;
-        let name = names.sensor(id);
+        let node = &transport.node;
+        let name = transport.names.sensor(id);
         let elements = spec.elements();
         let port = match kind {
             SensorKind::Depth => {
@@ -138,7 +224,7 @@ impl Sensors {
             Ok(port) => port,
             Err(e) => {
                 warn!(id, "refused a sensor: {e}");
-                return Ok(Err(SpawnRefusal::NoMemory));
+                return Err(SpawnRefusal::NoMemory);
             }
         };
         self.next_id = id;
@@ -161,7 +247,7 @@ impl Sensors {
         };
         let info = sensor.info();
         self.list.push(sensor);
-        Ok(Ok(info))
+        Ok(info)
     }
 
     /// Removes sensor `id`, telling its readers; `false` if there is none.
@@ -215,7 +301,7 @@ impl Sensors {
             sensor.next_capture_ns = next_capture_after(elapsed_ns, &sensor.spec);
             let since_last_ns = elapsed_ns - sensor.last_capture_ns.min(elapsed_ns);
             sensor.last_capture_ns = elapsed_ns;
-            let Some(pose) = sensor_pose(world, &sensor.spec) else {
+            let Some(pose) = capture::sensor_pose(world, &sensor.spec) else {
                 debug!(id = sensor.id, "sensor's actor is gone; no capture");
                 continue;
             };
@@ -231,22 +317,37 @@ impl Sensors {
             let p = sensor.spec.params;
             header.size = [p[0] as u32, p[1] as u32];
             let published = match &sensor.port {
-                SensorPort::Depth(port) => publish(port, header, |slots, header| {
-                    header.count = slots.len() as u32;
-                    depth_into(world, &sensor.spec, pose, slots)
-                }),
-                SensorPort::Lidar(port) => {
-                    let sweep = lidar_sweep(&sensor.spec, sensor.lidar_column, since_last_ns);
-                    sensor.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel;
+                // SAFETY: depth_into writes one value per pixel, and the
+                // slice holds exactly width x height elements.
+                SensorPort::Depth(port) => unsafe {
                     publish(port, header, |slots, header| {
-                        header.count = lidar_into(world, &sensor.spec, pose, sweep, slots) as u32;
+                        header.count = slots.len() as u32;
+                        capture::depth_into(world, &sensor.spec, pose, slots)
                     })
+                },
+                SensorPort::Lidar(port) => {
+                    let sweep =
+                        capture::lidar_sweep(&sensor.spec, sensor.lidar_column, since_last_ns);
+                    sensor.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel;
+                    // SAFETY: lidar_into writes the returns, then zeros in
+                    // every remaining slot.
+                    unsafe {
+                        publish(port, header, |slots, header| {
+                            header.count =
+                                capture::lidar_into(world, &sensor.spec, pose, sweep, slots) as u32;
+                        })
+                    }
                 }
-                SensorPort::Imu(port) => publish(port, header, |slots, header| {
-                    header.count = 1;
-                    header.size = [1, 1];
-                    slots[0].write(imu(world, &sensor.spec, pose));
-                }),
+                // SAFETY: an IMU capture has one slot, written here.
+                SensorPort::Imu(port) => unsafe {
+                    publish(port, header, |slots, header| {
+                        header.count = 1;
+                        header.size = [1, 1];
+                        for slot in slots.iter_mut() {
+                            slot.write(capture::imu(world, &sensor.spec, pose));
+                        }
+                    })
+                },
             };
             // A lost capture shows as a gap in the sequence; the world goes on.
             if let Err(e) = published {
@@ -317,7 +418,12 @@ fn send_end<T: std::fmt::Debug + ZeroCopySend + 'static>(
 }
 
 /// Loans a sample, lets `fill` write every element in place, and sends it.
-fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
+///
+/// # Safety
+///
+/// `fill` must initialise every element of the slice it is given (the
+/// sample is sent as initialised memory that readers read in place).
+unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
     port: &Port<T>,
     header: SensorHeader,
     fill: impl FnOnce(&mut [MaybeUninit<T>], &mut SensorHeader),
@@ -332,159 +438,10 @@ fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64());
     *sample.user_header_mut() = header;
-    // SAFETY: every `fill` above writes each of the `elements` slots (depth:
-    // one value per pixel; lidar: the returns, then zeros; IMU: slot 0 of 1).
+    // SAFETY: the caller guarantees `fill` wrote every element.
     let sample = unsafe { sample.assume_init() };
     sample
         .send()
         .map_err(|e| ServerError::transport("sensor send", e))?;
     Ok(())
-}
-
-/// The sensor's pose in the world: its parent's pose (or the origin) times
-/// its relative pose.
-fn sensor_pose(world: &World, spec: &SensorSpec) -> Option<Pose> {
-    let relative = Pose::from_parts(
-        Vector::from_array(spec.position),
-        rotation_of(spec.rotation),
-    );
-    if spec.attach_to == 0 {
-        return Some(relative);
-    }
-    let parent = world.pose_of(spec.attach_to)?;
-    Some(parent * relative)
-}
-
-/// Ray-casts one planar depth per pixel straight into `slots`.
-fn depth_into(world: &World, spec: &SensorSpec, pose: Pose, slots: &mut [MaybeUninit<f32>]) {
-    let [w, h, fov, far, ..] = spec.params;
-    let (width, height) = (w as usize, h as usize);
-    let focal = (w / 2.0) / (fov.to_radians() / 2.0).tan();
-    let exclude = world.body_of(spec.attach_to);
-    // Rows in parallel, each written in place into the shared-memory sample.
-    slots
-        .par_chunks_mut(width)
-        .take(height)
-        .enumerate()
-        .for_each(|(v, row)| {
-            let up = h / 2.0 - v as f32 - 0.5;
-            for (u, slot) in row.iter_mut().enumerate() {
-                let right = u as f32 + 0.5 - w / 2.0;
-                let direction = Vector::new(focal, up, right).normalize();
-                let distance =
-                    world.cast_ray(pose.translation, pose.rotation * direction, far, exclude);
-                // Planar depth: distance along the optical axis (+X).
-                slot.write(distance.map_or(far, |d| d * direction.x));
-            }
-        });
-}
-
-/// The part of a lidar turn one capture covers: `columns` azimuth steps from
-/// `start`, of `per_channel` in a full turn.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Sweep {
-    start: usize,
-    columns: usize,
-    per_channel: usize,
-}
-
-/// A lidar spinning at `rotation_frequency` Hz covers `frequency × Δt` of a
-/// turn per capture (CARLA's partial scans); 0 Hz is a full turn every capture.
-fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -> Sweep {
-    let per_channel = spec.params[1] as usize;
-    let frequency = f64::from(spec.params[5]);
-    let columns = if frequency > 0.0 {
-        let turns = frequency * since_last_ns as f64 * 1e-9;
-        ((turns * per_channel as f64).round() as usize).clamp(1, per_channel)
-    } else {
-        per_channel
-    };
-    Sweep {
-        start: start % per_channel.max(1),
-        columns,
-        per_channel,
-    }
-}
-
-/// Ray-casts `channels` × `sweep.columns` rays; writes the returns first,
-/// then zeros. Returns how many returns there are.
-fn lidar_into(
-    world: &World,
-    spec: &SensorSpec,
-    pose: Pose,
-    sweep: Sweep,
-    slots: &mut [MaybeUninit<LidarPoint>],
-) -> usize {
-    let [channels, _, range, upper, lower, ..] = spec.params;
-    let (channels, per_channel) = (channels as usize, sweep.per_channel);
-    let exclude = world.body_of(spec.attach_to);
-    let mut hits = 0;
-    for c in 0..channels {
-        let elevation = if channels > 1 {
-            upper - (upper - lower) * c as f32 / (channels - 1) as f32
-        } else {
-            upper
-        }
-        .to_radians();
-        for column in sweep.start..sweep.start + sweep.columns {
-            let i = column % per_channel;
-            let azimuth = std::f32::consts::TAU * i as f32 / per_channel as f32;
-            let direction = Vector::new(
-                elevation.cos() * azimuth.cos(),
-                elevation.sin(),
-                elevation.cos() * azimuth.sin(),
-            );
-            if let Some(distance) =
-                world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
-            {
-                let point = direction * distance;
-                slots[hits].write(LidarPoint {
-                    x: point.x,
-                    y: point.y,
-                    z: point.z,
-                    intensity: 1.0 - distance / range,
-                });
-                hits += 1;
-            }
-        }
-    }
-    for slot in &mut slots[hits..] {
-        slot.write(LidarPoint::default());
-    }
-    hits
-}
-
-/// Specific force and angular velocity of the parent, in the sensor frame.
-fn imu(world: &World, spec: &SensorSpec, pose: Pose) -> ImuMeasurement {
-    let (acceleration, angular_velocity) = world.motion_of(spec.attach_to).unwrap_or_default();
-    let gravity = Vector::new(0.0, -9.81, 0.0);
-    let inverse = pose.rotation.inverse();
-    ImuMeasurement {
-        accelerometer: (inverse * (acceleration - gravity)).to_array(),
-        gyroscope: (inverse * angular_velocity).to_array(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_spinning_lidar_covers_frequency_times_dt_of_a_turn() {
-        let spec = SensorSpec::lidar([0.0; 3], 4, 1000, 50.0, 10.0, -10.0).rotating(10.0);
-        // 10 Hz over 20 ms: a fifth of the turn.
-        let sweep = lidar_sweep(&spec, 0, 20_000_000);
-        assert_eq!((sweep.start, sweep.columns), (0, 200));
-        let next = lidar_sweep(&spec, 900, 20_000_000);
-        assert_eq!(
-            (next.start, next.columns),
-            (900, 200),
-            "wraps around the turn"
-        );
-        // Never more than a full turn, never nothing.
-        assert_eq!(lidar_sweep(&spec, 0, 5_000_000_000).columns, 1000);
-        assert_eq!(lidar_sweep(&spec, 0, 1).columns, 1);
-        let full = SensorSpec::lidar([0.0; 3], 4, 1000, 50.0, 10.0, -10.0);
-        assert_eq!(lidar_sweep(&full, 0, 20_000_000).columns, 1000);
-    }
 }

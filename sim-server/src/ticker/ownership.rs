@@ -1,24 +1,9 @@
-//! Tick ownership: who the ticker is, since when, and whether it still lives.
-//!
-//! The transport already admits a single client on the tick service; this
-//! module is the server's own record of that client, used to check every tick
-//! and settings change against the owner and to notice when the owner's
-//! process has died.
+//! Tick ownership: who the ticker is, since when, and who ended the
+//! ownership of a ticker that another client revoked by leaving
+//! synchronous mode.
 
 use iceoryx2::identifiers::UniqueClientId;
-use iceoryx2::node::NodeView;
-use iceoryx2::prelude::*;
 use shared_types::{FixedText, TickerInfo};
-
-/// The policy when the ticker dies while the world is in synchronous mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum OnTickerLoss {
-    /// Stay in synchronous mode and wait for a new ticker.
-    #[default]
-    Wait,
-    /// Fall back to asynchronous mode.
-    Async,
-}
 
 /// The current ticker.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,27 +25,6 @@ pub struct TickOwnership {
     /// A ticker whose ownership another client ended by leaving
     /// synchronous mode, and who did it: its next request is told so.
     revoked: Option<(UniqueClientId, TickerInfo)>,
-}
-
-/// Whether a process that created an iceoryx2 node is still alive, by
-/// iceoryx2's dead-node detection (it works for SIGKILL too).
-pub fn node_process_alive(pid: u32) -> bool {
-    let mut alive = false;
-    let listed = Node::<ipc::Service>::list(Config::global_config(), |state| {
-        if let NodeState::Alive(view) = &state {
-            if view
-                .details()
-                .as_ref()
-                .is_some_and(|d| d.process_id().value() as u32 == pid)
-            {
-                alive = true;
-                return CallbackProgression::Stop;
-            }
-        }
-        CallbackProgression::Continue
-    });
-    // If the node list cannot be read, do not declare anyone dead.
-    alive || listed.is_err()
 }
 
 impl TickOwnership {

@@ -1,0 +1,139 @@
+//! The batch domain: command batches, applied atomically and in order at a
+//! frame boundary, answered with one result per command (written straight
+//! into the loaned response), or queued with the ticker when they tick.
+
+use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::server::Server as RequestServer;
+use iceoryx2::prelude::*;
+use shared_types::limits::{WorldLimits, INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT};
+use shared_types::{
+    BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
+    PROTOCOL_VERSION,
+};
+use tracing::{debug, warn};
+
+use crate::clock::Clock;
+use crate::ports::{service_name, Transport};
+use crate::sensors::Sensors;
+use crate::ticker::Ticker;
+use crate::world::World;
+use crate::ServerError;
+
+type BatchServer =
+    RequestServer<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// A batch request (already applied) waiting for its answer.
+pub type PendingBatch =
+    ActiveRequest<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// The batch service.
+#[derive(Debug)]
+pub struct Batches {
+    port: BatchServer,
+}
+
+impl Batches {
+    /// Opens the batch service. A batch is never dropped: a sender that
+    /// outruns the server waits.
+    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+        let port = transport
+            .node
+            .service_builder(&service_name(&transport.names.batch)?)
+            .request_response::<[Command], [CommandResult]>()
+            .request_user_header::<BatchHeader>()
+            .response_user_header::<BatchResponseHeader>()
+            .max_servers(1)
+            .max_clients(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
+            .max_response_buffer_size(1)
+            .enable_safe_overflow_for_requests(false)
+            .enable_fire_and_forget_requests(true)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("batch service", e))?
+            .server_builder()
+            .initial_max_slice_len(INITIAL_MAX_BATCH)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ServerError::transport("batch server", e))?;
+        Ok(Self { port })
+    }
+
+    /// Applies every pending batch, in arrival order, at this frame
+    /// boundary. A sensor whose parent a batch destroyed ends with it.
+    pub fn handle(
+        &mut self,
+        world: &mut World,
+        ticker: &mut Ticker,
+        sensors: &mut Sensors,
+        clock: &Clock,
+        episode: u64,
+    ) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .port
+            .receive()
+            .map_err(|e| ServerError::transport("batch receive", e))?
+        {
+            let header = *request.user_header();
+            let next_frame = clock.frame() + 1;
+            if header.protocol_version != PROTOCOL_VERSION {
+                respond_batch(&request, ResponseStatus::ProtocolMismatch, next_frame, &[]);
+                continue;
+            }
+            let tick = header.flags & BatchHeader::TICK != 0;
+            if tick && ticker.owner_pid() != Some(header.pid) {
+                warn!(
+                    pid = header.pid,
+                    "refused a ticking batch from a process that is not the ticker"
+                );
+                respond_batch(&request, ResponseStatus::NotOwner, next_frame, &[]);
+                continue;
+            }
+            let results: Vec<CommandResult> =
+                request.payload().iter().map(|c| world.apply(c)).collect();
+            let failed = results
+                .iter()
+                .filter(|r| r.status != CommandStatus::Ok as u32)
+                .count();
+            debug!(
+                pid = header.pid,
+                commands = results.len(),
+                failed,
+                tick,
+                "batch applied"
+            );
+            sensors.end_orphans(world, clock.frame(), episode);
+            if tick {
+                ticker.queue_batch(request, results);
+            } else {
+                respond_batch(&request, ResponseStatus::Ok, next_frame, &results);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Answers a batch with `status`, the frame it concerns and its results.
+pub fn respond_batch(
+    request: &PendingBatch,
+    status: ResponseStatus,
+    frame: u64,
+    results: &[CommandResult],
+) {
+    let response = request
+        .loan_slice_uninit(results.len())
+        .map(|mut response| {
+            *response.user_header_mut() = BatchResponseHeader {
+                protocol_version: PROTOCOL_VERSION,
+                status: status as u32,
+                frame,
+            };
+            response.write_from_slice(results)
+        });
+    match response.map(|r| r.send()) {
+        Ok(Ok(())) => {}
+        // Fire-and-forget batches have nobody waiting for the answer.
+        Ok(Err(e)) => debug!("batch response not delivered: {e:?}"),
+        Err(e) => debug!("batch response not loaned: {e:?}"),
+    }
+}

@@ -1,0 +1,42 @@
+//! How a server is started: the settings it was given, immutable for its
+//! life. What changes while it runs (settings, scene, episode) is
+//! [`crate::state::Runtime`].
+
+use std::time::Duration;
+
+use shared_types::limits::WorldLimits;
+use shared_types::{WorldName, WorldSettings};
+
+use crate::{OnTickerLoss, Scene};
+
+/// How a server is started.
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// The world the server owns.
+    pub world: WorldName,
+    /// The scene loaded at start.
+    pub scene: Scene,
+    /// The settings at start (validated by [`crate::Server::start`]).
+    pub settings: WorldSettings,
+    /// Fixed step, async: pace frames so simulation time follows wall time.
+    pub realtime: bool,
+    /// Variable step, async: at most this many frames per second (0 = no limit).
+    pub max_fps: f64,
+    /// Stop after computing this many frames.
+    pub max_frames: Option<u64>,
+    /// What to do when the ticker dies in synchronous mode.
+    pub on_ticker_loss: OnTickerLoss,
+    /// Synchronous mode: poll for ticks instead of sleeping on the wake-up
+    /// event (lowest tick latency, one core busy while waiting).
+    pub spin: bool,
+    /// Synchronous mode: after each frame, poll this long for the next tick
+    /// before sleeping (a ticker in a tight loop then costs no kernel wake-up).
+    pub spin_window: Duration,
+    /// Seed of the scene's placement (0: none); kept across reloads.
+    pub seed: u64,
+    /// A lockstep participant that keeps a tick waiting this long is
+    /// dropped (a hung reader must not stop the world).
+    pub lockstep_timeout: Duration,
+    /// How many clients (and readers per sensor) the world admits.
+    pub limits: WorldLimits,
+}

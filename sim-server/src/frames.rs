@@ -1,0 +1,101 @@
+//! Publishing frames: each frame's snapshot is written straight into loaned
+//! shared memory, then every client blocked on the frame-ready event wakes.
+
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::*;
+use shared_types::limits::{
+    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
+};
+use shared_types::{ActorState, FrameHeader};
+use tracing::debug;
+
+use crate::ports::{service_name, Transport};
+use crate::world::World;
+use crate::ServerError;
+
+/// The frame publisher and the frame-ready notifier.
+#[derive(Debug)]
+pub struct Frames {
+    publisher: Publisher<ipc::Service, [ActorState], FrameHeader>,
+    ready: Notifier<ipc::Service>,
+}
+
+impl Frames {
+    /// Opens the world's frame service (every new subscriber gets the
+    /// current frame) and its frame-ready event.
+    pub fn open(
+        transport: &Transport,
+        initial_actors: usize,
+        limits: &WorldLimits,
+    ) -> Result<Self, ServerError> {
+        let names = &transport.names;
+        let publisher = transport
+            .node
+            .service_builder(&service_name(&names.frames)?)
+            .publish_subscribe::<[ActorState]>()
+            .user_header::<FrameHeader>()
+            .max_publishers(1)
+            .max_subscribers(limits.max_clients)
+            .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
+            .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
+            .history_size(1)
+            .enable_safe_overflow(true)
+            .max_nodes(limits.nodes())
+            .open_or_create()
+            .map_err(|e| ServerError::transport("frames service", e))?
+            .publisher_builder()
+            .initial_max_slice_len(initial_actors.max(INITIAL_MAX_ACTORS))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| ServerError::transport("frames publisher", e))?;
+        let ready = transport
+            .node
+            .service_builder(&service_name(&names.frame_ready)?)
+            .event()
+            .max_listeners(limits.event_listeners())
+            .max_notifiers(4)
+            .max_nodes(limits.nodes())
+            .open_or_create()
+            .map_err(|e| ServerError::transport("frame-ready service", e))?
+            .notifier_builder()
+            .create()
+            .map_err(|e| ServerError::transport("frame-ready notifier", e))?;
+        Ok(Self { publisher, ready })
+    }
+
+    /// Writes `header` and every actor of `world` straight into a loaned
+    /// sample and sends it. No copy, no allocation.
+    pub fn publish(&self, header: FrameHeader, world: &World) -> Result<(), ServerError> {
+        let sample = self
+            .publisher
+            .loan_slice_uninit(world.actor_count())
+            .map_err(|e| ServerError::transport("frame loan", e))?;
+        let mut sample = sample;
+        *sample.user_header_mut() = header;
+        let sample = sample.write_from_fn(|i| world.actor_state(i));
+        sample
+            .send()
+            .map_err(|e| ServerError::transport("frame send", e))?;
+        Ok(())
+    }
+
+    /// Wakes every client blocked on the frame-ready event.
+    pub fn notify(&self) -> Result<(), ServerError> {
+        self.ready
+            .notify()
+            .map_err(|e| ServerError::transport("frame-ready notify", e))?;
+        Ok(())
+    }
+
+    /// Connects subscribers that joined since the last frame, so they get
+    /// the current frame now, not only when the next one is sent (in
+    /// synchronous mode that may be a long wait).
+    pub fn connect_new_subscribers(&self) {
+        if let Err(e) = self.publisher.update_connections() {
+            debug!("connecting new subscribers: {e}");
+        }
+    }
+}

@@ -1,0 +1,60 @@
+//! What every domain needs to open its iceoryx2 ports: the server's node
+//! (created once, after removing what dead processes left behind) and the
+//! world's service names. Each domain opens its own ports.
+
+use iceoryx2::prelude::*;
+use shared_types::{ServiceNames, WorldName};
+use tracing::{info, warn};
+
+use crate::ServerError;
+
+/// The server's node and the names of its world's services.
+#[derive(Debug)]
+pub struct Transport {
+    /// The server's iceoryx2 node (named `sim-server`).
+    pub node: Node<ipc::Service>,
+    /// The world's service names.
+    pub names: ServiceNames,
+}
+
+impl Transport {
+    /// Creates the server's node for `world`, removing what dead processes
+    /// left behind (a crashed predecessor's services included).
+    pub fn open(world: &WorldName) -> Result<Self, ServerError> {
+        shared_types::environment::prepare().map_err(ServerError::SharedDirectory)?;
+        let node_name =
+            NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
+        // Count the dead first so the log says it happened.
+        let mut dead = 0u32;
+        let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+            if let NodeState::Dead(_) = state {
+                dead += 1;
+            }
+            CallbackProgression::Continue
+        });
+        if dead > 0 {
+            info!("removing resources left by {dead} dead process(es)");
+        }
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| ServerError::transport("node", e))?;
+        let cleanup = node.try_cleanup_dead_nodes();
+        if cleanup.failed_cleanups > 0 {
+            warn!(
+                failed = cleanup.failed_cleanups,
+                "could not remove the resources of some dead processes (permissions?)"
+            );
+        }
+        Ok(Self {
+            node,
+            names: ServiceNames::new(world),
+        })
+    }
+}
+
+/// `name` as an iceoryx2 service name.
+pub fn service_name(name: &str) -> Result<ServiceName, ServerError> {
+    ServiceName::new(name).map_err(|e| ServerError::transport("service name", e))
+}

@@ -1,0 +1,339 @@
+//! The ticker domain: the tick service (which admits a single client, so a
+//! second would-be ticker cannot even send), tick ownership, the ticks
+//! waiting for their frame, and what happens when the ticker dies.
+
+mod ownership;
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::server::Server as RequestServer;
+use iceoryx2::prelude::*;
+use shared_types::limits::WorldLimits;
+use shared_types::{
+    CommandResult, FixedText, ResponseStatus, TickRequest, TickRequestKind, TickResponse,
+    TickerInfo, WorldSettings, PROTOCOL_VERSION,
+};
+use tracing::{debug, info, warn};
+
+pub use ownership::{Owner, TickOwnership};
+
+use crate::batches::{respond_batch, PendingBatch};
+use crate::clock::Clock;
+use crate::liveness::Sweep;
+use crate::ports::{service_name, Transport};
+use crate::state::{Refusal, Runtime};
+use crate::ServerError;
+
+/// The policy when the ticker dies while the world is in synchronous mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum OnTickerLoss {
+    /// Stay in synchronous mode and wait for a new ticker.
+    #[default]
+    Wait,
+    /// Fall back to asynchronous mode.
+    Async,
+}
+
+type TickServer = RequestServer<ipc::Service, TickRequest, (), TickResponse, ()>;
+type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
+
+/// A request for one frame step, answered once the frame is published.
+#[derive(Debug)]
+pub enum PendingStep {
+    /// `Ticker::tick`.
+    Tick(PendingTick),
+    /// `apply_batch_sync(.., tick = true)`, with the batch's results.
+    Batch(PendingBatch, Vec<CommandResult>),
+}
+
+/// The tick service, its owner and the steps waiting for a frame.
+#[derive(Debug)]
+pub struct Ticker {
+    port: TickServer,
+    ownership: TickOwnership,
+    pending: VecDeque<PendingStep>,
+}
+
+impl Ticker {
+    /// Opens the tick service, admitting one client.
+    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+        let port = transport
+            .node
+            .service_builder(&service_name(&transport.names.tick)?)
+            .request_response::<TickRequest, TickResponse>()
+            .max_servers(1)
+            .max_clients(1)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(4)
+            .max_response_buffer_size(4)
+            .open_or_create()
+            .map_err(|e| ServerError::transport("tick service", e))?
+            .server_builder()
+            .create()
+            .map_err(|e| ServerError::transport("tick server", e))?;
+        Ok(Self {
+            port,
+            ownership: TickOwnership::default(),
+            pending: VecDeque::new(),
+        })
+    }
+
+    /// The owner as it travels on the wire.
+    pub fn info(&self) -> TickerInfo {
+        self.ownership.info()
+    }
+
+    /// The owner's process id, if a ticker holds the world.
+    pub fn owner_pid(&self) -> Option<u32> {
+        self.ownership.owner().map(|o| o.pid)
+    }
+
+    /// Whether a tick (or a ticking batch) waits for its frame.
+    pub fn has_pending(&self) -> bool {
+        !self.pending.is_empty()
+    }
+
+    /// How many steps wait for a frame.
+    pub fn pending_count(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Queues a ticking batch, answered with the frame it steps.
+    pub fn queue_batch(&mut self, request: PendingBatch, results: Vec<CommandResult>) {
+        self.pending.push_back(PendingStep::Batch(request, results));
+    }
+
+    fn response(&self, status: ResponseStatus, clock: &Clock) -> TickResponse {
+        TickResponse::new(
+            status,
+            clock.frame(),
+            clock.elapsed_ns(),
+            self.ownership.info(),
+        )
+    }
+
+    /// Answers every pending request of the ticker; ticks are queued for
+    /// the frame loop. Settings from the ticker change `runtime`.
+    pub fn handle(&mut self, runtime: &mut Runtime, clock: &Clock) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .port
+            .receive()
+            .map_err(|e| ServerError::transport("tick receive", e))?
+        {
+            let payload = *request.payload();
+            let origin = request.origin();
+            let kind = TickRequestKind::from_u32(payload.kind);
+            let response = if payload.protocol_version != PROTOCOL_VERSION {
+                self.response(ResponseStatus::ProtocolMismatch, clock)
+            } else if let (Some(by), Some(TickRequestKind::Tick | TickRequestKind::ApplySettings)) =
+                (self.ownership.revoked_by(origin), kind)
+            {
+                TickResponse {
+                    revoked_by: by,
+                    ..self.response(ResponseStatus::Revoked, clock)
+                }
+            } else {
+                match kind {
+                    Some(TickRequestKind::Claim) => {
+                        let candidate = Owner {
+                            client: origin,
+                            pid: payload.pid,
+                            node_name: payload.node_name.to_string_lossy(),
+                            since_frame: clock.frame(),
+                        };
+                        let sweep = Sweep::now();
+                        match self.ownership.claim(candidate, |pid| sweep.alive(pid)) {
+                            Ok(owner) => {
+                                info!(
+                                    pid = owner.pid,
+                                    node = %owner.node_name,
+                                    frame = owner.since_frame,
+                                    "ticker claimed ownership"
+                                );
+                                self.response(ResponseStatus::Ok, clock)
+                            }
+                            Err(current) => {
+                                info!(
+                                    pid = payload.pid,
+                                    owner_pid = current.pid,
+                                    "refused a second ticker"
+                                );
+                                self.response(ResponseStatus::NotOwner, clock)
+                            }
+                        }
+                    }
+                    Some(TickRequestKind::Release) => {
+                        if self.ownership.release(origin) {
+                            info!(
+                                pid = payload.pid,
+                                frame = clock.frame(),
+                                "ticker released ownership"
+                            );
+                            self.drop_pending(ResponseStatus::NotOwner, TickerInfo::none(), clock);
+                            self.response(ResponseStatus::Ok, clock)
+                        } else {
+                            self.response(ResponseStatus::NotOwner, clock)
+                        }
+                    }
+                    Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
+                        self.pending.push_back(PendingStep::Tick(request));
+                        continue;
+                    }
+                    Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
+                        let settings = WorldSettings::from(payload.settings);
+                        match runtime.change_settings(
+                            settings,
+                            true,
+                            payload.pid,
+                            clock.frame() + 1,
+                        ) {
+                            Ok(effective_frame) => TickResponse {
+                                effective_frame,
+                                ..self.response(ResponseStatus::Ok, clock)
+                            },
+                            Err(Refusal::Invalid(error)) => self
+                                .response(ResponseStatus::InvalidSettings, clock)
+                                .with_settings_error(&error),
+                            Err(Refusal::Status(status)) => self.response(status, clock),
+                        }
+                    }
+                    Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
+                        warn!(
+                            pid = payload.pid,
+                            "refused a request from a client that is not the ticker"
+                        );
+                        self.response(ResponseStatus::NotOwner, clock)
+                    }
+                    None => self.response(ResponseStatus::UnknownRequest, clock),
+                }
+            };
+            if let Err(e) = request.send_copy(response) {
+                debug!("tick response not delivered (ticker gone?): {e:?}");
+            }
+        }
+        Ok(())
+    }
+
+    /// Answers the first `count` waiting steps with the frame just published.
+    pub fn answer_stepped(&mut self, count: usize, clock: &Clock) {
+        for _ in 0..count {
+            let Some(step) = self.pending.pop_front() else {
+                break;
+            };
+            match step {
+                PendingStep::Tick(tick) => {
+                    let response = self.response(ResponseStatus::Ok, clock);
+                    if let Err(e) = tick.send_copy(response) {
+                        debug!("tick response not delivered (ticker gone?): {e:?}");
+                    }
+                }
+                PendingStep::Batch(request, results) => {
+                    respond_batch(&request, ResponseStatus::Ok, clock.frame(), &results)
+                }
+            }
+        }
+    }
+
+    /// Answers every waiting step with `status` (the ticker released, died
+    /// or was revoked by `revoked_by`).
+    pub fn drop_pending(&mut self, status: ResponseStatus, revoked_by: TickerInfo, clock: &Clock) {
+        for step in std::mem::take(&mut self.pending) {
+            match step {
+                PendingStep::Tick(tick) => {
+                    let response = TickResponse {
+                        revoked_by,
+                        ..self.response(status, clock)
+                    };
+                    if let Err(e) = tick.send_copy(response) {
+                        debug!("tick answer not delivered (ticker gone?): {e:?}");
+                    }
+                }
+                PendingStep::Batch(request, results) => {
+                    respond_batch(&request, status, clock.frame(), &results)
+                }
+            }
+        }
+    }
+
+    /// Ends the ticker's ownership because `by` left synchronous mode: its
+    /// waiting ticks and its next requests are told who did.
+    pub fn revoke(&mut self, by: TickerInfo, clock: &Clock) {
+        if let Some(owner) = self.ownership.revoke(by) {
+            warn!(
+                pid = by.pid,
+                name = %by.node_name.to_string_lossy(),
+                ticker_pid = owner.pid,
+                frame = clock.frame(),
+                "another client left synchronous mode; the ticker's ownership ends"
+            );
+        }
+        self.drop_pending(ResponseStatus::Revoked, by, clock);
+    }
+
+    /// Tells the waiting tick which lockstep participant holds it up and how
+    /// long the server waits for it (an interim answer; the frame follows).
+    pub fn tell_held_up(&self, participant: TickerInfo, lockstep_timeout: Duration, clock: &Clock) {
+        if let Some(PendingStep::Tick(tick)) = self.pending.front() {
+            let response = TickResponse {
+                waiting_for: participant,
+                lockstep_timeout_ns: u64::try_from(lockstep_timeout.as_nanos()).unwrap_or(u64::MAX),
+                ..self.response(ResponseStatus::WaitingForParticipants, clock)
+            };
+            if let Err(e) = tick.send_copy(response) {
+                debug!("interim tick answer not delivered: {e:?}");
+            }
+        }
+    }
+
+    /// Drops a ticker whose process died (by `sweep`), applying `policy`;
+    /// returns whether it did.
+    pub fn drop_if_dead(
+        &mut self,
+        sweep: &Sweep,
+        runtime: &mut Runtime,
+        policy: OnTickerLoss,
+        transport: &Transport,
+        clock: &Clock,
+    ) -> bool {
+        let Some(lost) = self.ownership.take_if_dead(|pid| sweep.alive(pid)) else {
+            return false;
+        };
+        self.drop_pending(ResponseStatus::NotOwner, TickerInfo::none(), clock);
+        // Frees the dead ticker's port, so a new ticker can claim.
+        transport.node.try_cleanup_dead_nodes();
+        let frame = clock.frame();
+        match (runtime.settings.synchronous_mode, policy) {
+            (true, OnTickerLoss::Async) => {
+                runtime.settings.synchronous_mode = false;
+                runtime.pacer.reset();
+                warn!(
+                    pid = lost.pid,
+                    node = %lost.node_name,
+                    frame,
+                    "ticker died; falling back to asynchronous mode (--on-ticker-loss async)"
+                );
+            }
+            (true, OnTickerLoss::Wait) => warn!(
+                pid = lost.pid,
+                node = %lost.node_name,
+                frame,
+                "ticker died; staying in synchronous mode until a new ticker claims (--on-ticker-loss wait)"
+            ),
+            (false, _) => info!(pid = lost.pid, node = %lost.node_name, frame, "ticker died"),
+        }
+        true
+    }
+
+    /// The client info of a process `pid` named `name`, as a ticker answer
+    /// names it (who revoked, who holds a tick up).
+    pub fn named(pid: u32, name: FixedText, frame: u64) -> TickerInfo {
+        TickerInfo {
+            active: 1,
+            pid,
+            since_frame: frame,
+            node_name: name,
+        }
+    }
+}

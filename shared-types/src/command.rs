@@ -3,65 +3,45 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::PROTOCOL_VERSION;
 
-/// What a [`Command`] does. Vectors are in world coordinates (Y up).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum CommandKind {
-    /// Spawn a dynamic box: `vector` = position, `rotation` = quaternion
-    /// (x, y, z, w; all zero = identity), `params[0..3]` = half extents.
-    SpawnBox = 1,
-    /// Spawn a dynamic sphere: `params[0]` = radius.
-    SpawnSphere = 2,
-    /// Spawn a dynamic capsule along Y: `params[0]` = radius, `params[1]` = half height.
-    SpawnCapsule = 3,
-    /// Spawn a four-wheeled ray-cast vehicle (chassis 2 × 0.5 × 1 m, facing +X).
-    SpawnVehicle = 4,
-    /// Remove `actor`.
-    Destroy = 5,
-    /// Teleport `actor`: `vector` = position, `rotation` = quaternion.
-    SetTransform = 6,
-    /// Set `actor`'s velocity: `vector` = linear (m/s), `rotation[0..3]` = angular (rad/s).
-    SetTargetVelocity = 7,
-    /// Push `actor` with `vector` newtons during the next frame.
-    ApplyForce = 8,
-    /// Kick `actor` with an impulse of `vector` N·s, at once.
-    ApplyImpulse = 9,
-    /// Twist `actor` with `vector` N·m during the next frame.
-    ApplyTorque = 10,
-    /// Enable (`flags` bit 0 set) or disable `actor`'s physics simulation.
-    SetPhysics = 11,
-    /// Enable (`flags` bit 0 set) or disable gravity on `actor`.
-    SetGravity = 12,
-    /// Drive a vehicle: `params` = throttle 0..1, steer -1..1 (positive
-    /// left), brake 0..1; `flags` bit 0 = hand brake. Holds until changed.
-    VehicleControl = 13,
+wire_enum! {
+    /// What a [`Command`] does. Vectors are in world coordinates (Y up).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum CommandKind {
+        /// Spawn a dynamic box: `vector` = position, `rotation` = quaternion
+        /// (x, y, z, w; all zero = identity), `params[0..3]` = half extents.
+        SpawnBox = 1,
+        /// Spawn a dynamic sphere: `params[0]` = radius.
+        SpawnSphere = 2,
+        /// Spawn a dynamic capsule along Y: `params[0]` = radius, `params[1]` = half height.
+        SpawnCapsule = 3,
+        /// Spawn a four-wheeled ray-cast vehicle (chassis 2 × 0.5 × 1 m, facing +X).
+        SpawnVehicle = 4,
+        /// Remove `actor`.
+        Destroy = 5,
+        /// Teleport `actor`: `vector` = position, `rotation` = quaternion.
+        SetTransform = 6,
+        /// Set `actor`'s velocity: `vector` = linear (m/s), `rotation[0..3]` = angular (rad/s).
+        SetTargetVelocity = 7,
+        /// Push `actor` with `vector` newtons during the next frame.
+        ApplyForce = 8,
+        /// Kick `actor` with an impulse of `vector` N·s, at once.
+        ApplyImpulse = 9,
+        /// Twist `actor` with `vector` N·m during the next frame.
+        ApplyTorque = 10,
+        /// Enable (`flags` bit 0 set) or disable `actor`'s physics simulation.
+        SetPhysics = 11,
+        /// Enable (`flags` bit 0 set) or disable gravity on `actor`.
+        SetGravity = 12,
+        /// Drive a vehicle: `params` = throttle 0..1, steer -1..1 (positive
+        /// left), brake 0..1; `flags` bit 0 = hand brake. Holds until changed.
+        VehicleControl = 13,
+    }
 }
 
 impl CommandKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        use CommandKind::*;
-        [
-            SpawnBox,
-            SpawnSphere,
-            SpawnCapsule,
-            SpawnVehicle,
-            Destroy,
-            SetTransform,
-            SetTargetVelocity,
-            ApplyForce,
-            ApplyImpulse,
-            ApplyTorque,
-            SetPhysics,
-            SetGravity,
-            VehicleControl,
-        ]
-        .into_iter()
-        .find(|k| *k as u32 == value)
-    }
-
     /// Whether the command creates an actor.
     pub fn spawns(&self) -> bool {
         matches!(
@@ -215,38 +195,22 @@ impl Command {
     }
 }
 
-/// How one command ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum CommandStatus {
-    /// Executed.
-    Ok = 0,
-    /// No actor has this id (never had, or destroyed).
-    UnknownActor = 1,
-    /// A value is NaN, infinite or out of range.
-    InvalidArgument = 2,
-    /// The command needs a vehicle and the actor is not one.
-    NotAVehicle = 3,
-    /// The command kind is unknown to this server.
-    UnknownCommand = 4,
-    /// The actor is static and cannot be changed.
-    StaticActor = 5,
-}
-
-impl CommandStatus {
-    /// The status with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        use CommandStatus::*;
-        [
-            Ok,
-            UnknownActor,
-            InvalidArgument,
-            NotAVehicle,
-            UnknownCommand,
-            StaticActor,
-        ]
-        .into_iter()
-        .find(|s| *s as u32 == value)
+wire_enum! {
+    /// How one command ended.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum CommandStatus {
+        /// Executed.
+        Ok = 0,
+        /// No actor has this id (never had, or destroyed).
+        UnknownActor = 1,
+        /// A value is NaN, infinite or out of range.
+        InvalidArgument = 2,
+        /// The command needs a vehicle and the actor is not one.
+        NotAVehicle = 3,
+        /// The command kind is unknown to this server.
+        UnknownCommand = 4,
+        /// The actor is static and cannot be changed.
+        StaticActor = 5,
     }
 }
 
@@ -335,13 +299,10 @@ mod tests {
     }
 
     #[test]
-    fn kinds_and_statuses_round_trip() {
-        for v in 1..=13 {
-            assert_eq!(CommandKind::from_u32(v).map(|k| k as u32), Some(v));
-        }
-        assert_eq!(CommandKind::from_u32(14), None);
-        for v in 0..=5 {
-            assert_eq!(CommandStatus::from_u32(v).map(|s| s as u32), Some(v));
-        }
+    fn kinds_and_statuses_are_numbered_without_gaps() {
+        let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
+        assert_eq!(kinds, (1..=13).collect::<Vec<_>>());
+        let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
+        assert_eq!(statuses, (0..=5).collect::<Vec<_>>());
     }
 }

@@ -3,92 +3,62 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
-use crate::{SettingsError, TickerInfo, WireSettings, WorldSettings, PROTOCOL_VERSION};
+use crate::wire::wire_enum;
+use crate::{
+    SettingsError, TickerInfo, WireSettings, WireSettingsError, WorldSettings, PROTOCOL_VERSION,
+};
 
-/// What a [`ControlRequest`] asks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum RequestKind {
-    /// Handshake on connect: checks the protocol version, returns the status.
-    Hello = 1,
-    /// Returns the status (which holds the settings).
-    GetSettings = 2,
-    /// Applies `settings`; returns the frame from which they hold.
-    ApplySettings = 3,
-    /// Returns the status.
-    Status = 4,
-    /// Loads `scene` as a new episode (settings kept unless
-    /// [`ControlRequest::RESET_SETTINGS`]).
-    LoadWorld = 5,
-    /// Restores the current scene's initial state as a new episode.
-    ReloadWorld = 6,
-}
-
-impl RequestKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Hello,
-            2 => Self::GetSettings,
-            3 => Self::ApplySettings,
-            4 => Self::Status,
-            5 => Self::LoadWorld,
-            6 => Self::ReloadWorld,
-            _ => return None,
-        })
+wire_enum! {
+    /// What a [`ControlRequest`] asks for.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum RequestKind {
+        /// Handshake on connect: checks the protocol version, returns the status.
+        Hello = 1,
+        /// Returns the status (which holds the settings).
+        GetSettings = 2,
+        /// Applies `settings`; returns the frame from which they hold.
+        ApplySettings = 3,
+        /// Returns the status.
+        Status = 4,
+        /// Loads `scene` as a new episode (settings kept unless
+        /// [`ControlRequest::RESET_SETTINGS`]).
+        LoadWorld = 5,
+        /// Restores the current scene's initial state as a new episode.
+        ReloadWorld = 6,
     }
 }
 
-/// How the server answered a [`ControlRequest`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum ResponseStatus {
-    /// Done.
-    Ok = 0,
-    /// The request's protocol version is not the server's; nothing was done.
-    ProtocolMismatch = 1,
-    /// The settings were refused ([`ControlResponse::settings_error`]); nothing changed.
-    InvalidSettings = 2,
-    /// The request kind is unknown to this server; nothing was done.
-    UnknownRequest = 3,
-    /// Synchronous mode is entered by the tick owner, not by settings alone.
-    SyncNeedsTicker = 4,
-    /// Only the tick owner may do this (or the sender is not the owner).
-    NotOwner = 5,
-    /// The scene name is not one the server knows; nothing changed.
-    UnknownScene = 6,
-    /// Tick service: this client's tick ownership ended because another
-    /// client left synchronous mode (`TickResponse::revoked_by` names it).
-    Revoked = 7,
-    /// Tick service, an interim answer: the tick waits for a lockstep
-    /// participant (`TickResponse::waiting_for`), which the server drops
-    /// after `TickResponse::lockstep_timeout_ns`. The final answer follows.
-    WaitingForParticipants = 8,
-    /// Lockstep service: the sender is not (or no longer) a participant;
-    /// the server dropped it or it never joined.
-    NotParticipant = 9,
-    /// Loading or reloading the world failed on the server (its log says
-    /// why); the world is unchanged.
-    LoadFailed = 10,
-}
-
-impl ResponseStatus {
-    /// The status with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            0 => Self::Ok,
-            1 => Self::ProtocolMismatch,
-            2 => Self::InvalidSettings,
-            3 => Self::UnknownRequest,
-            4 => Self::SyncNeedsTicker,
-            5 => Self::NotOwner,
-            6 => Self::UnknownScene,
-            7 => Self::Revoked,
-            8 => Self::WaitingForParticipants,
-            9 => Self::NotParticipant,
-            10 => Self::LoadFailed,
-            _ => return None,
-        })
+wire_enum! {
+    /// How the server answered a [`ControlRequest`].
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum ResponseStatus {
+        /// Done.
+        Ok = 0,
+        /// The request's protocol version is not the server's; nothing was done.
+        ProtocolMismatch = 1,
+        /// The settings were refused ([`ControlResponse::settings_error`]); nothing changed.
+        InvalidSettings = 2,
+        /// The request kind is unknown to this server; nothing was done.
+        UnknownRequest = 3,
+        /// Synchronous mode is entered by the tick owner, not by settings alone.
+        SyncNeedsTicker = 4,
+        /// Only the tick owner may do this (or the sender is not the owner).
+        NotOwner = 5,
+        /// The scene name is not one the server knows; nothing changed.
+        UnknownScene = 6,
+        /// Tick service: this client's tick ownership ended because another
+        /// client left synchronous mode (`TickResponse::revoked_by` names it).
+        Revoked = 7,
+        /// Tick service, an interim answer: the tick waits for a lockstep
+        /// participant (`TickResponse::waiting_for`), which the server drops
+        /// after `TickResponse::lockstep_timeout_ns`. The final answer follows.
+        WaitingForParticipants = 8,
+        /// Lockstep service: the sender is not (or no longer) a participant;
+        /// the server dropped it or it never joined.
+        NotParticipant = 9,
+        /// Loading or reloading the world failed on the server (its log says
+        /// why); the world is unchanged.
+        LoadFailed = 10,
     }
 }
 
@@ -230,7 +200,7 @@ pub struct StatusReport {
 /// The server's answer to one [`ControlRequest`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlResponse/1")]
+#[type_name("simbus::ControlResponse/2")]
 pub struct ControlResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -239,13 +209,9 @@ pub struct ControlResponse {
     /// For [`RequestKind::ApplySettings`]: the first frame computed with the
     /// new settings.
     pub effective_frame: u64,
-    /// With [`ResponseStatus::InvalidSettings`]: the error code, see
-    /// [`SettingsError::to_wire`].
-    pub error_code: u32,
-    /// The field the error names.
-    pub error_field: u32,
-    /// The values the error names.
-    pub error_values: [f64; 3],
+    /// With [`ResponseStatus::InvalidSettings`]: why the settings were
+    /// refused (see [`ControlResponse::settings_error`]).
+    pub settings_error: WireSettingsError,
     /// The world's state after the request.
     pub report: StatusReport,
 }
@@ -257,9 +223,7 @@ impl ControlResponse {
             protocol_version: PROTOCOL_VERSION,
             status: ResponseStatus::Ok as u32,
             effective_frame: 0,
-            error_code: 0,
-            error_field: 0,
-            error_values: [0.0; 3],
+            settings_error: WireSettingsError::NONE,
             report,
         }
     }
@@ -274,18 +238,15 @@ impl ControlResponse {
 
     /// A response refusing settings with `error`.
     pub fn invalid_settings(error: &SettingsError, report: StatusReport) -> Self {
-        let (error_code, error_field, error_values) = error.to_wire();
         Self {
-            error_code,
-            error_field,
-            error_values,
+            settings_error: error.into(),
             ..Self::refused(ResponseStatus::InvalidSettings, report)
         }
     }
 
     /// The settings error carried by an [`ResponseStatus::InvalidSettings`] response.
     pub fn settings_error(&self) -> Option<SettingsError> {
-        SettingsError::from_wire(self.error_code, self.error_field, self.error_values)
+        self.settings_error.error()
     }
 }
 
@@ -308,32 +269,20 @@ mod tests {
     }
 
     #[test]
-    fn kinds_and_statuses_round_trip() {
-        for k in [
-            RequestKind::Hello,
-            RequestKind::GetSettings,
-            RequestKind::ApplySettings,
-            RequestKind::Status,
-            RequestKind::LoadWorld,
-            RequestKind::ReloadWorld,
-        ] {
-            assert_eq!(RequestKind::from_u32(k as u32), Some(k));
-        }
-        assert_eq!(RequestKind::from_u32(0), None);
-        for s in [
-            ResponseStatus::Ok,
-            ResponseStatus::ProtocolMismatch,
-            ResponseStatus::InvalidSettings,
-            ResponseStatus::UnknownRequest,
-            ResponseStatus::SyncNeedsTicker,
-            ResponseStatus::NotOwner,
-            ResponseStatus::UnknownScene,
-            ResponseStatus::Revoked,
-            ResponseStatus::WaitingForParticipants,
-            ResponseStatus::NotParticipant,
-            ResponseStatus::LoadFailed,
-        ] {
-            assert_eq!(ResponseStatus::from_u32(s as u32), Some(s));
-        }
+    fn response_layout_is_fixed() {
+        // Same bytes as ControlResponse/1 (three error fields at offset 16).
+        assert_eq!(std::mem::size_of::<ControlResponse>(), 288);
+        assert_eq!(std::mem::offset_of!(ControlResponse, settings_error), 16);
+        assert_eq!(std::mem::offset_of!(ControlResponse, report), 48);
+    }
+
+    #[test]
+    fn responses_carry_settings_errors() {
+        let report = StatusReport::zeroed();
+        assert_eq!(ControlResponse::ok(report).settings_error(), None);
+        let error = SettingsError::MaxSubstepsOutOfRange { value: 17, max: 16 };
+        let refused = ControlResponse::invalid_settings(&error, report);
+        assert_eq!(refused.status, ResponseStatus::InvalidSettings as u32);
+        assert_eq!(refused.settings_error(), Some(error));
     }
 }

@@ -3,6 +3,7 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::{WireSettings, NANOS_PER_SECOND};
 
 /// When a frame happened, in simulation time (integer nanoseconds) and wall time.
@@ -75,46 +76,27 @@ impl FrameHeader {
     pub const SUBSTEPS_CAPPED: u32 = 1;
 }
 
-/// What an actor is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[repr(u32)]
-pub enum ActorKind {
-    /// Fixed geometry: ground, ramps, walls.
-    Static = 1,
-    /// A dynamic box; `extent` holds its half extents.
-    Box = 2,
-    /// A dynamic sphere; `extent[0]` is its radius.
-    Sphere = 3,
-    /// A dynamic capsule along Y; `extent` is (radius, half height, radius).
-    Capsule = 4,
-    /// A four-wheeled ray-cast vehicle; `extent` holds the chassis half extents.
-    Vehicle = 5,
+wire_enum! {
+    /// What an actor is.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    pub enum ActorKind {
+        /// Fixed geometry: ground, ramps, walls.
+        Static = 1,
+        /// A dynamic box; `extent` holds its half extents.
+        Box = 2,
+        /// A dynamic sphere; `extent[0]` is its radius.
+        Sphere = 3,
+        /// A dynamic capsule along Y; `extent` is (radius, half height, radius).
+        Capsule = 4,
+        /// A four-wheeled ray-cast vehicle; `extent` holds the chassis half extents.
+        Vehicle = 5,
+    }
 }
 
 impl ActorKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Static,
-            2 => Self::Box,
-            3 => Self::Sphere,
-            4 => Self::Capsule,
-            5 => Self::Vehicle,
-            _ => return None,
-        })
-    }
-
     /// The kind named `name` (as printed by [`ActorKind::name`]).
     pub fn from_name(name: &str) -> Option<Self> {
-        [
-            Self::Static,
-            Self::Box,
-            Self::Sphere,
-            Self::Capsule,
-            Self::Vehicle,
-        ]
-        .into_iter()
-        .find(|k| k.name() == name)
+        Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
     /// The lower-case name used in CLI output.
@@ -197,16 +179,10 @@ mod tests {
     }
 
     #[test]
-    fn kinds_round_trip() {
-        for kind in [
-            ActorKind::Static,
-            ActorKind::Box,
-            ActorKind::Sphere,
-            ActorKind::Capsule,
-            ActorKind::Vehicle,
-        ] {
-            assert_eq!(ActorKind::from_u32(kind as u32), Some(kind));
+    fn kinds_round_trip_through_their_names() {
+        for kind in ActorKind::ALL {
+            assert_eq!(ActorKind::from_name(kind.name()), Some(kind));
         }
-        assert_eq!(ActorKind::from_u32(0), None);
+        assert_eq!(ActorKind::from_name("Box"), None);
     }
 }

@@ -26,8 +26,11 @@
 //! # }
 //! ```
 
+#![forbid(unsafe_code)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
+
+mod wire;
 
 mod command;
 mod control;
@@ -55,10 +58,12 @@ pub use sensor::{
     MAX_SENSOR_TICK_SECONDS, SENSOR_ERRORS,
 };
 pub use settings::{
-    seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings, WorldSettings,
-    MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
+    seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings,
+    WireSettingsError, WorldSettings, LONG_FRAME_NS, LONG_FRAME_SECONDS, LONG_SUBSTEP_NS,
+    LONG_SUBSTEP_SECONDS, MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
 };
 pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
+pub use wire::UnknownWireValue;
 
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a

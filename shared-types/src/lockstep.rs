@@ -4,30 +4,20 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::{FixedText, PROTOCOL_VERSION};
 
-/// What a [`LockstepRequest`] asks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum LockstepKind {
-    /// Become a participant. The server then waits for its `Done` for the
-    /// current frame before stepping.
-    Join = 1,
-    /// Stop being a participant.
-    Leave = 2,
-    /// Done with `frame` of `episode` (its commands for the next frame are sent).
-    Done = 3,
-}
-
-impl LockstepKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Join,
-            2 => Self::Leave,
-            3 => Self::Done,
-            _ => return None,
-        })
+wire_enum! {
+    /// What a [`LockstepRequest`] asks for.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum LockstepKind {
+        /// Become a participant. The server then waits for its `Done` for the
+        /// current frame before stepping.
+        Join = 1,
+        /// Stop being a participant.
+        Leave = 2,
+        /// Done with `frame` of `episode` (its commands for the next frame are sent).
+        Done = 3,
     }
 }
 

@@ -5,36 +5,28 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::PROTOCOL_VERSION;
 
 /// The largest capture a sensor may publish (its shared memory holds a few
 /// dozen of them).
 pub const MAX_CAPTURE_BYTES: usize = 32 * 1024 * 1024;
 
-/// What a sensor measures.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[repr(u32)]
-pub enum SensorKind {
-    /// Ray-cast depth camera: one `f32` planar depth (metres) per pixel,
-    /// row by row from the top left; `far` where nothing is hit.
-    Depth = 1,
-    /// Ray-cast lidar: [`LidarPoint`]s in the sensor frame.
-    Lidar = 2,
-    /// Inertial measurement unit: one [`ImuMeasurement`].
-    Imu = 3,
+wire_enum! {
+    /// What a sensor measures.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    pub enum SensorKind {
+        /// Ray-cast depth camera: one `f32` planar depth (metres) per pixel,
+        /// row by row from the top left; `far` where nothing is hit.
+        Depth = 1,
+        /// Ray-cast lidar: [`LidarPoint`]s in the sensor frame.
+        Lidar = 2,
+        /// Inertial measurement unit: one [`ImuMeasurement`].
+        Imu = 3,
+    }
 }
 
 impl SensorKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Depth,
-            2 => Self::Lidar,
-            3 => Self::Imu,
-            _ => return None,
-        })
-    }
-
     /// The lower-case name used on the command line.
     pub fn name(&self) -> &'static str {
         match self {
@@ -46,9 +38,7 @@ impl SensorKind {
 
     /// The kind named `name`.
     pub fn from_name(name: &str) -> Option<Self> {
-        [Self::Depth, Self::Lidar, Self::Imu]
-            .into_iter()
-            .find(|k| k.name() == name)
+        Self::ALL.into_iter().find(|k| k.name() == name)
     }
 }
 
@@ -246,31 +236,19 @@ impl SensorSpec {
 /// The longest capture period: the clock's range (`u64` nanoseconds).
 pub const MAX_SENSOR_TICK_SECONDS: f64 = 18_446_744_073.0;
 
-/// Why a sensor's stream ended (in the header of its last capture,
-/// flagged [`SensorHeader::END_OF_STREAM`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum SensorEnd {
-    /// Destroyed on request.
-    Destroyed = 1,
-    /// The actor it rode on was destroyed (a sensor dies with its parent).
-    ParentDestroyed = 2,
-    /// The world was loaded or reloaded: a new episode has no old sensors.
-    EpisodeEnded = 3,
-    /// The server stopped.
-    ServerStopped = 4,
-}
-
-impl SensorEnd {
-    /// The reason with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Destroyed,
-            2 => Self::ParentDestroyed,
-            3 => Self::EpisodeEnded,
-            4 => Self::ServerStopped,
-            _ => return None,
-        })
+wire_enum! {
+    /// Why a sensor's stream ended (in the header of its last capture,
+    /// flagged [`SensorHeader::END_OF_STREAM`]).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum SensorEnd {
+        /// Destroyed on request.
+        Destroyed = 1,
+        /// The actor it rode on was destroyed (a sensor dies with its parent).
+        ParentDestroyed = 2,
+        /// The world was loaded or reloaded: a new episode has no old sensors.
+        EpisodeEnded = 3,
+        /// The server stopped.
+        ServerStopped = 4,
     }
 }
 
@@ -383,27 +361,16 @@ pub struct SensorInfo {
     pub captures: u64,
 }
 
-/// What a [`SensorRequest`] asks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum SensorRequestKind {
-    /// Build a sensor from `spec`.
-    Spawn = 1,
-    /// Remove sensor `id`.
-    Destroy = 2,
-    /// List every sensor.
-    List = 3,
-}
-
-impl SensorRequestKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Spawn,
-            2 => Self::Destroy,
-            3 => Self::List,
-            _ => return None,
-        })
+wire_enum! {
+    /// What a [`SensorRequest`] asks for.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum SensorRequestKind {
+        /// Build a sensor from `spec`.
+        Spawn = 1,
+        /// Remove sensor `id`.
+        Destroy = 2,
+        /// List every sensor.
+        List = 3,
     }
 }
 
@@ -500,10 +467,10 @@ mod tests {
     }
 
     #[test]
-    fn kinds_round_trip() {
-        for k in [SensorKind::Depth, SensorKind::Lidar, SensorKind::Imu] {
-            assert_eq!(SensorKind::from_u32(k as u32), Some(k));
+    fn kinds_round_trip_through_their_names() {
+        for k in SensorKind::ALL {
             assert_eq!(SensorKind::from_name(k.name()), Some(k));
         }
+        assert_eq!(SensorKind::from_name("camera"), None);
     }
 }

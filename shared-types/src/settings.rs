@@ -5,6 +5,7 @@ use std::fmt;
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::NANOS_PER_SECOND;
 
 /// The largest `max_substeps` accepted (CARLA's limit).
@@ -14,11 +15,24 @@ pub const MAX_SUBSTEPS_LIMIT: u32 = 16;
 /// the integer-nanosecond clock would lose the value's meaning.
 pub const MIN_DELTA_SECONDS: f64 = 1e-6;
 
-/// Frames longer than this are warned about: physics is unreliable below 10 FPS.
-const LONG_FRAME_SECONDS: f64 = 0.1;
+/// Frames longer than this (below 10 FPS) make physics unreliable:
+/// [`WorldSettings::warnings`] warns about them, and a frame that was longer
+/// is flagged unreliable.
+pub const LONG_FRAME_SECONDS: f64 = 0.1;
 
-/// Substeps longer than this are warned about.
-const LONG_SUBSTEP_SECONDS: f64 = 1.0 / 60.0;
+/// [`LONG_FRAME_SECONDS`] in the clock's integer nanoseconds.
+pub const LONG_FRAME_NS: u64 = 100_000_000;
+
+/// Physics substeps longer than this (1/60 s) make physics unreliable:
+/// [`WorldSettings::warnings`] warns about them, and a frame computed with
+/// longer substeps is flagged unreliable.
+pub const LONG_SUBSTEP_SECONDS: f64 = 1.0 / 60.0;
+
+/// [`LONG_SUBSTEP_SECONDS`] in the clock's integer nanoseconds, rounded as
+/// [`seconds_to_nanos`] rounds (16 666 666.67 ns becomes 16 666 667), so
+/// `seconds_to_nanos(s) > LONG_SUBSTEP_NS` agrees with
+/// `s > LONG_SUBSTEP_SECONDS` at the boundary.
+pub const LONG_SUBSTEP_NS: u64 = 16_666_667;
 
 /// Converts seconds to the integer nanoseconds the clock keeps, rounding to
 /// the nearest nanosecond (0.1 s is exactly 100 000 000 ns).
@@ -60,29 +74,45 @@ impl Default for WorldSettings {
     }
 }
 
-/// A setting, as named in errors and on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum SettingsField {
-    /// `fixed_delta_seconds`.
-    FixedDeltaSeconds = 1,
-    /// `max_substep_delta_time`.
-    MaxSubstepDeltaTime = 2,
-    /// `max_substeps`.
-    MaxSubsteps = 3,
-    /// `fps` (fixed_delta_seconds = 1 / fps).
-    Fps = 4,
+/// One line for logs: `sync, fixed step 0.05 s, substepping <= 0.01 s x 10`
+/// or `async, variable step, no substepping`. A fixed step of 0 reads as
+/// the variable step it means.
+impl fmt::Display for WorldSettings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let settings = self.normalized();
+        f.write_str(if settings.synchronous_mode {
+            "sync"
+        } else {
+            "async"
+        })?;
+        match settings.fixed_delta_seconds {
+            Some(dt) => write!(f, ", fixed step {dt} s")?,
+            None => f.write_str(", variable step")?,
+        }
+        if settings.substepping {
+            write!(
+                f,
+                ", substepping <= {} s x {}",
+                settings.max_substep_delta_time, settings.max_substeps
+            )
+        } else {
+            f.write_str(", no substepping")
+        }
+    }
 }
 
-impl SettingsField {
-    fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::FixedDeltaSeconds,
-            2 => Self::MaxSubstepDeltaTime,
-            3 => Self::MaxSubsteps,
-            4 => Self::Fps,
-            _ => return None,
-        })
+wire_enum! {
+    /// A setting, as named in errors and on the command line.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum SettingsField {
+        /// `fixed_delta_seconds`.
+        FixedDeltaSeconds = 1,
+        /// `max_substep_delta_time`.
+        MaxSubstepDeltaTime = 2,
+        /// `max_substeps`.
+        MaxSubsteps = 3,
+        /// `fps` (fixed_delta_seconds = 1 / fps).
+        Fps = 4,
     }
 }
 
@@ -338,6 +368,44 @@ impl From<WireSettings> for WorldSettings {
     }
 }
 
+/// A [`SettingsError`] as it travels in a response (all zero: no error).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::WireSettingsError/1")]
+pub struct WireSettingsError {
+    /// Which error (0: none); see [`SettingsError::to_wire`].
+    pub code: u32,
+    /// The [`SettingsField`] the error names, as `u32`.
+    pub field: u32,
+    /// The values the error names.
+    pub values: [f64; 3],
+}
+
+impl WireSettingsError {
+    /// No error.
+    pub const NONE: Self = Self {
+        code: 0,
+        field: 0,
+        values: [0.0; 3],
+    };
+
+    /// The error, if one is carried and this version knows its code.
+    pub fn error(&self) -> Option<SettingsError> {
+        SettingsError::from_wire(self.code, self.field, self.values)
+    }
+}
+
+impl From<&SettingsError> for WireSettingsError {
+    fn from(error: &SettingsError) -> Self {
+        let (code, field, values) = error.to_wire();
+        Self {
+            code,
+            field,
+            values,
+        }
+    }
+}
+
 /// Wire codes of [`SettingsError`] variants.
 mod code {
     pub const NOT_FINITE: u32 = 1;
@@ -348,7 +416,8 @@ mod code {
 }
 
 impl SettingsError {
-    /// Encodes the error as `(code, field, values)` for a [`crate::ControlResponse`].
+    /// Encodes the error as `(code, field, values)`: the fields of a
+    /// [`WireSettingsError`]. Codes start at 1; 0 means no error.
     pub fn to_wire(&self) -> (u32, u32, [f64; 3]) {
         match *self {
             Self::NotFinite { field, value } => (code::NOT_FINITE, field as u32, [value, 0.0, 0.0]),
@@ -374,7 +443,7 @@ impl SettingsError {
     }
 
     /// Decodes an error encoded by [`SettingsError::to_wire`]; `None` for
-    /// codes this version does not know.
+    /// code 0 (no error) and codes this version does not know.
     pub fn from_wire(code: u32, field: u32, values: [f64; 3]) -> Option<Self> {
         let field = SettingsField::from_u32(field);
         let [a, b, c] = values;
@@ -553,8 +622,54 @@ mod tests {
         for e in errors {
             let (c, f, v) = e.to_wire();
             assert_eq!(SettingsError::from_wire(c, f, v), Some(e));
+            assert_eq!(WireSettingsError::from(&e).error(), Some(e));
         }
         assert_eq!(SettingsError::from_wire(99, 0, [0.0; 3]), None);
+        assert_eq!(WireSettingsError::NONE.error(), None);
+        assert_eq!(WireSettingsError::default(), WireSettingsError::NONE);
+        let unknown_field = WireSettingsError {
+            field: 99,
+            ..WireSettingsError::from(&errors[0])
+        };
+        assert_eq!(unknown_field.error(), None);
+    }
+
+    #[test]
+    fn wire_settings_error_layout_is_fixed() {
+        assert_eq!(std::mem::size_of::<WireSettingsError>(), 32);
+        assert_eq!(std::mem::align_of::<WireSettingsError>(), 8);
+    }
+
+    #[test]
+    fn long_thresholds_agree_in_seconds_and_nanoseconds() {
+        assert_eq!(seconds_to_nanos(LONG_FRAME_SECONDS), LONG_FRAME_NS);
+        assert_eq!(seconds_to_nanos(LONG_SUBSTEP_SECONDS), LONG_SUBSTEP_NS);
+        // A frame of exactly 0.1 s is not long; one nanosecond more is.
+        assert!(fixed(0.1).warnings().is_empty());
+        assert!(seconds_to_nanos(0.1) <= LONG_FRAME_NS);
+        assert!(seconds_to_nanos(0.100_000_001) > LONG_FRAME_NS);
+        assert!(!fixed(0.100_000_001).warnings().is_empty());
+    }
+
+    #[test]
+    fn settings_display_as_one_line() {
+        assert_eq!(
+            WorldSettings::default().to_string(),
+            "async, variable step, substepping <= 0.01 s x 10"
+        );
+        let sync = WorldSettings {
+            synchronous_mode: true,
+            ..fixed(0.05)
+        };
+        assert_eq!(
+            sync.to_string(),
+            "sync, fixed step 0.05 s, substepping <= 0.01 s x 10"
+        );
+        let coarse = WorldSettings {
+            substepping: false,
+            ..fixed(0.0)
+        };
+        assert_eq!(coarse.to_string(), "async, variable step, no substepping");
     }
 
     #[test]

@@ -5,35 +5,25 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::wire::wire_enum;
 use crate::{
-    FixedText, ResponseStatus, SettingsError, WireSettings, WorldSettings, PROTOCOL_VERSION,
+    FixedText, ResponseStatus, SettingsError, WireSettings, WireSettingsError, WorldSettings,
+    PROTOCOL_VERSION,
 };
 
-/// What a [`TickRequest`] asks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum TickRequestKind {
-    /// Become the ticker (or confirm it).
-    Claim = 1,
-    /// Stop being the ticker.
-    Release = 2,
-    /// Compute the next frame; answered once its snapshot is published.
-    Tick = 3,
-    /// Apply settings; unlike the control service this may enter
-    /// synchronous mode.
-    ApplySettings = 4,
-}
-
-impl TickRequestKind {
-    /// The kind with wire value `value`, if this version knows it.
-    pub fn from_u32(value: u32) -> Option<Self> {
-        Some(match value {
-            1 => Self::Claim,
-            2 => Self::Release,
-            3 => Self::Tick,
-            4 => Self::ApplySettings,
-            _ => return None,
-        })
+wire_enum! {
+    /// What a [`TickRequest`] asks for.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum TickRequestKind {
+        /// Become the ticker (or confirm it).
+        Claim = 1,
+        /// Stop being the ticker.
+        Release = 2,
+        /// Compute the next frame; answered once its snapshot is published.
+        Tick = 3,
+        /// Apply settings; unlike the control service this may enter
+        /// synchronous mode.
+        ApplySettings = 4,
     }
 }
 
@@ -120,7 +110,7 @@ impl TickRequest {
 /// The server's answer on the tick service.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::TickResponse/2")]
+#[type_name("simbus::TickResponse/3")]
 pub struct TickResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -132,12 +122,9 @@ pub struct TickResponse {
     pub elapsed_ns: u64,
     /// For settings: the first frame computed with them.
     pub effective_frame: u64,
-    /// With [`ResponseStatus::InvalidSettings`]: see [`SettingsError::to_wire`].
-    pub error_code: u32,
-    /// The field the error names.
-    pub error_field: u32,
-    /// The values the error names.
-    pub error_values: [f64; 3],
+    /// With [`ResponseStatus::InvalidSettings`]: why the settings were
+    /// refused (see [`TickResponse::settings_error`]).
+    pub settings_error: WireSettingsError,
     /// The ticker after the request.
     pub ticker: TickerInfo,
     /// With [`ResponseStatus::WaitingForParticipants`]: the participant the
@@ -160,9 +147,7 @@ impl TickResponse {
             frame,
             elapsed_ns,
             effective_frame: 0,
-            error_code: 0,
-            error_field: 0,
-            error_values: [0.0; 3],
+            settings_error: WireSettingsError::NONE,
             ticker,
             waiting_for: TickerInfo::none(),
             lockstep_timeout_ns: 0,
@@ -172,12 +157,40 @@ impl TickResponse {
 
     /// Adds a settings error to a [`ResponseStatus::InvalidSettings`] response.
     pub fn with_settings_error(mut self, error: &SettingsError) -> Self {
-        (self.error_code, self.error_field, self.error_values) = error.to_wire();
+        self.settings_error = error.into();
         self
     }
 
     /// The settings error of an [`ResponseStatus::InvalidSettings`] response.
     pub fn settings_error(&self) -> Option<SettingsError> {
-        SettingsError::from_wire(self.error_code, self.error_field, self.error_values)
+        self.settings_error.error()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn response_layout_is_fixed() {
+        // Same bytes as TickResponse/2 (three error fields at offset 32).
+        assert_eq!(std::mem::size_of::<TickResponse>(), 336);
+        assert_eq!(std::mem::offset_of!(TickResponse, settings_error), 32);
+        assert_eq!(std::mem::offset_of!(TickResponse, ticker), 64);
+    }
+
+    #[test]
+    fn responses_carry_settings_errors() {
+        let ok = TickResponse::new(ResponseStatus::Ok, 7, 0, TickerInfo::none());
+        assert_eq!(ok.settings_error(), None);
+        let error = SettingsError::SubstepRule {
+            fixed: 0.5,
+            max_dt: 0.01,
+            max_substeps: 10,
+        };
+        let refused = TickResponse::new(ResponseStatus::InvalidSettings, 7, 0, TickerInfo::none())
+            .with_settings_error(&error);
+        assert_eq!(refused.settings_error(), Some(error));
+        assert_eq!(refused.frame, 7);
     }
 }

@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use shared_types::{seconds_to_nanos, WorldSettings, NANOS_PER_SECOND};
+use shared_types::{seconds_to_nanos, WorldSettings, LONG_SUBSTEP_NS, NANOS_PER_SECOND};
 use tracing::warn;
 
 /// How one frame's delta is split into physics steps.
@@ -161,12 +161,10 @@ impl Pacer {
     }
 }
 
-/// Frames longer than this (below 10 FPS) make physics unreliable.
-pub const LONG_FRAME_NS: u64 = NANOS_PER_SECOND / 10;
-
-/// Substeps longer than this (1/60 s) make physics unreliable.
+/// Whether `plan`'s substeps are longer than 1/60 s, the threshold
+/// [`WorldSettings::warnings`] uses too ([`LONG_SUBSTEP_NS`]).
 pub fn long_substep(plan: &SubstepPlan) -> bool {
-    seconds_to_nanos(f64::from(plan.substep_seconds)) > NANOS_PER_SECOND / 60
+    seconds_to_nanos(f64::from(plan.substep_seconds)) > LONG_SUBSTEP_NS
 }
 
 #[cfg(test)]

@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 use shared_types::{ResponseStatus, SettingsError, WorldSettings};
 use tracing::{info, warn};
 
-use crate::clock::{long_substep, Pacer, SubstepPlan, LONG_FRAME_NS};
+use shared_types::LONG_FRAME_NS;
+
+use crate::clock::{long_substep, Pacer, SubstepPlan};
 use crate::{Scene, ServerConfig};
 
 /// The least time between two "physics unreliable" warnings.
@@ -83,8 +85,7 @@ impl Runtime {
             info!(
                 pid,
                 effective_frame = next_frame,
-                "settings changed: {}",
-                describe(&settings)
+                "settings changed: {settings}"
             );
             self.settings = settings;
             self.pacer.reset();
@@ -118,26 +119,4 @@ impl Runtime {
             "frame {frame} is too long for reliable physics (frame dt > 0.1 s or substep dt > 1/60 s)",
         );
     }
-}
-
-/// One line describing the time settings, for logs.
-pub fn describe(settings: &WorldSettings) -> String {
-    let mode = if settings.synchronous_mode {
-        "sync"
-    } else {
-        "async"
-    };
-    let step = match settings.fixed_delta_seconds {
-        Some(dt) => format!("fixed step {dt} s"),
-        None => "variable step".to_owned(),
-    };
-    let substeps = if settings.substepping {
-        format!(
-            "substepping <= {} s x {}",
-            settings.max_substep_delta_time, settings.max_substeps
-        )
-    } else {
-        "no substepping".to_owned()
-    };
-    format!("{mode}, {step}, {substeps}")
 }

@@ -25,7 +25,7 @@ use crate::liveness::Sweep;
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
 use crate::sensors::Sensors;
-use crate::state::{describe, Runtime};
+use crate::state::Runtime;
 use crate::ticker::Ticker;
 use crate::world::World;
 use crate::{Scene, ServerConfig, ServerError};
@@ -144,7 +144,7 @@ impl Server {
             scene = %domains.runtime.scene,
             actors = domains.world.actor_count(),
             "server up: {}",
-            describe(&domains.runtime.settings)
+            domains.runtime.settings
         );
         Ok(Self { control, domains })
     }
@@ -335,7 +335,7 @@ impl Domains {
             episode = self.runtime.episode,
             actors = self.world.actor_count(),
             "world loaded: {}",
-            describe(&self.runtime.settings)
+            self.runtime.settings
         );
         self.publish(0, 0)?;
         self.frames.notify()

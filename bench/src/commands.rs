@@ -12,7 +12,7 @@ use crate::support::BenchServer;
 use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
-pub struct CommandsArgs {
+pub(crate) struct CommandsArgs {
     /// Batches of 1000 measured.
     #[arg(long, default_value_t = 200)]
     batches: u64,
@@ -25,7 +25,7 @@ pub struct CommandsArgs {
 }
 
 /// The participant peer: joins the lockstep, then reports every frame done.
-pub fn participant(world: &str) -> anyhow::Result<()> {
+pub(crate) fn participant(world: &str) -> anyhow::Result<()> {
     let mut client = Client::connect(world, Duration::from_secs(10))?;
     let participant = client.join_lockstep("bench-participant")?;
     println!("ready");
@@ -64,7 +64,7 @@ fn tick_round_trips(world: &str, n: u64) -> anyhow::Result<Latencies> {
     Ok(latencies)
 }
 
-pub fn run(args: CommandsArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     // Batches: 1000 velocity commands on the 1000 boxes of boxes:1000.
     let server = BenchServer::start(
         "commands",

@@ -11,7 +11,7 @@ use crate::support::BenchServer;
 use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
-pub struct FailoverArgs {
+pub(crate) struct FailoverArgs {
     /// Kills measured per figure.
     #[arg(long, default_value_t = 20)]
     trials: u64,
@@ -30,7 +30,7 @@ fn kill_a_ticker(world: &str) -> anyhow::Result<Instant> {
     Ok(Instant::now())
 }
 
-pub fn run(args: FailoverArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
     let server = BenchServer::start(
         "failover",
         &["--scene", "empty", "--fixed-delta-seconds", "0.01"],

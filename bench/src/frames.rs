@@ -12,7 +12,7 @@ use crate::stats::{header, Latencies};
 use crate::support::BenchServer;
 
 #[derive(Debug, Args)]
-pub struct FramesArgs {
+pub(crate) struct FramesArgs {
     /// Snapshots measured per wait mode.
     #[arg(long, default_value_t = 5000)]
     samples: u64,
@@ -72,7 +72,7 @@ fn delivery_latency(world: &str, mode: WaitMode, samples: u64) -> anyhow::Result
     Ok(latencies)
 }
 
-pub fn run(args: FramesArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
     let runs = [
         (Scene::Empty, 20_000),
         (Scene::Boxes(1000), 300),

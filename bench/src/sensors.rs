@@ -15,7 +15,7 @@ use crate::support::BenchServer;
 use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
-pub struct SensorsArgs {
+pub(crate) struct SensorsArgs {
     /// Captures measured per size.
     #[arg(long, default_value_t = 200)]
     samples: u64,
@@ -53,7 +53,7 @@ fn sync_ticker(client: &Client) -> anyhow::Result<Ticker> {
 
 /// The TCP peer: for each 8-byte size request, sends its send time and that
 /// many bytes.
-pub fn tcp_blob_peer() -> anyhow::Result<()> {
+pub(crate) fn tcp_blob_peer() -> anyhow::Result<()> {
     let listener = TcpListener::bind("127.0.0.1:0")?;
     println!("{}", listener.local_addr()?.port());
     let (mut stream, _) = listener.accept()?;
@@ -86,7 +86,7 @@ fn tcp_latency(bytes: usize, samples: u64) -> anyhow::Result<Latencies> {
     Ok(latencies)
 }
 
-pub fn run(args: SensorsArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     // Delivery latency: capture published -> header and data readable.
     let server = BenchServer::start("sensors", &["--scene", "empty"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;

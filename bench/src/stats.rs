@@ -3,43 +3,43 @@
 use hdrhistogram::Histogram;
 
 /// Latencies in nanoseconds.
-pub struct Latencies(Histogram<u64>);
+pub(crate) struct Latencies(Histogram<u64>);
 
 impl Latencies {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self(Histogram::new_with_bounds(1, 60_000_000_000, 3).expect("valid histogram bounds"))
     }
 
-    pub fn record(&mut self, nanos: u64) {
+    pub(crate) fn record(&mut self, nanos: u64) {
         self.0.saturating_record(nanos.max(1));
     }
 
-    pub fn quantile_us(&self, q: f64) -> f64 {
+    pub(crate) fn quantile_us(&self, q: f64) -> f64 {
         self.0.value_at_quantile(q) as f64 / 1000.0
     }
 
-    pub fn len(&self) -> u64 {
+    pub(crate) fn len(&self) -> u64 {
         self.0.len()
     }
 
     /// p50, p99, p999 in microseconds.
-    pub fn percentiles_us(&self) -> [f64; 3] {
+    pub(crate) fn percentiles_us(&self) -> [f64; 3] {
         [0.5, 0.99, 0.999].map(|q| self.quantile_us(q))
     }
 
-    pub fn json(&self) -> serde_json::Value {
+    pub(crate) fn json(&self) -> serde_json::Value {
         let [p50, p99, p999] = self.percentiles_us();
         serde_json::json!({ "samples": self.len(), "p50_us": p50, "p99_us": p99, "p999_us": p999 })
     }
 
     /// `name  p50  p99  p999` with microsecond columns.
-    pub fn row(&self, name: &str) -> String {
+    pub(crate) fn row(&self, name: &str) -> String {
         let [p50, p99, p999] = self.percentiles_us();
         format!("{name:<28} {p50:>10.1} {p99:>10.1} {p999:>10.1}")
     }
 
     /// `name  p50  max` in milliseconds (for small samples).
-    pub fn row_ms(&self, name: &str) -> String {
+    pub(crate) fn row_ms(&self, name: &str) -> String {
         let p50 = self.quantile_us(0.5) / 1000.0;
         let max = self.0.max() as f64 / 1e6;
         format!("{name:<28} {p50:>10.1} {max:>10.1}")
@@ -47,7 +47,7 @@ impl Latencies {
 }
 
 /// The header matching [`Latencies::row`].
-pub fn header(first: &str) -> String {
+pub(crate) fn header(first: &str) -> String {
     format!(
         "{first:<28} {:>10} {:>10} {:>10}",
         "p50 µs", "p99 µs", "p999 µs"

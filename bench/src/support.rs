@@ -8,14 +8,14 @@ use sim_client::process::ChildGuard;
 use sim_client::Client;
 
 /// A server child process (this binary's hidden `serve`), stopped on drop.
-pub struct BenchServer {
+pub(crate) struct BenchServer {
     pub world: String,
     _guard: ChildGuard,
 }
 
 impl BenchServer {
     /// Starts `serve --world <unique> <args>` and waits until it answers.
-    pub fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
+    pub(crate) fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
         let world = format!("bench-{tag}-{}", std::process::id());
         let child = Command::new(std::env::current_exe()?)
             .arg("serve")

@@ -27,7 +27,7 @@ use crate::stats::{header, Latencies};
 use crate::support::BenchServer;
 
 #[derive(Debug, Args)]
-pub struct TickArgs {
+pub(crate) struct TickArgs {
     /// Round trips measured per row (after a warm-up of 10%).
     #[arg(long, default_value_t = 20_000)]
     iterations: u64,
@@ -38,7 +38,7 @@ pub struct TickArgs {
 
 /// The other end of the raw ping-pong and TCP baselines.
 #[derive(Debug, Args)]
-pub struct PeerArgs {
+pub(crate) struct PeerArgs {
     /// `iceoryx-spin`, `iceoryx-block` or `tcp`.
     #[arg(long)]
     kind: String,
@@ -152,7 +152,7 @@ impl RawPorts {
 }
 
 /// The hidden `peer` command: echoes (or ticks) until it is stopped.
-pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
+pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
     match args.kind.as_str() {
         "participant" => crate::commands::participant(&args.name),
         "tcp-blob" => crate::sensors::tcp_blob_peer(),
@@ -274,7 +274,7 @@ fn simbus_round_trip(
     })
 }
 
-pub fn run(args: TickArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let n = args.iterations;
     let rows = [
         ("(a) raw iceoryx2, spin", raw_ping_pong(false, n)?),

@@ -408,11 +408,11 @@ impl From<&SettingsError> for WireSettingsError {
 
 /// Wire codes of [`SettingsError`] variants.
 mod code {
-    pub const NOT_FINITE: u32 = 1;
-    pub const NEGATIVE: u32 = 2;
-    pub const TOO_SMALL: u32 = 3;
-    pub const MAX_SUBSTEPS: u32 = 4;
-    pub const SUBSTEP_RULE: u32 = 5;
+    pub(super) const NOT_FINITE: u32 = 1;
+    pub(super) const NEGATIVE: u32 = 2;
+    pub(super) const TOO_SMALL: u32 = 3;
+    pub(super) const MAX_SUBSTEPS: u32 = 4;
+    pub(super) const SUBSTEP_RULE: u32 = 5;
 }
 
 impl SettingsError {

@@ -529,3 +529,17 @@ impl Drop for Client {
         }
     }
 }
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client")
+            .field("world", &self.world)
+            .field("server_pid", &self.server_pid)
+            .field("request_timeout", &self.request_timeout)
+            .field("control_open", &self.control.get().is_some())
+            .field("batch_open", &self.batch.get().is_some())
+            .field("sensor_port_open", &self.sensor_port.get().is_some())
+            .field("last_frame", &self.frames.last_frame())
+            .finish_non_exhaustive()
+    }
+}

@@ -215,3 +215,14 @@ impl Drop for Participant {
         }
     }
 }
+
+impl std::fmt::Debug for Participant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Participant")
+            .field("world", &self.world)
+            .field("name", &self.name)
+            .field("server_pid", &self.server_pid)
+            .field("joined", &self.joined)
+            .finish_non_exhaustive()
+    }
+}

@@ -89,6 +89,7 @@ enum Command {
 
 /// How a command failed, for the exit code: 1 for a runtime failure,
 /// 2 for input that was refused.
+#[derive(Debug)]
 pub enum Failure {
     /// Something went wrong talking to the world.
     Runtime(anyhow::Error),

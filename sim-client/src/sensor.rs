@@ -457,3 +457,31 @@ impl Client {
         .map(drop)
     }
 }
+
+impl std::fmt::Debug for Capture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Capture")
+            .field("header", self.header())
+            .field("bytes", &self.bytes().len())
+            .finish()
+    }
+}
+
+impl std::fmt::Debug for Sensor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Sensor")
+            .field("info", &self.info)
+            .field("world", &self.world)
+            .field("missed", &self.missed)
+            .field("ended", &self.ended)
+            .finish_non_exhaustive()
+    }
+}
+
+impl std::fmt::Debug for Listening {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Listening")
+            .field("running", &self.thread.is_some())
+            .finish()
+    }
+}

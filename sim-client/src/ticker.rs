@@ -324,3 +324,15 @@ impl Drop for Ticker {
         }
     }
 }
+
+impl std::fmt::Debug for Ticker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ticker")
+            .field("world", &self.world)
+            .field("node_name", &self.node_name)
+            .field("server_pid", &self.server_pid)
+            .field("mode", &self.mode)
+            .field("last", &self.last)
+            .finish_non_exhaustive()
+    }
+}

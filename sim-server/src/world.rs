@@ -200,9 +200,9 @@ impl World {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shared_types::{Command, CommandStatus};
     use crate::scene::Scene;
     use shared_types::WorldSettings;
+    use shared_types::{Command, CommandStatus};
 
     fn fixed_plan(dt: f64) -> SubstepPlan {
         let settings = WorldSettings {

@@ -55,6 +55,7 @@ pub fn unique_world(tag: &str) -> String {
 /// A running process whose stdout lines arrive on a channel. Killed and
 /// reaped on drop, whatever the test did.
 pub struct Proc {
+    /// The child, killed and reaped on drop.
     pub guard: ChildGuard,
     lines: mpsc::Receiver<String>,
     stderr: std::sync::Arc<std::sync::Mutex<String>>,
@@ -155,8 +156,11 @@ impl Proc {
 /// A process that has exited.
 #[derive(Debug)]
 pub struct Finished {
+    /// How it exited.
     pub status: ExitStatus,
+    /// Every line it wrote to stdout.
     pub stdout: Vec<String>,
+    /// Everything it wrote to stderr.
     pub stderr: String,
 }
 
@@ -234,4 +238,12 @@ pub fn assert_fails_without_server(world: &str, args: &[&str]) {
         "{args:?}: {}",
         out.stderr
     );
+}
+
+impl std::fmt::Debug for Proc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Proc")
+            .field("pid", &self.pid())
+            .finish_non_exhaustive()
+    }
 }

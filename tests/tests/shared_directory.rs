@@ -53,8 +53,8 @@ fn as_nobody(program: &Path, args: &[&str], env: &[(&str, &str)]) -> Command {
 
 #[test]
 fn another_user_gets_the_directory_and_the_fix_named_and_the_fix_works() {
-    // SAFETY: geteuid(2) has no preconditions.
     assert_eq!(
+        // SAFETY: geteuid(2) has no preconditions.
         unsafe { libc::geteuid() },
         0,
         "this test switches to user nobody and needs root"

@@ -12,7 +12,7 @@ use crate::Failure;
 
 /// Spawn an actor and print its id.
 #[derive(Debug, Args)]
-pub struct SpawnArgs {
+pub(crate) struct SpawnArgs {
     /// box, sphere, capsule or vehicle.
     kind: String,
     /// Where, as x,y,z in metres (Y up).
@@ -30,14 +30,14 @@ pub struct SpawnArgs {
 
 /// Destroy an actor.
 #[derive(Debug, Args)]
-pub struct DestroyArgs {
+pub(crate) struct DestroyArgs {
     /// The actor id.
     id: u64,
 }
 
 /// Reload the current scene as a new episode (frame 0, initial state).
 #[derive(Debug, Args)]
-pub struct ReloadArgs {
+pub(crate) struct ReloadArgs {
     /// Also reset the settings to the defaults (async, variable step).
     #[arg(long)]
     reset_settings: bool,
@@ -48,7 +48,7 @@ pub struct ReloadArgs {
 
 /// Load a scene as a new episode.
 #[derive(Debug, Args)]
-pub struct LoadArgs {
+pub(crate) struct LoadArgs {
     /// default, empty or boxes:N.
     scene: String,
     /// Also reset the settings to the defaults (async, variable step).
@@ -79,7 +79,7 @@ fn command_failure(e: CommandError) -> Failure {
     }
 }
 
-pub fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Result<(), Failure> {
+pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Result<(), Failure> {
     let at = parse_point(&args.at)?;
     let command = match ActorKind::from_name(&args.kind) {
         Some(ActorKind::Box) => Command::spawn_box(at, [0.5; 3]),
@@ -120,7 +120,11 @@ pub fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Result<()
     Ok(())
 }
 
-pub fn destroy(world: &WorldName, timeout: Duration, args: DestroyArgs) -> Result<(), Failure> {
+pub(crate) fn destroy(
+    world: &WorldName,
+    timeout: Duration,
+    args: DestroyArgs,
+) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     client.destroy(args.id).map_err(command_failure)?;
@@ -156,13 +160,17 @@ fn loaded(
     }
 }
 
-pub fn reload(world: &WorldName, timeout: Duration, args: ReloadArgs) -> Result<(), Failure> {
+pub(crate) fn reload(
+    world: &WorldName,
+    timeout: Duration,
+    args: ReloadArgs,
+) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(client.reload_world(args.reset_settings), args.json)
 }
 
-pub fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
+pub(crate) fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(

@@ -15,7 +15,7 @@ use crate::Failure;
 
 /// Options of `sim-client autopilot` (described on the command).
 #[derive(Debug, Args)]
-pub struct AutopilotArgs {
+pub(crate) struct AutopilotArgs {
     /// Seed of the random driving.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -27,7 +27,11 @@ pub struct AutopilotArgs {
     frames: Option<u64>,
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: AutopilotArgs) -> Result<(), Failure> {
+pub(crate) fn run(
+    world: &WorldName,
+    timeout: Duration,
+    args: AutopilotArgs,
+) -> Result<(), Failure> {
     if args.every == 0 {
         return Err(Failure::Refused(anyhow!("--every must be at least 1")));
     }

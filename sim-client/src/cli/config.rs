@@ -11,7 +11,7 @@ use crate::Failure;
 
 /// Options of `sim-client config` (described on the command).
 #[derive(Debug, Args)]
-pub struct ConfigArgs {
+pub(crate) struct ConfigArgs {
     /// Fixed time-step in seconds (0 = variable step).
     #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::seconds)]
     delta_seconds: Option<f64>,
@@ -102,7 +102,7 @@ fn refused_or_runtime(e: ApplySettingsError) -> Failure {
     }
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Result<(), Failure> {
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Result<(), Failure> {
     if args.sync {
         return Err(Failure::Refused(anyhow!(
             "{}",

@@ -15,7 +15,7 @@ use crate::Failure;
 
 /// Options of `sim-client demo` (described on the command).
 #[derive(Debug, Args)]
-pub struct DemoArgs {
+pub(crate) struct DemoArgs {
     /// Frames to watch before stopping.
     #[arg(long, value_name = "N", default_value_t = 300)]
     frames: u64,
@@ -166,7 +166,11 @@ fn connect(world: &str, server: &mut ChildGuard, timeout: Duration) -> Result<Cl
     }
 }
 
-pub fn run(world: Option<WorldName>, timeout: Duration, args: DemoArgs) -> Result<(), Failure> {
+pub(crate) fn run(
+    world: Option<WorldName>,
+    timeout: Duration,
+    args: DemoArgs,
+) -> Result<(), Failure> {
     if !(args.delta_seconds.is_finite() && args.delta_seconds > 0.0) {
         return Err(Failure::Refused(anyhow!(
             "--delta-seconds must be a positive number of seconds"

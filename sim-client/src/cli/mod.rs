@@ -1,14 +1,14 @@
 //! The `sim-client` subcommands.
 
-pub mod actors;
-pub mod autopilot;
-pub mod config;
-pub mod demo;
-pub mod pictures;
-pub mod sensor;
-pub mod status;
-pub mod tick;
-pub mod watch;
+pub(crate) mod actors;
+pub(crate) mod autopilot;
+pub(crate) mod config;
+pub(crate) mod demo;
+pub(crate) mod pictures;
+pub(crate) mod sensor;
+pub(crate) mod status;
+pub(crate) mod tick;
+pub(crate) mod watch;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -19,7 +19,7 @@ use shared_types::WorldSettings;
 use crate::Failure;
 
 /// Set by Ctrl-C / SIGTERM; commands stop at their next check.
-pub fn interrupted() -> &'static AtomicBool {
+pub(crate) fn interrupted() -> &'static AtomicBool {
     static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
     FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
@@ -32,7 +32,7 @@ pub fn interrupted() -> &'static AtomicBool {
 }
 
 /// `N` comma-separated finite numbers, as a flag like `--at x,y,z` takes them.
-pub fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
+pub(crate) fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
     let values: Vec<f32> = text
         .split(',')
         .map(|p| {
@@ -56,7 +56,7 @@ pub fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failu
 }
 
 /// The settings as the JSON object `status` and `config --json` print.
-pub fn settings_json(settings: &WorldSettings) -> serde_json::Value {
+pub(crate) fn settings_json(settings: &WorldSettings) -> serde_json::Value {
     serde_json::json!({
         "synchronous_mode": settings.synchronous_mode,
         "fixed_delta_seconds": settings.fixed_delta_seconds,
@@ -67,7 +67,7 @@ pub fn settings_json(settings: &WorldSettings) -> serde_json::Value {
 }
 
 /// The settings as readable lines.
-pub fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, String)> {
+pub(crate) fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, String)> {
     vec![
         (
             "mode",

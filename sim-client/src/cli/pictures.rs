@@ -140,7 +140,7 @@ fn depth_range(depth: &[f32], far: f32) -> f32 {
 /// A depth image as PNG: near white, far black, with a legend of the
 /// range the grey scale spans: `range`, or the farthest hit (rounded up).
 /// Returns that range.
-pub fn save_depth(
+pub(crate) fn save_depth(
     path: &Path,
     depth: &[f32],
     width: usize,
@@ -172,7 +172,11 @@ pub fn save_depth(
 
 /// A lidar scan seen from above as PNG (sensor at the centre, X up the
 /// image), brightness by distance, with a 0..`range` m legend.
-pub fn save_lidar_top_down(path: &Path, points: &[LidarPoint], range: f32) -> anyhow::Result<()> {
+pub(crate) fn save_lidar_top_down(
+    path: &Path,
+    points: &[LidarPoint],
+    range: f32,
+) -> anyhow::Result<()> {
     let size = 400;
     let mut canvas = Canvas::new(size, size + legend_height(size) + 4, 0);
     let scale = (size as f32 / 2.0) / range;
@@ -191,7 +195,7 @@ pub fn save_lidar_top_down(path: &Path, points: &[LidarPoint], range: f32) -> an
 }
 
 /// A lidar scan as an ASCII PLY point cloud (x, y, z, intensity).
-pub fn save_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
+pub(crate) fn save_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(
         out,

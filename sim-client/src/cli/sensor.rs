@@ -11,7 +11,7 @@ use crate::Failure;
 
 /// Sensors: depth camera, lidar and IMU, read in place from shared memory.
 #[derive(Debug, Args)]
-pub struct SensorArgs {
+pub(crate) struct SensorArgs {
     #[command(subcommand)]
     command: SensorCommand,
 }
@@ -136,7 +136,7 @@ fn failure(e: SensorError) -> Failure {
     }
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
     // A spec is checked before any server is asked.
     let spawning = match &args.command {
         SensorCommand::Spawn(a) => Some(spec(a)?),

@@ -10,13 +10,13 @@ use crate::Failure;
 
 /// Show the world's mode, settings and current frame.
 #[derive(Debug, Args)]
-pub struct StatusArgs {
+pub(crate) struct StatusArgs {
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(), Failure> {
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(), Failure> {
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let report = client.status()?;

@@ -16,7 +16,7 @@ const NODE_NAME: &str = "sim-client-tick";
 
 /// Options of `sim-client tick` (described on the command).
 #[derive(Debug, Args)]
-pub struct TickArgs {
+pub(crate) struct TickArgs {
     /// Stop after N ticks.
     #[arg(long, value_name = "N")]
     count: Option<u64>,
@@ -91,7 +91,7 @@ fn refused_or_runtime(e: ApplySettingsError) -> Failure {
     }
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
     let interrupted = super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);

@@ -10,7 +10,7 @@ use crate::Failure;
 
 /// Options of `sim-client watch` (described on the command).
 #[derive(Debug, Args)]
-pub struct WatchArgs {
+pub(crate) struct WatchArgs {
     /// Stop after N frames.
     #[arg(long, value_name = "N")]
     frames: Option<u64>,
@@ -45,7 +45,7 @@ pub struct WatchArgs {
 }
 
 /// The JSON object of one frame.
-pub fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
+pub(crate) fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
     let t = s.timestamp();
     serde_json::json!({
         "frame": t.frame,
@@ -82,7 +82,7 @@ fn frame_line(s: &WorldSnapshot) -> String {
 
 /// Waits for the next frame in slices, so Ctrl-C is noticed promptly.
 /// `Ok(None)` when interrupted.
-pub fn next_frame(
+pub(crate) fn next_frame(
     client: &mut Client,
     timeout: Duration,
 ) -> Result<Option<WorldSnapshot>, WaitError> {
@@ -110,7 +110,7 @@ pub fn next_frame(
     }
 }
 
-pub fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
     super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);

@@ -126,6 +126,6 @@ mod tests {
             ResponseStatus::from_u32(9),
             Some(ResponseStatus::NotParticipant)
         );
-        assert_eq!(ResponseStatus::from_u32(10), None);
+        assert_eq!(ResponseStatus::from_u32(11), None);
     }
 }

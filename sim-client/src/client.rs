@@ -7,8 +7,6 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use iceoryx2::port::client::Client as RequestClient;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::{
@@ -20,19 +18,14 @@ use tracing::{debug, warn};
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::{FrameStream, WaitMode};
 use crate::open::{open_with_retry, wake_notifier, OpenFailure};
-use crate::rpc::{await_response, check_protocol, Wait};
+use crate::rpc::{RequestPort, Wait};
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
     WaitError, WorldSnapshot,
 };
 
-type ControlClient = RequestClient<ipc::Service, ControlRequest, (), ControlResponse, ()>;
-
-/// The control port and the notifier that wakes the server after a request.
-pub(crate) struct ControlPort {
-    client: ControlClient,
-    pub(crate) wake: Notifier<ipc::Service>,
-}
+/// The control port, with the notifier that wakes the server after a request.
+pub(crate) type ControlPort = RequestPort<ControlRequest, ControlResponse>;
 
 /// How long one attempt of the first empty batch of a new batch port waits.
 const BATCH_HANDSHAKE_ATTEMPT: Duration = Duration::from_millis(100);
@@ -218,14 +211,14 @@ impl Client {
                 world: self.world.to_string(),
                 pid: self.server_pid,
             })?;
-        Ok(self.control.get_or_init(|| ControlPort { client, wake }))
+        Ok(self
+            .control
+            .get_or_init(|| RequestPort::new(client, wake, self.world.as_str(), self.server_pid)))
     }
 
     /// Wakes the server after a request was sent on any port.
     pub(crate) fn wake_server(&self) -> Result<(), RequestError> {
-        if let Err(e) = self.control()?.wake.notify() {
-            debug!("wake-up not delivered: {e:?}");
-        }
+        self.control()?.wake();
         Ok(())
     }
 
@@ -439,22 +432,7 @@ impl Client {
         timeout: Duration,
     ) -> Result<ControlResponse, RequestError> {
         request.client_name = FixedText::new(process_name());
-        let port = self.control()?;
-        let pending = port
-            .client
-            .send_copy(request)
-            .map_err(|e| RequestError::transport("control send", e))?;
-        if let Err(e) = port.wake.notify() {
-            debug!("control wake-up not delivered: {e:?}");
-        }
-        let response = await_response(
-            &pending,
-            timeout,
-            self.world.as_str(),
-            self.server_pid,
-            Wait::Backoff,
-        )?;
-        check_protocol(response.protocol_version, response.status)?;
+        let response = self.control()?.request(request, timeout, Wait::Backoff)?;
         if response.status == ResponseStatus::UnknownRequest as u32 {
             return Err(RequestError::UnknownRequest);
         }

@@ -4,7 +4,7 @@
 
 use std::time::{Duration, Instant};
 
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
@@ -13,7 +13,8 @@ use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_CLIENTS_FLAG};
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{frame_ready_listener, open_with_retry};
-use crate::{process_alive, ConnectError, WaitError, WorldSnapshot};
+use crate::wait::{self, Stop, Wait};
+use crate::{ConnectError, WaitError, WorldSnapshot};
 
 /// How a client waits for the next frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -30,15 +31,6 @@ pub enum WaitMode {
     /// wait burns no CPU.
     Hybrid,
 }
-
-/// How long [`WaitMode::Hybrid`] polls before it sleeps.
-pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
-
-/// How often a connecting client looks for the server's current frame.
-const FIRST_FRAME_POLL: Duration = Duration::from_millis(2);
-
-/// How often a waiting client checks that the server process still lives.
-pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
 type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
 type FrameSample = Sample<ipc::Service, [ActorState], FrameHeader>;
@@ -134,6 +126,78 @@ impl FrameStream {
         self.last.map(|(_, frame)| frame)
     }
 
+    /// Waits until `deadline` for the first frame (a new subscriber gets the
+    /// server's current one within milliseconds) and returns its header,
+    /// keeping the frame for the next [`FrameStream::try_next`]. `None` when
+    /// nothing came: the server is stopped or gone.
+    pub(crate) fn first_header(
+        &mut self,
+        deadline: Instant,
+    ) -> Result<Option<FrameHeader>, WaitError> {
+        let (subscriber, stash) = (&self.subscriber, &mut self.stash);
+        // The current frame arrives without an event: poll, backing off.
+        let first = wait::until(deadline, 0, Wait::Backoff, || {
+            subscriber
+                .receive()
+                .map_err(|e| WaitError::transport("frame receive", e))
+        });
+        match first {
+            Ok(sample) => {
+                let header = *sample.user_header();
+                *stash = Some(sample);
+                Ok(Some(header))
+            }
+            Err(Stop::Failed(e)) => Err(e),
+            Err(Stop::Event(e)) => Err(WaitError::transport("frame-ready wait", e)),
+            Err(Stop::TimedOut | Stop::ServerGone) => Ok(None),
+        }
+    }
+
+    /// Waits up to `timeout` for the next snapshot. With a `server_pid`,
+    /// a dead server ends the wait with [`WaitError::ServerGone`].
+    pub(crate) fn next(
+        &mut self,
+        timeout: Duration,
+        world: &str,
+        server_pid: Option<u32>,
+    ) -> Result<WorldSnapshot, WaitError> {
+        let pid = server_pid.unwrap_or(0);
+        let ready = &self.ready;
+        let wait = Wait::for_mode(self.mode, ready);
+        let mut poll = Poller {
+            subscriber: &self.subscriber,
+            stash: &mut self.stash,
+            last: &mut self.last,
+            every_frame: self.every_frame,
+        };
+        wait::until(Instant::now() + timeout, pid, wait, || poll.next()).map_err(
+            |stop| match stop {
+                Stop::Failed(e) => e,
+                Stop::TimedOut => WaitError::Timeout {
+                    world: world.to_owned(),
+                    timeout,
+                    last_frame: self.last.map(|(_, frame)| frame),
+                },
+                Stop::ServerGone => WaitError::ServerGone {
+                    world: world.to_owned(),
+                    pid,
+                },
+                Stop::Event(e) => WaitError::transport("frame-ready wait", e),
+            },
+        )
+    }
+}
+
+/// The parts of a [`FrameStream`] that taking the next frame changes, apart
+/// from its listener (which the wait borrows meanwhile).
+struct Poller<'a> {
+    subscriber: &'a FrameSubscriber,
+    stash: &'a mut Option<FrameSample>,
+    last: &'a mut Option<(u64, u64)>,
+    every_frame: bool,
+}
+
+impl Poller<'_> {
     /// The next snapshot already queued, without waiting.
     ///
     /// Synchronous-mode frames (and every frame with `every_frame`) come one
@@ -141,8 +205,8 @@ impl FrameStream {
     /// sees every frame once. Otherwise, in asynchronous mode, the queue is
     /// drained and only the newest frame is returned, with the number of
     /// frames skipped in [`WorldSnapshot::missed`].
-    pub(crate) fn try_next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
-        let previous = self.last;
+    fn next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
+        let previous = *self.last;
         // Only the newest sample is copied out; skipped ones are just released.
         let mut newest = None;
         while let Some(sample) = match self.stash.take() {
@@ -163,7 +227,7 @@ impl FrameStream {
             if self.last.is_some_and(|last| key <= last) {
                 continue; // already seen (history replay on connect)
             }
-            self.last = Some(key);
+            *self.last = Some(key);
             let in_order = self.every_frame || header.settings.synchronous_mode != 0;
             newest = Some(sample);
             if in_order {
@@ -174,7 +238,7 @@ impl FrameStream {
             let header = *sample.user_header();
             let missed = match previous {
                 Some((episode, frame)) if episode == header.episode => {
-                    header.timestamp.frame - frame - 1
+                    header.timestamp.frame.saturating_sub(frame + 1)
                 }
                 _ => 0,
             };
@@ -184,83 +248,5 @@ impl FrameStream {
                 missed,
             }
         }))
-    }
-
-    /// Waits until `deadline` for the first frame (a new subscriber gets the
-    /// server's current one within milliseconds) and returns its header,
-    /// keeping the frame for the next [`FrameStream::try_next`]. `None` when
-    /// nothing came: the server is stopped or gone.
-    pub(crate) fn first_header(
-        &mut self,
-        deadline: Instant,
-    ) -> Result<Option<FrameHeader>, WaitError> {
-        loop {
-            if let Some(sample) = self
-                .subscriber
-                .receive()
-                .map_err(|e| WaitError::transport("frame receive", e))?
-            {
-                let header = *sample.user_header();
-                self.stash = Some(sample);
-                return Ok(Some(header));
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Ok(None);
-            }
-            // The current frame arrives without an event: look again soon.
-            let wait = (deadline - now).min(FIRST_FRAME_POLL);
-            match self.ready.timed_wait(|_| {}, wait) {
-                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
-            }
-        }
-    }
-
-    /// Waits up to `timeout` for the next snapshot. With a `server_pid`,
-    /// checks every 100 ms that the server still runs and ends the wait with
-    /// [`WaitError::ServerGone`] when it does not.
-    pub(crate) fn next(
-        &mut self,
-        timeout: Duration,
-        world: &str,
-        server_pid: Option<u32>,
-    ) -> Result<WorldSnapshot, WaitError> {
-        let start = Instant::now();
-        let deadline = start + timeout;
-        let mut next_liveness_check = start + LIVENESS_PERIOD;
-        loop {
-            if let Some(snapshot) = self.try_next()? {
-                return Ok(snapshot);
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(WaitError::Timeout {
-                    world: world.to_owned(),
-                    timeout,
-                    last_frame: self.last_frame(),
-                });
-            }
-            if now >= next_liveness_check {
-                if let Some(pid) = server_pid.filter(|pid| !process_alive(*pid)) {
-                    return Err(WaitError::ServerGone {
-                        world: world.to_owned(),
-                        pid,
-                    });
-                }
-                next_liveness_check = now + LIVENESS_PERIOD;
-            }
-            match self.mode {
-                WaitMode::Spin => std::hint::spin_loop(),
-                WaitMode::Hybrid if now - start < HYBRID_SPIN => std::hint::spin_loop(),
-                WaitMode::Block | WaitMode::Hybrid => {
-                    let wait = (deadline - now).min(next_liveness_check - now);
-                    match self.ready.timed_wait(|_| {}, wait) {
-                        Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                        Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
-                    }
-                }
-            }
-        }
     }
 }

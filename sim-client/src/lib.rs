@@ -41,6 +41,7 @@ mod rpc;
 mod sensor;
 mod snapshot;
 mod ticker;
+mod wait;
 
 pub use batch::{BatchError, BatchResponse, CommandError};
 pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};

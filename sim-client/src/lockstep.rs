@@ -5,9 +5,6 @@ use std::time::{Duration, Instant};
 
 use std::cell::RefCell;
 
-use iceoryx2::pending_response::PendingResponse;
-use iceoryx2::port::client::Client as RequestClient;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
@@ -15,11 +12,10 @@ use shared_types::{
 use tracing::{debug, info};
 
 use crate::open::{open_with_retry, wake_notifier};
-use crate::rpc::{await_response, check_protocol, Wait};
+use crate::rpc::{check_protocol, Pending, RequestPort, Wait};
 use crate::RequestError;
 
-type LockstepClient = RequestClient<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
-type PendingDone = PendingResponse<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
+type PendingDone = Pending<LockstepRequest, LockstepResponse>;
 
 /// Membership in a world's lockstep: in synchronous mode the server steps
 /// frame N+1 only when the tick has arrived **and** every participant has
@@ -42,8 +38,7 @@ type PendingDone = PendingResponse<ipc::Service, LockstepRequest, (), LockstepRe
 /// ```
 pub struct Participant {
     world: WorldName,
-    port: LockstepClient,
-    wake: Notifier<ipc::Service>,
+    port: RequestPort<LockstepRequest, LockstepResponse>,
     name: String,
     server_pid: u32,
     joined: (u64, u64),
@@ -100,8 +95,7 @@ impl Participant {
             .ok_or_else(missing)?;
         let mut participant = Self {
             world: world.clone(),
-            port,
-            wake,
+            port: RequestPort::new(port, wake, world.as_str(), server_pid),
             name: name.to_owned(),
             server_pid,
             joined: (0, 0),
@@ -172,14 +166,8 @@ impl Participant {
         episode: u64,
         frame: u64,
     ) -> Result<PendingDone, RequestError> {
-        let pending = self
-            .port
-            .send_copy(LockstepRequest::new(kind, &self.name, episode, frame))
-            .map_err(|e| RequestError::transport("lockstep send", e))?;
-        if let Err(e) = self.wake.notify() {
-            debug!("wake-up not delivered: {e:?}");
-        }
-        Ok(pending)
+        self.port
+            .send(LockstepRequest::new(kind, &self.name, episode, frame))
     }
 
     /// Sends a request and waits up to `timeout` for its answer.
@@ -190,15 +178,11 @@ impl Participant {
         frame: u64,
         timeout: Duration,
     ) -> Result<LockstepResponse, RequestError> {
-        let pending = self.send(kind, episode, frame)?;
-        let response = await_response(
-            &pending,
+        let response = self.port.request(
+            LockstepRequest::new(kind, &self.name, episode, frame),
             timeout,
-            self.world.as_str(),
-            self.server_pid,
             Wait::Backoff,
         )?;
-        check_protocol(response.protocol_version, response.status)?;
         if response.status != ResponseStatus::Ok as u32 {
             return Err(RequestError::UnknownRequest);
         }

@@ -1,18 +1,130 @@
-//! Waiting for the answer to a request, with a timeout and a liveness check
-//! of the server, blocking on an event, backing off, or spinning.
+//! Requests: one typed request port that sends, wakes the server, awaits
+//! the answer (with a deadline and a liveness check of the server, through
+//! the client's one wait loop) and checks its protocol version.
 
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
 
 use iceoryx2::pending_response::PendingResponse;
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
+use shared_types::{
+    BatchResponseHeader, ControlResponse, LockstepResponse, ResponseStatus, SensorResponseHeader,
+    TickResponse, PROTOCOL_VERSION,
+};
+use tracing::debug;
 
-use shared_types::{ResponseStatus, PROTOCOL_VERSION};
+pub(crate) use crate::wait::Wait;
+use crate::wait::{self, Stop};
+use crate::RequestError;
 
-use crate::frames::{HYBRID_SPIN, LIVENESS_PERIOD};
-use crate::WaitMode;
-use crate::{process_alive, RequestError};
+/// An answer that carries the server's protocol version and a status.
+pub(crate) trait Answer {
+    /// The server's [`PROTOCOL_VERSION`].
+    fn version(&self) -> u32;
+    /// A [`ResponseStatus`] as `u32`.
+    fn status(&self) -> u32;
+}
+
+macro_rules! answers {
+    ($($t:ty),*) => {$(
+        impl Answer for $t {
+            fn version(&self) -> u32 {
+                self.protocol_version
+            }
+            fn status(&self) -> u32 {
+                self.status
+            }
+        }
+    )*};
+}
+answers!(
+    ControlResponse,
+    TickResponse,
+    LockstepResponse,
+    BatchResponseHeader,
+    SensorResponseHeader
+);
+
+/// A pending answer on a [`RequestPort`].
+pub(crate) type Pending<Req, Resp> = PendingResponse<ipc::Service, Req, (), Resp, ()>;
+
+/// A typed request port of one world's service: send, wake, await, check.
+pub(crate) struct RequestPort<Req, Resp>
+where
+    Req: Debug + ZeroCopySend + Copy,
+    Resp: Debug + ZeroCopySend + Copy + Answer,
+{
+    client: RequestClient<ipc::Service, Req, (), Resp, ()>,
+    wake: Notifier<ipc::Service>,
+    world: String,
+    server_pid: u32,
+}
+
+impl<Req, Resp> RequestPort<Req, Resp>
+where
+    Req: Debug + ZeroCopySend + Copy,
+    Resp: Debug + ZeroCopySend + Copy + Answer,
+{
+    /// Requests on `client`, waking the server of `world` (pid
+    /// `server_pid`, 0 if unknown) with `wake`.
+    pub(crate) fn new(
+        client: RequestClient<ipc::Service, Req, (), Resp, ()>,
+        wake: Notifier<ipc::Service>,
+        world: &str,
+        server_pid: u32,
+    ) -> Self {
+        Self {
+            client,
+            wake,
+            world: world.to_owned(),
+            server_pid,
+        }
+    }
+
+    /// The notifier that wakes the server (for requests on other ports).
+    pub(crate) fn wake(&self) {
+        if let Err(e) = self.wake.notify() {
+            debug!("wake-up not delivered: {e:?}");
+        }
+    }
+
+    /// Sends `request` and wakes the server; the answer comes on the
+    /// returned pending response.
+    pub(crate) fn send(&self, request: Req) -> Result<Pending<Req, Resp>, RequestError> {
+        let pending = self
+            .client
+            .send_copy(request)
+            .map_err(|e| RequestError::transport("request send", e))?;
+        self.wake();
+        Ok(pending)
+    }
+
+    /// The next answer on `pending`, waiting up to `timeout` as `wait`
+    /// says, with its protocol version checked (its status is the caller's).
+    pub(crate) fn answer(
+        &self,
+        pending: &Pending<Req, Resp>,
+        timeout: Duration,
+        wait: Wait<'_>,
+    ) -> Result<Resp, RequestError> {
+        let answer = await_response(pending, timeout, &self.world, self.server_pid, wait)?;
+        check_protocol(answer.version(), answer.status())?;
+        Ok(answer)
+    }
+
+    /// Sends `request` and waits up to `timeout` for its checked answer.
+    pub(crate) fn request(
+        &self,
+        request: Req,
+        timeout: Duration,
+        wait: Wait<'_>,
+    ) -> Result<Resp, RequestError> {
+        let pending = self.send(request)?;
+        self.answer(&pending, timeout, wait)
+    }
+}
 
 /// Refuses an answer from a server of another protocol version, or one that
 /// refused ours.
@@ -23,30 +135,6 @@ pub(crate) fn check_protocol(version: u32, status: u32) -> Result<(), RequestErr
         });
     }
     Ok(())
-}
-
-/// How to pass the time until the answer arrives.
-pub(crate) enum Wait<'a> {
-    /// Poll for [`HYBRID_SPIN`], then sleep 10 µs, doubling up to 1 ms (for
-    /// requests without an event).
-    Backoff,
-    /// Sleep on an event the server notifies right after answering.
-    Event(&'a Listener<ipc::Service>),
-    /// Poll in a tight loop.
-    Spin,
-    /// Poll for [`HYBRID_SPIN`], then sleep on the event.
-    Hybrid(&'a Listener<ipc::Service>),
-}
-
-impl<'a> Wait<'a> {
-    /// The wait for an answer announced by `listener`, as `mode` says.
-    pub(crate) fn for_mode(mode: WaitMode, listener: &'a Listener<ipc::Service>) -> Self {
-        match mode {
-            WaitMode::Block => Wait::Event(listener),
-            WaitMode::Spin => Wait::Spin,
-            WaitMode::Hybrid => Wait::Hybrid(listener),
-        }
-    }
 }
 
 /// The response to `pending`, waiting up to `timeout`. With a known
@@ -107,52 +195,22 @@ where
 /// Calls `receive` until it yields, waiting between calls as `wait` says,
 /// for at most `timeout`; a dead server (non-zero `server_pid`) ends it early.
 pub(crate) fn await_with<T>(
-    mut receive: impl FnMut() -> Result<Option<T>, RequestError>,
+    receive: impl FnMut() -> Result<Option<T>, RequestError>,
     timeout: Duration,
     world: &str,
     server_pid: u32,
     wait: Wait<'_>,
 ) -> Result<T, RequestError> {
-    let start = Instant::now();
-    let deadline = start + timeout;
-    let mut backoff = Duration::from_micros(10);
-    let mut next_liveness_check = start + LIVENESS_PERIOD;
-    loop {
-        if let Some(response) = receive()? {
-            return Ok(response);
-        }
-        let now = Instant::now();
-        if now >= deadline {
-            return Err(RequestError::Timeout {
-                world: world.to_owned(),
-                timeout,
-            });
-        }
-        if now >= next_liveness_check {
-            if server_pid != 0 && !process_alive(server_pid) {
-                return Err(RequestError::ServerGone {
-                    world: world.to_owned(),
-                    pid: server_pid,
-                });
-            }
-            next_liveness_check = now + LIVENESS_PERIOD;
-        }
-        let remaining = (deadline - now).min(next_liveness_check - now);
-        match wait {
-            Wait::Spin => std::hint::spin_loop(),
-            Wait::Hybrid(_) if now - start < HYBRID_SPIN => std::hint::spin_loop(),
-            // An answer usually comes within microseconds: poll briefly first.
-            Wait::Backoff if now - start < HYBRID_SPIN => std::hint::spin_loop(),
-            Wait::Backoff => {
-                std::thread::sleep(backoff.min(remaining));
-                backoff = (backoff * 2).min(Duration::from_millis(1));
-            }
-            Wait::Event(listener) | Wait::Hybrid(listener) => {
-                match listener.timed_wait(|_| {}, remaining) {
-                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                    Err(e) => return Err(RequestError::transport("event wait", e)),
-                }
-            }
-        }
-    }
+    wait::until(Instant::now() + timeout, server_pid, wait, receive).map_err(|stop| match stop {
+        Stop::Failed(e) => e,
+        Stop::TimedOut => RequestError::Timeout {
+            world: world.to_owned(),
+            timeout,
+        },
+        Stop::ServerGone => RequestError::ServerGone {
+            world: world.to_owned(),
+            pid: server_pid,
+        },
+        Stop::Event(e) => RequestError::transport("event wait", e),
+    })
 }

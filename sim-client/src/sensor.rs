@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
@@ -18,8 +18,9 @@ use shared_types::{
 };
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
-use crate::rpc::{await_slice_response, check_protocol, Wait};
-use crate::{process_alive, Client, RequestError, WaitError};
+use crate::rpc::{await_slice_response, check_protocol};
+use crate::wait::{self, Stop, Wait};
+use crate::{Client, RequestError, WaitError, WaitMode};
 
 type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
 
@@ -113,17 +114,64 @@ pub enum SensorError {
 /// counted by [`Sensor::missed`].
 pub struct Sensor {
     info: SensorInfo,
-    port: Port,
+    reader: Reader,
     ready: Listener<ipc::Service>,
+    mode: WaitMode,
     world: String,
     server_pid: u32,
+    _node: Node<ipc::Service>,
+}
+
+/// The subscription and what reading it has counted.
+struct Reader {
+    id: u64,
+    port: Port,
     last_sequence: Option<u64>,
     /// The frame of the last capture received.
     last_frame: Option<u64>,
     /// Set once the server said the stream ended.
     ended: Option<SensorEnd>,
     missed: u64,
-    _node: Node<ipc::Service>,
+}
+
+impl Reader {
+    /// The next queued capture, counting gaps and noticing the end.
+    fn next(&mut self) -> Result<Option<Capture>, WaitError> {
+        if let Some(reason) = self.ended {
+            return Err(WaitError::SensorEnded {
+                sensor: self.id,
+                reason,
+            });
+        }
+        let capture = match &self.port {
+            Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
+            Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
+            Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
+        }
+        .map_err(|e| WaitError::transport("sensor receive", e))?;
+        if let Some(capture) = &capture {
+            let header = capture.header();
+            if header.protocol_version != PROTOCOL_VERSION {
+                return Err(WaitError::ProtocolMismatch {
+                    got: header.protocol_version,
+                    client: PROTOCOL_VERSION,
+                });
+            }
+            if let Some(reason) = header.end() {
+                self.ended = Some(reason);
+                return Err(WaitError::SensorEnded {
+                    sensor: self.id,
+                    reason,
+                });
+            }
+            self.last_frame = Some(header.frame);
+            if let Some(last) = self.last_sequence {
+                self.missed += header.sequence.saturating_sub(last.saturating_add(1));
+            }
+            self.last_sequence = Some(header.sequence);
+        }
+        Ok(capture)
+    }
 }
 
 impl Sensor {
@@ -181,14 +229,18 @@ impl Sensor {
             ))?;
         Ok(Self {
             info,
-            port,
+            reader: Reader {
+                id: info.id,
+                port,
+                last_sequence: None,
+                last_frame: None,
+                ended: None,
+                missed: 0,
+            },
             ready,
+            mode: WaitMode::Block,
             world: client.world.to_string(),
             server_pid: client.server_pid,
-            last_sequence: None,
-            last_frame: None,
-            ended: None,
-            missed: 0,
             _node: node,
         })
     }
@@ -206,47 +258,18 @@ impl Sensor {
     /// Captures lost since this subscription began (the reader fell more
     /// than 4 captures behind).
     pub fn missed(&self) -> u64 {
-        self.missed
+        self.reader.missed
+    }
+
+    /// How [`Sensor::recv`] waits for a capture: blocking on the
+    /// frame-ready event (default), spinning, or both (as for frames).
+    pub fn set_wait_mode(&mut self, mode: WaitMode) {
+        self.mode = mode;
     }
 
     /// The next queued capture, without waiting.
     pub fn try_recv(&mut self) -> Result<Option<Capture>, WaitError> {
-        if let Some(reason) = self.ended {
-            return Err(WaitError::SensorEnded {
-                sensor: self.info.id,
-                reason,
-            });
-        }
-        let capture = match &self.port {
-            Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
-            Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
-            Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
-        }
-        .map_err(|e| WaitError::transport("sensor receive", e))?;
-        if let Some(capture) = &capture {
-            let header = capture.header();
-            if header.protocol_version != PROTOCOL_VERSION {
-                return Err(WaitError::ProtocolMismatch {
-                    got: header.protocol_version,
-                    client: PROTOCOL_VERSION,
-                });
-            }
-            if let Some(reason) = header.end() {
-                self.ended = Some(reason);
-            }
-            if let Some(reason) = self.ended {
-                return Err(WaitError::SensorEnded {
-                    sensor: self.info.id,
-                    reason,
-                });
-            }
-            self.last_frame = Some(header.frame);
-            if let Some(last) = self.last_sequence {
-                self.missed += header.sequence.saturating_sub(last + 1);
-            }
-            self.last_sequence = Some(header.sequence);
-        }
-        Ok(capture)
+        self.reader.next()
     }
 
     /// Waits up to `timeout` for the next capture. Ends with
@@ -254,41 +277,44 @@ impl Sensor {
     /// [`WaitError::SensorEnded`] once the sensor is gone (destroyed, its
     /// parent destroyed, the world reloaded, the server stopped).
     pub fn recv(&mut self, timeout: Duration) -> Result<Capture, WaitError> {
-        let deadline = Instant::now() + timeout;
-        let mut next_check = Instant::now() + Duration::from_millis(100);
-        loop {
-            if let Some(capture) = self.try_recv()? {
-                return Ok(capture);
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(WaitError::NoCapture {
+        let wait = Wait::for_mode(self.mode, &self.ready);
+        let reader = &mut self.reader;
+        let pid = self.server_pid;
+        wait::until(Instant::now() + timeout, pid, wait, || reader.next()).map_err(
+            |stop| match stop {
+                Stop::Failed(e) => e,
+                Stop::TimedOut => WaitError::NoCapture {
                     sensor: self.info.id,
                     world: self.world.clone(),
                     timeout,
-                    last_frame: self.last_frame,
-                });
-            }
-            if now >= next_check {
-                if !process_alive(self.server_pid) {
-                    return Err(WaitError::ServerGone {
-                        world: self.world.clone(),
-                        pid: self.server_pid,
-                    });
-                }
-                next_check = now + Duration::from_millis(100);
-            }
-            let wait = (deadline - now).min(next_check - now);
-            match self.ready.timed_wait(|_| {}, wait) {
-                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                Err(e) => return Err(WaitError::transport("frame-ready wait", e)),
-            }
-        }
+                    last_frame: self.reader.last_frame,
+                },
+                Stop::ServerGone => WaitError::ServerGone {
+                    world: self.world.clone(),
+                    pid,
+                },
+                Stop::Event(e) => WaitError::transport("frame-ready wait", e),
+            },
+        )
     }
 
-    /// Every capture queued now, oldest first (drain before the next tick).
-    pub fn queue(&mut self) -> impl Iterator<Item = Capture> + '_ {
-        std::iter::from_fn(move || self.try_recv().ok().flatten())
+    /// Every capture queued now, oldest first (drain before the next
+    /// tick). An error (the sensor ended, another protocol version) is the
+    /// last item, never a silent end.
+    pub fn queue(&mut self) -> impl Iterator<Item = Result<Capture, WaitError>> + '_ {
+        let mut failed = false;
+        std::iter::from_fn(move || {
+            if failed {
+                return None;
+            }
+            match self.try_recv() {
+                Ok(capture) => capture.map(Ok),
+                Err(e) => {
+                    failed = true;
+                    Some(Err(e))
+                }
+            }
+        })
     }
 
     /// Calls `callback` with every capture, on a background thread with its
@@ -472,8 +498,8 @@ impl std::fmt::Debug for Sensor {
         f.debug_struct("Sensor")
             .field("info", &self.info)
             .field("world", &self.world)
-            .field("missed", &self.missed)
-            .field("ended", &self.ended)
+            .field("missed", &self.reader.missed)
+            .field("ended", &self.reader.ended)
             .finish_non_exhaustive()
     }
 }

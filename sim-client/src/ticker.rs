@@ -2,10 +2,7 @@
 
 use std::time::{Duration, Instant};
 
-use iceoryx2::pending_response::PendingResponse;
-use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
@@ -14,11 +11,8 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, open_with_retry, wake_notifier};
-use crate::rpc::{await_response, check_protocol, Wait};
+use crate::rpc::{RequestPort, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
-
-type TickClient = RequestClient<ipc::Service, TickRequest, (), TickResponse, ()>;
-type PendingTick = PendingResponse<ipc::Service, TickRequest, (), TickResponse, ()>;
 
 /// How much longer than the server's lockstep timeout a held-up tick
 /// waits, for the server to drop the participant and step.
@@ -51,8 +45,7 @@ const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 /// ```
 pub struct Ticker {
     world: WorldName,
-    port: TickClient,
-    wake: Notifier<ipc::Service>,
+    port: RequestPort<TickRequest, TickResponse>,
     ready: Listener<ipc::Service>,
     server_pid: u32,
     node_name: String,
@@ -131,8 +124,7 @@ impl Ticker {
             .ok_or_else(timeout)?;
         let mut ticker = Self {
             world: world.clone(),
-            port,
-            wake,
+            port: RequestPort::new(port, wake, world.as_str(), server_pid),
             ready,
             server_pid,
             node_name: node_name.to_owned(),
@@ -175,33 +167,32 @@ impl Ticker {
     /// waits that long too, whatever `timeout` says, so the two never race.
     pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
         let started = Instant::now();
-        let pending = self.start(TickRequestKind::Tick, None)?;
+        let pending = self
+            .port
+            .send(TickRequest::new(TickRequestKind::Tick, &self.node_name))?;
         let mut deadline = started + timeout;
         let mut waiting_for = None;
         loop {
             let remaining = deadline.saturating_duration_since(Instant::now());
-            let response = match await_response(
-                &pending,
-                remaining,
-                self.world.as_str(),
-                self.server_pid,
-                Wait::for_mode(self.mode, &self.ready),
-            ) {
-                Err(RequestError::Timeout { .. }) if waiting_for.is_some() => {
-                    let participant = waiting_for.unwrap_or_else(TickerInfo::none);
-                    return Err(TickError::HeldUp {
-                        world: self.world.to_string(),
-                        participant: participant.node_name.to_string_lossy(),
-                        pid: participant.pid,
-                        waited: started.elapsed(),
-                    });
-                }
-                Err(RequestError::Timeout { world, .. }) => {
-                    return Err(RequestError::Timeout { world, timeout }.into())
-                }
-                other => other?,
-            };
-            check_protocol(response.protocol_version, response.status)?;
+            let response =
+                match self
+                    .port
+                    .answer(&pending, remaining, Wait::for_mode(self.mode, &self.ready))
+                {
+                    Err(RequestError::Timeout { .. }) if waiting_for.is_some() => {
+                        let participant = waiting_for.unwrap_or_else(TickerInfo::none);
+                        return Err(TickError::HeldUp {
+                            world: self.world.to_string(),
+                            participant: participant.node_name.to_string_lossy(),
+                            pid: participant.pid,
+                            waited: started.elapsed(),
+                        });
+                    }
+                    Err(RequestError::Timeout { world, .. }) => {
+                        return Err(RequestError::Timeout { world, timeout }.into())
+                    }
+                    other => other?,
+                };
             if response.status == ResponseStatus::WaitingForParticipants as u32 {
                 let participant = response.waiting_for;
                 let patience = Duration::from_nanos(response.lockstep_timeout_ns)
@@ -274,26 +265,6 @@ impl Ticker {
         }
     }
 
-    /// Sends one request and wakes the server.
-    fn start(
-        &self,
-        kind: TickRequestKind,
-        settings: Option<WorldSettings>,
-    ) -> Result<PendingTick, RequestError> {
-        let mut request = TickRequest::new(kind, &self.node_name);
-        if let Some(settings) = settings {
-            request.settings = settings.into();
-        }
-        let pending = self
-            .port
-            .send_copy(request)
-            .map_err(|e| RequestError::transport("tick send", e))?;
-        if let Err(e) = self.wake.notify() {
-            debug!("wake-up not delivered: {e:?}");
-        }
-        Ok(pending)
-    }
-
     /// Sends one request (not a tick) and waits for its answer, whatever
     /// its status.
     fn send(
@@ -302,16 +273,11 @@ impl Ticker {
         settings: Option<WorldSettings>,
         timeout: Duration,
     ) -> Result<TickResponse, RequestError> {
-        let pending = self.start(kind, settings)?;
-        let response = await_response(
-            &pending,
-            timeout,
-            self.world.as_str(),
-            self.server_pid,
-            Wait::Backoff,
-        )?;
-        check_protocol(response.protocol_version, response.status)?;
-        Ok(response)
+        let mut request = TickRequest::new(kind, &self.node_name);
+        if let Some(settings) = settings {
+            request.settings = settings.into();
+        }
+        self.port.request(request, timeout, Wait::Backoff)
     }
 }
 

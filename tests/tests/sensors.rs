@@ -111,7 +111,10 @@ fn in_sync_mode_every_capture_arrives_once_at_the_frames_its_period_implies() {
         let frame = ticker.tick(T).unwrap();
         let elapsed_ns = frame * 20_000_000;
         for (i, sensor) in sensors.iter_mut().enumerate() {
-            let captures: Vec<_> = sensor.queue().map(|c| *c.header()).collect();
+            let captures: Vec<_> = sensor
+                .queue()
+                .map(|c| *c.expect("a capture").header())
+                .collect();
             let period_ns = (periods[i] * 1e9).round() as u64;
             let due = period_ns == 0 || elapsed_ns % period_ns == 0;
             assert_eq!(

@@ -1,0 +1,100 @@
+//! The one deadline-and-liveness wait of the client. Frames, sensor
+//! captures and answers to requests all wait here: poll, and between polls
+//! block on an event, back off, or spin, until the deadline — and end early
+//! when the server process is gone.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::prelude::*;
+
+use crate::{process_alive, WaitMode};
+
+/// How long [`WaitMode::Hybrid`] (and [`Wait::Backoff`]) polls before it sleeps.
+pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
+
+/// How often a waiting client checks that the server process still lives.
+pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+
+/// How to pass the time between polls.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Wait<'a> {
+    /// Poll for [`HYBRID_SPIN`], then sleep 10 µs, doubling up to 1 ms (for
+    /// answers without an event).
+    Backoff,
+    /// Sleep on an event the server notifies right after it publishes.
+    Event(&'a Listener<ipc::Service>),
+    /// Poll in a tight loop.
+    Spin,
+    /// Poll for [`HYBRID_SPIN`], then sleep on the event.
+    Hybrid(&'a Listener<ipc::Service>),
+}
+
+impl<'a> Wait<'a> {
+    /// The wait for something announced by `listener`, as `mode` says.
+    pub(crate) fn for_mode(mode: WaitMode, listener: &'a Listener<ipc::Service>) -> Self {
+        match mode {
+            WaitMode::Block => Wait::Event(listener),
+            WaitMode::Spin => Wait::Spin,
+            WaitMode::Hybrid => Wait::Hybrid(listener),
+        }
+    }
+}
+
+/// Why [`until`] ended without a value.
+#[derive(Debug)]
+pub(crate) enum Stop<E> {
+    /// The poll failed.
+    Failed(E),
+    /// The deadline passed.
+    TimedOut,
+    /// The server process is gone.
+    ServerGone,
+    /// The event could not be waited on.
+    Event(ListenerWaitError),
+}
+
+/// Calls `poll` until it yields, waiting between calls as `wait` says,
+/// until `deadline`; checks every [`LIVENESS_PERIOD`] that `server_pid`
+/// (when non-zero) still lives.
+pub(crate) fn until<T, E>(
+    deadline: Instant,
+    server_pid: u32,
+    wait: Wait<'_>,
+    mut poll: impl FnMut() -> Result<Option<T>, E>,
+) -> Result<T, Stop<E>> {
+    let start = Instant::now();
+    let mut backoff = Duration::from_micros(10);
+    let mut next_liveness_check = start + LIVENESS_PERIOD;
+    loop {
+        if let Some(value) = poll().map_err(Stop::Failed)? {
+            return Ok(value);
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            return Err(Stop::TimedOut);
+        }
+        if now >= next_liveness_check {
+            if server_pid != 0 && !process_alive(server_pid) {
+                return Err(Stop::ServerGone);
+            }
+            next_liveness_check = now + LIVENESS_PERIOD;
+        }
+        let remaining = (deadline - now).min(next_liveness_check - now);
+        let polling = now - start < HYBRID_SPIN;
+        match wait {
+            Wait::Spin => std::hint::spin_loop(),
+            Wait::Hybrid(_) | Wait::Backoff if polling => std::hint::spin_loop(),
+            Wait::Backoff => {
+                std::thread::sleep(backoff.min(remaining));
+                backoff = (backoff * 2).min(Duration::from_millis(1));
+            }
+            Wait::Event(listener) | Wait::Hybrid(listener) => {
+                match listener.timed_wait(|_| {}, remaining) {
+                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => return Err(Stop::Event(e)),
+                }
+            }
+        }
+    }
+}

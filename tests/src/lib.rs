@@ -1,5 +1,8 @@
-//! Helpers for simbus's multi-process tests: find the real binaries, give
-//! every test its own world, run processes that are always killed and reaped.
+//! The fixture of simbus's multi-process tests (ripgrep's `tests/util.rs`
+//! is the model): [`TestWorld`] starts a real `sim-server` on a world no
+//! other test uses and runs the real binaries against it; every process is
+//! killed and reaped on drop, whatever the test did; a failed command
+//! prints its command line, status, stdout and stderr.
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
@@ -57,6 +60,7 @@ pub fn unique_world(tag: &str) -> String {
 pub struct Proc {
     /// The child, killed and reaped on drop.
     pub guard: ChildGuard,
+    command: String,
     lines: mpsc::Receiver<String>,
     stderr: std::sync::Arc<std::sync::Mutex<String>>,
     stderr_reader: Option<std::thread::JoinHandle<()>>,
@@ -76,6 +80,7 @@ impl Proc {
             )
             .spawn()
             .unwrap_or_else(|e| panic!("starting {program}: {e}"));
+        let command = format!("{program} {}", args.join(" "));
         let stdout = child.stdout.take().expect("piped stdout");
         let mut stderr_pipe = child.stderr.take().expect("piped stderr");
         let (tx, lines) = mpsc::channel();
@@ -101,6 +106,7 @@ impl Proc {
         });
         Self {
             guard: ChildGuard::new(child, Duration::from_secs(5)),
+            command,
             lines,
             stderr,
             stderr_reader: Some(stderr_reader),
@@ -146,6 +152,7 @@ impl Proc {
             reader.join().expect("stderr reader");
         }
         Finished {
+            command: self.command.clone(),
             status,
             stdout,
             stderr: self.stderr(),
@@ -156,6 +163,8 @@ impl Proc {
 /// A process that has exited.
 #[derive(Debug)]
 pub struct Finished {
+    /// The command line that ran.
+    pub command: String,
     /// How it exited.
     pub status: ExitStatus,
     /// Every line it wrote to stdout.
@@ -173,15 +182,26 @@ impl Finished {
             .collect()
     }
 
-    /// Asserts a zero exit status, showing stderr if not.
+    /// Asserts a zero exit status, showing the command, its status, stdout
+    /// and stderr if not.
     pub fn assert_success(&self) -> &Self {
-        assert!(
-            self.status.success(),
-            "exit {:?}; stderr:\n{}",
-            self.status,
-            self.stderr
-        );
+        assert!(self.status.success(), "{self}");
         self
+    }
+
+    /// Asserts exit code `code` (2: refused input, 1: runtime failure).
+    pub fn assert_code(&self, code: i32) -> &Self {
+        assert_eq!(self.status.code(), Some(code), "{self}");
+        self
+    }
+}
+
+impl std::fmt::Display for Finished {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "command: {}", self.command)?;
+        writeln!(f, "status: {}", self.status)?;
+        writeln!(f, "stdout:\n{}", self.stdout.join("\n"))?;
+        write!(f, "stderr:\n{}", self.stderr)
     }
 }
 
@@ -245,5 +265,80 @@ impl std::fmt::Debug for Proc {
         f.debug_struct("Proc")
             .field("pid", &self.pid())
             .finish_non_exhaustive()
+    }
+}
+
+/// One world for one test: a unique name and its `sim-server`, up and
+/// answering, killed and reaped on drop.
+#[derive(Debug)]
+pub struct TestWorld {
+    name: String,
+    /// The server process.
+    pub server: Proc,
+}
+
+impl TestWorld {
+    /// Starts `sim-server --world <unique> <args>` and waits until it answers.
+    pub fn start(tag: &str, args: &[&str]) -> Self {
+        let name = unique_world(tag);
+        let server = server(&name, args);
+        Self { name, server }
+    }
+
+    /// The world's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// A client of this world.
+    pub fn connect(&self) -> sim_client::Client {
+        sim_client::Client::connect(&self.name, Duration::from_secs(20))
+            .unwrap_or_else(|e| panic!("connecting to {}: {e}", self.name))
+    }
+
+    /// Runs `sim-client --world <this> <args>` to completion.
+    pub fn cli(&self, args: &[&str]) -> Finished {
+        client(&self.name, args)
+    }
+
+    /// Starts `sim-client --world <this> <args>` in the background.
+    pub fn spawn_cli(&self, args: &[&str]) -> Proc {
+        let mut all = vec!["--world", self.name.as_str()];
+        all.extend_from_slice(args);
+        Proc::spawn("sim-client", &all)
+    }
+
+    /// `status --json` of this world.
+    pub fn status(&self) -> serde_json::Value {
+        status(&self.name)
+    }
+}
+
+/// A world in synchronous mode with a fixed step of 0.02 s (and `args`),
+/// a client of it, and that client's claim on the ticker.
+pub fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, sim_client::Client, sim_client::Ticker) {
+    let mut all = vec!["--sync", "--delta-seconds", "0.02"];
+    all.extend_from_slice(args);
+    let world = TestWorld::start(tag, &all);
+    let client = world.connect();
+    let ticker = client.claim_ticker().expect("claiming the ticker");
+    (world, client, ticker)
+}
+
+/// Waits (at most 60 s) until the world of `client` has `count` lockstep
+/// participants. Joining has no event of its own, so this asks the
+/// server's status, which answers in microseconds.
+pub fn wait_for_participants(client: &sim_client::Client, count: u32) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let joined = client.status().expect("status").participants;
+        if joined >= count {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "only {joined} of {count} lockstep participants joined"
+        );
+        std::thread::yield_now();
     }
 }

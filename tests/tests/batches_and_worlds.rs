@@ -8,20 +8,21 @@ use std::time::Duration;
 
 use shared_types::{ActorKind, Command, CommandStatus, WorldSettings};
 use sim_client::{BatchError, Client};
-use simbus_tests::{client, server, status, unique_world};
+use simbus_tests::{client, server, status, unique_world, TestWorld};
 
 const T: Duration = Duration::from_secs(10);
 
-fn sync_world(tag: &str) -> (String, simbus_tests::Proc, Client) {
-    let world = unique_world(tag);
-    let proc = server(&world, &["--sync", "--fixed-delta-seconds", "0.02"]);
-    let client = Client::connect(&world, T).unwrap();
-    (world, proc, client)
+/// A synchronous world and a client of it (which claims the ticker only
+/// where the test needs it to).
+fn sync_world(tag: &str) -> (TestWorld, Client) {
+    let world = TestWorld::start(tag, &["--sync", "--delta-seconds", "0.02"]);
+    let client = world.connect();
+    (world, client)
 }
 
 #[test]
 fn a_mixed_batch_fails_only_its_invalid_commands_and_takes_effect_at_the_reported_frame() {
-    let (_world, _server, mut client) = sync_world("mixed");
+    let (_world, mut client) = sync_world("mixed");
     let mut ticker = client.claim_ticker().unwrap();
     let frame0 = client.wait_for_tick(T).unwrap();
     assert_eq!(frame0.frame(), 0);
@@ -86,7 +87,7 @@ fn a_mixed_batch_fails_only_its_invalid_commands_and_takes_effect_at_the_reporte
 
 #[test]
 fn only_the_ticker_may_tick_with_a_batch() {
-    let (_world, _server, client) = sync_world("batch-tick");
+    let (_world, client) = sync_world("batch-tick");
     assert!(matches!(
         client.apply_batch_sync(&[], true),
         Err(BatchError::NotTicker)
@@ -96,7 +97,7 @@ fn only_the_ticker_may_tick_with_a_batch() {
 
 #[test]
 fn fire_and_forget_batches_are_never_lost() {
-    let (_world, _server, mut client) = sync_world("forget");
+    let (_world, mut client) = sync_world("forget");
     let mut ticker = client.claim_ticker().unwrap();
     let before = client.wait_for_tick(T).unwrap().actors.len();
     for batch in 0..20 {
@@ -188,7 +189,7 @@ fn reload_restores_the_scene_as_a_new_episode_and_keeps_or_resets_settings() {
 
 #[test]
 fn settings_survive_reload_through_the_library_too() {
-    let (_world, _server, client) = sync_world("reload-lib");
+    let (_world, client) = sync_world("reload-lib");
     let ticker = client.claim_ticker().unwrap();
     let settings = client.get_settings().unwrap();
     assert!(settings.synchronous_mode);

@@ -50,11 +50,7 @@ fn commands_at(frame: u64, variant: bool, first_id: u64) -> Vec<Command> {
 fn run_scenario(client: &mut Client, variant: bool) -> (u64, Vec<u64>) {
     let mut ticker = client.claim_ticker().expect("claim");
     // The autopilot must be in the lockstep before the first step.
-    let deadline = Instant::now() + T;
-    while client.status().unwrap().participants != 1 {
-        assert!(Instant::now() < deadline, "the autopilot did not join");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    simbus_tests::wait_for_participants(client, 1);
     let first = client.wait_for_tick(T).expect("frame 0");
     assert_eq!(first.frame(), 0, "the episode starts at frame 0");
     let mut digests = vec![first.digest()];

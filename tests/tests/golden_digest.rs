@@ -24,7 +24,10 @@ const GOLDEN: [(u64, u64); 3] = [
 #[test]
 fn a_fixed_scenario_gives_the_committed_digests() {
     let world = unique_world("golden");
-    let _server = server(&world, &["--sync", "--seed", "7", "--delta-seconds", "0.02"]);
+    let _server = server(
+        &world,
+        &["--sync", "--seed", "7", "--delta-seconds", "0.02"],
+    );
     let mut client = Client::connect(&world, T).unwrap();
     let mut ticker = client.claim_ticker().unwrap();
     let first = client.wait_for_tick(T).unwrap();

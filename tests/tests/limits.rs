@@ -4,7 +4,7 @@
 //! it; a watcher holds only a frame subscription and a listener, so it uses
 //! none of the ports that commands, sensors and the lockstep need.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use iceoryx2::prelude::*;
 use shared_types::{
@@ -154,14 +154,7 @@ fn sixty_four_watchers_a_ticker_and_sixteen_sensor_readers_share_one_world() {
             )
         })
         .collect();
-    let deadline = Instant::now() + T;
-    while api.status().unwrap().participants < WATCHERS as u32 {
-        assert!(
-            Instant::now() < deadline,
-            "the watchers joined the lockstep"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    simbus_tests::wait_for_participants(&api, WATCHERS as u32);
     let mut ticker = api.claim_ticker().unwrap();
     for frame in 1..=FRAMES {
         assert_eq!(ticker.tick(T).unwrap(), frame);

@@ -8,27 +8,12 @@ use std::time::Duration;
 
 use shared_types::{Command, SensorSpec};
 use sim_client::{Client, Ticker};
-use simbus_tests::{server, unique_world, Proc};
+use simbus_tests::{server, unique_world, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 
-fn sync_world(tag: &str, scene: &str) -> (Proc, Client, Ticker) {
-    let world = unique_world(tag);
-    let proc = server(
-        &world,
-        &[
-            "--sync",
-            "--delta-seconds",
-            "0.02",
-            "--scene",
-            scene,
-            "--max-sensor-readers",
-            "4",
-        ],
-    );
-    let client = Client::connect(&world, T).unwrap();
-    let ticker = client.claim_ticker().unwrap();
-    (proc, client, ticker)
+fn sync_world(tag: &str, scene: &str) -> (TestWorld, Client, Ticker) {
+    simbus_tests::sync_world(tag, &["--scene", scene, "--max-sensor-readers", "4"])
 }
 
 #[test]
@@ -368,11 +353,7 @@ fn a_lockstep_reader_gets_every_capture_and_its_death_stalls_nothing() {
             "--json",
         ],
     );
-    let deadline = std::time::Instant::now() + T;
-    while client.status().unwrap().participants != 1 {
-        assert!(std::time::Instant::now() < deadline, "the reader joined");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    simbus_tests::wait_for_participants(&client, 1);
     // However fast the ticker, the server waits for the reader: every
     // capture arrives, in order, stamped with its frame.
     let ticked: Vec<u64> = (0..30).map(|_| ticker.tick(T).unwrap()).collect();

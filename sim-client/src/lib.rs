@@ -54,3 +54,8 @@ pub use process::process_alive;
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use snapshot::WorldSnapshot;
 pub use ticker::Ticker;
+
+/// The README's Rust examples, compiled as doctests so they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+struct ReadmeExamples;

@@ -59,7 +59,7 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
         let ticker = loop {
             match client.claim_ticker() {
                 Ok(ticker) => break ticker,
-                Err(TickError::NotOwner { .. }) if killed.elapsed() < deadline => {
+                Err(TickError::NotTicker { .. }) if killed.elapsed() < deadline => {
                     std::thread::sleep(Duration::from_micros(200));
                 }
                 Err(e) => return Err(e.into()),

@@ -281,7 +281,7 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         ("(a) raw iceoryx2, block", raw_ping_pong(true, n)?),
         (
             "(b) simbus, all spin",
-            simbus_round_trip(&["--spin"], WaitMode::Spin, n)?,
+            simbus_round_trip(&["--wait-mode", "spin"], WaitMode::Spin, n)?,
         ),
         (
             "(b) simbus, hybrid",
@@ -289,7 +289,7 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         ),
         (
             "(b) simbus, block",
-            simbus_round_trip(&["--spin-window-us", "0"], WaitMode::Block, n)?,
+            simbus_round_trip(&["--wait-mode", "block"], WaitMode::Block, n)?,
         ),
         ("(c) TCP loopback", tcp_round_trip(n)?),
     ];
@@ -314,8 +314,8 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
-    println!("all spin: server --spin, clients spin; hybrid: server polls 100 µs after a frame, clients 100 µs, then both sleep;");
-    println!("block: server --spin-window-us 0 and blocking clients (every hop a kernel wake-up)");
+    println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
+    println!("block: server and clients --wait-mode block (every hop a kernel wake-up)");
     println!("{}", header("exchange"));
     for (name, latencies) in &rows {
         println!("{}", latencies.row(name));

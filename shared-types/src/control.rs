@@ -43,7 +43,7 @@ wire_enum! {
         /// Synchronous mode is entered by the tick owner, not by settings alone.
         SyncNeedsTicker = 4,
         /// Only the tick owner may do this (or the sender is not the owner).
-        NotOwner = 5,
+        NotTicker = 5,
         /// The scene name is not one the server knows; nothing changed.
         UnknownScene = 6,
         /// Tick service: this client's tick ownership ended because another

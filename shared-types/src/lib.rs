@@ -42,6 +42,7 @@ mod names;
 mod sensor;
 mod settings;
 mod tick;
+mod wait_mode;
 
 pub use command::{
     BatchHeader, BatchResponseHeader, Command, CommandKind, CommandResult, CommandStatus,
@@ -63,6 +64,7 @@ pub use settings::{
     LONG_SUBSTEP_SECONDS, MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
 };
 pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
+pub use wait_mode::WaitMode;
 pub use wire::UnknownWireValue;
 
 /// Version of the simbus wire protocol. Every payload carries it; a peer that

@@ -173,7 +173,7 @@ impl Client {
             wait,
         )?;
         check_protocol(header.protocol_version, header.status)?;
-        if header.status == ResponseStatus::NotOwner as u32 {
+        if header.status == ResponseStatus::NotTicker as u32 {
             return Err(BatchError::NotTicker);
         }
         Ok(BatchResponse {

@@ -16,9 +16,10 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use crate::batch::{open_batch_client, BatchClient};
-use crate::frames::{FrameStream, WaitMode};
+use crate::frames::FrameStream;
 use crate::open::{open_with_retry, wake_notifier, OpenFailure};
 use crate::rpc::{RequestPort, Wait};
+use crate::WaitMode;
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
     WaitError, WorldSnapshot,
@@ -274,7 +275,7 @@ impl Client {
         match ResponseStatus::from_u32(response.status) {
             Some(ResponseStatus::Ok) => Ok(response.effective_frame),
             Some(ResponseStatus::SyncNeedsTicker) => Err(ApplySettingsError::SyncNeedsTicker),
-            Some(ResponseStatus::NotOwner) => Err(ApplySettingsError::TickerHolds {
+            Some(ResponseStatus::NotTicker) => Err(ApplySettingsError::TickerHolds {
                 owner: response.report.ticker,
             }),
             Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
@@ -440,7 +441,7 @@ impl Client {
     }
 
     /// Claims tick ownership of the world. Fails with
-    /// [`TickError::NotOwner`], naming the owner, while another client ticks.
+    /// [`TickError::NotTicker`], naming the owner, while another client ticks.
     pub fn claim_ticker(&self) -> Result<Ticker, TickError> {
         self.claim_ticker_as(&default_ticker_name())
     }

@@ -220,7 +220,7 @@ impl From<SettingsError> for ApplySettingsError {
 pub enum TickError {
     /// Another client is the ticker (or the server says this one is not).
     #[error("world '{world}' already has a ticker: {}; only one client may tick", owner.map_or_else(|| "another process holds the tick service".to_owned(), |o| o.to_string()))]
-    NotOwner {
+    NotTicker {
         /// The world.
         world: String,
         /// The current owner, when the server could name it.

@@ -14,23 +14,8 @@ use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{frame_ready_listener, open_with_retry};
 use crate::wait::{self, Stop, Wait};
+use crate::WaitMode;
 use crate::{ConnectError, WaitError, WorldSnapshot};
-
-/// How a client waits for the next frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum WaitMode {
-    /// Sleep on the frame-ready event until the server publishes (no CPU
-    /// burnt while waiting). The default.
-    #[default]
-    Block,
-    /// Poll the shared-memory queue in a tight loop: lowest latency, one core
-    /// busy while waiting.
-    Spin,
-    /// Poll for up to 100 µs, then sleep on the event: an answer that comes
-    /// quickly (a tick in a tight loop) costs no kernel wake-up, and a long
-    /// wait burns no CPU.
-    Hybrid,
-}
 
 type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
 type FrameSample = Sample<ipc::Service, [ActorState], FrameHeader>;

@@ -48,10 +48,10 @@ pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, WaitError,
 };
-pub use frames::WaitMode;
 pub use lockstep::Participant;
 pub use process::process_alive;
 pub use sensor::{Capture, Listening, Sensor, SensorError};
+pub use shared_types::WaitMode;
 pub use snapshot::WorldSnapshot;
 pub use ticker::Ticker;
 

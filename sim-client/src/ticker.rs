@@ -110,7 +110,7 @@ impl Ticker {
         .client_builder()
         .create()
         .map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => TickError::NotOwner {
+            ClientCreateError::ExceedsMaxSupportedClients => TickError::NotTicker {
                 world: world.to_string(),
                 owner: owner(),
             },
@@ -229,7 +229,7 @@ impl Ticker {
                 Some(error) => Err(error.into()),
                 None => Err(RequestError::UnknownRequest.into()),
             },
-            Some(ResponseStatus::NotOwner | ResponseStatus::Revoked) => {
+            Some(ResponseStatus::NotTicker | ResponseStatus::Revoked) => {
                 Err(ApplySettingsError::NotTicker)
             }
             _ => Ok(self
@@ -257,7 +257,7 @@ impl Ticker {
                 world: self.world.to_string(),
                 by: response.revoked_by,
             }),
-            Some(ResponseStatus::NotOwner) => Err(TickError::NotOwner {
+            Some(ResponseStatus::NotTicker) => Err(TickError::NotTicker {
                 world: self.world.to_string(),
                 owner: response.ticker.active(),
             }),

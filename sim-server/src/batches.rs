@@ -86,7 +86,7 @@ impl Batches {
                     pid = header.pid,
                     "refused a ticking batch from a process that is not the ticker"
                 );
-                respond_batch(&request, ResponseStatus::NotOwner, next_frame, &[]);
+                respond_batch(&request, ResponseStatus::NotTicker, next_frame, &[]);
                 continue;
             }
             let results: Vec<CommandResult> =

@@ -9,7 +9,7 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use shared_types::limits::{self, WorldLimits};
-use shared_types::{input, WorldName, WorldSettings};
+use shared_types::{input, WaitMode, WorldName, WorldSettings};
 use tracing_subscriber::EnvFilter;
 
 use crate::{OnTickerLoss, Scene, Server, ServerConfig};
@@ -73,10 +73,12 @@ pub struct ServerArgs {
     #[arg(long, value_enum, default_value_t = OnTickerLoss::Wait)]
     pub on_ticker_loss: OnTickerLoss,
 
-    /// Synchronous mode: poll for ticks instead of sleeping (lowest tick
-    /// latency; one core busy while waiting).
-    #[arg(long)]
-    pub spin: bool,
+    /// Synchronous mode: how to wait for the next tick — block (sleep on
+    /// the wake-up event), spin (poll: lowest latency, one core busy) or
+    /// hybrid (poll for --hybrid-window-us after each frame, then sleep).
+    /// The same words as clients' wait modes.
+    #[arg(long, value_name = "MODE", default_value = "hybrid")]
+    pub wait_mode: WaitMode,
 
     /// Start in synchronous mode, waiting for the first ticker (needs a fixed
     /// step), so a run is deterministic from frame 0.
@@ -87,10 +89,10 @@ pub struct ServerArgs {
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
 
-    /// Synchronous mode: after each frame, poll this many microseconds for
-    /// the next tick before sleeping (0: always sleep).
-    #[arg(long = "spin-window-us", value_name = "US", default_value = "100", value_parser = input::micros)]
-    pub spin_window: Duration,
+    /// Hybrid waiting: after each frame, poll this many microseconds for the
+    /// next tick before sleeping.
+    #[arg(long = "hybrid-window-us", value_name = "US", default_value = "100", value_parser = input::micros)]
+    pub hybrid_window: Duration,
 
     /// Drop a lockstep participant that keeps a tick waiting this many
     /// seconds. A tick held up by a participant is told so, and waits for
@@ -223,8 +225,8 @@ pub fn run(args: ServerArgs) -> Result<(), RunError> {
         max_fps: args.max_fps,
         max_frames: args.max_frames,
         on_ticker_loss: args.on_ticker_loss,
-        spin: args.spin,
-        spin_window: args.spin_window,
+        wait_mode: args.wait_mode,
+        hybrid_window: args.hybrid_window,
         seed: args.seed,
         lockstep_timeout: args.lockstep_timeout,
         limits,

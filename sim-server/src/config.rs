@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use shared_types::limits::WorldLimits;
-use shared_types::{WorldName, WorldSettings};
+use shared_types::{WaitMode, WorldName, WorldSettings};
 
 use crate::{OnTickerLoss, Scene};
 
@@ -26,12 +26,13 @@ pub struct ServerConfig {
     pub max_frames: Option<u64>,
     /// What to do when the ticker dies in synchronous mode.
     pub on_ticker_loss: OnTickerLoss,
-    /// Synchronous mode: poll for ticks instead of sleeping on the wake-up
-    /// event (lowest tick latency, one core busy while waiting).
-    pub spin: bool,
-    /// Synchronous mode: after each frame, poll this long for the next tick
-    /// before sleeping (a ticker in a tight loop then costs no kernel wake-up).
-    pub spin_window: Duration,
+    /// Synchronous mode: how the server waits for the next tick — block on
+    /// the wake-up event, spin (lowest latency, one core busy), or hybrid
+    /// (poll for `hybrid_window` after each frame, then block).
+    pub wait_mode: WaitMode,
+    /// Hybrid waiting: how long to poll for the next tick after a frame (a
+    /// ticker in a tight loop then costs no kernel wake-up).
+    pub hybrid_window: Duration,
     /// Seed of the scene's placement (0: none); kept across reloads.
     pub seed: u64,
     /// A lockstep participant that keeps a tick waiting this long is

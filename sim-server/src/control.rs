@@ -174,7 +174,7 @@ fn apply_settings(world: &mut Domains, request: &ControlRequest) -> ControlRespo
                 pid = request.client_pid,
                 ticker_pid, "refused settings: the ticker holds the world"
             );
-            return ControlResponse::refused(ResponseStatus::NotOwner, world.report());
+            return ControlResponse::refused(ResponseStatus::NotTicker, world.report());
         }
     }
     let next_frame = world.clock.frame() + 1;

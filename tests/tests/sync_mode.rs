@@ -97,13 +97,13 @@ fn a_second_ticker_is_refused_naming_the_owner_until_the_first_releases() {
     let first = client.claim_ticker_as("first-ticker").unwrap();
 
     match client.claim_ticker() {
-        Err(TickError::NotOwner {
+        Err(TickError::NotTicker {
             owner: Some(owner), ..
         }) => {
             assert_eq!(owner.pid, std::process::id());
             assert_eq!(owner.node_name.to_string_lossy(), "first-ticker");
         }
-        Err(e) => panic!("expected NotOwner, got {e}"),
+        Err(e) => panic!("expected NotTicker, got {e}"),
         Ok(_) => panic!("a second ticker was admitted"),
     }
     let out = client_cli(&world, &["tick", "--count", "1"]);
@@ -162,7 +162,7 @@ fn a_ticker_killed_with_sigkill_is_replaced_and_no_frame_is_skipped_or_repeated(
     let mut ticker = loop {
         match client.claim_ticker() {
             Ok(ticker) => break ticker,
-            Err(TickError::NotOwner { .. }) if start.elapsed() < Duration::from_secs(10) => {
+            Err(TickError::NotTicker { .. }) if start.elapsed() < Duration::from_secs(10) => {
                 std::thread::sleep(Duration::from_millis(5));
             }
             Err(e) => panic!("no failover within 10 s: {e}"),

@@ -51,14 +51,12 @@ pub(crate) struct TickArgs {
     #[arg(long)]
     leave_sync: bool,
 
-    /// Spin while waiting for each frame (lowest latency, one core busy).
-    #[arg(long, conflicts_with = "hybrid")]
-    spin: bool,
-
-    /// Poll 100 µs for each frame, then sleep (near-spin latency in a tight
-    /// loop, no CPU burnt while the server is slow).
-    #[arg(long)]
-    hybrid: bool,
+    /// How to wait for each frame: block (sleep on the frame-ready event),
+    /// spin (lowest latency, one core busy) or hybrid (poll 100 µs, then
+    /// sleep: near-spin latency in a tight loop, no CPU burnt while the
+    /// server is slow).
+    #[arg(long, value_name = "MODE", default_value = "block")]
+    wait_mode: WaitMode,
 
     /// One JSON object per tick.
     #[arg(long)]
@@ -111,11 +109,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
         .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
     wait_for_participants(&client, args.participants, timeout)?;
     let mut ticker = client.claim_ticker_as(NODE_NAME)?;
-    if args.spin {
-        ticker.set_wait_mode(WaitMode::Spin);
-    } else if args.hybrid {
-        ticker.set_wait_mode(WaitMode::Hybrid);
-    }
+    ticker.set_wait_mode(args.wait_mode);
     let from = ticker.apply_settings(sync).map_err(refused_or_runtime)?;
     match delta {
         Some(dt) => eprintln!(

@@ -19,9 +19,10 @@ pub(crate) struct WatchArgs {
     #[arg(long)]
     json: bool,
 
-    /// Spin on the shared-memory queue instead of sleeping (lowest latency, one core busy).
-    #[arg(long)]
-    spin: bool,
+    /// How to wait for each frame: block (sleep on the frame-ready event),
+    /// spin (lowest latency, one core busy) or hybrid (poll 100 µs, then sleep).
+    #[arg(long, value_name = "MODE", default_value = "block")]
+    wait_mode: WaitMode,
 
     /// Print every frame in order in asynchronous mode too, instead of
     /// skipping to the newest (16 frames of slack; beyond that frames are
@@ -114,9 +115,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
-    if args.spin {
-        client.set_wait_mode(WaitMode::Spin);
-    }
+    client.set_wait_mode(args.wait_mode);
     client.set_every_frame(args.every_frame);
     let participant = if args.lockstep {
         Some(client.join_lockstep("watch")?)

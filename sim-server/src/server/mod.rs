@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use shared_types::{
-    FixedText, FrameHeader, SensorEnd, StatusReport, Timestamp, WireSettings, WorldSettings,
-    PROTOCOL_VERSION,
+    FixedText, FrameHeader, SensorEnd, StatusReport, Timestamp, WaitMode, WireSettings,
+    WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug_span, info, warn};
 
@@ -190,8 +190,12 @@ impl Server {
                     d.lockstep
                         .held_up(now, d.config.lockstep_timeout, &d.ticker, &d.clock);
                 }
-                let just_stepped = d.clock.last_frame_at().elapsed() < d.config.spin_window;
-                if d.config.spin || just_stepped {
+                let polling = match d.config.wait_mode {
+                    WaitMode::Spin => true,
+                    WaitMode::Hybrid => d.clock.last_frame_at().elapsed() < d.config.hybrid_window,
+                    WaitMode::Block => false,
+                };
+                if polling {
                     std::hint::spin_loop();
                 } else {
                     self.control.idle(MAX_IDLE_WAIT)?;

@@ -160,7 +160,7 @@ impl Ticker {
                                     owner_pid = current.pid,
                                     "refused a second ticker"
                                 );
-                                self.response(ResponseStatus::NotOwner, clock)
+                                self.response(ResponseStatus::NotTicker, clock)
                             }
                         }
                     }
@@ -171,10 +171,10 @@ impl Ticker {
                                 frame = clock.frame(),
                                 "ticker released ownership"
                             );
-                            self.drop_pending(ResponseStatus::NotOwner, TickerInfo::none(), clock);
+                            self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
                             self.response(ResponseStatus::Ok, clock)
                         } else {
-                            self.response(ResponseStatus::NotOwner, clock)
+                            self.response(ResponseStatus::NotTicker, clock)
                         }
                     }
                     Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
@@ -204,7 +204,7 @@ impl Ticker {
                             pid = payload.pid,
                             "refused a request from a client that is not the ticker"
                         );
-                        self.response(ResponseStatus::NotOwner, clock)
+                        self.response(ResponseStatus::NotTicker, clock)
                     }
                     None => self.response(ResponseStatus::UnknownRequest, clock),
                 }
@@ -300,7 +300,7 @@ impl Ticker {
         let Some(lost) = self.ownership.take_if_dead(|pid| sweep.alive(pid)) else {
             return false;
         };
-        self.drop_pending(ResponseStatus::NotOwner, TickerInfo::none(), clock);
+        self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
         // Frees the dead ticker's port, so a new ticker can claim.
         transport.node.try_cleanup_dead_nodes();
         let frame = clock.frame();

@@ -59,6 +59,9 @@ wire_enum! {
         /// Loading or reloading the world failed on the server (its log says
         /// why); the world is unchanged.
         LoadFailed = 10,
+        /// The request was refused; the answer's error code says why (a
+        /// sensor request: [`crate::SensorRefusal`]). Nothing changed.
+        Refused = 11,
     }
 }
 

@@ -54,9 +54,9 @@ pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
-    ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorRequestKind, SensorResponseHeader, SensorSpec, MAX_CAPTURE_BYTES,
-    MAX_SENSOR_TICK_SECONDS, SENSOR_ERRORS,
+    ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,
+    SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError,
+    MAX_CAPTURE_BYTES, MAX_SENSOR_TICK_SECONDS,
 };
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings,

@@ -68,6 +68,41 @@ pub struct SensorSpec {
     pub params: [f32; 8],
 }
 
+/// Why a [`SensorSpec`] cannot build a sensor; each message states the
+/// limit that was broken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum SensorSpecError {
+    /// Position, rotation and parameters must be finite numbers.
+    #[error("position, rotation and parameters must be finite numbers")]
+    NotFinite,
+    /// `sensor_tick` must be a finite number of seconds in 0..=18446744073 (the clock's range).
+    #[error(
+        "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)"
+    )]
+    SensorTick,
+    /// Depth width and height must be whole numbers in 1..=8192 with width x height at most 8388608 pixels (32 MiB per capture).
+    #[error("depth width and height must be whole numbers in 1..=8192 with width x height at most 8388608 pixels (32 MiB per capture)")]
+    DepthSize,
+    /// Depth field of view must be in (0, 180) degrees.
+    #[error("depth field of view must be in (0, 180) degrees")]
+    DepthFieldOfView,
+    /// Depth far range must be positive.
+    #[error("depth far range must be positive")]
+    DepthRange,
+    /// Lidar channels must be in 1..=256 and points per channel in 1..=65536, with channels x points at most 2097152 (32 MiB per capture).
+    #[error("lidar channels must be in 1..=256 and points per channel in 1..=65536, with channels x points at most 2097152 (32 MiB per capture)")]
+    LidarSize,
+    /// Lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90.
+    #[error("lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90")]
+    LidarRange,
+    /// Lidar rotation frequency must be >= 0 Hz.
+    #[error("lidar rotation frequency must be >= 0 Hz")]
+    LidarRotation,
+    /// Unknown sensor kind.
+    #[error("unknown sensor kind")]
+    UnknownKind,
+}
+
 impl SensorSpec {
     fn new(kind: SensorKind, position: [f32; 3], params: [f32; 8]) -> Self {
         Self {
@@ -174,7 +209,7 @@ impl SensorSpec {
 
     /// Why this spec cannot build a sensor, if it cannot. The message
     /// states the limit that was broken.
-    pub fn check(&self) -> Result<(), &'static str> {
+    pub fn check(&self) -> Result<(), SensorSpecError> {
         let p = self.params;
         let finite = self
             .position
@@ -183,14 +218,12 @@ impl SensorSpec {
             .chain(&p)
             .all(|v| v.is_finite());
         if !finite {
-            return Err("position, rotation and parameters must be finite numbers");
+            return Err(SensorSpecError::NotFinite);
         }
         if !(self.sensor_tick.is_finite()
             && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&self.sensor_tick))
         {
-            return Err(
-                "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)",
-            );
+            return Err(SensorSpecError::SensorTick);
         }
         let whole = |v: f32, max: f32| v >= 1.0 && v <= max && v.fract() == 0.0;
         match self.sensor_kind() {
@@ -198,36 +231,30 @@ impl SensorSpec {
                 if !(whole(p[0], 8192.0) && whole(p[1], 8192.0))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
-                    return Err("depth width and height must be whole numbers in 1..=8192 \
-                         with width x height at most 8388608 pixels (32 MiB per capture)");
+                    return Err(SensorSpecError::DepthSize);
                 }
                 if !(p[2] > 0.0 && p[2] < 180.0) {
-                    return Err("depth field of view must be in (0, 180) degrees");
+                    return Err(SensorSpecError::DepthFieldOfView);
                 }
                 if p[3] <= 0.0 {
-                    return Err("depth far range must be positive");
+                    return Err(SensorSpecError::DepthRange);
                 }
             }
             Some(SensorKind::Lidar) => {
                 if !(whole(p[0], 256.0) && whole(p[1], 65536.0))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
-                    return Err(
-                        "lidar channels must be in 1..=256 and points per channel in \
-                         1..=65536, with channels x points at most 2097152 (32 MiB per capture)",
-                    );
+                    return Err(SensorSpecError::LidarSize);
                 }
                 if p[2] <= 0.0 || p[3] < p[4] || p[3].abs() > 90.0 || p[4].abs() > 90.0 {
-                    return Err(
-                        "lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90",
-                    );
+                    return Err(SensorSpecError::LidarRange);
                 }
                 if p[5] < 0.0 {
-                    return Err("lidar rotation frequency must be >= 0 Hz");
+                    return Err(SensorSpecError::LidarRotation);
                 }
             }
             Some(SensorKind::Imu) => {}
-            None => return Err("unknown sensor kind"),
+            None => return Err(SensorSpecError::UnknownKind),
         }
         Ok(())
     }
@@ -410,20 +437,37 @@ pub struct SensorResponseHeader {
     pub protocol_version: u32,
     /// [`crate::ResponseStatus`] as `u32`.
     pub status: u32,
-    /// Why a spawn was refused (index into [`SENSOR_ERRORS`]; 0 = none).
+    /// With [`crate::ResponseStatus::Refused`]: why, as [`SensorRefusal`].
     pub error: u32,
     /// Zero.
     pub reserved: u32,
 }
 
-/// Reasons a sensor request is refused, by [`SensorResponseHeader::error`].
-pub const SENSOR_ERRORS: [&str; 5] = [
-    "",
-    "invalid sensor specification",
-    "unknown actor to attach to",
-    "unknown sensor",
-    "no shared memory for the sensor's captures",
-];
+wire_enum! {
+    /// Why the server refused a sensor request ([`SensorResponseHeader::error`]).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum SensorRefusal {
+        /// The spec breaks a rule ([`SensorSpec::check`] says which).
+        InvalidSpec = 1,
+        /// `attach_to` names no actor.
+        UnknownActor = 2,
+        /// No sensor has this id (never had, or it ended).
+        UnknownSensor = 3,
+        /// The shared memory for its captures could not be had.
+        NoMemory = 4,
+    }
+}
+
+impl std::fmt::Display for SensorRefusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::InvalidSpec => "invalid sensor specification",
+            Self::UnknownActor => "unknown actor to attach to",
+            Self::UnknownSensor => "unknown sensor",
+            Self::NoMemory => "no shared memory for the sensor's captures",
+        })
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -461,9 +505,9 @@ mod tests {
             .is_err());
         // One limit, stated where it is broken.
         let too_big = SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0).check();
-        assert!(too_big.unwrap_err().contains("8388608 pixels"));
+        assert!(too_big.unwrap_err().to_string().contains("8388608 pixels"));
         let forever = SensorSpec::imu([0.0; 3]).every(1e300).check();
-        assert!(forever.unwrap_err().contains("18446744073"));
+        assert!(forever.unwrap_err().to_string().contains("18446744073"));
     }
 
     #[test]

@@ -117,6 +117,7 @@ mod tests {
         round_trips("SensorKind", &SensorKind::ALL);
         round_trips("SensorRequestKind", &SensorRequestKind::ALL);
         round_trips("SensorEnd", &SensorEnd::ALL);
+        round_trips("SensorRefusal", &SensorRefusal::ALL);
         round_trips("CommandKind", &CommandKind::ALL);
         round_trips("CommandStatus", &CommandStatus::ALL);
         round_trips("ActorKind", &ActorKind::ALL);
@@ -126,6 +127,6 @@ mod tests {
             ResponseStatus::from_u32(9),
             Some(ResponseStatus::NotParticipant)
         );
-        assert_eq!(ResponseStatus::from_u32(11), None);
+        assert_eq!(ResponseStatus::from_u32(12), None);
     }
 }

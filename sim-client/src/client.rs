@@ -280,9 +280,15 @@ impl Client {
             }),
             Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
                 Some(error) => Err(ApplySettingsError::Invalid(error)),
-                None => Err(RequestError::UnknownRequest.into()),
+                None => Err(RequestError::UnknownAnswer {
+                    status: response.status,
+                }
+                .into()),
             },
-            _ => Err(RequestError::UnknownRequest.into()),
+            _ => Err(RequestError::UnknownAnswer {
+                status: response.status,
+            }
+            .into()),
         }
     }
 
@@ -313,7 +319,13 @@ impl Client {
             Some(ResponseStatus::UnknownScene) => Err(LoadWorldError::UnknownScene {
                 scene: scene.to_owned(),
             }),
-            _ => Err(RequestError::UnknownRequest.into()),
+            Some(ResponseStatus::LoadFailed) => Err(LoadWorldError::Failed {
+                world: self.world.to_string(),
+            }),
+            _ => Err(RequestError::UnknownAnswer {
+                status: response.status,
+            }
+            .into()),
         }
     }
 

@@ -53,12 +53,13 @@ pub enum ConnectError {
         flag: &'static str,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}: {detail}")]
+    #[error("shared-memory transport failed at {what}")]
     Transport {
         /// What was being done.
         what: &'static str,
-        /// iceoryx2's error.
-        detail: String,
+        /// iceoryx2's error, kept with its type.
+        #[source]
+        source: TransportError,
     },
 }
 
@@ -90,6 +91,12 @@ pub enum RequestError {
     /// The server does not know the request.
     #[error("the server does not know this request (is it an older version?)")]
     UnknownRequest,
+    /// The server answered with a status this client does not expect here.
+    #[error("the server answered with status {status}, which this client does not expect here")]
+    UnknownAnswer {
+        /// The status, as a [`shared_types::ResponseStatus`] code.
+        status: u32,
+    },
     /// This lockstep participant was dropped by the server.
     #[error("dropped from the lockstep of world '{world}': the server no longer waits for this participant (it kept a tick waiting past the server's --lockstep-timeout, or left); frames went on without it")]
     NotParticipant {
@@ -107,12 +114,13 @@ pub enum RequestError {
         flag: &'static str,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}: {detail}")]
+    #[error("shared-memory transport failed at {what}")]
     Transport {
         /// What was being done.
         what: &'static str,
-        /// iceoryx2's error.
-        detail: String,
+        /// iceoryx2's error, kept with its type.
+        #[source]
+        source: TransportError,
     },
 }
 
@@ -189,20 +197,25 @@ pub enum WaitError {
         client: u32,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}: {detail}")]
+    #[error("shared-memory transport failed at {what}")]
     Transport {
         /// What was being done.
         what: &'static str,
-        /// iceoryx2's error.
-        detail: String,
+        /// iceoryx2's error, kept with its type.
+        #[source]
+        source: TransportError,
     },
 }
+
+/// The lower layer's error (iceoryx2's, typed), boxed so every operation's
+/// error can carry it as its source.
+pub type TransportError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 macro_rules! transport_ctor {
     ($($t:ty),*) => {$(
         impl $t {
-            pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
-                Self::Transport { what, detail: format!("{error:?}") }
+            pub(crate) fn transport(what: &'static str, error: impl Into<TransportError>) -> Self {
+                Self::Transport { what, source: error.into() }
             }
         }
     )*};
@@ -254,7 +267,7 @@ pub enum TickError {
 }
 
 impl TickError {
-    pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
+    pub(crate) fn transport(what: &'static str, error: impl Into<TransportError>) -> Self {
         Self::Request(RequestError::transport(what, error))
     }
 }
@@ -267,6 +280,15 @@ pub enum LoadWorldError {
     UnknownScene {
         /// The scene asked for.
         scene: String,
+    },
+    /// The server could not load the world (its log says why); the world
+    /// is unchanged.
+    #[error(
+        "the server of world '{world}' could not load the world (see its log); nothing changed"
+    )]
+    Failed {
+        /// The world.
+        world: String,
     },
     /// The request failed.
     #[error(transparent)]

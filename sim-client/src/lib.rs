@@ -46,7 +46,8 @@ mod wait;
 pub use batch::{BatchError, BatchResponse, CommandError};
 pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
-    ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, WaitError,
+    ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, TransportError,
+    WaitError,
 };
 pub use lockstep::Participant;
 pub use process::process_alive;

@@ -11,7 +11,7 @@ use shared_types::{
 };
 use tracing::{debug, info};
 
-use crate::open::{open_with_retry, wake_notifier};
+use crate::open::{open_with_retry, wake_notifier, OpenFailure};
 use crate::rpc::{check_protocol, Pending, RequestPort, Wait};
 use crate::RequestError;
 
@@ -91,7 +91,7 @@ impl Participant {
         .create()
         .map_err(|e| RequestError::transport("lockstep client", e))?;
         let wake = wake_notifier(&node, &names, deadline)
-            .map_err(|e| RequestError::transport(e.what, e.detail))?
+            .map_err(OpenFailure::into_request)?
             .ok_or_else(missing)?;
         let mut participant = Self {
             world: world.clone(),
@@ -184,7 +184,9 @@ impl Participant {
             Wait::Backoff,
         )?;
         if response.status != ResponseStatus::Ok as u32 {
-            return Err(RequestError::UnknownRequest);
+            return Err(RequestError::UnknownAnswer {
+                status: response.status,
+            });
         }
         Ok(response)
     }

@@ -11,6 +11,7 @@ use iceoryx2::service::port_factory::event::PortFactory as EventService;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::ServiceNames;
 
+use crate::error::TransportError;
 use crate::{ConnectError, RequestError};
 
 /// Opens a service, retrying while `is_missing` says it does not exist yet,
@@ -38,16 +39,16 @@ pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
 #[derive(Debug)]
 pub(crate) struct OpenFailure {
     pub what: &'static str,
-    pub detail: String,
+    pub source: TransportError,
     /// The port kind was full: its limit and the flag that raises it.
     pub full: Option<(usize, &'static str)>,
 }
 
 impl OpenFailure {
-    fn new(what: &'static str, error: impl std::fmt::Debug) -> Self {
+    fn new(what: &'static str, error: impl Into<TransportError>) -> Self {
         Self {
             what,
-            detail: format!("{error:?}"),
+            source: error.into(),
             full: None,
         }
     }
@@ -63,7 +64,7 @@ impl OpenFailure {
             },
             None => ConnectError::Transport {
                 what: self.what,
-                detail: self.detail,
+                source: self.source,
             },
         }
     }
@@ -78,7 +79,7 @@ impl OpenFailure {
             },
             None => RequestError::Transport {
                 what: self.what,
-                detail: self.detail,
+                source: self.source,
             },
         }
     }

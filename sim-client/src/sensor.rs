@@ -13,8 +13,8 @@ use iceoryx2::sample::Sample;
 use shared_types::limits::{MAX_CLIENTS_FLAG, MAX_SENSOR_READERS_FLAG, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
-    SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, ServiceNames,
-    PROTOCOL_VERSION, SENSOR_ERRORS,
+    SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
+    SensorSpecError, ServiceNames, PROTOCOL_VERSION,
 };
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
@@ -99,9 +99,13 @@ impl Capture {
 /// Why a sensor request failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SensorError {
-    /// The server refused: invalid spec, unknown actor, unknown sensor.
+    /// The spec breaks a rule (checked before anything is sent).
+    #[error("invalid sensor: {0}")]
+    InvalidSpec(#[from] SensorSpecError),
+    /// The server refused: invalid spec, unknown actor, unknown sensor, no
+    /// memory for its captures.
     #[error("sensor refused: {0}")]
-    Refused(&'static str),
+    Refused(SensorRefusal),
     /// The request failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -219,7 +223,11 @@ impl Sensor {
             Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &name, deadline)?),
             Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &name, deadline)?),
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &name, deadline)?),
-            None => return Err(RequestError::UnknownRequest),
+            None => {
+                return Err(RequestError::UnknownAnswer {
+                    status: ResponseStatus::Ok as u32,
+                })
+            }
         };
         let ready = frame_ready_listener(&node, &names, deadline)
             .map_err(OpenFailure::into_request)?
@@ -429,25 +437,35 @@ impl Client {
             Wait::Backoff,
         )?;
         check_protocol(header.protocol_version, header.status)?;
-        if header.status != ResponseStatus::Ok as u32 {
-            let reason = SENSOR_ERRORS
-                .get(header.error as usize)
-                .copied()
-                .filter(|r| !r.is_empty())
-                .unwrap_or("unknown request");
-            return Err(SensorError::Refused(reason));
+        match ResponseStatus::from_u32(header.status) {
+            Some(ResponseStatus::Ok) => {}
+            Some(ResponseStatus::Refused) => {
+                let refusal =
+                    SensorRefusal::from_u32(header.error).ok_or(RequestError::UnknownAnswer {
+                        status: header.status,
+                    })?;
+                return Err(SensorError::Refused(refusal));
+            }
+            _ => {
+                return Err(RequestError::UnknownAnswer {
+                    status: header.status,
+                }
+                .into())
+            }
         }
         Ok(infos)
     }
 
     /// Builds a sensor from `spec` and subscribes to it.
     pub fn spawn_sensor(&self, spec: SensorSpec) -> Result<Sensor, SensorError> {
-        spec.check().map_err(SensorError::Refused)?;
+        spec.check()?;
         let info = self
             .sensor_request(SensorRequest::new(SensorRequestKind::Spawn, 0, spec))?
             .first()
             .copied()
-            .ok_or(SensorError::Refused("no sensor returned"))?;
+            .ok_or(RequestError::UnknownAnswer {
+                status: ResponseStatus::Ok as u32,
+            })?;
         Ok(Sensor::open(self, info)?)
     }
 
@@ -461,7 +479,7 @@ impl Client {
         self.list_sensors()?
             .into_iter()
             .find(|s| s.id == id)
-            .ok_or(SensorError::Refused(SENSOR_ERRORS[3]))
+            .ok_or(SensorError::Refused(SensorRefusal::UnknownSensor))
     }
 
     /// Every sensor of the world.

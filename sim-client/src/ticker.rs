@@ -117,10 +117,10 @@ impl Ticker {
             e => TickError::transport("tick client", e),
         })?;
         let wake = wake_notifier(&node, &names, deadline)
-            .map_err(|e| TickError::transport(e.what, e.detail))?
+            .map_err(|e| TickError::Request(e.into_request()))?
             .ok_or_else(timeout)?;
         let ready = frame_ready_listener(&node, &names, deadline)
-            .map_err(|e| TickError::transport(e.what, e.detail))?
+            .map_err(|e| TickError::Request(e.into_request()))?
             .ok_or_else(timeout)?;
         let mut ticker = Self {
             world: world.clone(),
@@ -225,17 +225,16 @@ impl Ticker {
             self.request_timeout,
         )?;
         match ResponseStatus::from_u32(response.status) {
+            Some(ResponseStatus::Ok) => Ok(response.effective_frame),
+            Some(ResponseStatus::SyncNeedsTicker) => Err(ApplySettingsError::SyncNeedsTicker),
             Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
                 Some(error) => Err(error.into()),
-                None => Err(RequestError::UnknownRequest.into()),
+                None => Err(unexpected(response.status).into()),
             },
             Some(ResponseStatus::NotTicker | ResponseStatus::Revoked) => {
                 Err(ApplySettingsError::NotTicker)
             }
-            _ => Ok(self
-                .expect_ok(response)
-                .map_err(|_| RequestError::UnknownRequest)?
-                .effective_frame),
+            _ => Err(unexpected(response.status).into()),
         }
     }
 
@@ -261,7 +260,7 @@ impl Ticker {
                 world: self.world.to_string(),
                 owner: response.ticker.active(),
             }),
-            _ => Err(RequestError::UnknownRequest.into()),
+            _ => Err(unexpected(response.status).into()),
         }
     }
 
@@ -278,6 +277,15 @@ impl Ticker {
             request.settings = settings.into();
         }
         self.port.request(request, timeout, Wait::Backoff)
+    }
+}
+
+/// An answer whose status this request does not expect.
+fn unexpected(status: u32) -> RequestError {
+    if status == ResponseStatus::UnknownRequest as u32 {
+        RequestError::UnknownRequest
+    } else {
+        RequestError::UnknownAnswer { status }
     }
 }
 

@@ -100,20 +100,24 @@ pub enum ServerError {
     #[error("invalid settings: {0}")]
     Settings(SettingsError),
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}: {detail}")]
+    #[error("shared-memory transport failed at {what}")]
     Transport {
         /// What was being done.
         what: &'static str,
-        /// iceoryx2's error.
-        detail: String,
+        /// iceoryx2's error, kept with its type.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
 }
 
 impl ServerError {
-    pub(crate) fn transport(what: &'static str, error: impl std::fmt::Debug) -> Self {
+    pub(crate) fn transport(
+        what: &'static str,
+        error: impl Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
+    ) -> Self {
         Self::Transport {
             what,
-            detail: format!("{error:?}"),
+            source: error.into(),
         }
     }
 }

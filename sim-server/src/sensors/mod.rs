@@ -15,8 +15,8 @@ use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, SENSOR_SUBSCRIBER_BUFFER};
 use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
-    SensorInfo, SensorKind, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
-    PROTOCOL_VERSION,
+    SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
+    SensorSpec, PROTOCOL_VERSION,
 };
 use tracing::{debug, info, warn};
 
@@ -48,17 +48,6 @@ struct Sensor {
     /// Lidar: the column (azimuth step) the next sweep starts at.
     lidar_column: usize,
     captures: u64,
-}
-
-/// Why a sensor could not be spawned (index into `shared_types::SENSOR_ERRORS`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SpawnRefusal {
-    /// The spec breaks a rule.
-    InvalidSpec = 1,
-    /// `attach_to` names no actor.
-    UnknownActor = 2,
-    /// The shared memory for its captures could not be had.
-    NoMemory = 4,
 }
 
 /// Every sensor of a world, and the service that manages them.
@@ -151,30 +140,31 @@ impl Sensors {
             .map_err(|e| ServerError::transport("sensor receive", e))?
         {
             let payload = *request.payload();
-            let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) =
-                if payload.protocol_version != PROTOCOL_VERSION {
-                    (ResponseStatus::ProtocolMismatch, 0, Vec::new())
-                } else {
-                    match SensorRequestKind::from_u32(payload.kind) {
-                        Some(SensorRequestKind::Spawn) => {
-                            match self.spawn(transport, payload.spec, world, clock.elapsed_ns()) {
-                                Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
-                                Err(refusal) => {
-                                    (ResponseStatus::UnknownRequest, refusal as u32, Vec::new())
-                                }
-                            }
+            let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) = if payload
+                .protocol_version
+                != PROTOCOL_VERSION
+            {
+                (ResponseStatus::ProtocolMismatch, 0, Vec::new())
+            } else {
+                match SensorRequestKind::from_u32(payload.kind) {
+                    Some(SensorRequestKind::Spawn) => {
+                        match self.spawn(transport, payload.spec, world, clock.elapsed_ns()) {
+                            Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
+                            Err(refusal) => (ResponseStatus::Refused, refusal as u32, Vec::new()),
                         }
-                        Some(SensorRequestKind::Destroy) => {
-                            if self.destroy(payload.id, clock.frame(), episode) {
-                                (ResponseStatus::Ok, 0, Vec::new())
-                            } else {
-                                (ResponseStatus::UnknownRequest, 3, Vec::new())
-                            }
-                        }
-                        Some(SensorRequestKind::List) => (ResponseStatus::Ok, 0, self.list()),
-                        None => (ResponseStatus::UnknownRequest, 0, Vec::new()),
                     }
-                };
+                    Some(SensorRequestKind::Destroy) => {
+                        if self.destroy(payload.id, clock.frame(), episode) {
+                            (ResponseStatus::Ok, 0, Vec::new())
+                        } else {
+                            let refusal = SensorRefusal::UnknownSensor;
+                            (ResponseStatus::Refused, refusal as u32, Vec::new())
+                        }
+                    }
+                    Some(SensorRequestKind::List) => (ResponseStatus::Ok, 0, self.list()),
+                    None => (ResponseStatus::UnknownRequest, 0, Vec::new()),
+                }
+            };
             let response = request.loan_slice_uninit(infos.len()).map(|mut response| {
                 *response.user_header_mut() = SensorResponseHeader {
                     protocol_version: PROTOCOL_VERSION,
@@ -200,12 +190,12 @@ impl Sensors {
         spec: SensorSpec,
         world: &World,
         now_ns: u64,
-    ) -> Result<SensorInfo, SpawnRefusal> {
+    ) -> Result<SensorInfo, SensorRefusal> {
         let Some(kind) = spec.sensor_kind().filter(|_| spec.check().is_ok()) else {
-            return Err(SpawnRefusal::InvalidSpec);
+            return Err(SensorRefusal::InvalidSpec);
         };
         if spec.attach_to != 0 && world.body_of(spec.attach_to).is_none() {
-            return Err(SpawnRefusal::UnknownActor);
+            return Err(SensorRefusal::UnknownActor);
         }
         let id = self.next_id + 1;
         let node = &transport.node;
@@ -224,7 +214,7 @@ impl Sensors {
             Ok(port) => port,
             Err(e) => {
                 warn!(id, "refused a sensor: {e}");
-                return Err(SpawnRefusal::NoMemory);
+                return Err(SensorRefusal::NoMemory);
             }
         };
         self.next_id = id;

@@ -267,7 +267,7 @@ impl BatchHeader {
     pub fn new(tick: bool) -> Self {
         Self {
             protocol_version: PROTOCOL_VERSION,
-            pid: std::process::id(),
+            pid: crate::this_process_id(),
             flags: if tick { Self::TICK } else { 0 },
             reserved: 0,
         }

@@ -93,7 +93,7 @@ impl ControlRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            client_pid: std::process::id(),
+            client_pid: crate::this_process_id(),
             flags: 0,
             settings: WorldSettings::default().into(),
             scene: FixedText::new(""),

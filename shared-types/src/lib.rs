@@ -72,6 +72,13 @@ pub use wire::UnknownWireValue;
 /// service it cannot open) instead of misread bytes.
 pub const PROTOCOL_VERSION: u32 = 2;
 
+/// This process's id, read once: every request carries it, and asking the
+/// kernel for it on every request would be a syscall on the hot path.
+pub fn this_process_id() -> u32 {
+    static PID: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *PID.get_or_init(std::process::id)
+}
+
 /// Nanoseconds in one second: simulation time is kept as integer nanoseconds.
 pub const NANOS_PER_SECOND: u64 = 1_000_000_000;
 

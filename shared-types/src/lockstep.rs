@@ -48,7 +48,7 @@ impl LockstepRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            pid: std::process::id(),
+            pid: crate::this_process_id(),
             reserved: 0,
             frame,
             episode,

@@ -99,7 +99,7 @@ impl TickRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            pid: std::process::id(),
+            pid: crate::this_process_id(),
             reserved: 0,
             settings: WorldSettings::default().into(),
             node_name: FixedText::new(node_name),

@@ -1,9 +1,9 @@
 //! [`Client`]: a connection to one simbus world.
 
 use std::cell::OnceCell;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -19,6 +19,7 @@ use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::FrameStream;
 use crate::open::{open_with_retry, wake_notifier, OpenFailure};
 use crate::rpc::{RequestPort, Wait};
+use crate::FrameView;
 use crate::WaitMode;
 use crate::{
     ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
@@ -42,10 +43,19 @@ type TickCallback = Box<dyn FnMut(&WorldSnapshot) + Send>;
 
 /// The thread that calls `on_tick` callbacks, with its own subscription.
 struct TickDispatcher {
-    callbacks: Arc<Mutex<BTreeMap<CallbackId, TickCallback>>>,
+    /// Registrations travel to the thread, which owns the callbacks: no
+    /// lock is held while a user callback runs.
+    changes: mpsc::Sender<Registration>,
+    registered: BTreeSet<CallbackId>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
     next_id: u64,
+}
+
+/// A change to the dispatcher's callbacks.
+enum Registration {
+    Add(CallbackId, TickCallback),
+    Remove(CallbackId),
 }
 
 /// A connection to one simbus world: its settings, its status and its frames.
@@ -336,6 +346,12 @@ impl Client {
     /// mode a client that fell behind gets the newest frame, and
     /// [`WorldSnapshot::missed`] says how many it skipped.
     pub fn wait_for_tick(&mut self, timeout: Duration) -> Result<WorldSnapshot, WaitError> {
+        self.wait_for_frame(timeout).map(|view| view.to_snapshot())
+    }
+
+    /// [`Client::wait_for_tick`] without the copy: the frame is read in
+    /// place in shared memory until the view is dropped (hold at most a few).
+    pub fn wait_for_frame(&mut self, timeout: Duration) -> Result<FrameView, WaitError> {
         self.frames
             .next(timeout, self.world.as_str(), Some(self.server_pid))
     }
@@ -346,38 +362,39 @@ impl Client {
         &mut self,
         callback: impl FnMut(&WorldSnapshot) + Send + 'static,
     ) -> Result<CallbackId, ConnectError> {
-        if self.dispatcher.is_none() {
-            self.dispatcher = Some(self.start_dispatcher()?);
-        }
-        let dispatcher = self.dispatcher.as_mut().expect("dispatcher just started");
+        let dispatcher = match &mut self.dispatcher {
+            Some(dispatcher) => dispatcher,
+            slot => slot.insert(Self::start_dispatcher(&self.world)?),
+        };
         dispatcher.next_id += 1;
         let id = CallbackId(dispatcher.next_id);
         dispatcher
-            .callbacks
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-            .insert(id, Box::new(callback));
+            .changes
+            .send(Registration::Add(id, Box::new(callback)))
+            .map_err(|_| ConnectError::transport("on_tick thread", "the thread has stopped"))?;
+        dispatcher.registered.insert(id);
         Ok(id)
     }
 
     /// Removes a callback; `false` if `id` was not registered.
     pub fn remove_on_tick(&mut self, id: CallbackId) -> bool {
-        self.dispatcher.as_ref().is_some_and(|d| {
-            d.callbacks
-                .lock()
-                .unwrap_or_else(|poisoned| poisoned.into_inner())
-                .remove(&id)
-                .is_some()
-        })
+        let Some(dispatcher) = &mut self.dispatcher else {
+            return false;
+        };
+        if !dispatcher.registered.remove(&id) {
+            return false;
+        }
+        // If the thread has stopped, nothing calls the callback any more.
+        let _ = dispatcher.changes.send(Registration::Remove(id));
+        true
     }
 
-    fn start_dispatcher(&self) -> Result<TickDispatcher, ConnectError> {
-        let callbacks: Arc<Mutex<BTreeMap<CallbackId, TickCallback>>> = Arc::default();
+    fn start_dispatcher(world: &WorldName) -> Result<TickDispatcher, ConnectError> {
+        let (changes, incoming) = mpsc::channel::<Registration>();
         let stop = Arc::new(AtomicBool::new(false));
-        let world = self.world.clone();
-        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let world = world.clone();
+        let (ready_tx, ready_rx) = mpsc::channel();
         let thread = {
-            let callbacks = callbacks.clone();
             let stop = stop.clone();
             std::thread::Builder::new()
                 .name("simbus-on-tick".into())
@@ -405,11 +422,24 @@ impl Client {
                             return;
                         }
                     };
+                    let mut callbacks: BTreeMap<CallbackId, TickCallback> = BTreeMap::new();
                     while !stop.load(Ordering::Relaxed) {
                         match stream.next(Duration::from_millis(100), world.as_str(), None) {
-                            Ok(snapshot) => {
-                                let mut callbacks =
-                                    callbacks.lock().unwrap_or_else(|p| p.into_inner());
+                            Ok(view) => {
+                                let snapshot = view.to_snapshot();
+                                drop(view);
+                                // Whatever was registered before this frame
+                                // arrived sees it.
+                                for change in incoming.try_iter() {
+                                    match change {
+                                        Registration::Add(id, callback) => {
+                                            callbacks.insert(id, callback);
+                                        }
+                                        Registration::Remove(id) => {
+                                            callbacks.remove(&id);
+                                        }
+                                    }
+                                }
                                 for callback in callbacks.values_mut() {
                                     callback(&snapshot);
                                 }
@@ -428,7 +458,8 @@ impl Client {
             .recv()
             .map_err(|e| ConnectError::transport("on_tick thread start", e))??;
         Ok(TickDispatcher {
-            callbacks,
+            changes,
+            registered: BTreeSet::new(),
             stop,
             thread: Some(thread),
             next_id: 0,

@@ -13,9 +13,10 @@ use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_CLIENTS_FLAG};
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{frame_ready_listener, open_with_retry};
+use crate::snapshot::FrameView;
 use crate::wait::{self, Stop, Wait};
 use crate::WaitMode;
-use crate::{ConnectError, WaitError, WorldSnapshot};
+use crate::{ConnectError, WaitError};
 
 type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
 type FrameSample = Sample<ipc::Service, [ActorState], FrameHeader>;
@@ -145,7 +146,7 @@ impl FrameStream {
         timeout: Duration,
         world: &str,
         server_pid: Option<u32>,
-    ) -> Result<WorldSnapshot, WaitError> {
+    ) -> Result<FrameView, WaitError> {
         let pid = server_pid.unwrap_or(0);
         let ready = &self.ready;
         let wait = Wait::for_mode(self.mode, ready);
@@ -190,9 +191,8 @@ impl Poller<'_> {
     /// sees every frame once. Otherwise, in asynchronous mode, the queue is
     /// drained and only the newest frame is returned, with the number of
     /// frames skipped in [`WorldSnapshot::missed`].
-    fn next(&mut self) -> Result<Option<WorldSnapshot>, WaitError> {
+    fn next(&mut self) -> Result<Option<FrameView>, WaitError> {
         let previous = *self.last;
-        // Only the newest sample is copied out; skipped ones are just released.
         let mut newest = None;
         while let Some(sample) = match self.stash.take() {
             Some(sample) => Some(sample),
@@ -219,6 +219,7 @@ impl Poller<'_> {
                 break; // one at a time
             }
         }
+        // The newest sample is handed out in place; skipped ones were just released.
         Ok(newest.map(|sample| {
             let header = *sample.user_header();
             let missed = match previous {
@@ -227,11 +228,7 @@ impl Poller<'_> {
                 }
                 _ => 0,
             };
-            WorldSnapshot {
-                header,
-                actors: sample.payload().to_vec(),
-                missed,
-            }
+            FrameView::new(sample, missed)
         }))
     }
 }

@@ -53,7 +53,7 @@ pub use lockstep::Participant;
 pub use process::process_alive;
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
-pub use snapshot::WorldSnapshot;
+pub use snapshot::{FrameView, WorldSnapshot};
 pub use ticker::Ticker;
 
 /// The README's Rust examples, compiled as doctests so they stay true.

@@ -1,6 +1,107 @@
-//! [`WorldSnapshot`]: one frame of the world, as a client holds it.
+//! One frame of the world as a client holds it: [`FrameView`] reads it in
+//! place in shared memory (nothing copied); [`WorldSnapshot`] is an owned
+//! copy (CARLA's `WorldSnapshot`, what `wait_for_tick` returns).
 
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
 use shared_types::{ActorState, FrameHeader, Timestamp, WorldSettings};
+
+/// One frame read in place in shared memory: the header and the actors are
+/// borrowed from the sample, not copied. The sample returns to the server's
+/// pool when the view is dropped (a subscriber holds at most 4 at once).
+pub struct FrameView {
+    sample: Sample<ipc::Service, [ActorState], FrameHeader>,
+    missed: u64,
+}
+
+impl std::fmt::Debug for FrameView {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameView")
+            .field("header", self.header())
+            .field("actors", &self.actors().len())
+            .field("missed", &self.missed)
+            .finish()
+    }
+}
+
+impl FrameView {
+    pub(crate) fn new(
+        sample: Sample<ipc::Service, [ActorState], FrameHeader>,
+        missed: u64,
+    ) -> Self {
+        Self { sample, missed }
+    }
+
+    /// The frame header as the server wrote it.
+    pub fn header(&self) -> &FrameHeader {
+        self.sample.user_header()
+    }
+
+    /// Every actor, in id order, in place.
+    pub fn actors(&self) -> &[ActorState] {
+        let count = (self.header().actor_count as usize).min(self.sample.payload().len());
+        &self.sample.payload()[..count]
+    }
+
+    /// Frames this client never saw before this one (see [`WorldSnapshot::missed`]).
+    pub fn missed(&self) -> u64 {
+        self.missed
+    }
+
+    /// The frame id.
+    pub fn frame(&self) -> u64 {
+        self.header().timestamp.frame
+    }
+
+    /// When the frame happened.
+    pub fn timestamp(&self) -> &Timestamp {
+        &self.header().timestamp
+    }
+
+    /// The episode (changes when the world is loaded or reloaded).
+    pub fn episode(&self) -> u64 {
+        self.header().episode
+    }
+
+    /// The settings the frame was computed with.
+    pub fn settings(&self) -> WorldSettings {
+        self.header().settings.into()
+    }
+
+    /// The frame's digest (see [`WorldSnapshot::digest`]).
+    pub fn digest(&self) -> u64 {
+        digest(self.header(), self.actors())
+    }
+
+    /// An owned copy.
+    pub fn to_snapshot(&self) -> WorldSnapshot {
+        WorldSnapshot {
+            header: *self.header(),
+            actors: self.actors().to_vec(),
+            missed: self.missed,
+        }
+    }
+}
+
+/// The digest of a frame: its id, simulation time and every actor's state,
+/// bit for bit (xxh3), with actor ids counted from the episode's first one,
+/// so a reloaded world (whose actors get new ids) digests like a fresh server.
+fn digest(header: &FrameHeader, actors: &[ActorState]) -> u64 {
+    let t = &header.timestamp;
+    let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+    hasher.update(&t.frame.to_le_bytes());
+    hasher.update(&t.elapsed_ns.to_le_bytes());
+    hasher.update(&t.delta_ns.to_le_bytes());
+    let first = header.first_actor_id;
+    for actor in actors {
+        let relative = ActorState {
+            id: actor.id.wrapping_sub(first),
+            ..*actor
+        };
+        hasher.update(bytemuck::bytes_of(&relative));
+    }
+    hasher.digest()
+}
 
 /// The state of every actor at one frame, copied out of shared memory.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,22 +141,7 @@ impl WorldSnapshot {
     /// episode's first actor id. Two runs that print the same
     /// digests frame after frame computed identical worlds.
     pub fn digest(&self) -> u64 {
-        let t = self.timestamp();
-        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-        hasher.update(&t.frame.to_le_bytes());
-        hasher.update(&t.elapsed_ns.to_le_bytes());
-        hasher.update(&t.delta_ns.to_le_bytes());
-        // Ids count from the episode's first one: a reloaded world (whose
-        // actors get new ids) digests like a fresh server.
-        let first = self.header.first_actor_id;
-        for actor in &self.actors {
-            let relative = ActorState {
-                id: actor.id.wrapping_sub(first),
-                ..*actor
-            };
-            hasher.update(bytemuck::bytes_of(&relative));
-        }
-        hasher.digest()
+        digest(&self.header, &self.actors)
     }
 
     /// The actor with `id`, if it exists in this frame.

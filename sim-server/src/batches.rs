@@ -89,25 +89,53 @@ impl Batches {
                 respond_batch(&request, ResponseStatus::NotTicker, next_frame, &[]);
                 continue;
             }
-            let results: Vec<CommandResult> =
-                request.payload().iter().map(|c| world.apply(c)).collect();
-            let failed = results
-                .iter()
-                .filter(|r| r.status != CommandStatus::Ok as u32)
-                .count();
+            if tick {
+                // The answer waits for the frame: keep the results until then.
+                let results: Vec<CommandResult> =
+                    request.payload().iter().map(|c| world.apply(c)).collect();
+                debug!(
+                    pid = header.pid,
+                    commands = results.len(),
+                    "ticking batch applied"
+                );
+                sensors.end_orphans(world, clock.frame(), episode);
+                ticker.queue_batch(request, results);
+                continue;
+            }
+            // Each result is written straight into the loaned answer.
+            let commands = request.payload();
+            let mut failed = 0;
+            match request.loan_slice_uninit(commands.len()) {
+                Ok(mut response) => {
+                    *response.user_header_mut() = BatchResponseHeader {
+                        protocol_version: PROTOCOL_VERSION,
+                        status: ResponseStatus::Ok as u32,
+                        frame: next_frame,
+                    };
+                    let response = response.write_from_fn(|i| {
+                        let result = world.apply(&commands[i]);
+                        failed += usize::from(result.status != CommandStatus::Ok as u32);
+                        result
+                    });
+                    if let Err(e) = response.send() {
+                        // Fire-and-forget batches have nobody waiting.
+                        debug!("batch response not delivered: {e:?}");
+                    }
+                }
+                Err(e) => {
+                    debug!("batch response not loaned: {e:?}");
+                    for command in commands {
+                        world.apply(command);
+                    }
+                }
+            }
             debug!(
                 pid = header.pid,
-                commands = results.len(),
+                commands = commands.len(),
                 failed,
-                tick,
                 "batch applied"
             );
             sensors.end_orphans(world, clock.frame(), episode);
-            if tick {
-                ticker.queue_batch(request, results);
-            } else {
-                respond_batch(&request, ResponseStatus::Ok, next_frame, &results);
-            }
         }
         Ok(())
     }

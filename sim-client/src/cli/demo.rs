@@ -220,7 +220,7 @@ pub(crate) fn run(
     let (mut seen, mut missed) = (0, 0);
     while seen < args.frames {
         let snapshot = match super::watch::next_frame(&mut client, timeout) {
-            Ok(Some(snapshot)) => snapshot,
+            Ok(Some(view)) => view.to_snapshot(),
             Ok(None) => break,
             Err(e) => return Err(anyhow!(e).into()),
         };

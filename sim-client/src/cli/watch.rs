@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use shared_types::WorldName;
-use sim_client::{Client, WaitError, WaitMode, WorldSnapshot};
+use sim_client::{Client, FrameView, WaitError, WaitMode};
 
 use crate::Failure;
 
@@ -46,7 +46,7 @@ pub(crate) struct WatchArgs {
 }
 
 /// The JSON object of one frame.
-pub(crate) fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
+pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
     let t = s.timestamp();
     serde_json::json!({
         "frame": t.frame,
@@ -56,27 +56,27 @@ pub(crate) fn frame_json(s: &WorldSnapshot) -> serde_json::Value {
         "delta_seconds": t.delta_seconds(),
         "delta_ns": t.delta_ns,
         "platform_timestamp": t.platform_timestamp,
-        "actors": s.actors.len(),
-        "physics_substeps": s.header.physics_substeps,
+        "actors": s.actors().len(),
+        "physics_substeps": s.header().physics_substeps,
         "synchronous_mode": s.settings().synchronous_mode,
         "fixed_delta_seconds": s.settings().fixed_delta_seconds,
-        "missed": s.missed,
+        "missed": s.missed(),
         "digest": format!("{:016x}", s.digest()),
     })
 }
 
-fn frame_line(s: &WorldSnapshot) -> String {
+fn frame_line(s: &FrameView) -> String {
     let t = s.timestamp();
     let mut line = format!(
         "frame {:>8}  t = {:>12.6} s  dt = {:.6} s  actors = {}  substeps = {}",
         t.frame,
         t.elapsed_seconds(),
         t.delta_seconds(),
-        s.actors.len(),
-        s.header.physics_substeps,
+        s.actors().len(),
+        s.header().physics_substeps,
     );
-    if s.missed > 0 {
-        line.push_str(&format!("  (missed {})", s.missed));
+    if s.missed() > 0 {
+        line.push_str(&format!("  (missed {})", s.missed()));
     }
     line
 }
@@ -86,7 +86,7 @@ fn frame_line(s: &WorldSnapshot) -> String {
 pub(crate) fn next_frame(
     client: &mut Client,
     timeout: Duration,
-) -> Result<Option<WorldSnapshot>, WaitError> {
+) -> Result<Option<FrameView>, WaitError> {
     let deadline = Instant::now() + timeout;
     loop {
         if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
@@ -95,7 +95,7 @@ pub(crate) fn next_frame(
         let slice = deadline
             .saturating_duration_since(Instant::now())
             .min(Duration::from_millis(200));
-        match client.wait_for_tick(slice) {
+        match client.wait_for_frame(slice) {
             Err(WaitError::Timeout { .. }) if Instant::now() < deadline => continue,
             Err(WaitError::Timeout {
                 world, last_frame, ..
@@ -128,15 +128,15 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
             break;
         };
         seen += 1;
-        missed += snapshot.missed;
+        missed += snapshot.missed();
         if args.json {
             println!("{}", frame_json(&snapshot));
         } else if args.digest {
-            if snapshot.missed > 0 {
+            if snapshot.missed() > 0 {
                 println!(
                     "missed {} frames ({}..={})",
-                    snapshot.missed,
-                    snapshot.frame() - snapshot.missed,
+                    snapshot.missed(),
+                    snapshot.frame() - snapshot.missed(),
                     snapshot.frame() - 1
                 );
             }

@@ -7,10 +7,25 @@
 use std::time::Duration;
 
 use shared_types::{Command, SensorEnd, SensorSpec};
-use sim_client::{Client, WaitError};
+use sim_client::{Client, Sensor, WaitError};
 use simbus_tests::{client, server, unique_world, Proc};
 
 const T: Duration = Duration::from_secs(20);
+
+/// Reads `sensor` past the captures it had queued and asserts its stream
+/// then ends for `reason`.
+fn assert_ends(sensor: &mut Sensor, reason: SensorEnd) {
+    let ended = loop {
+        match sensor.recv(T) {
+            Ok(_) => continue,
+            Err(e) => break e,
+        }
+    };
+    match ended {
+        WaitError::SensorEnded { reason: got, .. } => assert_eq!(got, reason),
+        other => panic!("expected the end ({reason}), got: {other}"),
+    }
+}
 
 fn sensor_ids(world: &str) -> Vec<u64> {
     let out = client(world, &["sensor", "list", "--json"]);
@@ -52,22 +67,7 @@ fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
         out.stderr
     );
     // The API reader ends the same way, after the captures it had queued.
-    let ended = loop {
-        match imu.recv(T) {
-            Ok(_) => continue,
-            Err(e) => break e,
-        }
-    };
-    assert!(
-        matches!(
-            ended,
-            WaitError::SensorEnded {
-                reason: SensorEnd::ParentDestroyed,
-                ..
-            }
-        ),
-        "{ended}"
-    );
+    assert_ends(&mut imu, SensorEnd::ParentDestroyed);
     assert!(
         sensor_ids(&world).is_empty(),
         "the sensor is no longer listed"
@@ -90,22 +90,7 @@ fn a_reload_ends_every_sensor_and_new_actors_never_reuse_an_id() {
 
     let report = api.reload_world(false).unwrap();
     for sensor in [&mut on_actor, &mut in_world] {
-        let ended = loop {
-            match sensor.recv(T) {
-                Ok(_) => continue,
-                Err(e) => break e,
-            }
-        };
-        assert!(
-            matches!(
-                ended,
-                WaitError::SensorEnded {
-                    reason: SensorEnd::EpisodeEnded,
-                    ..
-                }
-            ),
-            "{ended}"
-        );
+        assert_ends(sensor, SensorEnd::EpisodeEnded);
     }
     assert!(
         sensor_ids(&world).is_empty(),

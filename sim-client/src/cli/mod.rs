@@ -31,6 +31,53 @@ pub(crate) fn interrupted() -> &'static AtomicBool {
     })
 }
 
+/// Waits up to `timeout` with `wait` called in slices of at most 200 ms,
+/// so Ctrl-C is noticed promptly; `Ok(None)` when interrupted. A slice that
+/// times out (`timed_out`) before the deadline is waited again; the last
+/// one's error is returned with the whole `timeout` in it.
+pub(crate) fn in_slices<T>(
+    timeout: std::time::Duration,
+    mut wait: impl FnMut(std::time::Duration) -> Result<T, sim_client::WaitError>,
+) -> Result<Option<T>, sim_client::WaitError> {
+    use sim_client::WaitError;
+    let deadline = std::time::Instant::now() + timeout;
+    loop {
+        if interrupted().load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(std::time::Instant::now())
+            .min(std::time::Duration::from_millis(200));
+        match wait(slice) {
+            Err(WaitError::Timeout { .. } | WaitError::NoCapture { .. })
+                if std::time::Instant::now() < deadline => {}
+            Err(WaitError::Timeout {
+                world, last_frame, ..
+            }) => {
+                return Err(WaitError::Timeout {
+                    world,
+                    timeout,
+                    last_frame,
+                })
+            }
+            Err(WaitError::NoCapture {
+                sensor,
+                world,
+                last_frame,
+                ..
+            }) => {
+                return Err(WaitError::NoCapture {
+                    sensor,
+                    world,
+                    timeout,
+                    last_frame,
+                })
+            }
+            other => return other.map(Some),
+        }
+    }
+}
+
 /// `N` comma-separated finite numbers, as a flag like `--at x,y,z` takes them.
 pub(crate) fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
     let values: Vec<f32> = text

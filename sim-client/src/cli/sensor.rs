@@ -1,6 +1,6 @@
 //! `sim-client sensor spawn | list | watch`.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
@@ -371,35 +371,9 @@ fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure
     Ok(())
 }
 
-/// The next capture within `timeout`, waiting in slices so Ctrl-C is
-/// noticed; `None` when interrupted.
+/// The next capture within `timeout`; `None` when interrupted.
 fn next_capture(sensor: &mut Sensor, timeout: Duration) -> Result<Option<Capture>, WaitError> {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(Duration::from_millis(200));
-        match sensor.recv(slice) {
-            Err(WaitError::NoCapture { .. }) if Instant::now() < deadline => continue,
-            Err(WaitError::NoCapture {
-                sensor,
-                world,
-                last_frame,
-                ..
-            }) => {
-                return Err(WaitError::NoCapture {
-                    sensor,
-                    world,
-                    timeout,
-                    last_frame,
-                })
-            }
-            other => return other.map(Some),
-        }
-    }
+    super::in_slices(timeout, |slice| sensor.recv(slice))
 }
 
 fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {

@@ -1,6 +1,6 @@
 //! `sim-client watch`: one line per frame.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::Args;
 use shared_types::WorldName;
@@ -81,34 +81,12 @@ fn frame_line(s: &FrameView) -> String {
     line
 }
 
-/// Waits for the next frame in slices, so Ctrl-C is noticed promptly.
-/// `Ok(None)` when interrupted.
+/// Waits up to `timeout` for the next frame; `Ok(None)` when interrupted.
 pub(crate) fn next_frame(
     client: &mut Client,
     timeout: Duration,
 ) -> Result<Option<FrameView>, WaitError> {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(Duration::from_millis(200));
-        match client.wait_for_frame(slice) {
-            Err(WaitError::Timeout { .. }) if Instant::now() < deadline => continue,
-            Err(WaitError::Timeout {
-                world, last_frame, ..
-            }) => {
-                return Err(WaitError::Timeout {
-                    world,
-                    timeout,
-                    last_frame,
-                })
-            }
-            other => return other.map(Some),
-        }
-    }
+    super::in_slices(timeout, |slice| client.wait_for_frame(slice))
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {

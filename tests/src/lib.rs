@@ -314,6 +314,21 @@ impl TestWorld {
     }
 }
 
+impl std::ops::Deref for TestWorld {
+    type Target = str;
+
+    /// The world's name, so a `&TestWorld` goes wherever a world name does.
+    fn deref(&self) -> &str {
+        &self.name
+    }
+}
+
+impl std::fmt::Display for TestWorld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name)
+    }
+}
+
 /// A world in synchronous mode with a fixed step of 0.02 s (and `args`),
 /// a client of it, and that client's claim on the ticker.
 pub fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, sim_client::Client, sim_client::Ticker) {

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use serde_json::Value;
-use simbus_tests::{client, server, unique_world, Proc};
+use simbus_tests::{client, server, unique_world, Proc, TestWorld};
 
 fn u64_of(v: &Value, key: &str) -> u64 {
     v[key]
@@ -115,8 +115,7 @@ fn unpaced_fixed_step_time_is_exact_thousands_of_frames_in() {
 
 #[test]
 fn variable_step_deltas_sum_to_elapsed_and_follow_wall_time() {
-    let world = unique_world("variable");
-    let _server = server(&world, &["--max-fps", "50"]);
+    let world = TestWorld::start("variable", &["--max-fps", "50"]);
     let out = client(
         &world,
         &["watch", "--frames", "60", "--json", "--every-frame"],

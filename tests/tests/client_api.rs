@@ -6,13 +6,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use sim_client::{Client, WaitError, WaitMode};
-use simbus_tests::{server, unique_world};
+use sim_client::{Client, RequestError, WaitError, WaitMode};
+use simbus_tests::{server, unique_world, TestWorld};
 
 #[test]
 fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
-    let world = unique_world("wait");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("wait", &["--fixed-delta-seconds", "0.01", "--realtime"]);
     let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
     for mode in [WaitMode::Block, WaitMode::Spin, WaitMode::Hybrid] {
         client.set_wait_mode(mode);
@@ -28,8 +27,7 @@ fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
 
 #[test]
 fn on_tick_callbacks_see_every_frame_until_removed() {
-    let world = unique_world("on-tick");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("on-tick", &["--fixed-delta-seconds", "0.01", "--realtime"]);
     let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
     let frames = Arc::new(Mutex::new(Vec::new()));
     let calls = Arc::new(AtomicU64::new(0));
@@ -81,5 +79,8 @@ fn a_server_that_dies_ends_the_wait_with_a_clear_error() {
         )),
         Err(e) => panic!("expected ServerGone, got {e}"),
     }
-    assert!(client.status().is_err());
+    match client.status() {
+        Err(RequestError::ServerGone { pid, .. }) => assert_eq!(pid, server.pid()),
+        other => panic!("expected ServerGone, got {other:?}"),
+    }
 }

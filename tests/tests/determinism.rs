@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use shared_types::Command;
 use sim_client::Client;
-use simbus_tests::{server, unique_world, Proc};
+use simbus_tests::{server, unique_world, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 const FRAMES: u64 = 2000;
@@ -150,8 +150,7 @@ fn a_changed_seed_changes_the_digests() {
 /// which frames it missed and exits 1, instead of dropping them silently.
 #[test]
 fn a_digest_watcher_that_misses_frames_says_so_and_fails() {
-    let name = unique_world("digest-gap");
-    let _server = server(&name, &["--sync", "--delta-seconds", "0.02"]);
+    let name = TestWorld::start("digest-gap", &["--sync", "--delta-seconds", "0.02"]);
     let client = Client::connect(&name, T).unwrap();
     let mut ticker = client.claim_ticker().unwrap();
     let mut watcher = Proc::spawn(

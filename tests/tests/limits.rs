@@ -13,7 +13,7 @@ use shared_types::{
     ServiceNames, WorldName,
 };
 use sim_client::{Client, ConnectError, RequestError, SensorError};
-use simbus_tests::{client, server, unique_world, Proc};
+use simbus_tests::{client, server, unique_world, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(60);
 
@@ -56,8 +56,7 @@ fn request_clients(world: &str) -> [usize; 4] {
 
 #[test]
 fn a_watcher_holds_no_command_sensor_lockstep_or_control_port() {
-    let world = unique_world("watcher-ports");
-    let _server = server(&world, &["--delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("watcher-ports", &["--delta-seconds", "0.01", "--realtime"]);
     let watcher = Proc::spawn("sim-client", &["--world", &world, "watch"]);
     assert!(watcher.line(T).is_some(), "{}", watcher.stderr());
     assert_eq!(request_clients(&world), [0, 0, 0, 0], "a watcher's ports");
@@ -79,8 +78,7 @@ fn a_watcher_holds_no_command_sensor_lockstep_or_control_port() {
 
 #[test]
 fn a_client_past_max_clients_is_told_the_flag() {
-    let world = unique_world("max-clients");
-    let _server = server(&world, &["--max-clients", "2"]);
+    let world = TestWorld::start("max-clients", &["--max-clients", "2"]);
     let _first = Client::connect(&world, T).unwrap();
     let _second = Client::connect(&world, T).unwrap();
     match Client::connect(&world, T) {
@@ -100,8 +98,7 @@ fn a_client_past_max_clients_is_told_the_flag() {
 
 #[test]
 fn a_sensor_reader_past_max_sensor_readers_is_told_the_flag() {
-    let world = unique_world("max-readers");
-    let _server = server(&world, &["--max-sensor-readers", "1"]);
+    let world = TestWorld::start("max-readers", &["--max-sensor-readers", "1"]);
     let api = Client::connect(&world, T).unwrap();
     let _only = api.spawn_sensor(SensorSpec::imu([0.0; 3])).unwrap();
     match api.sensor(_only.id()) {

@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use sim_client::Client;
-use simbus_tests::{send_signal, server, unique_world, Proc};
+use simbus_tests::{send_signal, server, unique_world, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(10);
 
@@ -28,8 +28,7 @@ fn wait_until_stopped(pid: u32) {
 
 #[test]
 fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
-    let world = unique_world("lockstep");
-    let _server = server(&world, &["--sync", "--fixed-delta-seconds", "0.02"]);
+    let world = TestWorld::start("lockstep", &["--sync", "--fixed-delta-seconds", "0.02"]);
     let client = Client::connect(&world, T).unwrap();
     let mut ticker = client.claim_ticker().unwrap();
     let mut autopilot = Proc::spawn("sim-client", &["--world", &world, "autopilot"]);
@@ -42,10 +41,11 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
     send_signal(autopilot.pid(), libc::SIGSTOP).unwrap();
     wait_until_stopped(autopilot.pid());
     let frozen = client.status().unwrap().frame;
+    let name = world.name();
     std::thread::scope(|scope| {
         // Meanwhile (ports are per thread): look, then kill the participant.
         let observer = scope.spawn(|| {
-            let observer = Client::connect(&world, T).unwrap();
+            let observer = Client::connect(name, T).unwrap();
             std::thread::sleep(Duration::from_millis(300));
             let frame = observer.status().unwrap().frame;
             autopilot.guard.kill().unwrap();

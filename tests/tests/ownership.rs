@@ -8,14 +8,13 @@ use std::time::Duration;
 
 use shared_types::WorldSettings;
 use sim_client::{Client, TickError};
-use simbus_tests::{client, server, status, unique_world};
+use simbus_tests::{client, status, TestWorld};
 
 const T: Duration = Duration::from_secs(10);
 
 #[test]
 fn only_the_ticker_changes_settings_and_leaving_sync_mode_revokes_it_by_name() {
-    let world = unique_world("revoke");
-    let _server = server(&world, &[]);
+    let world = TestWorld::start("revoke", &[]);
     let api = Client::connect(&world, T).unwrap();
     let mut ticker = api.claim_ticker().unwrap();
     let sync = WorldSettings {
@@ -67,8 +66,7 @@ fn only_the_ticker_changes_settings_and_leaving_sync_mode_revokes_it_by_name() {
 
 #[test]
 fn the_tick_command_reports_who_turned_sync_mode_off_and_exits_1() {
-    let world = unique_world("revoke-cli");
-    let _server = server(&world, &[]);
+    let world = TestWorld::start("revoke-cli", &[]);
     let ticker = simbus_tests::Proc::spawn(
         "sim-client",
         &["--world", &world, "tick", "--rate", "50", "--json"],
@@ -86,8 +84,7 @@ fn the_tick_command_reports_who_turned_sync_mode_off_and_exits_1() {
 
 #[test]
 fn a_tick_run_puts_back_what_it_changed_and_count_0_changes_nothing() {
-    let world = unique_world("restore");
-    let _server = server(&world, &[]);
+    let world = TestWorld::start("restore", &[]);
     let before = status(&world);
     assert!(before["fixed_delta_seconds"].is_null(), "variable step");
 

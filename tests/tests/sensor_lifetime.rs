@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use shared_types::{Command, SensorEnd, SensorSpec};
 use sim_client::{Client, Sensor, WaitError};
-use simbus_tests::{client, server, unique_world, Proc};
+use simbus_tests::{client, server, unique_world, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 
@@ -38,8 +38,7 @@ fn sensor_ids(world: &str) -> Vec<u64> {
 
 #[test]
 fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
-    let world = unique_world("orphan");
-    let _server = server(&world, &["--delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("orphan", &["--delta-seconds", "0.01", "--realtime"]);
     let api = Client::connect(&world, T).unwrap();
     let parent = api
         .spawn_actor(Command::spawn_box([0.0, 1.0, 0.0], [0.5; 3]))
@@ -76,8 +75,7 @@ fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
 
 #[test]
 fn a_reload_ends_every_sensor_and_new_actors_never_reuse_an_id() {
-    let world = unique_world("reload-sensors");
-    let _server = server(&world, &["--delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("reload-sensors", &["--delta-seconds", "0.01", "--realtime"]);
     let api = Client::connect(&world, T).unwrap();
     let parent = api
         .spawn_actor(Command::spawn_box([0.0, 1.0, 0.0], [0.5; 3]))
@@ -161,8 +159,7 @@ fn sensor_watch_and_save_give_up_after_the_timeout_when_nothing_comes() {
 
 #[test]
 fn sensor_save_names_the_path_it_could_not_write() {
-    let world = unique_world("save-path");
-    let _server = server(&world, &["--delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("save-path", &["--delta-seconds", "0.01", "--realtime"]);
     let spawned = client(&world, &["sensor", "spawn", "imu", "--json"]);
     spawned.assert_success();
     let id = spawned.json()[0]["id"].as_u64().unwrap().to_string();

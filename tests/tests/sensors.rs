@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use shared_types::{Command, SensorSpec};
 use sim_client::{Client, Ticker};
-use simbus_tests::{server, unique_world, Proc, TestWorld};
+use simbus_tests::{Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 
@@ -195,8 +195,10 @@ fn a_reader_killed_with_sigkill_does_not_stall_the_server() {
 
 #[test]
 fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
-    let world = unique_world("sensor-cli");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.05", "--realtime"]);
+    let world = TestWorld::start(
+        "sensor-cli",
+        &["--fixed-delta-seconds", "0.05", "--realtime"],
+    );
     let out = simbus_tests::client(
         &world,
         &[
@@ -245,7 +247,7 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
         .windows(2)
         .all(|w| w[1]["frame"].as_u64() > w[0]["frame"].as_u64()));
 
-    let dir = std::env::temp_dir().join(&world);
+    let dir = std::env::temp_dir().join(world.name());
     let saved = simbus_tests::client(
         &world,
         &[

@@ -12,12 +12,11 @@ use shared_types::{
     WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use sim_client::{ApplySettingsError, Client};
-use simbus_tests::{client, server, status, unique_world, Proc};
+use simbus_tests::{client, status, Proc, TestWorld};
 
 #[test]
 fn config_change_holds_from_the_reported_frame() {
-    let world = unique_world("config");
-    let _server = server(&world, &["--realtime", "--fixed-delta-seconds", "0.01"]);
+    let world = TestWorld::start("config", &["--realtime", "--fixed-delta-seconds", "0.01"]);
     let watcher = Proc::spawn(
         "sim-client",
         &["--world", &world, "watch", "--frames", "150", "--json"],
@@ -53,8 +52,7 @@ fn config_change_holds_from_the_reported_frame() {
 
 #[test]
 fn every_invalid_setting_is_refused_with_its_rule_and_changes_nothing() {
-    let world = unique_world("invalid");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.05", "--realtime"]);
+    let world = TestWorld::start("invalid", &["--fixed-delta-seconds", "0.05", "--realtime"]);
     let settings_of = |s: &Value| {
         [
             "synchronous_mode",
@@ -145,8 +143,10 @@ fn raw_request(world: &str, request: ControlRequest) -> ControlResponse {
 
 #[test]
 fn the_server_checks_settings_itself_and_refuses_other_protocol_versions() {
-    let world = unique_world("server-checks");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.05", "--realtime"]);
+    let world = TestWorld::start(
+        "server-checks",
+        &["--fixed-delta-seconds", "0.05", "--realtime"],
+    );
     let before = status(&world);
 
     let mut wire = WireSettings::from(WorldSettings::default());
@@ -208,8 +208,7 @@ fn the_server_checks_settings_itself_and_refuses_other_protocol_versions() {
 
 #[test]
 fn the_client_library_returns_typed_errors_and_the_effective_frame() {
-    let world = unique_world("typed");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("typed", &["--fixed-delta-seconds", "0.01", "--realtime"]);
     let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
     let current = client.get_settings().unwrap();
     assert_eq!(current.fixed_delta_seconds, Some(0.01));

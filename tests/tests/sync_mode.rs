@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 use shared_types::WorldSettings;
 use sim_client::{Client, TickError, Ticker, WaitMode};
-use simbus_tests::{assert_fails_without_server, client, server, status, unique_world, Proc};
+use simbus_tests::{
+    assert_fails_without_server, client, server, status, unique_world, Proc, TestWorld,
+};
 
 const T: Duration = Duration::from_secs(10);
 
@@ -32,8 +34,7 @@ fn frame_of(line: &str) -> u64 {
 
 #[test]
 fn nothing_moves_without_a_tick_and_each_tick_publishes_exactly_one_frame() {
-    let world = unique_world("one-frame");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01"]);
+    let world = TestWorld::start("one-frame", &["--fixed-delta-seconds", "0.01"]);
     let mut client = Client::connect(&world, T).unwrap();
     let mut ticker = sync_ticker(&client, 0.02);
     // Drain whatever async frames are queued; then the world is frozen.
@@ -91,8 +92,7 @@ fn three_subscribers_see_every_frame_once_in_order_across_1000_ticks() {
 
 #[test]
 fn a_second_ticker_is_refused_naming_the_owner_until_the_first_releases() {
-    let world = unique_world("second");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01"]);
+    let world = TestWorld::start("second", &["--fixed-delta-seconds", "0.01"]);
     let client = Client::connect(&world, T).unwrap();
     let first = client.claim_ticker_as("first-ticker").unwrap();
 
@@ -190,8 +190,7 @@ fn a_ticker_killed_with_sigkill_is_replaced_and_no_frame_is_skipped_or_repeated(
 
 #[test]
 fn a_waiting_server_answers_status_and_config_no_sync_resumes_frames() {
-    let world = unique_world("no-sync");
-    let _server = server(&world, &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let world = TestWorld::start("no-sync", &["--fixed-delta-seconds", "0.01", "--realtime"]);
     let client = Client::connect(&world, T).unwrap();
     let _ticker = sync_ticker(&client, 0.01);
     let waiting = status(&world);
@@ -292,8 +291,7 @@ fn on_ticker_loss_async_falls_back_to_asynchronous_mode() {
 
 #[test]
 fn the_tick_command_refuses_a_variable_step_unless_allowed() {
-    let world = unique_world("variable-sync");
-    let _server = server(&world, &[]);
+    let world = TestWorld::start("variable-sync", &[]);
     let out = client_cli(&world, &["tick", "--count", "1", "--delta-seconds", "0"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(

@@ -60,14 +60,31 @@ enum Registration {
 
 /// A connection to one simbus world: its settings, its status and its frames.
 ///
-/// ```no_run
+/// A server runs on a thread here, so the example runs as a test:
+///
+/// ```
 /// use std::time::Duration;
 /// use sim_client::Client;
 ///
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-/// let mut client = Client::connect("default", Duration::from_secs(2))?;
+/// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+/// # let name = format!("doc-{}-{}", "client", std::process::id());
+/// # let stop = Arc::new(AtomicBool::new(false));
+/// # let server = {
+/// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+/// #     std::thread::spawn(move || {
+/// #         let mut config = sim_server::ServerConfig::new(world);
+/// #         config.settings.fixed_delta_seconds = Some(0.01);
+/// #         config.realtime = true;
+/// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+/// #     })
+/// # };
+/// let mut client = Client::connect(&name, Duration::from_secs(5))?;
 /// let snapshot = client.wait_for_tick(Duration::from_secs(1))?;
 /// println!("frame {} at {:.3} s", snapshot.frame(), snapshot.timestamp().elapsed_seconds());
+/// assert_eq!(client.status()?.server_pid, std::process::id());
+/// # stop.store(true, Ordering::Relaxed);
+/// # server.join().expect("server thread")?;
 /// # Ok(())
 /// # }
 /// ```

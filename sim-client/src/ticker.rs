@@ -21,25 +21,41 @@ const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 /// Tick ownership of one world. Only one `Ticker` exists per world at a time
 /// (the tick service admits a single client); dropping it releases ownership.
 ///
-/// ```no_run
+/// A server runs on a thread here, so the example runs as a test:
+///
+/// ```
 /// use std::time::Duration;
 /// use sim_client::Client;
 /// use shared_types::WorldSettings;
 ///
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-/// let client = Client::connect("default", Duration::from_secs(2))?;
+/// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+/// # let name = format!("doc-{}-{}", "ticker", std::process::id());
+/// # let stop = Arc::new(AtomicBool::new(false));
+/// # let server = {
+/// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+/// #     std::thread::spawn(move || {
+/// #         let mut config = sim_server::ServerConfig::new(world);
+/// #         config.settings.fixed_delta_seconds = Some(0.01);
+/// #         config.realtime = true;
+/// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+/// #     })
+/// # };
+/// let client = Client::connect(&name, Duration::from_secs(5))?;
 /// let mut ticker = client.claim_ticker()?; // fails, naming the owner, if someone ticks
 /// let sync = WorldSettings {
 ///     synchronous_mode: true,
 ///     fixed_delta_seconds: Some(0.05),
 ///     ..client.get_settings()?
 /// };
-/// ticker.apply_settings(sync)?;
-/// for _ in 0..100 {
+/// let first = ticker.apply_settings(sync)?;
+/// for n in 0..100 {
 ///     let frame = ticker.tick(Duration::from_secs(1))?; // published when this returns
-///     println!("frame {frame}");
+///     assert_eq!(frame, first + n);
 /// }
 /// ticker.release()?;
+/// # stop.store(true, Ordering::Relaxed);
+/// # server.join().expect("server thread")?;
 /// # Ok(())
 /// # }
 /// ```

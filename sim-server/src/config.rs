@@ -41,3 +41,25 @@ pub struct ServerConfig {
     /// How many clients (and readers per sensor) the world admits.
     pub limits: WorldLimits,
 }
+
+impl ServerConfig {
+    /// The defaults `sim-server` starts `world` with: the default scene,
+    /// asynchronous mode with a variable step (at most 100 FPS), hybrid
+    /// waiting, a 10 s lockstep timeout, the default limits.
+    pub fn new(world: WorldName) -> Self {
+        Self {
+            world,
+            scene: Scene::Default,
+            settings: WorldSettings::default(),
+            realtime: false,
+            max_fps: 100.0,
+            max_frames: None,
+            on_ticker_loss: OnTickerLoss::Wait,
+            wait_mode: WaitMode::Hybrid,
+            hybrid_window: Duration::from_micros(100),
+            seed: 0,
+            lockstep_timeout: Duration::from_secs(10),
+            limits: WorldLimits::default(),
+        }
+    }
+}

@@ -41,6 +41,8 @@ mod lockstep;
 mod names;
 mod sensor;
 mod settings;
+mod settings_wire;
+pub use settings_wire::{WireSettings, WireSettingsError};
 mod tick;
 mod wait_mode;
 
@@ -59,9 +61,9 @@ pub use sensor::{
     MAX_CAPTURE_BYTES, MAX_SENSOR_TICK_SECONDS,
 };
 pub use settings::{
-    seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WireSettings,
-    WireSettingsError, WorldSettings, LONG_FRAME_NS, LONG_FRAME_SECONDS, LONG_SUBSTEP_NS,
-    LONG_SUBSTEP_SECONDS, MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
+    seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
+    LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_SUBSTEPS_LIMIT,
+    MIN_DELTA_SECONDS,
 };
 pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
 pub use wait_mode::WaitMode;

@@ -93,8 +93,10 @@ fn unpaced_fixed_step_time_is_exact_thousands_of_frames_in() {
         &world,
         &["--fixed-delta-seconds", "0.01", "--scene", "default"],
     );
-    // The server runs flat out; let it get far ahead before watching.
-    std::thread::sleep(Duration::from_millis(500));
+    // The server runs flat out; wait (on its frames) until it is far ahead.
+    let mut api = sim_client::Client::connect(&world, Duration::from_secs(20)).unwrap();
+    while api.wait_for_frame(Duration::from_secs(20)).unwrap().frame() <= 2000 {}
+    drop(api);
     let out = client(&world, &["watch", "--frames", "200", "--json"]);
     out.assert_success();
     let frames = out.json();

@@ -21,7 +21,10 @@ fn config_change_holds_from_the_reported_frame() {
         "sim-client",
         &["--world", &world, "watch", "--frames", "150", "--json"],
     );
-    std::thread::sleep(Duration::from_millis(300));
+    // The watcher is watching once it printed a frame.
+    let first = watcher
+        .line(Duration::from_secs(30))
+        .unwrap_or_else(|| panic!("the watcher started: {}", watcher.stderr()));
     let out = client(&world, &["config", "--delta-seconds", "0.05", "--json"]);
     out.assert_success();
     let applied = &out.json()[0];
@@ -30,7 +33,8 @@ fn config_change_holds_from_the_reported_frame() {
         .expect("effective_frame");
     assert_eq!(applied["fixed_delta_seconds"].as_f64(), Some(0.05));
 
-    let frames = watcher.finish(Duration::from_secs(60)).json();
+    let mut frames = vec![serde_json::from_str::<Value>(&first).expect("a JSON frame")];
+    frames.extend(watcher.finish(Duration::from_secs(60)).json());
     let (before, after): (Vec<&Value>, Vec<&Value>) = frames
         .iter()
         .partition(|f| f["frame"].as_u64().unwrap() < from);

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use serde_json::Value;
-use simbus_tests::{client, server, unique_world, Proc, TestWorld};
+use simbus_tests::{client, Proc, TestWorld};
 
 fn u64_of(v: &Value, key: &str) -> u64 {
     v[key]
@@ -16,9 +16,8 @@ fn u64_of(v: &Value, key: &str) -> u64 {
 
 #[test]
 fn three_watchers_of_a_realtime_server_see_the_same_consecutive_frames() {
-    let world = unique_world("watchers");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "watchers",
         &[
             "--realtime",
             "--fixed-delta-seconds",
@@ -88,9 +87,8 @@ fn three_watchers_of_a_realtime_server_see_the_same_consecutive_frames() {
 
 #[test]
 fn unpaced_fixed_step_time_is_exact_thousands_of_frames_in() {
-    let world = unique_world("exact");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "exact",
         &["--fixed-delta-seconds", "0.01", "--scene", "default"],
     );
     // The server runs flat out; wait (on its frames) until it is far ahead.

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use shared_types::{ActorKind, Command, CommandStatus, WorldSettings};
 use sim_client::{BatchError, Client};
-use simbus_tests::{client, server, status, unique_world, TestWorld};
+use simbus_tests::{client, status, TestWorld};
 
 const T: Duration = Duration::from_secs(10);
 
@@ -115,9 +115,8 @@ fn fire_and_forget_batches_are_never_lost() {
 
 #[test]
 fn reload_restores_the_scene_as_a_new_episode_and_keeps_or_resets_settings() {
-    let world = unique_world("reload");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "reload",
         &["--fixed-delta-seconds", "0.01", "--realtime", "--seed", "5"],
     );
     client(&world, &["config", "--delta-seconds", "0.05"]).assert_success();

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use shared_types::Command;
 use sim_client::Client;
-use simbus_tests::{server, unique_world};
+use simbus_tests::TestWorld;
 
 const T: Duration = Duration::from_secs(20);
 
@@ -23,9 +23,8 @@ const GOLDEN: [(u64, u64); 3] = [
 
 #[test]
 fn a_fixed_scenario_gives_the_committed_digests() {
-    let world = unique_world("golden");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "golden",
         &["--sync", "--seed", "7", "--delta-seconds", "0.02"],
     );
     let mut client = Client::connect(&world, T).unwrap();

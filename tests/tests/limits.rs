@@ -13,7 +13,7 @@ use shared_types::{
     ServiceNames, WorldName,
 };
 use sim_client::{Client, ConnectError, RequestError, SensorError};
-use simbus_tests::{client, server, unique_world, Proc, TestWorld};
+use simbus_tests::{client, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(60);
 
@@ -119,9 +119,8 @@ fn sixty_four_watchers_a_ticker_and_sixteen_sensor_readers_share_one_world() {
     const WATCHERS: usize = 64;
     const READERS: usize = 16;
     const FRAMES: u64 = 20;
-    let world = unique_world("crowd");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "crowd",
         &["--sync", "--delta-seconds", "0.02", "--max-clients", "100"],
     );
     let api = Client::connect(&world, T).unwrap();

@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use sim_client::Client;
-use simbus_tests::{send_signal, server, unique_world, Proc, TestWorld};
+use simbus_tests::{send_signal, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(10);
 
@@ -71,9 +71,8 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
 /// dropped and exits with an error instead of carrying on out of step.
 #[test]
 fn a_tick_held_up_by_a_hung_reader_outwaits_its_own_timeout_and_the_reader_learns_it_was_dropped() {
-    let world = unique_world("held-up");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "held-up",
         &[
             "--sync",
             "--delta-seconds",
@@ -125,9 +124,8 @@ fn a_tick_held_up_by_a_hung_reader_outwaits_its_own_timeout_and_the_reader_learn
 
 #[test]
 fn a_hung_participant_is_dropped_after_the_lockstep_timeout() {
-    let world = unique_world("hung");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "hung",
         &[
             "--sync",
             "--fixed-delta-seconds",

@@ -62,9 +62,8 @@ fn nothing_moves_without_a_tick_and_each_tick_publishes_exactly_one_frame() {
 
 #[test]
 fn three_subscribers_see_every_frame_once_in_order_across_1000_ticks() {
-    let world = unique_world("subscribers");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "subscribers",
         &["--fixed-delta-seconds", "0.01", "--scene", "boxes:10"],
     );
     let client = Client::connect(&world, T).unwrap();
@@ -138,9 +137,8 @@ fn client_cli(world: &str, args: &[&str]) -> simbus_tests::Finished {
 
 #[test]
 fn a_ticker_killed_with_sigkill_is_replaced_and_no_frame_is_skipped_or_repeated() {
-    let world = unique_world("failover");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "failover",
         &["--fixed-delta-seconds", "0.01", "--scene", "empty"],
     );
     let mut old = Proc::spawn(
@@ -265,9 +263,8 @@ fn a_server_killed_mid_tick_makes_the_ticker_fail_cleanly() {
 
 #[test]
 fn on_ticker_loss_async_falls_back_to_asynchronous_mode() {
-    let world = unique_world("loss-async");
-    let _server = server(
-        &world,
+    let world = TestWorld::start(
+        "loss-async",
         &[
             "--fixed-delta-seconds",
             "0.01",

@@ -73,6 +73,11 @@ pub struct Command {
 }
 
 impl Command {
+    /// The flag bit that switches on what a command switches: physics
+    /// (`SetPhysics`), gravity (`SetGravity`), the hand brake
+    /// (`VehicleControl`).
+    pub const ON: u32 = 1;
+
     fn new(kind: CommandKind, actor: u64) -> Self {
         Self {
             kind: kind as u32,
@@ -166,7 +171,7 @@ impl Command {
     /// Enable or disable `actor`'s physics.
     pub fn set_physics(actor: u64, enabled: bool) -> Self {
         Self {
-            flags: u32::from(enabled),
+            flags: if enabled { Self::ON } else { 0 },
             ..Self::new(CommandKind::SetPhysics, actor)
         }
     }
@@ -174,7 +179,7 @@ impl Command {
     /// Enable or disable gravity on `actor`.
     pub fn set_gravity(actor: u64, enabled: bool) -> Self {
         Self {
-            flags: u32::from(enabled),
+            flags: if enabled { Self::ON } else { 0 },
             ..Self::new(CommandKind::SetGravity, actor)
         }
     }
@@ -188,7 +193,7 @@ impl Command {
         hand_brake: bool,
     ) -> Self {
         Self {
-            flags: u32::from(hand_brake),
+            flags: if hand_brake { Self::ON } else { 0 },
             params: [throttle, steer, brake, 0.0],
             ..Self::new(CommandKind::VehicleControl, actor)
         }

@@ -62,8 +62,8 @@ pub use sensor::{
 };
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
-    LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_SUBSTEPS_LIMIT,
-    MIN_DELTA_SECONDS,
+    LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_DELTA_SECONDS,
+    MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS,
 };
 pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
 pub use wait_mode::WaitMode;

@@ -8,6 +8,11 @@ use crate::NANOS_PER_SECOND;
 /// The largest `max_substeps` accepted (CARLA's limit).
 pub const MAX_SUBSTEPS_LIMIT: u32 = 16;
 
+/// The longest fixed frame or substep accepted: one hour of simulation
+/// time (the integer-nanosecond clock and every product of these stay far
+/// from overflow).
+pub const MAX_DELTA_SECONDS: f64 = 3600.0;
+
 /// The shortest fixed frame or substep accepted: one microsecond. Below it
 /// the integer-nanosecond clock would lose the value's meaning.
 pub const MIN_DELTA_SECONDS: f64 = 1e-6;
@@ -163,6 +168,16 @@ pub enum SettingsError {
         /// The minimum.
         min: f64,
     },
+    /// A time is longer than [`MAX_DELTA_SECONDS`].
+    #[error("{field} = {value} s is longer than the maximum of {max} s")]
+    TooLarge {
+        /// The setting.
+        field: SettingsField,
+        /// The value given.
+        value: f64,
+        /// The maximum.
+        max: f64,
+    },
     /// `max_substeps` is outside `1..=16`.
     #[error("max_substeps = {value} is outside the allowed range 1..={max}")]
     MaxSubstepsOutOfRange {
@@ -232,6 +247,13 @@ fn check_time(field: SettingsField, value: f64) -> Result<(), SettingsError> {
             min: MIN_DELTA_SECONDS,
         });
     }
+    if value > MAX_DELTA_SECONDS {
+        return Err(SettingsError::TooLarge {
+            field,
+            value,
+            max: MAX_DELTA_SECONDS,
+        });
+    }
     Ok(())
 }
 
@@ -289,7 +311,9 @@ impl WorldSettings {
             });
         }
         if let (true, Some(fixed)) = (settings.substepping, settings.fixed_delta_seconds) {
-            let limit = settings.max_substep_nanos() * u64::from(settings.max_substeps);
+            let limit = settings
+                .max_substep_nanos()
+                .saturating_mul(u64::from(settings.max_substeps));
             if seconds_to_nanos(fixed) > limit {
                 return Err(SettingsError::SubstepRule {
                     fixed,

@@ -95,6 +95,7 @@ mod code {
     pub(super) const TOO_SMALL: u32 = 3;
     pub(super) const MAX_SUBSTEPS: u32 = 4;
     pub(super) const SUBSTEP_RULE: u32 = 5;
+    pub(super) const TOO_LARGE: u32 = 6;
 }
 
 impl SettingsError {
@@ -106,6 +107,9 @@ impl SettingsError {
             Self::Negative { field, value } => (code::NEGATIVE, field as u32, [value, 0.0, 0.0]),
             Self::TooSmall { field, value, min } => {
                 (code::TOO_SMALL, field as u32, [value, min, 0.0])
+            }
+            Self::TooLarge { field, value, max } => {
+                (code::TOO_LARGE, field as u32, [value, max, 0.0])
             }
             Self::MaxSubstepsOutOfRange { value, max } => (
                 code::MAX_SUBSTEPS,
@@ -142,6 +146,11 @@ impl SettingsError {
                 field: field?,
                 value: a,
                 min: b,
+            },
+            code::TOO_LARGE => Self::TooLarge {
+                field: field?,
+                value: a,
+                max: b,
             },
             code::MAX_SUBSTEPS => Self::MaxSubstepsOutOfRange {
                 value: a as u32,

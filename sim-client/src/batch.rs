@@ -50,9 +50,14 @@ impl BatchResponse {
 /// Why a batch as a whole failed (single commands fail in their results).
 #[derive(Debug, thiserror::Error)]
 pub enum BatchError {
-    /// `tick = true` from a process that is not the ticker.
+    /// `tick = true` from a process that is not the ticker; nothing applied.
     #[error("only the ticker's process may apply a batch with tick = true")]
     NotTicker,
+    /// A ticking batch was applied, but its frame was never stepped: the
+    /// ticker released, died or was revoked meanwhile (the results say what
+    /// each command did).
+    #[error("the batch was applied at frame {}, but its tick was dropped: this process is no longer the ticker", .0.frame)]
+    NotStepped(BatchResponse),
     /// The request failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -173,13 +178,25 @@ impl Client {
             wait,
         )?;
         check_protocol(header.protocol_version, header.status)?;
-        if header.status == ResponseStatus::NotTicker as u32 {
-            return Err(BatchError::NotTicker);
-        }
-        Ok(BatchResponse {
+        let response = BatchResponse {
             frame: header.frame,
             results,
-        })
+        };
+        match ResponseStatus::from_u32(header.status) {
+            Some(ResponseStatus::Ok) => Ok(response),
+            Some(ResponseStatus::NotTicker) if response.results.is_empty() => {
+                Err(BatchError::NotTicker)
+            }
+            // Applied, but the frame it asked for was never stepped: the
+            // ticker released, died or was revoked meanwhile.
+            Some(ResponseStatus::NotTicker | ResponseStatus::Revoked) => {
+                Err(BatchError::NotStepped(response))
+            }
+            _ => Err(RequestError::UnknownAnswer {
+                status: header.status,
+            }
+            .into()),
+        }
     }
 
     fn single(&self, command: Command) -> Result<u64, CommandError> {

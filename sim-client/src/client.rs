@@ -332,7 +332,8 @@ impl Client {
         )
     }
 
-    /// Restores the current scene's initial state (actors, ids, physics) as
+    /// Restores the current scene's initial state (actors and physics; the
+    /// actors get new ids, never reused within the server's life) as
     /// a new episode that starts at frame 0; settings are kept unless
     /// `reset_settings`.
     pub fn reload_world(&self, reset_settings: bool) -> Result<StatusReport, LoadWorldError> {
@@ -348,6 +349,9 @@ impl Client {
             }),
             Some(ResponseStatus::LoadFailed) => Err(LoadWorldError::Failed {
                 world: self.world.to_string(),
+            }),
+            Some(ResponseStatus::NotTicker) => Err(LoadWorldError::TickerHolds {
+                owner: response.report.ticker,
             }),
             _ => Err(RequestError::UnknownAnswer {
                 status: response.status,
@@ -514,9 +518,15 @@ impl Client {
             node_name,
             self.request_timeout,
             || {
-                // The owner may be registering right now: ask a few times.
+                // The owner may be registering right now: ask a few times,
+                // within one request timeout in all.
+                let deadline = Instant::now() + self.request_timeout;
                 (0..20).find_map(|_| {
-                    let owner = self.status().ok().and_then(|r| r.ticker.active());
+                    let remaining = deadline.saturating_duration_since(Instant::now());
+                    let owner = self
+                        .request_within(ControlRequest::new(RequestKind::Status), remaining)
+                        .ok()
+                        .and_then(|r| r.report.ticker.active());
                     if owner.is_none() {
                         std::thread::sleep(Duration::from_millis(10));
                     }

@@ -136,6 +136,13 @@ pub enum ApplySettingsError {
     /// Only the ticker may apply settings through its tick service.
     #[error("this client is no longer the ticker")]
     NotTicker,
+    /// Another client left synchronous mode, which ended this ticker's
+    /// ownership.
+    #[error("synchronous mode was turned off by {} (pid {}) at frame {}; this client is no longer the ticker", by.node_name.to_string_lossy(), by.pid, by.since_frame)]
+    Revoked {
+        /// Who left synchronous mode, and at which frame.
+        by: TickerInfo,
+    },
     /// A ticker holds the world: only it changes settings.
     #[error("world has a ticker: {owner}; while it ticks only it changes settings (anyone may leave synchronous mode with `sim-client config --no-sync`, which ends its ownership)")]
     TickerHolds {
@@ -280,6 +287,13 @@ pub enum LoadWorldError {
     UnknownScene {
         /// The scene asked for.
         scene: String,
+    },
+    /// `--reset-settings` while a ticker holds the world: only it changes
+    /// settings; nothing changed.
+    #[error("world has a ticker: {owner}; while it ticks only it changes settings, so the world cannot be loaded with its settings reset")]
+    TickerHolds {
+        /// The ticker.
+        owner: TickerInfo,
     },
     /// The server could not load the world (its log says why); the world
     /// is unchanged.

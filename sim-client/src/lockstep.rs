@@ -86,10 +86,19 @@ impl Participant {
             },
         )
         .map_err(|e| RequestError::transport("lockstep service", e))?
-        .ok_or_else(missing)?
-        .client_builder()
-        .create()
-        .map_err(|e| RequestError::transport("lockstep client", e))?;
+        .ok_or_else(missing)?;
+        let max = port.static_config().max_clients();
+        let port = port.client_builder().create().map_err(|e| {
+            use iceoryx2::service::port_factory::client::ClientCreateError;
+            match e {
+                ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
+                    what: "lockstep participants",
+                    max,
+                    flag: shared_types::limits::MAX_CLIENTS_FLAG,
+                },
+                e => RequestError::transport("lockstep client", e),
+            }
+        })?;
         let wake = wake_notifier(&node, &names, deadline)
             .map_err(OpenFailure::into_request)?
             .ok_or_else(missing)?;

@@ -247,9 +247,10 @@ impl Ticker {
                 Some(error) => Err(error.into()),
                 None => Err(unexpected(response.status).into()),
             },
-            Some(ResponseStatus::NotTicker | ResponseStatus::Revoked) => {
-                Err(ApplySettingsError::NotTicker)
-            }
+            Some(ResponseStatus::NotTicker) => Err(ApplySettingsError::NotTicker),
+            Some(ResponseStatus::Revoked) => Err(ApplySettingsError::Revoked {
+                by: response.revoked_by,
+            }),
             _ => Err(unexpected(response.status).into()),
         }
     }

@@ -98,7 +98,8 @@ impl Clock {
     /// Moves to the next frame, `delta_ns` later, computed at `now`.
     pub fn advance(&mut self, delta_ns: u64, now: Instant) {
         self.frame += 1;
-        self.elapsed_ns += delta_ns;
+        // Saturates after 584 years of simulation time instead of wrapping.
+        self.elapsed_ns = self.elapsed_ns.saturating_add(delta_ns);
         self.delta_ns = delta_ns;
         self.last_frame_at = now;
     }
@@ -144,7 +145,8 @@ impl Pacer {
         match settings.fixed_delta_nanos() {
             Some(dt) if self.realtime => {
                 let (wall, sim) = *self.anchor.get_or_insert((now, clock.elapsed_ns()));
-                let due = wall + Duration::from_nanos(clock.elapsed_ns() + dt - sim);
+                let ahead = clock.elapsed_ns().saturating_add(dt).saturating_sub(sim);
+                let due = wall + Duration::from_nanos(ahead);
                 if now.saturating_duration_since(due) > MAX_REALTIME_LAG {
                     warn!("realtime pacing fell behind by more than {MAX_REALTIME_LAG:?}; resynchronising");
                     self.anchor = None;

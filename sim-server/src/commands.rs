@@ -68,6 +68,9 @@ impl World {
                 let Some(rotation) = rotation_of(command.rotation) else {
                     return result(id, CommandStatus::InvalidArgument);
                 };
+                if command.vector.iter().any(|p| p.abs() > MAX_ACTOR_POSITION) {
+                    return result(id, CommandStatus::InvalidArgument);
+                }
                 body.set_position(Pose::from_parts(v, rotation), true);
             }
             CommandKind::SetTargetVelocity => {
@@ -84,10 +87,15 @@ impl World {
                 body.add_torque(v, true);
                 self.pushed.push(handle);
             }
-            CommandKind::SetPhysics => body.set_enabled(command.flags & 1 != 0),
-            CommandKind::SetGravity => {
-                body.set_gravity_scale(if command.flags & 1 != 0 { 1.0 } else { 0.0 }, true)
-            }
+            CommandKind::SetPhysics => body.set_enabled(command.flags & Command::ON != 0),
+            CommandKind::SetGravity => body.set_gravity_scale(
+                if command.flags & Command::ON != 0 {
+                    1.0
+                } else {
+                    0.0
+                },
+                true,
+            ),
             CommandKind::VehicleControl => {
                 let [throttle, steer, brake, _] = command.params;
                 if !((0.0..=1.0).contains(&throttle)
@@ -99,7 +107,7 @@ impl World {
                 let Some(vehicle) = self.vehicles.get_mut(id) else {
                     return result(id, CommandStatus::NotAVehicle);
                 };
-                vehicle.set_control(throttle, steer, brake, command.flags & 1 != 0);
+                vehicle.set_control(throttle, steer, brake, command.flags & Command::ON != 0);
                 body.wake_up(true);
             }
             CommandKind::SpawnBox

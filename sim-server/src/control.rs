@@ -141,6 +141,16 @@ fn answer(world: &mut Domains, request: &ControlRequest) -> ControlResponse {
                 _ => world.runtime.scene,
             };
             let reset = request.flags & ControlRequest::RESET_SETTINGS != 0;
+            let ticker = world.ticker.owner_pid();
+            if reset && ticker.is_some() && ticker != Some(request.client_pid) {
+                // Resetting settings is a settings change: the ticker's
+                // (its own process may).
+                info!(
+                    client_pid = request.client_pid,
+                    "refused to reset settings: the ticker holds the world"
+                );
+                return ControlResponse::refused(ResponseStatus::NotTicker, world.report());
+            }
             match world.load_world(scene, reset, request.client_pid, Instant::now()) {
                 Ok(()) => ControlResponse::ok(world.report()),
                 Err(e) => {

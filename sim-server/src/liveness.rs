@@ -23,9 +23,9 @@ pub fn living_pids() -> Option<Vec<u32>> {
 /// A liveness check over one node list: `alive(pid)` is true unless the
 /// list was read and holds no live node of `pid`.
 #[derive(Debug)]
-pub struct Sweep(Option<Vec<u32>>);
+pub struct LiveProcesses(Option<Vec<u32>>);
 
-impl Sweep {
+impl LiveProcesses {
     /// Reads the node list once.
     pub fn now() -> Self {
         Self(living_pids())

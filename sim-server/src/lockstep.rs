@@ -14,7 +14,7 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
-use crate::liveness::Sweep;
+use crate::liveness::LiveProcesses;
 use crate::ports::{service_name, Transport};
 use crate::ticker::Ticker;
 use crate::ServerError;
@@ -180,7 +180,7 @@ impl Lockstep {
     }
 
     /// Drops the participants whose process died (by `sweep`).
-    pub fn drop_dead(&mut self, sweep: &Sweep, frame: u64) {
+    pub fn drop_dead(&mut self, sweep: &LiveProcesses, frame: u64) {
         for dead in self.participants.drop_dead(|pid| sweep.alive(pid)) {
             warn!(
                 pid = dead.pid,

@@ -35,6 +35,11 @@ fn only_the_ticker_changes_settings_and_leaving_sync_mode_revokes_it_by_name() {
         out.stderr
     );
     assert_eq!(status(&world)["fixed_delta_seconds"], 0.05, "unchanged");
+    // ...nor reset them by reloading.
+    let out = client(&world, &["reload", "--reset-settings"]);
+    assert_eq!(out.status.code(), Some(2), "{}", out.stderr);
+    assert!(out.stderr.contains("world has a ticker"), "{}", out.stderr);
+    assert_eq!(status(&world)["synchronous_mode"], true, "unchanged");
     let last = ticker.tick(T).unwrap();
     assert_eq!(last, first + 1, "the ticker still ticks");
 

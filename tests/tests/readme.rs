@@ -4,6 +4,7 @@
 //! frame, none missed. (It failed before: an unpaced ticker outran the
 //! watcher, which silently dropped frames.)
 
+use std::io::Read;
 use std::os::unix::process::CommandExt;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -70,29 +71,30 @@ fn the_determinism_recipe_passes_as_pasted() {
             }
         });
     }
-    let child = command.spawn().expect("bash");
+    let mut child = command.spawn().expect("bash");
+    // Read both pipes while the script runs, so a full pipe never stalls it.
+    let read = |pipe: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            if let Some(mut pipe) = pipe {
+                let _ = pipe.read_to_string(&mut text);
+            }
+            text
+        })
+    };
+    let out = read(child.stdout.take().map(|p| Box::new(p) as _));
+    let err = read(child.stderr.take().map(|p| Box::new(p) as _));
     let mut group = Group(ChildGuard::new(child, Duration::from_secs(1)));
     let status = group
         .0
         .wait_timeout(Duration::from_secs(600))
         .unwrap()
         .expect("the recipe finished within 10 minutes");
-    let mut stdout = String::new();
-    let mut stderr = String::new();
-    use std::io::Read;
-    let child = group.0.child_mut();
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut stdout)
-        .unwrap();
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut stderr)
-        .unwrap();
+    // The whole group is gone once the script ended (the recipe waits for
+    // its own background jobs), so the pipes close.
+    drop(group);
+    let stdout = out.join().expect("stdout reader");
+    let stderr = err.join().expect("stderr reader");
     assert!(status.success(), "{status}\n{stdout}\n{stderr}");
     assert_eq!(
         stdout.trim_end().lines().last(),

@@ -155,7 +155,9 @@ fn loaded(
             );
             Ok(())
         }
-        Err(e @ LoadWorldError::UnknownScene { .. }) => Err(Failure::Refused(e.into())),
+        Err(e @ (LoadWorldError::UnknownScene { .. } | LoadWorldError::TickerHolds { .. })) => {
+            Err(Failure::Refused(e.into()))
+        }
         Err(e) => Err(Failure::Runtime(e.into())),
     }
 }

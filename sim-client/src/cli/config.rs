@@ -95,13 +95,6 @@ impl ConfigArgs {
     }
 }
 
-fn refused_or_runtime(e: ApplySettingsError) -> Failure {
-    match e {
-        ApplySettingsError::Request(e) => Failure::Runtime(e.into()),
-        e => Failure::Refused(e.into()),
-    }
-}
-
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Result<(), Failure> {
     if args.sync {
         return Err(Failure::Refused(anyhow!(
@@ -115,11 +108,11 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
     let mut effective_frame = None;
     let mut settings = current;
     if args.changes_anything() {
-        settings = args.apply_to(current).map_err(refused_or_runtime)?;
+        settings = args.apply_to(current).map_err(super::refused_or_runtime)?;
         effective_frame = Some(
             client
                 .apply_settings(settings)
-                .map_err(refused_or_runtime)?,
+                .map_err(super::refused_or_runtime)?,
         );
     }
     if args.json {

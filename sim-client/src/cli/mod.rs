@@ -78,6 +78,15 @@ pub(crate) fn in_slices<T>(
     }
 }
 
+/// A settings refusal is refused input (exit 2); a failed request is a
+/// runtime failure (exit 1).
+pub(crate) fn refused_or_runtime(e: sim_client::ApplySettingsError) -> Failure {
+    match e {
+        sim_client::ApplySettingsError::Request(e) => Failure::Runtime(e.into()),
+        e => Failure::Refused(e.into()),
+    }
+}
+
 /// `N` comma-separated finite numbers, as a flag like `--at x,y,z` takes them.
 pub(crate) fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N], Failure> {
     let values: Vec<f32> = text

@@ -82,13 +82,6 @@ impl TickArgs {
     }
 }
 
-fn refused_or_runtime(e: ApplySettingsError) -> Failure {
-    match e {
-        ApplySettingsError::Request(e) => Failure::Runtime(e.into()),
-        e => Failure::Refused(e.into()),
-    }
-}
-
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
     let interrupted = super::interrupted();
     let mut client = Client::connect(world.as_str(), timeout)?;
@@ -110,7 +103,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     wait_for_participants(&client, args.participants, timeout)?;
     let mut ticker = client.claim_ticker_as(NODE_NAME)?;
     ticker.set_wait_mode(args.wait_mode);
-    let from = ticker.apply_settings(sync).map_err(refused_or_runtime)?;
+    let from = ticker
+        .apply_settings(sync)
+        .map_err(super::refused_or_runtime)?;
     match delta {
         Some(dt) => eprintln!(
             "tick: ticker of world '{world}'; synchronous mode, fixed step {dt} s, from frame {from}"

@@ -424,9 +424,7 @@ unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .map_err(|e| ServerError::transport("sensor loan", e))?;
     let mut header = header;
     fill(sample.payload_mut(), &mut header);
-    header.platform_timestamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
+    header.platform_timestamp = crate::server::platform_timestamp();
     *sample.user_header_mut() = header;
     // SAFETY: the caller guarantees `fill` wrote every element.
     let sample = unsafe { sample.assume_init() };

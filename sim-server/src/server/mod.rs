@@ -21,7 +21,7 @@ use crate::batches::Batches;
 use crate::clock::{Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
-use crate::liveness::Sweep;
+use crate::liveness::LiveProcesses;
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
 use crate::sensors::Sensors;
@@ -94,7 +94,8 @@ struct Timers {
     connections: Instant,
 }
 
-fn platform_timestamp() -> f64 {
+/// Wall-clock seconds since the Unix epoch, as frames and captures carry it.
+pub(crate) fn platform_timestamp() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
@@ -177,13 +178,20 @@ impl Server {
             d.ticker.handle(&mut d.runtime, &d.clock)?;
             d.housekeeping();
             let now = Instant::now();
+            if !d.ticker.has_pending() {
+                // No tick waits: nothing is held up (any more).
+                d.lockstep.stepped();
+            }
             if d.runtime.settings.synchronous_mode {
                 // Synchronous: one frame per tick, nothing without one, and
                 // not before every lockstep participant is done.
                 let ticked = d.ticker.has_pending();
                 if ticked && d.lockstep.all_done(d.clock.frame()) {
-                    d.lockstep.stepped();
-                    d.step_frame(now, 1)?;
+                    d.ticker.drop_abandoned();
+                    if d.ticker.has_pending() {
+                        d.lockstep.stepped();
+                        d.step_frame(now, 1)?;
+                    }
                     continue;
                 }
                 if ticked {
@@ -210,6 +218,9 @@ impl Server {
                 Some(at) if at > now => self.control.idle((at - now).min(MAX_IDLE_WAIT))?,
                 // Asynchronous: a tick just waits for the next frame.
                 _ => {
+                    if d.ticker.has_pending() {
+                        d.ticker.drop_abandoned();
+                    }
                     let ticks = d.ticker.pending_count();
                     d.step_frame(now, ticks)?;
                 }
@@ -357,7 +368,7 @@ impl Domains {
             && self.timers.liveness.elapsed() >= LIVENESS_PERIOD
         {
             self.timers.liveness = Instant::now();
-            let sweep = Sweep::now();
+            let sweep = LiveProcesses::now();
             self.ticker.drop_if_dead(
                 &sweep,
                 &mut self.runtime,

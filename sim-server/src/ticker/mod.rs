@@ -21,7 +21,7 @@ pub use ownership::{Owner, TickOwnership};
 
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
-use crate::liveness::Sweep;
+use crate::liveness::LiveProcesses;
 use crate::ports::{service_name, Transport};
 use crate::state::{Refusal, Runtime};
 use crate::ServerError;
@@ -95,6 +95,21 @@ impl Ticker {
         !self.pending.is_empty()
     }
 
+    /// Forgets the steps whose sender stopped waiting (a tick that timed
+    /// out on the client): no frame is stepped for nobody. Call before a
+    /// step, not on every turn of the loop (it takes a lock per step).
+    pub fn drop_abandoned(&mut self) {
+        let before = self.pending.len();
+        self.pending.retain(|step| match step {
+            PendingStep::Tick(tick) => tick.is_connected(),
+            PendingStep::Batch(batch, _) => batch.is_connected(),
+        });
+        let dropped = before - self.pending.len();
+        if dropped > 0 {
+            debug!(dropped, "dropped ticks nobody waits for any more");
+        }
+    }
+
     /// How many steps wait for a frame.
     pub fn pending_count(&self) -> usize {
         self.pending.len()
@@ -143,7 +158,7 @@ impl Ticker {
                             node_name: payload.node_name.to_string_lossy(),
                             since_frame: clock.frame(),
                         };
-                        let sweep = Sweep::now();
+                        let sweep = LiveProcesses::now();
                         match self.ownership.claim(candidate, |pid| sweep.alive(pid)) {
                             Ok(owner) => {
                                 info!(
@@ -291,7 +306,7 @@ impl Ticker {
     /// returns whether it did.
     pub fn drop_if_dead(
         &mut self,
-        sweep: &Sweep,
+        sweep: &LiveProcesses,
         runtime: &mut Runtime,
         policy: OnTickerLoss,
         transport: &Transport,

@@ -2,7 +2,7 @@
 //! shared memory.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -14,7 +14,7 @@ use shared_types::limits::{MAX_CLIENTS_FLAG, MAX_SENSOR_READERS_FLAG, SENSOR_SUB
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
-    SensorSpecError, ServiceNames, PROTOCOL_VERSION,
+    SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
@@ -179,13 +179,20 @@ impl Reader {
 }
 
 impl Sensor {
-    fn open(client: &Client, info: SensorInfo) -> Result<Self, RequestError> {
-        let names = ServiceNames::new(&client.world);
+    /// Subscribes to sensor `info` of `world` (whose server is `server_pid`),
+    /// waiting up to `timeout` for its service.
+    fn open(
+        world: &WorldName,
+        server_pid: u32,
+        timeout: Duration,
+        info: SensorInfo,
+    ) -> Result<Self, RequestError> {
+        let names = ServiceNames::new(world);
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
             .map_err(|e| RequestError::transport("node", e))?;
-        let deadline = Instant::now() + client.request_timeout;
+        let deadline = Instant::now() + timeout;
         let name = ServiceName::new(&names.sensor(info.id))
             .map_err(|e| RequestError::transport("service name", e))?;
         fn subscribe<T: std::fmt::Debug + ZeroCopySend + 'static>(
@@ -247,8 +254,8 @@ impl Sensor {
             },
             ready,
             mode: WaitMode::Block,
-            world: client.world.to_string(),
-            server_pid: client.server_pid,
+            world: world.to_string(),
+            server_pid,
             _node: node,
         })
     }
@@ -333,16 +340,17 @@ impl Sensor {
         mut callback: impl FnMut(&Capture) + Send + 'static,
     ) -> Result<Listening, SensorError> {
         let info = self.info;
-        let world = self.world.clone();
+        let world = WorldName::new(&self.world).map_err(|e| RequestError::transport("world", e))?;
+        let server_pid = self.server_pid;
         let stop = Arc::new(AtomicBool::new(false));
+        let ended = Arc::new(OnceLock::new());
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-        let flag = stop.clone();
+        let (flag, end) = (stop.clone(), ended.clone());
         let thread = std::thread::Builder::new()
             .name(format!("simbus-sensor-{}", info.id))
             .spawn(move || {
-                let opened = Client::connect(&world, crate::DEFAULT_REQUEST_TIMEOUT)
-                    .map_err(|e| RequestError::transport("listen connect", e))
-                    .and_then(|client| Sensor::open(&client, info));
+                // Its own subscription, and nothing else.
+                let opened = Sensor::open(&world, server_pid, crate::DEFAULT_REQUEST_TIMEOUT, info);
                 let mut sensor = match opened {
                     Ok(sensor) => {
                         let _ = ready_tx.send(Ok(()));
@@ -358,7 +366,8 @@ impl Sensor {
                         Ok(capture) => callback(&capture),
                         Err(WaitError::NoCapture { .. }) => {}
                         Err(e) => {
-                            tracing::warn!("sensor {} listener stopped: {e}", info.id);
+                            tracing::info!("sensor {} listener stopped: {e}", info.id);
+                            let _ = end.set(e);
                             return;
                         }
                     }
@@ -370,6 +379,7 @@ impl Sensor {
             .map_err(|e| RequestError::transport("listen thread", e))??;
         Ok(Listening {
             stop,
+            ended,
             thread: Some(thread),
         })
     }
@@ -379,12 +389,21 @@ impl Sensor {
 /// the callbacks.
 pub struct Listening {
     stop: Arc<AtomicBool>,
+    /// Why the callbacks ended by themselves (the sensor ended, the server
+    /// stopped), if they did.
+    ended: Arc<OnceLock<WaitError>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Listening {
     /// Stops the callbacks (CARLA's `sensor.stop()`); the sensor stays in the world.
     pub fn stop(self) {}
+
+    /// Why the callbacks ended by themselves, if they did: the sensor ended
+    /// ([`WaitError::SensorEnded`]), or the server is gone.
+    pub fn ended(&self) -> Option<&WaitError> {
+        self.ended.get()
+    }
 }
 
 impl Drop for Listening {
@@ -466,13 +485,23 @@ impl Client {
             .ok_or(RequestError::UnknownAnswer {
                 status: ResponseStatus::Ok as u32,
             })?;
-        Ok(Sensor::open(self, info)?)
+        Ok(Sensor::open(
+            &self.world,
+            self.server_pid,
+            self.request_timeout,
+            info,
+        )?)
     }
 
     /// Subscribes to the existing sensor `id`.
     pub fn sensor(&self, id: u64) -> Result<Sensor, SensorError> {
         let info = self.sensor_info(id)?;
-        Ok(Sensor::open(self, info)?)
+        Ok(Sensor::open(
+            &self.world,
+            self.server_pid,
+            self.request_timeout,
+            info,
+        )?)
     }
 
     fn sensor_info(&self, id: u64) -> Result<SensorInfo, SensorError> {

@@ -54,6 +54,7 @@ fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
     assert!(watcher.line(T).is_some(), "{}", watcher.stderr());
     imu.recv(T).unwrap();
 
+    let listening = imu.listen(|_| {}).unwrap();
     api.destroy(parent).unwrap();
     let out = watcher.finish(T);
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
@@ -67,6 +68,25 @@ fn destroying_the_parent_ends_the_sensor_and_tells_its_readers() {
     );
     // The API reader ends the same way, after the captures it had queued.
     assert_ends(&mut imu, SensorEnd::ParentDestroyed);
+    // CARLA's `listen` learns it too: its callbacks end, and say why.
+    let deadline = std::time::Instant::now() + T;
+    let ended = loop {
+        if let Some(ended) = listening.ended() {
+            break ended;
+        }
+        assert!(std::time::Instant::now() < deadline, "listen never ended");
+        std::thread::yield_now();
+    };
+    assert!(
+        matches!(
+            ended,
+            WaitError::SensorEnded {
+                reason: SensorEnd::ParentDestroyed,
+                ..
+            }
+        ),
+        "{ended}"
+    );
     assert!(
         sensor_ids(&world).is_empty(),
         "the sensor is no longer listed"

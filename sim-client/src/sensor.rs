@@ -485,17 +485,16 @@ impl Client {
             .ok_or(RequestError::UnknownAnswer {
                 status: ResponseStatus::Ok as u32,
             })?;
-        Ok(Sensor::open(
-            &self.world,
-            self.server_pid,
-            self.request_timeout,
-            info,
-        )?)
+        self.open_sensor(info)
     }
 
     /// Subscribes to the existing sensor `id`.
     pub fn sensor(&self, id: u64) -> Result<Sensor, SensorError> {
-        let info = self.sensor_info(id)?;
+        self.open_sensor(self.sensor_info(id)?)
+    }
+
+    /// Subscribes to sensor `info` of this client's world.
+    fn open_sensor(&self, info: SensorInfo) -> Result<Sensor, SensorError> {
         Ok(Sensor::open(
             &self.world,
             self.server_pid,

@@ -254,13 +254,13 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     let mut spec = match kind {
         SensorKind::Depth => {
             let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
-            SensorSpec::depth(
-                at,
-                w as u32,
-                h as u32,
-                a.fov.unwrap_or(90.0),
-                a.range.unwrap_or(100.0),
-            )
+            let mut spec =
+                SensorSpec::depth(at, 0, 0, a.fov.unwrap_or(90.0), a.range.unwrap_or(100.0));
+            // Kept as typed (not truncated to whole numbers), so the spec's
+            // check refuses a fractional size.
+            spec.params[0] = w;
+            spec.params[1] = h;
+            spec
         }
         SensorKind::Lidar => {
             let [upper, lower] =
@@ -279,13 +279,6 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     }
     .attached_to(a.attach)
     .every(a.sensor_tick);
-    // Whole-number checks happen on the spec; a fractional size must not
-    // be truncated into a valid one first.
-    if let Some(size) = &a.size {
-        let [w, h] = super::numbers::<2>(size, "--size")?;
-        spec.params[0] = w;
-        spec.params[1] = h;
-    }
     spec.rotation = quaternion(yaw, pitch, roll);
     spec.check()
         .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;

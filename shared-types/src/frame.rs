@@ -74,11 +74,13 @@ impl FrameHeader {
     /// Flag: the frame was longer than `max_substeps * max_substep_delta_time`,
     /// so its substeps were longer than `max_substep_delta_time`.
     pub const SUBSTEPS_CAPPED: u32 = 1;
+    /// Flag: the frame is a replay of a recording (not computed live).
+    pub const REPLAY: u32 = 2;
 }
 
 wire_enum! {
     /// What an actor is.
-    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
     pub enum ActorKind {
         /// Fixed geometry: ground, ramps, walls.
         Static = 1,

@@ -39,6 +39,11 @@ mod frame;
 pub mod input;
 mod lockstep;
 mod names;
+pub mod recording;
+mod recorder;
+pub use recorder::{
+    PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode, ReplayState,
+};
 mod sensor;
 mod settings;
 mod settings_wire;

@@ -107,6 +107,9 @@ pub struct ServiceNames {
     pub lockstep: String,
     /// Request-response: [`crate::SensorRequest`] → a slice of [`crate::SensorInfo`].
     pub sensors: String,
+    /// Request-response: [`crate::RecorderRequest`] → [`crate::RecorderResponse`]
+    /// (recorder and replayer).
+    pub recorder: String,
     prefix: String,
 }
 
@@ -123,6 +126,7 @@ impl ServiceNames {
             batch: format!("{prefix}/batch"),
             lockstep: format!("{prefix}/lockstep"),
             sensors: format!("{prefix}/sensors"),
+            recorder: format!("{prefix}/recorder"),
             prefix,
         }
     }

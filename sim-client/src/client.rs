@@ -99,6 +99,8 @@ pub struct Client {
     batch: OnceCell<BatchClient>,
     /// Opened on the first sensor request.
     pub(crate) sensor_port: OnceCell<crate::sensor::SensorRequestClient>,
+    /// The recorder port, opened on first use.
+    pub(crate) recorder_port: OnceCell<crate::recorder::RecorderClient>,
     pub(crate) names: ServiceNames,
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
@@ -179,6 +181,7 @@ impl Client {
             control: OnceCell::new(),
             batch: OnceCell::new(),
             sensor_port: OnceCell::new(),
+            recorder_port: OnceCell::new(),
             names,
             frames,
             server_pid: header.server_pid,

@@ -37,6 +37,8 @@ mod frames;
 mod lockstep;
 mod open;
 pub mod process;
+pub mod inspect;
+mod recorder;
 mod rpc;
 mod sensor;
 mod snapshot;
@@ -51,6 +53,7 @@ pub use error::{
 };
 pub use lockstep::Participant;
 pub use process::process_alive;
+pub use recorder::{Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus};
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};

@@ -85,6 +85,11 @@ enum Command {
     /// The server runs in its own world (demo-<pid>) at wall-clock speed with
     /// a fixed step; the demo stops and reaps it after --frames frames or Ctrl-C.
     Demo(cli::demo::DemoArgs),
+    /// Record the world (start, stop, status) and inspect recordings (info,
+    /// collisions, blocked), like CARLA's recorder, on MCAP files.
+    Recorder(cli::recorder::RecorderArgs),
+    /// Replay a recording: exact, interpolated, or re-simulated and verified.
+    Replay(cli::recorder::ReplayArgs),
 }
 
 /// How a command failed, for the exit code: 1 for a runtime failure,
@@ -139,6 +144,8 @@ fn main() -> ExitCode {
         Command::Autopilot(a) => cli::autopilot::run(world, timeout, a),
         Command::Sensor(a) => cli::sensor::run(world, timeout, a),
         Command::Demo(a) => cli::demo::run(args.world, timeout, a),
+        Command::Recorder(a) => cli::recorder::run(world, timeout, a),
+        Command::Replay(a) => cli::recorder::replay(world, timeout, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

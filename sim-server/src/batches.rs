@@ -14,6 +14,7 @@ use tracing::{debug, warn};
 
 use crate::clock::Clock;
 use crate::ports::{service_name, Transport};
+use crate::recorder::Recorder;
 use crate::sensors::Sensors;
 use crate::ticker::Ticker;
 use crate::world::World;
@@ -66,6 +67,7 @@ impl Batches {
         world: &mut World,
         ticker: &mut Ticker,
         sensors: &mut Sensors,
+        recorder: &mut Recorder,
         clock: &Clock,
         episode: u64,
     ) -> Result<(), ServerError> {
@@ -91,8 +93,15 @@ impl Batches {
             }
             if tick {
                 // The answer waits for the frame: keep the results until then.
-                let results: Vec<CommandResult> =
-                    request.payload().iter().map(|c| world.apply(c)).collect();
+                let results: Vec<CommandResult> = request
+                    .payload()
+                    .iter()
+                    .map(|c| {
+                        let result = world.apply(c);
+                        recorder.command(next_frame, episode, c, &result);
+                        result
+                    })
+                    .collect();
                 debug!(
                     pid = header.pid,
                     commands = results.len(),
@@ -114,6 +123,7 @@ impl Batches {
                     };
                     let response = response.write_from_fn(|i| {
                         let result = world.apply(&commands[i]);
+                        recorder.command(next_frame, episode, &commands[i], &result);
                         failed += usize::from(result.status != CommandStatus::Ok as u32);
                         result
                     });
@@ -125,7 +135,8 @@ impl Batches {
                 Err(e) => {
                     debug!("batch response not loaned: {e:?}");
                     for command in commands {
-                        world.apply(command);
+                        let result = world.apply(command);
+                        recorder.command(next_frame, episode, command, &result);
                     }
                 }
             }

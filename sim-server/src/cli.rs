@@ -100,6 +100,11 @@ pub struct ServerArgs {
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
     pub lockstep_timeout: Duration,
 
+    /// Simulation seconds between two keyframes of a recording (the
+    /// serialized world a replay seeks to).
+    #[arg(long, value_name = "S", default_value = "10", value_parser = input::seconds)]
+    pub keyframe_seconds: f64,
+
     /// How many clients of each kind the world admits: frame subscribers,
     /// control, batch, lockstep and sensor-request clients (each costs
     /// shared memory; see the README's limits table).
@@ -229,6 +234,7 @@ pub fn run(args: ServerArgs) -> Result<(), RunError> {
         hybrid_window: args.hybrid_window,
         seed: args.seed,
         lockstep_timeout: args.lockstep_timeout,
+        keyframe_seconds: Some(args.keyframe_seconds),
         limits,
     };
     let mut server = Server::start(config).map_err(|e| match e {

@@ -65,6 +65,17 @@ impl Clock {
         }
     }
 
+    /// A clock at `frame`, `elapsed_ns`, last stepped by `delta_ns` (a
+    /// restored keyframe, a replayed frame).
+    pub fn at(frame: u64, elapsed_ns: u64, delta_ns: u64, now: Instant) -> Self {
+        Self {
+            frame,
+            elapsed_ns,
+            delta_ns,
+            last_frame_at: now,
+        }
+    }
+
     /// The current frame id.
     pub fn frame(&self) -> u64 {
         self.frame

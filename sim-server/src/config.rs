@@ -40,6 +40,8 @@ pub struct ServerConfig {
     pub lockstep_timeout: Duration,
     /// How many clients (and readers per sensor) the world admits.
     pub limits: WorldLimits,
+    /// Simulation seconds between a recording's keyframes (`None`: 10 s).
+    pub keyframe_seconds: Option<f64>,
 }
 
 impl ServerConfig {
@@ -60,6 +62,7 @@ impl ServerConfig {
             seed: 0,
             lockstep_timeout: Duration::from_secs(10),
             limits: WorldLimits::default(),
+            keyframe_seconds: None,
         }
     }
 }

@@ -82,6 +82,20 @@ impl Frames {
         Ok(())
     }
 
+    /// Sends `header` with `actors` (a replayed frame).
+    pub fn publish_states(&self, header: FrameHeader, actors: &[ActorState]) -> Result<(), ServerError> {
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(actors.len())
+            .map_err(|e| ServerError::transport("frame loan", e))?;
+        *sample.user_header_mut() = header;
+        sample
+            .write_from_slice(actors)
+            .send()
+            .map_err(|e| ServerError::transport("frame send", e))?;
+        Ok(())
+    }
+
     /// Wakes every client blocked on the frame-ready event.
     pub fn notify(&self) -> Result<(), ServerError> {
         self.ready

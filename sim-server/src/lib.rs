@@ -69,6 +69,8 @@ pub mod frames;
 pub mod liveness;
 pub mod lockstep;
 pub mod ports;
+pub mod recorder;
+pub mod replayer;
 pub mod scene;
 pub mod sensors;
 pub mod server;

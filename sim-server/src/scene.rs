@@ -129,6 +129,8 @@ impl Placement {
         .density(self.density)
         .friction(0.6)
         .restitution(0.1)
+        // Contact starts are reported (to the recorder); this changes no dynamics.
+        .active_events(ActiveEvents::COLLISION_EVENTS)
         .build();
         (body, collider)
     }

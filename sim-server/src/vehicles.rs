@@ -6,7 +6,7 @@ use rapier3d::control::{DynamicRayCastVehicleController, WheelTuning};
 use rapier3d::prelude::*;
 
 /// A vehicle's controller and the control it holds until told otherwise.
-#[derive(Debug)]
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
 pub struct Vehicle {
     actor: u64,
     controller: DynamicRayCastVehicleController,
@@ -36,7 +36,7 @@ impl Vehicle {
 }
 
 /// Every vehicle of a world.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Vehicles {
     list: Vec<Vehicle>,
 }

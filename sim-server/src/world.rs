@@ -2,7 +2,11 @@
 //! each wire command does to them is in [`crate::commands`]; the vehicles
 //! are in [`crate::vehicles`].
 
+use std::sync::Mutex;
+
 use rapier3d::prelude::*;
+use serde::{Deserialize, Serialize};
+use shared_types::recording::RecordedCollision;
 use shared_types::{ActorKind, ActorState};
 
 use crate::clock::SubstepPlan;
@@ -10,7 +14,7 @@ use crate::scene::Placement;
 use crate::vehicles::Vehicles;
 
 /// One actor: a rapier body with a stable simbus id.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) struct Actor {
     pub(crate) id: u64,
     pub(crate) kind: ActorKind,
@@ -22,7 +26,9 @@ pub(crate) struct Actor {
     acceleration: Vector,
 }
 
-/// The rapier world and its actors, in id order.
+/// The rapier world and its actors, in id order. All of it serializes
+/// (a recording's keyframe): restored, it steps exactly as the original.
+#[derive(Serialize, Deserialize)]
 pub struct World {
     pub(crate) physics: PhysicsWorld,
     pub(crate) actors: Vec<Actor>,
@@ -66,9 +72,11 @@ impl World {
     }
 
     pub(crate) fn insert(&mut self, placement: &Placement) -> u64 {
-        let (body, collider) = placement.build();
-        let (body, _) = self.physics.insert(body, collider);
+        let (mut body, collider) = placement.build();
         let id = self.next_id;
+        // The body knows its actor, so contacts name actors.
+        body.user_data = u128::from(id);
+        let (body, _) = self.physics.insert(body, collider);
         self.next_id += 1;
         let e = placement.extent;
         self.actors.push(Actor {
@@ -108,11 +116,28 @@ impl World {
     /// `plan.substep_seconds` (vehicles updated before each), then updates
     /// every actor's acceleration.
     pub fn step(&mut self, plan: &SubstepPlan) {
+        self.step_with_collisions(plan, None);
+    }
+
+    /// [`World::step`], adding every contact that started to `collisions`
+    /// (with frame and time left 0 for the caller) when it is given.
+    pub fn step_with_collisions(
+        &mut self,
+        plan: &SubstepPlan,
+        mut collisions: Option<&mut Vec<RecordedCollision>>,
+    ) {
         self.physics.integration_parameters.dt = plan.substep_seconds;
+        let started = ContactStarts::default();
         for _ in 0..plan.count {
             self.vehicles
                 .update(&mut self.physics, plan.substep_seconds);
-            self.physics.step();
+            match collisions.as_deref_mut() {
+                Some(out) => {
+                    self.physics.step_with_events(&(), &started);
+                    self.collect_collisions(&started, out);
+                }
+                None => self.physics.step(),
+            }
         }
         for handle in self.pushed.drain(..) {
             if let Some(body) = self.physics.bodies.get_mut(handle) {
@@ -130,6 +155,67 @@ impl World {
             };
             actor.previous_velocity = velocity;
         }
+    }
+
+    /// Turns the contacts that started in the last physics step into
+    /// collisions between actors, with the impulse the solver applied.
+    fn collect_collisions(&self, started: &ContactStarts, out: &mut Vec<RecordedCollision>) {
+        let pairs = std::mem::take(&mut *started.pairs.lock().unwrap_or_else(|e| e.into_inner()));
+        for (c1, c2) in pairs {
+            let actor = |c: ColliderHandle| {
+                let body = self.physics.colliders.get(c)?.parent()?;
+                let id = self.physics.bodies.get(body)?.user_data as u64;
+                let kind = self.actors.get(self.index_of(id)?)?.kind;
+                Some((id, kind))
+            };
+            let (Some(a), Some(b)) = (actor(c1), actor(c2)) else {
+                continue;
+            };
+            let ((actor_a, kind_a), (actor_b, kind_b)) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+            let impulse = self
+                .physics
+                .contact_pair(c1, c2)
+                .map_or(0.0, |pair| pair.total_impulse_magnitude());
+            out.push(RecordedCollision {
+                frame: 0,
+                elapsed_ns: 0,
+                actor_a,
+                actor_b,
+                impulse,
+                kind_a: kind_a as u32,
+                kind_b: kind_b as u32,
+                reserved: 0,
+            });
+        }
+    }
+
+    /// Sets every actor named in `states` to its recorded pose and
+    /// velocities (a replay); actors not named keep theirs.
+    pub fn set_states(&mut self, states: &[ActorState]) {
+        for state in states {
+            let Some(index) = self.index_of(state.id) else {
+                continue;
+            };
+            let actor = &mut self.actors[index];
+            let Some(body) = self.physics.bodies.get_mut(actor.body) else {
+                continue;
+            };
+            let [x, y, z, w] = state.rotation;
+            body.set_position(
+                Pose::from_parts(
+                    Vector::from_array(state.position),
+                    Rotation::from_xyzw(x, y, z, w),
+                ),
+                false,
+            );
+            body.set_linvel(Vector::from_array(state.linear_velocity), false);
+            body.set_angvel(Vector::from_array(state.angular_velocity), false);
+            actor.acceleration = Vector::from_array(state.acceleration);
+            actor.previous_velocity = Vector::from_array(state.linear_velocity);
+        }
+        // Colliders and the query structure follow the bodies, so ray casts
+        // (sensors) see the new poses; nothing is integrated.
+        self.physics.detect_collisions(&(), &());
     }
 
     /// The rapier body of actor `id`.
@@ -195,6 +281,41 @@ impl World {
             reserved: 0,
         }
     }
+}
+
+/// Collects the collider pairs whose contact started during a step.
+#[derive(Default)]
+struct ContactStarts {
+    pairs: Mutex<Vec<(ColliderHandle, ColliderHandle)>>,
+}
+
+impl EventHandler for ContactStarts {
+    fn handle_collision_event(
+        &self,
+        _bodies: &RigidBodySet,
+        _colliders: &ColliderSet,
+        event: CollisionEvent,
+        _contact_pair: Option<&ContactPair>,
+    ) {
+        if let CollisionEvent::Started(a, b, _) = event {
+            self.pairs
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push((a, b));
+        }
+    }
+
+    fn handle_contact_force_event(
+        &self,
+        _dt: Real,
+        _bodies: &RigidBodySet,
+        _colliders: &ColliderSet,
+        _contact_pair: &ContactPair,
+        _total_force_magnitude: Real,
+    ) {
+    }
+
+    fn handle_soft_body_tear_event(&self, _soft_bodies: &SoftBodySet, _event: &SoftBodyTearEvent) {}
 }
 
 #[cfg(test)]

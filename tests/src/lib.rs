@@ -13,6 +13,9 @@ use std::time::{Duration, Instant};
 
 pub use sim_client::process::{process_alive, send_signal, ChildGuard};
 
+mod python;
+pub use python::{python, PYTHON_REQUIREMENTS};
+
 /// A binary of the workspace (`sim-server`, `sim-client`), from the same
 /// target directory as the running test (override with `SIMBUS_BIN_DIR`).
 pub fn bin(name: &str) -> PathBuf {

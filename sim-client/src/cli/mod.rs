@@ -5,6 +5,7 @@ pub(crate) mod autopilot;
 pub(crate) mod config;
 pub(crate) mod demo;
 pub(crate) mod pictures;
+pub(crate) mod recorder;
 pub(crate) mod sensor;
 pub(crate) mod status;
 pub(crate) mod tick;

@@ -13,6 +13,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::recording::RecordedSensor;
 use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
     SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
@@ -21,6 +22,7 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
+use crate::recorder::SensorNote;
 use crate::ports::{service_name, Transport};
 use crate::world::World;
 use crate::ServerError;
@@ -57,6 +59,8 @@ pub struct Sensors {
     next_id: u64,
     /// Readers each sensor admits (`--max-sensor-readers`).
     max_readers: usize,
+    /// Spawns and ends since the recorder last took them.
+    pub(crate) journal: Vec<SensorNote>,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
@@ -123,16 +127,20 @@ impl Sensors {
             list: Vec::new(),
             next_id: 0,
             max_readers: limits.max_sensor_readers,
+            journal: Vec::new(),
         })
     }
 
     /// Spawns, destroys and lists sensors.
+    /// During a replay, a sensor spawned without a parent rides on `follow`
+    /// (0: none).
     pub fn handle(
         &mut self,
         transport: &Transport,
         world: &World,
         clock: &Clock,
         episode: u64,
+        follow: u64,
     ) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
@@ -148,7 +156,11 @@ impl Sensors {
             } else {
                 match SensorRequestKind::from_u32(payload.kind) {
                     Some(SensorRequestKind::Spawn) => {
-                        match self.spawn(transport, payload.spec, world, clock.elapsed_ns()) {
+                        let mut spec = payload.spec;
+                        if spec.attach_to == 0 {
+                            spec.attach_to = follow;
+                        }
+                        match self.spawn(transport, spec, world, clock) {
                             Ok(info) => (ResponseStatus::Ok, 0, vec![info]),
                             Err(refusal) => (ResponseStatus::Refused, refusal as u32, Vec::new()),
                         }
@@ -184,13 +196,14 @@ impl Sensors {
     }
 
     /// Builds a sensor from `spec` and opens its service.
-    fn spawn(
+    pub(crate) fn spawn(
         &mut self,
         transport: &Transport,
         spec: SensorSpec,
         world: &World,
-        now_ns: u64,
+        clock: &Clock,
     ) -> Result<SensorInfo, SensorRefusal> {
+        let now_ns = clock.elapsed_ns();
         let Some(kind) = spec.sensor_kind().filter(|_| spec.check().is_ok()) else {
             return Err(SensorRefusal::InvalidSpec);
         };
@@ -236,6 +249,11 @@ impl Sensors {
             captures: 0,
         };
         let info = sensor.info();
+        self.journal.push(SensorNote::Spawned(RecordedSensor {
+            frame: clock.frame(),
+            id,
+            spec,
+        }));
         self.list.push(sensor);
         Ok(info)
     }
@@ -246,8 +264,24 @@ impl Sensors {
             return false;
         };
         let sensor = self.list.remove(index);
+        self.journal.push(SensorNote::Ended { frame, id });
         sensor.end(SensorEnd::Destroyed, frame, episode);
         true
+    }
+
+    /// The spawns of every living sensor, as a recording starting at
+    /// `frame` holds them.
+    pub(crate) fn recorded_spawns(&self, frame: u64) -> Vec<SensorNote> {
+        self.list
+            .iter()
+            .map(|s| {
+                SensorNote::Spawned(RecordedSensor {
+                    frame,
+                    id: s.id,
+                    spec: s.spec,
+                })
+            })
+            .collect()
     }
 
     /// Every sensor.
@@ -270,6 +304,7 @@ impl Sensors {
             .partition(|s| s.spec.attach_to != 0 && world.body_of(s.spec.attach_to).is_none());
         self.list = living;
         for sensor in orphans {
+            self.journal.push(SensorNote::Ended { frame, id: sensor.id });
             sensor.end(SensorEnd::ParentDestroyed, frame, episode);
         }
     }
@@ -278,12 +313,22 @@ impl Sensors {
     /// without sensors; the server stops). Sensor ids are not reused.
     pub fn end_all(&mut self, reason: SensorEnd, frame: u64, episode: u64) {
         for sensor in self.list.drain(..) {
+            self.journal.push(SensorNote::Ended { frame, id: sensor.id });
             sensor.end(reason, frame, episode);
         }
     }
 
-    /// Captures and publishes every sensor due at this frame.
-    pub fn capture(&mut self, world: &World, frame: u64, elapsed_ns: u64, episode: u64) {
+    /// Captures and publishes every sensor due at this frame; a copy of
+    /// each capture goes to `record` when it is given (a recording with
+    /// sensors).
+    pub fn capture(
+        &mut self,
+        world: &World,
+        frame: u64,
+        elapsed_ns: u64,
+        episode: u64,
+        mut record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
+    ) {
         for sensor in &mut self.list {
             if elapsed_ns < sensor.next_capture_ns {
                 continue;
@@ -310,7 +355,7 @@ impl Sensors {
                 // SAFETY: depth_into writes one value per pixel, and the
                 // slice holds exactly width x height elements.
                 SensorPort::Depth(port) => unsafe {
-                    publish(port, header, |slots, header| {
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
                         header.count = slots.len() as u32;
                         capture::depth_into(world, &sensor.spec, pose, slots)
                     })
@@ -322,7 +367,7 @@ impl Sensors {
                     // SAFETY: lidar_into writes the returns, then zeros in
                     // every remaining slot.
                     unsafe {
-                        publish(port, header, |slots, header| {
+                        publish(port, header, record.as_deref_mut(), |slots, header| {
                             header.count =
                                 capture::lidar_into(world, &sensor.spec, pose, sweep, slots) as u32;
                         })
@@ -330,7 +375,7 @@ impl Sensors {
                 }
                 // SAFETY: an IMU capture has one slot, written here.
                 SensorPort::Imu(port) => unsafe {
-                    publish(port, header, |slots, header| {
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
                         header.count = 1;
                         header.size = [1, 1];
                         for slot in slots.iter_mut() {
@@ -413,9 +458,10 @@ fn send_end<T: std::fmt::Debug + ZeroCopySend + 'static>(
 ///
 /// `fill` must initialise every element of the slice it is given (the
 /// sample is sent as initialised memory that readers read in place).
-unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
+unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod + 'static>(
     port: &Port<T>,
     header: SensorHeader,
+    record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
     fill: impl FnOnce(&mut [MaybeUninit<T>], &mut SensorHeader),
 ) -> Result<(), ServerError> {
     let elements = port.initial_max_slice_len();
@@ -428,6 +474,9 @@ unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + 'static>(
     *sample.user_header_mut() = header;
     // SAFETY: the caller guarantees `fill` wrote every element.
     let sample = unsafe { sample.assume_init() };
+    if let Some(record) = record {
+        record.push((header, bytemuck::cast_slice(sample.payload()).to_vec()));
+    }
     sample
         .send()
         .map_err(|e| ServerError::transport("sensor send", e))?;

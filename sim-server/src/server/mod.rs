@@ -4,9 +4,12 @@
 //! otherwise sleeps in one place, the control domain's wake-up event.
 //!
 //! Within a frame boundary the order is: control (settings, status,
-//! load/reload), batches, lockstep, sensors, ticks, housekeeping — so
-//! whatever arrived before a step applies before it. The recorder will be
-//! one more domain in this list.
+//! load/reload), recorder (record, replay), batches, lockstep, sensors,
+//! ticks, housekeeping — so whatever arrived before a step applies before
+//! it. While a replay runs, a replayed frame takes the place of a computed
+//! one; while a recording runs, every published frame is recorded.
+
+mod recording;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -24,6 +27,8 @@ use crate::frames::Frames;
 use crate::liveness::LiveProcesses;
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
+use crate::recorder::{Recorder, RecorderPort};
+use crate::replayer::Replayer;
 use crate::sensors::Sensors;
 use crate::state::Runtime;
 use crate::ticker::Ticker;
@@ -67,6 +72,7 @@ const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 #[derive(Debug)]
 pub struct Server {
     control: Control,
+    recorder: RecorderPort,
     domains: Domains,
 }
 
@@ -83,6 +89,8 @@ pub(crate) struct Domains {
     pub(crate) batches: Batches,
     pub(crate) lockstep: Lockstep,
     pub(crate) sensors: Sensors,
+    pub(crate) recorder: Recorder,
+    pub(crate) replayer: Replayer,
     timers: Timers,
 }
 
@@ -120,6 +128,7 @@ impl Server {
         let batches = Batches::open(&transport, &limits)?;
         let lockstep = Lockstep::open(&transport, &limits)?;
         let sensors = Sensors::open(&transport, &limits)?;
+        let recorder = RecorderPort::open(&transport, &limits)?;
         let now = Instant::now();
         let domains = Domains {
             runtime: Runtime::new(&config, settings),
@@ -131,6 +140,8 @@ impl Server {
             batches,
             lockstep,
             sensors,
+            recorder: Recorder::default(),
+            replayer: Replayer::default(),
             timers: Timers {
                 cleanup: now,
                 liveness: now,
@@ -138,6 +149,7 @@ impl Server {
             },
             config,
         };
+        let mut domains = domains;
         domains.publish(0, 0)?;
         domains.frames.notify()?;
         info!(
@@ -147,7 +159,11 @@ impl Server {
             "server up: {}",
             domains.runtime.settings
         );
-        Ok(Self { control, domains })
+        Ok(Self {
+            control,
+            recorder,
+            domains,
+        })
     }
 
     /// Runs until `shutdown` is set or `max_frames` frames were computed.
@@ -164,17 +180,21 @@ impl Server {
             }
             // Every domain answers what arrived, in this order.
             self.control.handle(d)?;
+            self.recorder.handle(d)?;
             let episode = d.runtime.episode;
             d.batches.handle(
                 &mut d.world,
                 &mut d.ticker,
                 &mut d.sensors,
+                &mut d.recorder,
                 &d.clock,
                 episode,
             )?;
             d.lockstep.handle(episode, &d.clock)?;
+            let follow = d.replayer.follow_id();
             d.sensors
-                .handle(&d.transport, &d.world, &d.clock, episode)?;
+                .handle(&d.transport, &d.world, &d.clock, episode, follow)?;
+            d.recorder.sensor_notes(d.sensors.journal.drain(..));
             d.ticker.handle(&mut d.runtime, &d.clock)?;
             d.housekeeping();
             let now = Instant::now();
@@ -210,11 +230,14 @@ impl Server {
                 }
                 continue;
             }
-            match d
-                .runtime
-                .pacer
-                .next_frame_at(&d.clock, &d.runtime.settings, now)
-            {
+            let due = match d.replayer.next_frame_at(now) {
+                Some(at) => Some(at),
+                None => d
+                    .runtime
+                    .pacer
+                    .next_frame_at(&d.clock, &d.runtime.settings, now),
+            };
+            match due {
                 Some(at) if at > now => self.control.idle((at - now).min(MAX_IDLE_WAIT))?,
                 // Asynchronous: a tick just waits for the next frame.
                 _ => {
@@ -227,6 +250,14 @@ impl Server {
             }
         }
         let d = &mut self.domains;
+        d.recorder.stop(
+            if shutdown.load(Ordering::Relaxed) {
+                "server stopped by a signal"
+            } else {
+                "server stopped"
+            },
+            d.clock.frame(),
+        );
         // Readers of the sensors learn why their stream ended.
         d.sensors
             .end_all(SensorEnd::ServerStopped, d.clock.frame(), d.runtime.episode);
@@ -252,12 +283,16 @@ impl Domains {
     /// Computes and publishes the next frame, answers the first `ticks`
     /// waiting steps with it, then wakes waiting clients.
     fn step_frame(&mut self, now: Instant, ticks: usize) -> Result<(), ServerError> {
+        if self.replayer.is_running() {
+            return self.replay_frame(now, ticks);
+        }
         let delta_ns = self.clock.next_delta_ns(&self.runtime.settings, now);
         let plan = SubstepPlan::new(delta_ns, &self.runtime.settings);
         let frame = self.clock.frame() + 1;
         let _span = debug_span!("frame", frame, delta_ns, substeps = plan.count).entered();
         self.runtime.warn_if_unreliable(frame, delta_ns, &plan, now);
-        self.world.step(&plan);
+        self.world
+            .step_with_collisions(&plan, self.recorder.collisions());
         self.clock.advance(delta_ns, now);
         self.runtime.frames_computed += 1;
         // Sensors first: whoever sees the frame's snapshot (or hears the
@@ -267,6 +302,7 @@ impl Domains {
             self.clock.frame(),
             self.clock.elapsed_ns(),
             self.runtime.episode,
+            self.recorder.captures(),
         );
         let flags = if plan.capped {
             FrameHeader::SUBSTEPS_CAPPED
@@ -278,9 +314,20 @@ impl Domains {
         self.frames.notify()
     }
 
-    /// Publishes the current frame.
-    fn publish(&self, physics_substeps: u32, flags: u32) -> Result<(), ServerError> {
-        let header = FrameHeader {
+    /// Publishes the current frame (and records it while recording).
+    fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), ServerError> {
+        let header = self.frame_header(physics_substeps, flags);
+        self.frames.publish(header, &self.world)?;
+        if self.recorder.is_recording() {
+            let scene = self.runtime.scene.to_string();
+            self.recorder.frame(&header, &self.world, scene);
+        }
+        Ok(())
+    }
+
+    /// The header of the current frame.
+    fn frame_header(&self, physics_substeps: u32, flags: u32) -> FrameHeader {
+        FrameHeader {
             protocol_version: PROTOCOL_VERSION,
             actor_count: self.world.actor_count() as u32,
             episode: self.runtime.episode,
@@ -296,8 +343,7 @@ impl Domains {
             first_actor_id: self.world.first_id(),
             server_pid: std::process::id(),
             reserved: 0,
-        };
-        self.frames.publish(header, &self.world)
+        }
     }
 
     /// The world's status as the control service reports it.
@@ -329,11 +375,23 @@ impl Domains {
         pid: u32,
         now: Instant,
     ) -> Result<(), ServerError> {
+        if scene != self.runtime.scene {
+            // A new map ends the recording, as in CARLA; a reload is recorded.
+            self.recorder.stop("load", self.clock.frame());
+        }
+        if self.replayer.is_running() {
+            self.replayer.end(
+                shared_types::ReplayState::Stopped,
+                "the world was loaded".to_string(),
+            );
+        }
+        self.replayer.saved = None;
         self.sensors.end_all(
             SensorEnd::EpisodeEnded,
             self.clock.frame(),
             self.runtime.episode,
         );
+        self.recorder.sensor_notes(self.sensors.journal.drain(..));
         let first_id = self.world.next_id();
         self.world = World::new(&scene.placements(self.config.seed), first_id);
         self.runtime.scene = scene;
@@ -352,6 +410,7 @@ impl Domains {
             "world loaded: {}",
             self.runtime.settings
         );
+        self.record_episode(reset);
         self.publish(0, 0)?;
         self.frames.notify()
     }

@@ -1,0 +1,316 @@
+//! Reading a recording: one pass through the file in the order it was
+//! written, each message checked against its schema and bounds before use.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufReader;
+use std::sync::Arc;
+
+use mcap::sans_io::linear_reader::LinearReaderOptions;
+
+use super::*;
+use crate::{ActorState, FrameHeader, SensorHeader};
+
+/// The longest record the reader accepts (a chunk, decompressed): bounds
+/// what a damaged length field can make it allocate.
+const RECORD_LENGTH_LIMIT: usize = 1 << 30;
+
+/// One message of a recording, decoded.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Entry {
+    /// A frame as published.
+    Frame {
+        /// The recording time (see the module docs), nanoseconds.
+        log_ns: u64,
+        /// The frame header.
+        header: FrameHeader,
+        /// Every actor.
+        actors: Vec<ActorState>,
+    },
+    /// An applied command.
+    Command(RecordedCommand),
+    /// An event.
+    Event(RecordedEvent),
+    /// A collision.
+    Collision(RecordedCollision),
+    /// A sensor's spawn.
+    Sensor(RecordedSensor),
+    /// A sensor capture.
+    Capture {
+        /// Its header.
+        header: SensorHeader,
+        /// Its payload bytes.
+        data: Vec<u8>,
+    },
+    /// A keyframe: the server's serialized world after `frame`.
+    Keyframe {
+        /// The frame it follows.
+        frame: u64,
+        /// The serialized state.
+        data: Vec<u8>,
+    },
+}
+
+/// Which channel a message came from, as this build knows them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Channel {
+    Header,
+    Frames,
+    Commands,
+    Events,
+    Collisions,
+    Sensors,
+    Capture,
+    Keyframes,
+    Skipped,
+}
+
+/// Reads a recording message by message.
+pub struct RecordingReader {
+    path: String,
+    messages: mcap::io::MessageReader<BufReader<File>>,
+    channels: HashMap<u16, Channel>,
+    header: RecordingHeader,
+    /// Set when the file ended in the middle of a chunk (a server that was
+    /// killed): every complete chunk before it was read.
+    truncated: bool,
+    bytes: u64,
+}
+
+impl std::fmt::Debug for RecordingReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RecordingReader")
+            .field("path", &self.path)
+            .field("header", &self.header)
+            .field("truncated", &self.truncated)
+            .finish()
+    }
+}
+
+impl RecordingReader {
+    /// Opens `path` and reads its header.
+    pub fn open(path: &str) -> Result<Self, RecordingError> {
+        let io = |source| RecordingError::Io {
+            path: path.to_string(),
+            source,
+        };
+        let metadata = std::fs::metadata(path).map_err(io)?;
+        if metadata.is_dir() {
+            return Err(RecordingError::Directory {
+                path: path.to_string(),
+            });
+        }
+        let file = File::open(path).map_err(io)?;
+        let options = LinearReaderOptions::default()
+            .with_prevalidate_chunk_crcs(true)
+            .with_validate_data_section_crc(true)
+            .with_record_length_limit(RECORD_LENGTH_LIMIT);
+        let mut reader = Self {
+            path: path.to_string(),
+            messages: mcap::io::MessageReader::new_with_options(BufReader::new(file), options),
+            channels: HashMap::new(),
+            header: RecordingHeader {
+                recording_version: 0,
+                simbus_version: String::new(),
+                protocol_version: 0,
+                world: String::new(),
+                scene: String::new(),
+                seed: 0,
+                settings: WorldSettings::default().into(),
+                start_frame: 0,
+                start_elapsed_ns: 0,
+                episode: 0,
+                start_platform_timestamp: 0.0,
+                sensors: false,
+                keyframe_seconds: 0.0,
+            },
+            truncated: false,
+            bytes: metadata.len(),
+        };
+        let not_simbus = || RecordingError::NotSimbus {
+            path: path.to_string(),
+        };
+        let first = match reader.messages.next() {
+            Some(Ok(message)) => message,
+            Some(Err(e)) => return Err(reader.mcap_error(e)),
+            None => return Err(not_simbus()),
+        };
+        if reader.channel_of(&first.channel)? != Channel::Header {
+            return Err(not_simbus());
+        }
+        let header: RecordingHeader =
+            serde_json::from_slice(&first.data).map_err(|_| not_simbus())?;
+        if header.recording_version > RECORDING_VERSION {
+            return Err(RecordingError::FutureSchema {
+                path: path.to_string(),
+                found: format!("recording version {}", header.recording_version),
+                known: HEADER_SCHEMA,
+            });
+        }
+        reader.header = header;
+        Ok(reader)
+    }
+
+    /// The recording's header.
+    pub fn header(&self) -> &RecordingHeader {
+        &self.header
+    }
+
+    /// The file's size in bytes.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Whether the file ended in the middle of a chunk: it was not closed
+    /// (its server was killed) and holds what was written up to then.
+    pub fn truncated(&self) -> bool {
+        self.truncated
+    }
+
+    fn mcap_error(&self, source: mcap::McapError) -> RecordingError {
+        use mcap::McapError as E;
+        let path = self.path.clone();
+        match source {
+            E::BadChunkCrc { .. } | E::BadDataCrc { .. } | E::BadSummaryCrc { .. } => {
+                RecordingError::Corrupt { path, source }
+            }
+            E::BadMagic => RecordingError::NotMcap { path, source },
+            E::Io(e) => RecordingError::Io { path, source: e },
+            source => RecordingError::Corrupt { path, source },
+        }
+    }
+
+    fn channel_of(&mut self, channel: &Arc<mcap::Channel<'_>>) -> Result<Channel, RecordingError> {
+        if let Some(known) = self.channels.get(&channel.id) {
+            return Ok(*known);
+        }
+        let schema = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        let kind = match check_schema(schema) {
+            Ok(true) => match (channel.topic.as_str(), schema) {
+                (HEADER_TOPIC, HEADER_SCHEMA) => Channel::Header,
+                (FRAMES_TOPIC, FRAME_SCHEMA) => Channel::Frames,
+                (COMMANDS_TOPIC, COMMAND_SCHEMA) => Channel::Commands,
+                (EVENTS_TOPIC, EVENT_SCHEMA) => Channel::Events,
+                (COLLISIONS_TOPIC, COLLISION_SCHEMA) => Channel::Collisions,
+                (SENSORS_TOPIC, SENSOR_SPAWN_SCHEMA) => Channel::Sensors,
+                (topic, CAPTURE_SCHEMA) if topic.starts_with(SENSOR_TOPIC_PREFIX) => {
+                    Channel::Capture
+                }
+                (KEYFRAMES_TOPIC, KEYFRAME_SCHEMA) => Channel::Keyframes,
+                _ => Channel::Skipped,
+            },
+            Ok(false) => Channel::Skipped,
+            Err(known) => {
+                return Err(RecordingError::FutureSchema {
+                    path: self.path.clone(),
+                    found: schema.to_string(),
+                    known,
+                })
+            }
+        };
+        self.channels.insert(channel.id, kind);
+        Ok(kind)
+    }
+
+    /// The next message this build knows, decoded; `None` at the end (or
+    /// at the end of the last complete chunk of a truncated file).
+    #[allow(clippy::should_implement_trait)]
+    pub fn next(&mut self) -> Option<Result<Entry, RecordingError>> {
+        loop {
+            let message = match self.messages.next()? {
+                Ok(message) => message,
+                Err(mcap::McapError::UnexpectedEof) => {
+                    self.truncated = true;
+                    return None;
+                }
+                Err(e) => return Some(Err(self.mcap_error(e))),
+            };
+            let channel = match self.channel_of(&message.channel) {
+                Ok(channel) => channel,
+                Err(e) => return Some(Err(e)),
+            };
+            let data = &message.data[..];
+            let malformed = |reason: &str| {
+                Some(Err(RecordingError::Malformed {
+                    path: self.path.clone(),
+                    topic: message.channel.topic.clone(),
+                    reason: reason.to_string(),
+                }))
+            };
+            let entry = match channel {
+                Channel::Skipped | Channel::Header => continue,
+                Channel::Frames => {
+                    let Some((header, rest)) = split_pod::<FrameHeader>(data) else {
+                        return malformed("shorter than a frame header");
+                    };
+                    let actors: Option<Vec<ActorState>> = pods(rest);
+                    match actors {
+                        Some(actors) if actors.len() == header.actor_count as usize => {
+                            Entry::Frame {
+                                log_ns: message.log_time,
+                                header,
+                                actors,
+                            }
+                        }
+                        _ => return malformed("actor count does not match the bytes"),
+                    }
+                }
+                Channel::Commands => match exact_pod(data) {
+                    Some(command) => Entry::Command(command),
+                    None => return malformed("not one recorded command"),
+                },
+                Channel::Collisions => match exact_pod(data) {
+                    Some(collision) => Entry::Collision(collision),
+                    None => return malformed("not one recorded collision"),
+                },
+                Channel::Sensors => match exact_pod(data) {
+                    Some(sensor) => Entry::Sensor(sensor),
+                    None => return malformed("not one recorded sensor"),
+                },
+                Channel::Events => match serde_json::from_slice(data) {
+                    Ok(event) => Entry::Event(event),
+                    Err(e) => return malformed(&e.to_string()),
+                },
+                Channel::Capture => {
+                    let Some((header, rest)) = split_pod::<SensorHeader>(data) else {
+                        return malformed("shorter than a capture header");
+                    };
+                    Entry::Capture {
+                        header,
+                        data: rest.to_vec(),
+                    }
+                }
+                Channel::Keyframes => Entry::Keyframe {
+                    frame: u64::from(message.sequence),
+                    data: data.to_vec(),
+                },
+            };
+            return Some(Ok(entry));
+        }
+    }
+}
+
+/// A `T` read from the front of `data`, and the rest.
+fn split_pod<T: Pod>(data: &[u8]) -> Option<(T, &[u8])> {
+    let size = std::mem::size_of::<T>();
+    let head = data.get(..size)?;
+    Some((bytemuck::pod_read_unaligned(head), &data[size..]))
+}
+
+/// `data` as exactly one `T`.
+fn exact_pod<T: Pod>(data: &[u8]) -> Option<T> {
+    (data.len() == std::mem::size_of::<T>()).then(|| bytemuck::pod_read_unaligned(data))
+}
+
+/// `data` as a whole number of `T`s.
+fn pods<T: Pod>(data: &[u8]) -> Option<Vec<T>> {
+    let size = std::mem::size_of::<T>();
+    if data.len() % size != 0 {
+        return None;
+    }
+    Some(
+        data.chunks_exact(size)
+            .map(bytemuck::pod_read_unaligned)
+            .collect(),
+    )
+}

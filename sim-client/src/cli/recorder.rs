@@ -1,0 +1,427 @@
+//! `sim-client recorder …` and `sim-client replay …`: CARLA's recorder API
+//! on the command line. `info`, `collisions` and `blocked` read the file
+//! directly (no server needed); the rest ask the world's server.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::anyhow;
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use shared_types::{input, ReplayMode, ReplayState, WorldName};
+use sim_client::inspect;
+use sim_client::{Client, RecorderError, RecorderStatus, ReplayOptions};
+
+use crate::Failure;
+
+/// Record the world into an MCAP file, or inspect a recording.
+#[derive(Debug, Args)]
+pub(crate) struct RecorderArgs {
+    #[command(subcommand)]
+    command: RecorderCommand,
+}
+
+#[derive(Debug, Subcommand)]
+enum RecorderCommand {
+    /// Start recording the world into FILE (created by the server).
+    ///
+    /// Every frame, applied command, spawn and destroy, settings change,
+    /// episode, collision and keyframe is recorded, none dropped; with
+    /// --sensors every sensor capture too.
+    Start {
+        /// The MCAP file to write.
+        file: PathBuf,
+        /// Record every sensor capture as well.
+        #[arg(long)]
+        sensors: bool,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Stop recording; prints the frames and bytes written and the path.
+    Stop {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// How the recorder and the replayer are doing.
+    Status {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Set the running replay's time factor (CARLA's set_replayer_time_factor).
+    TimeFactor {
+        /// Simulation speed relative to the recording, above 0.
+        #[arg(value_parser = input::seconds)]
+        factor: f64,
+    },
+    /// Stop the running replay (CARLA's stop_replayer).
+    StopReplay {
+        /// Keep the replayed world live (else the world from before comes back).
+        #[arg(long)]
+        keep_actors: bool,
+    },
+    /// What a recording holds: versions, world, scene, seed, settings,
+    /// frames, duration, actors, sensors, size and compression.
+    Info {
+        /// The recording.
+        file: String,
+        /// List every frame too.
+        #[arg(long)]
+        all: bool,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// The collisions in a recording (contacts that started), in order.
+    Collisions {
+        /// The recording.
+        file: String,
+        /// Category of one actor: a any, v vehicle, b box, s sphere, c capsule, x static.
+        #[arg(long, default_value = "a")]
+        kind1: char,
+        /// Category of the other.
+        #[arg(long, default_value = "a")]
+        kind2: char,
+        /// Print one JSON array.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Actors that moved less than --min-distance for at least --min-time.
+    Blocked {
+        /// The recording.
+        file: String,
+        /// Seconds an actor must stay (nearly) still.
+        #[arg(long, default_value = "30", value_parser = input::seconds)]
+        min_time: f64,
+        /// Metres it may move meanwhile.
+        #[arg(long, default_value = "0.1", value_parser = input::seconds)]
+        min_distance: f64,
+        /// Print one JSON array.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Replay a recording into the world.
+///
+/// In synchronous mode the replay starts with the next tick and advances
+/// one recorded frame per tick; in asynchronous mode it runs at the
+/// recording's pace times --time-factor. Every client sees ordinary frames
+/// (flagged as a replay) of a new episode. The command follows the replay
+/// to its end (a progress bar on a terminal); Ctrl-C stops it.
+#[derive(Debug, Args)]
+pub(crate) struct ReplayArgs {
+    /// The recording (an MCAP file the server can read).
+    file: PathBuf,
+    /// Seconds from the recording's start (negative: from its end).
+    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::seconds)]
+    start: f64,
+    /// Seconds to replay (0: to the end).
+    #[arg(long, default_value = "0", value_parser = input::seconds)]
+    duration: f64,
+    /// Sensors spawned without a parent during the replay ride on this recorded actor.
+    #[arg(long, value_name = "ID", default_value = "0")]
+    follow: u64,
+    /// Spawn the recorded sensors again; they capture the replayed scene.
+    #[arg(long)]
+    replay_sensors: bool,
+    /// Speed relative to the recording (asynchronous mode).
+    #[arg(long, default_value = "1", value_parser = input::seconds)]
+    time_factor: f64,
+    /// exact: recorded deltas and states; interpolate: the server's own
+    /// step, states interpolated; resimulate: recorded commands on real
+    /// physics, compared frame by frame [default: exact for fixed-step
+    /// recordings, interpolate otherwise].
+    #[arg(long)]
+    mode: Option<ReplayMode>,
+    /// With resimulate: print `identical: N frames` or the first frame and
+    /// actor that differ (exit 1).
+    #[arg(long)]
+    verify: bool,
+    /// Keep the replayed world live when the replay ends.
+    #[arg(long)]
+    keep_actors: bool,
+    /// Start the replay and return at once.
+    #[arg(long)]
+    detach: bool,
+    /// Print one JSON object at the end.
+    #[arg(long)]
+    json: bool,
+}
+
+fn refused_or_runtime(e: RecorderError) -> Failure {
+    match e {
+        RecorderError::Request(e) => Failure::Runtime(e.into()),
+        e => Failure::Refused(e.into()),
+    }
+}
+
+fn connect(world: &WorldName, timeout: Duration) -> Result<Client, Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    Ok(client)
+}
+
+fn print_json(value: &impl serde::Serialize) {
+    println!("{}", serde_json::to_string(value).unwrap_or_default());
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> Result<(), Failure> {
+    let file_error = |e: shared_types::recording::RecordingError| Failure::Refused(e.into());
+    match args.command {
+        RecorderCommand::Start { file, sensors, json } => {
+            let client = connect(world, timeout)?;
+            let path = client.start_recorder(&file, sensors).map_err(refused_or_runtime)?;
+            if json {
+                print_json(&serde_json::json!({"recording": true, "path": path, "sensors": sensors}));
+            } else {
+                println!(
+                    "recording world '{world}' into {}{}",
+                    path.display(),
+                    if sensors { " (with sensor captures)" } else { "" }
+                );
+            }
+        }
+        RecorderCommand::Stop { json } => {
+            let client = connect(world, timeout)?;
+            let status = client.stop_recorder().map_err(refused_or_runtime)?;
+            if json {
+                print_json(&status);
+            } else {
+                println!(
+                    "recording stopped: {} frames, {} bytes, {}",
+                    status.frames, status.bytes, status.path
+                );
+                if !status.message.is_empty() {
+                    println!("warning: {}", status.message);
+                }
+            }
+        }
+        RecorderCommand::Status { json } => {
+            let client = connect(world, timeout)?;
+            let status = client.recorder_status().map_err(refused_or_runtime)?;
+            if json {
+                print_json(&status);
+            } else {
+                print_status(&status);
+            }
+        }
+        RecorderCommand::TimeFactor { factor } => {
+            let client = connect(world, timeout)?;
+            client.set_replayer_time_factor(factor).map_err(refused_or_runtime)?;
+            println!("replay time factor {factor}");
+        }
+        RecorderCommand::StopReplay { keep_actors } => {
+            let client = connect(world, timeout)?;
+            let status = client.stop_replayer(keep_actors).map_err(refused_or_runtime)?;
+            println!(
+                "replay stopped after {} of {} frames{}",
+                status.replay.frames,
+                status.replay.total,
+                if keep_actors { "; the replayed world goes on live" } else { "" }
+            );
+        }
+        RecorderCommand::Info { file, all, json } => {
+            let info = inspect::file_info(&file, all).map_err(file_error)?;
+            if json {
+                print_json(&info);
+            } else {
+                print_info(&info);
+            }
+        }
+        RecorderCommand::Collisions { file, kind1, kind2, json } => {
+            for kind in [kind1, kind2] {
+                if !"avbscx".contains(kind) {
+                    return Err(Failure::Refused(anyhow!(
+                        "unknown category '{kind}': use a (any), v (vehicle), b (box), s (sphere), c (capsule) or x (static)"
+                    )));
+                }
+            }
+            let list = inspect::collisions(&file, kind1, kind2).map_err(file_error)?;
+            if json {
+                print_json(&list);
+            } else {
+                println!("{:>8} {:>10}  {:<18} {:<18} {:>10}", "frame", "time (s)", "actor", "actor", "impulse");
+                for c in &list {
+                    println!(
+                        "{:>8} {:>10.3}  {:<18} {:<18} {:>10.3}",
+                        c.frame,
+                        c.elapsed_seconds,
+                        format!("{} ({})", c.actor_a, c.kind_a),
+                        format!("{} ({})", c.actor_b, c.kind_b),
+                        c.impulse
+                    );
+                }
+                println!("{} collisions", list.len());
+            }
+        }
+        RecorderCommand::Blocked { file, min_time, min_distance, json } => {
+            let list = inspect::actors_blocked(&file, min_time, min_distance as f32).map_err(file_error)?;
+            if json {
+                print_json(&list);
+            } else {
+                println!("{:>8} {:<16} {:>10} {:>12} {:>10}", "frame", "actor", "from (s)", "for (s)", "moved (m)");
+                for b in &list {
+                    println!(
+                        "{:>8} {:<16} {:>10.3} {:>12.3} {:>10.3}",
+                        b.frame,
+                        format!("{} ({})", b.actor, b.kind),
+                        b.from_seconds,
+                        b.duration_seconds,
+                        b.distance
+                    );
+                }
+                println!("{} actors blocked for at least {min_time} s (moving less than {min_distance} m)", list.len());
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_status(status: &RecorderStatus) {
+    if status.recording {
+        println!("recording  {} ({} frames so far)", status.path, status.frames);
+    } else if !status.path.is_empty() {
+        println!("recorder   stopped; last: {} ({} frames, {} bytes)", status.path, status.frames, status.bytes);
+    } else {
+        println!("recorder   idle");
+    }
+    let r = &status.replay;
+    println!(
+        "replay     {} ({}): {} of {} frames, time factor {}",
+        r.state, r.mode, r.frames, r.total, r.time_factor
+    );
+    if r.mode == "resimulate" && r.frames > 0 {
+        match r.mismatch {
+            None => println!("verified   identical: {} frames", r.verified),
+            Some(m) => println!("verified   differs at frame {} (actor {})", m.frame, m.actor),
+        }
+    }
+    if !status.message.is_empty() {
+        println!("message    {}", status.message);
+    }
+}
+
+fn print_info(info: &inspect::FileInfo) {
+    let h = &info.header;
+    println!("file         {} ({} bytes, compression {:.1}x)", info.path, info.bytes, info.compression_ratio);
+    println!("written by   simbus {} (recording version {}, protocol {})", h.simbus_version, h.recording_version, h.protocol_version);
+    println!("world        {} (scene {}, seed {})", h.world, h.scene, h.seed);
+    let settings = shared_types::WorldSettings::from(h.settings);
+    for (name, value) in super::settings_lines(&settings) {
+        println!("{name:<12} {value}");
+    }
+    println!(
+        "frames       {} (frame {} to {}), {:.3} s, {} episode changes",
+        info.frames, info.first_frame, info.last_frame, info.duration_seconds, info.episodes
+    );
+    println!(
+        "actors       {} spawned, {} destroyed, at most {} at once",
+        info.actors_spawned, info.actors_destroyed, info.max_actors
+    );
+    println!("commands     {}", info.commands);
+    println!("collisions   {}", info.collisions);
+    println!("sensors      {} ({} captures recorded)", info.sensors, info.captures);
+    println!("keyframes    {}", info.keyframes);
+    match (&info.stopped, info.truncated) {
+        (_, true) => println!("closed       no: the file ends mid-chunk (its server was killed); read up to the last complete chunk"),
+        (Some(reason), false) => println!("closed       yes ({reason})"),
+        (None, false) => println!("closed       no stop event"),
+    }
+    for f in &info.frame_list {
+        println!(
+            "  frame {:>8}  episode {:>3}  t {:>12.6} s  dt {:.6} s  substeps {:>2}  actors {}",
+            f.frame, f.episode, f.elapsed_seconds, f.delta_seconds, f.substeps, f.actors
+        );
+    }
+}
+
+pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> Result<(), Failure> {
+    if args.verify && args.mode != Some(ReplayMode::Resimulate) {
+        return Err(Failure::Refused(anyhow!("--verify needs --mode resimulate")));
+    }
+    let client = connect(world, timeout)?;
+    let options = ReplayOptions {
+        start: args.start,
+        duration: args.duration,
+        follow_id: args.follow,
+        replay_sensors: args.replay_sensors,
+        time_factor: args.time_factor,
+        mode: args.mode,
+        keep_actors: args.keep_actors,
+    };
+    let started = client.replay(&args.file, &options).map_err(refused_or_runtime)?;
+    let synchronous = client.get_settings().map(|s| s.synchronous_mode).unwrap_or(false);
+    if !args.json {
+        println!(
+            "replaying {} ({} frames, {}){}",
+            args.file.display(),
+            started.replay.total,
+            started.replay.mode,
+            if synchronous { "; synchronous mode: it advances one frame per tick" } else { "" }
+        );
+    }
+    if args.detach {
+        return Ok(());
+    }
+    let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout())).then(|| {
+        let bar = ProgressBar::new(started.replay.total);
+        bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}").expect("valid template"));
+        bar
+    });
+    // Follow the replay until it ends; no progress for --timeout is an error.
+    let mut last = (started.replay.frames, Instant::now());
+    let status = loop {
+        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+            let status = client.stop_replayer(args.keep_actors).map_err(refused_or_runtime)?;
+            if let Some(bar) = &bar {
+                bar.abandon();
+            }
+            println!("replay stopped after {} frames", status.replay.frames);
+            return Ok(());
+        }
+        let status = client.recorder_status().map_err(refused_or_runtime)?;
+        if let Some(bar) = &bar {
+            bar.set_position(status.replay.frames);
+        }
+        if status.replay.replay_state() != ReplayState::Running {
+            break status;
+        }
+        if status.replay.frames != last.0 {
+            last = (status.replay.frames, Instant::now());
+        } else if last.1.elapsed() > timeout {
+            return Err(Failure::Runtime(anyhow!(
+                "the replay made no progress for {timeout:?}{}",
+                if synchronous { " (synchronous mode: is the ticker ticking?)" } else { "" }
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let r = &status.replay;
+    if args.json {
+        print_json(&status);
+    } else {
+        println!("replay {}: {} of {} frames", r.state, r.frames, r.total);
+        if args.verify {
+            match r.mismatch {
+                None => println!("identical: {} frames", r.verified),
+                Some(m) => println!(
+                    "differs: frame {} (actor {}) is not the recorded one; {} frames before it were identical",
+                    m.frame, m.actor, r.verified
+                ),
+            }
+        }
+    }
+    if r.replay_state() == ReplayState::Failed {
+        return Err(Failure::Runtime(anyhow!("the replay failed: {}", status.message)));
+    }
+    if args.verify && (r.mismatch.is_some() || r.verified != r.total) {
+        return Err(Failure::Runtime(anyhow!("the re-simulation differs from the recording")));
+    }
+    Ok(())
+}

@@ -1,0 +1,319 @@
+//! Reading a recording without a server: CARLA's `show_recorder_file_info`,
+//! `show_recorder_collisions` and `show_recorder_actors_blocked`, answered
+//! as data (serialize them for JSON) instead of preformatted text.
+//!
+//! ```no_run
+//! let info = sim_client::inspect::file_info("run.mcap", false)?;
+//! println!("{} frames, {:.1} s", info.frames, info.duration_seconds);
+//! # Ok::<(), shared_types::recording::RecordingError>(())
+//! ```
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+use shared_types::recording::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};
+use shared_types::{ActorKind, CommandKind, CommandStatus, NANOS_PER_SECOND};
+
+/// What a recording holds (`recorder info`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FileInfo {
+    /// The file.
+    pub path: String,
+    /// Its header: versions, world, scene, seed, settings, start.
+    pub header: RecordingHeader,
+    /// Frames recorded.
+    pub frames: u64,
+    /// First and last recorded frame ids.
+    pub first_frame: u64,
+    /// The last.
+    pub last_frame: u64,
+    /// Simulation seconds covered (summed over episodes).
+    pub duration_seconds: f64,
+    /// Episodes begun during the recording (loads and reloads).
+    pub episodes: u64,
+    /// Commands recorded.
+    pub commands: u64,
+    /// Actors spawned by commands.
+    pub actors_spawned: u64,
+    /// Actors destroyed by commands.
+    pub actors_destroyed: u64,
+    /// The most actors in one frame.
+    pub max_actors: u64,
+    /// Sensors spawned (recorded ones: see `captures`).
+    pub sensors: u64,
+    /// Sensor captures recorded.
+    pub captures: u64,
+    /// Collisions.
+    pub collisions: u64,
+    /// Keyframes.
+    pub keyframes: u64,
+    /// Settings changes.
+    pub settings_changes: u64,
+    /// The file's size.
+    pub bytes: u64,
+    /// Bytes of frames, commands and captures before compression.
+    pub raw_bytes: u64,
+    /// `raw_bytes / bytes`.
+    pub compression_ratio: f64,
+    /// The file was not closed (its server was killed): every complete
+    /// chunk was read.
+    pub truncated: bool,
+    /// Why the recording stopped, if it was closed.
+    pub stopped: Option<String>,
+    /// With `show_all`: every frame (id, time, delta, actors).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub frame_list: Vec<FrameLine>,
+}
+
+/// One frame, for `recorder info --all`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FrameLine {
+    /// Frame id.
+    pub frame: u64,
+    /// Its episode in the recording.
+    pub episode: u64,
+    /// Simulation seconds.
+    pub elapsed_seconds: f64,
+    /// Seconds since the previous frame.
+    pub delta_seconds: f64,
+    /// Physics steps.
+    pub substeps: u32,
+    /// Actors.
+    pub actors: u32,
+}
+
+/// One collision (`recorder collisions`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Collision {
+    /// The frame in which the contact started.
+    pub frame: u64,
+    /// Its simulation time.
+    pub elapsed_seconds: f64,
+    /// One actor (the lower id).
+    pub actor_a: u64,
+    /// Its kind.
+    pub kind_a: &'static str,
+    /// The other.
+    pub actor_b: u64,
+    /// Its kind.
+    pub kind_b: &'static str,
+    /// The contact's normal impulse at the end of the step, N·s.
+    pub impulse: f32,
+}
+
+/// An actor that stayed (nearly) still (`recorder blocked`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Blocked {
+    /// The actor.
+    pub actor: u64,
+    /// Its kind.
+    pub kind: &'static str,
+    /// The frame it stopped at.
+    pub frame: u64,
+    /// When it stopped (recording seconds).
+    pub from_seconds: f64,
+    /// How long it moved less than the distance.
+    pub duration_seconds: f64,
+    /// How far it moved meanwhile, metres.
+    pub distance: f32,
+}
+
+fn kind_name(kind: u32) -> &'static str {
+    ActorKind::from_u32(kind).map_or("unknown", |k| k.name())
+}
+
+fn seconds(ns: u64) -> f64 {
+    ns as f64 / NANOS_PER_SECOND as f64
+}
+
+/// Every entry of `path`, in order.
+fn entries(path: &str, mut each: impl FnMut(&Entry)) -> Result<RecordingReader, RecordingError> {
+    let mut reader = RecordingReader::open(path)?;
+    while let Some(entry) = reader.next() {
+        each(&entry?);
+    }
+    Ok(reader)
+}
+
+/// CARLA's `show_recorder_file_info(name, show_all)`.
+pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError> {
+    let mut info = FileInfo {
+        path: path.to_string(),
+        header: RecordingReader::open(path)?.header().clone(),
+        frames: 0,
+        first_frame: 0,
+        last_frame: 0,
+        duration_seconds: 0.0,
+        episodes: 0,
+        commands: 0,
+        actors_spawned: 0,
+        actors_destroyed: 0,
+        max_actors: 0,
+        sensors: 0,
+        captures: 0,
+        collisions: 0,
+        keyframes: 0,
+        settings_changes: 0,
+        bytes: 0,
+        raw_bytes: 0,
+        compression_ratio: 0.0,
+        truncated: false,
+        stopped: None,
+        frame_list: Vec::new(),
+    };
+    let mut last_log = 0;
+    let reader = entries(path, |entry| match entry {
+        Entry::Frame { log_ns, header, actors } => {
+            let t = &header.timestamp;
+            if info.frames == 0 {
+                info.first_frame = t.frame;
+            }
+            info.frames += 1;
+            info.last_frame = t.frame;
+            last_log = *log_ns;
+            info.max_actors = info.max_actors.max(actors.len() as u64);
+            info.raw_bytes += 96 + 96 * actors.len() as u64;
+            if show_all {
+                info.frame_list.push(FrameLine {
+                    frame: t.frame,
+                    episode: header.episode,
+                    elapsed_seconds: t.elapsed_seconds(),
+                    delta_seconds: t.delta_seconds(),
+                    substeps: header.physics_substeps,
+                    actors: header.actor_count,
+                });
+            }
+        }
+        Entry::Command(c) => {
+            info.commands += 1;
+            info.raw_bytes += std::mem::size_of_val(c) as u64;
+            let ok = c.result.status == CommandStatus::Ok as u32;
+            match CommandKind::from_u32(c.command.kind) {
+                Some(kind) if ok && kind.spawns() => info.actors_spawned += 1,
+                Some(CommandKind::Destroy) if ok => info.actors_destroyed += 1,
+                _ => {}
+            }
+        }
+        Entry::Event(RecordedEvent::Episode { .. }) => info.episodes += 1,
+        Entry::Event(RecordedEvent::Settings { .. }) => info.settings_changes += 1,
+        Entry::Event(RecordedEvent::Stopped { reason, .. }) => info.stopped = Some(reason.clone()),
+        Entry::Event(RecordedEvent::SensorEnded { .. }) => {}
+        Entry::Collision(_) => info.collisions += 1,
+        Entry::Sensor(_) => info.sensors += 1,
+        Entry::Capture { data, .. } => {
+            info.captures += 1;
+            info.raw_bytes += data.len() as u64;
+        }
+        Entry::Keyframe { .. } => info.keyframes += 1,
+    })?;
+    info.duration_seconds = seconds(last_log);
+    info.bytes = reader.bytes();
+    info.truncated = reader.truncated();
+    info.compression_ratio = if info.bytes > 0 {
+        info.raw_bytes as f64 / info.bytes as f64
+    } else {
+        0.0
+    };
+    Ok(info)
+}
+
+/// Whether `kind` matches CARLA-style category `filter`: `a` any, `v`
+/// vehicle, `b` box, `s` sphere, `c` capsule, `x` static.
+pub fn kind_matches(filter: char, kind: u32) -> bool {
+    match (filter, ActorKind::from_u32(kind)) {
+        ('a', _) => true,
+        ('v', Some(ActorKind::Vehicle)) => true,
+        ('b', Some(ActorKind::Box)) => true,
+        ('s', Some(ActorKind::Sphere)) => true,
+        ('c', Some(ActorKind::Capsule)) => true,
+        ('x', Some(ActorKind::Static)) => true,
+        _ => false,
+    }
+}
+
+/// CARLA's `show_recorder_collisions(name, type1, type2)`: collisions
+/// between an actor of category `kind1` and one of `kind2` (see
+/// [`kind_matches`]), in order.
+pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>, RecordingError> {
+    let mut out = Vec::new();
+    entries(path, |entry| {
+        if let Entry::Collision(c) = entry {
+            let matches = (kind_matches(kind1, c.kind_a) && kind_matches(kind2, c.kind_b))
+                || (kind_matches(kind1, c.kind_b) && kind_matches(kind2, c.kind_a));
+            if matches {
+                out.push(Collision {
+                    frame: c.frame,
+                    elapsed_seconds: seconds(c.elapsed_ns),
+                    actor_a: c.actor_a,
+                    kind_a: kind_name(c.kind_a),
+                    actor_b: c.actor_b,
+                    kind_b: kind_name(c.kind_b),
+                    impulse: c.impulse,
+                });
+            }
+        }
+    })?;
+    Ok(out)
+}
+
+/// CARLA's `show_recorder_actors_blocked(name, min_time, min_distance)`:
+/// every stretch of at least `min_time` seconds in which a movable actor
+/// moved less than `min_distance` metres.
+pub fn actors_blocked(path: &str, min_time: f64, min_distance: f32) -> Result<Vec<Blocked>, RecordingError> {
+    struct Still {
+        kind: u32,
+        since_ns: u64,
+        since_frame: u64,
+        at: [f32; 3],
+        last_ns: u64,
+        moved: f32,
+    }
+    let min_ns = (min_time.max(0.0) * NANOS_PER_SECOND as f64) as u64;
+    let mut still: BTreeMap<u64, Still> = BTreeMap::new();
+    let mut out = Vec::new();
+    let close = |id: u64, s: &Still, out: &mut Vec<Blocked>| {
+        if s.last_ns - s.since_ns >= min_ns {
+            out.push(Blocked {
+                actor: id,
+                kind: kind_name(s.kind),
+                frame: s.since_frame,
+                from_seconds: seconds(s.since_ns),
+                duration_seconds: seconds(s.last_ns - s.since_ns),
+                distance: s.moved,
+            });
+        }
+    };
+    entries(path, |entry| {
+        let Entry::Frame { log_ns, header, actors } = entry else {
+            return;
+        };
+        for actor in actors {
+            if actor.kind == ActorKind::Static as u32 {
+                continue;
+            }
+            let start = || Still {
+                kind: actor.kind,
+                since_ns: *log_ns,
+                since_frame: header.timestamp.frame,
+                at: actor.position,
+                last_ns: *log_ns,
+                moved: 0.0,
+            };
+            let s = still.entry(actor.id).or_insert_with(start);
+            let [dx, dy, dz] = [0, 1, 2].map(|i| actor.position[i] - s.at[i]);
+            let distance = (dx * dx + dy * dy + dz * dz).sqrt();
+            if distance >= min_distance {
+                close(actor.id, s, &mut out);
+                *s = start();
+            } else {
+                s.last_ns = *log_ns;
+                s.moved = distance;
+            }
+        }
+    })?;
+    for (id, s) in &still {
+        close(*id, s, &mut out);
+    }
+    out.sort_by(|a, b| a.from_seconds.total_cmp(&b.from_seconds).then(a.actor.cmp(&b.actor)));
+    Ok(out)
+}

@@ -1,0 +1,318 @@
+//! The recorder and the replayer, CARLA's API: `start_recorder`,
+//! `stop_recorder`, `replay_file`, `set_replayer_time_factor`,
+//! `stop_replayer`, all answered with a [`RecorderStatus`].
+//!
+//! Reading a recording without a server (CARLA's `show_recorder_*`) is in
+//! [`crate::inspect`].
+
+use std::path::{Path, PathBuf};
+
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::prelude::*;
+use serde::Serialize;
+use shared_types::limits::MAX_CLIENTS_FLAG;
+use shared_types::{
+    PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
+    ReplayState, ResponseStatus,
+};
+
+use crate::rpc::{await_response, check_protocol, Wait};
+use crate::{Client, RequestError};
+
+/// The recorder service's client port.
+pub(crate) type RecorderClient = RequestClient<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+
+/// Why a recorder request failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecorderError {
+    /// The server refused; nothing changed. The message says why in words.
+    #[error("{message}")]
+    Refused {
+        /// Why, as a code.
+        refusal: RecorderRefusal,
+        /// Why, in words (from the server).
+        message: String,
+    },
+    /// The path is longer than the wire carries.
+    #[error("the path is longer than {} bytes", PathText::CAPACITY)]
+    PathTooLong,
+    /// The request failed.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+}
+
+/// How a replay goes (or went).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReplayStatus {
+    /// `idle`, `running`, `finished`, `stopped` or `failed`.
+    pub state: &'static str,
+    /// `exact`, `interpolate` or `resimulate`.
+    pub mode: &'static str,
+    /// Frames replayed so far.
+    pub frames: u64,
+    /// Frames the replay covers.
+    pub total: u64,
+    /// Resimulate: frames whose state matched the recording bit for bit.
+    pub verified: u64,
+    /// Resimulate: the first frame that differed, and the first actor that
+    /// differed in it (0: the sets of actors differ).
+    pub mismatch: Option<Mismatch>,
+    /// The time factor.
+    pub time_factor: f64,
+}
+
+/// Where a re-simulation first left the recording.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Mismatch {
+    /// The frame.
+    pub frame: u64,
+    /// The actor (0: the actor sets differ).
+    pub actor: u64,
+}
+
+/// How the recorder and the replayer are doing.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RecorderStatus {
+    /// A recording runs.
+    pub recording: bool,
+    /// The current (or last) recording's path, as the server sees it.
+    pub path: String,
+    /// Frames written to it.
+    pub frames: u64,
+    /// Its size once closed (0 while it runs).
+    pub bytes: u64,
+    /// The current (or last) replay.
+    pub replay: ReplayStatus,
+    /// What went wrong last, if anything.
+    pub message: String,
+}
+
+impl ReplayStatus {
+    /// The replay's [`ReplayState`], if the server sent one this version knows.
+    pub fn replay_state(&self) -> ReplayState {
+        ReplayState::ALL
+            .into_iter()
+            .find(|s| state_name(*s) == self.state)
+            .unwrap_or(ReplayState::Idle)
+    }
+}
+
+fn state_name(state: ReplayState) -> &'static str {
+    match state {
+        ReplayState::Idle => "idle",
+        ReplayState::Running => "running",
+        ReplayState::Finished => "finished",
+        ReplayState::Stopped => "stopped",
+        ReplayState::Failed => "failed",
+    }
+}
+
+impl From<&RecorderResponse> for RecorderStatus {
+    fn from(r: &RecorderResponse) -> Self {
+        Self {
+            recording: r.recording != 0,
+            path: r.path.to_string_lossy(),
+            frames: r.frames_written,
+            bytes: r.bytes_written,
+            replay: ReplayStatus {
+                state: ReplayState::from_u32(r.replay_state).map_or("unknown", state_name),
+                mode: ReplayMode::from_u32(r.replay_mode).map_or("unknown", |m| m.name()),
+                frames: r.replay_frames,
+                total: r.replay_total,
+                verified: r.verified_frames,
+                mismatch: (r.mismatch != 0).then_some(Mismatch {
+                    frame: r.mismatch_frame,
+                    actor: r.mismatch_actor,
+                }),
+                time_factor: r.time_factor,
+            },
+            message: r.message.to_string_lossy(),
+        }
+    }
+}
+
+/// What a replay should do: CARLA's `replay_file` arguments and simbus's mode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayOptions {
+    /// Seconds from the recording's start (negative: from its end).
+    pub start: f64,
+    /// Seconds to replay (0: to the end).
+    pub duration: f64,
+    /// Sensors spawned without a parent during the replay ride on this
+    /// recorded actor (0: none).
+    pub follow_id: u64,
+    /// Spawn the recorded sensors again, capturing the replayed scene.
+    pub replay_sensors: bool,
+    /// Simulation speed relative to the recording (asynchronous mode).
+    pub time_factor: f64,
+    /// `None`: exact for fixed-step recordings, interpolate otherwise.
+    pub mode: Option<ReplayMode>,
+    /// Keep the replayed world when the replay ends.
+    pub keep_actors: bool,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        Self {
+            start: 0.0,
+            duration: 0.0,
+            follow_id: 0,
+            replay_sensors: false,
+            time_factor: 1.0,
+            mode: None,
+            keep_actors: false,
+        }
+    }
+}
+
+/// `path` made absolute against this process's directory (the server's may
+/// differ).
+fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+fn path_text(path: &Path) -> Result<PathText, RecorderError> {
+    PathText::exact(&absolute(path).to_string_lossy()).ok_or(RecorderError::PathTooLong)
+}
+
+impl Client {
+    /// The recorder port, opened on first use and kept.
+    fn recorder_port(&self) -> Result<&RecorderClient, RequestError> {
+        use iceoryx2::service::port_factory::client::ClientCreateError;
+        if let Some(port) = self.recorder_port.get() {
+            return Ok(port);
+        }
+        let name = ServiceName::new(&self.names.recorder)
+            .map_err(|e| RequestError::transport("service name", e))?;
+        let service = self
+            .node()
+            .service_builder(&name)
+            .request_response::<RecorderRequest, RecorderResponse>()
+            .open()
+            .map_err(|e| RequestError::transport("recorder service", e))?;
+        let port = service.client_builder().create().map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
+                what: "clients sending recorder requests",
+                max: service.static_config().max_clients(),
+                flag: MAX_CLIENTS_FLAG,
+            },
+            e => RequestError::transport("recorder client", e),
+        })?;
+        Ok(self.recorder_port.get_or_init(|| port))
+    }
+
+    fn recorder_request(&self, request: RecorderRequest) -> Result<RecorderStatus, RecorderError> {
+        let pending = self
+            .recorder_port()?
+            .send_copy(request)
+            .map_err(|e| RequestError::transport("recorder send", e))?;
+        self.wake_server()?;
+        let answer = await_response(
+            &pending,
+            self.request_timeout,
+            self.world.as_str(),
+            self.server_pid,
+            Wait::Backoff,
+        )?;
+        check_protocol(answer.protocol_version, answer.status)?;
+        match ResponseStatus::from_u32(answer.status) {
+            Some(ResponseStatus::Ok) => Ok(RecorderStatus::from(&answer)),
+            Some(ResponseStatus::Refused) => Err(RecorderError::Refused {
+                refusal: RecorderRefusal::from_u32(answer.refusal)
+                    .unwrap_or(RecorderRefusal::InvalidArgument),
+                message: answer.message.to_string_lossy(),
+            }),
+            Some(ResponseStatus::UnknownRequest) => Err(RequestError::UnknownRequest.into()),
+            _ => Err(RequestError::UnknownAnswer {
+                status: answer.status,
+            }
+            .into()),
+        }
+    }
+
+    /// Starts recording the world into `path` (an MCAP file, created by the
+    /// server; made absolute here), with every sensor capture if
+    /// `record_sensors`. Returns the path the server writes (CARLA's
+    /// `start_recorder`).
+    pub fn start_recorder(&self, path: impl AsRef<Path>, record_sensors: bool) -> Result<PathBuf, RecorderError> {
+        let mut request = RecorderRequest::new(RecorderKind::Start);
+        request.path = path_text(path.as_ref())?;
+        if record_sensors {
+            request.flags |= RecorderRequest::SENSORS;
+        }
+        let status = self.recorder_request(request)?;
+        Ok(PathBuf::from(status.path))
+    }
+
+    /// Stops the recording and closes its file; the status says how many
+    /// frames and bytes it holds.
+    pub fn stop_recorder(&self) -> Result<RecorderStatus, RecorderError> {
+        self.recorder_request(RecorderRequest::new(RecorderKind::Stop))
+    }
+
+    /// How the recorder and the replayer are doing.
+    pub fn recorder_status(&self) -> Result<RecorderStatus, RecorderError> {
+        self.recorder_request(RecorderRequest::new(RecorderKind::Status))
+    }
+
+    /// CARLA's `replay_file(name, start, duration, follow_id, replay_sensors)`:
+    /// replays the recording at `path` in the default mode.
+    pub fn replay_file(
+        &self,
+        path: impl AsRef<Path>,
+        start: f64,
+        duration: f64,
+        follow_id: u64,
+        replay_sensors: bool,
+    ) -> Result<RecorderStatus, RecorderError> {
+        self.replay(
+            path,
+            &ReplayOptions {
+                start,
+                duration,
+                follow_id,
+                replay_sensors,
+                ..ReplayOptions::default()
+            },
+        )
+    }
+
+    /// Replays the recording at `path` as `options` say. The server checks
+    /// the whole file first: a damaged one is refused and nothing changes.
+    /// In synchronous mode the replay starts with the next tick.
+    pub fn replay(&self, path: impl AsRef<Path>, options: &ReplayOptions) -> Result<RecorderStatus, RecorderError> {
+        let mut request = RecorderRequest::new(RecorderKind::Replay);
+        request.path = path_text(path.as_ref())?;
+        request.start_seconds = options.start;
+        request.duration_seconds = options.duration;
+        request.follow_id = options.follow_id;
+        request.time_factor = options.time_factor;
+        request.mode = options.mode.map_or(0, |m| m as u32);
+        if options.replay_sensors {
+            request.flags |= RecorderRequest::REPLAY_SENSORS;
+        }
+        if options.keep_actors {
+            request.flags |= RecorderRequest::KEEP_ACTORS;
+        }
+        self.recorder_request(request)
+    }
+
+    /// CARLA's `set_replayer_time_factor`: the replay's speed relative to
+    /// the recording (asynchronous mode).
+    pub fn set_replayer_time_factor(&self, factor: f64) -> Result<RecorderStatus, RecorderError> {
+        let mut request = RecorderRequest::new(RecorderKind::TimeFactor);
+        request.time_factor = factor;
+        self.recorder_request(request)
+    }
+
+    /// CARLA's `stop_replayer(keep_actors)`: ends the replay; with
+    /// `keep_actors` the replayed world goes on live, otherwise the world
+    /// from before the replay comes back.
+    pub fn stop_replayer(&self, keep_actors: bool) -> Result<RecorderStatus, RecorderError> {
+        let mut request = RecorderRequest::new(RecorderKind::StopReplay);
+        if keep_actors {
+            request.flags |= RecorderRequest::KEEP_ACTORS;
+        }
+        self.recorder_request(request)
+    }
+}

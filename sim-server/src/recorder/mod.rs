@@ -1,0 +1,309 @@
+//! The recorder domain: records every frame, applied command, event,
+//! collision, keyframe and (on request) sensor capture into an MCAP file.
+//!
+//! The frame loop only hands copies to a writer thread over a bounded
+//! channel; the thread compresses and writes. Nothing is ever dropped: when
+//! the disk cannot keep up and the channel is full, the frame loop waits
+//! (and says so in the log). The file is finished (summary, footer) on
+//! `stop`, when the server stops, and on a load of another scene; a
+//! killed server leaves every complete chunk readable.
+
+mod keyframe;
+mod service;
+mod writer;
+
+pub(crate) use keyframe::Keyframe;
+pub use service::RecorderPort;
+
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::thread::JoinHandle;
+
+use shared_types::recording::{
+    RecordedCollision, RecordedCommand, RecordedEvent, RecordedSensor, RecordingHeader,
+};
+use shared_types::{ActorState, Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
+use tracing::{info, warn};
+
+use crate::world::World;
+use writer::{Item, Written};
+
+/// Items in flight to the writer before the frame loop waits for it.
+const QUEUE: usize = 256;
+
+/// A sensor spawned or ended (the sensors domain notes them; the recorder
+/// writes them when recording).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum SensorNote {
+    Spawned(RecordedSensor),
+    Ended { frame: u64, id: u64 },
+}
+
+/// The running recording.
+#[derive(Debug)]
+struct Active {
+    items: SyncSender<Item>,
+    thread: JoinHandle<Result<Written, String>>,
+    path: String,
+    sensors: bool,
+    frames: u64,
+    /// Recording time of the last frame (never goes back).
+    log_ns: u64,
+    keyframe_every_ns: u64,
+    next_keyframe_ns: u64,
+    /// Times the frame loop waited for the disk.
+    stalls: u64,
+    /// The settings of the last recorded frame.
+    settings: Option<shared_types::WireSettings>,
+}
+
+/// What the last recording wrote.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct LastRecording {
+    pub(crate) path: String,
+    pub(crate) frames: u64,
+    pub(crate) bytes: u64,
+    pub(crate) error: Option<String>,
+}
+
+/// The recorder's state.
+#[derive(Debug, Default)]
+pub struct Recorder {
+    active: Option<Active>,
+    pub(crate) last: LastRecording,
+    collisions: Vec<RecordedCollision>,
+    captures: Vec<(SensorHeader, Vec<u8>)>,
+}
+
+impl Recorder {
+    /// Whether a recording runs.
+    pub fn is_recording(&self) -> bool {
+        self.active.is_some()
+    }
+
+    /// The running recording's path and frames so far.
+    pub(crate) fn progress(&self) -> Option<(&str, u64)> {
+        self.active.as_ref().map(|a| (a.path.as_str(), a.frames))
+    }
+
+    /// Starts recording to `path`: writes the header, the current frame and
+    /// a keyframe. The file is created here, so a path the server cannot
+    /// write is refused at once.
+    pub(crate) fn start(
+        &mut self,
+        path: &str,
+        header: RecordingHeader,
+        frame: (&FrameHeader, &World),
+        scene: String,
+    ) -> Result<(), String> {
+        let handle = writer::create(path, &header).map_err(|e| format!("cannot create {path}: {e}"))?;
+        let (items, receiver) = sync_channel(QUEUE);
+        let thread_path = path.to_string();
+        let thread = std::thread::Builder::new()
+            .name("simbus-recorder".into())
+            .spawn(move || writer::run(handle, receiver, thread_path))
+            .map_err(|e| format!("cannot start the recorder thread: {e}"))?;
+        let every = (header.keyframe_seconds * NANOS_PER_SECOND as f64) as u64;
+        self.active = Some(Active {
+            items,
+            thread,
+            path: path.to_string(),
+            sensors: header.sensors,
+            frames: 0,
+            log_ns: 0,
+            keyframe_every_ns: every.max(1),
+            next_keyframe_ns: 0,
+            stalls: 0,
+            settings: None,
+        });
+        info!(path, sensors = header.sensors, frame = frame.0.timestamp.frame, "recording started");
+        self.collisions.clear();
+        self.captures.clear();
+        self.record_frame(frame.0, frame.1, scene, true);
+        Ok(())
+    }
+
+    /// Stops the recording (if one runs), finishing the file; `reason` and
+    /// `frame` go into its last event.
+    pub(crate) fn stop(&mut self, reason: &str, frame: u64) -> Option<&LastRecording> {
+        let active = self.active.take()?;
+        let log_ns = active.log_ns;
+        let _ = active.items.send(Item::Event {
+            log_ns,
+            event: RecordedEvent::Stopped {
+                frame,
+                reason: reason.to_string(),
+            },
+        });
+        drop(active.items);
+        let result = active
+            .thread
+            .join()
+            .unwrap_or_else(|_| Err("the recorder thread panicked".to_string()));
+        self.last = match result {
+            Ok(written) => LastRecording {
+                path: active.path,
+                frames: written.frames,
+                bytes: written.bytes,
+                error: None,
+            },
+            Err(error) => LastRecording {
+                path: active.path,
+                frames: active.frames,
+                bytes: 0,
+                error: Some(error),
+            },
+        };
+        info!(
+            path = self.last.path,
+            frames = self.last.frames,
+            bytes = self.last.bytes,
+            stalls = active.stalls,
+            reason,
+            "recording stopped"
+        );
+        Some(&self.last)
+    }
+
+    /// Hands `item` to the writer; waits when its queue is full (never drops).
+    fn send(&mut self, item: Item) {
+        let Some(active) = &mut self.active else {
+            return;
+        };
+        let item = match active.items.try_send(item) {
+            Ok(()) => return,
+            Err(TrySendError::Full(item)) => item,
+            Err(TrySendError::Disconnected(_)) => {
+                warn!(path = active.path, "the recorder's writer stopped; recording ends");
+                self.stop("writer failed", 0);
+                return;
+            }
+        };
+        active.stalls += 1;
+        if active.stalls.is_power_of_two() {
+            warn!(
+                path = active.path,
+                stalls = active.stalls,
+                "the disk cannot keep up with the recording: the frame loop waits for it (no frame is dropped)"
+            );
+        }
+        if active.items.send(item).is_err() {
+            warn!(path = active.path, "the recorder's writer stopped; recording ends");
+            self.stop("writer failed", 0);
+        }
+    }
+
+    /// Where the world's step puts the contacts that start (only while recording).
+    pub(crate) fn collisions(&mut self) -> Option<&mut Vec<RecordedCollision>> {
+        self.active.as_ref()?;
+        Some(&mut self.collisions)
+    }
+
+    /// Where the sensors put copies of their captures (only while
+    /// recording with sensors).
+    pub(crate) fn captures(&mut self) -> Option<&mut Vec<(SensorHeader, Vec<u8>)>> {
+        self.active.as_ref().filter(|a| a.sensors)?;
+        Some(&mut self.captures)
+    }
+
+    /// Records a published frame, the collisions and captures of its step,
+    /// and a keyframe when one is due.
+    pub(crate) fn frame(&mut self, header: &FrameHeader, world: &World, scene: String) {
+        if self.active.is_some() {
+            self.record_frame(header, world, scene, false);
+        }
+    }
+
+    fn record_frame(&mut self, header: &FrameHeader, world: &World, scene: String, first: bool) {
+        let Some(active) = &mut self.active else {
+            return;
+        };
+        if !first {
+            active.log_ns = active.log_ns.saturating_add(header.timestamp.delta_ns);
+        }
+        active.frames += 1;
+        let log_ns = active.log_ns;
+        let settings_changed = active.settings.is_some_and(|s| s != header.settings);
+        active.settings = Some(header.settings);
+        if settings_changed {
+            self.send(Item::Event {
+                log_ns,
+                event: RecordedEvent::Settings {
+                    frame: header.timestamp.frame,
+                    settings: header.settings.into(),
+                },
+            });
+        }
+        let Some(active) = &mut self.active else {
+            return;
+        };
+        let keyframe_due = log_ns >= active.next_keyframe_ns;
+        if keyframe_due {
+            active.next_keyframe_ns = log_ns.saturating_add(active.keyframe_every_ns);
+        }
+        let actors: Vec<ActorState> = (0..world.actor_count()).map(|i| world.actor_state(i)).collect();
+        self.send(Item::Frame {
+            log_ns,
+            header: *header,
+            actors,
+        });
+        for mut collision in std::mem::take(&mut self.collisions) {
+            collision.frame = header.timestamp.frame;
+            collision.elapsed_ns = header.timestamp.elapsed_ns;
+            self.send(Item::Collision { log_ns, collision });
+        }
+        for (header, data) in std::mem::take(&mut self.captures) {
+            self.send(Item::Capture { log_ns, header, data });
+        }
+        if keyframe_due {
+            let data = Keyframe::of(world, header, scene).encode();
+            self.send(Item::Keyframe {
+                log_ns,
+                frame: header.timestamp.frame,
+                data,
+            });
+        }
+    }
+
+    /// Records a command applied before `frame` of `episode`.
+    pub(crate) fn command(&mut self, frame: u64, episode: u64, command: &Command, result: &CommandResult) {
+        let Some(active) = &self.active else {
+            return;
+        };
+        let log_ns = active.log_ns;
+        self.send(Item::Command {
+            log_ns,
+            command: RecordedCommand {
+                frame,
+                episode,
+                command: *command,
+                result: *result,
+            },
+        });
+    }
+
+    /// Records an event.
+    pub(crate) fn event(&mut self, event: RecordedEvent) {
+        let Some(active) = &self.active else {
+            return;
+        };
+        let log_ns = active.log_ns;
+        self.send(Item::Event { log_ns, event });
+    }
+
+    /// Records what the sensors domain noted.
+    pub(crate) fn sensor_notes(&mut self, notes: impl IntoIterator<Item = SensorNote>) {
+        for note in notes {
+            let Some(active) = &self.active else {
+                continue;
+            };
+            let log_ns = active.log_ns;
+            match note {
+                SensorNote::Spawned(sensor) => self.send(Item::Sensor { log_ns, sensor }),
+                SensorNote::Ended { frame, id } => self.send(Item::Event {
+                    log_ns,
+                    event: RecordedEvent::SensorEnded { frame, id },
+                }),
+            }
+        }
+    }
+}

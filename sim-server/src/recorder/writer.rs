@@ -1,0 +1,324 @@
+//! The recording's writer thread: it owns the MCAP file, takes what the
+//! frame loop hands it over a bounded channel and writes it, so the frame
+//! loop never waits for the disk unless the channel is full.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::sync::mpsc::Receiver;
+
+use mcap::records::MessageHeader;
+use serde_json::json;
+use shared_types::recording::*;
+use shared_types::{ActorKind, ActorState, FrameHeader, SensorHeader};
+use tracing::{info, warn};
+
+/// Bytes of messages gathered before a chunk is compressed and written: a
+/// killed server loses at most the chunk being gathered.
+const CHUNK_BYTES: u64 = 1 << 20;
+
+/// What the frame loop hands the writer.
+#[derive(Debug)]
+pub(crate) enum Item {
+    /// A published frame.
+    Frame {
+        log_ns: u64,
+        header: FrameHeader,
+        actors: Vec<ActorState>,
+    },
+    /// An applied command.
+    Command { log_ns: u64, command: RecordedCommand },
+    /// An event.
+    Event { log_ns: u64, event: RecordedEvent },
+    /// A collision.
+    Collision { log_ns: u64, collision: RecordedCollision },
+    /// A sensor's spawn.
+    Sensor { log_ns: u64, sensor: RecordedSensor },
+    /// A capture.
+    Capture {
+        log_ns: u64,
+        header: SensorHeader,
+        data: Vec<u8>,
+    },
+    /// A keyframe after `frame`.
+    Keyframe {
+        log_ns: u64,
+        frame: u64,
+        data: Vec<u8>,
+    },
+}
+
+/// What a finished recording holds.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Written {
+    pub(crate) frames: u64,
+    pub(crate) bytes: u64,
+}
+
+/// The open file and its channel ids.
+struct Writer {
+    mcap: mcap::Writer<BufWriter<File>>,
+    frames: u16,
+    commands: u16,
+    events: u16,
+    collisions: u16,
+    sensors: u16,
+    keyframes: u16,
+    scene: u16,
+    capture_schema: u16,
+    captures: HashMap<u64, u16>,
+    written: Written,
+    scratch: Vec<u8>,
+}
+
+type McapResult<T> = Result<T, mcap::McapError>;
+
+/// Creates `path` and writes the header; the file is ready for [`run`].
+pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterHandle> {
+    let file = File::create(path)?;
+    let mut mcap = mcap::WriteOptions::new()
+        .profile(PROFILE)
+        .library(format!("simbus {}", env!("CARGO_PKG_VERSION")))
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(CHUNK_BYTES))
+        .create(BufWriter::new(file))?;
+    let header_json = serde_json::to_vec(header).unwrap_or_default();
+    let mut metadata = std::collections::BTreeMap::new();
+    metadata.insert("header".to_string(), String::from_utf8_lossy(&header_json).into_owned());
+    mcap.write_metadata(&mcap::records::Metadata {
+        name: "simbus".to_string(),
+        metadata,
+    })?;
+    let json_schema = |mcap: &mut mcap::Writer<_>, name: &str, schema: serde_json::Value| {
+        mcap.add_schema(name, "jsonschema", schema.to_string().as_bytes())
+    };
+    let header_schema = json_schema(&mut mcap, HEADER_SCHEMA, json!({"type": "object"}))?;
+    let header_channel =
+        mcap.add_channel(header_schema, HEADER_TOPIC, "json", &Default::default())?;
+    let wire = |mcap: &mut mcap::Writer<_>, schema: &str, layout: &str, topic: &str| {
+        let id = mcap.add_schema(schema, WIRE_ENCODING, layout.as_bytes())?;
+        mcap.add_channel(id, topic, WIRE_ENCODING, &Default::default())
+    };
+    let frames = wire(
+        &mut mcap,
+        FRAME_SCHEMA,
+        "#[repr(C)] simbus::FrameHeader/2 (96 bytes, little-endian) followed by actor_count simbus::ActorState/1 (96 bytes each); see shared-types/src/frame.rs",
+        FRAMES_TOPIC,
+    )?;
+    let commands = wire(
+        &mut mcap,
+        COMMAND_SCHEMA,
+        "#[repr(C)] simbus::RecordedCommand/1: frame u64, episode u64, simbus::Command, simbus::CommandResult; see shared-types/src/recording",
+        COMMANDS_TOPIC,
+    )?;
+    let collisions = wire(
+        &mut mcap,
+        COLLISION_SCHEMA,
+        "#[repr(C)] simbus::RecordedCollision/1 (48 bytes); see shared-types/src/recording",
+        COLLISIONS_TOPIC,
+    )?;
+    let sensors = wire(
+        &mut mcap,
+        SENSOR_SPAWN_SCHEMA,
+        "#[repr(C)] simbus::RecordedSensor/1: frame u64, id u64, simbus::SensorSpec",
+        SENSORS_TOPIC,
+    )?;
+    let event_schema = json_schema(&mut mcap, EVENT_SCHEMA, json!({"type": "object", "required": ["event"]}))?;
+    let events = mcap.add_channel(event_schema, EVENTS_TOPIC, "json", &Default::default())?;
+    let keyframe_schema = mcap.add_schema(
+        KEYFRAME_SCHEMA,
+        "msgpack",
+        b"simbus server world: rapier3d 0.36 PhysicsWorld (serde) and simbus actors, msgpack",
+    )?;
+    let keyframes =
+        mcap.add_channel(keyframe_schema, KEYFRAMES_TOPIC, "msgpack", &Default::default())?;
+    let scene_schema = json_schema(&mut mcap, SCENE_SCHEMA, scene_update_schema())?;
+    let scene = mcap.add_channel(scene_schema, SCENE_TOPIC, "json", &Default::default())?;
+    let capture_schema = mcap.add_schema(
+        CAPTURE_SCHEMA,
+        WIRE_ENCODING,
+        b"#[repr(C)] simbus::SensorHeader/2 followed by the capture's elements (f32 depth, simbus::LidarPoint/1 or simbus::ImuMeasurement/1)",
+    )?;
+    mcap.write_to_known_channel(
+        &MessageHeader {
+            channel_id: header_channel,
+            sequence: 0,
+            log_time: 0,
+            publish_time: header.start_elapsed_ns,
+        },
+        &header_json,
+    )?;
+    Ok(WriterHandle(Writer {
+        mcap,
+        frames,
+        commands,
+        events,
+        collisions,
+        sensors,
+        keyframes,
+        scene,
+        capture_schema,
+        captures: HashMap::new(),
+        written: Written::default(),
+        scratch: Vec::new(),
+    }))
+}
+
+/// A created recording, to be moved to its thread.
+pub(crate) struct WriterHandle(Writer);
+
+impl std::fmt::Debug for WriterHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("WriterHandle")
+    }
+}
+
+/// Writes every item until the channel closes, then finishes the file
+/// (summary, indexes, footer). Returns what was written.
+pub(crate) fn run(handle: WriterHandle, items: Receiver<Item>, path: String) -> Result<Written, String> {
+    let mut writer = handle.0;
+    while let Ok(item) = items.recv() {
+        if let Err(e) = writer.write(item) {
+            warn!(path, "recording failed: {e}");
+            // Keep draining so the frame loop never blocks on a dead writer.
+            while items.recv().is_ok() {}
+            return Err(e.to_string());
+        }
+    }
+    writer.mcap.finish().map_err(|e| e.to_string())?;
+    let inner = writer.mcap.into_inner();
+    drop(inner);
+    let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    writer.written.bytes = bytes;
+    info!(path, frames = writer.written.frames, bytes, "recording closed");
+    Ok(writer.written)
+}
+
+impl Writer {
+    fn message(&mut self, channel_id: u16, sequence: u64, log_ns: u64, publish_ns: u64, data: &[u8]) -> McapResult<()> {
+        self.mcap.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence: sequence as u32,
+                log_time: log_ns,
+                publish_time: publish_ns,
+            },
+            data,
+        )
+    }
+
+    fn write(&mut self, item: Item) -> McapResult<()> {
+        match item {
+            Item::Frame { log_ns, header, actors } => {
+                let mut bytes = std::mem::take(&mut self.scratch);
+                bytes.clear();
+                bytes.extend_from_slice(bytemuck::bytes_of(&header));
+                bytes.extend_from_slice(bytemuck::cast_slice(&actors));
+                let t = &header.timestamp;
+                self.message(self.frames, t.frame, log_ns, t.elapsed_ns, &bytes)?;
+                self.scratch = bytes;
+                let scene = scene_update(&header, &actors, log_ns);
+                self.message(self.scene, t.frame, log_ns, t.elapsed_ns, scene.to_string().as_bytes())?;
+                self.written.frames += 1;
+            }
+            Item::Command { log_ns, command } => {
+                self.message(self.commands, command.frame, log_ns, log_ns, bytemuck::bytes_of(&command))?;
+            }
+            Item::Event { log_ns, event } => {
+                let json = serde_json::to_vec(&event).unwrap_or_default();
+                self.message(self.events, 0, log_ns, log_ns, &json)?;
+            }
+            Item::Collision { log_ns, collision } => {
+                self.message(self.collisions, collision.frame, log_ns, collision.elapsed_ns, bytemuck::bytes_of(&collision))?;
+            }
+            Item::Sensor { log_ns, sensor } => {
+                self.message(self.sensors, sensor.frame, log_ns, log_ns, bytemuck::bytes_of(&sensor))?;
+            }
+            Item::Capture { log_ns, header, data } => {
+                let channel = match self.captures.get(&header.sensor_id) {
+                    Some(id) => *id,
+                    None => {
+                        let topic = format!("{SENSOR_TOPIC_PREFIX}{}", header.sensor_id);
+                        let id = self.mcap.add_channel(self.capture_schema, &topic, WIRE_ENCODING, &Default::default())?;
+                        self.captures.insert(header.sensor_id, id);
+                        id
+                    }
+                };
+                let mut bytes = std::mem::take(&mut self.scratch);
+                bytes.clear();
+                bytes.extend_from_slice(bytemuck::bytes_of(&header));
+                bytes.extend_from_slice(&data);
+                self.message(channel, header.frame, log_ns, header.elapsed_ns, &bytes)?;
+                self.scratch = bytes;
+            }
+            Item::Keyframe { log_ns, frame, data } => {
+                self.message(self.keyframes, frame, log_ns, log_ns, &data)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A `foxglove.SceneUpdate` (JSON encoding) with one entity per actor:
+/// a cube for boxes, statics and vehicles, a sphere, or a cylinder-shaped
+/// capsule. Foxglove's frame is Z up; simbus's is Y up, so the scene's
+/// root frame `simbus` is rotated by the viewer's settings, not here.
+fn scene_update(header: &FrameHeader, actors: &[ActorState], log_ns: u64) -> serde_json::Value {
+    let stamp = json!({"sec": log_ns / 1_000_000_000, "nsec": log_ns % 1_000_000_000});
+    let entities: Vec<serde_json::Value> = actors
+        .iter()
+        .map(|a| {
+            let [x, y, z] = a.position;
+            let [qx, qy, qz, qw] = a.rotation;
+            let [ex, ey, ez] = a.extent;
+            // Y up (simbus) to Z up (Foxglove): (x, y, z) -> (x, -z, y).
+            let pose = json!({
+                "position": {"x": x, "y": -z, "z": y},
+                "orientation": {"x": qx, "y": -qz, "z": qy, "w": qw},
+            });
+            let kind = ActorKind::from_u32(a.kind);
+            let color = match kind {
+                Some(ActorKind::Static) => json!({"r": 0.5, "g": 0.5, "b": 0.5, "a": 1.0}),
+                Some(ActorKind::Vehicle) => json!({"r": 0.9, "g": 0.2, "b": 0.2, "a": 1.0}),
+                _ => json!({"r": 0.2, "g": 0.5, "b": 0.9, "a": 1.0}),
+            };
+            let size = |x: f32, y: f32, z: f32| json!({"x": 2.0 * x, "y": 2.0 * z, "z": 2.0 * y});
+            let (cubes, spheres, cylinders) = match kind {
+                Some(ActorKind::Sphere) => (vec![], vec![json!({"pose": pose, "size": size(ex, ex, ex), "color": color})], vec![]),
+                Some(ActorKind::Capsule) => (
+                    vec![],
+                    vec![],
+                    vec![json!({"pose": pose, "size": size(ex, ey + ex, ex), "bottom_scale": 1.0, "top_scale": 1.0, "color": color})],
+                ),
+                _ => (vec![json!({"pose": pose, "size": size(ex, ey, ez), "color": color})], vec![], vec![]),
+            };
+            json!({
+                "timestamp": stamp,
+                "frame_id": "simbus",
+                "id": a.id.to_string(),
+                "lifetime": {"sec": 0, "nsec": 0},
+                "frame_locked": false,
+                "metadata": [
+                    {"key": "kind", "value": kind.map_or("unknown", |k| k.name())},
+                    {"key": "frame", "value": header.timestamp.frame.to_string()},
+                ],
+                "arrows": [], "cubes": cubes, "spheres": spheres, "cylinders": cylinders,
+                "lines": [], "triangles": [], "texts": [], "models": [],
+            })
+        })
+        .collect();
+    json!({"deletions": [{"timestamp": stamp, "type": 1, "id": ""}], "entities": entities})
+}
+
+/// A JSON schema for `foxglove.SceneUpdate` sufficient for Foxglove to
+/// recognise the schema by name; the full one is Foxglove's.
+fn scene_update_schema() -> serde_json::Value {
+    json!({
+        "title": "foxglove.SceneUpdate",
+        "type": "object",
+        "properties": {
+            "deletions": {"type": "array"},
+            "entities": {"type": "array"}
+        }
+    })
+}

@@ -1,0 +1,345 @@
+//! The second pass over a recording: restores the chosen keyframe, rolls
+//! forward to the first replayed frame, then hands out frames one by one,
+//! applying the recorded commands and episodes before each.
+
+use std::collections::VecDeque;
+
+use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
+use shared_types::{ActorState, FrameHeader, RecorderRefusal, ReplayMode, SensorSpec};
+
+use super::selection::Selection;
+use super::{episode_of, episode_world, recorded_plan, restore};
+use crate::clock::Clock;
+use crate::world::World;
+use crate::Scene;
+
+/// A recorded frame.
+#[derive(Debug, Clone)]
+struct Recorded {
+    log_ns: u64,
+    header: FrameHeader,
+    actors: Vec<ActorState>,
+    /// The world already holds this frame's state (the keyframe's own frame).
+    applied: bool,
+}
+
+/// A frame the cursor produced.
+#[derive(Debug)]
+pub(crate) struct Interpolated {
+    pub(crate) log_ns: u64,
+    pub(crate) header: FrameHeader,
+    pub(crate) actors: Vec<ActorState>,
+    /// Resimulate: the first (frame, actor) that differs from the recording.
+    pub(crate) mismatch: Option<(u64, u64)>,
+}
+
+/// A recorded sensor that appeared or ended (by its recorded id).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum SensorChange {
+    Spawned(u64, SensorSpec),
+    Ended(u64),
+}
+
+/// Reads a recording forward.
+#[derive(Debug)]
+pub(crate) struct Cursor {
+    reader: RecordingReader,
+    seed: u64,
+    /// Entries read ahead: commands and events, then (last) the next frame.
+    buffer: VecDeque<Entry>,
+    /// The next frame, when it is the keyframe's own (already in the world).
+    first: Option<Recorded>,
+    /// Interpolate: the latest frame at or before the replay time.
+    previous: Option<Recorded>,
+    /// Interpolate: frames handed out and the last elapsed time.
+    produced: u64,
+    last_elapsed_ns: u64,
+    first_frame: u64,
+    done: bool,
+    /// Recorded sensors that appeared or ended since last taken.
+    pub(crate) sensor_changes: Vec<SensorChange>,
+}
+
+type Refused = (RecorderRefusal, String);
+
+impl Cursor {
+    /// Restores `selection`'s keyframe from `reader` and rolls forward to
+    /// its first frame; returns the cursor and the world, clock and scene
+    /// the replay starts from.
+    pub(crate) fn start(
+        mut reader: RecordingReader,
+        selection: &Selection,
+        mode: ReplayMode,
+    ) -> Result<(Self, World, Clock, Scene), Refused> {
+        let bad = |message: String| (RecorderRefusal::BadFile, message);
+        let mut keyframes = 0;
+        let mut alive: Vec<(u64, SensorSpec)> = Vec::new();
+        let mut last_frame: Option<Recorded> = None;
+        let (mut world, mut clock, scene) = loop {
+            match reader.next() {
+                None => return Err(bad("the recording ended before its keyframe".into())),
+                Some(Err(e)) => return Err(bad(e.to_string())),
+                Some(Ok(Entry::Frame { log_ns, header, actors })) => {
+                    last_frame = Some(Recorded { log_ns, header, actors, applied: true })
+                }
+                Some(Ok(Entry::Sensor(sensor))) => alive.push((sensor.id, sensor.spec)),
+                Some(Ok(Entry::Event(RecordedEvent::SensorEnded { id, .. }))) => {
+                    alive.retain(|(alive, _)| *alive != id)
+                }
+                Some(Ok(Entry::Keyframe { data, .. })) => {
+                    if keyframes == selection.keyframe {
+                        break restore(&data).map_err(|e| bad(format!("its keyframe: {e}")))?;
+                    }
+                    keyframes += 1;
+                }
+                Some(Ok(_)) => {}
+            }
+        };
+        let scene: Scene = scene.parse().map_err(|e| bad(format!("the keyframe's scene: {e}")))?;
+        let mut cursor = Self {
+            reader,
+            seed: selection.seed,
+            buffer: VecDeque::new(),
+            first: None,
+            previous: None,
+            produced: 0,
+            last_elapsed_ns: 0,
+            first_frame: selection.first_frame,
+            done: false,
+            sensor_changes: Vec::new(),
+        };
+        // The index of the last frame the world holds.
+        let mut index = selection.keyframe_index;
+        if index == selection.first_index {
+            cursor.first = last_frame;
+        }
+        // Roll forward (not published) to just before the first replayed frame.
+        while index + 1 < selection.first_index && cursor.first.is_none() {
+            cursor.fill().map_err(bad)?;
+            let Some(frame) = cursor.take(&mut world).map_err(bad)? else {
+                return Err(bad("the recording ended before the start".into()));
+            };
+            if mode == ReplayMode::Resimulate {
+                step(&mut world, &frame);
+            }
+            clock = Clock::at(
+                frame.header.timestamp.frame,
+                frame.header.timestamp.elapsed_ns,
+                frame.header.timestamp.delta_ns,
+                std::time::Instant::now(),
+            );
+            index += 1;
+        }
+        // The sensors alive at the first replayed frame appear with it.
+        for change in std::mem::take(&mut cursor.sensor_changes) {
+            match change {
+                SensorChange::Spawned(id, spec) => alive.push((id, spec)),
+                SensorChange::Ended(id) => alive.retain(|(alive, _)| *alive != id),
+            }
+        }
+        cursor.sensor_changes = alive
+            .into_iter()
+            .map(|(id, spec)| SensorChange::Spawned(id, spec))
+            .collect();
+        Ok((cursor, world, clock, scene))
+    }
+
+    /// Reads until the buffer ends with a frame (or the file ends).
+    fn fill(&mut self) -> Result<(), String> {
+        if self.first.is_some() || matches!(self.buffer.back(), Some(Entry::Frame { .. })) {
+            return Ok(());
+        }
+        while !self.done {
+            match self.reader.next() {
+                None => self.done = true,
+                Some(Err(e)) => return Err(e.to_string()),
+                Some(Ok(entry)) => {
+                    let frame = matches!(entry, Entry::Frame { .. });
+                    if matches!(
+                        entry,
+                        Entry::Command(_) | Entry::Event(_) | Entry::Sensor(_) | Entry::Frame { .. }
+                    ) {
+                        self.buffer.push_back(entry);
+                    }
+                    if frame {
+                        break;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The recording time of the next frame, if there is one.
+    pub(crate) fn next_log_ns(&mut self) -> Option<u64> {
+        if let Some(first) = &self.first {
+            return Some(first.log_ns);
+        }
+        self.fill().ok()?;
+        match self.buffer.back() {
+            Some(Entry::Frame { log_ns, .. }) => Some(*log_ns),
+            _ => None,
+        }
+    }
+
+    /// Whether the file has no frame left.
+    pub(crate) fn exhausted(&mut self) -> bool {
+        self.next_log_ns().is_none()
+    }
+
+    /// Applies the buffered commands and episodes to `world` and takes the
+    /// frame that follows them.
+    fn take(&mut self, world: &mut World) -> Result<Option<Recorded>, String> {
+        if let Some(first) = self.first.take() {
+            return Ok(Some(first));
+        }
+        self.fill()?;
+        while let Some(entry) = self.buffer.pop_front() {
+            if let Some((scene, first_id)) = episode_of(&entry) {
+                *world = episode_world(scene, self.seed, first_id)?.0;
+                continue;
+            }
+            match entry {
+                Entry::Command(recorded) => {
+                    world.apply(&recorded.command);
+                }
+                Entry::Sensor(sensor) => {
+                    self.sensor_changes.push(SensorChange::Spawned(sensor.id, sensor.spec))
+                }
+                Entry::Event(RecordedEvent::SensorEnded { id, .. }) => {
+                    self.sensor_changes.push(SensorChange::Ended(id))
+                }
+                Entry::Frame { log_ns, header, actors } => {
+                    return Ok(Some(Recorded { log_ns, header, actors, applied: false }))
+                }
+                _ => {}
+            }
+        }
+        Ok(None)
+    }
+
+    /// The next recorded frame: exact sets the world to it; resimulate
+    /// steps the world and compares.
+    pub(crate) fn next_recorded(
+        &mut self,
+        world: &mut World,
+        mode: ReplayMode,
+    ) -> Result<Option<Interpolated>, String> {
+        let Some(frame) = self.take(world)? else {
+            return Ok(None);
+        };
+        let mut mismatch = None;
+        let actors = if mode == ReplayMode::Resimulate {
+            if !frame.applied {
+                step(world, &frame);
+            }
+            let actors: Vec<ActorState> = (0..world.actor_count()).map(|i| world.actor_state(i)).collect();
+            if bytemuck::cast_slice::<ActorState, u8>(&actors) != bytemuck::cast_slice::<ActorState, u8>(&frame.actors) {
+                let actor = actors
+                    .iter()
+                    .zip(&frame.actors)
+                    .find(|(a, b)| a != b)
+                    .map_or(0, |(a, _)| a.id);
+                let actor = if actors.len() == frame.actors.len() { actor } else { 0 };
+                mismatch = Some((frame.header.timestamp.frame, actor));
+            }
+            actors
+        } else {
+            world.set_states(&frame.actors);
+            frame.actors
+        };
+        Ok(Some(Interpolated {
+            log_ns: frame.log_ns,
+            header: frame.header,
+            actors,
+            mismatch,
+        }))
+    }
+
+    /// The recorded states interpolated at recording time `at` (position
+    /// linear, rotation slerp, velocities linear), set into `world`.
+    pub(crate) fn interpolated(&mut self, world: &mut World, at: u64) -> Result<Option<Interpolated>, String> {
+        loop {
+            match self.next_log_ns() {
+                Some(log_ns) if log_ns <= at || self.previous.is_none() => {
+                    let frame = self.take(world)?;
+                    self.previous = frame.or(self.previous.take());
+                }
+                _ => break,
+            }
+        }
+        let more = self.next_log_ns().is_some();
+        let Some(previous) = &self.previous else {
+            return Ok(None);
+        };
+        if self.produced > 0 && !more && at > previous.log_ns {
+            return Ok(None);
+        }
+        let next = match self.buffer.back() {
+            Some(Entry::Frame { log_ns, header, actors }) if header.episode == previous.header.episode && *log_ns > previous.log_ns => {
+                Some((*log_ns, actors.as_slice()))
+            }
+            _ => None,
+        };
+        let at = at.max(previous.log_ns);
+        let actors: Vec<ActorState> = match next {
+            Some((next_ns, next_actors)) => {
+                let alpha = ((at - previous.log_ns) as f64 / (next_ns - previous.log_ns) as f64).min(1.0) as f32;
+                previous
+                    .actors
+                    .iter()
+                    .map(|a| match next_actors.binary_search_by_key(&a.id, |b| b.id) {
+                        Ok(i) => interpolate(a, &next_actors[i], alpha),
+                        Err(_) => *a,
+                    })
+                    .collect()
+            }
+            None => previous.actors.clone(),
+        };
+        let elapsed_ns = previous.header.timestamp.elapsed_ns + (at - previous.log_ns);
+        let mut header = previous.header;
+        header.timestamp.frame = self.first_frame + self.produced;
+        header.timestamp.delta_ns = if self.produced == 0 {
+            0
+        } else {
+            elapsed_ns.saturating_sub(self.last_elapsed_ns)
+        };
+        header.timestamp.elapsed_ns = elapsed_ns;
+        header.physics_substeps = 0;
+        header.actor_count = actors.len() as u32;
+        self.produced += 1;
+        self.last_elapsed_ns = elapsed_ns;
+        world.set_states(&actors);
+        Ok(Some(Interpolated {
+            log_ns: at,
+            header,
+            actors,
+            mismatch: None,
+        }))
+    }
+}
+
+/// Steps `world` through a recorded frame as the recording's server did.
+fn step(world: &mut World, frame: &Recorded) {
+    if frame.header.physics_substeps > 0 {
+        world.step(&recorded_plan(&frame.header));
+    }
+}
+
+/// `a` moved `alpha` of the way to `b`.
+fn interpolate(a: &ActorState, b: &ActorState, alpha: f32) -> ActorState {
+    use rapier3d::prelude::{Rotation, Vector};
+    let lerp = |x: [f32; 3], y: [f32; 3]| {
+        Vector::from_array(x).lerp(Vector::from_array(y), alpha).to_array()
+    };
+    let [ax, ay, az, aw] = a.rotation;
+    let [bx, by, bz, bw] = b.rotation;
+    let rotation = Rotation::from_xyzw(ax, ay, az, aw).slerp(Rotation::from_xyzw(bx, by, bz, bw), alpha);
+    ActorState {
+        position: lerp(a.position, b.position),
+        rotation: rotation.to_array(),
+        linear_velocity: lerp(a.linear_velocity, b.linear_velocity),
+        angular_velocity: lerp(a.angular_velocity, b.angular_velocity),
+        ..*a
+    }
+}

@@ -1,0 +1,53 @@
+//! A Python virtual environment for the tests that check simbus's output
+//! with tools simbus did not write (the `mcap` reader from PyPI). It is
+//! created once per target directory, under a lock, with pinned packages;
+//! nothing is assumed installed but `python3`.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The pinned packages the Python checks use.
+pub const PYTHON_REQUIREMENTS: &[&str] = &["mcap==1.2.2", "zstandard==0.25.0", "lz4==4.4.5"];
+
+/// The venv's `python`, creating the venv on first use (every test
+/// process shares it; a lock file keeps two from building it at once).
+pub fn python() -> PathBuf {
+    let target = crate::bin("sim-client")
+        .parent()
+        .and_then(|profile| profile.parent())
+        .expect("target/<profile>/sim-client")
+        .to_path_buf();
+    let venv = target.join("simbus-venv");
+    let python = venv.join("bin").join("python");
+    let marker = venv.join("simbus-requirements.txt");
+    let wanted = PYTHON_REQUIREMENTS.join("\n");
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(target.join("simbus-venv.lock"))
+        .expect("venv lock file");
+    // SAFETY: flock(2) on a file descriptor this process owns; it is
+    // released when `lock` is closed at the end of this function.
+    let locked = unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX) };
+    assert_eq!(locked, 0, "locking the venv: {}", std::io::Error::last_os_error());
+    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists() {
+        return python;
+    }
+    let run = |command: &mut Command| {
+        let output = command.output().expect("running python3");
+        assert!(
+            output.status.success(),
+            "{command:?} failed: {}\n{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
+    };
+    let _ = std::fs::remove_dir_all(&venv);
+    run(Command::new("python3").args(["-m", "venv"]).arg(&venv));
+    run(Command::new(&python)
+        .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"])
+        .args(PYTHON_REQUIREMENTS));
+    std::fs::write(&marker, wanted).expect("venv marker");
+    python
+}

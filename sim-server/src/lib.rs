@@ -36,18 +36,11 @@
 //!
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let config = ServerConfig {
-//!     world: WorldName::new(&format!("doc-lab-{}", std::process::id()))?,
 //!     scene: Scene::Default,
 //!     settings: WorldSettings { fixed_delta_seconds: Some(0.05), ..Default::default() },
-//!     realtime: false,
 //!     max_fps: 0.0,
 //!     max_frames: Some(100),
-//!     on_ticker_loss: Default::default(),
-//!     wait_mode: Default::default(),
-//!     hybrid_window: std::time::Duration::from_micros(100),
-//!     seed: 0,
-//!     lockstep_timeout: std::time::Duration::from_secs(10),
-//!     limits: Default::default(),
+//!     ..ServerConfig::new(WorldName::new(&format!("doc-lab-{}", std::process::id()))?)
 //! };
 //! let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
 //! assert_eq!(summary.frames, 100);

@@ -278,21 +278,28 @@ pub enum RecordingError {
         /// The path.
         path: String,
     },
-    /// Not an MCAP file, or a damaged one.
-    #[error("{path} is not a readable MCAP file: {source}")]
+    /// Not an MCAP file.
+    #[error("{path} is not a readable MCAP file: {error}")]
     NotMcap {
         /// The file.
         path: String,
         /// What the MCAP reader said.
-        source: mcap::McapError,
+        error: mcap::McapError,
     },
-    /// A chunk's CRC does not match: the file is damaged.
-    #[error("{path} is damaged: {source}")]
+    /// A chunk's CRC does not match, or a record is broken: the file is damaged.
+    #[error("{path} is damaged: {error}")]
     Corrupt {
         /// The file.
         path: String,
         /// What the MCAP reader said.
-        source: mcap::McapError,
+        error: mcap::McapError,
+    },
+    /// The file ends before its first complete chunk (its server was killed
+    /// right after it started recording, or the copy is cut short).
+    #[error("{path} is truncated before its first complete chunk: nothing in it can be read")]
+    Truncated {
+        /// The file.
+        path: String,
     },
     /// An MCAP file, but not a simbus recording (another program's).
     #[error("{path} is an MCAP file but not a simbus recording (no {HEADER_TOPIC} header first)")]
@@ -330,6 +337,7 @@ impl RecordingError {
             Self::Directory { .. } => "directory",
             Self::NotMcap { .. } => "not_mcap",
             Self::Corrupt { .. } => "corrupt",
+            Self::Truncated { .. } => "truncated",
             Self::NotSimbus { .. } => "not_simbus",
             Self::FutureSchema { .. } => "future_schema",
             Self::Malformed { .. } => "malformed",

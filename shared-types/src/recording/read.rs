@@ -74,6 +74,8 @@ pub struct RecordingReader {
     /// Set when the file ended in the middle of a chunk (a server that was
     /// killed): every complete chunk before it was read.
     truncated: bool,
+    /// The file ends with MCAP's closing magic (it was finished).
+    closed: bool,
     bytes: u64,
 }
 
@@ -125,6 +127,7 @@ impl RecordingReader {
                 keyframe_seconds: 0.0,
             },
             truncated: false,
+            closed: ends_with_magic(path),
             bytes: metadata.len(),
         };
         let not_simbus = || RecordingError::NotSimbus {
@@ -132,6 +135,11 @@ impl RecordingReader {
         };
         let first = match reader.messages.next() {
             Some(Ok(message)) => message,
+            Some(Err(mcap::McapError::UnexpectedEof)) => {
+                return Err(RecordingError::Truncated {
+                    path: path.to_string(),
+                })
+            }
             Some(Err(e)) => return Err(reader.mcap_error(e)),
             None => return Err(not_simbus()),
         };
@@ -171,12 +179,9 @@ impl RecordingReader {
         use mcap::McapError as E;
         let path = self.path.clone();
         match source {
-            E::BadChunkCrc { .. } | E::BadDataCrc { .. } | E::BadSummaryCrc { .. } => {
-                RecordingError::Corrupt { path, source }
-            }
-            E::BadMagic => RecordingError::NotMcap { path, source },
+            E::BadMagic => RecordingError::NotMcap { path, error: source },
             E::Io(e) => RecordingError::Io { path, source: e },
-            source => RecordingError::Corrupt { path, source },
+            error => RecordingError::Corrupt { path, error },
         }
     }
 
@@ -219,7 +224,10 @@ impl RecordingReader {
         loop {
             let message = match self.messages.next()? {
                 Ok(message) => message,
-                Err(mcap::McapError::UnexpectedEof) => {
+                // An unfinished file ends mid-chunk: what came before is good.
+                Err(mcap::McapError::UnexpectedEof | mcap::McapError::UnexpectedEoc)
+                    if !self.closed =>
+                {
                     self.truncated = true;
                     return None;
                 }
@@ -288,6 +296,19 @@ impl RecordingReader {
             return Some(Ok(entry));
         }
     }
+}
+
+/// Whether the file at `path` ends with MCAP's magic, as a finished file does.
+fn ends_with_magic(path: &str) -> bool {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut tail = [0u8; 8];
+    File::open(path)
+        .and_then(|mut f| {
+            f.seek(SeekFrom::End(-8))?;
+            f.read_exact(&mut tail)
+        })
+        .is_ok()
+        && tail == *mcap::MAGIC
 }
 
 /// A `T` read from the front of `data`, and the rest.

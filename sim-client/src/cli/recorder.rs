@@ -169,7 +169,19 @@ fn print_json(value: &impl serde::Serialize) {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> Result<(), Failure> {
-    let file_error = |e: shared_types::recording::RecordingError| Failure::Refused(e.into());
+    let json = matches!(
+        args.command,
+        RecorderCommand::Info { json: true, .. }
+            | RecorderCommand::Collisions { json: true, .. }
+            | RecorderCommand::Blocked { json: true, .. }
+    );
+    // With --json a script gets the error as data too (and exit 2).
+    let file_error = move |e: shared_types::recording::RecordingError| {
+        if json {
+            print_json(&serde_json::json!({"error": e.code(), "message": e.to_string()}));
+        }
+        Failure::Refused(e.into())
+    };
     match args.command {
         RecorderCommand::Start { file, sensors, json } => {
             let client = connect(world, timeout)?;

@@ -92,6 +92,7 @@ impl Recorder {
         &mut self,
         path: &str,
         header: RecordingHeader,
+        sensors: Vec<SensorNote>,
         frame: (&FrameHeader, &World),
         scene: String,
     ) -> Result<(), String> {
@@ -118,6 +119,7 @@ impl Recorder {
         info!(path, sensors = header.sensors, frame = frame.0.timestamp.frame, "recording started");
         self.collisions.clear();
         self.captures.clear();
+        self.sensor_notes(sensors);
         self.record_frame(frame.0, frame.1, scene, true);
         Ok(())
     }

@@ -34,12 +34,10 @@ impl Domains {
         };
         let frame = self.frame_header(0, 0);
         let scene = self.runtime.scene.to_string();
-        self.recorder.start(path, header, (&frame, &self.world), scene)?;
-        // The sensors alive now are part of the recording.
-        for sensor in self.sensors.recorded_spawns(self.clock.frame()) {
-            self.recorder.sensor_notes([sensor]);
-        }
-        Ok(())
+        // The sensors alive now are part of the recording, before its first frame.
+        let sensors = self.sensors.recorded_spawns(self.clock.frame());
+        self.recorder
+            .start(path, header, sensors, (&frame, &self.world), scene)
     }
 
     /// Checks the recording, then replaces the world with the one the

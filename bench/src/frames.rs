@@ -40,6 +40,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         seed: 0,
         lockstep_timeout: Duration::from_secs(10),
         limits: Default::default(),
+        keyframe_seconds: None,
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

@@ -7,6 +7,7 @@
 //! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
 //! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
 //! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
+//! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
 //! ```
 
 use std::process::ExitCode;
@@ -16,6 +17,7 @@ use clap::{Parser, Subcommand};
 mod commands;
 mod failover;
 mod frames;
+mod recorder;
 mod sensors;
 mod stats;
 mod support;
@@ -47,6 +49,9 @@ enum Command {
     /// Sensor delivery latency from 8 B to 8 MiB against TCP loopback, and
     /// the frame time with a depth camera and a lidar.
     Sensors(sensors::SensorsArgs),
+    /// Recording overhead (default scene, boxes:1000), bytes per frame,
+    /// compression, and exact replay and re-simulation speed.
+    Recorder(recorder::RecorderArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
@@ -63,6 +68,7 @@ fn main() -> ExitCode {
         Command::Failover(a) => failover::run(a),
         Command::Commands(a) => commands::run(a),
         Command::Sensors(a) => sensors::run(a),
+        Command::Recorder(a) => recorder::run(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);

@@ -38,6 +38,10 @@ pub struct World {
     /// The id of this world's first actor (the scene's first placement).
     first_id: u64,
     next_id: u64,
+    /// Bodies were moved without a step ([`World::set_states`]): ray casts
+    /// need [`World::sync_queries`] first.
+    #[serde(skip)]
+    queries_stale: bool,
 }
 
 impl std::fmt::Debug for World {
@@ -64,6 +68,7 @@ impl World {
             pushed: Vec::new(),
             first_id,
             next_id: first_id,
+            queries_stale: false,
         };
         for placement in placements {
             world.insert(placement);
@@ -213,9 +218,17 @@ impl World {
             actor.acceleration = Vector::from_array(state.acceleration);
             actor.previous_velocity = Vector::from_array(state.linear_velocity);
         }
-        // Colliders and the query structure follow the bodies, so ray casts
-        // (sensors) see the new poses; nothing is integrated.
-        self.physics.detect_collisions(&(), &());
+        self.queries_stale = true;
+    }
+
+    /// Brings colliders and the query structure to the bodies' poses after
+    /// [`World::set_states`], so ray casts (sensors) see them; nothing is
+    /// integrated. Costs a collision-detection pass, so a replay only pays
+    /// it when a sensor looks.
+    pub fn sync_queries(&mut self) {
+        if std::mem::take(&mut self.queries_stale) {
+            self.physics.detect_collisions(&(), &());
+        }
     }
 
     /// The rapier body of actor `id`.

@@ -58,6 +58,9 @@ pub(crate) struct Cursor {
     done: bool,
     /// Recorded sensors that appeared or ended since last taken.
     pub(crate) sensor_changes: Vec<SensorChange>,
+    /// Recorded frames passed since the replay began (not counting the
+    /// roll forward to its start).
+    pub(crate) passed: u64,
 }
 
 type Refused = (RecorderRefusal, String);
@@ -107,6 +110,7 @@ impl Cursor {
             first_frame: selection.first_frame,
             done: false,
             sensor_changes: Vec::new(),
+            passed: 0,
         };
         // The index of the last frame the world holds.
         let mut index = selection.keyframe_index;
@@ -191,6 +195,7 @@ impl Cursor {
     /// frame that follows them.
     fn take(&mut self, world: &mut World) -> Result<Option<Recorded>, String> {
         if let Some(first) = self.first.take() {
+            self.passed += 1;
             return Ok(Some(first));
         }
         self.fill()?;
@@ -210,7 +215,8 @@ impl Cursor {
                     self.sensor_changes.push(SensorChange::Ended(id))
                 }
                 Entry::Frame { log_ns, header, actors } => {
-                    return Ok(Some(Recorded { log_ns, header, actors, applied: false }))
+                    self.passed += 1;
+                    return Ok(Some(Recorded { log_ns, header, actors, applied: false }));
                 }
                 _ => {}
             }

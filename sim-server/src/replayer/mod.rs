@@ -47,6 +47,8 @@ pub(crate) struct ReplayReport {
     pub(crate) mode: ReplayMode,
     pub(crate) path: String,
     pub(crate) frames: u64,
+    /// Frames published (for interpolate, more or fewer than recorded).
+    pub(crate) produced: u64,
     pub(crate) total: u64,
     pub(crate) verified: u64,
     pub(crate) mismatch: Option<(u64, u64)>,
@@ -61,6 +63,7 @@ impl Default for ReplayReport {
             mode: ReplayMode::Exact,
             path: String::new(),
             frames: 0,
+            produced: 0,
             total: 0,
             verified: 0,
             mismatch: None,
@@ -173,6 +176,7 @@ impl Replayer {
             mode,
             path: request.path.clone(),
             frames: 0,
+            produced: 0,
             total: selection.frames,
             verified: 0,
             mismatch: None,
@@ -259,7 +263,7 @@ impl Replayer {
             ReplayMode::Interpolate => {
                 // The first frame is the start itself; each next one is a
                 // server step (times the factor) later.
-                if self.report.frames > 0 {
+                if self.report.produced > 0 {
                     let step = (delta_ns as f64 * factor) as u64;
                     replay.replay_ns = replay.replay_ns.saturating_add(step.max(1));
                 }
@@ -281,7 +285,10 @@ impl Replayer {
                 return None;
             }
         };
-        self.report.frames += 1;
+        // Progress counts recorded frames (an interpolated replay makes as
+        // many frames of its own as its step asks).
+        self.report.frames = replay.cursor.passed.min(self.report.total);
+        self.report.produced += 1;
         if mode == ReplayMode::Resimulate {
             match frame.mismatch {
                 None => self.report.verified += 1,

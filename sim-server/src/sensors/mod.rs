@@ -284,6 +284,11 @@ impl Sensors {
             .collect()
     }
 
+    /// Whether there is no sensor.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
     /// Every sensor.
     pub fn list(&self) -> Vec<SensorInfo> {
         self.list.iter().map(Sensor::info).collect()

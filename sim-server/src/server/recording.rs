@@ -118,6 +118,9 @@ impl Domains {
         self.clock = crate::clock::Clock::at(t.frame, t.elapsed_ns, t.delta_ns, now);
         self.runtime.frames_computed += 1;
         self.replay_sensors();
+        if !self.sensors.is_empty() {
+            self.world.sync_queries();
+        }
         self.sensors.capture(
             &self.world,
             self.clock.frame(),

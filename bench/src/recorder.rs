@@ -49,7 +49,11 @@ fn ticked(client: &Client, frames: u64) -> anyhow::Result<f64> {
 }
 
 /// Ticks until the replay started on `client` ends; seconds per frame.
-fn ticked_replay(client: &Client, path: &Path, mode: ReplayMode) -> anyhow::Result<(f64, u64, Option<u64>)> {
+fn ticked_replay(
+    client: &Client,
+    path: &Path,
+    mode: ReplayMode,
+) -> anyhow::Result<(f64, u64, Option<u64>)> {
     let options = ReplayOptions {
         mode: Some(mode),
         ..Default::default()
@@ -83,10 +87,22 @@ struct SceneFigures {
 fn measure(scene: &'static str, frames: u64, dir: &Path) -> anyhow::Result<SceneFigures> {
     let server = BenchServer::start(
         &format!("rec-{}", scene.replace(':', "-")),
-        &["--scene", scene, "--sync", "--delta-seconds", "0.05", "--seed", "1"],
+        &[
+            "--scene",
+            scene,
+            "--sync",
+            "--delta-seconds",
+            "0.05",
+            "--seed",
+            "1",
+        ],
     )?;
     let client = Client::connect(&server.world, T)?;
-    let path = dir.join(format!("simbus-bench-{}-{}.mcap", scene.replace(':', "-"), std::process::id()));
+    let path = dir.join(format!(
+        "simbus-bench-{}-{}.mcap",
+        scene.replace(':', "-"),
+        std::process::id()
+    ));
     // Side by side, twice each, alternating: live, recording, live, recording.
     let (mut live, mut recording, mut stop) = (Vec::new(), Vec::new(), 0.0);
     for round in 0..2 {
@@ -121,7 +137,10 @@ fn measure(scene: &'static str, frames: u64, dir: &Path) -> anyhow::Result<Scene
 
 /// Records boxes:1000 until the file passes `gib` GiB, then reads it back.
 fn big(gib: f64, dir: &Path) -> anyhow::Result<serde_json::Value> {
-    let server = BenchServer::start("rec-big", &["--scene", "boxes:1000", "--sync", "--delta-seconds", "0.05"])?;
+    let server = BenchServer::start(
+        "rec-big",
+        &["--scene", "boxes:1000", "--sync", "--delta-seconds", "0.05"],
+    )?;
     let client = Client::connect(&server.world, T)?;
     let path = dir.join(format!("simbus-bench-big-{}.mcap", std::process::id()));
     let limit = (gib * (1u64 << 30) as f64) as u64;
@@ -143,11 +162,22 @@ fn big(gib: f64, dir: &Path) -> anyhow::Result<serde_json::Value> {
     let read_s = reading.elapsed().as_secs_f64();
     // A replay from near the end seeks through the whole file.
     let seeking = Instant::now();
-    client.replay(&path, &ReplayOptions { start: -1.0, ..Default::default() })?;
+    client.replay(
+        &path,
+        &ReplayOptions {
+            start: -1.0,
+            ..Default::default()
+        },
+    )?;
     let seek_s = seeking.elapsed().as_secs_f64();
     client.stop_replayer(false)?;
     std::fs::remove_file(&path)?;
-    anyhow::ensure!(info.frames == frames + 1, "{} frames read of {}", info.frames, frames + 1);
+    anyhow::ensure!(
+        info.frames == frames + 1,
+        "{} frames read of {}",
+        info.frames,
+        frames + 1
+    );
     Ok(serde_json::json!({
         "bytes": info.bytes, "frames": info.frames, "record_seconds": record_s,
         "info_seconds": read_s, "replay_start_seconds": seek_s,
@@ -192,7 +222,16 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
     println!("recorder (sync, fixed 0.05 s, one tick per frame; load average {load_before} before, {} after)", load_average());
     println!(
         "{:<12} {:>7} {:>10} {:>10} {:>8} {:>10} {:>8} {:>10} {:>10} {:>10}",
-        "scene", "frames", "live µs", "record µs", "ratio", "B/frame", "zstd", "exact µs", "resim µs", "identical"
+        "scene",
+        "frames",
+        "live µs",
+        "record µs",
+        "ratio",
+        "B/frame",
+        "zstd",
+        "exact µs",
+        "resim µs",
+        "identical"
     );
     for s in &scenes {
         println!(

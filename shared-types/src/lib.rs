@@ -39,10 +39,11 @@ mod frame;
 pub mod input;
 mod lockstep;
 mod names;
-pub mod recording;
 mod recorder;
+pub mod recording;
 pub use recorder::{
-    PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode, ReplayState,
+    PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
+    ReplayState,
 };
 mod sensor;
 mod settings;

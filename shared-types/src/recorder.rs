@@ -62,7 +62,9 @@ impl std::str::FromStr for ReplayMode {
         Self::ALL
             .into_iter()
             .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown replay mode {s:?}: use exact, interpolate or resimulate"))
+            .ok_or_else(|| {
+                format!("unknown replay mode {s:?}: use exact, interpolate or resimulate")
+            })
     }
 }
 
@@ -294,7 +296,10 @@ mod tests {
 
     #[test]
     fn paths_round_trip_and_long_ones_are_refused() {
-        assert_eq!(PathText::exact("/tmp/a.mcap").unwrap().to_string_lossy(), "/tmp/a.mcap");
+        assert_eq!(
+            PathText::exact("/tmp/a.mcap").unwrap().to_string_lossy(),
+            "/tmp/a.mcap"
+        );
         assert!(PathText::exact(&"x".repeat(1025)).is_none());
         assert_eq!(PathText::cut(&"é".repeat(600)).len, 1024);
     }

@@ -11,7 +11,9 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use shared_types::recording::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};
+use shared_types::recording::{
+    Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader,
+};
 use shared_types::{ActorKind, CommandKind, CommandStatus, NANOS_PER_SECOND};
 
 /// What a recording holds (`recorder info`).
@@ -163,7 +165,11 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
     };
     let mut last_log = 0;
     let reader = entries(path, |entry| match entry {
-        Entry::Frame { log_ns, header, actors } => {
+        Entry::Frame {
+            log_ns,
+            header,
+            actors,
+        } => {
             let t = &header.timestamp;
             if info.frames == 0 {
                 info.first_frame = t.frame;
@@ -220,15 +226,15 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
 /// Whether `kind` matches CARLA-style category `filter`: `a` any, `v`
 /// vehicle, `b` box, `s` sphere, `c` capsule, `x` static.
 pub fn kind_matches(filter: char, kind: u32) -> bool {
-    match (filter, ActorKind::from_u32(kind)) {
-        ('a', _) => true,
-        ('v', Some(ActorKind::Vehicle)) => true,
-        ('b', Some(ActorKind::Box)) => true,
-        ('s', Some(ActorKind::Sphere)) => true,
-        ('c', Some(ActorKind::Capsule)) => true,
-        ('x', Some(ActorKind::Static)) => true,
-        _ => false,
-    }
+    matches!(
+        (filter, ActorKind::from_u32(kind)),
+        ('a', _)
+            | ('v', Some(ActorKind::Vehicle))
+            | ('b', Some(ActorKind::Box))
+            | ('s', Some(ActorKind::Sphere))
+            | ('c', Some(ActorKind::Capsule))
+            | ('x', Some(ActorKind::Static))
+    )
 }
 
 /// CARLA's `show_recorder_collisions(name, type1, type2)`: collisions
@@ -259,7 +265,11 @@ pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>
 /// CARLA's `show_recorder_actors_blocked(name, min_time, min_distance)`:
 /// every stretch of at least `min_time` seconds in which a movable actor
 /// moved less than `min_distance` metres.
-pub fn actors_blocked(path: &str, min_time: f64, min_distance: f32) -> Result<Vec<Blocked>, RecordingError> {
+pub fn actors_blocked(
+    path: &str,
+    min_time: f64,
+    min_distance: f32,
+) -> Result<Vec<Blocked>, RecordingError> {
     struct Still {
         kind: u32,
         since_ns: u64,
@@ -284,7 +294,12 @@ pub fn actors_blocked(path: &str, min_time: f64, min_distance: f32) -> Result<Ve
         }
     };
     entries(path, |entry| {
-        let Entry::Frame { log_ns, header, actors } = entry else {
+        let Entry::Frame {
+            log_ns,
+            header,
+            actors,
+        } = entry
+        else {
             return;
         };
         for actor in actors {
@@ -314,6 +329,10 @@ pub fn actors_blocked(path: &str, min_time: f64, min_distance: f32) -> Result<Ve
     for (id, s) in &still {
         close(*id, s, &mut out);
     }
-    out.sort_by(|a, b| a.from_seconds.total_cmp(&b.from_seconds).then(a.actor.cmp(&b.actor)));
+    out.sort_by(|a, b| {
+        a.from_seconds
+            .total_cmp(&b.from_seconds)
+            .then(a.actor.cmp(&b.actor))
+    });
     Ok(out)
 }

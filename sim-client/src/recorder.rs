@@ -20,7 +20,8 @@ use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{Client, RequestError};
 
 /// The recorder service's client port.
-pub(crate) type RecorderClient = RequestClient<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+pub(crate) type RecorderClient =
+    RequestClient<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
 
 /// Why a recorder request failed.
 #[derive(Debug, thiserror::Error)]
@@ -234,7 +235,11 @@ impl Client {
     /// server; made absolute here), with every sensor capture if
     /// `record_sensors`. Returns the path the server writes (CARLA's
     /// `start_recorder`).
-    pub fn start_recorder(&self, path: impl AsRef<Path>, record_sensors: bool) -> Result<PathBuf, RecorderError> {
+    pub fn start_recorder(
+        &self,
+        path: impl AsRef<Path>,
+        record_sensors: bool,
+    ) -> Result<PathBuf, RecorderError> {
         let mut request = RecorderRequest::new(RecorderKind::Start);
         request.path = path_text(path.as_ref())?;
         if record_sensors {
@@ -280,7 +285,11 @@ impl Client {
     /// Replays the recording at `path` as `options` say. The server checks
     /// the whole file first: a damaged one is refused and nothing changes.
     /// In synchronous mode the replay starts with the next tick.
-    pub fn replay(&self, path: impl AsRef<Path>, options: &ReplayOptions) -> Result<RecorderStatus, RecorderError> {
+    pub fn replay(
+        &self,
+        path: impl AsRef<Path>,
+        options: &ReplayOptions,
+    ) -> Result<RecorderStatus, RecorderError> {
         let mut request = RecorderRequest::new(RecorderKind::Replay);
         request.path = path_text(path.as_ref())?;
         request.start_seconds = options.start;

@@ -83,7 +83,11 @@ impl Frames {
     }
 
     /// Sends `header` with `actors` (a replayed frame).
-    pub fn publish_states(&self, header: FrameHeader, actors: &[ActorState]) -> Result<(), ServerError> {
+    pub fn publish_states(
+        &self,
+        header: FrameHeader,
+        actors: &[ActorState],
+    ) -> Result<(), ServerError> {
         let mut sample = self
             .publisher
             .loan_slice_uninit(actors.len())

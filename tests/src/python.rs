@@ -30,8 +30,14 @@ pub fn python() -> PathBuf {
     // SAFETY: flock(2) on a file descriptor this process owns; it is
     // released when `lock` is closed at the end of this function.
     let locked = unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX) };
-    assert_eq!(locked, 0, "locking the venv: {}", std::io::Error::last_os_error());
-    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists() {
+    assert_eq!(
+        locked,
+        0,
+        "locking the venv: {}",
+        std::io::Error::last_os_error()
+    );
+    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists()
+    {
         return python;
     }
     let run = |command: &mut Command| {
@@ -46,7 +52,13 @@ pub fn python() -> PathBuf {
     let _ = std::fs::remove_dir_all(&venv);
     run(Command::new("python3").args(["-m", "venv"]).arg(&venv));
     run(Command::new(&python)
-        .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"])
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+        ])
         .args(PYTHON_REQUIREMENTS));
     std::fs::write(&marker, wanted).expect("venv marker");
     python

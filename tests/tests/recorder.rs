@@ -130,12 +130,22 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
     let path = scratch.file("run.mcap");
     let (_world, mut client, mut ticker) = sync_world("rec-a");
     let original = record_scenario(&mut client, &mut ticker, &path);
-    assert_eq!(original.len() as u64, FRAMES + 2, "frame 0, the ticks and the reloaded frame 0");
+    assert_eq!(
+        original.len() as u64,
+        FRAMES + 2,
+        "frame 0, the ticks and the reloaded frame 0"
+    );
 
     // Exact replay in a fresh server, one recorded frame per tick.
     let (_fresh, mut replay_client, mut replay_ticker) = sync_world("rec-b");
     let status = replay_client
-        .replay(&path, &ReplayOptions { mode: Some(ReplayMode::Exact), ..Default::default() })
+        .replay(
+            &path,
+            &ReplayOptions {
+                mode: Some(ReplayMode::Exact),
+                ..Default::default()
+            },
+        )
         .expect("replay");
     assert_eq!(status.replay.total, original.len() as u64);
     let replayed = replayed_frames(&mut replay_client, &mut replay_ticker);
@@ -149,9 +159,20 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
     let checker = TestWorld::start("rec-c", &[]);
     let out = cli_stdout(
         &checker,
-        &["replay", path.to_str().unwrap(), "--mode", "resimulate", "--verify", "--time-factor", "1000"],
+        &[
+            "replay",
+            path.to_str().unwrap(),
+            "--mode",
+            "resimulate",
+            "--verify",
+            "--time-factor",
+            "1000",
+        ],
     );
-    assert!(out.contains(&format!("identical: {} frames", original.len())), "{out}");
+    assert!(
+        out.contains(&format!("identical: {} frames", original.len())),
+        "{out}"
+    );
 
     // The same recording with one command changed differs at that frame.
     let changed = scratch.file("changed.mcap");
@@ -167,7 +188,10 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
     ]);
     finished.assert_code(1);
     assert!(
-        finished.stdout.join("\n").contains(&format!("differs: frame {changed_frame} ")),
+        finished
+            .stdout
+            .join("\n")
+            .contains(&format!("differs: frame {changed_frame} ")),
         "{finished}"
     );
 }
@@ -224,20 +248,38 @@ fn start_and_duration_select_frames_and_a_sync_replay_waits_for_the_tick() {
         (-100.0, 0.5, 11, 0),
     ];
     for (start, duration, frames, first_ms) in cases {
-        let options = ReplayOptions { start, duration, time_factor: 1.0, ..Default::default() };
+        let options = ReplayOptions {
+            start,
+            duration,
+            time_factor: 1.0,
+            ..Default::default()
+        };
         let status = client.replay(&path, &options).expect("replay");
-        assert_eq!(status.replay.total, frames, "start {start} duration {duration}");
+        assert_eq!(
+            status.replay.total, frames,
+            "start {start} duration {duration}"
+        );
         // Nothing happens before the next tick, however long the server runs.
         for _ in 0..3 {
             assert_eq!(client.recorder_status().unwrap().replay.frames, 0);
         }
         let replayed = replayed_frames(&mut client, &mut ticker);
-        assert_eq!(replayed.len() as u64, frames, "start {start} duration {duration}");
+        assert_eq!(
+            replayed.len() as u64,
+            frames,
+            "start {start} duration {duration}"
+        );
         let first = replayed[0].timestamp().elapsed_ns - start_elapsed;
         assert_eq!(first, first_ms * 1_000_000, "start {start}");
     }
     let past_end = client
-        .replay(&path, &ReplayOptions { start: 6.0, ..Default::default() })
+        .replay(
+            &path,
+            &ReplayOptions {
+                start: 6.0,
+                ..Default::default()
+            },
+        )
         .unwrap_err();
     assert!(past_end.to_string().contains("past the end"), "{past_end}");
 }
@@ -258,41 +300,69 @@ fn a_variable_step_recording_replays_its_deltas_exactly_or_interpolated() {
     let mut reader = RecordingReader::open(path.to_str().unwrap()).unwrap();
     let mut frames = Vec::new();
     while let Some(entry) = reader.next() {
-        if let Entry::Frame { log_ns, header, actors } = entry.unwrap() {
+        if let Entry::Frame {
+            log_ns,
+            header,
+            actors,
+        } = entry.unwrap()
+        {
             frames.push((log_ns, header, actors));
         }
     }
     let deltas: Vec<u64> = frames.iter().map(|f| f.1.timestamp.delta_ns).collect();
-    assert!(deltas[1..].windows(2).any(|w| w[0] != w[1]), "a variable step: {deltas:?}");
+    assert!(
+        deltas[1..].windows(2).any(|w| w[0] != w[1]),
+        "a variable step: {deltas:?}"
+    );
     let recorded_seconds = frames.last().unwrap().0;
 
     // Exact: the recorded deltas, frame by frame.
     let (_w, mut replay_client, mut ticker) = sync_world("rec-var-b");
-    let options = ReplayOptions { mode: Some(ReplayMode::Exact), ..Default::default() };
+    let options = ReplayOptions {
+        mode: Some(ReplayMode::Exact),
+        ..Default::default()
+    };
     replay_client.replay(&path, &options).unwrap();
     let exact = replayed_frames(&mut replay_client, &mut ticker);
     let exact_deltas: Vec<u64> = exact.iter().map(|s| s.timestamp().delta_ns).collect();
     assert_eq!(exact_deltas, deltas);
-    let span = |s: &[WorldSnapshot]| s.last().unwrap().timestamp().elapsed_ns - s[0].timestamp().elapsed_ns;
+    let span = |s: &[WorldSnapshot]| {
+        s.last().unwrap().timestamp().elapsed_ns - s[0].timestamp().elapsed_ns
+    };
     assert_eq!(span(&exact), recorded_seconds);
 
     // Interpolate (the default for a variable step): the server's own
     // 0.05 s step; poses match the recording interpolated at each time.
-    let status = replay_client.replay(&path, &ReplayOptions::default()).unwrap();
+    let status = replay_client
+        .replay(&path, &ReplayOptions::default())
+        .unwrap();
     assert_eq!(status.replay.mode, "interpolate");
     let interpolated = replayed_frames(&mut replay_client, &mut ticker);
-    assert_eq!(span(&interpolated), recorded_seconds, "the recorded number of seconds");
+    assert_eq!(
+        span(&interpolated),
+        recorded_seconds,
+        "the recorded number of seconds"
+    );
     assert!(interpolated.len() as u64 >= recorded_seconds / 50_000_000);
     const TOLERANCE: f32 = 1e-3;
     for snapshot in &interpolated {
         let t = snapshot.timestamp().elapsed_ns;
-        let after = frames.partition_point(|f| f.1.timestamp.elapsed_ns < t).min(frames.len() - 1);
+        let after = frames
+            .partition_point(|f| f.1.timestamp.elapsed_ns < t)
+            .min(frames.len() - 1);
         let before = after.saturating_sub(1);
         let (b, a) = (&frames[before], &frames[after]);
         let (tb, ta) = (b.1.timestamp.elapsed_ns, a.1.timestamp.elapsed_ns);
-        let alpha = if ta > tb { (t - tb) as f32 / (ta - tb) as f32 } else { 0.0 };
+        let alpha = if ta > tb {
+            (t - tb) as f32 / (ta - tb) as f32
+        } else {
+            0.0
+        };
         for actor in &snapshot.actors {
-            let (Some(x), Some(y)) = (b.2.iter().find(|s| s.id == actor.id), a.2.iter().find(|s| s.id == actor.id)) else {
+            let (Some(x), Some(y)) = (
+                b.2.iter().find(|s| s.id == actor.id),
+                a.2.iter().find(|s| s.id == actor.id),
+            ) else {
                 continue;
             };
             for i in 0..3 {
@@ -316,7 +386,8 @@ fn inspection_answers_as_data_and_a_foreign_mcap_reader_reads_the_file() {
     let original = record_scenario(&mut client, &mut ticker, &path);
     let file = path.to_str().unwrap();
 
-    let info: serde_json::Value = serde_json::from_str(&cli_stdout(&world, &["recorder", "info", file, "--json"])).unwrap();
+    let info: serde_json::Value =
+        serde_json::from_str(&cli_stdout(&world, &["recorder", "info", file, "--json"])).unwrap();
     assert_eq!(info["frames"], original.len() as u64);
     assert_eq!(info["episodes"], 1, "one reload");
     assert_eq!(info["actors_spawned"], 6, "three spawns in each episode");
@@ -328,26 +399,51 @@ fn inspection_answers_as_data_and_a_foreign_mcap_reader_reads_the_file() {
     assert_eq!(info["truncated"], false);
 
     // The default scene's sphere falls onto the boxes.
-    let collisions: Vec<serde_json::Value> =
-        serde_json::from_str(&cli_stdout(&world, &["recorder", "collisions", file, "--json"])).unwrap();
+    let collisions: Vec<serde_json::Value> = serde_json::from_str(&cli_stdout(
+        &world,
+        &["recorder", "collisions", file, "--json"],
+    ))
+    .unwrap();
     assert!(
-        collisions.iter().any(|c| (c["kind_a"] == "sphere" && c["kind_b"] == "box")
-            || (c["kind_a"] == "box" && c["kind_b"] == "sphere")),
+        collisions
+            .iter()
+            .any(|c| (c["kind_a"] == "sphere" && c["kind_b"] == "box")
+                || (c["kind_a"] == "box" && c["kind_b"] == "sphere")),
         "{collisions:?}"
     );
     let spheres: Vec<serde_json::Value> = serde_json::from_str(&cli_stdout(
         &world,
-        &["recorder", "collisions", file, "--kind1", "s", "--kind2", "b", "--json"],
+        &[
+            "recorder",
+            "collisions",
+            file,
+            "--kind1",
+            "s",
+            "--kind2",
+            "b",
+            "--json",
+        ],
     ))
     .unwrap();
     assert!(!spheres.is_empty() && spheres.len() < collisions.len());
 
     let blocked: Vec<serde_json::Value> = serde_json::from_str(&cli_stdout(
         &world,
-        &["recorder", "blocked", file, "--min-time", "5", "--min-distance", "0.05", "--json"],
+        &[
+            "recorder",
+            "blocked",
+            file,
+            "--min-time",
+            "5",
+            "--min-distance",
+            "0.05",
+            "--json",
+        ],
     ))
     .unwrap();
-    assert!(blocked.iter().all(|b| b["duration_seconds"].as_f64().unwrap() >= 5.0));
+    assert!(blocked
+        .iter()
+        .all(|b| b["duration_seconds"].as_f64().unwrap() >= 5.0));
     assert!(blocked.iter().all(|b| b["kind"] != "static"));
 
     // An MCAP reader simbus did not write: the `mcap` package from PyPI.
@@ -361,14 +457,29 @@ frames = sum(1 for _ in reader.iter_messages(topics=["/simbus/frames"]))
 schemas = sorted(s.name for s in summary.schemas.values())
 print(json.dumps({"topics": topics, "frames": frames, "schemas": schemas, "profile": reader.get_header().profile}))
 "#;
-    let output = std::process::Command::new(simbus_tests::python()).arg("-c").arg(script).arg(file).output().unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let output = std::process::Command::new(simbus_tests::python())
+        .arg("-c")
+        .arg(script)
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let read: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(read["frames"], original.len() as u64);
     assert_eq!(read["profile"], "simbus");
     assert_eq!(read["topics"]["/foxglove/scene"], original.len() as u64);
     assert_eq!(read["topics"]["/simbus/header"], 1);
-    assert!(read["topics"]["/simbus/keyframes"].as_u64().unwrap() >= 2, "start and every 10 s");
-    assert!(read["schemas"].as_array().unwrap().iter().any(|s| s == "simbus::FrameHeader/2"));
+    assert!(
+        read["topics"]["/simbus/keyframes"].as_u64().unwrap() >= 2,
+        "start and every 10 s"
+    );
+    assert!(read["schemas"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|s| s == "simbus::FrameHeader/2"));
 }
-

@@ -78,7 +78,8 @@ fn refused<T: std::fmt::Debug>(result: Result<T, RecorderError>) -> (RecorderRef
 /// `rename.0` to `rename.1`.
 fn rewrite(from: &Path, to: &Path, rename: (&str, &str)) {
     let bytes = std::fs::read(from).unwrap();
-    let mut writer = mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
+    let mut writer =
+        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let message = message.unwrap();
         let mut channel = (*message.channel).clone();
@@ -90,7 +91,10 @@ fn rewrite(from: &Path, to: &Path, rename: (&str, &str)) {
             }
         }
         writer
-            .write(&mcap::Message { channel: std::sync::Arc::new(channel), ..message })
+            .write(&mcap::Message {
+                channel: std::sync::Arc::new(channel),
+                ..message
+            })
             .unwrap();
     }
     writer.finish().unwrap();
@@ -104,10 +108,16 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
     record(&client, &mut ticker, &good, 40);
     let good_bytes = std::fs::read(&good).unwrap();
 
-    let not_mcap = scratch.write("notes.mcap", b"these are not the bytes you are looking for\n");
+    let not_mcap = scratch.write(
+        "notes.mcap",
+        b"these are not the bytes you are looking for\n",
+    );
     let foreign = scratch.file("foreign.mcap");
     {
-        let mut writer = mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(&foreign).unwrap())).unwrap();
+        let mut writer = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&foreign).unwrap(),
+        ))
+        .unwrap();
         let channel = std::sync::Arc::new(mcap::Channel {
             id: 0,
             topic: "/imu".into(),
@@ -116,7 +126,13 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
             metadata: Default::default(),
         });
         writer
-            .write(&mcap::Message { channel, sequence: 0, log_time: 0, publish_time: 0, data: b"{}".as_slice().into() })
+            .write(&mcap::Message {
+                channel,
+                sequence: 0,
+                log_time: 0,
+                publish_time: 0,
+                data: b"{}".as_slice().into(),
+            })
             .unwrap();
         writer.finish().unwrap();
     }
@@ -135,12 +151,20 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
         (&foreign, "not a simbus recording"),
         (&truncated, "is truncated before its first complete chunk"),
         (&flipped, "damaged"),
-        (&future, "simbus::FrameHeader/3; this simbus reads simbus::FrameHeader/2"),
+        (
+            &future,
+            "simbus::FrameHeader/3; this simbus reads simbus::FrameHeader/2",
+        ),
     ];
     let before = where_is(&client);
     for (path, says) in cases {
         let (refusal, message) = refused(client.replay(path, &ReplayOptions::default()));
-        assert_eq!(refusal, RecorderRefusal::BadFile, "{}: {message}", path.display());
+        assert_eq!(
+            refusal,
+            RecorderRefusal::BadFile,
+            "{}: {message}",
+            path.display()
+        );
         assert!(message.contains(says), "{}: {message}", path.display());
         let finished = world.cli(&["recorder", "info", path.to_str().unwrap()]);
         finished.assert_code(2);
@@ -151,15 +175,25 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
     // Requests that collide or make no sense.
     let (refusal, message) = refused(client.stop_recorder());
     assert_eq!(refusal, RecorderRefusal::NotRecording, "{message}");
-    let (refusal, message) = refused(client.start_recorder("/nonexistent-simbus-dir/x.mcap", false));
+    let (refusal, message) =
+        refused(client.start_recorder("/nonexistent-simbus-dir/x.mcap", false));
     assert_eq!(refusal, RecorderRefusal::CannotWrite, "{message}");
-    assert!(message.contains("cannot create /nonexistent-simbus-dir/x.mcap"), "{message}");
+    assert!(
+        message.contains("cannot create /nonexistent-simbus-dir/x.mcap"),
+        "{message}"
+    );
     for factor in [0.0, -1.0, f64::NAN] {
-        let options = ReplayOptions { time_factor: factor, ..Default::default() };
+        let options = ReplayOptions {
+            time_factor: factor,
+            ..Default::default()
+        };
         let (refusal, _) = refused(client.replay(&good, &options));
         assert_eq!(refusal, RecorderRefusal::InvalidArgument, "factor {factor}");
     }
-    let options = ReplayOptions { follow_id: 999_999, ..Default::default() };
+    let options = ReplayOptions {
+        follow_id: 999_999,
+        ..Default::default()
+    };
     let (refusal, message) = refused(client.replay(&good, &options));
     assert_eq!(refusal, RecorderRefusal::UnknownActor, "{message}");
     let (refusal, _) = refused(client.stop_replayer(false));
@@ -167,7 +201,9 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
     assert_eq!(where_is(&client), before, "nothing changed");
 
     // A replay and a recording exclude each other; a second replay waits its turn.
-    client.start_recorder(scratch.file("busy.mcap"), false).unwrap();
+    client
+        .start_recorder(scratch.file("busy.mcap"), false)
+        .unwrap();
     let (refusal, message) = refused(client.replay(&good, &ReplayOptions::default()));
     assert_eq!(refusal, RecorderRefusal::Recording, "{message}");
     let (refusal, _) = refused(client.start_recorder(scratch.file("again.mcap"), false));
@@ -207,7 +243,10 @@ fn thousands_of_mutated_recordings_end_in_ok_or_a_typed_error() {
     // Spawns and pushes, so every channel has messages.
     client.start_recorder(&good, false).unwrap();
     client
-        .apply_batch_sync(&[shared_types::Command::spawn_box([0.0, 3.0, 0.0], [0.3; 3])], false)
+        .apply_batch_sync(
+            &[shared_types::Command::spawn_box([0.0, 3.0, 0.0], [0.3; 3])],
+            false,
+        )
         .unwrap();
     for _ in 0..30 {
         ticker.tick(T).unwrap();
@@ -247,7 +286,13 @@ fn thousands_of_mutated_recordings_end_in_ok_or_a_typed_error() {
         let _ = inspect::collisions(file, 'a', 'a');
         let _ = inspect::actors_blocked(file, 0.1, 0.01);
         if i % REPLAYED_EVERY == 0 {
-            match client.replay(&path, &ReplayOptions { time_factor: 1000.0, ..Default::default() }) {
+            match client.replay(
+                &path,
+                &ReplayOptions {
+                    time_factor: 1000.0,
+                    ..Default::default()
+                },
+            ) {
                 Ok(_) => {
                     ticker.tick(T).unwrap();
                     let _ = client.stop_replayer(false);
@@ -258,7 +303,10 @@ fn thousands_of_mutated_recordings_end_in_ok_or_a_typed_error() {
         }
     }
     assert_eq!(ok + errors, MUTATIONS);
-    assert!(errors > MUTATIONS / 2, "most mutations are caught: {ok} read, {errors} refused");
+    assert!(
+        errors > MUTATIONS / 2,
+        "most mutations are caught: {ok} read, {errors} refused"
+    );
     // The server is still up and stepping.
     ticker.tick(T).unwrap();
 }

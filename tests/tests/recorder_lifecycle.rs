@@ -92,12 +92,22 @@ fn a_killed_server_leaves_every_complete_chunk_readable_and_replayable() {
     assert_eq!(info.stopped, None);
     // Frames still queued for the writer die with the server; what reached
     // the disk in complete chunks is read.
-    assert!(info.frames >= 1 && info.frames < 151, "{} frames", info.frames);
+    assert!(
+        info.frames >= 1 && info.frames < 151,
+        "{} frames",
+        info.frames
+    );
     let ids = frame_ids(file);
-    assert!(ids.windows(2).all(|w| w[1] == w[0] + 1), "consecutive from the start: {ids:?}");
+    assert!(
+        ids.windows(2).all(|w| w[1] == w[0] + 1),
+        "consecutive from the start: {ids:?}"
+    );
 
     let (_fresh, mut replay_client, mut replay_ticker) = sync_world("rec-kill-b", &[]);
-    let options = ReplayOptions { mode: Some(ReplayMode::Exact), ..Default::default() };
+    let options = ReplayOptions {
+        mode: Some(ReplayMode::Exact),
+        ..Default::default()
+    };
     let status = replay_client.replay(&path, &options).unwrap();
     assert_eq!(status.replay.total, info.frames);
     let replayed = replayed_frames(&mut replay_client, &mut replay_ticker);
@@ -129,12 +139,18 @@ fn a_stopped_server_and_a_load_close_the_recording_cleanly() {
     client.start_recorder(&load, false).unwrap();
     ticker.tick(T).unwrap();
     client.reload_world(false).unwrap();
-    assert!(client.recorder_status().unwrap().recording, "a reload is recorded");
+    assert!(
+        client.recorder_status().unwrap().recording,
+        "a reload is recorded"
+    );
     ticker.tick(T).unwrap();
     client.load_world("empty", false).unwrap();
     let status = client.recorder_status().unwrap();
     assert!(!status.recording);
-    assert_eq!(status.frames, 4, "frame 0, a tick, the reloaded frame 0, a tick");
+    assert_eq!(
+        status.frames, 4,
+        "frame 0, a tick, the reloaded frame 0, a tick"
+    );
     let info = inspect::file_info(load.to_str().unwrap(), false).unwrap();
     assert_eq!(info.stopped.as_deref(), Some("load"));
     assert_eq!((info.frames, info.episodes), (4, 1));
@@ -181,7 +197,11 @@ fn recorded_sensors_capture_the_replayed_scene_bit_for_bit() {
         let frame = replay_ticker.tick(T).unwrap();
         let capture = sensor.recv(T).unwrap();
         assert_eq!(capture.header().frame, frame);
-        assert_eq!(Some(capture.bytes()), recorded.get(&frame).map(|d| d.as_slice()), "frame {frame}");
+        assert_eq!(
+            Some(capture.bytes()),
+            recorded.get(&frame).map(|d| d.as_slice()),
+            "frame {frame}"
+        );
         compared += 1;
     }
     assert_eq!(compared, 10);
@@ -189,10 +209,15 @@ fn recorded_sensors_capture_the_replayed_scene_bit_for_bit() {
 
     // A sensor spawned during a replay rides on the followed actor.
     let follow = 3;
-    let options = ReplayOptions { follow_id: follow, ..Default::default() };
+    let options = ReplayOptions {
+        follow_id: follow,
+        ..Default::default()
+    };
     replay_client.replay(&path, &options).unwrap();
     replay_ticker.tick(T).unwrap();
-    let imu = replay_client.spawn_sensor(SensorSpec::imu([0.0; 3])).unwrap();
+    let imu = replay_client
+        .spawn_sensor(SensorSpec::imu([0.0; 3]))
+        .unwrap();
     assert_eq!(imu.spec().attach_to, follow);
 }
 
@@ -216,7 +241,10 @@ fn resimulating_from_a_keyframe_gives_the_original_digests() {
     }
     client.stop_recorder().unwrap();
     let info = inspect::file_info(path.to_str().unwrap(), false).unwrap();
-    assert_eq!(info.keyframes, 6, "one at the start and one every simulated second of 5");
+    assert_eq!(
+        info.keyframes, 6,
+        "one at the start and one every simulated second of 5"
+    );
 
     // From 3.2 s: the keyframe at 3 s, then real physics.
     let options = ReplayOptions {
@@ -229,7 +257,12 @@ fn resimulating_from_a_keyframe_gives_the_original_digests() {
     let replayed = replayed_frames(&mut client, &mut ticker);
     assert_eq!(replayed.len(), 37);
     for snapshot in &replayed {
-        assert_eq!(Some(&snapshot.digest()), original.get(&snapshot.frame()), "frame {}", snapshot.frame());
+        assert_eq!(
+            Some(&snapshot.digest()),
+            original.get(&snapshot.frame()),
+            "frame {}",
+            snapshot.frame()
+        );
     }
     let status = client.recorder_status().unwrap();
     assert_eq!((status.replay.verified, status.replay.mismatch), (37, None));

@@ -179,7 +179,10 @@ impl RecordingReader {
         use mcap::McapError as E;
         let path = self.path.clone();
         match source {
-            E::BadMagic => RecordingError::NotMcap { path, error: source },
+            E::BadMagic => RecordingError::NotMcap {
+                path,
+                error: source,
+            },
             E::Io(e) => RecordingError::Io { path, source: e },
             error => RecordingError::Corrupt { path, error },
         }
@@ -326,7 +329,7 @@ fn exact_pod<T: Pod>(data: &[u8]) -> Option<T> {
 /// `data` as a whole number of `T`s.
 fn pods<T: Pod>(data: &[u8]) -> Option<Vec<T>> {
     let size = std::mem::size_of::<T>();
-    if data.len() % size != 0 {
+    if !data.len().is_multiple_of(size) {
         return None;
     }
     Some(

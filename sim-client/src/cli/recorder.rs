@@ -183,16 +183,28 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
         Failure::Refused(e.into())
     };
     match args.command {
-        RecorderCommand::Start { file, sensors, json } => {
+        RecorderCommand::Start {
+            file,
+            sensors,
+            json,
+        } => {
             let client = connect(world, timeout)?;
-            let path = client.start_recorder(&file, sensors).map_err(refused_or_runtime)?;
+            let path = client
+                .start_recorder(&file, sensors)
+                .map_err(refused_or_runtime)?;
             if json {
-                print_json(&serde_json::json!({"recording": true, "path": path, "sensors": sensors}));
+                print_json(
+                    &serde_json::json!({"recording": true, "path": path, "sensors": sensors}),
+                );
             } else {
                 println!(
                     "recording world '{world}' into {}{}",
                     path.display(),
-                    if sensors { " (with sensor captures)" } else { "" }
+                    if sensors {
+                        " (with sensor captures)"
+                    } else {
+                        ""
+                    }
                 );
             }
         }
@@ -222,17 +234,25 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
         }
         RecorderCommand::TimeFactor { factor } => {
             let client = connect(world, timeout)?;
-            client.set_replayer_time_factor(factor).map_err(refused_or_runtime)?;
+            client
+                .set_replayer_time_factor(factor)
+                .map_err(refused_or_runtime)?;
             println!("replay time factor {factor}");
         }
         RecorderCommand::StopReplay { keep_actors } => {
             let client = connect(world, timeout)?;
-            let status = client.stop_replayer(keep_actors).map_err(refused_or_runtime)?;
+            let status = client
+                .stop_replayer(keep_actors)
+                .map_err(refused_or_runtime)?;
             println!(
                 "replay stopped after {} of {} frames{}",
                 status.replay.frames,
                 status.replay.total,
-                if keep_actors { "; the replayed world goes on live" } else { "" }
+                if keep_actors {
+                    "; the replayed world goes on live"
+                } else {
+                    ""
+                }
             );
         }
         RecorderCommand::Info { file, all, json } => {
@@ -243,7 +263,12 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
                 print_info(&info);
             }
         }
-        RecorderCommand::Collisions { file, kind1, kind2, json } => {
+        RecorderCommand::Collisions {
+            file,
+            kind1,
+            kind2,
+            json,
+        } => {
             for kind in [kind1, kind2] {
                 if !"avbscx".contains(kind) {
                     return Err(Failure::Refused(anyhow!(
@@ -255,7 +280,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             if json {
                 print_json(&list);
             } else {
-                println!("{:>8} {:>10}  {:<18} {:<18} {:>10}", "frame", "time (s)", "actor", "actor", "impulse");
+                println!(
+                    "{:>8} {:>10}  {:<18} {:<18} {:>10}",
+                    "frame", "time (s)", "actor", "actor", "impulse"
+                );
                 for c in &list {
                     println!(
                         "{:>8} {:>10.3}  {:<18} {:<18} {:>10.3}",
@@ -269,12 +297,21 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
                 println!("{} collisions", list.len());
             }
         }
-        RecorderCommand::Blocked { file, min_time, min_distance, json } => {
-            let list = inspect::actors_blocked(&file, min_time, min_distance as f32).map_err(file_error)?;
+        RecorderCommand::Blocked {
+            file,
+            min_time,
+            min_distance,
+            json,
+        } => {
+            let list = inspect::actors_blocked(&file, min_time, min_distance as f32)
+                .map_err(file_error)?;
             if json {
                 print_json(&list);
             } else {
-                println!("{:>8} {:<16} {:>10} {:>12} {:>10}", "frame", "actor", "from (s)", "for (s)", "moved (m)");
+                println!(
+                    "{:>8} {:<16} {:>10} {:>12} {:>10}",
+                    "frame", "actor", "from (s)", "for (s)", "moved (m)"
+                );
                 for b in &list {
                     println!(
                         "{:>8} {:<16} {:>10.3} {:>12.3} {:>10.3}",
@@ -294,9 +331,15 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
 
 fn print_status(status: &RecorderStatus) {
     if status.recording {
-        println!("recording  {} ({} frames so far)", status.path, status.frames);
+        println!(
+            "recording  {} ({} frames so far)",
+            status.path, status.frames
+        );
     } else if !status.path.is_empty() {
-        println!("recorder   stopped; last: {} ({} frames, {} bytes)", status.path, status.frames, status.bytes);
+        println!(
+            "recorder   stopped; last: {} ({} frames, {} bytes)",
+            status.path, status.frames, status.bytes
+        );
     } else {
         println!("recorder   idle");
     }
@@ -308,7 +351,10 @@ fn print_status(status: &RecorderStatus) {
     if r.mode == "resimulate" && r.frames > 0 {
         match r.mismatch {
             None => println!("verified   identical: {} frames", r.verified),
-            Some(m) => println!("verified   differs at frame {} (actor {})", m.frame, m.actor),
+            Some(m) => println!(
+                "verified   differs at frame {} (actor {})",
+                m.frame, m.actor
+            ),
         }
     }
     if !status.message.is_empty() {
@@ -318,9 +364,18 @@ fn print_status(status: &RecorderStatus) {
 
 fn print_info(info: &inspect::FileInfo) {
     let h = &info.header;
-    println!("file         {} ({} bytes, compression {:.1}x)", info.path, info.bytes, info.compression_ratio);
-    println!("written by   simbus {} (recording version {}, protocol {})", h.simbus_version, h.recording_version, h.protocol_version);
-    println!("world        {} (scene {}, seed {})", h.world, h.scene, h.seed);
+    println!(
+        "file         {} ({} bytes, compression {:.1}x)",
+        info.path, info.bytes, info.compression_ratio
+    );
+    println!(
+        "written by   simbus {} (recording version {}, protocol {})",
+        h.simbus_version, h.recording_version, h.protocol_version
+    );
+    println!(
+        "world        {} (scene {}, seed {})",
+        h.world, h.scene, h.seed
+    );
     let settings = shared_types::WorldSettings::from(h.settings);
     for (name, value) in super::settings_lines(&settings) {
         println!("{name:<12} {value}");
@@ -335,7 +390,10 @@ fn print_info(info: &inspect::FileInfo) {
     );
     println!("commands     {}", info.commands);
     println!("collisions   {}", info.collisions);
-    println!("sensors      {} ({} captures recorded)", info.sensors, info.captures);
+    println!(
+        "sensors      {} ({} captures recorded)",
+        info.sensors, info.captures
+    );
     println!("keyframes    {}", info.keyframes);
     match (&info.stopped, info.truncated) {
         (_, true) => println!("closed       no: the file ends mid-chunk (its server was killed); read up to the last complete chunk"),
@@ -350,9 +408,15 @@ fn print_info(info: &inspect::FileInfo) {
     }
 }
 
-pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> Result<(), Failure> {
+pub(crate) fn replay(
+    world: &WorldName,
+    timeout: Duration,
+    args: ReplayArgs,
+) -> Result<(), Failure> {
     if args.verify && args.mode != Some(ReplayMode::Resimulate) {
-        return Err(Failure::Refused(anyhow!("--verify needs --mode resimulate")));
+        return Err(Failure::Refused(anyhow!(
+            "--verify needs --mode resimulate"
+        )));
     }
     let client = connect(world, timeout)?;
     let options = ReplayOptions {
@@ -364,15 +428,24 @@ pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> 
         mode: args.mode,
         keep_actors: args.keep_actors,
     };
-    let started = client.replay(&args.file, &options).map_err(refused_or_runtime)?;
-    let synchronous = client.get_settings().map(|s| s.synchronous_mode).unwrap_or(false);
+    let started = client
+        .replay(&args.file, &options)
+        .map_err(refused_or_runtime)?;
+    let synchronous = client
+        .get_settings()
+        .map(|s| s.synchronous_mode)
+        .unwrap_or(false);
     if !args.json {
         println!(
             "replaying {} ({} frames, {}){}",
             args.file.display(),
             started.replay.total,
             started.replay.mode,
-            if synchronous { "; synchronous mode: it advances one frame per tick" } else { "" }
+            if synchronous {
+                "; synchronous mode: it advances one frame per tick"
+            } else {
+                ""
+            }
         );
     }
     if args.detach {
@@ -380,14 +453,19 @@ pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> 
     }
     let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout())).then(|| {
         let bar = ProgressBar::new(started.replay.total);
-        bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}").expect("valid template"));
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}")
+                .expect("valid template"),
+        );
         bar
     });
     // Follow the replay until it ends; no progress for --timeout is an error.
     let mut last = (started.replay.frames, Instant::now());
     let status = loop {
         if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
-            let status = client.stop_replayer(args.keep_actors).map_err(refused_or_runtime)?;
+            let status = client
+                .stop_replayer(args.keep_actors)
+                .map_err(refused_or_runtime)?;
             if let Some(bar) = &bar {
                 bar.abandon();
             }
@@ -406,7 +484,11 @@ pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> 
         } else if last.1.elapsed() > timeout {
             return Err(Failure::Runtime(anyhow!(
                 "the replay made no progress for {timeout:?}{}",
-                if synchronous { " (synchronous mode: is the ticker ticking?)" } else { "" }
+                if synchronous {
+                    " (synchronous mode: is the ticker ticking?)"
+                } else {
+                    ""
+                }
             )));
         }
         std::thread::sleep(Duration::from_millis(20));
@@ -430,10 +512,15 @@ pub(crate) fn replay(world: &WorldName, timeout: Duration, args: ReplayArgs) -> 
         }
     }
     if r.replay_state() == ReplayState::Failed {
-        return Err(Failure::Runtime(anyhow!("the replay failed: {}", status.message)));
+        return Err(Failure::Runtime(anyhow!(
+            "the replay failed: {}",
+            status.message
+        )));
     }
     if args.verify && (r.mismatch.is_some() || r.verified != r.total) {
-        return Err(Failure::Runtime(anyhow!("the re-simulation differs from the recording")));
+        return Err(Failure::Runtime(anyhow!(
+            "the re-simulation differs from the recording"
+        )));
     }
     Ok(())
 }

@@ -77,7 +77,9 @@ mod tests {
     use shared_types::{ActorState, Command, FrameHeader, WorldSettings};
 
     fn states(world: &World) -> Vec<ActorState> {
-        (0..world.actor_count()).map(|i| world.actor_state(i)).collect()
+        (0..world.actor_count())
+            .map(|i| world.actor_state(i))
+            .collect()
     }
 
     /// A world restored from a keyframe steps bit for bit as the original:

@@ -21,7 +21,9 @@ use std::thread::JoinHandle;
 use shared_types::recording::{
     RecordedCollision, RecordedCommand, RecordedEvent, RecordedSensor, RecordingHeader,
 };
-use shared_types::{ActorState, Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
+use shared_types::{
+    ActorState, Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND,
+};
 use tracing::{info, warn};
 
 use crate::world::World;
@@ -96,7 +98,8 @@ impl Recorder {
         frame: (&FrameHeader, &World),
         scene: String,
     ) -> Result<(), String> {
-        let handle = writer::create(path, &header).map_err(|e| format!("cannot create {path}: {e}"))?;
+        let handle =
+            writer::create(path, &header).map_err(|e| format!("cannot create {path}: {e}"))?;
         let (items, receiver) = sync_channel(QUEUE);
         let thread_path = path.to_string();
         let thread = std::thread::Builder::new()
@@ -116,7 +119,12 @@ impl Recorder {
             stalls: 0,
             settings: None,
         });
-        info!(path, sensors = header.sensors, frame = frame.0.timestamp.frame, "recording started");
+        info!(
+            path,
+            sensors = header.sensors,
+            frame = frame.0.timestamp.frame,
+            "recording started"
+        );
         self.collisions.clear();
         self.captures.clear();
         self.sensor_notes(sensors);
@@ -175,7 +183,10 @@ impl Recorder {
             Ok(()) => return,
             Err(TrySendError::Full(item)) => item,
             Err(TrySendError::Disconnected(_)) => {
-                warn!(path = active.path, "the recorder's writer stopped; recording ends");
+                warn!(
+                    path = active.path,
+                    "the recorder's writer stopped; recording ends"
+                );
                 self.stop("writer failed", 0);
                 return;
             }
@@ -189,7 +200,10 @@ impl Recorder {
             );
         }
         if active.items.send(item).is_err() {
-            warn!(path = active.path, "the recorder's writer stopped; recording ends");
+            warn!(
+                path = active.path,
+                "the recorder's writer stopped; recording ends"
+            );
             self.stop("writer failed", 0);
         }
     }
@@ -242,7 +256,9 @@ impl Recorder {
         if keyframe_due {
             active.next_keyframe_ns = log_ns.saturating_add(active.keyframe_every_ns);
         }
-        let actors: Vec<ActorState> = (0..world.actor_count()).map(|i| world.actor_state(i)).collect();
+        let actors: Vec<ActorState> = (0..world.actor_count())
+            .map(|i| world.actor_state(i))
+            .collect();
         self.send(Item::Frame {
             log_ns,
             header: *header,
@@ -254,7 +270,11 @@ impl Recorder {
             self.send(Item::Collision { log_ns, collision });
         }
         for (header, data) in std::mem::take(&mut self.captures) {
-            self.send(Item::Capture { log_ns, header, data });
+            self.send(Item::Capture {
+                log_ns,
+                header,
+                data,
+            });
         }
         if keyframe_due {
             let data = Keyframe::of(world, header, scene).encode();
@@ -267,7 +287,13 @@ impl Recorder {
     }
 
     /// Records a command applied before `frame` of `episode`.
-    pub(crate) fn command(&mut self, frame: u64, episode: u64, command: &Command, result: &CommandResult) {
+    pub(crate) fn command(
+        &mut self,
+        frame: u64,
+        episode: u64,
+        command: &Command,
+        result: &CommandResult,
+    ) {
         let Some(active) = &self.active else {
             return;
         };

@@ -81,7 +81,10 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
             let frame = d.clock.frame();
             match d.recorder.stop("stop", frame) {
                 Some(_) => Ok(()),
-                None => Err((RecorderRefusal::NotRecording, "no recording is running".to_string())),
+                None => Err((
+                    RecorderRefusal::NotRecording,
+                    "no recording is running".to_string(),
+                )),
             }
         }
         RecorderKind::Replay => replay(d, request),
@@ -90,7 +93,10 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
                 d.stop_replay(request.flags & RecorderRequest::KEEP_ACTORS != 0)
                     .map_err(|e| (RecorderRefusal::NotReplaying, e.to_string()))
             } else {
-                Err((RecorderRefusal::NotReplaying, "no replay is running".to_string()))
+                Err((
+                    RecorderRefusal::NotReplaying,
+                    "no replay is running".to_string(),
+                ))
             }
         }
         RecorderKind::TimeFactor => d.replayer.set_time_factor(request.time_factor),
@@ -110,17 +116,26 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
 fn path_of(request: &RecorderRequest) -> Result<String, Refusal> {
     let path = request.path.to_string_lossy();
     if path.is_empty() || request.path.len as usize > PathText::CAPACITY {
-        return Err((RecorderRefusal::InvalidArgument, "no file path given".to_string()));
+        return Err((
+            RecorderRefusal::InvalidArgument,
+            "no file path given".to_string(),
+        ));
     }
     Ok(path)
 }
 
 fn start(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
     if let Some((path, _)) = d.recorder.progress() {
-        return Err((RecorderRefusal::AlreadyRecording, format!("already recording to {path}")));
+        return Err((
+            RecorderRefusal::AlreadyRecording,
+            format!("already recording to {path}"),
+        ));
     }
     if d.replayer.is_running() {
-        return Err((RecorderRefusal::Replaying, "a replay is running; stop it first".to_string()));
+        return Err((
+            RecorderRefusal::Replaying,
+            "a replay is running; stop it first".to_string(),
+        ));
     }
     let path = path_of(request)?;
     d.start_recording(&path, request.flags & RecorderRequest::SENSORS != 0)
@@ -129,10 +144,16 @@ fn start(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
 
 fn replay(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
     if d.replayer.is_running() {
-        return Err((RecorderRefusal::Replaying, format!("already replaying {}", d.replayer.report.path)));
+        return Err((
+            RecorderRefusal::Replaying,
+            format!("already replaying {}", d.replayer.report.path),
+        ));
     }
     if let Some((path, _)) = d.recorder.progress() {
-        return Err((RecorderRefusal::Recording, format!("recording to {path}; stop the recorder first")));
+        return Err((
+            RecorderRefusal::Recording,
+            format!("recording to {path}; stop the recorder first"),
+        ));
     }
     let mode = match request.mode {
         0 => None,

@@ -28,11 +28,17 @@ pub(crate) enum Item {
         actors: Vec<ActorState>,
     },
     /// An applied command.
-    Command { log_ns: u64, command: RecordedCommand },
+    Command {
+        log_ns: u64,
+        command: RecordedCommand,
+    },
     /// An event.
     Event { log_ns: u64, event: RecordedEvent },
     /// A collision.
-    Collision { log_ns: u64, collision: RecordedCollision },
+    Collision {
+        log_ns: u64,
+        collision: RecordedCollision,
+    },
     /// A sensor's spawn.
     Sensor { log_ns: u64, sensor: RecordedSensor },
     /// A capture.
@@ -85,7 +91,10 @@ pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterH
         .create(BufWriter::new(file))?;
     let header_json = serde_json::to_vec(header).unwrap_or_default();
     let mut metadata = std::collections::BTreeMap::new();
-    metadata.insert("header".to_string(), String::from_utf8_lossy(&header_json).into_owned());
+    metadata.insert(
+        "header".to_string(),
+        String::from_utf8_lossy(&header_json).into_owned(),
+    );
     mcap.write_metadata(&mcap::records::Metadata {
         name: "simbus".to_string(),
         metadata,
@@ -124,15 +133,23 @@ pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterH
         "#[repr(C)] simbus::RecordedSensor/1: frame u64, id u64, simbus::SensorSpec",
         SENSORS_TOPIC,
     )?;
-    let event_schema = json_schema(&mut mcap, EVENT_SCHEMA, json!({"type": "object", "required": ["event"]}))?;
+    let event_schema = json_schema(
+        &mut mcap,
+        EVENT_SCHEMA,
+        json!({"type": "object", "required": ["event"]}),
+    )?;
     let events = mcap.add_channel(event_schema, EVENTS_TOPIC, "json", &Default::default())?;
     let keyframe_schema = mcap.add_schema(
         KEYFRAME_SCHEMA,
         "msgpack",
         b"simbus server world: rapier3d 0.36 PhysicsWorld (serde) and simbus actors, msgpack",
     )?;
-    let keyframes =
-        mcap.add_channel(keyframe_schema, KEYFRAMES_TOPIC, "msgpack", &Default::default())?;
+    let keyframes = mcap.add_channel(
+        keyframe_schema,
+        KEYFRAMES_TOPIC,
+        "msgpack",
+        &Default::default(),
+    )?;
     let scene_schema = json_schema(&mut mcap, SCENE_SCHEMA, scene_update_schema())?;
     let scene = mcap.add_channel(scene_schema, SCENE_TOPIC, "json", &Default::default())?;
     let capture_schema = mcap.add_schema(
@@ -176,7 +193,11 @@ impl std::fmt::Debug for WriterHandle {
 
 /// Writes every item until the channel closes, then finishes the file
 /// (summary, indexes, footer). Returns what was written.
-pub(crate) fn run(handle: WriterHandle, items: Receiver<Item>, path: String) -> Result<Written, String> {
+pub(crate) fn run(
+    handle: WriterHandle,
+    items: Receiver<Item>,
+    path: String,
+) -> Result<Written, String> {
     let mut writer = handle.0;
     while let Ok(item) = items.recv() {
         if let Err(e) = writer.write(item) {
@@ -191,12 +212,24 @@ pub(crate) fn run(handle: WriterHandle, items: Receiver<Item>, path: String) -> 
     drop(inner);
     let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     writer.written.bytes = bytes;
-    info!(path, frames = writer.written.frames, bytes, "recording closed");
+    info!(
+        path,
+        frames = writer.written.frames,
+        bytes,
+        "recording closed"
+    );
     Ok(writer.written)
 }
 
 impl Writer {
-    fn message(&mut self, channel_id: u16, sequence: u64, log_ns: u64, publish_ns: u64, data: &[u8]) -> McapResult<()> {
+    fn message(
+        &mut self,
+        channel_id: u16,
+        sequence: u64,
+        log_ns: u64,
+        publish_ns: u64,
+        data: &[u8],
+    ) -> McapResult<()> {
         self.mcap.write_to_known_channel(
             &MessageHeader {
                 channel_id,
@@ -210,7 +243,11 @@ impl Writer {
 
     fn write(&mut self, item: Item) -> McapResult<()> {
         match item {
-            Item::Frame { log_ns, header, actors } => {
+            Item::Frame {
+                log_ns,
+                header,
+                actors,
+            } => {
                 let mut bytes = std::mem::take(&mut self.scratch);
                 bytes.clear();
                 bytes.extend_from_slice(bytemuck::bytes_of(&header));
@@ -226,24 +263,51 @@ impl Writer {
                 self.written.frames += 1;
             }
             Item::Command { log_ns, command } => {
-                self.message(self.commands, command.frame, log_ns, log_ns, bytemuck::bytes_of(&command))?;
+                self.message(
+                    self.commands,
+                    command.frame,
+                    log_ns,
+                    log_ns,
+                    bytemuck::bytes_of(&command),
+                )?;
             }
             Item::Event { log_ns, event } => {
                 let json = serde_json::to_vec(&event).unwrap_or_default();
                 self.message(self.events, 0, log_ns, log_ns, &json)?;
             }
             Item::Collision { log_ns, collision } => {
-                self.message(self.collisions, collision.frame, log_ns, collision.elapsed_ns, bytemuck::bytes_of(&collision))?;
+                self.message(
+                    self.collisions,
+                    collision.frame,
+                    log_ns,
+                    collision.elapsed_ns,
+                    bytemuck::bytes_of(&collision),
+                )?;
             }
             Item::Sensor { log_ns, sensor } => {
-                self.message(self.sensors, sensor.frame, log_ns, log_ns, bytemuck::bytes_of(&sensor))?;
+                self.message(
+                    self.sensors,
+                    sensor.frame,
+                    log_ns,
+                    log_ns,
+                    bytemuck::bytes_of(&sensor),
+                )?;
             }
-            Item::Capture { log_ns, header, data } => {
+            Item::Capture {
+                log_ns,
+                header,
+                data,
+            } => {
                 let channel = match self.captures.get(&header.sensor_id) {
                     Some(id) => *id,
                     None => {
                         let topic = format!("{SENSOR_TOPIC_PREFIX}{}", header.sensor_id);
-                        let id = self.mcap.add_channel(self.capture_schema, &topic, WIRE_ENCODING, &Default::default())?;
+                        let id = self.mcap.add_channel(
+                            self.capture_schema,
+                            &topic,
+                            WIRE_ENCODING,
+                            &Default::default(),
+                        )?;
                         self.captures.insert(header.sensor_id, id);
                         id
                     }
@@ -255,7 +319,11 @@ impl Writer {
                 self.message(channel, header.frame, log_ns, header.elapsed_ns, &bytes)?;
                 self.scratch = bytes;
             }
-            Item::Keyframe { log_ns, frame, data } => {
+            Item::Keyframe {
+                log_ns,
+                frame,
+                data,
+            } => {
                 self.message(self.keyframes, frame, log_ns, log_ns, &data)?;
             }
         }
@@ -280,15 +348,39 @@ fn scene_update(out: &mut Vec<u8>, header: &FrameHeader, actors: &[ActorState], 
         let [ex, ey, ez] = a.extent;
         let pose = Pose {
             position: Xyz { x, y: -z, z: y },
-            orientation: Quaternion { x: qx, y: -qz, z: qy, w: qw },
+            orientation: Quaternion {
+                x: qx,
+                y: -qz,
+                z: qy,
+                w: qw,
+            },
         };
         let kind = ActorKind::from_u32(a.kind);
         let color = match kind {
-            Some(ActorKind::Static) => Color { r: 0.5, g: 0.5, b: 0.5, a: 1.0 },
-            Some(ActorKind::Vehicle) => Color { r: 0.9, g: 0.2, b: 0.2, a: 1.0 },
-            _ => Color { r: 0.2, g: 0.5, b: 0.9, a: 1.0 },
+            Some(ActorKind::Static) => Color {
+                r: 0.5,
+                g: 0.5,
+                b: 0.5,
+                a: 1.0,
+            },
+            Some(ActorKind::Vehicle) => Color {
+                r: 0.9,
+                g: 0.2,
+                b: 0.2,
+                a: 1.0,
+            },
+            _ => Color {
+                r: 0.2,
+                g: 0.5,
+                b: 0.9,
+                a: 1.0,
+            },
         };
-        let size = |x: f32, y: f32, z: f32| Xyz { x: 2.0 * x, y: 2.0 * z, z: 2.0 * y };
+        let size = |x: f32, y: f32, z: f32| Xyz {
+            x: 2.0 * x,
+            y: 2.0 * z,
+            z: 2.0 * y,
+        };
         let primitive = |size| Primitive { pose, size, color };
         let (cubes, spheres, cylinders) = match kind {
             Some(ActorKind::Sphere) => (None, Some(primitive(size(ex, ex, ex))), None),
@@ -299,24 +391,27 @@ fn scene_update(out: &mut Vec<u8>, header: &FrameHeader, actors: &[ActorState], 
             timestamp: stamp,
             frame_id: "simbus",
             id: a.id,
-            lifetime: Time { sec: 0, nsec: 0 },
-            frame_locked: false,
             metadata: (
-                KeyValue { key: "kind", value: Text(kind.map_or("unknown", |k| k.name())) },
-                KeyValue { key: "frame", value: Text(frame) },
+                KeyValue {
+                    key: "kind",
+                    value: Text(kind.map_or("unknown", |k| k.name())),
+                },
+                KeyValue {
+                    key: "frame",
+                    value: Text(frame),
+                },
             ),
-            arrows: [],
-            cubes: cubes.into_iter().collect(),
-            spheres: spheres.into_iter().collect(),
-            cylinders: cylinders.into_iter().collect(),
-            lines: [],
-            triangles: [],
-            texts: [],
-            models: [],
+            cubes,
+            spheres,
+            cylinders,
         }
     });
     let update = SceneUpdate {
-        deletions: [Deletion { timestamp: stamp, r#type: 1, id: "" }],
+        deletions: [Deletion {
+            timestamp: stamp,
+            r#type: 1,
+            id: "",
+        }],
         entities: Entities(std::cell::Cell::new(Some(entities))),
     };
     // Serializing plain numbers and strings into a Vec cannot fail.
@@ -386,17 +481,20 @@ struct Entity {
     frame_id: &'static str,
     #[serde(serialize_with = "as_text")]
     id: u64,
-    lifetime: Time,
-    frame_locked: bool,
     metadata: (KeyValue<Text<&'static str>>, KeyValue<Text<u64>>),
-    arrows: [u8; 0],
-    cubes: Vec<Primitive>,
-    spheres: Vec<Primitive>,
-    cylinders: Vec<Primitive>,
-    lines: [u8; 0],
-    triangles: [u8; 0],
-    texts: [u8; 0],
-    models: [u8; 0],
+    // Fields left out are Foxglove's defaults (protobuf JSON): no lifetime
+    // (forever), not frame-locked, no other primitives.
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "one")]
+    cubes: Option<Primitive>,
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "one")]
+    spheres: Option<Primitive>,
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "one")]
+    cylinders: Option<Primitive>,
+}
+
+/// A primitive as the one-element list Foxglove expects.
+fn one<S: serde::Serializer>(primitive: &Option<Primitive>, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(primitive)
 }
 
 fn as_text<S: serde::Serializer>(id: &u64, s: S) -> Result<S::Ok, S::Error> {

@@ -82,8 +82,17 @@ impl Cursor {
             match reader.next() {
                 None => return Err(bad("the recording ended before its keyframe".into())),
                 Some(Err(e)) => return Err(bad(e.to_string())),
-                Some(Ok(Entry::Frame { log_ns, header, actors })) => {
-                    last_frame = Some(Recorded { log_ns, header, actors, applied: true })
+                Some(Ok(Entry::Frame {
+                    log_ns,
+                    header,
+                    actors,
+                })) => {
+                    last_frame = Some(Recorded {
+                        log_ns,
+                        header,
+                        actors,
+                        applied: true,
+                    })
                 }
                 Some(Ok(Entry::Sensor(sensor))) => alive.push((sensor.id, sensor.spec)),
                 Some(Ok(Entry::Event(RecordedEvent::SensorEnded { id, .. }))) => {
@@ -98,7 +107,9 @@ impl Cursor {
                 Some(Ok(_)) => {}
             }
         };
-        let scene: Scene = scene.parse().map_err(|e| bad(format!("the keyframe's scene: {e}")))?;
+        let scene: Scene = scene
+            .parse()
+            .map_err(|e| bad(format!("the keyframe's scene: {e}")))?;
         let mut cursor = Self {
             reader,
             seed: selection.seed,
@@ -161,7 +172,10 @@ impl Cursor {
                     let frame = matches!(entry, Entry::Frame { .. });
                     if matches!(
                         entry,
-                        Entry::Command(_) | Entry::Event(_) | Entry::Sensor(_) | Entry::Frame { .. }
+                        Entry::Command(_)
+                            | Entry::Event(_)
+                            | Entry::Sensor(_)
+                            | Entry::Frame { .. }
                     ) {
                         self.buffer.push_back(entry);
                     }
@@ -208,15 +222,24 @@ impl Cursor {
                 Entry::Command(recorded) => {
                     world.apply(&recorded.command);
                 }
-                Entry::Sensor(sensor) => {
-                    self.sensor_changes.push(SensorChange::Spawned(sensor.id, sensor.spec))
-                }
+                Entry::Sensor(sensor) => self
+                    .sensor_changes
+                    .push(SensorChange::Spawned(sensor.id, sensor.spec)),
                 Entry::Event(RecordedEvent::SensorEnded { id, .. }) => {
                     self.sensor_changes.push(SensorChange::Ended(id))
                 }
-                Entry::Frame { log_ns, header, actors } => {
+                Entry::Frame {
+                    log_ns,
+                    header,
+                    actors,
+                } => {
                     self.passed += 1;
-                    return Ok(Some(Recorded { log_ns, header, actors, applied: false }));
+                    return Ok(Some(Recorded {
+                        log_ns,
+                        header,
+                        actors,
+                        applied: false,
+                    }));
                 }
                 _ => {}
             }
@@ -239,14 +262,22 @@ impl Cursor {
             if !frame.applied {
                 step(world, &frame);
             }
-            let actors: Vec<ActorState> = (0..world.actor_count()).map(|i| world.actor_state(i)).collect();
-            if bytemuck::cast_slice::<ActorState, u8>(&actors) != bytemuck::cast_slice::<ActorState, u8>(&frame.actors) {
+            let actors: Vec<ActorState> = (0..world.actor_count())
+                .map(|i| world.actor_state(i))
+                .collect();
+            if bytemuck::cast_slice::<ActorState, u8>(&actors)
+                != bytemuck::cast_slice::<ActorState, u8>(&frame.actors)
+            {
                 let actor = actors
                     .iter()
                     .zip(&frame.actors)
                     .find(|(a, b)| a != b)
                     .map_or(0, |(a, _)| a.id);
-                let actor = if actors.len() == frame.actors.len() { actor } else { 0 };
+                let actor = if actors.len() == frame.actors.len() {
+                    actor
+                } else {
+                    0
+                };
                 mismatch = Some((frame.header.timestamp.frame, actor));
             }
             actors
@@ -264,7 +295,11 @@ impl Cursor {
 
     /// The recorded states interpolated at recording time `at` (position
     /// linear, rotation slerp, velocities linear), set into `world`.
-    pub(crate) fn interpolated(&mut self, world: &mut World, at: u64) -> Result<Option<Interpolated>, String> {
+    pub(crate) fn interpolated(
+        &mut self,
+        world: &mut World,
+        at: u64,
+    ) -> Result<Option<Interpolated>, String> {
         loop {
             match self.next_log_ns() {
                 Some(log_ns) if log_ns <= at || self.previous.is_none() => {
@@ -282,7 +317,11 @@ impl Cursor {
             return Ok(None);
         }
         let next = match self.buffer.back() {
-            Some(Entry::Frame { log_ns, header, actors }) if header.episode == previous.header.episode && *log_ns > previous.log_ns => {
+            Some(Entry::Frame {
+                log_ns,
+                header,
+                actors,
+            }) if header.episode == previous.header.episode && *log_ns > previous.log_ns => {
                 Some((*log_ns, actors.as_slice()))
             }
             _ => None,
@@ -290,14 +329,17 @@ impl Cursor {
         let at = at.max(previous.log_ns);
         let actors: Vec<ActorState> = match next {
             Some((next_ns, next_actors)) => {
-                let alpha = ((at - previous.log_ns) as f64 / (next_ns - previous.log_ns) as f64).min(1.0) as f32;
+                let alpha = ((at - previous.log_ns) as f64 / (next_ns - previous.log_ns) as f64)
+                    .min(1.0) as f32;
                 previous
                     .actors
                     .iter()
-                    .map(|a| match next_actors.binary_search_by_key(&a.id, |b| b.id) {
-                        Ok(i) => interpolate(a, &next_actors[i], alpha),
-                        Err(_) => *a,
-                    })
+                    .map(
+                        |a| match next_actors.binary_search_by_key(&a.id, |b| b.id) {
+                            Ok(i) => interpolate(a, &next_actors[i], alpha),
+                            Err(_) => *a,
+                        },
+                    )
                     .collect()
             }
             None => previous.actors.clone(),
@@ -336,11 +378,14 @@ fn step(world: &mut World, frame: &Recorded) {
 fn interpolate(a: &ActorState, b: &ActorState, alpha: f32) -> ActorState {
     use rapier3d::prelude::{Rotation, Vector};
     let lerp = |x: [f32; 3], y: [f32; 3]| {
-        Vector::from_array(x).lerp(Vector::from_array(y), alpha).to_array()
+        Vector::from_array(x)
+            .lerp(Vector::from_array(y), alpha)
+            .to_array()
     };
     let [ax, ay, az, aw] = a.rotation;
     let [bx, by, bz, bw] = b.rotation;
-    let rotation = Rotation::from_xyzw(ax, ay, az, aw).slerp(Rotation::from_xyzw(bx, by, bz, bw), alpha);
+    let rotation =
+        Rotation::from_xyzw(ax, ay, az, aw).slerp(Rotation::from_xyzw(bx, by, bz, bw), alpha);
     ActorState {
         position: lerp(a.position, b.position),
         rotation: rotation.to_array(),

@@ -14,15 +14,17 @@ mod selection;
 use std::time::{Duration, Instant};
 
 use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
-use shared_types::{ActorState, FrameHeader, RecorderRefusal, ReplayMode, ReplayState, WorldSettings};
+use shared_types::{
+    ActorState, FrameHeader, RecorderRefusal, ReplayMode, ReplayState, WorldSettings,
+};
 use tracing::{info, warn};
 
 use crate::clock::{Clock, SubstepPlan};
 use crate::recorder::Keyframe;
 use crate::world::World;
 use crate::Scene;
-pub(crate) use cursor::SensorChange;
 use cursor::Cursor;
+pub(crate) use cursor::SensorChange;
 use selection::Selection;
 
 /// A replay request, checked.
@@ -137,17 +139,26 @@ impl Replayer {
         if !(request.time_factor.is_finite() && request.time_factor > 0.0) {
             return Err((
                 RecorderRefusal::InvalidArgument,
-                format!("time factor {} must be a positive number", request.time_factor),
+                format!(
+                    "time factor {} must be a positive number",
+                    request.time_factor
+                ),
             ));
         }
-        if !request.start_seconds.is_finite() || !(request.duration_seconds.is_finite() && request.duration_seconds >= 0.0) {
+        let finite = request.start_seconds.is_finite() && request.duration_seconds.is_finite();
+        if !(finite && request.duration_seconds >= 0.0) {
             return Err((
                 RecorderRefusal::InvalidArgument,
                 "start must be a number and duration a number of seconds, 0 or more".to_string(),
             ));
         }
-        let bad = |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
-        let selection = Selection::scan(&request.path, request.start_seconds, request.duration_seconds)?;
+        let bad =
+            |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
+        let selection = Selection::scan(
+            &request.path,
+            request.start_seconds,
+            request.duration_seconds,
+        )?;
         if request.follow_id != 0 && !selection.actor_ids.contains(&request.follow_id) {
             return Err((
                 RecorderRefusal::UnknownActor,
@@ -204,7 +215,9 @@ impl Replayer {
     /// the replay spawns them again (else none).
     pub(crate) fn sensor_changes(&mut self) -> Vec<SensorChange> {
         match &mut self.active {
-            Some(replay) if replay.replay_sensors => std::mem::take(&mut replay.cursor.sensor_changes),
+            Some(replay) if replay.replay_sensors => {
+                std::mem::take(&mut replay.cursor.sensor_changes)
+            }
             Some(replay) => {
                 replay.cursor.sensor_changes.clear();
                 Vec::new()
@@ -216,10 +229,16 @@ impl Replayer {
     /// Sets the time factor (refused unless positive and finite).
     pub(crate) fn set_time_factor(&mut self, factor: f64) -> Result<(), (RecorderRefusal, String)> {
         if !(factor.is_finite() && factor > 0.0) {
-            return Err((RecorderRefusal::InvalidArgument, format!("time factor {factor} must be a positive number")));
+            return Err((
+                RecorderRefusal::InvalidArgument,
+                format!("time factor {factor} must be a positive number"),
+            ));
         }
         let Some(replay) = &mut self.active else {
-            return Err((RecorderRefusal::NotReplaying, "no replay is running".to_string()));
+            return Err((
+                RecorderRefusal::NotReplaying,
+                "no replay is running".to_string(),
+            ));
         };
         self.report.time_factor = factor;
         // Pace from here on at the new factor.
@@ -230,7 +249,12 @@ impl Replayer {
     /// Ends the replay as `state` (stopped by a client, or failed).
     pub(crate) fn end(&mut self, state: ReplayState, message: String) {
         if self.active.take().is_some() {
-            info!(path = self.report.path, frames = self.report.frames, ?state, "replay ended");
+            info!(
+                path = self.report.path,
+                frames = self.report.frames,
+                ?state,
+                "replay ended"
+            );
             self.report.state = state;
             self.report.message = message;
         }
@@ -294,7 +318,11 @@ impl Replayer {
                 None => self.report.verified += 1,
                 Some(at) => {
                     if self.report.mismatch.is_none() {
-                        warn!(frame = at.0, actor = at.1, "re-simulation differs from the recording");
+                        warn!(
+                            frame = at.0,
+                            actor = at.1,
+                            "re-simulation differs from the recording"
+                        );
                         self.report.mismatch = Some(at);
                     }
                 }
@@ -316,20 +344,34 @@ impl Replayer {
 }
 
 /// The world of a recorded episode: `scene`'s placements with `seed`, ids from `first_id`.
-pub(crate) fn episode_world(scene: &str, seed: u64, first_id: u64) -> Result<(World, Scene), String> {
-    let scene: Scene = scene.parse().map_err(|e| format!("the recording's scene: {e}"))?;
+pub(crate) fn episode_world(
+    scene: &str,
+    seed: u64,
+    first_id: u64,
+) -> Result<(World, Scene), String> {
+    let scene: Scene = scene
+        .parse()
+        .map_err(|e| format!("the recording's scene: {e}"))?;
     Ok((World::new(&scene.placements(seed), first_id), scene))
 }
 
 /// The plan a recorded frame was stepped with.
 pub(crate) fn recorded_plan(header: &FrameHeader) -> SubstepPlan {
-    SubstepPlan::new(header.timestamp.delta_ns, &WorldSettings::from(header.settings))
+    SubstepPlan::new(
+        header.timestamp.delta_ns,
+        &WorldSettings::from(header.settings),
+    )
 }
 
 /// A keyframe decoded into the world and clock it describes.
 pub(crate) fn restore(bytes: &[u8]) -> Result<(World, Clock, String), String> {
     let keyframe = Keyframe::decode(bytes).map_err(|e| e.to_string())?;
-    let clock = Clock::at(keyframe.frame, keyframe.elapsed_ns, keyframe.delta_ns, Instant::now());
+    let clock = Clock::at(
+        keyframe.frame,
+        keyframe.elapsed_ns,
+        keyframe.delta_ns,
+        Instant::now(),
+    );
     Ok((keyframe.world, clock, keyframe.scene))
 }
 
@@ -337,7 +379,9 @@ pub(crate) fn restore(bytes: &[u8]) -> Result<(World, Clock, String), String> {
 pub(crate) fn episode_of(entry: &Entry) -> Option<(&str, u64)> {
     match entry {
         Entry::Event(RecordedEvent::Episode {
-            scene, first_actor_id, ..
+            scene,
+            first_actor_id,
+            ..
         }) => Some((scene.as_str(), *first_actor_id)),
         _ => None,
     }

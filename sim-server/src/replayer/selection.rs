@@ -42,7 +42,8 @@ impl Selection {
         start_seconds: f64,
         duration_seconds: f64,
     ) -> Result<Self, (RecorderRefusal, String)> {
-        let bad = |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
+        let bad =
+            |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
         let mut reader = RecordingReader::open(path).map_err(bad)?;
         let seed = reader.header().seed;
         // (recording time, frame id) of every frame; (keyframe, index of its frame).
@@ -52,7 +53,11 @@ impl Selection {
         let mut variable_step = false;
         while let Some(entry) = reader.next() {
             match entry.map_err(bad)? {
-                Entry::Frame { log_ns, header, actors } => {
+                Entry::Frame {
+                    log_ns,
+                    header,
+                    actors,
+                } => {
                     if header.timestamp.delta_ns > 0 && header.settings.fixed_delta_seconds == 0.0 {
                         variable_step = true;
                     }
@@ -62,14 +67,20 @@ impl Selection {
                 Entry::Keyframe { .. } => match frames.len().checked_sub(1) {
                     Some(index) => keyframes.push(index as u64),
                     None => {
-                        return Err((RecorderRefusal::BadFile, format!("{path}: a keyframe before any frame")))
+                        return Err((
+                            RecorderRefusal::BadFile,
+                            format!("{path}: a keyframe before any frame"),
+                        ))
                     }
                 },
                 _ => {}
             }
         }
         let (Some(&(end_ns, _)), Some(&first_keyframe)) = (frames.last(), keyframes.first()) else {
-            return Err((RecorderRefusal::BadFile, format!("{path} holds no frame (or no keyframe) to replay")));
+            return Err((
+                RecorderRefusal::BadFile,
+                format!("{path} holds no frame (or no keyframe) to replay"),
+            ));
         };
         let seconds = |ns: u64| ns as f64 / NANOS_PER_SECOND as f64;
         let to_ns = |s: f64| (s * NANOS_PER_SECOND as f64).round() as u64;
@@ -95,7 +106,10 @@ impl Selection {
         // Frames are in recording-time order (the log time never goes back).
         let first_index = frames.partition_point(|&(log, _)| log < start_ns) as u64;
         let past_end = frames.partition_point(|&(log, _)| log <= end_log_ns) as u64;
-        let keyframe = keyframes.partition_point(|&index| index <= first_index).max(1) - 1;
+        let keyframe = keyframes
+            .partition_point(|&index| index <= first_index)
+            .max(1)
+            - 1;
         let keyframe_index = keyframes.get(keyframe).copied().unwrap_or(first_keyframe);
         Ok(Self {
             frames: past_end.saturating_sub(first_index),

@@ -22,8 +22,8 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
-use crate::recorder::SensorNote;
 use crate::ports::{service_name, Transport};
+use crate::recorder::SensorNote;
 use crate::world::World;
 use crate::ServerError;
 
@@ -309,7 +309,10 @@ impl Sensors {
             .partition(|s| s.spec.attach_to != 0 && world.body_of(s.spec.attach_to).is_none());
         self.list = living;
         for sensor in orphans {
-            self.journal.push(SensorNote::Ended { frame, id: sensor.id });
+            self.journal.push(SensorNote::Ended {
+                frame,
+                id: sensor.id,
+            });
             sensor.end(SensorEnd::ParentDestroyed, frame, episode);
         }
     }
@@ -318,7 +321,10 @@ impl Sensors {
     /// without sensors; the server stops). Sensor ids are not reused.
     pub fn end_all(&mut self, reason: SensorEnd, frame: u64, episode: u64) {
         for sensor in self.list.drain(..) {
-            self.journal.push(SensorNote::Ended { frame, id: sensor.id });
+            self.journal.push(SensorNote::Ended {
+                frame,
+                id: sensor.id,
+            });
             sensor.end(reason, frame, episode);
         }
     }

@@ -4,7 +4,9 @@
 
 use std::time::Instant;
 
-use shared_types::recording::{RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION};
+use shared_types::recording::{
+    RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
+};
 use shared_types::{
     FrameHeader, PathText, RecorderRefusal, RecorderResponse, SensorEnd, PROTOCOL_VERSION,
 };
@@ -30,7 +32,10 @@ impl Domains {
             episode: self.runtime.episode,
             start_platform_timestamp: platform_timestamp(),
             sensors,
-            keyframe_seconds: self.config.keyframe_seconds.unwrap_or(DEFAULT_KEYFRAME_SECONDS),
+            keyframe_seconds: self
+                .config
+                .keyframe_seconds
+                .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
         };
         let frame = self.frame_header(0, 0);
         let scene = self.runtime.scene.to_string();
@@ -44,10 +49,16 @@ impl Domains {
     /// replay starts from (the live one is put aside), as a new episode.
     /// The first replayed frame comes with the next step (the next tick in
     /// synchronous mode).
-    pub(crate) fn start_replay(&mut self, request: &ReplayRequest) -> Result<(), (RecorderRefusal, String)> {
+    pub(crate) fn start_replay(
+        &mut self,
+        request: &ReplayRequest,
+    ) -> Result<(), (RecorderRefusal, String)> {
         let (world, clock, scene) = self.replayer.prepare(request)?;
-        self.sensors
-            .end_all(SensorEnd::EpisodeEnded, self.clock.frame(), self.runtime.episode);
+        self.sensors.end_all(
+            SensorEnd::EpisodeEnded,
+            self.clock.frame(),
+            self.runtime.episode,
+        );
         let live = SavedWorld {
             world: std::mem::replace(&mut self.world, world),
             clock: std::mem::replace(&mut self.clock, clock),
@@ -64,7 +75,11 @@ impl Domains {
             path = request.path,
             episode = self.runtime.episode,
             "replay starts with the next {}",
-            if self.runtime.settings.synchronous_mode { "tick" } else { "frame" }
+            if self.runtime.settings.synchronous_mode {
+                "tick"
+            } else {
+                "frame"
+            }
         );
         Ok(())
     }
@@ -73,8 +88,10 @@ impl Domains {
     /// from where it is; otherwise the world from before the replay comes
     /// back. Either way a new episode starts and its frame is published.
     pub(crate) fn stop_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
-        self.replayer
-            .end(shared_types::ReplayState::Stopped, "stopped by a client".to_string());
+        self.replayer.end(
+            shared_types::ReplayState::Stopped,
+            "stopped by a client".to_string(),
+        );
         self.leave_replay(keep_actors)
     }
 
@@ -82,8 +99,11 @@ impl Domains {
     fn leave_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
         self.replayer.sensor_ids.clear();
         let saved = self.replayer.saved.take();
-        self.sensors
-            .end_all(SensorEnd::EpisodeEnded, self.clock.frame(), self.runtime.episode);
+        self.sensors.end_all(
+            SensorEnd::EpisodeEnded,
+            self.clock.frame(),
+            self.runtime.episode,
+        );
         if let (false, Some(saved)) = (keep_actors, saved) {
             self.world = saved.world;
             self.clock = saved.clock;
@@ -92,7 +112,11 @@ impl Domains {
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
         self.lockstep.new_episode();
-        info!(keep_actors, episode = self.runtime.episode, "replay over; the world goes on live");
+        info!(
+            keep_actors,
+            episode = self.runtime.episode,
+            "replay over; the world goes on live"
+        );
         self.publish(0, 0)?;
         self.frames.notify()
     }
@@ -109,8 +133,11 @@ impl Domains {
         if frame.new_episode {
             // A recorded load or reload: a new episode here too, so every
             // (episode, frame) a client sees is new.
-            self.sensors
-                .end_all(SensorEnd::EpisodeEnded, self.clock.frame(), self.runtime.episode);
+            self.sensors.end_all(
+                SensorEnd::EpisodeEnded,
+                self.clock.frame(),
+                self.runtime.episode,
+            );
             self.runtime.episode += 1;
             self.lockstep.new_episode();
         }
@@ -157,7 +184,10 @@ impl Domains {
         for change in self.replayer.sensor_changes() {
             match change {
                 SensorChange::Spawned(recorded, spec) => {
-                    match self.sensors.spawn(&self.transport, spec, &self.world, &self.clock) {
+                    match self
+                        .sensors
+                        .spawn(&self.transport, spec, &self.world, &self.clock)
+                    {
                         Ok(info) => {
                             info!(recorded, id = info.id, "recorded sensor spawned again");
                             self.replayer.sensor_ids.push((recorded, info.id));
@@ -166,9 +196,15 @@ impl Domains {
                     }
                 }
                 SensorChange::Ended(recorded) => {
-                    if let Some(at) = self.replayer.sensor_ids.iter().position(|(r, _)| *r == recorded) {
+                    if let Some(at) = self
+                        .replayer
+                        .sensor_ids
+                        .iter()
+                        .position(|(r, _)| *r == recorded)
+                    {
                         let (_, id) = self.replayer.sensor_ids.remove(at);
-                        self.sensors.destroy(id, self.clock.frame(), self.runtime.episode);
+                        self.sensors
+                            .destroy(id, self.clock.frame(), self.runtime.episode);
                     }
                 }
             }

@@ -335,12 +335,85 @@ impl std::fmt::Display for TestWorld {
 /// A world in synchronous mode with a fixed step of 0.02 s (and `args`),
 /// a client of it, and that client's claim on the ticker.
 pub fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, sim_client::Client, sim_client::Ticker) {
-    let mut all = vec!["--sync", "--delta-seconds", "0.02"];
+    sync_world_at(tag, "0.02", args)
+}
+
+/// [`sync_world`] with a fixed step of `delta_seconds`.
+pub fn sync_world_at(
+    tag: &str,
+    delta_seconds: &str,
+    args: &[&str],
+) -> (TestWorld, sim_client::Client, sim_client::Ticker) {
+    let mut all = vec!["--sync", "--delta-seconds", delta_seconds];
     all.extend_from_slice(args);
     let world = TestWorld::start(tag, &all);
     let client = world.connect();
     let ticker = client.claim_ticker().expect("claiming the ticker");
     (world, client, ticker)
+}
+
+/// A directory for one test's files, removed when dropped.
+#[derive(Debug)]
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    /// A new, empty directory under the system's temporary directory.
+    pub fn new(tag: &str) -> Self {
+        let dir = std::env::temp_dir().join(unique_world(tag));
+        std::fs::create_dir_all(&dir).expect("creating a scratch directory");
+        Self(dir)
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+
+    /// The path of `name` in it.
+    pub fn file(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+
+    /// Writes `bytes` to `name` in it and returns its path.
+    pub fn write(&self, name: &str, bytes: &[u8]) -> PathBuf {
+        let path = self.file(name);
+        std::fs::write(&path, bytes).expect("writing a scratch file");
+        path
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Ticks until the replay running in `client`'s world ends and returns
+/// every replayed frame, one per tick (frames queued from before the
+/// replay are skipped). Fails unless the replay finished.
+pub fn replayed_frames(
+    client: &mut sim_client::Client,
+    ticker: &mut sim_client::Ticker,
+) -> Vec<sim_client::WorldSnapshot> {
+    let timeout = Duration::from_secs(20);
+    let mut frames = Vec::new();
+    loop {
+        let ticked = ticker.tick(timeout).expect("tick");
+        let snapshot = loop {
+            let snapshot = client.wait_for_tick(timeout).expect("replayed frame");
+            if snapshot.header.flags & shared_types::FrameHeader::REPLAY != 0
+                && snapshot.frame() == ticked
+            {
+                break snapshot;
+            }
+        };
+        frames.push(snapshot);
+        let status = client.recorder_status().expect("recorder status");
+        if status.replay.state != "running" {
+            assert_eq!(status.replay.state, "finished", "{status:?}");
+            return frames;
+        }
+    }
 }
 
 /// Waits (at most 60 s) until the world of `client` has `count` lockstep

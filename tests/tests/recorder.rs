@@ -5,38 +5,17 @@
 //! select the right frames, inspection answers as data, and an MCAP reader
 //! simbus did not write reads the file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use shared_types::recording::{Entry, RecordingReader};
-use shared_types::{Command, FrameHeader, ReplayMode};
+use shared_types::{Command, ReplayMode};
 use sim_client::{Client, ReplayOptions, Ticker, WorldSnapshot};
-use simbus_tests::TestWorld;
+use simbus_tests::{replayed_frames, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 const FRAMES: u64 = 300;
 const RELOAD_AT: u64 = 150;
-
-/// A directory for one test's files, removed at the end.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(simbus_tests::unique_world(tag));
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn file(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// The scenario's commands before `frame` of an episode whose first actor
 /// is `first`: spawns, pushes, a vehicle driving.
@@ -54,14 +33,6 @@ fn commands_at(frame: u64, first: u64) -> Vec<Command> {
         120 => vec![Command::destroy(id(18))],
         _ => Vec::new(),
     }
-}
-
-/// A synchronous world with a fixed 0.05 s step on the default scene, seeded.
-fn sync_world(tag: &str) -> (TestWorld, Client, Ticker) {
-    let world = TestWorld::start(tag, &["--sync", "--delta-seconds", "0.05", "--seed", "5"]);
-    let client = world.connect();
-    let ticker = client.claim_ticker().expect("claim");
-    (world, client, ticker)
 }
 
 /// Records the scenario (with a reload half way) into `path`; returns
@@ -97,27 +68,6 @@ fn record_scenario(client: &mut Client, ticker: &mut Ticker, path: &Path) -> Vec
     seen
 }
 
-/// Ticks until the replay ends; returns every replayed frame (frames
-/// still queued from before the replay are skipped).
-fn replayed_frames(client: &mut Client, ticker: &mut Ticker) -> Vec<WorldSnapshot> {
-    let mut frames = Vec::new();
-    loop {
-        let ticked = ticker.tick(T).expect("tick");
-        let snapshot = loop {
-            let snapshot = client.wait_for_tick(T).expect("replayed frame");
-            if snapshot.header.flags & FrameHeader::REPLAY != 0 && snapshot.frame() == ticked {
-                break snapshot;
-            }
-        };
-        frames.push(snapshot);
-        let status = client.recorder_status().expect("status");
-        if status.replay.state != "running" {
-            assert_eq!(status.replay.state, "finished", "{status:?}");
-            return frames;
-        }
-    }
-}
-
 fn cli_stdout(world: &TestWorld, args: &[&str]) -> String {
     let finished = world.cli(args);
     finished.assert_success();
@@ -128,7 +78,7 @@ fn cli_stdout(world: &TestWorld, args: &[&str]) -> String {
 fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
     let scratch = Scratch::new("rec-exact");
     let path = scratch.file("run.mcap");
-    let (_world, mut client, mut ticker) = sync_world("rec-a");
+    let (_world, mut client, mut ticker) = sync_world("rec-a", &[]);
     let original = record_scenario(&mut client, &mut ticker, &path);
     assert_eq!(
         original.len() as u64,
@@ -137,7 +87,7 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
     );
 
     // Exact replay in a fresh server, one recorded frame per tick.
-    let (_fresh, mut replay_client, mut replay_ticker) = sync_world("rec-b");
+    let (_fresh, mut replay_client, mut replay_ticker) = sync_world("rec-b", &[]);
     let status = replay_client
         .replay(
             &path,
@@ -227,7 +177,7 @@ fn rewrite_one_command(from: &Path, to: &Path) -> u64 {
 fn start_and_duration_select_frames_and_a_sync_replay_waits_for_the_tick() {
     let scratch = Scratch::new("rec-select");
     let path = scratch.file("run.mcap");
-    let (_world, mut client, mut ticker) = sync_world("rec-sel");
+    let (_world, mut client, mut ticker) = sync_world("rec-sel", &[]);
     client.wait_for_tick(T).unwrap();
     client.start_recorder(&path, false).unwrap();
     for _ in 0..100 {
@@ -317,7 +267,7 @@ fn a_variable_step_recording_replays_its_deltas_exactly_or_interpolated() {
     let recorded_seconds = frames.last().unwrap().0;
 
     // Exact: the recorded deltas, frame by frame.
-    let (_w, mut replay_client, mut ticker) = sync_world("rec-var-b");
+    let (_w, mut replay_client, mut ticker) = sync_world("rec-var-b", &[]);
     let options = ReplayOptions {
         mode: Some(ReplayMode::Exact),
         ..Default::default()
@@ -382,7 +332,7 @@ fn a_variable_step_recording_replays_its_deltas_exactly_or_interpolated() {
 fn inspection_answers_as_data_and_a_foreign_mcap_reader_reads_the_file() {
     let scratch = Scratch::new("rec-info");
     let path = scratch.file("info.mcap");
-    let (world, mut client, mut ticker) = sync_world("rec-info");
+    let (world, mut client, mut ticker) = sync_world("rec-info", &[]);
     let original = record_scenario(&mut client, &mut ticker, &path);
     let file = path.to_str().unwrap();
 
@@ -482,4 +432,12 @@ print(json.dumps({"topics": topics, "frames": frames, "schemas": schemas, "profi
         .unwrap()
         .iter()
         .any(|s| s == "simbus::FrameHeader/2"));
+}
+
+/// A synchronous world with a fixed 0.05 s step on the default scene (and
+/// `args`), seeded; a client and its claim on the ticker.
+fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, Client, Ticker) {
+    let mut all = vec!["--seed", "5"];
+    all.extend_from_slice(args);
+    simbus_tests::sync_world_at(tag, "0.05", &all)
 }

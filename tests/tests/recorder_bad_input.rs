@@ -6,51 +6,16 @@
 //! Thousands of mutated recordings are each read without a panic, and a
 //! server replaying a sample of them stays up.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use shared_types::recording::FRAME_SCHEMA;
 use shared_types::RecorderRefusal;
 use sim_client::inspect;
 use sim_client::{Client, RecorderError, ReplayOptions, Ticker};
-use simbus_tests::TestWorld;
+use simbus_tests::{Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
-
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(simbus_tests::unique_world(tag));
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn file(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-
-    fn write(&self, name: &str, bytes: &[u8]) -> PathBuf {
-        let path = self.file(name);
-        std::fs::write(&path, bytes).unwrap();
-        path
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, Client, Ticker) {
-    let mut all = vec!["--sync", "--delta-seconds", "0.05", "--seed", "1"];
-    all.extend_from_slice(args);
-    let world = TestWorld::start(tag, &all);
-    let client = world.connect();
-    let ticker = client.claim_ticker().expect("claim");
-    (world, client, ticker)
-}
 
 /// Records `frames` ticks into `path`.
 fn record(client: &Client, ticker: &mut Ticker, path: &Path, frames: u64) {
@@ -146,7 +111,7 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
 
     let cases: [(&Path, &str); 7] = [
         (&missing, "No such file"),
-        (&scratch.0, "is a directory"),
+        (scratch.path(), "is a directory"),
         (&not_mcap, "not a readable MCAP file"),
         (&foreign, "not a simbus recording"),
         (&truncated, "is truncated before its first complete chunk"),
@@ -309,4 +274,12 @@ fn thousands_of_mutated_recordings_end_in_ok_or_a_typed_error() {
     );
     // The server is still up and stepping.
     ticker.tick(T).unwrap();
+}
+
+/// A synchronous world with a fixed 0.05 s step on the default scene (and
+/// `args`), seeded; a client and its claim on the ticker.
+fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, Client, Ticker) {
+    let mut all = vec!["--seed", "1"];
+    all.extend_from_slice(args);
+    simbus_tests::sync_world_at(tag, "0.05", &all)
 }

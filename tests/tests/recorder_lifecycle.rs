@@ -5,62 +5,14 @@
 //! during a replay follow the chosen actor, and re-simulation from a
 //! keyframe gives the same digests as the original run.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
 use shared_types::recording::{Entry, RecordingReader};
-use shared_types::{FrameHeader, ReplayMode, SensorSpec};
-use sim_client::{inspect, Client, ReplayOptions, Ticker, WorldSnapshot};
-use simbus_tests::{send_signal, TestWorld};
+use shared_types::{ReplayMode, SensorSpec};
+use sim_client::{inspect, Client, ReplayOptions, Ticker};
+use simbus_tests::{replayed_frames, send_signal, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
-
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(simbus_tests::unique_world(tag));
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn file(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, Client, Ticker) {
-    let mut all = vec!["--sync", "--delta-seconds", "0.05", "--seed", "4"];
-    all.extend_from_slice(args);
-    let world = TestWorld::start(tag, &all);
-    let client = world.connect();
-    let ticker = client.claim_ticker().expect("claim");
-    (world, client, ticker)
-}
-
-/// Ticks until the replay ends; every replayed frame.
-fn replayed_frames(client: &mut Client, ticker: &mut Ticker) -> Vec<WorldSnapshot> {
-    let mut frames = Vec::new();
-    loop {
-        let ticked = ticker.tick(T).expect("tick");
-        loop {
-            let snapshot = client.wait_for_tick(T).expect("replayed frame");
-            if snapshot.header.flags & FrameHeader::REPLAY != 0 && snapshot.frame() == ticked {
-                frames.push(snapshot);
-                break;
-            }
-        }
-        if client.recorder_status().unwrap().replay.state != "running" {
-            return frames;
-        }
-    }
-}
 
 fn frame_ids(path: &str) -> Vec<u64> {
     let mut reader = RecordingReader::open(path).unwrap();
@@ -266,4 +218,12 @@ fn resimulating_from_a_keyframe_gives_the_original_digests() {
     }
     let status = client.recorder_status().unwrap();
     assert_eq!((status.replay.verified, status.replay.mismatch), (37, None));
+}
+
+/// A synchronous world with a fixed 0.05 s step on the default scene (and
+/// `args`), seeded; a client and its claim on the ticker.
+fn sync_world(tag: &str, args: &[&str]) -> (TestWorld, Client, Ticker) {
+    let mut all = vec!["--seed", "4"];
+    all.extend_from_slice(args);
+    simbus_tests::sync_world_at(tag, "0.05", &all)
 }

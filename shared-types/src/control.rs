@@ -62,6 +62,9 @@ wire_enum! {
         /// The request was refused; the answer's error code says why (a
         /// sensor request: [`crate::SensorRefusal`]). Nothing changed.
         Refused = 11,
+        /// Batch service: the world is replaying a recording, whose actors
+        /// follow the recording; commands are refused until the replay ends.
+        Replaying = 12,
     }
 }
 

@@ -58,6 +58,10 @@ pub enum BatchError {
     /// each command did).
     #[error("the batch was applied at frame {}, but its tick was dropped: this process is no longer the ticker", .0.frame)]
     NotStepped(BatchResponse),
+    /// The world is replaying a recording; nothing applied. Commands work
+    /// again when the replay ends (or after `stop_replayer`).
+    #[error("the world is replaying a recording: its actors follow the recording, so commands are refused until the replay ends (or stop_replayer)")]
+    Replaying,
     /// The request failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -184,6 +188,7 @@ impl Client {
         };
         match ResponseStatus::from_u32(header.status) {
             Some(ResponseStatus::Ok) => Ok(response),
+            Some(ResponseStatus::Replaying) => Err(BatchError::Replaying),
             Some(ResponseStatus::NotTicker) if response.results.is_empty() => {
                 Err(BatchError::NotTicker)
             }

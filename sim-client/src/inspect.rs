@@ -178,7 +178,8 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
             info.last_frame = t.frame;
             last_log = *log_ns;
             info.max_actors = info.max_actors.max(actors.len() as u64);
-            info.raw_bytes += 96 + 96 * actors.len() as u64;
+            info.raw_bytes +=
+                (std::mem::size_of_val(header) + std::mem::size_of_val(&actors[..])) as u64;
             if show_all {
                 info.frame_list.push(FrameLine {
                     frame: t.frame,
@@ -282,13 +283,13 @@ pub fn actors_blocked(
     let mut still: BTreeMap<u64, Still> = BTreeMap::new();
     let mut out = Vec::new();
     let close = |id: u64, s: &Still, out: &mut Vec<Blocked>| {
-        if s.last_ns - s.since_ns >= min_ns {
+        if s.last_ns.saturating_sub(s.since_ns) >= min_ns {
             out.push(Blocked {
                 actor: id,
                 kind: kind_name(s.kind),
                 frame: s.since_frame,
                 from_seconds: seconds(s.since_ns),
-                duration_seconds: seconds(s.last_ns - s.since_ns),
+                duration_seconds: seconds(s.last_ns.saturating_sub(s.since_ns)),
                 distance: s.moved,
             });
         }

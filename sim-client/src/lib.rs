@@ -53,7 +53,9 @@ pub use error::{
 };
 pub use lockstep::Participant;
 pub use process::process_alive;
-pub use recorder::{Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus};
+pub use recorder::{
+    Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
+};
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};

@@ -6,6 +6,7 @@
 //! [`crate::inspect`].
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
@@ -18,6 +19,10 @@ use shared_types::{
 
 use crate::rpc::{await_response, check_protocol, Wait};
 use crate::{Client, RequestError};
+
+/// The longest a replay request waits for the server to read its recording
+/// through (a few GiB take seconds).
+pub const REPLAY_READ_TIMEOUT: Duration = Duration::from_secs(600);
 
 /// The recorder service's client port.
 pub(crate) type RecorderClient =
@@ -203,6 +208,14 @@ impl Client {
     }
 
     fn recorder_request(&self, request: RecorderRequest) -> Result<RecorderStatus, RecorderError> {
+        self.recorder_request_within(request, self.request_timeout)
+    }
+
+    fn recorder_request_within(
+        &self,
+        request: RecorderRequest,
+        timeout: Duration,
+    ) -> Result<RecorderStatus, RecorderError> {
         let pending = self
             .recorder_port()?
             .send_copy(request)
@@ -210,7 +223,7 @@ impl Client {
         self.wake_server()?;
         let answer = await_response(
             &pending,
-            self.request_timeout,
+            timeout,
             self.world.as_str(),
             self.server_pid,
             Wait::Backoff,
@@ -282,9 +295,11 @@ impl Client {
         )
     }
 
-    /// Replays the recording at `path` as `options` say. The server checks
-    /// the whole file first: a damaged one is refused and nothing changes.
-    /// In synchronous mode the replay starts with the next tick.
+    /// Replays the recording at `path` as `options` say. The server reads
+    /// the whole file first (off its frame loop; a damaged one is refused
+    /// and nothing changes), so this waits up to [`REPLAY_READ_TIMEOUT`]
+    /// (or the request timeout, if longer) — less if the server dies. In
+    /// synchronous mode the replay starts with the next tick.
     pub fn replay(
         &self,
         path: impl AsRef<Path>,
@@ -303,7 +318,7 @@ impl Client {
         if options.keep_actors {
             request.flags |= RecorderRequest::KEEP_ACTORS;
         }
-        self.recorder_request(request)
+        self.recorder_request_within(request, self.request_timeout.max(REPLAY_READ_TIMEOUT))
     }
 
     /// CARLA's `set_replayer_time_factor`: the replay's speed relative to

@@ -152,6 +152,25 @@ impl Batches {
     }
 }
 
+impl Batches {
+    /// Refuses every pending batch: a replay runs, its actors follow the
+    /// recording (and a spawn would shift the recorded actor ids).
+    pub fn refuse_while_replaying(&mut self, clock: &Clock) -> Result<(), ServerError> {
+        while let Some(request) = self
+            .port
+            .receive()
+            .map_err(|e| ServerError::transport("batch receive", e))?
+        {
+            debug!(
+                pid = request.user_header().pid,
+                "refused a batch: a replay runs"
+            );
+            respond_batch(&request, ResponseStatus::Replaying, clock.frame() + 1, &[]);
+        }
+        Ok(())
+    }
+}
+
 /// Answers a batch with `status`, the frame it concerns and its results.
 pub fn respond_batch(
     request: &PendingBatch,

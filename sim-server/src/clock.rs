@@ -76,6 +76,16 @@ impl Clock {
         }
     }
 
+    /// A clock at the frame `timestamp` describes, computed at `now`.
+    pub fn at_timestamp(timestamp: &shared_types::Timestamp, now: Instant) -> Self {
+        Self::at(
+            timestamp.frame,
+            timestamp.elapsed_ns,
+            timestamp.delta_ns,
+            now,
+        )
+    }
+
     /// The current frame id.
     pub fn frame(&self) -> u64 {
         self.frame

@@ -60,6 +60,11 @@ impl Vehicles {
         self.list.retain(|vehicle| vehicle.actor != actor);
     }
 
+    /// Every vehicle's chassis body.
+    pub fn chassis(&self) -> impl Iterator<Item = RigidBodyHandle> + '_ {
+        self.list.iter().map(|v| v.controller.chassis)
+    }
+
     /// The vehicle of actor `actor`, if it is one.
     pub fn get_mut(&mut self, actor: u64) -> Option<&mut Vehicle> {
         self.list.iter_mut().find(|v| v.actor == actor)

@@ -82,7 +82,7 @@ impl World {
         // The body knows its actor, so contacts name actors.
         body.user_data = u128::from(id);
         let (body, _) = self.physics.insert(body, collider);
-        self.next_id += 1;
+        self.next_id = self.next_id.saturating_add(1);
         let e = placement.extent;
         self.actors.push(Actor {
             id,
@@ -267,6 +267,61 @@ impl World {
         self.physics
             .cast_ray(&Ray::new(origin, direction), max, true, filter)
             .map(|(_, distance)| distance)
+    }
+
+    /// Every actor's state, in id order, as published.
+    pub fn states(&self) -> Vec<ActorState> {
+        (0..self.actor_count())
+            .map(|i| self.actor_state(i))
+            .collect()
+    }
+
+    /// Checks a world read from a file (a keyframe) before it is used: every
+    /// actor's body and every collider's parent exist, ids ascend below
+    /// `next_id`, every vehicle's chassis is an actor's body, and every body
+    /// is finite. Rapier trusts its own sets; a damaged keyframe must not
+    /// reach it.
+    pub fn check(&self) -> Result<(), String> {
+        let mut previous = None;
+        for actor in &self.actors {
+            if previous.is_some_and(|p| p >= actor.id)
+                || actor.id >= self.next_id
+                || actor.id < self.first_id
+            {
+                return Err(format!("actor ids out of order at {}", actor.id));
+            }
+            previous = Some(actor.id);
+            let Some(body) = self.physics.bodies.get(actor.body) else {
+                return Err(format!("actor {} has no body", actor.id));
+            };
+            let p = body.position();
+            let finite = p.translation.is_finite()
+                && p.rotation.is_finite()
+                && body.linvel().is_finite()
+                && body.angvel().is_finite();
+            if !finite {
+                return Err(format!("actor {} is not finite", actor.id));
+            }
+        }
+        for (_, collider) in self.physics.colliders.iter() {
+            if collider
+                .parent()
+                .is_some_and(|b| self.physics.bodies.get(b).is_none())
+            {
+                return Err("a collider's body is missing".to_string());
+            }
+        }
+        if !self
+            .vehicles
+            .chassis()
+            .all(|body| self.actors.iter().any(|a| a.body == body))
+        {
+            return Err("a vehicle's chassis is not an actor".to_string());
+        }
+        if self.physics.bodies.len() != self.actors.len() {
+            return Err("bodies and actors differ".to_string());
+        }
+        Ok(())
     }
 
     /// The state of the actor at `index` (in id order), as published.

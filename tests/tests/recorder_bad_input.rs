@@ -179,6 +179,12 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
     assert_eq!(refusal, RecorderRefusal::Replaying, "{message}");
     let (refusal, _) = refused(client.start_recorder(scratch.file("during.mcap"), false));
     assert_eq!(refusal, RecorderRefusal::Replaying);
+    // The replayed actors follow the recording: commands wait for its end.
+    let spawn = shared_types::Command::spawn_box([0.0, 2.0, 0.0], [0.5; 3]);
+    assert!(matches!(
+        client.apply_batch_sync(&[spawn], false),
+        Err(sim_client::BatchError::Replaying)
+    ));
     client.stop_replayer(false).unwrap();
 }
 

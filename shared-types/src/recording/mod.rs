@@ -19,7 +19,8 @@
 //! Messages are written in the order things happened; a message's log time
 //! is the recording's own simulation time (nanoseconds since the recording
 //! started, summed over episodes, so it never goes back), its publish time
-//! the frame's `elapsed_ns`, its sequence the frame id.
+//! the frame's `elapsed_ns`, its sequence the frame id (modulo 2^32, as
+//! MCAP's sequence is 32 bits; the full id is in the message).
 //!
 //! Compatibility: a schema name ends in its layout version. A later simbus
 //! only ever adds channels and appends fields; a reader skips channels it

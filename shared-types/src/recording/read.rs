@@ -42,10 +42,8 @@ pub enum Entry {
         /// Its payload bytes.
         data: Vec<u8>,
     },
-    /// A keyframe: the server's serialized world after `frame`.
+    /// A keyframe: the server's serialized world after the frame before it.
     Keyframe {
-        /// The frame it follows.
-        frame: u64,
         /// The serialized state.
         data: Vec<u8>,
     },
@@ -74,6 +72,8 @@ pub struct RecordingReader {
     /// Set when the file ended in the middle of a chunk (a server that was
     /// killed): every complete chunk before it was read.
     truncated: bool,
+    /// The recording time of the last frame read (frames never go back).
+    last_log_ns: u64,
     /// The file ends with MCAP's closing magic (it was finished).
     closed: bool,
     bytes: u64,
@@ -127,6 +127,7 @@ impl RecordingReader {
                 keyframe_seconds: 0.0,
             },
             truncated: false,
+            last_log_ns: 0,
             closed: ends_with_magic(path),
             bytes: metadata.len(),
         };
@@ -255,15 +256,21 @@ impl RecordingReader {
                         return malformed("shorter than a frame header");
                     };
                     let actors: Option<Vec<ActorState>> = pods(rest);
-                    match actors {
-                        Some(actors) if actors.len() == header.actor_count as usize => {
-                            Entry::Frame {
-                                log_ns: message.log_time,
-                                header,
-                                actors,
-                            }
-                        }
-                        _ => return malformed("actor count does not match the bytes"),
+                    let Some(actors) = actors.filter(|a| a.len() == header.actor_count as usize)
+                    else {
+                        return malformed("actor count does not match the bytes");
+                    };
+                    if message.log_time < self.last_log_ns {
+                        return malformed("a frame's time goes back");
+                    }
+                    if !actors.iter().all(finite) {
+                        return malformed("an actor's state is not finite");
+                    }
+                    self.last_log_ns = message.log_time;
+                    Entry::Frame {
+                        log_ns: message.log_time,
+                        header,
+                        actors,
                     }
                 }
                 Channel::Commands => match exact_pod(data) {
@@ -292,7 +299,6 @@ impl RecordingReader {
                     }
                 }
                 Channel::Keyframes => Entry::Keyframe {
-                    frame: u64::from(message.sequence),
                     data: data.to_vec(),
                 },
             };
@@ -312,6 +318,19 @@ fn ends_with_magic(path: &str) -> bool {
         })
         .is_ok()
         && tail == *mcap::MAGIC
+}
+
+/// Whether every number of an actor's state is finite.
+fn finite(actor: &ActorState) -> bool {
+    let vectors = [
+        &actor.position[..],
+        &actor.rotation[..],
+        &actor.linear_velocity[..],
+        &actor.angular_velocity[..],
+        &actor.acceleration[..],
+        &actor.extent[..],
+    ];
+    vectors.iter().all(|v| v.iter().all(|x| x.is_finite()))
 }
 
 /// A `T` read from the front of `data`, and the rest.

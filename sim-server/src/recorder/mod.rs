@@ -2,7 +2,8 @@
 //! collision, keyframe and (on request) sensor capture into an MCAP file.
 //!
 //! The frame loop only hands copies to a writer thread over a bounded
-//! channel; the thread compresses and writes. Nothing is ever dropped: when
+//! channel; the thread compresses and writes. (A keyframe is serialized on
+//! the frame loop: the world has to be copied while it stands still.) Nothing is ever dropped: when
 //! the disk cannot keep up and the channel is full, the frame loop waits
 //! (and says so in the log). The file is finished (summary, footer) on
 //! `stop`, when the server stops, and on a load of another scene; a
@@ -67,13 +68,20 @@ pub(crate) struct LastRecording {
     pub(crate) error: Option<String>,
 }
 
-/// The recorder's state.
+/// The recorder's state. Dropped with a recording running (the server
+/// failed), it closes the file first.
 #[derive(Debug, Default)]
 pub struct Recorder {
     active: Option<Active>,
     pub(crate) last: LastRecording,
     collisions: Vec<RecordedCollision>,
     captures: Vec<(SensorHeader, Vec<u8>)>,
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        self.stop("server error", 0);
+    }
 }
 
 impl Recorder {

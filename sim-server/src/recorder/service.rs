@@ -1,6 +1,14 @@
 //! The recorder service: requests to record and replay, answered with how
 //! the recorder and the replayer are doing.
+//!
+//! A replay request is answered once its recording has been read through
+//! and its world built — on a thread of its own, so a large file never
+//! stalls the frame loop; meanwhile the world goes on, and a second replay
+//! or a recording is refused.
 
+use std::thread::JoinHandle;
+
+use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
@@ -11,16 +19,26 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::ports::{service_name, Transport};
-use crate::replayer::ReplayRequest;
+use crate::replayer::{prepare, Prepared, Refused, ReplayRequest};
 use crate::server::Domains;
 use crate::ServerError;
 
 type Port = RequestServer<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+type Request = ActiveRequest<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+
+/// A replay being prepared: the request waiting for its answer, and the job.
+#[derive(Debug)]
+struct Preparing {
+    request: Request,
+    path: String,
+    job: JoinHandle<Result<Prepared, Refused>>,
+}
 
 /// The recorder service's server port.
 #[derive(Debug)]
 pub struct RecorderPort {
     port: Port,
+    preparing: Option<Preparing>,
 }
 
 impl RecorderPort {
@@ -40,29 +58,105 @@ impl RecorderPort {
             .server_builder()
             .create()
             .map_err(|e| ServerError::transport("recorder server", e))?;
-        Ok(Self { port })
+        Ok(Self {
+            port,
+            preparing: None,
+        })
     }
 
-    /// Answers every pending recorder request.
+    /// Answers every pending recorder request, and a replay request whose
+    /// preparation finished (starting that replay).
     pub(crate) fn handle(&mut self, domains: &mut Domains) -> Result<(), ServerError> {
+        if self.preparing.as_ref().is_some_and(|p| p.job.is_finished()) {
+            if let Some(preparing) = self.preparing.take() {
+                let result = preparing.job.join().unwrap_or_else(|_| {
+                    Err((
+                        RecorderRefusal::BadFile,
+                        format!("reading {} failed unexpectedly", preparing.path),
+                    ))
+                });
+                let done = result.map(|prepared| domains.start_replay(prepared));
+                respond(
+                    &preparing.request,
+                    reply(domains, RecorderKind::Replay, 0, done),
+                );
+            }
+        }
         while let Some(request) = self
             .port
             .receive()
             .map_err(|e| ServerError::transport("recorder receive", e))?
         {
-            let response = answer(domains, request.payload());
-            if let Err(e) = request.send_copy(response) {
-                debug!("recorder response not delivered (client gone?): {e:?}");
+            let payload = *request.payload();
+            if payload.protocol_version == PROTOCOL_VERSION
+                && payload.kind == RecorderKind::Replay as u32
+            {
+                match self.start_preparing(domains, &payload) {
+                    Ok(job) => {
+                        self.preparing = Some(Preparing {
+                            request,
+                            path: payload.path.to_string_lossy(),
+                            job,
+                        });
+                    }
+                    Err(refused) => respond(
+                        &request,
+                        reply(
+                            domains,
+                            RecorderKind::Replay,
+                            payload.client_pid,
+                            Err(refused),
+                        ),
+                    ),
+                }
+                continue;
             }
+            let response = answer(
+                domains,
+                &payload,
+                self.preparing.as_ref().map(|p| p.path.as_str()),
+            );
+            respond(&request, response);
         }
         Ok(())
+    }
+
+    /// Checks a replay request against what runs, then reads its recording
+    /// on a thread of its own.
+    fn start_preparing(
+        &self,
+        d: &Domains,
+        request: &RecorderRequest,
+    ) -> Result<JoinHandle<Result<Prepared, Refused>>, Refusal> {
+        if let Some(preparing) = &self.preparing {
+            return Err((
+                RecorderRefusal::Replaying,
+                format!("already preparing a replay of {}", preparing.path),
+            ));
+        }
+        let replay = replay_request(d, request)?;
+        std::thread::Builder::new()
+            .name("simbus-replay-prepare".into())
+            .spawn(move || prepare(&replay))
+            .map_err(|e| {
+                (
+                    RecorderRefusal::BadFile,
+                    format!("cannot start reading: {e}"),
+                )
+            })
+    }
+}
+
+fn respond(request: &Request, response: RecorderResponse) {
+    if let Err(e) = request.send_copy(response) {
+        debug!("recorder response not delivered (client gone?): {e:?}");
     }
 }
 
 /// A refusal: the reason as a code and in words.
-type Refusal = (RecorderRefusal, String);
+type Refusal = Refused;
 
-fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
+fn answer(d: &mut Domains, request: &RecorderRequest, preparing: Option<&str>) -> RecorderResponse {
     if request.protocol_version != PROTOCOL_VERSION {
         warn!(
             client_pid = request.client_pid,
@@ -76,7 +170,13 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
     };
     let done = match kind {
         RecorderKind::Status => Ok(()),
-        RecorderKind::Start => start(d, request),
+        RecorderKind::Start => match preparing {
+            Some(path) => Err((
+                RecorderRefusal::Replaying,
+                format!("a replay of {path} is being prepared"),
+            )),
+            None => start(d, request),
+        },
         RecorderKind::Stop => {
             let frame = d.clock.frame();
             match d.recorder.stop("stop", frame) {
@@ -87,7 +187,8 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
                 )),
             }
         }
-        RecorderKind::Replay => replay(d, request),
+        // Answered by `RecorderPort::handle` once prepared.
+        RecorderKind::Replay => Ok(()),
         RecorderKind::StopReplay => {
             if d.replayer.is_running() || d.replayer.saved.is_some() {
                 d.stop_replay(request.flags & RecorderRequest::KEEP_ACTORS != 0)
@@ -101,10 +202,20 @@ fn answer(d: &mut Domains, request: &RecorderRequest) -> RecorderResponse {
         }
         RecorderKind::TimeFactor => d.replayer.set_time_factor(request.time_factor),
     };
+    reply(d, kind, request.client_pid, done)
+}
+
+/// The answer to a request of `kind` that did `done`.
+fn reply(
+    d: &Domains,
+    kind: RecorderKind,
+    client_pid: u32,
+    done: Result<(), Refusal>,
+) -> RecorderResponse {
     match done {
         Ok(()) => d.recorder_status(RecorderResponse::new(ResponseStatus::Ok)),
         Err((refusal, message)) => {
-            info!(client_pid = request.client_pid, ?kind, "refused: {message}");
+            info!(client_pid, ?kind, "refused: {message}");
             let mut response = d.recorder_status(RecorderResponse::new(ResponseStatus::Refused));
             response.refusal = refusal as u32;
             response.message = PathText::cut(&message);
@@ -142,7 +253,8 @@ fn start(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
         .map_err(|message| (RecorderRefusal::CannotWrite, message))
 }
 
-fn replay(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
+/// A replay request checked against what runs now.
+fn replay_request(d: &Domains, request: &RecorderRequest) -> Result<ReplayRequest, Refusal> {
     if d.replayer.is_running() {
         return Err((
             RecorderRefusal::Replaying,
@@ -172,5 +284,5 @@ fn replay(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
         time_factor: request.time_factor,
         mode,
     };
-    d.start_replay(&replay)
+    Ok(replay)
 }

@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::BufWriter;
+use std::io::{BufWriter, Write};
 use std::sync::mpsc::Receiver;
 
 use mcap::records::MessageHeader;
@@ -202,23 +202,30 @@ pub(crate) fn run(
     while let Ok(item) = items.recv() {
         if let Err(e) = writer.write(item) {
             warn!(path, "recording failed: {e}");
-            // Keep draining so the frame loop never blocks on a dead writer.
-            while items.recv().is_ok() {}
-            return Err(e.to_string());
+            // Dropping the receiver tells the frame loop at its next send.
+            return Err(format!("writing {path} failed: {e}"));
         }
     }
-    writer.mcap.finish().map_err(|e| e.to_string())?;
-    let inner = writer.mcap.into_inner();
-    drop(inner);
-    let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-    writer.written.bytes = bytes;
+    let mut written = writer.written;
+    finish(writer).map_err(|e| format!("closing {path} failed: {e}"))?;
+    written.bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     info!(
         path,
-        frames = writer.written.frames,
-        bytes,
+        frames = written.frames,
+        bytes = written.bytes,
         "recording closed"
     );
-    Ok(writer.written)
+    Ok(written)
+}
+
+/// Writes the summary and footer, flushes and syncs the file: a recording
+/// that could not be closed is an error, not a silent loss.
+fn finish(mut writer: Writer) -> Result<(), Box<dyn std::error::Error>> {
+    writer.mcap.finish()?;
+    let mut file = writer.mcap.into_inner();
+    file.flush()?;
+    file.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+    Ok(())
 }
 
 impl Writer {

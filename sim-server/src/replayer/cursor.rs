@@ -135,14 +135,9 @@ impl Cursor {
                 return Err(bad("the recording ended before the start".into()));
             };
             if mode == ReplayMode::Resimulate {
-                step(&mut world, &frame);
+                step(&mut world, &frame).map_err(bad)?;
             }
-            clock = Clock::at(
-                frame.header.timestamp.frame,
-                frame.header.timestamp.elapsed_ns,
-                frame.header.timestamp.delta_ns,
-                std::time::Instant::now(),
-            );
+            clock = Clock::at_timestamp(&frame.header.timestamp, std::time::Instant::now());
             index += 1;
         }
         // The sensors alive at the first replayed frame appear with it.
@@ -156,6 +151,7 @@ impl Cursor {
             .into_iter()
             .map(|(id, spec)| SensorChange::Spawned(id, spec))
             .collect();
+        cursor.passed = 0;
         Ok((cursor, world, clock, scene))
     }
 
@@ -260,11 +256,9 @@ impl Cursor {
         let mut mismatch = None;
         let actors = if mode == ReplayMode::Resimulate {
             if !frame.applied {
-                step(world, &frame);
+                step(world, &frame)?;
             }
-            let actors: Vec<ActorState> = (0..world.actor_count())
-                .map(|i| world.actor_state(i))
-                .collect();
+            let actors = world.states();
             if bytemuck::cast_slice::<ActorState, u8>(&actors)
                 != bytemuck::cast_slice::<ActorState, u8>(&frame.actors)
             {
@@ -344,9 +338,13 @@ impl Cursor {
             }
             None => previous.actors.clone(),
         };
-        let elapsed_ns = previous.header.timestamp.elapsed_ns + (at - previous.log_ns);
+        let elapsed_ns = previous
+            .header
+            .timestamp
+            .elapsed_ns
+            .saturating_add(at - previous.log_ns);
         let mut header = previous.header;
-        header.timestamp.frame = self.first_frame + self.produced;
+        header.timestamp.frame = self.first_frame.saturating_add(self.produced);
         header.timestamp.delta_ns = if self.produced == 0 {
             0
         } else {
@@ -368,10 +366,19 @@ impl Cursor {
 }
 
 /// Steps `world` through a recorded frame as the recording's server did.
-fn step(world: &mut World, frame: &Recorded) {
-    if frame.header.physics_substeps > 0 {
-        world.step(&recorded_plan(&frame.header));
+/// The world came from a file: should rapier panic on it anyway, the
+/// replay fails instead of the server.
+fn step(world: &mut World, frame: &Recorded) -> Result<(), String> {
+    if frame.header.physics_substeps == 0 {
+        return Ok(());
     }
+    let plan = recorded_plan(&frame.header);
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| world.step(&plan))).map_err(|_| {
+        format!(
+            "physics failed on frame {} of the recording (is the file damaged?)",
+            frame.header.timestamp.frame
+        )
+    })
 }
 
 /// `a` moved `alpha` of the way to `b`.

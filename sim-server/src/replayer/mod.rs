@@ -129,81 +129,14 @@ impl Replayer {
         self.active.is_some()
     }
 
-    /// Reads and checks `request`'s recording and prepares the world it
-    /// starts from; nothing in the server changes until the caller swaps
-    /// the returned world in. Refused with the reason in words.
-    pub(crate) fn prepare(
-        &mut self,
-        request: &ReplayRequest,
-    ) -> Result<(World, Clock, Scene), (RecorderRefusal, String)> {
-        if !(request.time_factor.is_finite() && request.time_factor > 0.0) {
-            return Err((
-                RecorderRefusal::InvalidArgument,
-                format!(
-                    "time factor {} must be a positive number",
-                    request.time_factor
-                ),
-            ));
-        }
-        let finite = request.start_seconds.is_finite() && request.duration_seconds.is_finite();
-        if !(finite && request.duration_seconds >= 0.0) {
-            return Err((
-                RecorderRefusal::InvalidArgument,
-                "start must be a number and duration a number of seconds, 0 or more".to_string(),
-            ));
-        }
-        let bad =
-            |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
-        let selection = Selection::scan(
-            &request.path,
-            request.start_seconds,
-            request.duration_seconds,
-        )?;
-        if request.follow_id != 0 && !selection.actor_ids.contains(&request.follow_id) {
-            return Err((
-                RecorderRefusal::UnknownActor,
-                format!("actor {} is not in the recording", request.follow_id),
-            ));
-        }
-        let mode = request.mode.unwrap_or(if selection.variable_step {
-            ReplayMode::Interpolate
-        } else {
-            ReplayMode::Exact
-        });
-        let reader = RecordingReader::open(&request.path).map_err(bad)?;
-        let (cursor, world, clock, scene) = Cursor::start(reader, &selection, mode)?;
-        info!(
-            path = request.path,
-            mode = mode.name(),
-            frames = selection.frames,
-            from_keyframe = selection.keyframe_frame,
-            start_frame = selection.first_frame,
-            "replay ready"
-        );
+    /// Installs a prepared replay; returns the world, clock and scene it
+    /// starts from, for the caller to swap in.
+    pub(crate) fn begin(&mut self, prepared: Prepared) -> (World, Clock, Scene) {
         self.sensor_ids.clear();
-        self.keep_actors = request.keep_actors;
-        self.report = ReplayReport {
-            state: ReplayState::Running,
-            mode,
-            path: request.path.clone(),
-            frames: 0,
-            produced: 0,
-            total: selection.frames,
-            verified: 0,
-            mismatch: None,
-            time_factor: request.time_factor,
-            message: String::new(),
-        };
-        self.active = Some(Replay {
-            cursor,
-            replay_ns: selection.start_log_ns,
-            selection,
-            anchor: None,
-            follow_id: request.follow_id,
-            replay_sensors: request.replay_sensors,
-            episode: None,
-        });
-        Ok((world, clock, scene))
+        self.keep_actors = prepared.keep_actors;
+        self.report = prepared.report;
+        self.active = Some(prepared.replay);
+        (prepared.world, prepared.clock, prepared.scene)
     }
 
     /// The recorded actor sensors spawned without a parent ride on.
@@ -270,8 +203,8 @@ impl Replayer {
         }
         let next_ns = replay.cursor.next_log_ns()?;
         let (wall, log_ns) = *replay.anchor.get_or_insert((now, next_ns));
-        let ahead = next_ns.saturating_sub(log_ns) as f64 / self.report.time_factor;
-        Some(wall + Duration::from_secs_f64(ahead.min(1e9) * 1e-9))
+        let ahead_ns = next_ns.saturating_sub(log_ns) as f64 / self.report.time_factor;
+        Some(wall + Duration::from_secs_f64((ahead_ns * 1e-9).min(1e9)))
     }
 
     /// Produces the next frame into `world`: exact and interpolate set the
@@ -330,7 +263,12 @@ impl Replayer {
         }
         let new_episode = replay.episode.is_some_and(|e| e != frame.header.episode);
         replay.episode = Some(frame.header.episode);
-        let last = frame.log_ns >= replay.selection.end_log_ns || replay.cursor.exhausted();
+        let last = match mode {
+            // Exact and resimulate: the selected number of recorded frames.
+            ReplayMode::Exact | ReplayMode::Resimulate => self.report.frames >= self.report.total,
+            // Interpolate: the selected time.
+            ReplayMode::Interpolate => frame.log_ns >= replay.selection.end_log_ns,
+        } || replay.cursor.exhausted();
         if last {
             self.end(ReplayState::Finished, String::new());
         }
@@ -341,6 +279,110 @@ impl Replayer {
             new_episode,
         })
     }
+}
+
+/// A replay checked and ready to begin (built off the frame loop: reading a
+/// large recording takes a while).
+#[derive(Debug)]
+pub(crate) struct Prepared {
+    replay: Replay,
+    report: ReplayReport,
+    keep_actors: bool,
+    world: World,
+    clock: Clock,
+    scene: Scene,
+}
+
+impl Prepared {
+    /// The recording's path.
+    pub(crate) fn path(&self) -> &str {
+        &self.report.path
+    }
+}
+
+/// A refusal: the reason as a code and in words.
+pub(crate) type Refused = (RecorderRefusal, String);
+
+/// A recording that cannot be read, as a refusal.
+pub(crate) fn bad_file(error: shared_types::recording::RecordingError) -> Refused {
+    (RecorderRefusal::BadFile, error.to_string())
+}
+
+/// Reads and checks `request`'s recording (all of it: a damaged file is
+/// refused before anything changes) and builds the world it starts from.
+/// Touches nothing of the server's, so it runs on its own thread.
+pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
+    if !(request.time_factor.is_finite() && request.time_factor > 0.0) {
+        return Err((
+            RecorderRefusal::InvalidArgument,
+            format!(
+                "time factor {} must be a positive number",
+                request.time_factor
+            ),
+        ));
+    }
+    let finite = request.start_seconds.is_finite() && request.duration_seconds.is_finite();
+    if !(finite && request.duration_seconds >= 0.0) {
+        return Err((
+            RecorderRefusal::InvalidArgument,
+            "start must be a number and duration a number of seconds, 0 or more".to_string(),
+        ));
+    }
+    let selection = Selection::scan(
+        &request.path,
+        request.start_seconds,
+        request.duration_seconds,
+    )?;
+    if request.follow_id != 0 && !selection.actor_ids.contains(&request.follow_id) {
+        return Err((
+            RecorderRefusal::UnknownActor,
+            format!("actor {} is not in the recording", request.follow_id),
+        ));
+    }
+    let mode = request.mode.unwrap_or(if selection.variable_step {
+        ReplayMode::Interpolate
+    } else {
+        ReplayMode::Exact
+    });
+    let reader = RecordingReader::open(&request.path).map_err(bad_file)?;
+    let (cursor, world, clock, scene) = Cursor::start(reader, &selection, mode)?;
+    info!(
+        path = request.path,
+        mode = mode.name(),
+        frames = selection.frames,
+        from_keyframe = selection.keyframe_frame,
+        start_frame = selection.first_frame,
+        "replay ready"
+    );
+    let report = ReplayReport {
+        state: ReplayState::Running,
+        mode,
+        path: request.path.clone(),
+        frames: 0,
+        produced: 0,
+        total: selection.frames,
+        verified: 0,
+        mismatch: None,
+        time_factor: request.time_factor,
+        message: String::new(),
+    };
+    let replay = Replay {
+        cursor,
+        replay_ns: selection.start_log_ns,
+        selection,
+        anchor: None,
+        follow_id: request.follow_id,
+        replay_sensors: request.replay_sensors,
+        episode: None,
+    };
+    Ok(Prepared {
+        replay,
+        report,
+        keep_actors: request.keep_actors,
+        world,
+        clock,
+        scene,
+    })
 }
 
 /// The world of a recorded episode: `scene`'s placements with `seed`, ids from `first_id`.
@@ -366,6 +408,10 @@ pub(crate) fn recorded_plan(header: &FrameHeader) -> SubstepPlan {
 /// A keyframe decoded into the world and clock it describes.
 pub(crate) fn restore(bytes: &[u8]) -> Result<(World, Clock, String), String> {
     let keyframe = Keyframe::decode(bytes).map_err(|e| e.to_string())?;
+    keyframe
+        .world
+        .check()
+        .map_err(|e| format!("the keyframe's world is inconsistent: {e}"))?;
     let clock = Clock::at(
         keyframe.frame,
         keyframe.elapsed_ns,

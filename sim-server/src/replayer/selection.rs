@@ -7,6 +7,8 @@ use std::collections::HashSet;
 use shared_types::recording::{Entry, RecordingReader};
 use shared_types::{RecorderRefusal, NANOS_PER_SECOND};
 
+use super::bad_file;
+
 /// The frames a replay covers.
 #[derive(Debug, Clone)]
 pub(crate) struct Selection {
@@ -42,9 +44,7 @@ impl Selection {
         start_seconds: f64,
         duration_seconds: f64,
     ) -> Result<Self, (RecorderRefusal, String)> {
-        let bad =
-            |e: shared_types::recording::RecordingError| (RecorderRefusal::BadFile, e.to_string());
-        let mut reader = RecordingReader::open(path).map_err(bad)?;
+        let mut reader = RecordingReader::open(path).map_err(bad_file)?;
         let seed = reader.header().seed;
         // (recording time, frame id) of every frame; (keyframe, index of its frame).
         let mut frames: Vec<(u64, u64)> = Vec::new();
@@ -52,7 +52,7 @@ impl Selection {
         let mut actor_ids = HashSet::new();
         let mut variable_step = false;
         while let Some(entry) = reader.next() {
-            match entry.map_err(bad)? {
+            match entry.map_err(bad_file)? {
                 Entry::Frame {
                     log_ns,
                     header,

@@ -182,14 +182,18 @@ impl Server {
             self.control.handle(d)?;
             self.recorder.handle(d)?;
             let episode = d.runtime.episode;
-            d.batches.handle(
-                &mut d.world,
-                &mut d.ticker,
-                &mut d.sensors,
-                &mut d.recorder,
-                &d.clock,
-                episode,
-            )?;
+            if d.replayer.is_running() {
+                d.batches.refuse_while_replaying(&d.clock)?;
+            } else {
+                d.batches.handle(
+                    &mut d.world,
+                    &mut d.ticker,
+                    &mut d.sensors,
+                    &mut d.recorder,
+                    &d.clock,
+                    episode,
+                )?;
+            }
             d.lockstep.handle(episode, &d.clock)?;
             let follow = d.replayer.follow_id();
             d.sensors

@@ -7,13 +7,12 @@ use std::time::Instant;
 use shared_types::recording::{
     RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
 };
-use shared_types::{
-    FrameHeader, PathText, RecorderRefusal, RecorderResponse, SensorEnd, PROTOCOL_VERSION,
-};
+use shared_types::{FrameHeader, PathText, RecorderResponse, SensorEnd, PROTOCOL_VERSION};
 use tracing::{info, warn};
 
 use super::{platform_timestamp, Domains};
-use crate::replayer::{ReplayRequest, SavedWorld, SensorChange};
+use crate::clock::Clock;
+use crate::replayer::{Prepared, SavedWorld, SensorChange};
 use crate::ServerError;
 
 impl Domains {
@@ -49,11 +48,9 @@ impl Domains {
     /// replay starts from (the live one is put aside), as a new episode.
     /// The first replayed frame comes with the next step (the next tick in
     /// synchronous mode).
-    pub(crate) fn start_replay(
-        &mut self,
-        request: &ReplayRequest,
-    ) -> Result<(), (RecorderRefusal, String)> {
-        let (world, clock, scene) = self.replayer.prepare(request)?;
+    pub(crate) fn start_replay(&mut self, prepared: Prepared) {
+        let path = prepared.path().to_string();
+        let (world, clock, scene) = self.replayer.begin(prepared);
         self.sensors.end_all(
             SensorEnd::EpisodeEnded,
             self.clock.frame(),
@@ -64,15 +61,12 @@ impl Domains {
             clock: std::mem::replace(&mut self.clock, clock),
             scene: std::mem::replace(&mut self.runtime.scene, scene),
         };
-        // A replay of a replay keeps the first live world.
-        if self.replayer.saved.is_none() {
-            self.replayer.saved = Some(live);
-        }
+        self.replayer.saved = Some(live);
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
         self.lockstep.new_episode();
         info!(
-            path = request.path,
+            path,
             episode = self.runtime.episode,
             "replay starts with the next {}",
             if self.runtime.settings.synchronous_mode {
@@ -81,7 +75,6 @@ impl Domains {
                 "frame"
             }
         );
-        Ok(())
     }
 
     /// Stops the replay: with `keep_actors` the replayed world goes on live
@@ -106,8 +99,18 @@ impl Domains {
         );
         if let (false, Some(saved)) = (keep_actors, saved) {
             self.world = saved.world;
-            self.clock = saved.clock;
+            // The clock goes on from where it was, its wall time from now
+            // (a variable step must not span the replay).
+            let c = saved.clock;
+            self.clock = Clock::at(c.frame(), c.elapsed_ns(), c.delta_ns(), Instant::now());
             self.runtime.scene = saved.scene;
+        } else {
+            self.clock = Clock::at(
+                self.clock.frame(),
+                self.clock.elapsed_ns(),
+                self.clock.delta_ns(),
+                Instant::now(),
+            );
         }
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
@@ -142,7 +145,7 @@ impl Domains {
             self.lockstep.new_episode();
         }
         let t = frame.header.timestamp;
-        self.clock = crate::clock::Clock::at(t.frame, t.elapsed_ns, t.delta_ns, now);
+        self.clock = Clock::at_timestamp(&t, now);
         self.runtime.frames_computed += 1;
         self.replay_sensors();
         if !self.sensors.is_empty() {

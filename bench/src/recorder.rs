@@ -82,6 +82,8 @@ struct SceneFigures {
     exact_us: f64,
     resimulate_us: f64,
     identical: bool,
+    /// Asynchronous replay at time factor 10: (wall seconds, expected).
+    pacing: (f64, f64),
 }
 
 fn measure(scene: &'static str, frames: u64, dir: &Path) -> anyhow::Result<SceneFigures> {
@@ -120,6 +122,7 @@ fn measure(scene: &'static str, frames: u64, dir: &Path) -> anyhow::Result<Scene
     let info = inspect::file_info(path.to_str().unwrap_or_default(), false)?;
     let (exact, _, _) = ticked_replay(&client, &path, ReplayMode::Exact)?;
     let (resimulate, _, mismatch) = ticked_replay(&client, &path, ReplayMode::Resimulate)?;
+    let pacing = paced(&path, 10.0)?;
     std::fs::remove_file(&path)?;
     Ok(SceneFigures {
         scene,
@@ -132,7 +135,27 @@ fn measure(scene: &'static str, frames: u64, dir: &Path) -> anyhow::Result<Scene
         exact_us: exact * 1e6,
         resimulate_us: resimulate * 1e6,
         identical: mismatch.is_none(),
+        pacing,
     })
+}
+
+/// Wall seconds an asynchronous exact replay of `path` takes at `factor`,
+/// against the recording's own length over the factor.
+fn paced(path: &Path, factor: f64) -> anyhow::Result<(f64, f64)> {
+    let server = BenchServer::start("rec-pace", &[])?;
+    let client = Client::connect(&server.world, T)?;
+    let info = inspect::file_info(path.to_str().unwrap_or_default(), false)?;
+    let options = ReplayOptions {
+        mode: Some(ReplayMode::Exact),
+        time_factor: factor,
+        ..Default::default()
+    };
+    client.replay(path, &options)?;
+    let started = Instant::now();
+    while client.recorder_status()?.replay.state == "running" {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Ok((started.elapsed().as_secs_f64(), info.duration_seconds / factor))
 }
 
 /// Records boxes:1000 until the file passes `gib` GiB, then reads it back.
@@ -210,6 +233,7 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
                     "exact_replay_frame_us": s.exact_us, "resimulate_frame_us": s.resimulate_us,
                     "exact_replay_fps": 1e6 / s.exact_us, "resimulate_fps": 1e6 / s.resimulate_us,
                     "live_fps": 1e6 / s.live_us, "resimulation_identical": s.identical,
+                    "async_replay_x10_seconds": s.pacing.0, "async_replay_x10_expected_seconds": s.pacing.1,
                 })
             })
             .collect();
@@ -250,13 +274,15 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
     }
     for s in &scenes {
         println!(
-            "{}: live {:.0} frames/s, exact replay {:.0} frames/s ({:.1}x live), re-simulation {:.0} frames/s; stopping the recorder took {:.1} ms",
+            "{}: live {:.0} frames/s, exact replay {:.0} frames/s ({:.1}x live), re-simulation {:.0} frames/s; stopping the recorder took {:.1} ms; an asynchronous replay at time factor 10 took {:.3} s for {:.3} s expected",
             s.scene,
             1e6 / s.live_us,
             1e6 / s.exact_us,
             s.live_us / s.exact_us,
             1e6 / s.resimulate_us,
-            s.stop_ms
+            s.stop_ms,
+            s.pacing.0,
+            s.pacing.1
         );
     }
     if let Some(big) = big {

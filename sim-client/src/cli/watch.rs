@@ -61,6 +61,7 @@ pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
         "synchronous_mode": s.settings().synchronous_mode,
         "fixed_delta_seconds": s.settings().fixed_delta_seconds,
         "missed": s.missed(),
+        "replay": s.header().flags & shared_types::FrameHeader::REPLAY != 0,
         "digest": format!("{:016x}", s.digest()),
     })
 }
@@ -77,6 +78,9 @@ fn frame_line(s: &FrameView) -> String {
     );
     if s.missed() > 0 {
         line.push_str(&format!("  (missed {})", s.missed()));
+    }
+    if s.header().flags & shared_types::FrameHeader::REPLAY != 0 {
+        line.push_str("  (replay)");
     }
     line
 }

@@ -155,7 +155,10 @@ fn paced(path: &Path, factor: f64) -> anyhow::Result<(f64, f64)> {
     while client.recorder_status()?.replay.state == "running" {
         std::thread::sleep(Duration::from_millis(1));
     }
-    Ok((started.elapsed().as_secs_f64(), info.duration_seconds / factor))
+    Ok((
+        started.elapsed().as_secs_f64(),
+        info.duration_seconds / factor,
+    ))
 }
 
 /// Records boxes:1000 until the file passes `gib` GiB, then reads it back.

@@ -150,14 +150,9 @@ pub struct FixedText {
 impl FixedText {
     /// `text` cut to at most 64 bytes at a character boundary.
     pub fn new(text: &str) -> Self {
-        let mut end = text.len().min(64);
-        while !text.is_char_boundary(end) {
-            end -= 1;
-        }
-        let mut bytes = [0; 64];
-        bytes[..end].copy_from_slice(&text.as_bytes()[..end]);
+        let (len, bytes) = crate::wire::text_field(text);
         Self {
-            len: end as u32,
+            len,
             reserved: 0,
             bytes,
         }
@@ -165,8 +160,7 @@ impl FixedText {
 
     /// The text; invalid bytes from a misbehaving peer read as `?`.
     pub fn to_string_lossy(&self) -> String {
-        let len = (self.len as usize).min(self.bytes.len());
-        String::from_utf8_lossy(&self.bytes[..len]).into_owned()
+        crate::wire::text_of(self.len, &self.bytes)
     }
 }
 

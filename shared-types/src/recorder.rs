@@ -139,14 +139,9 @@ impl PathText {
 
     /// `text` cut to at most 1024 bytes at a character boundary.
     pub fn cut(text: &str) -> Self {
-        let mut end = text.len().min(Self::CAPACITY);
-        while !text.is_char_boundary(end) {
-            end -= 1;
-        }
-        let mut bytes = [0; 1024];
-        bytes[..end].copy_from_slice(&text.as_bytes()[..end]);
+        let (len, bytes) = crate::wire::text_field(text);
         Self {
-            len: end as u32,
+            len,
             reserved: 0,
             bytes,
         }
@@ -154,8 +149,7 @@ impl PathText {
 
     /// The text; invalid bytes from a misbehaving peer read as `?`.
     pub fn to_string_lossy(&self) -> String {
-        let len = (self.len as usize).min(self.bytes.len());
-        String::from_utf8_lossy(&self.bytes[..len]).into_owned()
+        crate::wire::text_of(self.len, &self.bytes)
     }
 }
 

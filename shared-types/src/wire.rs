@@ -13,6 +13,25 @@ pub struct UnknownWireValue {
     pub value: u32,
 }
 
+/// `text` in a fixed field of `N` bytes, cut at a character boundary:
+/// (bytes used, the zero-padded field).
+pub(crate) fn text_field<const N: usize>(text: &str) -> (u32, [u8; N]) {
+    let mut end = text.len().min(N);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let mut bytes = [0; N];
+    bytes[..end].copy_from_slice(&text.as_bytes()[..end]);
+    (end as u32, bytes)
+}
+
+/// The text of a fixed field whose first `len` bytes are used; a length
+/// past the field, or invalid UTF-8 from a misbehaving peer, reads safely.
+pub(crate) fn text_of(len: u32, bytes: &[u8]) -> String {
+    let len = (len as usize).min(bytes.len());
+    String::from_utf8_lossy(&bytes[..len]).into_owned()
+}
+
 /// Declares a `#[repr(u32)]` wire enum — doc comments, derives and
 /// variants with explicit wire values, written as for a plain enum — and
 /// generates its conversions:

@@ -97,21 +97,22 @@ impl Domains {
             self.clock.frame(),
             self.runtime.episode,
         );
-        if let (false, Some(saved)) = (keep_actors, saved) {
-            self.world = saved.world;
-            // The clock goes on from where it was, its wall time from now
-            // (a variable step must not span the replay).
-            let c = saved.clock;
-            self.clock = Clock::at(c.frame(), c.elapsed_ns(), c.delta_ns(), Instant::now());
-            self.runtime.scene = saved.scene;
-        } else {
-            self.clock = Clock::at(
-                self.clock.frame(),
-                self.clock.elapsed_ns(),
-                self.clock.delta_ns(),
-                Instant::now(),
-            );
-        }
+        let clock = match (keep_actors, saved) {
+            (false, Some(saved)) => {
+                self.world = saved.world;
+                self.runtime.scene = saved.scene;
+                saved.clock
+            }
+            _ => self.clock.clone(),
+        };
+        // The clock goes on from its frame, its wall time from now: a
+        // variable step must not span the replay.
+        self.clock = Clock::at(
+            clock.frame(),
+            clock.elapsed_ns(),
+            clock.delta_ns(),
+            Instant::now(),
+        );
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
         self.lockstep.new_episode();

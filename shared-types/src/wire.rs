@@ -141,11 +141,15 @@ mod tests {
         round_trips("CommandStatus", &CommandStatus::ALL);
         round_trips("ActorKind", &ActorKind::ALL);
         round_trips("SettingsField", &SettingsField::ALL);
+        round_trips("RecorderKind", &crate::RecorderKind::ALL);
+        round_trips("ReplayMode", &crate::ReplayMode::ALL);
+        round_trips("ReplayState", &crate::ReplayState::ALL);
+        round_trips("RecorderRefusal", &crate::RecorderRefusal::ALL);
         // `from_u32` is `try_from(..).ok()`.
         assert_eq!(
             ResponseStatus::from_u32(9),
             Some(ResponseStatus::NotParticipant)
         );
-        assert_eq!(ResponseStatus::from_u32(12), None);
+        assert_eq!(ResponseStatus::from_u32(13), None);
     }
 }

@@ -90,6 +90,13 @@ enum Command {
     Recorder(cli::recorder::RecorderArgs),
     /// Replay a recording: exact, interpolated, or re-simulated and verified.
     Replay(cli::recorder::ReplayArgs),
+    /// Serve the world to CARLA's own Python client (`import carla`).
+    ///
+    /// Speaks CARLA 0.9.16's RPC and streaming protocols on --port and
+    /// --port + 1. A CARLA connection that turns synchronous mode on becomes
+    /// the world's ticker (a second one is refused, naming the owner); its
+    /// ownership ends with its connection.
+    CarlaGateway(cli::carla::GatewayArgs),
 }
 
 /// How a command failed, for the exit code: 1 for a runtime failure,
@@ -146,6 +153,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cli::demo::run(args.world, timeout, a),
         Command::Recorder(a) => cli::recorder::run(world, timeout, a),
         Command::Replay(a) => cli::recorder::replay(world, timeout, a),
+        Command::CarlaGateway(a) => cli::carla::run(world, timeout, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 
 pub(crate) mod actors;
 pub(crate) mod autopilot;
+pub(crate) mod carla;
 pub(crate) mod config;
 pub(crate) mod demo;
 pub(crate) mod pictures;

@@ -1,0 +1,120 @@
+//! `sim-client carla-gateway`: CARLA 0.9.16's own Python client library
+//! drives a simbus world through this process, which speaks CARLA's RPC
+//! (msgpack-RPC) and streaming protocols on TCP and is an ordinary client
+//! of the world: it holds simbus ports, and a CARLA connection that turns
+//! synchronous mode on claims the world's tick ownership like any ticker.
+//!
+//! Each CARLA connection is served on its own thread with its own simbus
+//! client; a connection that sends garbage, too much, or vanishes is
+//! dropped (and its tick ownership released) without touching the others.
+
+mod convert;
+mod rpc;
+mod session;
+mod stream;
+
+use std::io::{BufReader, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Args;
+use shared_types::WorldName;
+use tracing::{debug, info, warn};
+
+use crate::Failure;
+use rpc::ReadError;
+use session::Session;
+use stream::Hub;
+
+/// Serve a simbus world to CARLA's Python client (`import carla`).
+#[derive(Debug, Args)]
+pub(crate) struct GatewayArgs {
+    /// The address to listen on.
+    #[arg(long, default_value = "127.0.0.1")]
+    host: String,
+    /// The RPC port (CARLA's `carla.Client(host, port)`).
+    #[arg(long, default_value_t = 2000)]
+    port: u16,
+    /// The streaming port [default: --port + 1].
+    #[arg(long)]
+    streaming_port: Option<u16>,
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Result<(), Failure> {
+    let streaming_port = args.streaming_port.unwrap_or(args.port.wrapping_add(1));
+    let rpc = TcpListener::bind((args.host.as_str(), args.port))
+        .with_context(|| format!("listening for CARLA clients on {}:{}", args.host, args.port))?;
+    let streams = TcpListener::bind((args.host.as_str(), streaming_port)).with_context(|| {
+        format!(
+            "listening for CARLA streams on {}:{streaming_port}",
+            args.host
+        )
+    })?;
+    let hub = Arc::new(Hub::default());
+    {
+        let hub = hub.clone();
+        std::thread::spawn(move || stream::accept(streams, hub));
+    }
+    {
+        let (world, hub) = (world.to_string(), hub.clone());
+        std::thread::spawn(move || stream::pump(world, hub));
+    }
+    println!(
+        "carla-gateway: world '{world}' served to CARLA clients on {}:{} (streams on port {streaming_port})",
+        args.host, args.port
+    );
+    let _ = std::io::stdout().flush();
+    for socket in rpc.incoming() {
+        let socket = match socket {
+            Ok(socket) => socket,
+            Err(e) => {
+                warn!("accepting a CARLA client: {e}");
+                continue;
+            }
+        };
+        let (world, hub) = (world.to_string(), hub.clone());
+        std::thread::spawn(move || serve(socket, world, timeout, streaming_port, hub));
+        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Serves one CARLA connection until it closes or misbehaves.
+fn serve(socket: TcpStream, world: String, timeout: Duration, streaming_port: u16, hub: Arc<Hub>) {
+    let Ok(peer) = socket.peer_addr() else {
+        return;
+    };
+    let _ = socket.set_nodelay(true);
+    // A client that stops reading its answers is dropped.
+    let _ = socket.set_write_timeout(Some(Duration::from_secs(10)));
+    let Ok(mut writer) = socket.try_clone() else {
+        return;
+    };
+    let mut reader = BufReader::new(socket);
+    let mut session = Session::new(world, timeout, peer, streaming_port, hub);
+    info!(%peer, "CARLA client connected");
+    loop {
+        let request = match rpc::read_request(&mut reader) {
+            Ok(request) => request,
+            Err(ReadError::Closed) => break,
+            Err(e) => {
+                warn!(%peer, "dropping a CARLA client: {e}");
+                break;
+            }
+        };
+        debug!(%peer, method = request.method, asynchronous = request.asynchronous, "CARLA call");
+        let answer = session.answer(&request);
+        if writer
+            .write_all(&rpc::response(request.id, answer))
+            .is_err()
+        {
+            break;
+        }
+    }
+    // The session (and its tick ownership) ends with the connection.
+    info!(%peer, "CARLA client gone");
+}

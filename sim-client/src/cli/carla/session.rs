@@ -1,0 +1,330 @@
+//! One CARLA connection: its own simbus client (and, once it turns
+//! synchronous mode on, its own claim on the world's tick ownership), and
+//! what each CARLA call it makes does to the world.
+
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use rmpv::Value;
+use shared_types::carla::{token, CARLA_VERSION, WORLD_STREAM_ID};
+use shared_types::WorldSettings;
+use sim_client::{Client, RequestError, Ticker};
+use tracing::{debug, info};
+
+use super::rpc::{Answer, Request};
+use super::stream::Hub;
+
+/// A minimal OpenDRIVE map: one straight two-lane road. CARLA's client
+/// builds its map from it (`world.get_map()`); simbus scenes have no roads.
+const OPENDRIVE: &str = r#"<?xml version="1.0" standalone="yes"?>
+<OpenDRIVE>
+  <header revMajor="1" revMinor="4" name="" version="1" north="0" south="0" east="0" west="0"/>
+  <road name="r0" length="100.0" id="0" junction="-1">
+    <link/>
+    <planView><geometry s="0.0" x="0.0" y="0.0" hdg="0.0" length="100.0"><line/></geometry></planView>
+    <elevationProfile/>
+    <lateralProfile/>
+    <lanes>
+      <laneSection s="0.0">
+        <left><lane id="1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></left>
+        <center><lane id="0" type="none" level="false"><link/></lane></center>
+        <right><lane id="-1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>
+    </lanes>
+  </road>
+</OpenDRIVE>
+"#;
+
+/// The calls answered with `Response<void>` by CARLA (their errors have
+/// another shape).
+const VOID_CALLS: &[&str] = &[
+    "load_new_episode",
+    "set_actor_simulate_physics",
+    "set_actor_collisions",
+    "copy_opendrive_to_file",
+];
+
+/// One CARLA connection.
+pub(crate) struct Session {
+    world: String,
+    timeout: Duration,
+    peer: SocketAddr,
+    streaming_port: u16,
+    hub: Arc<Hub>,
+    client: Option<Client>,
+    ticker: Option<Ticker>,
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("peer", &self.peer)
+            .field("ticker", &self.ticker.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// A failed call: the message the script's `RuntimeError` carries.
+type Failed = String;
+
+impl Session {
+    pub(crate) fn new(
+        world: String,
+        timeout: Duration,
+        peer: SocketAddr,
+        streaming_port: u16,
+        hub: Arc<Hub>,
+    ) -> Self {
+        Self {
+            world,
+            timeout,
+            peer,
+            streaming_port,
+            hub,
+            client: None,
+            ticker: None,
+        }
+    }
+
+    /// This connection's name as a ticker: `carla:<address>`.
+    fn ticker_name(&self) -> String {
+        format!("carla:{}", self.peer)
+    }
+
+    /// The simbus client, connected on first use and again after the
+    /// server came back.
+    fn client(&mut self) -> Result<&mut Client, Failed> {
+        if self.client.is_none() {
+            let mut client =
+                Client::connect(&self.world, self.timeout).map_err(|e| format!("simbus: {e}"))?;
+            client.set_request_timeout(self.timeout);
+            self.client = Some(client);
+        }
+        self.client
+            .as_mut()
+            .ok_or_else(|| "simbus: no connection".to_string())
+    }
+
+    /// Forgets the connection after the server went away (the next call
+    /// connects again).
+    fn lost(&mut self, e: &RequestError) {
+        if matches!(
+            e,
+            RequestError::ServerGone { .. } | RequestError::Timeout { .. }
+        ) {
+            self.ticker = None;
+            self.client = None;
+        }
+    }
+
+    /// Answers one request.
+    pub(crate) fn answer(&mut self, request: &Request) -> Answer {
+        let void = VOID_CALLS.contains(&request.method.as_str());
+        match self.call(&request.method, &request.args) {
+            Ok(answer) => answer,
+            Err(message) => {
+                debug!(peer = %self.peer, method = request.method, "refused: {message}");
+                Answer::Error { message, void }
+            }
+        }
+    }
+
+    fn call(&mut self, method: &str, args: &[Value]) -> Result<Answer, Failed> {
+        let value = |v: Value| Ok(Answer::Value(v));
+        match method {
+            "version" => value(Value::from(CARLA_VERSION)),
+            "get_episode_info" => {
+                let episode = self.status()?.episode;
+                value(Value::Array(vec![
+                    Value::from(episode),
+                    Value::Array(vec![Value::Binary(token(WORLD_STREAM_ID, self.streaming_port).to_vec())]),
+                ]))
+            }
+            "get_sensor_token" => {
+                let stream = arg_u64(args, 0, method)?;
+                let stream = u32::try_from(stream).map_err(|_| format!("{method}: no stream {stream}"))?;
+                value(Value::Array(vec![Value::Binary(token(stream, self.streaming_port).to_vec())]))
+            }
+            "get_episode_settings" => {
+                let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
+                value(episode_settings(&settings))
+            }
+            "set_episode_settings" => self.set_settings(args),
+            "tick_cue" => self.tick(),
+            "get_map_info" => {
+                let scene = self.status()?.scene.to_string_lossy();
+                value(Value::Array(vec![Value::from(scene), Value::Array(Vec::new())]))
+            }
+            "get_map_data" => value(Value::from(OPENDRIVE)),
+            "get_required_files" | "query_lights_state" | "get_actor_definitions" | "get_vehicle_light_states" => {
+                value(Value::Array(Vec::new()))
+            }
+            "get_available_maps" => value(Value::Array(
+                ["default", "empty", "boxes:100"].into_iter().map(Value::from).collect(),
+            )),
+            "get_weather_parameters" => value(Value::Array(vec![Value::F32(0.0); 14])),
+            "load_new_episode" => {
+                let scene = arg_str(args, 0, method)?;
+                let reset = args.get(1).and_then(Value::as_bool).unwrap_or(false);
+                let client = self.client()?;
+                let loaded = if scene.is_empty() {
+                    client.reload_world(reset)
+                } else {
+                    client.load_world(&scene, reset)
+                };
+                loaded.map_err(|e| format!("simbus: {e}"))?;
+                Ok(Answer::Done)
+            }
+            _ => Err(format!(
+                "simbus: CARLA's `{method}` is not supported by simbus (its CARLA gateway serves the world, its settings and its ticks)"
+            )),
+        }
+    }
+
+    fn failed(&mut self, e: RequestError) -> Failed {
+        self.lost(&e);
+        format!("simbus: {e}")
+    }
+
+    fn status(&mut self) -> Result<shared_types::StatusReport, Failed> {
+        let status = self.client()?.status();
+        status.map_err(|e| self.failed(e))
+    }
+
+    /// CARLA's `apply_settings`: entering synchronous mode makes this
+    /// connection the world's ticker (refused, naming the owner, if another
+    /// client ticks); leaving it gives the ownership back.
+    fn set_settings(&mut self, args: &[Value]) -> Result<Answer, Failed> {
+        let settings = parse_settings(args.first())
+            .ok_or("set_episode_settings: settings of the wrong shape")?;
+        if settings.synchronous_mode && self.ticker.is_none() {
+            let name = self.ticker_name();
+            let ticker = self
+                .client()?
+                .claim_ticker_as(&name)
+                .map_err(|e| format!("simbus: {e}"))?;
+            info!(peer = %self.peer, "a CARLA connection is the ticker");
+            self.ticker = Some(ticker);
+        }
+        let applied = match &mut self.ticker {
+            Some(ticker) => ticker.apply_settings(settings),
+            None => self.client()?.apply_settings(settings),
+        };
+        let frame = applied.map_err(|e| format!("simbus: {e}"))?;
+        if !settings.synchronous_mode {
+            if let Some(ticker) = self.ticker.take() {
+                let _ = ticker.release();
+                info!(peer = %self.peer, "the CARLA ticker left synchronous mode");
+            }
+        }
+        // The frame the settings hold from; the client waits for the one before.
+        Ok(Answer::Value(Value::from(frame.saturating_sub(1))))
+    }
+
+    /// CARLA's `world.tick()`: the ticker steps a frame; in asynchronous
+    /// mode anyone may wait for the next one; in synchronous mode another
+    /// client's tick is refused naming the owner.
+    fn tick(&mut self) -> Result<Answer, Failed> {
+        if let Some(ticker) = &mut self.ticker {
+            let frame = ticker
+                .tick(self.timeout)
+                .map_err(|e| format!("simbus: {e}"))?;
+            return Ok(Answer::Value(Value::from(frame)));
+        }
+        let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
+        if !settings.synchronous_mode {
+            let next = self.hub.last_frame.load(Ordering::Relaxed) + 1;
+            return Ok(Answer::Value(Value::from(next)));
+        }
+        // Synchronous and not ours: take it if free, else say who has it.
+        let name = self.ticker_name();
+        let mut ticker = self
+            .client()?
+            .claim_ticker_as(&name)
+            .map_err(|e| format!("simbus: {e}"))?;
+        let frame = ticker
+            .tick(self.timeout)
+            .map_err(|e| format!("simbus: {e}"))?;
+        self.ticker = Some(ticker);
+        Ok(Answer::Value(Value::from(frame)))
+    }
+}
+
+fn arg_u64(args: &[Value], i: usize, method: &str) -> Result<u64, Failed> {
+    args.get(i)
+        .and_then(Value::as_u64)
+        .ok_or_else(|| format!("{method}: argument {i} is not an integer"))
+}
+
+fn arg_str(args: &[Value], i: usize, method: &str) -> Result<String, Failed> {
+    args.get(i)
+        .and_then(Value::as_str)
+        .map(str::to_string)
+        .ok_or_else(|| format!("{method}: argument {i} is not a string"))
+}
+
+/// simbus settings as CARLA's `EpisodeSettings` (11 fields; the ones simbus
+/// does not have take CARLA's defaults).
+fn episode_settings(s: &WorldSettings) -> Value {
+    let fixed = match s.fixed_delta_seconds {
+        Some(dt) => Value::Array(vec![Value::Boolean(true), Value::F64(dt)]),
+        None => Value::Array(vec![Value::Boolean(false)]),
+    };
+    Value::Array(vec![
+        Value::Boolean(s.synchronous_mode),
+        Value::Boolean(false),
+        fixed,
+        Value::Boolean(s.substepping),
+        Value::F64(s.max_substep_delta_time),
+        Value::from(s.max_substeps),
+        Value::F32(0.0),
+        Value::Boolean(true),
+        Value::F32(3000.0),
+        Value::F32(2000.0),
+        Value::Boolean(false),
+    ])
+}
+
+/// CARLA's `EpisodeSettings` as simbus settings (the fields simbus does not
+/// have are ignored).
+fn parse_settings(value: Option<&Value>) -> Option<WorldSettings> {
+    let fields = value?.as_array()?;
+    let number = |v: &Value| v.as_f64().or_else(|| v.as_i64().map(|i| i as f64));
+    let fixed = fields.get(2)?.as_array()?;
+    let fixed_delta_seconds = match fixed.first()?.as_bool()? {
+        true => Some(number(fixed.get(1)?)?),
+        false => None,
+    };
+    Some(WorldSettings {
+        synchronous_mode: fields.first()?.as_bool()?,
+        fixed_delta_seconds,
+        substepping: fields.get(3)?.as_bool()?,
+        max_substep_delta_time: number(fields.get(4)?)?,
+        max_substeps: u32::try_from(fields.get(5)?.as_u64()?).ok()?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_round_trip_through_carlas_shape() {
+        let s = WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: Some(0.05),
+            substepping: true,
+            max_substep_delta_time: 0.01,
+            max_substeps: 10,
+        };
+        assert_eq!(parse_settings(Some(&episode_settings(&s))), Some(s));
+        let variable = WorldSettings::default();
+        assert_eq!(
+            parse_settings(Some(&episode_settings(&variable))),
+            Some(variable)
+        );
+        assert_eq!(parse_settings(Some(&Value::from("nonsense"))), None);
+    }
+}

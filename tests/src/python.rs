@@ -1,5 +1,6 @@
 //! A Python virtual environment for the tests that check simbus's output
-//! with tools simbus did not write (the `mcap` reader from PyPI). It is
+//! with tools simbus did not write (the `mcap` reader from PyPI, CARLA's
+//! own client library and pytest for the gateway). It is
 //! created once per target directory, under a lock, with pinned packages;
 //! nothing is assumed installed but `python3`.
 
@@ -7,7 +8,16 @@ use std::path::PathBuf;
 use std::process::Command;
 
 /// The pinned packages the Python checks use.
-pub const PYTHON_REQUIREMENTS: &[&str] = &["mcap==1.2.2", "zstandard==0.25.0", "lz4==4.4.5"];
+pub const PYTHON_REQUIREMENTS: &[&str] = &[
+    "mcap==1.2.2",
+    "zstandard==0.25.0",
+    "lz4==4.4.5",
+    "carla==0.9.16",
+    "pytest==8.3.4",
+    "iniconfig==2.3.1",
+    "packaging==26.3",
+    "pluggy==1.7.0",
+];
 
 /// The venv's `python`, creating the venv on first use (every test
 /// process shares it; a lock file keeps two from building it at once).

@@ -1,0 +1,167 @@
+"""CARLA 0.9.16's own Python client drives a simbus world through the
+gateway: version, world, settings, ticks with simbus's exact timestamps,
+the single-ticker rule for CARLA connections, and bad input on the RPC port."""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+import threading
+
+import carla
+import pytest
+
+
+def test_version_world_and_settings(gateway):
+    client = gateway.client()
+    assert client.get_server_version() == "0.9.16"
+    assert client.get_client_version() == "0.9.16"
+    world = client.get_world()
+    settings = world.get_settings()
+    assert settings.synchronous_mode is False
+    assert settings.fixed_delta_seconds is None
+    assert "default" in client.get_available_maps()
+
+
+def test_seed_variable_fixed_and_substepping_settings(gateway):
+    world = gateway.client().get_world()
+    # The seeds' snippets: variable step, fixed 0.05, substepping 0.01 x 10.
+    settings = world.get_settings()
+    settings.fixed_delta_seconds = None
+    world.apply_settings(settings)
+    assert world.get_settings().fixed_delta_seconds is None
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    assert world.get_settings().fixed_delta_seconds == 0.05
+    settings.substepping = True
+    settings.max_substep_delta_time = 0.01
+    settings.max_substeps = 10
+    world.apply_settings(settings)
+    got = world.get_settings()
+    assert (got.substepping, got.max_substep_delta_time, got.max_substeps) == (True, 0.01, 10)
+    # Invalid settings name the rule, and change nothing.
+    settings.fixed_delta_seconds = 0.5
+    with pytest.raises(RuntimeError, match="substep"):
+        world.apply_settings(settings)
+    assert world.get_settings().fixed_delta_seconds == 0.05
+
+
+def test_timestamps_equal_simbus_exactly_for_1000_ticks(gateway):
+    world = gateway.client().get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    first = world.get_snapshot().timestamp
+    base_ns = round(first.elapsed_seconds * 1e9)
+    for i in range(1, 1001):
+        frame = world.tick()
+        t = world.get_snapshot().timestamp
+        assert t.frame == frame == first.frame + i
+        # simbus keeps integer nanoseconds; CARLA reads its double.
+        assert t.elapsed_seconds == (base_ns + i * 50_000_000) / 1e9
+        assert abs(t.delta_seconds - 0.05) < 1e-7  # CARLA's stream carries it as f32
+    settings.synchronous_mode = False
+    world.apply_settings(settings)
+
+
+def test_wait_for_tick_and_on_tick_see_every_frame(gateway):
+    ticker = gateway.client().get_world()
+    watcher = gateway.client().get_world()
+    seen = []
+    arrived = threading.Condition()
+
+    def on_tick(snapshot):
+        with arrived:
+            seen.append(snapshot.frame)
+            arrived.notify_all()
+
+    callback = watcher.on_tick(on_tick)
+    settings = ticker.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    ticker.apply_settings(settings)
+    frames = [ticker.tick() for _ in range(50)]
+    # The watcher's stream is its own: wait until it has the last frame.
+    with arrived:
+        assert arrived.wait_for(lambda: frames[-1] in seen, timeout=10)
+    last = watcher.get_snapshot()
+    assert last.frame == frames[-1]
+    assert last.find(next(iter(last)).id) is not None
+    watcher.remove_on_tick(callback)
+    assert [f for f in seen if f >= frames[0]][: len(frames)] == frames
+    # Asynchronous: wait_for_tick returns each next frame.
+    settings.synchronous_mode = False
+    settings.fixed_delta_seconds = None
+    ticker.apply_settings(settings)
+    a = watcher.wait_for_tick()
+    b = watcher.wait_for_tick()
+    assert b.frame > a.frame and b.timestamp.elapsed_seconds > a.timestamp.elapsed_seconds
+
+
+def test_a_second_ticker_is_refused_naming_the_owner(gateway):
+    first = gateway.client().get_world()
+    second = gateway.client().get_world()
+    settings = first.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    first.apply_settings(settings)
+    first.tick()
+    with pytest.raises(RuntimeError, match="already has a ticker: carla:127.0.0.1"):
+        second.tick()
+    with pytest.raises(RuntimeError, match="already has a ticker"):
+        second.apply_settings(settings)
+    # A native ticker is refused the same way.
+    native = gateway.sim_client("tick", "--count", "1")
+    assert native.returncode != 0 and "carla:127.0.0.1" in native.stderr, native.stderr
+    settings.synchronous_mode = False
+    first.apply_settings(settings)
+
+
+def test_a_killed_ticking_script_lets_another_take_over_without_a_skipped_frame(gateway):
+    script = textwrap.dedent(f"""
+        import carla, sys
+        world = carla.Client("127.0.0.1", {gateway.port}).get_world()
+        s = world.get_settings(); s.synchronous_mode = True; s.fixed_delta_seconds = 0.05
+        world.apply_settings(s)
+        for _ in range(5):
+            world.tick()
+        print(world.get_snapshot().frame, flush=True)
+        sys.stdin.read()
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        last = int(proc.stdout.readline())
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    world = gateway.client().get_world()
+    # The dead script's ownership is released; this client ticks on from the next frame.
+    assert world.tick() == last + 1
+    assert world.tick() == last + 2
+
+
+def test_garbage_on_the_rpc_port_is_dropped_and_others_are_served(gateway):
+    client = gateway.client()
+    bad = []
+    for payload in [b"\xc1\xc1garbage", b"\x94\x00\x01\xa7version\x91\x91\xc2" * 0 + b"\x93\x00\x01", b"\x81\xa1a\xa1b"]:
+        s = socket.create_connection(("127.0.0.1", gateway.port))
+        s.sendall(payload)
+        bad.append(s)
+    silent = socket.create_connection(("127.0.0.1", gateway.port))  # connects and never reads
+    # An oversized message (20 MiB string) is refused.
+    huge = socket.create_connection(("127.0.0.1", gateway.port))
+    huge.sendall(b"\x94\x00\x01\xa7version\x91\xdb" + (20 << 20).to_bytes(4, "big"))
+    try:
+        huge.sendall(b"x" * (17 << 20))
+    except OSError:
+        pass
+    # An unknown method and wrong argument types are RuntimeErrors, not hangs.
+    world = client.get_world()
+    with pytest.raises(RuntimeError, match="not supported by simbus"):
+        world.get_spectator()
+    assert client.get_server_version() == "0.9.16"
+    for s in bad + [silent, huge]:
+        s.close()

@@ -165,3 +165,44 @@ def test_garbage_on_the_rpc_port_is_dropped_and_others_are_served(gateway):
     assert client.get_server_version() == "0.9.16"
     for s in bad + [silent, huge]:
         s.close()
+
+
+def test_the_recorder_calls_map_onto_simbus_recorder(gateway, tmp_path):
+    client = gateway.client()
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    path = str(tmp_path / "run.mcap")
+    assert client.start_recorder(path, False) == path
+    for _ in range(20):
+        world.tick()
+    client.stop_recorder()
+    # stop_recorder is one of CARLA's fire-and-forget calls: wait for the file.
+    import json
+    import time
+
+    deadline = time.time() + 10
+    while True:
+        try:
+            info = json.loads(client.show_recorder_file_info(path, False))
+            if info["stopped"] == "stop":
+                break
+        except RuntimeError:
+            pass
+        assert time.time() < deadline, "the recording was not closed"
+        time.sleep(0.05)
+    assert info["frames"] == 21
+    assert isinstance(json.loads(client.show_recorder_collisions(path, "a", "a")), list)
+    assert isinstance(json.loads(client.show_recorder_actors_blocked(path, 0.5, 0.1)), list)
+    with pytest.raises(RuntimeError, match="cannot read .*missing.mcap"):
+        client.replay_file(str(tmp_path / "missing.mcap"), 0.0, 0.0, 0, False)
+    answer = client.replay_file(path, 0.0, 0.0, 0, False)
+    assert "21 frames" in answer, answer
+    # Synchronous: one recorded frame per tick, the recorded frame ids.
+    first = world.tick()
+    second = world.tick()
+    assert second == first + 1
+    settings.synchronous_mode = False
+    world.apply_settings(settings)

@@ -177,9 +177,93 @@ impl Session {
                 loaded.map_err(|e| format!("simbus: {e}"))?;
                 Ok(Answer::Done)
             }
+            "start_recorder" | "stop_recorder" | "replay_file" | "stop_replayer"
+            | "set_replayer_time_factor" | "show_recorder_file_info"
+            | "show_recorder_collisions" | "show_recorder_actors_blocked" => self.recorder(method, args),
             _ => Err(format!(
-                "simbus: CARLA's `{method}` is not supported by simbus (its CARLA gateway serves the world, its settings and its ticks)"
+                "simbus: CARLA's `{method}` is not supported by simbus (its CARLA gateway serves the world, its settings, its ticks and the recorder)"
             )),
+        }
+    }
+
+    /// CARLA's recorder calls on simbus's recorder. The `show_*` calls read
+    /// the file here and answer JSON text (CARLA's answer preformatted text).
+    fn recorder(&mut self, method: &str, args: &[Value]) -> Result<Answer, Failed> {
+        let refused = |e: sim_client::RecorderError| format!("simbus: {e}");
+        let json =
+            |v: serde_json::Result<String>| Ok(Answer::Value(Value::from(v.unwrap_or_default())));
+        let number = |i: usize| {
+            args.get(i)
+                .and_then(|v| v.as_f64().or_else(|| v.as_i64().map(|n| n as f64)))
+                .ok_or_else(|| format!("{method}: argument {i} is not a number"))
+        };
+        match method {
+            "start_recorder" => {
+                let name = arg_str(args, 0, method)?;
+                let sensors = args.get(1).and_then(Value::as_bool).unwrap_or(false);
+                let path = self
+                    .client()?
+                    .start_recorder(&name, sensors)
+                    .map_err(refused)?;
+                Ok(Answer::Value(Value::from(
+                    path.to_string_lossy().into_owned(),
+                )))
+            }
+            "stop_recorder" => {
+                self.client()?.stop_recorder().map_err(refused)?;
+                Ok(Answer::Done)
+            }
+            "replay_file" => {
+                let name = arg_str(args, 0, method)?;
+                let (start, duration) = (number(1)?, number(2)?);
+                let follow = args.get(3).and_then(Value::as_u64).unwrap_or(0);
+                let sensors = args.get(4).and_then(Value::as_bool).unwrap_or(false);
+                let status = self
+                    .client()?
+                    .replay_file(&name, start, duration, follow, sensors)
+                    .map_err(refused)?;
+                Ok(Answer::Value(Value::from(format!(
+                    "Replaying {name}: {} frames ({})",
+                    status.replay.total, status.replay.mode
+                ))))
+            }
+            "stop_replayer" => {
+                let keep = args.first().and_then(Value::as_bool).unwrap_or(false);
+                self.client()?.stop_replayer(keep).map_err(refused)?;
+                Ok(Answer::Done)
+            }
+            "set_replayer_time_factor" => {
+                let factor = number(0)?;
+                self.client()?
+                    .set_replayer_time_factor(factor)
+                    .map_err(refused)?;
+                Ok(Answer::Done)
+            }
+            "show_recorder_file_info" => {
+                let name = arg_str(args, 0, method)?;
+                let all = args.get(1).and_then(Value::as_bool).unwrap_or(false);
+                let info = sim_client::inspect::file_info(&name, all).map_err(|e| e.to_string())?;
+                json(serde_json::to_string_pretty(&info))
+            }
+            "show_recorder_collisions" => {
+                let name = arg_str(args, 0, method)?;
+                let kind = |i: usize| {
+                    args.get(i)
+                        .and_then(Value::as_u64)
+                        .and_then(|c| char::from_u32(c as u32))
+                        .unwrap_or('a')
+                };
+                let list = sim_client::inspect::collisions(&name, kind(1), kind(2))
+                    .map_err(|e| e.to_string())?;
+                json(serde_json::to_string_pretty(&list))
+            }
+            _ => {
+                let name = arg_str(args, 0, method)?;
+                let list =
+                    sim_client::inspect::actors_blocked(&name, number(1)?, number(2)? as f32)
+                        .map_err(|e| e.to_string())?;
+                json(serde_json::to_string_pretty(&list))
+            }
         }
     }
 

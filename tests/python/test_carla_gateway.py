@@ -146,7 +146,8 @@ def test_a_killed_ticking_script_lets_another_take_over_without_a_skipped_frame(
 def test_garbage_on_the_rpc_port_is_dropped_and_others_are_served(gateway):
     client = gateway.client()
     bad = []
-    for payload in [b"\xc1\xc1garbage", b"\x94\x00\x01\xa7version\x91\x91\xc2" * 0 + b"\x93\x00\x01", b"\x81\xa1a\xa1b"]:
+    # Not msgpack; a request cut short; a map instead of a request.
+    for payload in [b"\xc1\xc1garbage", b"\x93\x00\x01", b"\x81\xa1a\xa1b"]:
         s = socket.create_connection(("127.0.0.1", gateway.port))
         s.sendall(payload)
         bad.append(s)

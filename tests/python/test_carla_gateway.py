@@ -207,3 +207,17 @@ def test_the_recorder_calls_map_onto_simbus_recorder(gateway, tmp_path):
     assert second == first + 1
     settings.synchronous_mode = False
     world.apply_settings(settings)
+
+
+def test_get_actors_lists_the_worlds_actors_with_carla_type_ids(gateway):
+    world = gateway.client().get_world()
+    snapshot = world.wait_for_tick()
+    actors = world.get_actors()
+    ids = {a.id for a in actors}
+    assert ids == {a.id for a in snapshot}
+    kinds = {a.type_id for a in actors}
+    assert "static.prop.box" in kinds and "static.prop.sphere" in kinds
+    cars = world.get_actors().filter("vehicle.*")
+    assert len(cars) == 2 and all(c.type_id == "vehicle.simbus.car" for c in cars)
+    box = world.get_actors().filter("static.prop.box")[0]
+    assert box.get_transform().location.z > 0.0

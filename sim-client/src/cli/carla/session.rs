@@ -158,6 +158,19 @@ impl Session {
                 value(Value::Array(vec![Value::from(scene), Value::Array(Vec::new())]))
             }
             "get_map_data" => value(Value::from(OPENDRIVE)),
+            "get_actors_by_id" => {
+                let ids = args.first().and_then(Value::as_array).ok_or("get_actors_by_id: no id list")?;
+                let actors = self.hub.actors.lock().unwrap_or_else(|e| e.into_inner());
+                let records = ids
+                    .iter()
+                    .filter_map(Value::as_u64)
+                    .filter_map(|id| {
+                        let id = u32::try_from(id).ok()?;
+                        actors.get(&id).map(|&(kind, extent)| actor_record(id, kind, extent))
+                    })
+                    .collect();
+                value(Value::Array(records))
+            }
             "get_required_files" | "query_lights_state" | "get_actor_definitions" | "get_vehicle_light_states" => {
                 value(Value::Array(Vec::new()))
             }
@@ -334,6 +347,40 @@ impl Session {
         self.ticker = Some(ticker);
         Ok(Answer::Value(Value::from(frame)))
     }
+}
+
+/// CARLA's type id of a simbus actor kind.
+fn type_id(kind: u32) -> &'static str {
+    match shared_types::ActorKind::from_u32(kind) {
+        Some(shared_types::ActorKind::Box) => "static.prop.box",
+        Some(shared_types::ActorKind::Sphere) => "static.prop.sphere",
+        Some(shared_types::ActorKind::Capsule) => "static.prop.capsule",
+        Some(shared_types::ActorKind::Vehicle) => "vehicle.simbus.car",
+        _ => "static.prop.fixed",
+    }
+}
+
+/// CARLA's `rpc::Actor` of a simbus actor: id, no parent, its description
+/// (type id, no attributes), its bounding box, no tags, no stream.
+fn actor_record(id: u32, kind: u32, extent: [f32; 3]) -> Value {
+    let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
+    Value::Array(vec![
+        Value::from(id),
+        Value::from(0u32),
+        Value::Array(vec![
+            Value::from(kind),
+            Value::from(type_id(kind)),
+            Value::Array(Vec::new()),
+        ]),
+        Value::Array(vec![
+            vector([0.0; 3]),
+            vector(extent),
+            vector([0.0; 3]),
+            Value::from(id),
+        ]),
+        Value::Binary(Vec::new()),
+        Value::Binary(Vec::new()),
+    ])
 }
 
 fn arg_u64(args: &[Value], i: usize, method: &str) -> Result<u64, Failed> {

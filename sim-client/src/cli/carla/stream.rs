@@ -27,6 +27,8 @@ pub(crate) struct Hub {
     /// (episode, frame) of the last world state sent.
     pub(crate) last_frame: AtomicU64,
     pub(crate) last_episode: AtomicU64,
+    /// The actors of the last frame: id → (kind, half extents in CARLA's axes).
+    pub(crate) actors: Mutex<HashMap<u32, (u32, [f32; 3])>>,
 }
 
 impl Hub {
@@ -125,6 +127,15 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
                 Ok(frame) => {
                     let message = world_state(&frame);
                     hub.last_episode.store(frame.episode(), Ordering::Relaxed);
+                    let actors = frame
+                        .actors()
+                        .iter()
+                        .map(|a| {
+                            let id = u32::try_from(a.id).unwrap_or(u32::MAX);
+                            (id, (a.kind, convert::vector(a.extent)))
+                        })
+                        .collect();
+                    *hub.actors.lock().unwrap_or_else(|e| e.into_inner()) = actors;
                     hub.last_frame.store(frame.frame(), Ordering::Relaxed);
                     hub.send(carla::WORLD_STREAM_ID, &message);
                 }

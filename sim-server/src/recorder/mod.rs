@@ -22,9 +22,7 @@ use std::thread::JoinHandle;
 use shared_types::recording::{
     RecordedCollision, RecordedCommand, RecordedEvent, RecordedSensor, RecordingHeader,
 };
-use shared_types::{
-    ActorState, Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND,
-};
+use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
 use tracing::{info, warn};
 
 use crate::world::World;
@@ -264,9 +262,7 @@ impl Recorder {
         if keyframe_due {
             active.next_keyframe_ns = log_ns.saturating_add(active.keyframe_every_ns);
         }
-        let actors: Vec<ActorState> = (0..world.actor_count())
-            .map(|i| world.actor_state(i))
-            .collect();
+        let actors = world.states();
         self.send(Item::Frame {
             log_ns,
             header: *header,

@@ -20,6 +20,20 @@ pub const ACTOR_STATE_LEN: usize = 119;
 pub const WORLD_STATE_SENSOR_TYPE: u64 = 17;
 /// The stream id of the world state.
 pub const WORLD_STREAM_ID: u32 = 1;
+/// The sensor type id of a depth camera's `carla.Image`.
+pub const DEPTH_SENSOR_TYPE: u64 = 1;
+/// The sensor type id of an IMU's `carla.IMUMeasurement`.
+pub const IMU_SENSOR_TYPE: u64 = 5;
+/// The sensor type id of a ray-cast lidar's `carla.LidarMeasurement`.
+pub const LIDAR_SENSOR_TYPE: u64 = 11;
+/// Bytes of an image's header (width, height, field of view).
+pub const IMAGE_HEADER_LEN: usize = 12;
+/// CARLA's depth camera encodes 0..=1000 m in 24 bits.
+pub const DEPTH_FAR_METRES: f32 = 1000.0;
+/// CARLA actor ids at and above this name simbus sensors (sensor `n` is
+/// `SENSOR_ID_BASE + n`): simbus numbers sensors apart from actors, CARLA
+/// numbers them together. The sensor's stream id is its actor id.
+pub const SENSOR_ID_BASE: u32 = 1_000_000_000;
 /// The version the gateway reports (`client.get_server_version()`).
 pub const CARLA_VERSION: &str = "0.9.16";
 
@@ -75,6 +89,62 @@ pub fn episode_header(
     out.extend_from_slice(&0u32.to_le_bytes()); // simulation state flags
 }
 
+/// Appends a `carla.Image` payload header: `width` × `height` pixels seen
+/// with a horizontal field of view of `fov` degrees (4 bytes per pixel,
+/// B, G, R, A, follow).
+pub fn image_header(out: &mut Vec<u8>, width: u32, height: u32, fov: f32) {
+    out.extend_from_slice(&width.to_le_bytes());
+    out.extend_from_slice(&height.to_le_bytes());
+    out.extend_from_slice(&fov.to_le_bytes());
+}
+
+/// A depth in metres as CARLA's depth camera pixel (B, G, R, A): the depth
+/// over 1000 m in 24 bits, R the lowest byte, so that
+/// `(R + G·256 + B·256²) / (256³ − 1) × 1000` gives it back (to 0.06 mm).
+pub fn depth_pixel(metres: f32) -> [u8; 4] {
+    let normalized = (metres / DEPTH_FAR_METRES).clamp(0.0, 1.0) as f64;
+    let v = (normalized * f64::from(0xFF_FFFFu32)).round() as u32;
+    [(v >> 16) as u8, (v >> 8) as u8, v as u8, 255]
+}
+
+/// The depth in metres of a CARLA depth pixel (B, G, R, A).
+pub fn depth_of_pixel(bgra: [u8; 4]) -> f32 {
+    let [b, g, r, _] = bgra.map(u32::from);
+    let v = r + g * 256 + b * 65536;
+    (f64::from(v) / f64::from(0xFF_FFFFu32) * f64::from(DEPTH_FAR_METRES)) as f32
+}
+
+/// Appends a `carla.LidarMeasurement` payload header: the horizontal angle
+/// (radians) and the number of points of each channel; the points follow,
+/// channel by channel, as x, y, z, intensity (`f32`, the sensor's axes).
+pub fn lidar_header(out: &mut Vec<u8>, horizontal_angle: f32, points_per_channel: &[u32]) {
+    out.extend_from_slice(&horizontal_angle.to_le_bytes());
+    out.extend_from_slice(&(points_per_channel.len() as u32).to_le_bytes());
+    for count in points_per_channel {
+        out.extend_from_slice(&count.to_le_bytes());
+    }
+}
+
+/// A vehicle's control as the world state carries it (what
+/// `vehicle.get_control()` reads).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CarlaVehicleControl {
+    /// 0..=1.
+    pub throttle: f32,
+    /// -1..=1, positive to the right.
+    pub steer: f32,
+    /// 0..=1.
+    pub brake: f32,
+    /// The hand brake.
+    pub hand_brake: bool,
+    /// Reverse gear.
+    pub reverse: bool,
+    /// Manual gear shift.
+    pub manual_gear_shift: bool,
+    /// The gear.
+    pub gear: i32,
+}
+
 /// One actor of the world state.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CarlaActorState {
@@ -88,6 +158,8 @@ pub struct CarlaActorState {
     pub angular_velocity: [f32; 3],
     /// m/s².
     pub acceleration: [f32; 3],
+    /// A vehicle's last control.
+    pub vehicle: Option<CarlaVehicleControl>,
 }
 
 /// Appends one actor's 119-byte record (alive; no vehicle, walker or
@@ -106,6 +178,17 @@ pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
         .chain(&actor.acceleration);
     for v in floats {
         out.extend_from_slice(&v.to_le_bytes());
+    }
+    if let Some(c) = actor.vehicle {
+        for v in [c.throttle, c.steer, c.brake] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&[
+            u8::from(c.hand_brake),
+            u8::from(c.reverse),
+            u8::from(c.manual_gear_shift),
+        ]);
+        out.extend_from_slice(&c.gear.to_le_bytes());
     }
     out.resize(start + ACTOR_STATE_LEN, 0);
 }
@@ -140,6 +223,46 @@ mod tests {
         );
         assert_eq!(&out[84..88], &5u32.to_le_bytes());
         assert_eq!(out[88], 1);
+    }
+
+    #[test]
+    fn depth_pixels_round_trip_to_a_sixteenth_of_a_millimetre() {
+        for metres in [0.0, 0.001, 1.0, 7.25, 123.456, 999.9, 1000.0] {
+            let back = depth_of_pixel(depth_pixel(metres));
+            assert!(
+                (back - metres).abs() < 1e-4,
+                "{metres} m came back as {back}"
+            );
+        }
+        assert_eq!(depth_pixel(5000.0), [255, 255, 255, 255]);
+        assert_eq!(depth_pixel(-1.0), [0, 0, 0, 255]);
+    }
+
+    #[test]
+    fn a_vehicles_control_sits_where_carla_reads_it() {
+        let mut out = Vec::new();
+        let control = CarlaVehicleControl {
+            throttle: 0.5,
+            steer: -0.25,
+            brake: 0.0,
+            hand_brake: true,
+            reverse: false,
+            manual_gear_shift: false,
+            gear: 3,
+        };
+        actor_state(
+            &mut out,
+            &CarlaActorState {
+                id: 9,
+                vehicle: Some(control),
+                ..Default::default()
+            },
+        );
+        assert_eq!(out.len(), ACTOR_STATE_LEN);
+        assert_eq!(&out[65..69], &0.5f32.to_le_bytes());
+        assert_eq!(&out[69..73], &(-0.25f32).to_le_bytes());
+        assert_eq!(out[77], 1);
+        assert_eq!(&out[80..84], &3i32.to_le_bytes());
     }
 
     #[test]

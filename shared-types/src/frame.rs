@@ -33,7 +33,8 @@ impl Timestamp {
     }
 }
 
-fn nanos_to_seconds(nanos: u64) -> f64 {
+/// Nanoseconds as seconds, as every simbus timestamp reads them.
+pub fn nanos_to_seconds(nanos: u64) -> f64 {
     // One correctly rounded division: exact to the nanosecond below 2^53 ns
     // (104 days), and 1_503_000_000 ns prints as 1.503, not 1.5030000000000001.
     nanos as f64 / NANOS_PER_SECOND as f64

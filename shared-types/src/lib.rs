@@ -59,7 +59,7 @@ pub use command::{
 pub use control::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, StatusReport,
 };
-pub use frame::{ActorKind, ActorState, FrameHeader, Timestamp};
+pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{

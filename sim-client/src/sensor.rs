@@ -477,6 +477,13 @@ impl Client {
 
     /// Builds a sensor from `spec` and subscribes to it.
     pub fn spawn_sensor(&self, spec: SensorSpec) -> Result<Sensor, SensorError> {
+        let info = self.create_sensor(spec)?;
+        self.open_sensor(info)
+    }
+
+    /// Builds a sensor from `spec` without subscribing to it (read it
+    /// later with [`Client::sensor`]).
+    pub fn create_sensor(&self, spec: SensorSpec) -> Result<SensorInfo, SensorError> {
         spec.check()?;
         let info = self
             .sensor_request(SensorRequest::new(SensorRequestKind::Spawn, 0, spec))?
@@ -485,7 +492,7 @@ impl Client {
             .ok_or(RequestError::UnknownAnswer {
                 status: ResponseStatus::Ok as u32,
             })?;
-        self.open_sensor(info)
+        Ok(info)
     }
 
     /// Subscribes to the existing sensor `id`.

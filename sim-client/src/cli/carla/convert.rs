@@ -50,6 +50,99 @@ pub(crate) fn rotation(q: [f32; 4]) -> V3 {
     [pitch.to_degrees(), yaw.to_degrees(), roll.to_degrees()]
 }
 
+/// Unreal's (pitch, yaw, roll) in degrees as a simbus orientation
+/// (quaternion x, y, z, w): the inverse of [`rotation`].
+pub(crate) fn quaternion(pitch_yaw_roll: V3) -> [f32; 4] {
+    let [p, y, r] = pitch_yaw_roll.map(f32::to_radians);
+    let (sp, cp, sy, cy, sr, cr) = (p.sin(), p.cos(), y.sin(), y.cos(), r.sin(), r.cos());
+    // Unreal's FRotationMatrix: the body's axes in CARLA's world axes.
+    let forward = [cp * cy, cp * sy, sp];
+    let right = [sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, -sr * cp];
+    let up = [-(cr * sp * cy + sr * sy), cy * sr - cr * sp * sy, cr * cp];
+    // simbus body axes X (forward), Y (up), Z (right) in simbus world axes
+    // are the columns of the rotation matrix.
+    let (x, y, z) = (vector(forward), vector(up), vector(right));
+    let m = |row: usize, col: usize| [x, y, z][col][row];
+    let trace = m(0, 0) + m(1, 1) + m(2, 2);
+    let q = if trace > 0.0 {
+        let s = (trace + 1.0).sqrt() * 2.0;
+        [
+            (m(2, 1) - m(1, 2)) / s,
+            (m(0, 2) - m(2, 0)) / s,
+            (m(1, 0) - m(0, 1)) / s,
+            0.25 * s,
+        ]
+    } else if m(0, 0) > m(1, 1) && m(0, 0) > m(2, 2) {
+        let s = (1.0 + m(0, 0) - m(1, 1) - m(2, 2)).sqrt() * 2.0;
+        [
+            0.25 * s,
+            (m(0, 1) + m(1, 0)) / s,
+            (m(0, 2) + m(2, 0)) / s,
+            (m(2, 1) - m(1, 2)) / s,
+        ]
+    } else if m(1, 1) > m(2, 2) {
+        let s = (1.0 + m(1, 1) - m(0, 0) - m(2, 2)).sqrt() * 2.0;
+        [
+            (m(0, 1) + m(1, 0)) / s,
+            0.25 * s,
+            (m(1, 2) + m(2, 1)) / s,
+            (m(0, 2) - m(2, 0)) / s,
+        ]
+    } else {
+        let s = (1.0 + m(2, 2) - m(0, 0) - m(1, 1)).sqrt() * 2.0;
+        [
+            (m(0, 2) + m(2, 0)) / s,
+            (m(1, 2) + m(2, 1)) / s,
+            0.25 * s,
+            (m(1, 0) - m(0, 1)) / s,
+        ]
+    };
+    let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
+    q.map(|c| c / norm)
+}
+
+/// The product `a · b` of two quaternions (x, y, z, w): `b`, then `a`.
+pub(crate) fn multiply(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    let [ax, ay, az, aw] = a;
+    let [bx, by, bz, bw] = b;
+    [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+}
+
+/// The world pose of something at `offset` (position, orientation) on a
+/// body at `parent`.
+pub(crate) fn compose(parent: (V3, [f32; 4]), offset: (V3, [f32; 4])) -> (V3, [f32; 4]) {
+    let moved = rotate(parent.1, offset.0);
+    (
+        [0, 1, 2].map(|i| parent.0[i] + moved[i]),
+        multiply(parent.1, offset.1),
+    )
+}
+
+/// A CARLA transform as a simbus pose.
+pub(crate) fn pose(t: &CarlaTransform) -> (V3, [f32; 4]) {
+    (vector(t.location), quaternion(t.rotation))
+}
+
+/// A CARLA angular velocity (deg/s) as simbus's (rad/s).
+pub(crate) fn angular_velocity_from_carla(w: V3) -> V3 {
+    let [x, y, z] = vector(w);
+    [-x.to_radians(), -y.to_radians(), -z.to_radians()]
+}
+
+/// The compass of a body at orientation `q`: radians clockwise from
+/// CARLA's north (-y), as `carla.IMUMeasurement.compass`.
+pub(crate) fn compass(q: [f32; 4]) -> f32 {
+    let forward = vector(rotate(q, [1.0, 0.0, 0.0]));
+    forward[0]
+        .atan2(-forward[1])
+        .rem_euclid(std::f32::consts::TAU)
+}
+
 /// A simbus pose as a CARLA transform.
 pub(crate) fn transform(position: V3, q: [f32; 4]) -> CarlaTransform {
     CarlaTransform {
@@ -66,6 +159,7 @@ pub(crate) fn actor(state: &ActorState) -> CarlaActorState {
         velocity: vector(state.linear_velocity),
         angular_velocity: angular_velocity(state.angular_velocity),
         acceleration: vector(state.acceleration),
+        vehicle: None,
     }
 }
 
@@ -88,5 +182,38 @@ mod tests {
         // Nose up 30° (about simbus Z) is CARLA pitch +30°.
         let (s, c) = (15f32.to_radians().sin(), 15f32.to_radians().cos());
         assert!(close(rotation([0.0, 0.0, s, c]), [30.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn carla_rotations_round_trip() {
+        for pyr in [
+            [0.0, 0.0, 0.0],
+            [0.0, -90.0, 0.0],
+            [30.0, 0.0, 0.0],
+            [0.0, 0.0, 45.0],
+            [-20.0, 135.0, 10.0],
+            [60.0, -170.0, -80.0],
+        ] {
+            let back = rotation(quaternion(pyr));
+            assert!(close(back, pyr), "{pyr:?} came back as {back:?}");
+        }
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let q = quaternion([0.0, -90.0, 0.0]);
+        assert!(close([q[0], q[1], q[2]], [0.0, h, 0.0]) && (q[3] - h).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_sensor_on_a_turned_body_sits_turned_with_it() {
+        // A body yawed 90° left (simbus +Y); a sensor 1 m ahead of it.
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let body = ([10.0, 0.0, 0.0], [0.0, h, 0.0, h]);
+        let (position, q) = compose(body, ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]));
+        // Ahead of the body is -Z (left of simbus's forward).
+        assert!(close(position, [10.0, 0.0, -1.0]));
+        assert!(close(rotation(q), [0.0, -90.0, 0.0]));
+        // Facing CARLA's west (-x) reads 270°, north (-y) 0.
+        assert!((compass(quaternion([0.0, 180.0, 0.0])) - 1.5 * std::f32::consts::PI).abs() < 1e-3);
+        let north = compass(quaternion([0.0, -90.0, 0.0]));
+        assert!(north.min(std::f32::consts::TAU - north) < 1e-3, "{north}");
     }
 }

@@ -8,8 +8,11 @@
 //! client; a connection that sends garbage, too much, or vanishes is
 //! dropped (and its tick ownership released) without touching the others.
 
+mod blueprints;
+mod commands;
 mod convert;
 mod rpc;
+mod sensors;
 mod session;
 mod stream;
 
@@ -61,25 +64,32 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         let (world, hub) = (world.to_string(), hub.clone());
         std::thread::spawn(move || stream::pump(world, hub));
     }
+    let stop = super::interrupted();
     println!(
         "carla-gateway: world '{world}' served to CARLA clients on {}:{} (streams on port {streaming_port})",
         args.host, args.port
     );
     let _ = std::io::stdout().flush();
-    for socket in rpc.incoming() {
-        let socket = match socket {
-            Ok(socket) => socket,
-            Err(e) => {
-                warn!("accepting a CARLA client: {e}");
-                continue;
-            }
-        };
-        let (world, hub) = (world.to_string(), hub.clone());
-        std::thread::spawn(move || serve(socket, world, timeout, streaming_port, hub));
-        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
-            break;
+    let world = world.to_string();
+    std::thread::spawn(move || {
+        for socket in rpc.incoming() {
+            let socket = match socket {
+                Ok(socket) => socket,
+                Err(e) => {
+                    warn!("accepting a CARLA client: {e}");
+                    continue;
+                }
+            };
+            let (world, hub) = (world.clone(), hub.clone());
+            std::thread::spawn(move || serve(socket, world, timeout, streaming_port, hub));
         }
+    });
+    // Ctrl-C / SIGTERM end the gateway; the server sees its tick
+    // ownership and ports go with the process.
+    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(100));
     }
+    info!("carla-gateway stopped");
     Ok(())
 }
 

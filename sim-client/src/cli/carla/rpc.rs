@@ -105,15 +105,26 @@ pub(crate) enum Answer {
     Value(Value),
     /// `Response<void>` done.
     Done,
+    /// A result not wrapped in `Response<T>` (`apply_batch`'s list).
+    Raw(Value),
     /// An error the client raises as `RuntimeError(message)`; `void` says
     /// whether the method is a `Response<void>` one.
     Error { message: String, void: bool },
+    /// An rpclib error (for unwrapped results; the client raises
+    /// `RuntimeError` naming the method, without the message).
+    RpcError(String),
 }
 
 /// The response message for request `id`.
 pub(crate) fn response(id: Value, answer: Answer) -> Vec<u8> {
     let error = |m: String| Value::Array(vec![Value::from(m)]);
+    let mut failure = Value::Nil;
     let result = match answer {
+        Answer::Raw(v) => v,
+        Answer::RpcError(message) => {
+            failure = Value::from(message);
+            Value::Nil
+        }
         Answer::Value(v) => Value::Array(vec![Value::Array(vec![Value::from(1), v])]),
         Answer::Done => Value::Array(vec![Value::Array(vec![Value::Boolean(false)])]),
         Answer::Error {
@@ -128,7 +139,7 @@ pub(crate) fn response(id: Value, answer: Answer) -> Vec<u8> {
             error(message),
         ])]),
     };
-    let message = Value::Array(vec![Value::from(1), id, Value::Nil, result]);
+    let message = Value::Array(vec![Value::from(1), id, failure, result]);
     let mut out = Vec::new();
     // Encoding into a Vec cannot fail.
     let _ = rmpv::encode::write_value(&mut out, &message);

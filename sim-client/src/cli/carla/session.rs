@@ -13,8 +13,11 @@ use shared_types::WorldSettings;
 use sim_client::{Client, RequestError, Ticker};
 use tracing::{debug, info};
 
+use super::blueprints::{self, Description, Spawn};
+use super::commands::{self, BatchCommand, Op};
 use super::rpc::{Answer, Request};
-use super::stream::Hub;
+use super::sensors;
+use super::stream::{lock, Hub, SensorEntry};
 
 /// A minimal OpenDRIVE map: one straight two-lane road. CARLA's client
 /// builds its map from it (`world.get_map()`); simbus scenes have no roads.
@@ -124,6 +127,10 @@ impl Session {
         let void = VOID_CALLS.contains(&request.method.as_str());
         match self.call(&request.method, &request.args) {
             Ok(answer) => answer,
+            Err(message) if request.method == "apply_batch" => {
+                debug!(peer = %self.peer, "apply_batch refused: {message}");
+                Answer::RpcError(message)
+            }
             Err(message) => {
                 debug!(peer = %self.peer, method = request.method, "refused: {message}");
                 Answer::Error { message, void }
@@ -139,13 +146,21 @@ impl Session {
                 let episode = self.status()?.episode;
                 value(Value::Array(vec![
                     Value::from(episode),
-                    Value::Array(vec![Value::Binary(token(WORLD_STREAM_ID, self.streaming_port).to_vec())]),
+                    Value::Array(vec![Value::Binary(
+                        token(WORLD_STREAM_ID, self.streaming_port).to_vec(),
+                    )]),
                 ]))
             }
             "get_sensor_token" => {
                 let stream = arg_u64(args, 0, method)?;
-                let stream = u32::try_from(stream).map_err(|_| format!("{method}: no stream {stream}"))?;
-                value(Value::Array(vec![Value::Binary(token(stream, self.streaming_port).to_vec())]))
+                let stream =
+                    u32::try_from(stream).map_err(|_| format!("{method}: no stream {stream}"))?;
+                if stream != WORLD_STREAM_ID {
+                    sensors::expect(&self.hub, &self.world, stream, self.timeout)?;
+                }
+                value(Value::Array(vec![Value::Binary(
+                    token(stream, self.streaming_port).to_vec(),
+                )]))
             }
             "get_episode_settings" => {
                 let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
@@ -155,27 +170,102 @@ impl Session {
             "tick_cue" => self.tick(),
             "get_map_info" => {
                 let scene = self.status()?.scene.to_string_lossy();
-                value(Value::Array(vec![Value::from(scene), Value::Array(Vec::new())]))
+                value(Value::Array(vec![
+                    Value::from(scene),
+                    Value::Array(Vec::new()),
+                ]))
             }
             "get_map_data" => value(Value::from(OPENDRIVE)),
             "get_actors_by_id" => {
-                let ids = args.first().and_then(Value::as_array).ok_or("get_actors_by_id: no id list")?;
-                let actors = self.hub.actors.lock().unwrap_or_else(|e| e.into_inner());
+                let ids = args
+                    .first()
+                    .and_then(Value::as_array)
+                    .ok_or("get_actors_by_id: no id list")?;
                 let records = ids
                     .iter()
-                    .filter_map(Value::as_u64)
-                    .filter_map(|id| {
-                        let id = u32::try_from(id).ok()?;
-                        actors.get(&id).map(|&(kind, extent)| actor_record(id, kind, extent))
-                    })
+                    .filter_map(commands::actor_id)
+                    .filter_map(|id| self.actor_record(id))
                     .collect();
                 value(Value::Array(records))
             }
-            "get_required_files" | "query_lights_state" | "get_actor_definitions" | "get_vehicle_light_states" => {
+            "get_actor_definitions" => value(blueprints::library()),
+            "get_actor_bounding_box" => {
+                let id = args
+                    .first()
+                    .and_then(commands::actor_id)
+                    .ok_or("get_actor_bounding_box: no actor id")?;
+                let extent = lock(&self.hub.actors)
+                    .get(&id)
+                    .map_or([0.0; 3], |a| a.extent);
+                value(bounding_box(id, extent))
+            }
+            "spawn_actor" | "spawn_actor_with_parent" => {
+                let description = Description::parse(args.first().unwrap_or(&Value::Nil))
+                    .map_err(|e| format!("simbus: {e}"))?;
+                let transform = args
+                    .get(1)
+                    .and_then(commands::transform)
+                    .ok_or_else(|| format!("{method}: the transform is of the wrong shape"))?;
+                let parent = match method {
+                    "spawn_actor" => None,
+                    _ => Some(
+                        args.get(2)
+                            .and_then(commands::actor_id)
+                            .ok_or_else(|| format!("{method}: the parent is not an actor id"))?,
+                    ),
+                };
+                let id = self.spawn(&description, &transform, parent)?;
+                let record = self
+                    .actor_record(id)
+                    .ok_or_else(|| format!("simbus: actor {id} vanished at once"))?;
+                value(record)
+            }
+            "destroy_actor" => {
+                let id = args
+                    .first()
+                    .and_then(commands::actor_id)
+                    .ok_or("destroy_actor: no actor id")?;
+                let results = self.run_batch(vec![Ok(BatchCommand::Actor(id, Op::Destroy))]);
+                results.into_iter().next().unwrap_or(Ok(id))?;
+                value(Value::Boolean(true))
+            }
+            "apply_batch" => {
+                let list = args
+                    .first()
+                    .and_then(Value::as_array)
+                    .ok_or("apply_batch: no command list")?;
+                let batch = list
+                    .iter()
+                    .map(|c| commands::batch_command(c, None))
+                    .collect();
+                let results = self.run_batch(batch);
+                if args.get(1).and_then(Value::as_bool) == Some(true) {
+                    self.tick()?;
+                }
+                // CARLA's `Response<ActorId>` per command, not wrapped.
+                let responses = results
+                    .into_iter()
+                    .map(|r| match r {
+                        Ok(id) => Value::Array(vec![Value::Array(vec![
+                            Value::from(1u8),
+                            Value::from(id),
+                        ])]),
+                        Err(e) => Value::Array(vec![Value::Array(vec![
+                            Value::from(0u8),
+                            Value::Array(vec![Value::from(e)]),
+                        ])]),
+                    })
+                    .collect();
+                Ok(Answer::Raw(Value::Array(responses)))
+            }
+            "get_required_files" | "query_lights_state" | "get_vehicle_light_states" => {
                 value(Value::Array(Vec::new()))
             }
             "get_available_maps" => value(Value::Array(
-                ["default", "empty", "boxes:100"].into_iter().map(Value::from).collect(),
+                ["default", "empty", "boxes:100"]
+                    .into_iter()
+                    .map(Value::from)
+                    .collect(),
             )),
             "get_weather_parameters" => value(Value::Array(vec![Value::F32(0.0); 14])),
             "load_new_episode" => {
@@ -190,13 +280,262 @@ impl Session {
                 loaded.map_err(|e| format!("simbus: {e}"))?;
                 Ok(Answer::Done)
             }
-            "start_recorder" | "stop_recorder" | "replay_file" | "stop_replayer"
-            | "set_replayer_time_factor" | "show_recorder_file_info"
-            | "show_recorder_collisions" | "show_recorder_actors_blocked" => self.recorder(method, args),
-            _ => Err(format!(
-                "simbus: CARLA's `{method}` is not supported by simbus (its CARLA gateway serves the world, its settings, its ticks and the recorder)"
-            )),
+            "start_recorder"
+            | "stop_recorder"
+            | "replay_file"
+            | "stop_replayer"
+            | "set_replayer_time_factor"
+            | "show_recorder_file_info"
+            | "show_recorder_collisions"
+            | "show_recorder_actors_blocked" => self.recorder(method, args),
+            _ => {
+                if let Some(op) = commands::rpc_op(method, args) {
+                    let (id, op) = op?;
+                    let results = self.run_batch(vec![Ok(BatchCommand::Actor(id, op))]);
+                    results.into_iter().next().unwrap_or(Ok(id))?;
+                    return Ok(if VOID_CALLS.contains(&method) {
+                        Answer::Done
+                    } else {
+                        Answer::Value(Value::Nil)
+                    });
+                }
+                Err(format!(
+                    "simbus: CARLA's `{method}` is not supported by simbus (its CARLA gateway serves the world, its settings and ticks, actors, batches, sensors and the recorder)"
+                ))
+            }
         }
+    }
+
+    /// CARLA's `rpc::Actor` of actor `id`, if the world has it.
+    fn actor_record(&self, id: u32) -> Option<Value> {
+        let registry = lock(&self.hub.registry);
+        if let Some(sensor) = registry.sensors.get(&id) {
+            return Some(actor_record(
+                id,
+                sensor.parent,
+                sensor.description.clone(),
+                [0.0; 3],
+                Value::Binary(token(id, self.streaming_port).to_vec()),
+            ));
+        }
+        let (kind, extent) = match lock(&self.hub.actors).get(&id) {
+            Some(a) => (a.kind, a.extent),
+            None => {
+                // Spawned through the gateway, not in a frame yet.
+                let description = registry.descriptions.get(&id)?;
+                let uid = description.as_array()?.first()?.as_u64()?;
+                (blueprints::kind_of_uid(uid), [0.0; 3])
+            }
+        };
+        let description = registry.descriptions.get(&id).cloned().unwrap_or_else(|| {
+            Value::Array(vec![
+                Value::from(kind),
+                Value::from(type_id(kind)),
+                Value::Array(Vec::new()),
+            ])
+        });
+        Some(actor_record(
+            id,
+            0,
+            description,
+            extent,
+            Value::Binary(Vec::new()),
+        ))
+    }
+
+    /// Spawns one actor (a sensor through simbus's sensor service, a body
+    /// through a batch) and returns its CARLA id.
+    fn spawn(
+        &mut self,
+        description: &Description,
+        transform: &shared_types::carla::CarlaTransform,
+        parent: Option<u32>,
+    ) -> Result<u32, Failed> {
+        let spawn = description
+            .spawn(transform)
+            .map_err(|e| format!("simbus: {e}"))?;
+        let id = match spawn {
+            Spawn::Body(command) => {
+                if let Some(parent) = parent {
+                    return Err(format!(
+                        "simbus: {} cannot be attached to actor {parent}: simbus attaches only sensors",
+                        description.id
+                    ));
+                }
+                self.apply(&[command])?
+                    .into_iter()
+                    .next()
+                    .unwrap_or_else(|| Err("simbus: no answer".into()))?
+            }
+            Spawn::Sensor(spec) => {
+                let parent = parent.unwrap_or(0);
+                if sensors::simbus_id(parent).is_some() {
+                    return Err(format!(
+                        "simbus: a sensor cannot ride on sensor {parent}: attach it to an actor"
+                    ));
+                }
+                let spec = spec.attached_to(u64::from(parent));
+                let info = self
+                    .client()?
+                    .create_sensor(spec)
+                    .map_err(|e| format!("simbus: {e}"))?;
+                let id = sensors::carla_id(info.id).ok_or_else(|| {
+                    format!("simbus: sensor id {} is out of CARLA's range", info.id)
+                })?;
+                lock(&self.hub.registry).sensors.insert(
+                    id,
+                    SensorEntry {
+                        simbus_id: info.id,
+                        spec,
+                        description: description.raw.clone(),
+                        parent,
+                    },
+                );
+                return Ok(id);
+            }
+        };
+        let mut raw = description.raw.clone();
+        if let Value::Array(fields) = &mut raw {
+            if let Some(uid) = fields.first_mut() {
+                *uid = Value::from(description.uid());
+            }
+        }
+        lock(&self.hub.registry).descriptions.insert(id, raw);
+        Ok(id)
+    }
+
+    /// Applies simbus commands in one batch: per command, the actor's id or
+    /// why it failed.
+    fn apply(
+        &mut self,
+        batch: &[shared_types::Command],
+    ) -> Result<Vec<Result<u32, String>>, Failed> {
+        if batch.is_empty() {
+            return Ok(Vec::new());
+        }
+        let response = self
+            .client()?
+            .apply_batch_sync(batch, false)
+            .map_err(|e| format!("simbus: {e}"))?;
+        Ok(response
+            .results
+            .iter()
+            .zip(batch)
+            .map(
+                |(r, c)| match shared_types::CommandStatus::from_u32(r.status) {
+                    Some(shared_types::CommandStatus::Ok) => u32::try_from(r.actor).map_err(|_| {
+                        format!("simbus: actor id {} is out of CARLA's range", r.actor)
+                    }),
+                    status => Err(format!(
+                        "simbus: actor {}: {}",
+                        c.actor,
+                        status.unwrap_or(shared_types::CommandStatus::UnknownCommand)
+                    )),
+                },
+            )
+            .collect())
+    }
+
+    /// Runs CARLA commands in order: one simbus batch for the commands on
+    /// bodies, sensors through the sensor service, then every spawned
+    /// actor's `.then(...)` commands. One result per command.
+    fn run_batch(&mut self, batch: Vec<Result<BatchCommand, String>>) -> Vec<Result<u32, String>> {
+        let mut results: Vec<Result<u32, String>> = Vec::with_capacity(batch.len());
+        let mut simbus = Vec::new();
+        let mut slots = Vec::new();
+        let mut after = Vec::new();
+        for (i, command) in batch.into_iter().enumerate() {
+            let result = match command {
+                Err(e) => Err(e),
+                Ok(BatchCommand::Spawn {
+                    description,
+                    transform,
+                    parent,
+                    then,
+                }) => match description.spawn(&transform) {
+                    Ok(Spawn::Body(command)) if parent.is_none() => {
+                        slots.push(i);
+                        simbus.push(command);
+                        after.push((i, then, description));
+                        Ok(0)
+                    }
+                    _ => {
+                        let id = self.spawn(&description, &transform, parent);
+                        if let Ok(id) = id {
+                            self.then(id, &then);
+                        }
+                        id
+                    }
+                },
+                Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::simbus_id(id).is_some() => {
+                    self.destroy_sensor(id)
+                }
+                Ok(BatchCommand::Actor(id, op)) => {
+                    let last = lock(&self.hub.actors).get(&id).copied();
+                    op.command(id, last.as_ref()).map(|command| {
+                        slots.push(i);
+                        simbus.push(command);
+                        if let Op::Control(control) = op {
+                            lock(&self.hub.registry).controls.insert(id, control);
+                        }
+                        id
+                    })
+                }
+            };
+            results.push(result);
+        }
+        match self.apply(&simbus) {
+            Ok(applied) => {
+                for (slot, result) in slots.into_iter().zip(applied) {
+                    results[slot] = result;
+                }
+            }
+            Err(e) => {
+                for slot in slots {
+                    results[slot] = Err(e.clone());
+                }
+            }
+        }
+        for (i, then, description) in after {
+            if let Ok(id) = results[i] {
+                let mut raw = description.raw.clone();
+                if let Value::Array(fields) = &mut raw {
+                    if let Some(uid) = fields.first_mut() {
+                        *uid = Value::from(description.uid());
+                    }
+                }
+                lock(&self.hub.registry).descriptions.insert(id, raw);
+                self.then(id, &then);
+            }
+        }
+        results
+    }
+
+    /// A spawned actor's `.then(...)` commands (their results are not
+    /// reported, as in CARLA).
+    fn then(&mut self, id: u32, then: &[Value]) {
+        if then.is_empty() {
+            return;
+        }
+        let batch = then
+            .iter()
+            .map(|c| commands::batch_command(c, Some(id)))
+            .collect();
+        for result in self.run_batch(batch) {
+            if let Err(e) = result {
+                debug!(peer = %self.peer, actor = id, "a .then() command failed: {e}");
+            }
+        }
+    }
+
+    fn destroy_sensor(&mut self, id: u32) -> Result<u32, String> {
+        let simbus_id =
+            sensors::simbus_id(id).ok_or_else(|| format!("simbus: actor {id} is not a sensor"))?;
+        self.client()?
+            .destroy_sensor(simbus_id)
+            .map_err(|e| format!("simbus: {e}"))?;
+        lock(&self.hub.registry).sensors.remove(&id);
+        Ok(id)
     }
 
     /// CARLA's recorder calls on simbus's recorder. The `show_*` calls read
@@ -360,26 +699,33 @@ fn type_id(kind: u32) -> &'static str {
     }
 }
 
-/// CARLA's `rpc::Actor` of a simbus actor: id, no parent, its description
-/// (type id, no attributes), its bounding box, no tags, no stream.
-fn actor_record(id: u32, kind: u32, extent: [f32; 3]) -> Value {
+/// CARLA's `BoundingBox` of actor `id`: centred, `extent` half sizes.
+fn bounding_box(id: u32, extent: [f32; 3]) -> Value {
     let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
     Value::Array(vec![
+        vector([0.0; 3]),
+        vector(extent),
+        vector([0.0; 3]),
         Value::from(id),
-        Value::from(0u32),
-        Value::Array(vec![
-            Value::from(kind),
-            Value::from(type_id(kind)),
-            Value::Array(Vec::new()),
-        ]),
-        Value::Array(vec![
-            vector([0.0; 3]),
-            vector(extent),
-            vector([0.0; 3]),
-            Value::from(id),
-        ]),
+    ])
+}
+
+/// CARLA's `rpc::Actor`: id, parent, description, bounding box, no
+/// semantic tags, and the stream token (sensors only).
+fn actor_record(
+    id: u32,
+    parent: u32,
+    description: Value,
+    extent: [f32; 3],
+    stream: Value,
+) -> Value {
+    Value::Array(vec![
+        Value::from(id),
+        Value::from(parent),
+        description,
+        bounding_box(id, extent),
         Value::Binary(Vec::new()),
-        Value::Binary(Vec::new()),
+        stream,
     ])
 }
 

@@ -1,16 +1,19 @@
 //! CARLA's streaming side: clients connect, write the 4-byte id of the
 //! stream they want, then read `[u32 length][message]` frames. The world
 //! stream carries one world state per simbus frame, pumped from a frame
-//! subscription of the gateway's own.
+//! subscription of the gateway's own; each sensor stream is fed by a
+//! forwarder (`sensors.rs`) while someone listens.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
 
-use shared_types::carla::{self, CarlaTransform};
+use rmpv::Value;
+use shared_types::carla::{self, CarlaActorState, CarlaTransform, CarlaVehicleControl};
+use shared_types::SensorSpec;
 use sim_client::{Client, FrameView};
 use tracing::{debug, info, warn};
 
@@ -19,41 +22,174 @@ use super::convert;
 /// How long a subscriber may take to accept one message before it is
 /// dropped (a client that connects and never reads must not stall the rest).
 const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a handed-out sensor token waits for its connection.
+const PENDING_FOR: Duration = Duration::from_secs(10);
+/// Captures kept for a listener between `get_sensor_token` and its
+/// connection (the captures of the ticks in between).
+const BACKLOG: usize = 32;
+
+/// What the gateway knows about one actor of the last frame.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ActorInfo {
+    pub(crate) kind: u32,
+    /// Half extents in CARLA's axes.
+    pub(crate) extent: [f32; 3],
+    /// simbus orientation and velocities (for commands that change one part).
+    pub(crate) rotation: [f32; 4],
+    pub(crate) linear: [f32; 3],
+    pub(crate) angular: [f32; 3],
+}
+
+/// A sensor spawned through the gateway.
+#[derive(Debug, Clone)]
+pub(crate) struct SensorEntry {
+    pub(crate) simbus_id: u64,
+    pub(crate) spec: SensorSpec,
+    /// CARLA's actor description it was spawned from.
+    pub(crate) description: Value,
+    /// The CARLA id of its parent (0: none).
+    pub(crate) parent: u32,
+}
+
+/// What CARLA clients spawned and set through the gateway: descriptions
+/// (for `actor.attributes`), sensors, vehicles' last controls.
+#[derive(Debug, Default)]
+pub(crate) struct Registry {
+    pub(crate) descriptions: HashMap<u32, Value>,
+    pub(crate) sensors: HashMap<u32, SensorEntry>,
+    pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
+}
+
+/// One stream's readers, and what waits for a reader about to connect.
+#[derive(Debug, Default)]
+struct Stream {
+    readers: Vec<TcpStream>,
+    /// Tokens handed out whose connection has not come yet.
+    pending: Vec<Instant>,
+    backlog: Vec<Vec<u8>>,
+    /// A forwarder feeds it.
+    forwarded: bool,
+}
+
+impl Stream {
+    fn expecting(&mut self) -> bool {
+        self.pending.retain(|at| at.elapsed() < PENDING_FOR);
+        !self.pending.is_empty()
+    }
+}
 
 /// The streams and who reads them.
 #[derive(Debug, Default)]
 pub(crate) struct Hub {
-    subscribers: Mutex<HashMap<u32, Vec<TcpStream>>>,
+    streams: Mutex<HashMap<u32, Stream>>,
     /// (episode, frame) of the last world state sent.
     pub(crate) last_frame: AtomicU64,
     pub(crate) last_episode: AtomicU64,
-    /// The actors of the last frame: id → (kind, half extents in CARLA's axes).
-    pub(crate) actors: Mutex<HashMap<u32, (u32, [f32; 3])>>,
+    /// The actors of the last frame.
+    pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
+    pub(crate) registry: Mutex<Registry>,
+    /// (episode, frame) of the last world state sent, for the forwarders.
+    sent: Mutex<(u64, u64)>,
+    sent_changed: Condvar,
+}
+
+/// Locks `m`, even if a thread panicked holding it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Hub {
-    /// Sends `message` to every reader of `stream`; a reader that fails is dropped.
+    /// Sends `message` to every reader of `stream`; a reader that fails is
+    /// dropped. With no reader yet but one expected, the message waits.
     pub(crate) fn send(&self, stream: u32, message: &[u8]) {
-        let mut subscribers = self.subscribers.lock().unwrap_or_else(|e| e.into_inner());
-        let Some(readers) = subscribers.get_mut(&stream) else {
+        let mut streams = lock(&self.streams);
+        let Some(s) = streams.get_mut(&stream) else {
             return;
         };
-        let length = (message.len() as u32).to_le_bytes();
-        readers.retain_mut(|reader| {
-            let sent = reader
-                .write_all(&length)
-                .and_then(|()| reader.write_all(message));
-            if let Err(e) = &sent {
-                debug!(stream, "stream reader dropped: {e}");
+        if s.readers.is_empty() {
+            if s.expecting() {
+                if s.backlog.len() == BACKLOG {
+                    s.backlog.remove(0);
+                }
+                s.backlog.push(message.to_vec());
             }
-            sent.is_ok()
-        });
+            return;
+        }
+        s.readers
+            .retain_mut(|reader| write_message(reader, message, stream));
     }
 
-    fn subscribe(&self, stream: u32, socket: TcpStream) {
-        let mut subscribers = self.subscribers.lock().unwrap_or_else(|e| e.into_inner());
-        subscribers.entry(stream).or_default().push(socket);
+    /// Waits (at most `timeout`) until the world state of `frame` of
+    /// `episode` went out. Sensor messages follow their frame's world
+    /// state: CARLA's client may hold Python's GIL until it sees the frame
+    /// (`apply_batch_sync(..., True)`), and a sensor callback arriving first
+    /// would block the thread that must read it.
+    pub(crate) fn after_world_state(&self, episode: u64, frame: u64, timeout: Duration) {
+        let sent = lock(&self.sent);
+        let _ = self
+            .sent_changed
+            .wait_timeout_while(sent, timeout, |&mut (e, f)| e == episode && f < frame);
     }
+
+    /// Whether a forwarder of `stream` may stop: nobody reads or is about
+    /// to. If so it is marked stopped, atomically with the check.
+    pub(crate) fn retire(&self, stream: u32) -> bool {
+        let mut streams = lock(&self.streams);
+        let Some(s) = streams.get_mut(&stream) else {
+            return true;
+        };
+        if s.readers.is_empty() && !s.expecting() {
+            s.forwarded = false;
+            s.backlog.clear();
+            return true;
+        }
+        false
+    }
+
+    /// A token for `stream` was handed out: keep its messages until the
+    /// connection comes. Returns whether a forwarder must be started.
+    pub(crate) fn expect(&self, stream: u32) -> bool {
+        let mut streams = lock(&self.streams);
+        let s = streams.entry(stream).or_default();
+        s.pending.push(Instant::now());
+        !std::mem::replace(&mut s.forwarded, true)
+    }
+
+    /// The forwarder of `stream` could not start.
+    pub(crate) fn forwarder_failed(&self, stream: u32) {
+        if let Some(s) = lock(&self.streams).get_mut(&stream) {
+            s.forwarded = false;
+            s.pending.pop();
+        }
+    }
+
+    /// Closes every reader of `stream` (the sensor is gone).
+    pub(crate) fn close(&self, stream: u32) {
+        lock(&self.streams).remove(&stream);
+    }
+
+    fn subscribe(&self, stream: u32, mut socket: TcpStream) {
+        let mut streams = lock(&self.streams);
+        let s = streams.entry(stream).or_default();
+        s.pending.pop();
+        for message in s.backlog.drain(..) {
+            if !write_message(&mut socket, &message, stream) {
+                return;
+            }
+        }
+        s.readers.push(socket);
+    }
+}
+
+fn write_message(reader: &mut TcpStream, message: &[u8], stream: u32) -> bool {
+    let length = (message.len() as u32).to_le_bytes();
+    let sent = reader
+        .write_all(&length)
+        .and_then(|()| reader.write_all(message));
+    if let Err(e) = &sent {
+        debug!(stream, "stream reader dropped: {e}");
+    }
+    sent.is_ok()
 }
 
 /// Accepts stream subscriptions until the listener fails.
@@ -80,14 +216,15 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
     }
 }
 
-/// The world state of `frame` as CARLA's client reads it.
-pub(crate) fn world_state(frame: &FrameView) -> Vec<u8> {
+/// The world state of `frame` as CARLA's client reads it: simbus's actors
+/// (vehicles with their last control) and the gateway's sensors.
+fn world_state(frame: &FrameView, registry: &Registry) -> Vec<u8> {
     let t = frame.timestamp();
     let actors = frame.actors();
     let mut out = Vec::with_capacity(
         carla::SENSOR_HEADER_LEN
             + carla::EPISODE_HEADER_LEN
-            + actors.len() * carla::ACTOR_STATE_LEN,
+            + (actors.len() + registry.sensors.len()) * carla::ACTOR_STATE_LEN,
     );
     carla::sensor_header(
         &mut out,
@@ -102,10 +239,51 @@ pub(crate) fn world_state(frame: &FrameView) -> Vec<u8> {
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
+    let mut poses = HashMap::with_capacity(actors.len());
     for actor in actors {
-        carla::actor_state(&mut out, &convert::actor(actor));
+        let mut state = convert::actor(actor);
+        if actor.actor_kind() == Some(shared_types::ActorKind::Vehicle) {
+            state.vehicle = Some(
+                registry
+                    .controls
+                    .get(&state.id)
+                    .copied()
+                    .unwrap_or_default(),
+            );
+        }
+        poses.insert(state.id, (actor.position, actor.rotation));
+        carla::actor_state(&mut out, &state);
+    }
+    for (&id, sensor) in &registry.sensors {
+        let Some(pose) = sensor_pose(sensor, &poses) else {
+            continue;
+        };
+        let state = CarlaActorState {
+            id,
+            transform: convert::transform(pose.0, pose.1),
+            ..CarlaActorState::default()
+        };
+        carla::actor_state(&mut out, &state);
     }
     out
+}
+
+/// Where a sensor is: on its parent, or fixed in the world.
+fn sensor_pose(
+    sensor: &SensorEntry,
+    poses: &HashMap<u32, ([f32; 3], [f32; 4])>,
+) -> Option<([f32; 3], [f32; 4])> {
+    let rotation = match sensor.spec.rotation {
+        [0.0, 0.0, 0.0, 0.0] => [0.0, 0.0, 0.0, 1.0],
+        q => q,
+    };
+    let offset = (sensor.spec.position, rotation);
+    if sensor.parent == 0 {
+        return Some(offset);
+    }
+    poses
+        .get(&sensor.parent)
+        .map(|&parent| convert::compose(parent, offset))
 }
 
 /// Streams every frame of `world` as a world state until the process ends;
@@ -124,21 +302,7 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
         info!(world, "streaming the world's frames to CARLA clients");
         loop {
             match client.wait_for_frame(Duration::from_secs(1)) {
-                Ok(frame) => {
-                    let message = world_state(&frame);
-                    hub.last_episode.store(frame.episode(), Ordering::Relaxed);
-                    let actors = frame
-                        .actors()
-                        .iter()
-                        .map(|a| {
-                            let id = u32::try_from(a.id).unwrap_or(u32::MAX);
-                            (id, (a.kind, convert::vector(a.extent)))
-                        })
-                        .collect();
-                    *hub.actors.lock().unwrap_or_else(|e| e.into_inner()) = actors;
-                    hub.last_frame.store(frame.frame(), Ordering::Relaxed);
-                    hub.send(carla::WORLD_STREAM_ID, &message);
-                }
+                Ok(frame) => publish(&hub, &frame),
                 Err(sim_client::WaitError::Timeout { .. }) => {}
                 Err(e) => {
                     warn!("world stream lost the server: {e}");
@@ -147,4 +311,44 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
             }
         }
     }
+}
+
+fn publish(hub: &Hub, frame: &FrameView) {
+    let episode = frame.episode();
+    let message = {
+        let mut registry = lock(&hub.registry);
+        if hub.last_episode.swap(episode, Ordering::Relaxed) != episode {
+            // A new episode ended every sensor.
+            registry.sensors.clear();
+        }
+        let present: std::collections::HashSet<u32> = frame
+            .actors()
+            .iter()
+            .map(|a| convert::actor(a).id)
+            .collect();
+        // A sensor whose parent is gone went with it.
+        registry
+            .sensors
+            .retain(|_, s| s.parent == 0 || present.contains(&s.parent));
+        world_state(frame, &registry)
+    };
+    let actors = frame
+        .actors()
+        .iter()
+        .map(|a| {
+            let info = ActorInfo {
+                kind: a.kind,
+                extent: convert::vector(a.extent),
+                rotation: a.rotation,
+                linear: a.linear_velocity,
+                angular: a.angular_velocity,
+            };
+            (convert::actor(a).id, info)
+        })
+        .collect();
+    *lock(&hub.actors) = actors;
+    hub.last_frame.store(frame.frame(), Ordering::Relaxed);
+    hub.send(carla::WORLD_STREAM_ID, &message);
+    *lock(&hub.sent) = (episode, frame.frame());
+    hub.sent_changed.notify_all();
 }

@@ -61,29 +61,53 @@ def wait_line(proc, needle, timeout=30):
     raise RuntimeError(f"{proc.args} never said {needle!r}")
 
 
+def start(world, server_args, procs):
+    """Starts a sim-server on `world` and a gateway in front of it; both
+    are appended to `procs` (killed by the caller)."""
+    port = free_port_pair()
+    server = subprocess.Popen(
+        [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )
+    procs.append(server)
+    gateway = subprocess.Popen(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10", "carla-gateway", "--port", str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+    )
+    procs.append(gateway)
+    wait_line(gateway, "carla-gateway:")
+    return Gateway(world, port, procs)
+
+
+def kill_all(procs):
+    for proc in reversed(procs):
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=10)
+
+
+def world_name(request, suffix=""):
+    name = f"py-{os.getpid()}-{request.node.name[:40]}{suffix}"
+    return name.replace("[", "-").replace("]", "")
+
+
 @pytest.fixture
 def gateway(request):
-    world = f"py-{os.getpid()}-{request.node.name[:40]}".replace("[", "-").replace("]", "")
-    port = free_port_pair()
-    server_args = getattr(request, "param", [])
     procs = []
     try:
-        server = subprocess.Popen(
-            [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        )
-        procs.append(server)
-        gateway = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10", "carla-gateway", "--port", str(port)],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
-        )
-        procs.append(gateway)
-        wait_line(gateway, "carla-gateway:")
-        yield Gateway(world, port, procs)
+        yield start(world_name(request), getattr(request, "param", []), procs)
     finally:
-        for proc in reversed(procs):
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            proc.wait(timeout=10)
+        kill_all(procs)
+
+
+@pytest.fixture
+def gateway_pair(request):
+    """Two independent server + gateway pairs on the same scene."""
+    procs = []
+    try:
+        args = getattr(request, "param", [])
+        yield start(world_name(request, "-a"), args, procs), start(world_name(request, "-b"), args, procs)
+    finally:
+        kill_all(procs)

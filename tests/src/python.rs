@@ -17,6 +17,7 @@ pub const PYTHON_REQUIREMENTS: &[&str] = &[
     "iniconfig==2.3.1",
     "packaging==26.3",
     "pluggy==1.7.0",
+    "msgpack==1.1.0",
 ];
 
 /// The venv's `python`, creating the venv on first use (every test

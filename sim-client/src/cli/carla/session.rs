@@ -201,7 +201,7 @@ impl Session {
             }
             "spawn_actor" | "spawn_actor_with_parent" => {
                 let description = Description::parse(args.first().unwrap_or(&Value::Nil))
-                    .map_err(|e| format!("simbus: {e}"))?;
+                    .map_err(|e| format!("simbus: {method}: {e}"))?;
                 let transform = args
                     .get(1)
                     .and_then(commands::transform)

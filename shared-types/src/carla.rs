@@ -37,6 +37,14 @@ pub const SENSOR_ID_BASE: u32 = 1_000_000_000;
 /// The version the gateway reports (`client.get_server_version()`).
 pub const CARLA_VERSION: &str = "0.9.16";
 
+/// CARLA's episode id of simbus episode `episode` of the server with
+/// process id `server_pid`: a server that restarts on the same world starts
+/// a new CARLA episode (CARLA's client resets its state when the id
+/// changes; simbus numbers episodes from 1 in each server).
+pub fn episode_id(server_pid: u32, episode: u64) -> u64 {
+    (u64::from(server_pid) << 32) | (episode & 0xFFFF_FFFF)
+}
+
 /// A stream token: where (TCP, `port`, the RPC host) to subscribe to
 /// `stream_id`. The address is left unset, so the client uses the host it
 /// connected to for RPC.

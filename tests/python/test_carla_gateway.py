@@ -9,9 +9,12 @@ import subprocess
 import sys
 import textwrap
 import threading
+import time
 
 import carla
 import pytest
+
+from conftest import BIN
 
 
 def test_version_world_and_settings(gateway):
@@ -221,3 +224,38 @@ def test_get_actors_lists_the_worlds_actors_with_carla_type_ids(gateway):
     assert len(cars) == 2 and all(c.type_id == "vehicle.simbus.car" for c in cars)
     box = world.get_actors().filter("static.prop.box")[0]
     assert box.get_transform().location.z > 0.0
+
+
+def test_a_dead_server_is_an_error_within_the_timeout_and_a_new_one_is_served(gateway):
+    client = gateway.client(timeout=5.0)
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    world.tick()
+    server = gateway.procs[0]
+    os.killpg(server.pid, signal.SIGKILL)
+    server.wait()
+    box = world.get_blueprint_library().find("static.prop.box")
+    for call in (world.get_settings, world.tick, lambda: world.spawn_actor(box, carla.Transform())):
+        started = time.monotonic()
+        with pytest.raises(RuntimeError, match="simbus|time-out"):
+            call()
+        assert time.monotonic() - started < 5.5
+    # A new server on the world: the gateway connects to it on the next call.
+    gateway.procs.append(subprocess.Popen(
+        [os.path.join(BIN, "sim-server"), "--world", gateway.world],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    ))
+    up = gateway.sim_client("--timeout", "30", "status")
+    assert up.returncode == 0, up.stderr
+    world = client.get_world()
+    settings = world.get_settings()
+    assert settings.synchronous_mode is False
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    first = world.tick()
+    assert world.tick() == first + 1
+    assert world.get_snapshot().frame == first + 1

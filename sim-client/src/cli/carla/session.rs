@@ -49,6 +49,9 @@ const VOID_CALLS: &[&str] = &[
     "copy_opendrive_to_file",
 ];
 
+/// How long a call waits for the world's server to answer a (re)connection.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
+
 /// One CARLA connection.
 pub(crate) struct Session {
     world: String,
@@ -100,8 +103,10 @@ impl Session {
     /// server came back.
     fn client(&mut self) -> Result<&mut Client, Failed> {
         if self.client.is_none() {
+            // A dead server's world fails fast, well inside CARLA's timeout.
+            let connect = self.timeout.min(CONNECT_TIMEOUT);
             let mut client =
-                Client::connect(&self.world, self.timeout).map_err(|e| format!("simbus: {e}"))?;
+                Client::connect(&self.world, connect).map_err(|e| format!("simbus: {e}"))?;
             client.set_request_timeout(self.timeout);
             self.client = Some(client);
         }
@@ -110,13 +115,15 @@ impl Session {
             .ok_or_else(|| "simbus: no connection".to_string())
     }
 
-    /// Forgets the connection after the server went away (the next call
-    /// connects again).
-    fn lost(&mut self, e: &RequestError) {
-        if matches!(
-            e,
-            RequestError::ServerGone { .. } | RequestError::Timeout { .. }
-        ) {
+    /// Forgets the connection once its server is gone (the next call
+    /// connects again, to the server that came back on the world).
+    fn forget_a_dead_server(&mut self) {
+        let gone = self
+            .client
+            .as_ref()
+            .is_some_and(|c| !sim_client::process_alive(c.server_pid()));
+        if gone {
+            info!(peer = %self.peer, world = self.world, "the simbus server is gone; the next call connects again");
             self.ticker = None;
             self.client = None;
         }
@@ -125,15 +132,18 @@ impl Session {
     /// Answers one request.
     pub(crate) fn answer(&mut self, request: &Request) -> Answer {
         let void = VOID_CALLS.contains(&request.method.as_str());
-        match self.call(&request.method, &request.args) {
+        let answer = self.call(&request.method, &request.args);
+        // A batch reports a dead server per command: look after every call.
+        self.forget_a_dead_server();
+        match answer {
             Ok(answer) => answer,
-            Err(message) if request.method == "apply_batch" => {
-                debug!(peer = %self.peer, "apply_batch refused: {message}");
-                Answer::RpcError(message)
-            }
             Err(message) => {
                 debug!(peer = %self.peer, method = request.method, "refused: {message}");
-                Answer::Error { message, void }
+                if request.method == "apply_batch" {
+                    Answer::RpcError(message)
+                } else {
+                    Answer::Error { message, void }
+                }
             }
         }
     }
@@ -144,6 +154,7 @@ impl Session {
             "version" => value(Value::from(CARLA_VERSION)),
             "get_episode_info" => {
                 let episode = self.status()?.episode;
+                let episode = shared_types::carla::episode_id(self.client()?.server_pid(), episode);
                 value(Value::Array(vec![
                     Value::from(episode),
                     Value::Array(vec![Value::Binary(
@@ -620,7 +631,6 @@ impl Session {
     }
 
     fn failed(&mut self, e: RequestError) -> Failed {
-        self.lost(&e);
         format!("simbus: {e}")
     }
 

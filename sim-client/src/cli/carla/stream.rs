@@ -218,7 +218,7 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
 
 /// The world state of `frame` as CARLA's client reads it: simbus's actors
 /// (vehicles with their last control) and the gateway's sensors.
-fn world_state(frame: &FrameView, registry: &Registry) -> Vec<u8> {
+fn world_state(frame: &FrameView, server_pid: u32, registry: &Registry) -> Vec<u8> {
     let t = frame.timestamp();
     let actors = frame.actors();
     let mut out = Vec::with_capacity(
@@ -235,7 +235,7 @@ fn world_state(frame: &FrameView, registry: &Registry) -> Vec<u8> {
     );
     carla::episode_header(
         &mut out,
-        frame.episode(),
+        carla::episode_id(server_pid, frame.episode()),
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
@@ -302,7 +302,7 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
         info!(world, "streaming the world's frames to CARLA clients");
         loop {
             match client.wait_for_frame(Duration::from_secs(1)) {
-                Ok(frame) => publish(&hub, &frame),
+                Ok(frame) => publish(&hub, &frame, client.server_pid()),
                 Err(sim_client::WaitError::Timeout { .. }) => {}
                 Err(e) => {
                     warn!("world stream lost the server: {e}");
@@ -313,7 +313,7 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
     }
 }
 
-fn publish(hub: &Hub, frame: &FrameView) {
+fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     let episode = frame.episode();
     let message = {
         let mut registry = lock(&hub.registry);
@@ -330,7 +330,7 @@ fn publish(hub: &Hub, frame: &FrameView) {
         registry
             .sensors
             .retain(|_, s| s.parent == 0 || present.contains(&s.parent));
-        world_state(frame, &registry)
+        world_state(frame, server_pid, &registry)
     };
     let actors = frame
         .actors()

@@ -1,7 +1,7 @@
 //! `frames`: server throughput and snapshot delivery latency.
 
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use clap::Args;
 use shared_types::{WorldName, WorldSettings};
@@ -9,7 +9,7 @@ use sim_client::{Client, WaitMode};
 use sim_server::{Scene, Server, ServerConfig};
 
 use crate::stats::{header, Latencies};
-use crate::support::BenchServer;
+use crate::support::{now_ns, BenchServer};
 
 #[derive(Debug, Args)]
 pub(crate) struct FramesArgs {
@@ -48,12 +48,6 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         summary.wall_seconds,
         summary.frames_per_second(),
     ))
-}
-
-fn now_ns() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
 }
 
 /// Publish → `wait_for_tick` returned, against a 1 kHz realtime server.

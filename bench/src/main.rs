@@ -8,12 +8,14 @@
 //! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
 //! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
 //! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
+//! cargo run --release -p simbus-bench -- carla [--ticks N] [--frames N] [--python P] [--json]
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod carla;
 mod commands;
 mod failover;
 mod frames;
@@ -52,6 +54,10 @@ enum Command {
     /// Recording overhead (default scene, boxes:1000), bytes per frame,
     /// compression, and exact replay and re-simulation speed.
     Recorder(recorder::RecorderArgs),
+    /// CARLA's own Python client through `sim-client carla-gateway` next to
+    /// the native client: tick round trip, wait_for_tick latency, depth
+    /// 640x480 frames per second (needs `cargo build --release`).
+    Carla(carla::CarlaArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
@@ -69,6 +75,7 @@ fn main() -> ExitCode {
         Command::Commands(a) => commands::run(a),
         Command::Sensors(a) => sensors::run(a),
         Command::Recorder(a) => recorder::run(a),
+        Command::Carla(a) => carla::run(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);

@@ -4,14 +4,14 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use clap::Args;
-use shared_types::{SensorSpec, WorldSettings};
-use sim_client::{Client, Ticker, WaitMode};
+use shared_types::SensorSpec;
+use sim_client::{Client, WaitMode};
 
 use crate::stats::{header, Latencies};
-use crate::support::BenchServer;
+use crate::support::{now_ns, sync_ticker, BenchServer};
 use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
@@ -34,22 +34,6 @@ const SIZES: [(&str, u32, u32); 4] = [
     ("1 MiB", 512, 512),
     ("8 MiB", 2048, 1024),
 ];
-
-fn now_ns() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
-}
-
-fn sync_ticker(client: &Client) -> anyhow::Result<Ticker> {
-    let mut ticker = client.claim_ticker()?;
-    ticker.apply_settings(WorldSettings {
-        synchronous_mode: true,
-        fixed_delta_seconds: Some(0.01),
-        ..client.get_settings()?
-    })?;
-    Ok(ticker)
-}
 
 /// The TCP peer: for each 8-byte size request, sends its send time and that
 /// many bytes.
@@ -90,7 +74,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     // Delivery latency: capture published -> header and data readable.
     let server = BenchServer::start("sensors", &["--scene", "empty"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
-    let mut ticker = sync_ticker(&client)?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
     // Spin: measure the transport, not how deeply an idle core slept.
     ticker.set_wait_mode(WaitMode::Spin);
     let timeout = Duration::from_secs(10);
@@ -125,7 +109,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     // Frame time on the default scene with and without the sensors.
     let server = BenchServer::start("sensor-frames", &["--scene", "default"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
-    let mut ticker = sync_ticker(&client)?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
     let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
         let mut latencies = Latencies::new();
         for _ in 0..args.frames {

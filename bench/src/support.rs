@@ -1,11 +1,30 @@
 //! Starting a server in its own process for a benchmark.
 
 use std::process::{Command, Stdio};
-use std::time::Duration;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
+use shared_types::WorldSettings;
 use sim_client::process::ChildGuard;
-use sim_client::Client;
+use sim_client::{Client, Ticker};
+
+/// Wall-clock nanoseconds (what `platform_timestamp` is measured in).
+pub(crate) fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// Claims the ticker of `client`'s world in synchronous mode, fixed step `dt`.
+pub(crate) fn sync_ticker(client: &Client, dt: f64) -> anyhow::Result<Ticker> {
+    let mut ticker = client.claim_ticker()?;
+    ticker.apply_settings(WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: Some(dt),
+        ..client.get_settings()?
+    })?;
+    Ok(ticker)
+}
 
 /// A server child process (this binary's hidden `serve`), stopped on drop.
 pub(crate) struct BenchServer {

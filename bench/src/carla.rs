@@ -1,0 +1,314 @@
+//! `simbus-bench carla`: CARLA 0.9.16's own Python client through
+//! `sim-client carla-gateway`, next to the native client, in one run: the
+//! `world.tick()` round trip, `wait_for_tick` latency (publish → returned),
+//! and 640x480 depth frames per second through `camera.listen`.
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use clap::Args;
+use shared_types::SensorSpec;
+use sim_client::process::ChildGuard;
+use sim_client::Client;
+
+use crate::stats::{header, Latencies};
+use crate::support::{now_ns, sync_ticker, BenchServer};
+
+/// The CARLA client's side, run with the venv's Python.
+const SCRIPT: &str = include_str!("carla_bench.py");
+/// The client library the gateway speaks to.
+const CARLA: &str = "carla==0.9.16";
+
+#[derive(Debug, Args)]
+pub(crate) struct CarlaArgs {
+    /// Tick round trips and frames waited for, per row.
+    #[arg(long, default_value_t = 2000)]
+    ticks: usize,
+    /// Depth frames per row.
+    #[arg(long, default_value_t = 100)]
+    frames: usize,
+    /// A Python with `carla==0.9.16` [default: the test suite's venv
+    /// (target/simbus-venv), else one made here in target/simbus-bench-venv].
+    #[arg(long)]
+    python: Option<PathBuf>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+pub(crate) fn run(args: CarlaArgs) -> anyhow::Result<()> {
+    let exe = std::env::current_exe()?;
+    let bin = exe.parent().context("the benchmark's directory")?;
+    let sim_client = bin.join("sim-client");
+    if !sim_client.exists() {
+        bail!(
+            "{} is missing: build it with `cargo build --release` first",
+            sim_client.display()
+        );
+    }
+    let python = match args.python.clone() {
+        Some(python) => python,
+        None => venv(bin)?,
+    };
+    let script = std::env::temp_dir().join(format!("simbus-carla-bench-{}.py", std::process::id()));
+    std::fs::write(&script, SCRIPT)?;
+    let result = measure(&args, &sim_client, &python, &script);
+    let _ = std::fs::remove_file(&script);
+    result
+}
+
+/// The venv: the test suite's if it has `carla`, else one of our own.
+fn venv(bin: &Path) -> anyhow::Result<PathBuf> {
+    let target = bin.parent().context("the target directory")?;
+    for dir in ["simbus-venv", "simbus-bench-venv"] {
+        let python = target.join(dir).join("bin").join("python");
+        let has_carla = Command::new(&python)
+            .args(["-c", "import carla"])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if has_carla {
+            return Ok(python);
+        }
+    }
+    let venv = target.join("simbus-bench-venv");
+    eprintln!("creating {} with {CARLA}", venv.display());
+    let made = Command::new("python3")
+        .arg("-m")
+        .arg("venv")
+        .arg(&venv)
+        .status()?;
+    let python = venv.join("bin").join("python");
+    let installed = made.success()
+        && Command::new(&python)
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+                CARLA,
+            ])
+            .status()?
+            .success();
+    if !installed {
+        bail!("could not install {CARLA} into {}", venv.display());
+    }
+    Ok(python)
+}
+
+/// A free TCP port on loopback.
+fn free_port() -> anyhow::Result<u16> {
+    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// Runs the CARLA side in `mode` and returns its JSON answer; `started`
+/// runs while it works (with a channel that yields its output lines).
+fn carla_side(
+    python: &Path,
+    script: &Path,
+    mode: &str,
+    port: u16,
+    n: usize,
+    started: impl FnOnce(&mpsc::Receiver<String>) -> anyhow::Result<()>,
+) -> anyhow::Result<serde_json::Value> {
+    let mut child = Command::new(python)
+        .arg(script)
+        .args([mode, &port.to_string(), &n.to_string()])
+        .stdout(Stdio::piped())
+        .stdin(Stdio::null())
+        .spawn()
+        .with_context(|| format!("running {}", python.display()))?;
+    let stdout = child.stdout.take().context("the script's output")?;
+    let mut guard = ChildGuard::new(child, Duration::from_secs(2));
+    let (lines, output) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if lines.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    started(&output)?;
+    let mut last = None;
+    while let Ok(line) = output.recv_timeout(Duration::from_secs(600)) {
+        last = Some(line);
+    }
+    let status = guard.wait_timeout(Duration::from_secs(10))?;
+    if !status.is_some_and(|s| s.success()) {
+        bail!("the CARLA client's {mode} run failed (its error is above)");
+    }
+    let last = last.context("the CARLA client printed nothing")?;
+    Ok(serde_json::from_str(&last)?)
+}
+
+fn latencies(answer: &serde_json::Value) -> anyhow::Result<Latencies> {
+    let mut l = Latencies::new();
+    for v in answer["ns"].as_array().context("no samples")? {
+        l.record(v.as_u64().unwrap_or(0));
+    }
+    Ok(l)
+}
+
+fn start_gateway(
+    sim_client: &Path,
+    world: &str,
+    port: u16,
+    streams: u16,
+) -> anyhow::Result<ChildGuard> {
+    let mut child: Child = Command::new(sim_client)
+        .args(["--world", world, "--timeout", "30", "carla-gateway"])
+        .args([
+            "--port",
+            &port.to_string(),
+            "--streaming-port",
+            &streams.to_string(),
+        ])
+        .env("RUST_LOG", "error")
+        .stdout(Stdio::piped())
+        .stdin(Stdio::null())
+        .spawn()
+        .context("starting the gateway")?;
+    let stdout = child.stdout.take().context("the gateway's output")?;
+    let guard = ChildGuard::new(child, Duration::from_secs(2));
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line)?;
+    if !line.starts_with("carla-gateway:") {
+        bail!("the gateway did not start: {line}");
+    }
+    Ok(guard)
+}
+
+fn measure(
+    args: &CarlaArgs,
+    sim_client: &Path,
+    python: &Path,
+    script: &Path,
+) -> anyhow::Result<()> {
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    let server = BenchServer::start("carla", &["--scene", "empty"])?;
+    let (port, streams) = (free_port()?, free_port()?);
+    let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
+    let timeout = Duration::from_secs(30);
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+
+    // Tick round trip: native, then the CARLA client.
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let mut native_tick = Latencies::new();
+    for i in 0..args.ticks + args.ticks / 10 {
+        let start = Instant::now();
+        ticker.tick(timeout)?;
+        if i >= args.ticks / 10 {
+            native_tick.record(start.elapsed().as_nanos() as u64);
+        }
+    }
+    ticker.release()?;
+    let carla_tick = latencies(&carla_side(
+        python,
+        script,
+        "tick",
+        port,
+        args.ticks,
+        |_| Ok(()),
+    )?)?;
+
+    // wait_for_tick: a native ticker steps every 2 ms; a native waiter and
+    // the CARLA client measure publish -> returned for the same frames.
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let world = server.world.clone();
+    let samples = args.ticks;
+    let native_waiter = std::thread::spawn(move || -> anyhow::Result<Latencies> {
+        let mut client = Client::connect(&world, Duration::from_secs(10))?;
+        let mut l = Latencies::new();
+        client.wait_for_tick(Duration::from_secs(30))?;
+        while (l.len() as usize) < samples {
+            let snapshot = client.wait_for_tick(Duration::from_secs(30))?;
+            let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
+            l.record(now_ns().saturating_sub(published));
+        }
+        Ok(l)
+    });
+    let carla_wait = carla_side(python, script, "wait", port, args.ticks, |lines| {
+        // Tick until the client saw a frame and said so, then on.
+        loop {
+            ticker.tick(timeout)?;
+            if lines.try_recv().is_ok_and(|l| l == "ready") {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        for _ in 0..args.ticks + args.ticks / 2 {
+            ticker.tick(timeout)?;
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        Ok(())
+    })?;
+    let carla_wait = latencies(&carla_wait)?;
+    let native_wait = native_waiter
+        .join()
+        .map_err(|_| anyhow::anyhow!("the native waiter panicked"))??;
+
+    // Depth 640x480 through camera.listen vs a native subscriber.
+    let mut sensor =
+        client.spawn_sensor(SensorSpec::depth([0.0, 2.0, 0.0], 640, 480, 90.0, 1000.0))?;
+    for _ in 0..5 {
+        ticker.tick(timeout)?;
+        sensor.recv(timeout)?;
+    }
+    let start = Instant::now();
+    for _ in 0..args.frames {
+        let frame = ticker.tick(timeout)?;
+        let capture = sensor.recv(timeout)?;
+        anyhow::ensure!(
+            capture.header().frame == frame,
+            "a capture of another frame"
+        );
+    }
+    let native_fps = args.frames as f64 / start.elapsed().as_secs_f64();
+    client.destroy_sensor(sensor.id())?;
+    ticker.release()?;
+    let carla_fps = carla_side(python, script, "depth", port, args.frames, |_| Ok(()))?["fps"]
+        .as_f64()
+        .context("no fps")?;
+
+    let p50 = |l: &Latencies| l.quantile_us(0.5);
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "load_before": load.trim(),
+                "tick_round_trip": {"native": native_tick.json(), "carla": carla_tick.json(),
+                    "carla_over_native_p50": p50(&carla_tick) / p50(&native_tick)},
+                "wait_for_tick": {"native": native_wait.json(), "carla": carla_wait.json(),
+                    "carla_over_native_p50": p50(&carla_wait) / p50(&native_wait)},
+                "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
+                    "native_over_carla": native_fps / carla_fps},
+            })
+        );
+        return Ok(());
+    }
+    println!(
+        "CARLA 0.9.16's Python client through the gateway vs the native client, one run (load average before: {})",
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+    );
+    println!("{}", header("what"));
+    println!("{}", native_tick.row("tick round trip, native"));
+    println!("{}", carla_tick.row("tick round trip, CARLA"));
+    println!("{}", native_wait.row("wait_for_tick, native"));
+    println!("{}", carla_wait.row("wait_for_tick, CARLA"));
+    println!(
+        "CARLA/native p50: tick {:.1}x, wait_for_tick {:.1}x",
+        p50(&carla_tick) / p50(&native_tick),
+        p50(&carla_wait) / p50(&native_wait)
+    );
+    println!(
+        "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",
+        native_fps / carla_fps
+    );
+    Ok(())
+}

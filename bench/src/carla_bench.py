@@ -1,0 +1,75 @@
+"""The CARLA side of `simbus-bench carla`: CARLA 0.9.16's own client
+against the gateway. Prints one JSON object on its last line.
+
+    carla_bench.py tick PORT N     world.tick() round trips (this client ticks)
+    carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
+    carla_bench.py depth PORT N    640x480 depth frames through camera.listen
+"""
+
+import json
+import queue
+import sys
+import time
+
+import carla
+
+
+def sync(world, on):
+    settings = world.get_settings()
+    settings.synchronous_mode = on
+    settings.fixed_delta_seconds = 0.01
+    world.apply_settings(settings)
+
+
+def main():
+    mode, port, n = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    client = carla.Client("127.0.0.1", port)
+    client.set_timeout(30.0)
+    world = client.get_world()
+    if mode == "tick":
+        sync(world, True)
+        for _ in range(n // 10):
+            world.tick()
+        samples = []
+        for _ in range(n):
+            start = time.perf_counter_ns()
+            world.tick()
+            samples.append(time.perf_counter_ns() - start)
+        sync(world, False)
+        print(json.dumps({"ns": samples}))
+    elif mode == "wait":
+        world.wait_for_tick(30.0)
+        print("ready", flush=True)
+        samples = []
+        while len(samples) < n:
+            snapshot = world.wait_for_tick(30.0)
+            received = time.time_ns()
+            samples.append(received - int(snapshot.timestamp.platform_timestamp * 1e9))
+        print(json.dumps({"ns": samples}))
+    elif mode == "depth":
+        sync(world, True)
+        blueprint = world.get_blueprint_library().find("sensor.camera.depth")
+        blueprint.set_attribute("image_size_x", "640")
+        blueprint.set_attribute("image_size_y", "480")
+        camera = world.spawn_actor(blueprint, carla.Transform(carla.Location(z=2.0)))
+        images = queue.Queue()
+        camera.listen(images.put)
+        for _ in range(5):
+            frame = world.tick()
+            assert images.get(timeout=30).frame == frame
+        start = time.perf_counter()
+        for _ in range(n):
+            frame = world.tick()
+            image = images.get(timeout=30)
+            assert image.frame == frame and len(image.raw_data) == 640 * 480 * 4
+        elapsed = time.perf_counter() - start
+        camera.stop()
+        camera.destroy()
+        sync(world, False)
+        print(json.dumps({"fps": n / elapsed}))
+    else:
+        raise SystemExit(f"unknown mode {mode}")
+
+
+if __name__ == "__main__":
+    main()

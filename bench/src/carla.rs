@@ -147,9 +147,9 @@ fn carla_side(
     Ok(serde_json::from_str(&last)?)
 }
 
-fn latencies(answer: &serde_json::Value) -> anyhow::Result<Latencies> {
+fn latencies(answer: &serde_json::Value, key: &str) -> anyhow::Result<Latencies> {
     let mut l = Latencies::new();
-    for v in answer["ns"].as_array().context("no samples")? {
+    for v in answer[key].as_array().context("no samples")? {
         l.record(v.as_u64().unwrap_or(0));
     }
     Ok(l)
@@ -208,14 +208,9 @@ fn measure(
         }
     }
     ticker.release()?;
-    let carla_tick = latencies(&carla_side(
-        python,
-        script,
-        "tick",
-        port,
-        args.ticks,
-        |_| Ok(()),
-    )?)?;
+    let answer = carla_side(python, script, "tick", port, args.ticks, |_| Ok(()))?;
+    let carla_tick = latencies(&answer, "ns")?;
+    let carla_rpc = latencies(&answer, "floor_ns")?;
 
     // wait_for_tick: a native ticker steps every 2 ms; a native waiter and
     // the CARLA client measure publish -> returned for the same frames.
@@ -248,7 +243,7 @@ fn measure(
         }
         Ok(())
     })?;
-    let carla_wait = latencies(&carla_wait)?;
+    let carla_wait = latencies(&carla_wait, "ns")?;
     let native_wait = native_waiter
         .join()
         .map_err(|_| anyhow::anyhow!("the native waiter panicked"))??;
@@ -283,7 +278,9 @@ fn measure(
             serde_json::json!({
                 "load_before": load.trim(),
                 "tick_round_trip": {"native": native_tick.json(), "carla": carla_tick.json(),
-                    "carla_over_native_p50": p50(&carla_tick) / p50(&native_tick)},
+                    "carla_over_native_p50": p50(&carla_tick) / p50(&native_tick),
+                    "carla_version_rpc": carla_rpc.json(),
+                    "carla_over_version_rpc_p50": p50(&carla_tick) / p50(&carla_rpc)},
                 "wait_for_tick": {"native": native_wait.json(), "carla": carla_wait.json(),
                     "carla_over_native_p50": p50(&carla_wait) / p50(&native_wait)},
                 "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
@@ -299,12 +296,14 @@ fn measure(
     println!("{}", header("what"));
     println!("{}", native_tick.row("tick round trip, native"));
     println!("{}", carla_tick.row("tick round trip, CARLA"));
+    println!("{}", carla_rpc.row("version RPC, CARLA (floor)"));
     println!("{}", native_wait.row("wait_for_tick, native"));
     println!("{}", carla_wait.row("wait_for_tick, CARLA"));
     println!(
-        "CARLA/native p50: tick {:.1}x, wait_for_tick {:.1}x",
+        "CARLA/native p50: tick {:.1}x, wait_for_tick {:.1}x; CARLA tick / CARLA's bare RPC: {:.2}x",
         p50(&carla_tick) / p50(&native_tick),
-        p50(&carla_wait) / p50(&native_wait)
+        p50(&carla_wait) / p50(&native_wait),
+        p50(&carla_tick) / p50(&carla_rpc)
     );
     println!(
         "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",

@@ -1,7 +1,8 @@
 """The CARLA side of `simbus-bench carla`: CARLA 0.9.16's own client
 against the gateway. Prints one JSON object on its last line.
 
-    carla_bench.py tick PORT N     world.tick() round trips (this client ticks)
+    carla_bench.py tick PORT N     world.tick() round trips (this client ticks),
+                                   and get_server_version() (no simbus) as the floor
     carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
     carla_bench.py depth PORT N    640x480 depth frames through camera.listen
 """
@@ -27,6 +28,12 @@ def main():
     client.set_timeout(30.0)
     world = client.get_world()
     if mode == "tick":
+        # The floor: a call the gateway answers without simbus.
+        floor = []
+        for _ in range(n):
+            start = time.perf_counter_ns()
+            client.get_server_version()
+            floor.append(time.perf_counter_ns() - start)
         sync(world, True)
         for _ in range(n // 10):
             world.tick()
@@ -36,7 +43,7 @@ def main():
             world.tick()
             samples.append(time.perf_counter_ns() - start)
         sync(world, False)
-        print(json.dumps({"ns": samples}))
+        print(json.dumps({"ns": samples, "floor_ns": floor}))
     elif mode == "wait":
         world.wait_for_tick(30.0)
         print("ready", flush=True)

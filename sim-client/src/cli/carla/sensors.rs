@@ -74,9 +74,12 @@ fn forward(
 ) {
     let opened = Client::connect(world, Duration::from_secs(5))
         .map_err(|e| e.to_string())
-        .and_then(|client| client.sensor(simbus_id).map_err(|e| e.to_string()));
-    let mut sensor = match opened {
-        Ok(sensor) => sensor,
+        .and_then(|client| {
+            let sensor = client.sensor(simbus_id).map_err(|e| e.to_string())?;
+            Ok((client.server_pid(), sensor))
+        });
+    let (server_pid, mut sensor) = match opened {
+        Ok(opened) => opened,
         Err(e) => {
             let _ = ready.send(Err(format!("simbus: sensor {simbus_id}: {e}")));
             return;
@@ -88,7 +91,7 @@ fn forward(
         match sensor.recv(Duration::from_millis(500)) {
             Ok(capture) => {
                 let h = capture.header();
-                hub.after_world_state(h.episode, h.frame, Duration::from_millis(200));
+                hub.after_world_state(server_pid, h.episode, h.frame, Duration::from_millis(200));
                 if let Some(message) = message(&capture, &spec) {
                     hub.send(stream, &message);
                 }

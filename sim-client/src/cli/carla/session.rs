@@ -652,6 +652,8 @@ impl Session {
                 .claim_ticker_as(&name)
                 .map_err(|e| format!("simbus: {e}"))?;
             info!(peer = %self.peer, "a CARLA connection is the ticker");
+            let mut ticker = ticker;
+            ticker.set_wait_mode(shared_types::WaitMode::Hybrid);
             self.ticker = Some(ticker);
         }
         let applied = match &mut self.ticker {
@@ -677,6 +679,7 @@ impl Session {
             let frame = ticker
                 .tick(self.timeout)
                 .map_err(|e| format!("simbus: {e}"))?;
+            self.publish(frame);
             return Ok(Answer::Value(Value::from(frame)));
         }
         let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
@@ -690,11 +693,30 @@ impl Session {
             .client()?
             .claim_ticker_as(&name)
             .map_err(|e| format!("simbus: {e}"))?;
+        ticker.set_wait_mode(shared_types::WaitMode::Hybrid);
         let frame = ticker
             .tick(self.timeout)
             .map_err(|e| format!("simbus: {e}"))?;
         self.ticker = Some(ticker);
+        self.publish(frame);
         Ok(Answer::Value(Value::from(frame)))
+    }
+
+    /// Sends the world state of `frame`, just stepped, to the CARLA clients
+    /// now (the pump would send it after its own wake-up).
+    fn publish(&mut self, frame: u64) {
+        let Some(client) = self.client.as_mut() else {
+            return;
+        };
+        let pid = client.server_pid();
+        // The frame is in shared memory already: older queued ones are
+        // skipped without waiting.
+        while let Ok(view) = client.wait_for_frame(Duration::from_millis(5)) {
+            if view.frame() >= frame {
+                super::stream::publish(&self.hub, &view, pid);
+                return;
+            }
+        }
     }
 }
 

@@ -88,8 +88,8 @@ pub(crate) struct Hub {
     /// The actors of the last frame.
     pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
     pub(crate) registry: Mutex<Registry>,
-    /// (episode, frame) of the last world state sent, for the forwarders.
-    sent: Mutex<(u64, u64)>,
+    /// (server pid, episode, frame) of the last world state sent.
+    sent: Mutex<(u32, u64, u64)>,
     sent_changed: Condvar,
 }
 
@@ -124,11 +124,19 @@ impl Hub {
     /// state: CARLA's client may hold Python's GIL until it sees the frame
     /// (`apply_batch_sync(..., True)`), and a sensor callback arriving first
     /// would block the thread that must read it.
-    pub(crate) fn after_world_state(&self, episode: u64, frame: u64, timeout: Duration) {
+    pub(crate) fn after_world_state(
+        &self,
+        server_pid: u32,
+        episode: u64,
+        frame: u64,
+        timeout: Duration,
+    ) {
         let sent = lock(&self.sent);
         let _ = self
             .sent_changed
-            .wait_timeout_while(sent, timeout, |&mut (e, f)| e == episode && f < frame);
+            .wait_timeout_while(sent, timeout, |&mut (p, e, f)| {
+                p == server_pid && e == episode && f < frame
+            });
     }
 
     /// Whether a forwarder of `stream` may stop: nobody reads or is about
@@ -313,8 +321,16 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
     }
 }
 
-fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
+/// Sends the world state of `frame` (of the server `server_pid`) unless a
+/// newer one went out: the pump sends every frame, and a CARLA ticker's
+/// session sends the frame it stepped at once, saving the pump's wake-up.
+pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     let episode = frame.episode();
+    let mut sent = lock(&hub.sent);
+    let (p, e, f) = *sent;
+    if p == server_pid && e == episode && f >= frame.frame() {
+        return;
+    }
     let message = {
         let mut registry = lock(&hub.registry);
         if hub.last_episode.swap(episode, Ordering::Relaxed) != episode {
@@ -349,6 +365,7 @@ fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     *lock(&hub.actors) = actors;
     hub.last_frame.store(frame.frame(), Ordering::Relaxed);
     hub.send(carla::WORLD_STREAM_ID, &message);
-    *lock(&hub.sent) = (episode, frame.frame());
+    *sent = (server_pid, episode, frame.frame());
+    drop(sent);
     hub.sent_changed.notify_all();
 }

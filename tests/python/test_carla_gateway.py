@@ -26,6 +26,14 @@ def test_version_world_and_settings(gateway):
     assert settings.synchronous_mode is False
     assert settings.fixed_delta_seconds is None
     assert "default" in client.get_available_maps()
+    # The fields simbus does not have are accepted and read back as set.
+    settings.no_rendering_mode = True
+    settings.tile_stream_distance = 500.0
+    settings.spectator_as_ego = True
+    world.apply_settings(settings)
+    back = world.get_settings()
+    assert (back.no_rendering_mode, back.tile_stream_distance, back.spectator_as_ego) == (True, 500.0, True)
+    assert back.synchronous_mode is False and back.fixed_delta_seconds is None
 
 
 def test_seed_variable_fixed_and_substepping_settings(gateway):

@@ -175,7 +175,8 @@ impl Session {
             }
             "get_episode_settings" => {
                 let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
-                value(episode_settings(&settings))
+                let other = lock(&self.hub.other_settings).clone();
+                value(episode_settings(&settings, &other))
             }
             "set_episode_settings" => self.set_settings(args),
             "tick_cue" => self.tick(),
@@ -289,6 +290,9 @@ impl Session {
                     client.load_world(&scene, reset)
                 };
                 loaded.map_err(|e| format!("simbus: {e}"))?;
+                if reset {
+                    *lock(&self.hub.other_settings) = default_other_fields();
+                }
                 Ok(Answer::Done)
             }
             "start_recorder"
@@ -667,6 +671,9 @@ impl Session {
                 info!(peer = %self.peer, "the CARLA ticker left synchronous mode");
             }
         }
+        if let Some(other) = other_fields(args.first()) {
+            *lock(&self.hub.other_settings) = other;
+        }
         // The frame the settings hold from; the client waits for the one before.
         Ok(Answer::Value(Value::from(frame.saturating_sub(1))))
     }
@@ -774,26 +781,61 @@ fn arg_str(args: &[Value], i: usize, method: &str) -> Result<String, Failed> {
         .ok_or_else(|| format!("{method}: argument {i} is not a string"))
 }
 
-/// simbus settings as CARLA's `EpisodeSettings` (11 fields; the ones simbus
-/// does not have take CARLA's defaults).
-fn episode_settings(s: &WorldSettings) -> Value {
-    let fixed = match s.fixed_delta_seconds {
-        Some(dt) => Value::Array(vec![Value::Boolean(true), Value::F64(dt)]),
-        None => Value::Array(vec![Value::Boolean(false)]),
-    };
-    Value::Array(vec![
-        Value::Boolean(s.synchronous_mode),
+/// The positions in CARLA's `EpisodeSettings` of the fields simbus does not
+/// have (rendering, culling, ragdolls, large-map distances, spectator as
+/// ego), and CARLA's defaults for them.
+const OTHER_FIELDS: [usize; 6] = [1, 6, 7, 8, 9, 10];
+
+/// CARLA's defaults of [`OTHER_FIELDS`].
+pub(crate) fn default_other_fields() -> Vec<Value> {
+    vec![
         Value::Boolean(false),
-        fixed,
-        Value::Boolean(s.substepping),
-        Value::F64(s.max_substep_delta_time),
-        Value::from(s.max_substeps),
         Value::F32(0.0),
         Value::Boolean(true),
         Value::F32(3000.0),
         Value::F32(2000.0),
         Value::Boolean(false),
-    ])
+    ]
+}
+
+/// The [`OTHER_FIELDS`] of CARLA settings, if each has its default's type.
+fn other_fields(value: Option<&Value>) -> Option<Vec<Value>> {
+    let fields = value?.as_array()?;
+    OTHER_FIELDS
+        .iter()
+        .zip(default_other_fields())
+        .map(|(&i, default)| {
+            let v = fields.get(i)?;
+            let same = match default {
+                Value::Boolean(_) => v.is_bool(),
+                _ => v.as_f64().is_some() || v.as_i64().is_some(),
+            };
+            same.then(|| v.clone())
+        })
+        .collect()
+}
+
+/// simbus settings as CARLA's `EpisodeSettings` (11 fields; `other` holds
+/// the ones simbus does not have, as a script last set them).
+fn episode_settings(s: &WorldSettings, other: &[Value]) -> Value {
+    let fixed = match s.fixed_delta_seconds {
+        Some(dt) => Value::Array(vec![Value::Boolean(true), Value::F64(dt)]),
+        None => Value::Array(vec![Value::Boolean(false)]),
+    };
+    let mut fields = vec![
+        Value::Boolean(s.synchronous_mode),
+        Value::Nil,
+        fixed,
+        Value::Boolean(s.substepping),
+        Value::F64(s.max_substep_delta_time),
+        Value::from(s.max_substeps),
+    ];
+    fields.resize(11, Value::Nil);
+    let defaults = default_other_fields();
+    for (k, &i) in OTHER_FIELDS.iter().enumerate() {
+        fields[i] = other.get(k).unwrap_or(&defaults[k]).clone();
+    }
+    Value::Array(fields)
 }
 
 /// CARLA's `EpisodeSettings` as simbus settings (the fields simbus does not
@@ -828,12 +870,19 @@ mod tests {
             max_substep_delta_time: 0.01,
             max_substeps: 10,
         };
-        assert_eq!(parse_settings(Some(&episode_settings(&s))), Some(s));
+        assert_eq!(parse_settings(Some(&episode_settings(&s, &[]))), Some(s));
         let variable = WorldSettings::default();
         assert_eq!(
-            parse_settings(Some(&episode_settings(&variable))),
+            parse_settings(Some(&episode_settings(&variable, &[]))),
             Some(variable)
         );
+        // The fields simbus does not have come back as they were set.
+        let mut other = default_other_fields();
+        other[0] = Value::Boolean(true);
+        other[3] = Value::F32(500.0);
+        let carla = episode_settings(&s, &other);
+        assert_eq!(other_fields(Some(&carla)), Some(other));
+        assert_eq!(other_fields(Some(&Value::from(3))), None);
         assert_eq!(parse_settings(Some(&Value::from("nonsense"))), None);
     }
 }

@@ -78,8 +78,9 @@ impl Stream {
     }
 }
 
-/// The streams and who reads them.
-#[derive(Debug, Default)]
+/// The streams and who reads them, and what the gateway keeps for CARLA
+/// clients about the world.
+#[derive(Debug)]
 pub(crate) struct Hub {
     streams: Mutex<HashMap<u32, Stream>>,
     /// (episode, frame) of the last world state sent.
@@ -91,6 +92,23 @@ pub(crate) struct Hub {
     /// (server pid, episode, frame) of the last world state sent.
     sent: Mutex<(u32, u64, u64)>,
     sent_changed: Condvar,
+    /// The `EpisodeSettings` fields simbus does not have, as last set.
+    pub(crate) other_settings: Mutex<Vec<Value>>,
+}
+
+impl Default for Hub {
+    fn default() -> Self {
+        Self {
+            streams: Mutex::default(),
+            last_frame: AtomicU64::default(),
+            last_episode: AtomicU64::default(),
+            actors: Mutex::default(),
+            registry: Mutex::default(),
+            sent: Mutex::default(),
+            sent_changed: Condvar::default(),
+            other_settings: Mutex::new(super::session::default_other_fields()),
+        }
+    }
 }
 
 /// Locks `m`, even if a thread panicked holding it.

@@ -193,16 +193,7 @@ fn quaternion(yaw: f32, pitch: f32, roll: f32) -> [f32; 4] {
     let (sp, cp) = half(pitch);
     let (sr, cr) = half(roll);
     // q = q_yaw(Y) * q_pitch(Z) * q_roll(X)
-    let mul = |a: [f32; 4], b: [f32; 4]| {
-        let [ax, ay, az, aw] = a;
-        let [bx, by, bz, bw] = b;
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ]
-    };
+    let mul = super::carla::convert::multiply;
     mul(
         mul([0.0, sy, 0.0, cy], [0.0, 0.0, sp, cp]),
         [sr, 0.0, 0.0, cr],

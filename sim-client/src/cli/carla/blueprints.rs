@@ -219,8 +219,8 @@ pub(crate) enum Spawn {
 pub(crate) struct Description {
     pub(crate) id: String,
     values: HashMap<String, String>,
-    /// The description as it came, for the actor's record.
-    pub(crate) raw: Value,
+    /// The description as it came.
+    raw: Value,
 }
 
 impl Description {
@@ -271,12 +271,20 @@ impl Description {
         })
     }
 
-    /// The blueprint's uid.
-    pub(crate) fn uid(&self) -> u32 {
-        LIBRARY
+    /// The description as an actor's record carries it: as it came, with
+    /// the blueprint's uid (a body's uid is its simbus kind).
+    pub(crate) fn record(&self) -> Value {
+        let uid = LIBRARY
             .iter()
             .find(|bp| bp.id == self.id)
-            .map_or(0, |bp| bp.uid)
+            .map_or(0, |bp| bp.uid);
+        let mut record = self.raw.clone();
+        if let Value::Array(fields) = &mut record {
+            if let Some(first) = fields.first_mut() {
+                *first = Value::from(uid);
+            }
+        }
+        record
     }
 
     fn number(&self, name: &str) -> Result<f32, String> {

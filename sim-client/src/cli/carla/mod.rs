@@ -10,7 +10,7 @@
 
 mod blueprints;
 mod commands;
-mod convert;
+pub(super) mod convert;
 mod rpc;
 mod sensors;
 mod session;

@@ -402,20 +402,16 @@ impl Session {
                     SensorEntry {
                         simbus_id: info.id,
                         spec,
-                        description: description.raw.clone(),
+                        description: description.record(),
                         parent,
                     },
                 );
                 return Ok(id);
             }
         };
-        let mut raw = description.raw.clone();
-        if let Value::Array(fields) = &mut raw {
-            if let Some(uid) = fields.first_mut() {
-                *uid = Value::from(description.uid());
-            }
-        }
-        lock(&self.hub.registry).descriptions.insert(id, raw);
+        lock(&self.hub.registry)
+            .descriptions
+            .insert(id, description.record());
         Ok(id)
     }
 
@@ -513,13 +509,9 @@ impl Session {
         }
         for (i, then, description) in after {
             if let Ok(id) = results[i] {
-                let mut raw = description.raw.clone();
-                if let Value::Array(fields) = &mut raw {
-                    if let Some(uid) = fields.first_mut() {
-                        *uid = Value::from(description.uid());
-                    }
-                }
-                lock(&self.hub.registry).descriptions.insert(id, raw);
+                lock(&self.hub.registry)
+                    .descriptions
+                    .insert(id, description.record());
                 self.then(id, &then);
             }
         }

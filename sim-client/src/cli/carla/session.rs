@@ -437,11 +437,13 @@ impl Session {
                     Some(shared_types::CommandStatus::Ok) => u32::try_from(r.actor).map_err(|_| {
                         format!("simbus: actor id {} is out of CARLA's range", r.actor)
                     }),
-                    status => Err(format!(
-                        "simbus: actor {}: {}",
-                        c.actor,
-                        status.unwrap_or(shared_types::CommandStatus::UnknownCommand)
-                    )),
+                    status => {
+                        let status = status.unwrap_or(shared_types::CommandStatus::UnknownCommand);
+                        Err(match c.actor {
+                            0 => format!("simbus: spawn refused: {status}"),
+                            actor => format!("simbus: actor {actor}: {status}"),
+                        })
+                    }
                 },
             )
             .collect())

@@ -69,6 +69,16 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
         ticker.release()?;
     }
 
+    // The reference: claiming a free world (the new ticker's own setup:
+    // its node, ports and the claim round trip).
+    let mut free_claim = Latencies::new();
+    for _ in 0..args.trials {
+        let started = Instant::now();
+        let ticker = client.claim_ticker()?;
+        free_claim.record(started.elapsed().as_nanos() as u64);
+        ticker.release()?;
+    }
+
     if args.json {
         println!(
             "{}",
@@ -76,6 +86,7 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
                 "trials": args.trials,
                 "server_notices_dead_ticker": noticed.json(),
                 "new_ticker_claims": replaced.json(),
+                "claim_of_a_free_world": free_claim.json(),
             })
         );
         return Ok(());
@@ -87,5 +98,6 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
     println!("{:<28} {:>10} {:>10}", "after the kill", "p50 ms", "max ms");
     println!("{}", noticed.row_ms("server notices (status)"));
     println!("{}", replaced.row_ms("a new ticker holds it"));
+    println!("{}", free_claim.row_ms("(claim of a free world)"));
     Ok(())
 }

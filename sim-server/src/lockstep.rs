@@ -179,6 +179,11 @@ impl Lockstep {
         self.told = false;
     }
 
+    /// The participants' processes.
+    pub fn pids(&self) -> Vec<u32> {
+        self.participants.list.iter().map(|p| p.pid).collect()
+    }
+
     /// Drops the participants whose process died (by `sweep`).
     pub fn drop_dead(&mut self, sweep: &LiveProcesses, frame: u64) {
         for dead in self.participants.drop_dead(|pid| sweep.alive(pid)) {

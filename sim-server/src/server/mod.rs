@@ -24,7 +24,7 @@ use crate::batches::Batches;
 use crate::clock::{Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
-use crate::liveness::LiveProcesses;
+use crate::liveness::{LiveProcesses, PidWatch};
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
 use crate::recorder::{Recorder, RecorderPort};
@@ -66,6 +66,10 @@ const CONNECTION_PERIOD: Duration = Duration::from_millis(10);
 /// How often the server checks that the ticker and the lockstep
 /// participants still live (one node list for all of them).
 const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+/// How soon after a ticker's death its port is cleaned up.
+const SOON: Duration = Duration::from_millis(20);
+/// The least time between two pidfd probes of the watched processes.
+const PROBE_SPACING: Duration = Duration::from_millis(1);
 
 /// A running world: the control domain, which the loop sleeps on, and
 /// every other domain.
@@ -92,6 +96,8 @@ pub(crate) struct Domains {
     pub(crate) recorder: Recorder,
     pub(crate) replayer: Replayer,
     timers: Timers,
+    /// Fast death notice of the ticker and the lockstep participants.
+    pidwatch: PidWatch,
 }
 
 /// When the periodic chores last ran.
@@ -100,6 +106,7 @@ struct Timers {
     cleanup: Instant,
     liveness: Instant,
     connections: Instant,
+    probe: Instant,
 }
 
 /// Wall-clock seconds since the Unix epoch, as frames and captures carry it.
@@ -146,7 +153,9 @@ impl Server {
                 cleanup: now,
                 liveness: now,
                 connections: now,
+                probe: now,
             },
+            pidwatch: PidWatch::default(),
             config,
         };
         let mut domains = domains;
@@ -230,7 +239,7 @@ impl Server {
                 if polling {
                     std::hint::spin_loop();
                 } else {
-                    self.control.idle(MAX_IDLE_WAIT)?;
+                    self.control.idle(d.idle_limit(MAX_IDLE_WAIT))?;
                 }
                 continue;
             }
@@ -242,7 +251,7 @@ impl Server {
                     .next_frame_at(&d.clock, &d.runtime.settings, now),
             };
             match due {
-                Some(at) if at > now => self.control.idle((at - now).min(MAX_IDLE_WAIT))?,
+                Some(at) if at > now => self.control.idle(d.idle_limit(at - now))?,
                 // Asynchronous: a tick just waits for the next frame.
                 _ => {
                     if d.ticker.has_pending() {
@@ -419,6 +428,17 @@ impl Domains {
         self.frames.notify()
     }
 
+    /// How long the loop may sleep (at most `wanted`): while processes are
+    /// watched, short enough to probe them every [`PidWatch::PROBE_PERIOD`].
+    fn idle_limit(&self, wanted: Duration) -> Duration {
+        let limit = if self.pidwatch.is_idle() {
+            MAX_IDLE_WAIT
+        } else {
+            PidWatch::PROBE_PERIOD
+        };
+        wanted.min(limit)
+    }
+
     /// Every 10 ms: connect new subscribers. Every 100 ms: do the ticker and
     /// the participants live (one node list for all)? Once a second: remove
     /// what dead clients left in the services.
@@ -427,18 +447,37 @@ impl Domains {
             self.timers.connections = Instant::now();
             self.frames.connect_new_subscribers();
         }
+        // The processes the world waits on: a pidfd probe at most every
+        // millisecond (the loop may spin), a node-list sweep when one
+        // exited, and every 100 ms anyway.
+        let mut exited = false;
+        if self.timers.probe.elapsed() >= PROBE_SPACING {
+            self.timers.probe = Instant::now();
+            let watched: Vec<u32> = self
+                .ticker
+                .owner_pid()
+                .into_iter()
+                .chain(self.lockstep.pids())
+                .collect();
+            self.pidwatch.watch(&watched);
+            exited = !self.pidwatch.exited().is_empty();
+        }
         if (self.ticker.owner_pid().is_some() || !self.lockstep.is_empty())
-            && self.timers.liveness.elapsed() >= LIVENESS_PERIOD
+            && (exited || self.timers.liveness.elapsed() >= LIVENESS_PERIOD)
         {
             self.timers.liveness = Instant::now();
             let sweep = LiveProcesses::now();
-            self.ticker.drop_if_dead(
+            let dropped = self.ticker.drop_if_dead(
                 &sweep,
                 &mut self.runtime,
                 self.config.on_ticker_loss,
-                &self.transport,
                 &self.clock,
             );
+            if dropped {
+                // Free the dead ticker's port soon, not before the requests
+                // already waiting (a new ticker's claim) are answered.
+                self.timers.cleanup = Instant::now() - CLEANUP_PERIOD + SOON;
+            }
             self.lockstep.drop_dead(&sweep, self.clock.frame());
         }
         if self.timers.cleanup.elapsed() < CLEANUP_PERIOD {

@@ -57,14 +57,16 @@ pub struct Ticker {
 }
 
 impl Ticker {
-    /// Opens the tick service, admitting one client.
+    /// Opens the tick service.
     pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.tick)?)
             .request_response::<TickRequest, TickResponse>()
             .max_servers(1)
-            .max_clients(1)
+            // Two: a new ticker connects while a dead one's port waits for
+            // cleanup (ownership, not the port count, admits one ticker).
+            .max_clients(2)
             .max_nodes(limits.nodes())
             .max_active_requests_per_client(4)
             .max_response_buffer_size(4)
@@ -303,21 +305,19 @@ impl Ticker {
     }
 
     /// Drops a ticker whose process died (by `sweep`), applying `policy`;
-    /// returns whether it did.
+    /// returns whether it did (its port is freed by the next cleanup, which
+    /// takes ~15 ms: after the claims and status requests already waiting).
     pub fn drop_if_dead(
         &mut self,
         sweep: &LiveProcesses,
         runtime: &mut Runtime,
         policy: OnTickerLoss,
-        transport: &Transport,
         clock: &Clock,
     ) -> bool {
         let Some(lost) = self.ownership.take_if_dead(|pid| sweep.alive(pid)) else {
             return false;
         };
         self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
-        // Frees the dead ticker's port, so a new ticker can claim.
-        transport.node.try_cleanup_dead_nodes();
         let frame = clock.frame();
         match (runtime.settings.synchronous_mode, policy) {
             (true, OnTickerLoss::Async) => {

@@ -19,6 +19,7 @@ mod carla;
 mod commands;
 mod failover;
 mod frames;
+mod futex;
 mod recorder;
 mod sensors;
 mod stats;

@@ -49,7 +49,7 @@ pub(crate) struct PeerArgs {
 
 const WARMUP_FRACTION: u64 = 10;
 
-fn measure(
+pub(crate) fn measure(
     iterations: u64,
     mut round_trip: impl FnMut() -> anyhow::Result<()>,
 ) -> anyhow::Result<Latencies> {
@@ -156,6 +156,7 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
     match args.kind.as_str() {
         "participant" => crate::commands::participant(&args.name),
         "tcp-blob" => crate::sensors::tcp_blob_peer(),
+        "futex" => crate::futex::peer(&args.name),
         "ticker" => {
             let client = Client::connect(&args.name, Duration::from_secs(10))?;
             let mut ticker = client.claim_ticker_as("bench-ticker")?;
@@ -279,6 +280,7 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let rows = [
         ("(a) raw iceoryx2, spin", raw_ping_pong(false, n)?),
         ("(a) raw iceoryx2, block", raw_ping_pong(true, n)?),
+        ("(f) futex, block (floor)", crate::futex::ping_pong(n)?),
         (
             "(b) simbus, all spin",
             simbus_round_trip(&["--wait-mode", "spin"], WaitMode::Spin, n)?,
@@ -295,11 +297,14 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     ];
     let p50 = |i: usize| rows[i].1.quantile_us(0.5);
     let ratios = [
-        ("b/a simbus all spin / raw spin", p50(2) / p50(0)),
-        ("b/a simbus block / raw block", p50(4) / p50(1)),
-        ("c/b TCP / simbus all spin", p50(5) / p50(2)),
-        ("c/b TCP / simbus hybrid", p50(5) / p50(3)),
-        ("c/b TCP / simbus block", p50(5) / p50(4)),
+        ("b/a simbus all spin / raw spin", p50(3) / p50(0)),
+        ("b/a simbus block / raw block", p50(5) / p50(1)),
+        ("b/f simbus block / futex floor", p50(5) / p50(2)),
+        ("b/f simbus hybrid / futex floor", p50(4) / p50(2)),
+        ("a/f raw iceoryx2 block / futex", p50(1) / p50(2)),
+        ("c/b TCP / simbus all spin", p50(6) / p50(3)),
+        ("c/b TCP / simbus hybrid", p50(6) / p50(4)),
+        ("c/b TCP / simbus block", p50(6) / p50(5)),
     ];
     if args.json {
         let mut json = serde_json::Map::new();
@@ -315,7 +320,8 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
     println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
-    println!("block: server and clients --wait-mode block (every hop a kernel wake-up)");
+    println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");
+    println!("futex: two processes sleeping in futex(2) on a shared page (the blocking floor)");
     println!("{}", header("exchange"));
     for (name, latencies) in &rows {
         println!("{}", latencies.row(name));

@@ -86,7 +86,14 @@ impl Control {
             std::thread::sleep(timeout);
             return Ok(());
         }
-        match self.wake.timed_wait(|_| {}, timeout - COARSE_WAIT) {
+        self.wait_for_request(timeout - COARSE_WAIT)
+    }
+
+    /// Sleeps until a client announces a request, or about `timeout` passed
+    /// (as coarse as the event's timeouts: for waits that need no precise
+    /// end, such as a synchronous world waiting for its tick).
+    pub fn wait_for_request(&self, timeout: Duration) -> Result<(), ServerError> {
+        match self.wake.timed_wait(|_| {}, timeout) {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
             Err(e) => Err(ServerError::transport("control wake-up wait", e)),

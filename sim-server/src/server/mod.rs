@@ -239,7 +239,7 @@ impl Server {
                 if polling {
                     std::hint::spin_loop();
                 } else {
-                    self.control.idle(d.idle_limit(MAX_IDLE_WAIT))?;
+                    self.control.wait_for_request(d.idle_limit(MAX_IDLE_WAIT))?;
                 }
                 continue;
             }
@@ -251,7 +251,16 @@ impl Server {
                     .next_frame_at(&d.clock, &d.runtime.settings, now),
             };
             match due {
-                Some(at) if at > now => self.control.idle(d.idle_limit(at - now))?,
+                Some(at) if at > now => {
+                    let until = at - now;
+                    let limit = d.idle_limit(until);
+                    if limit < until {
+                        // Woken by requests; probes its watch on the way.
+                        self.control.wait_for_request(limit)?;
+                    } else {
+                        self.control.idle(until)?;
+                    }
+                }
                 // Asynchronous: a tick just waits for the next frame.
                 _ => {
                     if d.ticker.has_pending() {

@@ -1,0 +1,134 @@
+//! The blocking floor: two processes ping-pong a counter through two words
+//! on a shared page, each sleeping in `futex(FUTEX_WAIT)` until the other
+//! wakes it — one kernel wake-up per hop and nothing else, the least a
+//! blocking exchange between processes can cost.
+
+use std::fs::OpenOptions;
+use std::path::Path;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use crate::stats::Latencies;
+use crate::tick::{measure, spawn_peer};
+
+/// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
+struct SharedWords {
+    base: *mut AtomicU32,
+}
+
+impl SharedWords {
+    const LEN: usize = 4096;
+
+    /// Maps `path` (created and sized if needed).
+    fn map(path: &Path) -> anyhow::Result<Self> {
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)?;
+        file.set_len(Self::LEN as u64)?;
+        // SAFETY: maps LEN bytes of a file we opened read-write, shared;
+        // the result is checked before use and unmapped on drop.
+        let base = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                Self::LEN,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_SHARED,
+                std::os::fd::AsRawFd::as_raw_fd(&file),
+                0,
+            )
+        };
+        anyhow::ensure!(
+            base != libc::MAP_FAILED,
+            "mmap: {}",
+            std::io::Error::last_os_error()
+        );
+        Ok(Self { base: base.cast() })
+    }
+
+    fn word(&self, i: usize) -> &AtomicU32 {
+        // SAFETY: the page holds 1024 aligned u32 words and lives as long as
+        // `self`; AtomicU32 has u32's layout.
+        unsafe { &*self.base.add(i) }
+    }
+
+    fn ping(&self) -> &AtomicU32 {
+        self.word(0)
+    }
+
+    fn pong(&self) -> &AtomicU32 {
+        self.word(16)
+    }
+}
+
+impl Drop for SharedWords {
+    fn drop(&mut self) {
+        // SAFETY: unmaps exactly the mapping made in `map`.
+        unsafe {
+            libc::munmap(self.base.cast(), Self::LEN);
+        }
+    }
+}
+
+/// Sleeps until `word` no longer holds `old`.
+fn wait(word: &AtomicU32, old: u32) {
+    while word.load(Ordering::Acquire) == old {
+        // SAFETY: FUTEX_WAIT on a valid, aligned, mapped word; it returns at
+        // once if the word changed, and spurious wake-ups loop.
+        unsafe {
+            libc::syscall(
+                libc::SYS_futex,
+                word.as_ptr(),
+                libc::FUTEX_WAIT,
+                old,
+                std::ptr::null::<libc::timespec>(),
+            );
+        }
+    }
+}
+
+/// Stores `value` into `word` and wakes its sleeper.
+fn post(word: &AtomicU32, value: u32) {
+    word.store(value, Ordering::Release);
+    // SAFETY: FUTEX_WAKE of one waiter on a valid, aligned, mapped word.
+    unsafe {
+        libc::syscall(libc::SYS_futex, word.as_ptr(), libc::FUTEX_WAKE, 1);
+    }
+}
+
+/// The peer's side: answers every ping with a pong, until it is killed.
+pub(crate) fn peer(path: &str) -> anyhow::Result<()> {
+    let words = SharedWords::map(Path::new(path))?;
+    println!("ready");
+    let mut last = words.ping().load(Ordering::Acquire);
+    loop {
+        wait(words.ping(), last);
+        last = words.ping().load(Ordering::Acquire);
+        post(words.pong(), last);
+    }
+}
+
+/// The floor row: `iterations` futex round trips between two processes.
+pub(crate) fn ping_pong(iterations: u64) -> anyhow::Result<Latencies> {
+    let path = std::env::temp_dir().join(format!("simbus-bench-futex-{}", std::process::id()));
+    let words = SharedWords::map(&path)?;
+    words.ping().store(0, Ordering::Release);
+    words.pong().store(0, Ordering::Release);
+    let (peer, ready) = spawn_peer("futex", &path.to_string_lossy())?;
+    let _ = std::fs::remove_file(&path);
+    anyhow::ensure!(ready == "ready", "the futex peer did not start: {ready}");
+    let mut n = 0u32;
+    let result = measure(iterations, || {
+        n = n.wrapping_add(1);
+        post(words.ping(), n);
+        wait(words.pong(), n.wrapping_sub(1));
+        anyhow::ensure!(
+            words.pong().load(Ordering::Acquire) == n,
+            "futex ping-pong out of order"
+        );
+        Ok(())
+    });
+    drop(peer);
+    result
+}

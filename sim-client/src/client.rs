@@ -220,6 +220,7 @@ impl Client {
             RequestResponseOpenError::IncompatibleRequestOrResponseType => {
                 RequestError::ProtocolMismatch {
                     client: PROTOCOL_VERSION,
+                    server: None,
                 }
             }
             e => RequestError::transport("control service", e),

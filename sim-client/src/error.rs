@@ -82,11 +82,14 @@ pub enum RequestError {
         /// The server's process id.
         pid: u32,
     },
-    /// The server refused the request's protocol version.
-    #[error("the server refused protocol version {client}")]
+    /// The server speaks another protocol version.
+    #[error("protocol versions differ: the server speaks {}, this client speaks version {client}", server_version(*.server))]
     ProtocolMismatch {
         /// This client's version.
         client: u32,
+        /// The server's, when it said (an older server may only have
+        /// types that do not match).
+        server: Option<u32>,
     },
     /// The server does not know the request.
     #[error("the server does not know this request (is it an older version?)")]
@@ -307,4 +310,12 @@ pub enum LoadWorldError {
     /// The request failed.
     #[error(transparent)]
     Request(#[from] RequestError),
+}
+
+/// A server's protocol version for a message.
+fn server_version(server: Option<u32>) -> String {
+    match server {
+        Some(v) => format!("version {v}"),
+        None => "another version (its message types differ)".into(),
+    }
 }

@@ -132,6 +132,7 @@ pub(crate) fn check_protocol(version: u32, status: u32) -> Result<(), RequestErr
     if version != PROTOCOL_VERSION || status == ResponseStatus::ProtocolMismatch as u32 {
         return Err(RequestError::ProtocolMismatch {
             client: PROTOCOL_VERSION,
+            server: Some(version),
         });
     }
     Ok(())
@@ -213,4 +214,22 @@ pub(crate) fn await_with<T>(
         },
         Stop::Event(e) => RequestError::transport("event wait", e),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_protocol_mismatch_names_both_versions() {
+        let newer = PROTOCOL_VERSION + 1;
+        let e = check_protocol(newer, ResponseStatus::ProtocolMismatch as u32).unwrap_err();
+        let message = e.to_string();
+        assert!(
+            message.contains(&format!("server speaks version {newer}"))
+                && message.contains(&format!("client speaks version {PROTOCOL_VERSION}")),
+            "{message}"
+        );
+        assert!(check_protocol(PROTOCOL_VERSION, ResponseStatus::Ok as u32).is_ok());
+    }
 }

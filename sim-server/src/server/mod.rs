@@ -448,9 +448,11 @@ impl Domains {
         wanted.min(limit)
     }
 
-    /// Every 10 ms: connect new subscribers. Every 100 ms: do the ticker and
-    /// the participants live (one node list for all)? Once a second: remove
-    /// what dead clients left in the services.
+    /// Every 10 ms: connect new subscribers. Every millisecond at most: has
+    /// the ticker or a participant exited (their pidfds)? If so, and every
+    /// 100 ms anyway: do they live (one node list for all)? Once a second
+    /// (sooner after a ticker died): remove what dead clients left in the
+    /// services.
     fn housekeeping(&mut self) {
         if self.timers.connections.elapsed() >= CONNECTION_PERIOD {
             self.timers.connections = Instant::now();
@@ -485,7 +487,8 @@ impl Domains {
             if dropped {
                 // Free the dead ticker's port soon, not before the requests
                 // already waiting (a new ticker's claim) are answered.
-                self.timers.cleanup = Instant::now() - CLEANUP_PERIOD + SOON;
+                let now = Instant::now();
+                self.timers.cleanup = now.checked_sub(CLEANUP_PERIOD - SOON).unwrap_or(now);
             }
             self.lockstep.drop_dead(&sweep, self.clock.frame());
         }

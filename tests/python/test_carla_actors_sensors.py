@@ -399,6 +399,21 @@ def test_bad_calls_get_errors_and_a_stream_reader_that_never_reads_is_dropped(ga
     walker = raw.call("apply_batch", [[[4, [1, [[0, 0, 0], 1.0, False]]]]], False)
     assert "ApplyWalkerControl" in walker[0][0][1][0]
     assert raw.call("apply_batch", "not a list", False) is None
+    # A spawn whose .then() holds another spawn: the first spawns, the
+    # nested one is refused. Nesting 30 deep is past the gateway's depth
+    # limit: that connection is dropped, the gateway lives on.
+    def spawn_chain(depth):
+        box = [0, "static.prop.box", []]
+        place = [[0.0, 0.0, 50.0], [0.0, 0.0, 0.0]]
+        chain = []
+        for _ in range(depth):
+            chain = [[[0, [box, place, [False], 0, "", chain]]]]
+        return chain
+    spawned = raw.call("apply_batch", spawn_chain(2), False)
+    assert len(spawned) == 1 and spawned[0][0][0] == 1, spawned
+    deep = Raw(gateway.port)
+    with pytest.raises((AssertionError, ConnectionError)):
+        deep.call("apply_batch", spawn_chain(30), False)
     assert raw.call("version") == [[1, "0.9.16"]]
 
     client = gateway.client()

@@ -31,6 +31,10 @@ use rpc::ReadError;
 use session::Session;
 use stream::Hub;
 
+/// The stack of a connection's thread: room for a batch's `.then(...)` and
+/// the simbus client's calls, whatever the build.
+const SESSION_STACK: usize = 8 << 20;
+
 /// Serve a simbus world to CARLA's Python client (`import carla`).
 #[derive(Debug, Args)]
 pub(crate) struct GatewayArgs {
@@ -81,7 +85,13 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
                 }
             };
             let (world, hub) = (world.clone(), hub.clone());
-            std::thread::spawn(move || serve(socket, world, timeout, streaming_port, hub));
+            let spawned = std::thread::Builder::new()
+                .name("carla-session".into())
+                .stack_size(SESSION_STACK)
+                .spawn(move || serve(socket, world, timeout, streaming_port, hub));
+            if let Err(e) = spawned {
+                warn!("no thread for a CARLA client: {e}");
+            }
         }
     });
     // Ctrl-C / SIGTERM end the gateway; the server sees its tick

@@ -9,6 +9,10 @@ use rmpv::Value;
 
 /// The largest request accepted; a longer one drops the connection.
 pub(crate) const MAX_REQUEST_BYTES: usize = 16 << 20;
+/// The deepest nesting accepted (CARLA's deepest, a batch command with a
+/// `.then(...)`, is about 12); deeper drops the connection instead of
+/// recursing the decoder and the gateway's stack away.
+pub(crate) const MAX_DEPTH: usize = 48;
 
 /// One request.
 #[derive(Debug)]
@@ -60,7 +64,7 @@ pub(crate) fn read_request<R: Read>(reader: &mut R) -> Result<Request, ReadError
         left: MAX_REQUEST_BYTES,
         read: 0,
     };
-    let value = match rmpv::decode::read_value(&mut limited) {
+    let value = match rmpv::decode::read_value_with_max_depth(&mut limited, MAX_DEPTH) {
         Ok(value) => value,
         Err(_) if limited.read == 0 => return Err(ReadError::Closed),
         Err(_) if limited.left == 0 => return Err(ReadError::TooLong),
@@ -196,6 +200,21 @@ mod tests {
         assert!(matches!(
             read_request(&mut &not_request[..]),
             Err(ReadError::NotRequest(_))
+        ));
+        // Nesting past the limit.
+        let mut deep = Value::Nil;
+        for _ in 0..MAX_DEPTH + 1 {
+            deep = Value::Array(vec![deep]);
+        }
+        let deep = encode(&Value::Array(vec![
+            Value::from(0),
+            Value::from(1),
+            Value::from("apply_batch"),
+            deep,
+        ]));
+        assert!(matches!(
+            read_request(&mut &deep[..]),
+            Err(ReadError::Garbage(_))
         ));
         // A 20 MiB string.
         let mut long = vec![0xdb];

@@ -526,9 +526,16 @@ impl Session {
         if then.is_empty() {
             return;
         }
+        // One level: a spawn inside `.then(...)` is refused, so a nested
+        // chain from a client cannot recurse the gateway's stack away.
         let batch = then
             .iter()
-            .map(|c| commands::batch_command(c, Some(id)))
+            .map(|c| match commands::batch_command(c, Some(id)) {
+                Ok(BatchCommand::Spawn { .. }) => {
+                    Err("simbus: SpawnActor inside .then() is not supported by simbus".to_string())
+                }
+                other => other,
+            })
             .collect();
         for result in self.run_batch(batch) {
             if let Err(e) = result {

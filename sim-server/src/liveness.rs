@@ -61,10 +61,11 @@ impl PidWatch {
     /// How often the server's loop wakes to probe while it watches.
     pub const PROBE_PERIOD: std::time::Duration = std::time::Duration::from_millis(4);
 
-    /// Watches exactly `pids`: opens pidfds for new ones, closes the rest.
-    pub fn watch(&mut self, pids: &[u32]) {
-        self.entries.retain(|e| pids.contains(&e.pid));
-        for &pid in pids {
+    /// Watches exactly `pids`: opens pidfds for new ones, closes the rest
+    /// (no allocation once the set is known: the loop calls this often).
+    pub fn watch(&mut self, pids: impl Iterator<Item = u32> + Clone) {
+        self.entries.retain(|e| pids.clone().any(|p| p == e.pid));
+        for pid in pids {
             if !self.entries.iter().any(|e| e.pid == pid) {
                 self.entries.push(Watched {
                     pid,
@@ -149,7 +150,7 @@ mod tests {
             .spawn()
             .expect("sleep");
         let mut watch = PidWatch::default();
-        watch.watch(&[child.id()]);
+        watch.watch([child.id()].into_iter());
         assert!(watch.exited().is_empty() && !watch.is_idle());
         child.kill().expect("kill");
         // The pidfd turns readable when the process exits (reaped or not).
@@ -166,11 +167,11 @@ mod tests {
         // Reported once.
         assert!(watch.exited().is_empty() && watch.is_idle());
         child.wait().expect("reap");
-        watch.watch(&[]);
+        watch.watch(std::iter::empty());
         assert!(watch.is_idle());
         // A pid with no process cannot be watched: reported for the node
         // list to decide, once.
-        watch.watch(&[u32::MAX / 2]);
+        watch.watch([u32::MAX / 2].into_iter());
         assert_eq!(watch.exited(), [u32::MAX / 2]);
         assert!(watch.exited().is_empty());
     }

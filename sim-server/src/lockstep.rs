@@ -180,8 +180,8 @@ impl Lockstep {
     }
 
     /// The participants' processes.
-    pub fn pids(&self) -> Vec<u32> {
-        self.participants.list.iter().map(|p| p.pid).collect()
+    pub fn pids(&self) -> impl Iterator<Item = u32> + Clone + '_ {
+        self.participants.list.iter().map(|p| p.pid)
     }
 
     /// Drops the participants whose process died (by `sweep`).

@@ -9,7 +9,6 @@ import subprocess
 import sys
 import textwrap
 import threading
-import time
 
 import carla
 import pytest
@@ -191,20 +190,12 @@ def test_the_recorder_calls_map_onto_simbus_recorder(gateway, tmp_path):
     for _ in range(20):
         world.tick()
     client.stop_recorder()
-    # stop_recorder is one of CARLA's fire-and-forget calls: wait for the file.
+    # stop_recorder is one of CARLA's fire-and-forget calls, but the gateway
+    # answers a connection's calls in order: the next one sees the file closed.
     import json
-    import time
 
-    deadline = time.time() + 10
-    while True:
-        try:
-            info = json.loads(client.show_recorder_file_info(path, False))
-            if info["stopped"] == "stop":
-                break
-        except RuntimeError:
-            pass
-        assert time.time() < deadline, "the recording was not closed"
-        time.sleep(0.05)
+    info = json.loads(client.show_recorder_file_info(path, False))
+    assert info["stopped"] == "stop"
     assert info["frames"] == 21
     assert isinstance(json.loads(client.show_recorder_collisions(path, "a", "a")), list)
     assert isinstance(json.loads(client.show_recorder_actors_blocked(path, 0.5, 0.1)), list)
@@ -246,11 +237,11 @@ def test_a_dead_server_is_an_error_within_the_timeout_and_a_new_one_is_served(ga
     os.killpg(server.pid, signal.SIGKILL)
     server.wait()
     box = world.get_blueprint_library().find("static.prop.box")
+    # simbus's own error, so the gateway answered before the client's
+    # 5 s timeout (which would raise CARLA's "time-out of 5000ms").
     for call in (world.get_settings, world.tick, lambda: world.spawn_actor(box, carla.Transform())):
-        started = time.monotonic()
-        with pytest.raises(RuntimeError, match="simbus|time-out"):
+        with pytest.raises(RuntimeError, match="^simbus: "):
             call()
-        assert time.monotonic() - started < 5.5
     # A new server on the world: the gateway connects to it on the next call.
     gateway.procs.append(subprocess.Popen(
         [os.path.join(BIN, "sim-server"), "--world", gateway.world],

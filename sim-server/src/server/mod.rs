@@ -464,13 +464,12 @@ impl Domains {
         let mut exited = false;
         if self.timers.probe.elapsed() >= PROBE_SPACING {
             self.timers.probe = Instant::now();
-            let watched: Vec<u32> = self
+            let watched = self
                 .ticker
                 .owner_pid()
                 .into_iter()
-                .chain(self.lockstep.pids())
-                .collect();
-            self.pidwatch.watch(&watched);
+                .chain(self.lockstep.pids());
+            self.pidwatch.watch(watched);
             exited = !self.pidwatch.exited().is_empty();
         }
         if (self.ticker.owner_pid().is_some() || !self.lockstep.is_empty())

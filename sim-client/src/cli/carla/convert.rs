@@ -151,10 +151,15 @@ pub(crate) fn transform(position: V3, q: [f32; 4]) -> CarlaTransform {
     }
 }
 
+/// A simbus actor id as CARLA's (32 bits; ids past them read as the last).
+pub(crate) fn actor_id(id: u64) -> u32 {
+    u32::try_from(id).unwrap_or(u32::MAX)
+}
+
 /// An actor's state as CARLA's world state carries it.
 pub(crate) fn actor(state: &ActorState) -> CarlaActorState {
     CarlaActorState {
-        id: u32::try_from(state.id).unwrap_or(u32::MAX),
+        id: actor_id(state.id),
         transform: transform(state.position, state.rotation),
         velocity: vector(state.linear_velocity),
         angular_velocity: angular_velocity(state.angular_velocity),

@@ -3,14 +3,13 @@
 //! what each CARLA call it makes does to the world.
 
 use std::net::SocketAddr;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::carla::{token, CARLA_VERSION, WORLD_STREAM_ID};
 use shared_types::WorldSettings;
-use sim_client::{Client, RequestError, Ticker};
+use sim_client::{Client, Ticker};
 use tracing::{debug, info};
 
 use super::blueprints::{self, Description, Spawn};
@@ -174,7 +173,10 @@ impl Session {
                 )]))
             }
             "get_episode_settings" => {
-                let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
+                let settings = self
+                    .client()?
+                    .get_settings()
+                    .map_err(|e| format!("simbus: {e}"))?;
                 let other = lock(&self.hub.other_settings).clone();
                 value(episode_settings(&settings, &other))
             }
@@ -635,13 +637,9 @@ impl Session {
         }
     }
 
-    fn failed(&mut self, e: RequestError) -> Failed {
-        format!("simbus: {e}")
-    }
-
     fn status(&mut self) -> Result<shared_types::StatusReport, Failed> {
         let status = self.client()?.status();
-        status.map_err(|e| self.failed(e))
+        status.map_err(|e| format!("simbus: {e}"))
     }
 
     /// CARLA's `apply_settings`: entering synchronous mode makes this
@@ -690,9 +688,12 @@ impl Session {
             self.publish(frame);
             return Ok(Answer::Value(Value::from(frame)));
         }
-        let settings = self.client()?.get_settings().map_err(|e| self.failed(e))?;
+        let settings = self
+            .client()?
+            .get_settings()
+            .map_err(|e| format!("simbus: {e}"))?;
         if !settings.synchronous_mode {
-            let next = self.hub.last_frame.load(Ordering::Relaxed) + 1;
+            let next = self.hub.last_frame() + 1;
             return Ok(Answer::Value(Value::from(next)));
         }
         // Synchronous and not ours: take it if free, else say who has it.

@@ -7,7 +7,6 @@
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -34,7 +33,9 @@ pub(crate) struct ActorInfo {
     pub(crate) kind: u32,
     /// Half extents in CARLA's axes.
     pub(crate) extent: [f32; 3],
-    /// simbus orientation and velocities (for commands that change one part).
+    /// simbus pose and velocities (for sensors riding on the actor, and
+    /// commands that change one part).
+    pub(crate) position: [f32; 3],
     pub(crate) rotation: [f32; 4],
     pub(crate) linear: [f32; 3],
     pub(crate) angular: [f32; 3],
@@ -83,14 +84,11 @@ impl Stream {
 #[derive(Debug)]
 pub(crate) struct Hub {
     streams: Mutex<HashMap<u32, Stream>>,
-    /// (episode, frame) of the last world state sent.
-    pub(crate) last_frame: AtomicU64,
-    pub(crate) last_episode: AtomicU64,
     /// The actors of the last frame.
     pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
     pub(crate) registry: Mutex<Registry>,
     /// (server pid, episode, frame) of the last world state sent.
-    sent: Mutex<(u32, u64, u64)>,
+    sent: Mutex<Sent>,
     sent_changed: Condvar,
     /// The `EpisodeSettings` fields simbus does not have, as last set.
     pub(crate) other_settings: Mutex<Vec<Value>>,
@@ -100,8 +98,6 @@ impl Default for Hub {
     fn default() -> Self {
         Self {
             streams: Mutex::default(),
-            last_frame: AtomicU64::default(),
-            last_episode: AtomicU64::default(),
             actors: Mutex::default(),
             registry: Mutex::default(),
             sent: Mutex::default(),
@@ -110,6 +106,9 @@ impl Default for Hub {
         }
     }
 }
+
+/// (server pid, episode, frame) of a world state.
+type Sent = (u32, u64, u64);
 
 /// Locks `m`, even if a thread panicked holding it.
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -135,6 +134,11 @@ impl Hub {
         }
         s.readers
             .retain_mut(|reader| write_message(reader, message, stream));
+    }
+
+    /// The frame of the last world state sent.
+    pub(crate) fn last_frame(&self) -> u64 {
+        lock(&self.sent).2
     }
 
     /// Waits (at most `timeout`) until the world state of `frame` of
@@ -243,10 +247,15 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
 }
 
 /// The world state of `frame` as CARLA's client reads it: simbus's actors
-/// (vehicles with their last control) and the gateway's sensors.
-fn world_state(frame: &FrameView, server_pid: u32, registry: &Registry) -> Vec<u8> {
+/// (vehicles with their last control) and the gateway's sensors, placed on
+/// their parents in `actors`.
+fn world_state(
+    frame: &FrameView,
+    server_pid: u32,
+    actors: &HashMap<u32, ActorInfo>,
+    registry: &Registry,
+) -> Vec<u8> {
     let t = frame.timestamp();
-    let actors = frame.actors();
     let mut out = Vec::with_capacity(
         carla::SENSOR_HEADER_LEN
             + carla::EPISODE_HEADER_LEN
@@ -265,8 +274,7 @@ fn world_state(frame: &FrameView, server_pid: u32, registry: &Registry) -> Vec<u
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
-    let mut poses = HashMap::with_capacity(actors.len());
-    for actor in actors {
+    for actor in frame.actors() {
         let mut state = convert::actor(actor);
         if actor.actor_kind() == Some(shared_types::ActorKind::Vehicle) {
             state.vehicle = Some(
@@ -277,11 +285,10 @@ fn world_state(frame: &FrameView, server_pid: u32, registry: &Registry) -> Vec<u
                     .unwrap_or_default(),
             );
         }
-        poses.insert(state.id, (actor.position, actor.rotation));
         carla::actor_state(&mut out, &state);
     }
     for (&id, sensor) in &registry.sensors {
-        let Some(pose) = sensor_pose(sensor, &poses) else {
+        let Some(pose) = sensor_pose(sensor, actors) else {
             continue;
         };
         let state = CarlaActorState {
@@ -297,7 +304,7 @@ fn world_state(frame: &FrameView, server_pid: u32, registry: &Registry) -> Vec<u
 /// Where a sensor is: on its parent, or fixed in the world.
 fn sensor_pose(
     sensor: &SensorEntry,
-    poses: &HashMap<u32, ([f32; 3], [f32; 4])>,
+    actors: &HashMap<u32, ActorInfo>,
 ) -> Option<([f32; 3], [f32; 4])> {
     let rotation = match sensor.spec.rotation {
         [0.0, 0.0, 0.0, 0.0] => [0.0, 0.0, 0.0, 1.0],
@@ -307,9 +314,9 @@ fn sensor_pose(
     if sensor.parent == 0 {
         return Some(offset);
     }
-    poses
+    actors
         .get(&sensor.parent)
-        .map(|&parent| convert::compose(parent, offset))
+        .map(|parent| convert::compose((parent.position, parent.rotation), offset))
 }
 
 /// Streams every frame of `world` as a world state until the process ends;
@@ -349,39 +356,34 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     if p == server_pid && e == episode && f >= frame.frame() {
         return;
     }
-    let message = {
-        let mut registry = lock(&hub.registry);
-        if hub.last_episode.swap(episode, Ordering::Relaxed) != episode {
-            // A new episode ended every sensor.
-            registry.sensors.clear();
-        }
-        let present: std::collections::HashSet<u32> = frame
-            .actors()
-            .iter()
-            .map(|a| convert::actor(a).id)
-            .collect();
-        // A sensor whose parent is gone went with it.
-        registry
-            .sensors
-            .retain(|_, s| s.parent == 0 || present.contains(&s.parent));
-        world_state(frame, server_pid, &registry)
-    };
-    let actors = frame
+    let actors: HashMap<u32, ActorInfo> = frame
         .actors()
         .iter()
         .map(|a| {
             let info = ActorInfo {
                 kind: a.kind,
                 extent: convert::vector(a.extent),
+                position: a.position,
                 rotation: a.rotation,
                 linear: a.linear_velocity,
                 angular: a.angular_velocity,
             };
-            (convert::actor(a).id, info)
+            (convert::actor_id(a.id), info)
         })
         .collect();
+    let message = {
+        let mut registry = lock(&hub.registry);
+        if (p, e) != (server_pid, episode) {
+            // A new episode (or server) ended every sensor.
+            registry.sensors.clear();
+        }
+        // A sensor whose parent is gone went with it.
+        registry
+            .sensors
+            .retain(|_, s| s.parent == 0 || actors.contains_key(&s.parent));
+        world_state(frame, server_pid, &actors, &registry)
+    };
     *lock(&hub.actors) = actors;
-    hub.last_frame.store(frame.frame(), Ordering::Relaxed);
     hub.send(carla::WORLD_STREAM_ID, &message);
     *sent = (server_pid, episode, frame.frame());
     drop(sent);

@@ -19,7 +19,8 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-use shared_types::{FrameHeader, WorldSettings};
+use iceoryx2::service::Service;
+use shared_types::{Bus, FrameHeader, WorldSettings};
 use sim_client::process::ChildGuard;
 use sim_client::{Client, WaitMode};
 
@@ -65,20 +66,24 @@ pub(crate) fn measure(
     Ok(latencies)
 }
 
-struct RawPorts {
-    _node: Node<ipc::Service>,
-    tx: Publisher<ipc::Service, u64, ()>,
-    rx: Subscriber<ipc::Service, u64, ()>,
-    notifier: Notifier<ipc::Service>,
-    listener: Listener<ipc::Service>,
+struct RawPorts<S: Service> {
+    _node: Node<S>,
+    tx: Publisher<S, u64, ()>,
+    rx: Subscriber<S, u64, ()>,
+    notifier: Notifier<S>,
+    listener: Listener<S>,
 }
 
 /// Opens `name/{a,b}` pub-sub and `name/{a,b}/event`; `side` sends on one and
 /// receives on the other.
-fn raw_ports(name: &str, send_on: &str, receive_on: &str) -> anyhow::Result<RawPorts> {
+fn raw_ports<S: Service>(
+    name: &str,
+    send_on: &str,
+    receive_on: &str,
+) -> anyhow::Result<RawPorts<S>> {
     let node = NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
+        .create::<S>()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let pubsub = |n: String| -> anyhow::Result<_> {
         node.service_builder(&ServiceName::new(&n).map_err(|e| anyhow::anyhow!("{e:?}"))?)
@@ -117,7 +122,7 @@ fn raw_ports(name: &str, send_on: &str, receive_on: &str) -> anyhow::Result<RawP
     })
 }
 
-impl RawPorts {
+impl<S: Service> RawPorts<S> {
     fn send(&self, value: u64, notify: bool) -> anyhow::Result<()> {
         self.tx
             .send_copy(value)
@@ -183,15 +188,19 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        "iceoryx-bus-block" => raw_echo(raw_ports::<Bus>(&args.name, "pong", "ping")?, true),
         kind => {
-            let block = kind == "iceoryx-block";
-            let ports = raw_ports(&args.name, "pong", "ping")?;
-            println!("ready");
-            loop {
-                let value = ports.receive(block)?;
-                ports.send(value, block)?;
-            }
+            let ports = raw_ports::<ipc::Service>(&args.name, "pong", "ping")?;
+            raw_echo(ports, kind == "iceoryx-block")
         }
+    }
+}
+
+fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool) -> anyhow::Result<()> {
+    println!("ready");
+    loop {
+        let value = ports.receive(block)?;
+        ports.send(value, block)?;
     }
 }
 
@@ -209,14 +218,12 @@ pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, 
     Ok((guard, line.trim().to_owned()))
 }
 
-fn raw_ping_pong(block: bool, iterations: u64) -> anyhow::Result<Latencies> {
-    let kind = if block {
-        "iceoryx-block"
-    } else {
-        "iceoryx-spin"
-    };
+/// `S`: iceoryx2's `ipc::Service` (its event a Unix datagram socket) or
+/// simbus's [`Bus`] (a futex); `kind` names the peer that runs the same.
+fn raw_ping_pong<S: Service>(kind: &str, iterations: u64) -> anyhow::Result<Latencies> {
+    let block = kind != "iceoryx-spin";
     let name = format!("bench-raw-{kind}-{}", std::process::id());
-    let ports = raw_ports(&name, "ping", "pong")?;
+    let ports = raw_ports::<S>(&name, "ping", "pong")?;
     let (_peer, _) = spawn_peer(kind, &name)?;
     let mut n = 0;
     measure(iterations, || {
@@ -278,8 +285,18 @@ fn simbus_round_trip(
 pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let n = args.iterations;
     let rows = [
-        ("(a) raw iceoryx2, spin", raw_ping_pong(false, n)?),
-        ("(a) raw iceoryx2, block", raw_ping_pong(true, n)?),
+        (
+            "(a) raw iceoryx2, spin",
+            raw_ping_pong::<ipc::Service>("iceoryx-spin", n)?,
+        ),
+        (
+            "(a) raw iceoryx2, block",
+            raw_ping_pong::<ipc::Service>("iceoryx-block", n)?,
+        ),
+        (
+            "(a) raw iceoryx2 futex event, block",
+            raw_ping_pong::<Bus>("iceoryx-bus-block", n)?,
+        ),
         ("(f) futex, block (floor)", crate::futex::ping_pong(n)?),
         (
             "(b) simbus, all spin",
@@ -295,16 +312,32 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         ),
         ("(c) TCP loopback", tcp_round_trip(n)?),
     ];
-    let p50 = |i: usize| rows[i].1.quantile_us(0.5);
+    let p50 = |prefix: &str| {
+        rows.iter()
+            .find(|(name, _)| name.starts_with(prefix))
+            .map_or(f64::NAN, |(_, l)| l.quantile_us(0.5))
+    };
+    let (raw_spin, raw_block, raw_futex) = (
+        p50("(a) raw iceoryx2, spin"),
+        p50("(a) raw iceoryx2, block"),
+        p50("(a) raw iceoryx2 futex"),
+    );
+    let (floor, tcp) = (p50("(f)"), p50("(c)"));
+    let (spin, hybrid, block) = (
+        p50("(b) simbus, all spin"),
+        p50("(b) simbus, hybrid"),
+        p50("(b) simbus, block"),
+    );
     let ratios = [
-        ("b/a simbus all spin / raw spin", p50(3) / p50(0)),
-        ("b/a simbus block / raw block", p50(5) / p50(1)),
-        ("b/f simbus block / futex floor", p50(5) / p50(2)),
-        ("b/f simbus hybrid / futex floor", p50(4) / p50(2)),
-        ("a/f raw iceoryx2 block / futex", p50(1) / p50(2)),
-        ("c/b TCP / simbus all spin", p50(6) / p50(3)),
-        ("c/b TCP / simbus hybrid", p50(6) / p50(4)),
-        ("c/b TCP / simbus block", p50(6) / p50(5)),
+        ("b/a simbus all spin / raw spin", spin / raw_spin),
+        ("b/a simbus block / raw block", block / raw_block),
+        ("b/f simbus block / futex floor", block / floor),
+        ("b/f simbus hybrid / futex floor", hybrid / floor),
+        ("a/f raw iceoryx2 block / futex", raw_block / floor),
+        ("a/f raw iox2 futex event / futex", raw_futex / floor),
+        ("c/b TCP / simbus all spin", tcp / spin),
+        ("c/b TCP / simbus hybrid", tcp / hybrid),
+        ("c/b TCP / simbus block", tcp / block),
     ];
     if args.json {
         let mut json = serde_json::Map::new();

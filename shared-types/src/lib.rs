@@ -26,7 +26,7 @@
 //! # }
 //! ```
 
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
@@ -51,6 +51,8 @@ mod settings;
 mod settings_wire;
 pub use settings_wire::{WireSettings, WireSettingsError};
 mod tick;
+pub mod transport;
+pub use transport::Bus;
 mod wait_mode;
 
 pub use command::{

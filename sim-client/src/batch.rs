@@ -1,5 +1,6 @@
 //! Commands in batches: fire and forget, or with one result per command.
 
+use shared_types::Bus;
 use std::time::Duration;
 
 use iceoryx2::port::client::Client as RequestClient;
@@ -13,10 +14,10 @@ use crate::rpc::{await_slice_response, check_protocol, Wait};
 use crate::{Client, RequestError};
 
 pub(crate) type BatchClient =
-    RequestClient<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+    RequestClient<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
 type PendingBatch = iceoryx2::pending_response::PendingResponse<
-    ipc::Service,
+    Bus,
     [Command],
     BatchHeader,
     [CommandResult],
@@ -83,10 +84,7 @@ pub enum CommandError {
     Batch(#[from] BatchError),
 }
 
-pub(crate) fn open_batch_client(
-    node: &Node<ipc::Service>,
-    name: &str,
-) -> Result<BatchClient, RequestError> {
+pub(crate) fn open_batch_client(node: &Node<Bus>, name: &str) -> Result<BatchClient, RequestError> {
     use iceoryx2::service::port_factory::client::ClientCreateError;
     let name = ServiceName::new(name).map_err(|e| RequestError::transport("service name", e))?;
     let service = node

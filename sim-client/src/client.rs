@@ -1,5 +1,6 @@
 //! [`Client`]: a connection to one simbus world.
 
+use shared_types::Bus;
 use std::cell::OnceCell;
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -90,7 +91,7 @@ enum Registration {
 /// ```
 pub struct Client {
     pub(crate) world: WorldName,
-    node: Node<ipc::Service>,
+    node: Node<Bus>,
     /// Opened on the first request: a client that only watches frames
     /// holds a frame subscription and a listener, nothing else.
     control: OnceCell<ControlPort>,
@@ -131,13 +132,13 @@ fn default_ticker_name() -> String {
     }
 }
 
-fn client_node() -> Result<Node<ipc::Service>, ConnectError> {
+fn client_node() -> Result<Node<Bus>, ConnectError> {
     shared_types::environment::prepare().map_err(ConnectError::SharedDirectory)?;
     let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
     NodeBuilder::new()
         .name(&name)
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
+        .create::<Bus>()
         .map_err(|e| ConnectError::transport("node", e))
 }
 
@@ -567,7 +568,7 @@ impl Client {
     }
 
     /// The iceoryx2 node of this client (for tools that open more ports).
-    pub fn node(&self) -> &Node<ipc::Service> {
+    pub fn node(&self) -> &Node<Bus> {
         &self.node
     }
 }

@@ -2,6 +2,7 @@
 //! missed count in asynchronous mode, blocking on the frame-ready event or
 //! spinning.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -18,8 +19,8 @@ use crate::wait::{self, Stop, Wait};
 use crate::WaitMode;
 use crate::{ConnectError, WaitError};
 
-type FrameSubscriber = Subscriber<ipc::Service, [ActorState], FrameHeader>;
-type FrameSample = Sample<ipc::Service, [ActorState], FrameHeader>;
+type FrameSubscriber = Subscriber<Bus, [ActorState], FrameHeader>;
+type FrameSample = Sample<Bus, [ActorState], FrameHeader>;
 
 /// A subscription to a world's frames.
 pub(crate) struct FrameStream {
@@ -27,7 +28,7 @@ pub(crate) struct FrameStream {
     /// A frame taken off the queue by [`FrameStream::first_header`], handed
     /// out first.
     stash: Option<FrameSample>,
-    ready: Listener<ipc::Service>,
+    ready: Listener<Bus>,
     /// (episode, frame) of the last snapshot handed out.
     last: Option<(u64, u64)>,
     pub(crate) mode: WaitMode,
@@ -39,7 +40,7 @@ impl FrameStream {
     /// Subscribes `node` to the frames of the world named by `names`.
     /// `Ok(None)` when the world's services did not appear before `deadline`.
     pub(crate) fn open(
-        node: &Node<ipc::Service>,
+        node: &Node<Bus>,
         names: &ServiceNames,
         world: &str,
         deadline: Instant,
@@ -103,7 +104,7 @@ impl FrameStream {
     }
 
     /// The frame-ready listener (for waits that end with a frame).
-    pub(crate) fn ready(&self) -> &Listener<ipc::Service> {
+    pub(crate) fn ready(&self) -> &Listener<Bus> {
         &self.ready
     }
 

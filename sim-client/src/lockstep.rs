@@ -1,6 +1,7 @@
 //! [`Participant`]: a client the server waits for, frame by frame, in
 //! synchronous mode.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use std::cell::RefCell;
@@ -46,7 +47,7 @@ pub struct Participant {
     /// the server dropped learns it there.
     last_done: RefCell<Option<PendingDone>>,
     // Declared last: ports drop before their node.
-    _node: Node<ipc::Service>,
+    _node: Node<Bus>,
 }
 
 impl Participant {
@@ -60,7 +61,7 @@ impl Participant {
         let names = ServiceNames::new(world);
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
+            .create::<Bus>()
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
         let service_name =

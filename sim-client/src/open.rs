@@ -1,6 +1,7 @@
 //! Opening a world's services from a client, waiting while the server is
 //! still creating them.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -88,10 +89,10 @@ impl OpenFailure {
 /// The notifier that wakes an idle server after a request was sent.
 /// `Ok(None)` when the world's service did not appear before `deadline`.
 pub(crate) fn wake_notifier(
-    node: &Node<ipc::Service>,
+    node: &Node<Bus>,
     names: &ServiceNames,
     deadline: Instant,
-) -> Result<Option<Notifier<ipc::Service>>, OpenFailure> {
+) -> Result<Option<Notifier<Bus>>, OpenFailure> {
     use iceoryx2::port::notifier::NotifierCreateError;
     let Some(service) = open_event(node, &names.control_wake, deadline)? else {
         return Ok(None);
@@ -113,10 +114,10 @@ pub(crate) fn wake_notifier(
 /// A listener woken after every published frame (and its captures).
 /// `Ok(None)` when the world's service did not appear before `deadline`.
 pub(crate) fn frame_ready_listener(
-    node: &Node<ipc::Service>,
+    node: &Node<Bus>,
     names: &ServiceNames,
     deadline: Instant,
-) -> Result<Option<Listener<ipc::Service>>, OpenFailure> {
+) -> Result<Option<Listener<Bus>>, OpenFailure> {
     use iceoryx2::port::listener::ListenerCreateError;
     let Some(service) = open_event(node, &names.frame_ready, deadline)? else {
         return Ok(None);
@@ -137,10 +138,10 @@ pub(crate) fn frame_ready_listener(
 
 /// Opens the event service `name`, waiting until `deadline` for it to appear.
 fn open_event(
-    node: &Node<ipc::Service>,
+    node: &Node<Bus>,
     name: &str,
     deadline: Instant,
-) -> Result<Option<EventService<ipc::Service>>, OpenFailure> {
+) -> Result<Option<EventService<Bus>>, OpenFailure> {
     let service_name = ServiceName::new(name).map_err(|e| OpenFailure::new("service name", e))?;
     open_with_retry(
         deadline,

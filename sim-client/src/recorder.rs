@@ -5,6 +5,7 @@
 //! Reading a recording without a server (CARLA's `show_recorder_*`) is in
 //! [`crate::inspect`].
 
+use shared_types::Bus;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -25,8 +26,7 @@ use crate::{Client, RequestError};
 pub const REPLAY_READ_TIMEOUT: Duration = Duration::from_secs(600);
 
 /// The recorder service's client port.
-pub(crate) type RecorderClient =
-    RequestClient<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+pub(crate) type RecorderClient = RequestClient<Bus, RecorderRequest, (), RecorderResponse, ()>;
 
 /// Why a recorder request failed.
 #[derive(Debug, thiserror::Error)]

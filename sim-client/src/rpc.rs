@@ -2,6 +2,7 @@
 //! the answer (with a deadline and a liveness check of the server, through
 //! the client's one wait loop) and checks its protocol version.
 
+use shared_types::Bus;
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
 
@@ -48,7 +49,7 @@ answers!(
 );
 
 /// A pending answer on a [`RequestPort`].
-pub(crate) type Pending<Req, Resp> = PendingResponse<ipc::Service, Req, (), Resp, ()>;
+pub(crate) type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
 
 /// A typed request port of one world's service: send, wake, await, check.
 pub(crate) struct RequestPort<Req, Resp>
@@ -56,8 +57,8 @@ where
     Req: Debug + ZeroCopySend + Copy,
     Resp: Debug + ZeroCopySend + Copy + Answer,
 {
-    client: RequestClient<ipc::Service, Req, (), Resp, ()>,
-    wake: Notifier<ipc::Service>,
+    client: RequestClient<Bus, Req, (), Resp, ()>,
+    wake: Notifier<Bus>,
     world: String,
     server_pid: u32,
 }
@@ -70,8 +71,8 @@ where
     /// Requests on `client`, waking the server of `world` (pid
     /// `server_pid`, 0 if unknown) with `wake`.
     pub(crate) fn new(
-        client: RequestClient<ipc::Service, Req, (), Resp, ()>,
-        wake: Notifier<ipc::Service>,
+        client: RequestClient<Bus, Req, (), Resp, ()>,
+        wake: Notifier<Bus>,
         world: &str,
         server_pid: u32,
     ) -> Self {
@@ -141,7 +142,7 @@ pub(crate) fn check_protocol(version: u32, status: u32) -> Result<(), RequestErr
 /// The response to `pending`, waiting up to `timeout`. With a known
 /// `server_pid` (non-zero), a dead server ends the wait early.
 pub(crate) fn await_response<Req, Resp>(
-    pending: &PendingResponse<ipc::Service, Req, (), Resp, ()>,
+    pending: &PendingResponse<Bus, Req, (), Resp, ()>,
     timeout: Duration,
     world: &str,
     server_pid: u32,
@@ -167,7 +168,7 @@ where
 
 /// The response header and a copy of the slice payload of `pending`.
 pub(crate) fn await_slice_response<Req, ReqHeader, Resp, RespHeader>(
-    pending: &PendingResponse<ipc::Service, Req, ReqHeader, [Resp], RespHeader>,
+    pending: &PendingResponse<Bus, Req, ReqHeader, [Resp], RespHeader>,
     timeout: Duration,
     world: &str,
     server_pid: u32,

@@ -1,6 +1,7 @@
 //! [`Sensor`]: a subscription to one sensor's captures, read in place in
 //! shared memory.
 
+use shared_types::Bus;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
@@ -22,16 +23,11 @@ use crate::rpc::{await_slice_response, check_protocol};
 use crate::wait::{self, Stop, Wait};
 use crate::{Client, RequestError, WaitError, WaitMode};
 
-type Sub<T> = Subscriber<ipc::Service, [T], SensorHeader>;
+type Sub<T> = Subscriber<Bus, [T], SensorHeader>;
 
 /// The client port of the world's sensor service (spawn, list, destroy).
-pub(crate) type SensorRequestClient = iceoryx2::port::client::Client<
-    ipc::Service,
-    SensorRequest,
-    (),
-    [SensorInfo],
-    SensorResponseHeader,
->;
+pub(crate) type SensorRequestClient =
+    iceoryx2::port::client::Client<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 
 enum Port {
     Depth(Sub<f32>),
@@ -42,11 +38,11 @@ enum Port {
 /// One capture, borrowed from shared memory: nothing is copied until you do.
 pub enum Capture {
     /// A depth image: `f32` planar depths, row by row.
-    Depth(Sample<ipc::Service, [f32], SensorHeader>),
+    Depth(Sample<Bus, [f32], SensorHeader>),
     /// A lidar scan.
-    Lidar(Sample<ipc::Service, [LidarPoint], SensorHeader>),
+    Lidar(Sample<Bus, [LidarPoint], SensorHeader>),
     /// An IMU reading.
-    Imu(Sample<ipc::Service, [ImuMeasurement], SensorHeader>),
+    Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
 }
 
 impl Capture {
@@ -119,11 +115,11 @@ pub enum SensorError {
 pub struct Sensor {
     info: SensorInfo,
     reader: Reader,
-    ready: Listener<ipc::Service>,
+    ready: Listener<Bus>,
     mode: WaitMode,
     world: String,
     server_pid: u32,
-    _node: Node<ipc::Service>,
+    _node: Node<Bus>,
 }
 
 /// The subscription and what reading it has counted.
@@ -190,13 +186,13 @@ impl Sensor {
         let names = ServiceNames::new(world);
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
+            .create::<Bus>()
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
         let name = ServiceName::new(&names.sensor(info.id))
             .map_err(|e| RequestError::transport("service name", e))?;
         fn subscribe<T: std::fmt::Debug + ZeroCopySend + 'static>(
-            node: &Node<ipc::Service>,
+            node: &Node<Bus>,
             name: &ServiceName,
             deadline: Instant,
         ) -> Result<Sub<T>, RequestError> {

@@ -2,15 +2,15 @@
 //! place in shared memory (nothing copied); [`WorldSnapshot`] is an owned
 //! copy (CARLA's `WorldSnapshot`, what `wait_for_tick` returns).
 
-use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
+use shared_types::Bus;
 use shared_types::{ActorState, FrameHeader, Timestamp, WorldSettings};
 
 /// One frame read in place in shared memory: the header and the actors are
 /// borrowed from the sample, not copied. The sample returns to the server's
 /// pool when the view is dropped (a subscriber holds at most 4 at once).
 pub struct FrameView {
-    sample: Sample<ipc::Service, [ActorState], FrameHeader>,
+    sample: Sample<Bus, [ActorState], FrameHeader>,
     missed: u64,
 }
 
@@ -25,10 +25,7 @@ impl std::fmt::Debug for FrameView {
 }
 
 impl FrameView {
-    pub(crate) fn new(
-        sample: Sample<ipc::Service, [ActorState], FrameHeader>,
-        missed: u64,
-    ) -> Self {
+    pub(crate) fn new(sample: Sample<Bus, [ActorState], FrameHeader>, missed: u64) -> Self {
         Self { sample, missed }
     }
 

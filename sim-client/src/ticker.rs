@@ -1,5 +1,6 @@
 //! [`Ticker`]: tick ownership of a world, and the ticks themselves.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -62,7 +63,7 @@ const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 pub struct Ticker {
     world: WorldName,
     port: RequestPort<TickRequest, TickResponse>,
-    ready: Listener<ipc::Service>,
+    ready: Listener<Bus>,
     server_pid: u32,
     node_name: String,
     /// The tick request, built once: a tick in a tight loop copies 100
@@ -73,7 +74,7 @@ pub struct Ticker {
     last: Option<(u64, u64)>,
     released: bool,
     // Declared last: ports drop before their node.
-    _node: Node<ipc::Service>,
+    _node: Node<Bus>,
 }
 
 /// How long dropping a ticker waits for the server to confirm the release.
@@ -97,7 +98,7 @@ impl Ticker {
         let node = NodeBuilder::new()
             .name(&name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
+            .create::<Bus>()
             .map_err(|e| TickError::transport("node", e))?;
         let service_name =
             |n: &str| ServiceName::new(n).map_err(|e| TickError::transport("service name", e));

@@ -3,10 +3,10 @@
 //! block on an event, back off, or spin, until the deadline — and end early
 //! when the server process is gone.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
-use iceoryx2::prelude::*;
 
 use crate::{process_alive, WaitMode};
 
@@ -23,16 +23,16 @@ pub(crate) enum Wait<'a> {
     /// answers without an event).
     Backoff,
     /// Sleep on an event the server notifies right after it publishes.
-    Event(&'a Listener<ipc::Service>),
+    Event(&'a Listener<Bus>),
     /// Poll in a tight loop.
     Spin,
     /// Poll for [`HYBRID_SPIN`], then sleep on the event.
-    Hybrid(&'a Listener<ipc::Service>),
+    Hybrid(&'a Listener<Bus>),
 }
 
 impl<'a> Wait<'a> {
     /// The wait for something announced by `listener`, as `mode` says.
-    pub(crate) fn for_mode(mode: WaitMode, listener: &'a Listener<ipc::Service>) -> Self {
+    pub(crate) fn for_mode(mode: WaitMode, listener: &'a Listener<Bus>) -> Self {
         match mode {
             WaitMode::Block => Wait::Event(listener),
             WaitMode::Spin => Wait::Spin,

@@ -6,6 +6,7 @@ use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT};
+use shared_types::Bus;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
     PROTOCOL_VERSION,
@@ -13,19 +14,18 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use crate::clock::Clock;
-use crate::ports::{service_name, Transport};
+use crate::ports::{sender_pid, service_name, Transport};
 use crate::recorder::Recorder;
 use crate::sensors::Sensors;
 use crate::ticker::Ticker;
 use crate::world::World;
 use crate::ServerError;
 
-type BatchServer =
-    RequestServer<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+type BatchServer = RequestServer<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
 /// A batch request (already applied) waiting for its answer.
 pub type PendingBatch =
-    ActiveRequest<ipc::Service, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+    ActiveRequest<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
 /// The batch service.
 #[derive(Debug)]
@@ -83,9 +83,13 @@ impl Batches {
                 continue;
             }
             let tick = header.flags & BatchHeader::TICK != 0;
-            if tick && ticker.owner_pid() != Some(header.pid) {
+            // Who may tick is decided by the sending port's process, never
+            // by the pid the header claims.
+            let sender = sender_pid(request.header());
+            if tick && ticker.owner_pid() != Some(sender) {
                 warn!(
-                    pid = header.pid,
+                    pid = sender,
+                    claimed_pid = header.pid,
                     "refused a ticking batch from a process that is not the ticker"
                 );
                 respond_batch(&request, ResponseStatus::NotTicker, next_frame, &[]);
@@ -103,7 +107,7 @@ impl Batches {
                     })
                     .collect();
                 debug!(
-                    pid = header.pid,
+                    pid = sender,
                     commands = results.len(),
                     "ticking batch applied"
                 );
@@ -141,7 +145,7 @@ impl Batches {
                 }
             }
             debug!(
-                pid = header.pid,
+                pid = sender,
                 commands = commands.len(),
                 failed,
                 "batch applied"
@@ -162,7 +166,7 @@ impl Batches {
             .map_err(|e| ServerError::transport("batch receive", e))?
         {
             debug!(
-                pid = request.user_header().pid,
+                pid = sender_pid(request.header()),
                 "refused a batch: a replay runs"
             );
             respond_batch(&request, ResponseStatus::Replaying, clock.frame() + 1, &[]);

@@ -2,11 +2,11 @@
 //! reload) and the wake-up event clients notify after any request — the
 //! one place the server loop sleeps.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::server::Server as RequestServer;
-use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     ControlRequest, ControlResponse, RequestKind, ResponseStatus, WorldName, WorldSettings,
@@ -23,13 +23,13 @@ use crate::{Scene, ServerError};
 /// Below this, waits are plain sleeps (event timeouts are this coarse).
 const COARSE_WAIT: Duration = Duration::from_millis(5);
 
-type ControlServer = RequestServer<ipc::Service, ControlRequest, (), ControlResponse, ()>;
+type ControlServer = RequestServer<Bus, ControlRequest, (), ControlResponse, ()>;
 
 /// The control service and the wake-up listener.
 #[derive(Debug)]
 pub struct Control {
     port: ControlServer,
-    wake: Listener<ipc::Service>,
+    wake: Listener<Bus>,
 }
 
 impl Control {

@@ -8,6 +8,7 @@ use iceoryx2::prelude::*;
 use shared_types::limits::{
     WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
 };
+use shared_types::Bus;
 use shared_types::{ActorState, FrameHeader};
 use tracing::debug;
 
@@ -18,8 +19,8 @@ use crate::ServerError;
 /// The frame publisher and the frame-ready notifier.
 #[derive(Debug)]
 pub struct Frames {
-    publisher: Publisher<ipc::Service, [ActorState], FrameHeader>,
-    ready: Notifier<ipc::Service>,
+    publisher: Publisher<Bus, [ActorState], FrameHeader>,
+    ready: Notifier<Bus>,
 }
 
 impl Frames {

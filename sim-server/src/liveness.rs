@@ -4,12 +4,13 @@
 
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
+use shared_types::Bus;
 
 /// The process ids of every live iceoryx2 node, or `None` when the node
 /// list cannot be read (then nobody is declared dead).
 pub fn living_pids() -> Option<Vec<u32>> {
     let mut pids = Vec::new();
-    let listed = Node::<ipc::Service>::list(Config::global_config(), |state| {
+    let listed = Node::<Bus>::list(Config::global_config(), |state| {
         if let NodeState::Alive(view) = &state {
             if let Some(details) = view.details() {
                 pids.push(details.process_id().value() as u32);

@@ -2,11 +2,11 @@
 //! in synchronous mode (CARLA's Traffic Manager, kept in step by the bus),
 //! their service, and what happens to one that dies or hangs.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::identifiers::UniqueClientId;
 use iceoryx2::port::server::Server as RequestServer;
-use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     FixedText, LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, PROTOCOL_VERSION,
@@ -15,7 +15,7 @@ use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
 use crate::liveness::LiveProcesses;
-use crate::ports::{service_name, Transport};
+use crate::ports::{sender_pid, service_name, Transport};
 use crate::ticker::Ticker;
 use crate::ServerError;
 
@@ -24,7 +24,7 @@ use crate::ServerError;
 /// that long too.
 const WAIT_NOTICE_AFTER: Duration = Duration::from_millis(200);
 
-type LockstepServer = RequestServer<ipc::Service, LockstepRequest, (), LockstepResponse, ()>;
+type LockstepServer = RequestServer<Bus, LockstepRequest, (), LockstepResponse, ()>;
 
 /// The lockstep service and its participants.
 #[derive(Debug)]
@@ -94,19 +94,21 @@ impl Lockstep {
         {
             let payload: LockstepRequest = *request.payload();
             let origin = request.origin();
+            // Watched for liveness: the port's process, not the payload's word.
+            let pid = sender_pid(request.header());
             let status = if payload.protocol_version != PROTOCOL_VERSION {
                 ResponseStatus::ProtocolMismatch
             } else {
                 match LockstepKind::from_u32(payload.kind) {
                     Some(LockstepKind::Join) => {
                         let name = payload.name.to_string_lossy();
-                        info!(pid = payload.pid, %name, frame = clock.frame(), "lockstep participant joined");
-                        self.participants.join(origin, payload.pid, name);
+                        info!(pid, %name, frame = clock.frame(), "lockstep participant joined");
+                        self.participants.join(origin, pid, name);
                         ResponseStatus::Ok
                     }
                     Some(LockstepKind::Leave) => {
                         if self.participants.leave(origin) {
-                            info!(pid = payload.pid, "lockstep participant left");
+                            info!(pid, "lockstep participant left");
                         }
                         ResponseStatus::Ok
                     }

@@ -3,6 +3,7 @@
 //! world's service names. Each domain opens its own ports.
 
 use iceoryx2::prelude::*;
+use shared_types::Bus;
 use shared_types::{ServiceNames, WorldName};
 use tracing::{info, warn};
 
@@ -12,7 +13,7 @@ use crate::ServerError;
 #[derive(Debug)]
 pub struct Transport {
     /// The server's iceoryx2 node (named `sim-server`).
-    pub node: Node<ipc::Service>,
+    pub node: Node<Bus>,
     /// The world's service names.
     pub names: ServiceNames,
 }
@@ -26,7 +27,7 @@ impl Transport {
             NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
         // Count the dead first so the log says it happened.
         let mut dead = 0u32;
-        let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        let _ = Node::<Bus>::list(Config::global_config(), |state| {
             if let NodeState::Dead(_) = state {
                 dead += 1;
             }
@@ -38,7 +39,7 @@ impl Transport {
         let node = NodeBuilder::new()
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
+            .create::<Bus>()
             .map_err(|e| ServerError::transport("node", e))?;
         let cleanup = node.try_cleanup_dead_nodes();
         if cleanup.failed_cleanups > 0 {
@@ -57,4 +58,14 @@ impl Transport {
 /// `name` as an iceoryx2 service name.
 pub fn service_name(name: &str) -> Result<ServiceName, ServerError> {
     ServiceName::new(name).map_err(|e| ServerError::transport("service name", e))
+}
+
+/// The process that sent a request, as iceoryx2's port recorded it in the
+/// request's header (the sending node's id carries its creator's pid), not
+/// as the request's payload claims: a client cannot name another process.
+pub fn sender_pid(header: &iceoryx2::service::header::request_response::RequestHeader) -> u32 {
+    header
+        .node_id()
+        .pid::<Bus>()
+        .map_or(0, |pid| u32::try_from(pid.value()).unwrap_or(0))
 }

@@ -4,6 +4,7 @@
 //! it; a watcher holds only a frame subscription and a listener, so it uses
 //! none of the ports that commands, sensors and the lockstep need.
 
+use shared_types::Bus;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
@@ -21,7 +22,7 @@ const T: Duration = Duration::from_secs(60);
 /// (control, batch, lockstep, sensors).
 fn request_clients(world: &str) -> [usize; 4] {
     let names = ServiceNames::new(&WorldName::new(world).unwrap());
-    let node = NodeBuilder::new().create::<ipc::Service>().unwrap();
+    let node = NodeBuilder::new().create::<Bus>().unwrap();
     let name = |n: &str| ServiceName::new(n).unwrap();
     let control = node
         .service_builder(&name(&names.control))

@@ -3,6 +3,7 @@
 //! the CLI, by the client library, and by the server itself for senders that
 //! skip the client's checks; a wrong protocol version is refused.
 
+use shared_types::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
@@ -125,7 +126,7 @@ fn every_invalid_setting_is_refused_with_its_rule_and_changes_nothing() {
 fn raw_request(world: &str, request: ControlRequest) -> ControlResponse {
     let node = NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
+        .create::<Bus>()
         .unwrap();
     let names = ServiceNames::new(&WorldName::new(world).unwrap());
     let service = node

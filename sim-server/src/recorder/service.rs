@@ -6,11 +6,11 @@
 //! stalls the frame loop; meanwhile the world goes on, and a second replay
 //! or a recording is refused.
 
+use shared_types::Bus;
 use std::thread::JoinHandle;
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
-use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
@@ -23,8 +23,8 @@ use crate::replayer::{prepare, Prepared, Refused, ReplayRequest};
 use crate::server::Domains;
 use crate::ServerError;
 
-type Port = RequestServer<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
-type Request = ActiveRequest<ipc::Service, RecorderRequest, (), RecorderResponse, ()>;
+type Port = RequestServer<Bus, RecorderRequest, (), RecorderResponse, ()>;
+type Request = ActiveRequest<Bus, RecorderRequest, (), RecorderResponse, ()>;
 
 /// A replay being prepared: the request waiting for its answer, and the job.
 #[derive(Debug)]

@@ -7,6 +7,7 @@
 
 mod capture;
 
+use shared_types::Bus;
 use std::mem::MaybeUninit;
 
 use iceoryx2::port::publisher::Publisher;
@@ -27,9 +28,8 @@ use crate::recorder::SensorNote;
 use crate::world::World;
 use crate::ServerError;
 
-type Port<T> = Publisher<ipc::Service, [T], SensorHeader>;
-type SensorServer =
-    RequestServer<ipc::Service, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+type Port<T> = Publisher<Bus, [T], SensorHeader>;
+type SensorServer = RequestServer<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 
 /// A sensor's publisher, typed by what it captures.
 enum SensorPort {
@@ -64,7 +64,7 @@ pub struct Sensors {
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
-    node: &Node<ipc::Service>,
+    node: &Node<Bus>,
     name: &str,
     elements: usize,
     max_readers: usize,

@@ -4,12 +4,12 @@
 
 mod ownership;
 
+use shared_types::Bus;
 use std::collections::VecDeque;
 use std::time::Duration;
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
-use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     CommandResult, FixedText, ResponseStatus, TickRequest, TickRequestKind, TickResponse,
@@ -22,7 +22,7 @@ pub use ownership::{Owner, TickOwnership};
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
 use crate::liveness::LiveProcesses;
-use crate::ports::{service_name, Transport};
+use crate::ports::{sender_pid, service_name, Transport};
 use crate::state::{Refusal, Runtime};
 use crate::ServerError;
 
@@ -36,8 +36,8 @@ pub enum OnTickerLoss {
     Async,
 }
 
-type TickServer = RequestServer<ipc::Service, TickRequest, (), TickResponse, ()>;
-type PendingTick = ActiveRequest<ipc::Service, TickRequest, (), TickResponse, ()>;
+type TickServer = RequestServer<Bus, TickRequest, (), TickResponse, ()>;
+type PendingTick = ActiveRequest<Bus, TickRequest, (), TickResponse, ()>;
 
 /// A request for one frame step, answered once the frame is published.
 #[derive(Debug)]
@@ -141,6 +141,9 @@ impl Ticker {
         {
             let payload = *request.payload();
             let origin = request.origin();
+            // The requesting port's process, as iceoryx2 recorded it; the
+            // payload's pid is the client's own word and is not trusted.
+            let pid = sender_pid(request.header());
             let kind = TickRequestKind::from_u32(payload.kind);
             let response = if payload.protocol_version != PROTOCOL_VERSION {
                 self.response(ResponseStatus::ProtocolMismatch, clock)
@@ -156,7 +159,7 @@ impl Ticker {
                     Some(TickRequestKind::Claim) => {
                         let candidate = Owner {
                             client: origin,
-                            pid: payload.pid,
+                            pid,
                             node_name: payload.node_name.to_string_lossy(),
                             since_frame: clock.frame(),
                         };
@@ -173,7 +176,7 @@ impl Ticker {
                             }
                             Err(current) => {
                                 info!(
-                                    pid = payload.pid,
+                                    pid,
                                     owner_pid = current.pid,
                                     "refused a second ticker"
                                 );
@@ -184,7 +187,7 @@ impl Ticker {
                     Some(TickRequestKind::Release) => {
                         if self.ownership.release(origin) {
                             info!(
-                                pid = payload.pid,
+                                pid,
                                 frame = clock.frame(),
                                 "ticker released ownership"
                             );
@@ -203,7 +206,7 @@ impl Ticker {
                         match runtime.change_settings(
                             settings,
                             true,
-                            payload.pid,
+                            pid,
                             clock.frame() + 1,
                         ) {
                             Ok(effective_frame) => TickResponse {
@@ -218,7 +221,7 @@ impl Ticker {
                     }
                     Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
                         warn!(
-                            pid = payload.pid,
+                            pid,
                             "refused a request from a client that is not the ticker"
                         );
                         self.response(ResponseStatus::NotTicker, clock)

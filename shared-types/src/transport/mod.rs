@@ -1,0 +1,61 @@
+//! The iceoryx2 service type every simbus port is built on.
+//!
+//! iceoryx2's own `ipc::Service` wakes a blocked listener through a Unix
+//! datagram socket: a `sendto` on one side and a `recvfrom` on the other per
+//! hop. [`Bus`] is the same service with one concept swapped: the event's
+//! trigger is a futex in the event's shared memory ([`futex`]). A notify of
+//! a listener that is not asleep is then an atomic add and no system call; a
+//! wake-up is one `futex` call on each side. Everything else (shared memory,
+//! connections, dead-node monitoring and cleanup) is `ipc::Service`'s,
+//! unchanged.
+//!
+//! Every simbus process must use this type: a port of another service type
+//! does not find simbus's services.
+
+#![allow(unsafe_code)]
+
+pub mod futex;
+
+use core::fmt::Debug;
+
+use iceoryx2_bb_elementary_traits::testing::abandonable::Abandonable;
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+use iceoryx2_cal::shm_allocator::bump_allocator::BumpAllocator;
+use iceoryx2_cal::shm_allocator::pool_allocator::PoolAllocator;
+use iceoryx2_cal::{
+    arc_sync_policy, bag, dynamic_storage, hash, monitoring, reactor, resizable_shared_memory,
+    serialize, shared_memory, static_storage, zero_copy_connection,
+};
+
+/// iceoryx2's inter-process service with a futex-backed event (see the
+/// module documentation). Use it where iceoryx2's examples write
+/// `ipc::Service`.
+#[derive(Debug, Clone)]
+pub struct Bus {}
+
+impl iceoryx2::service::Service for Bus {
+    type StaticStorage = static_storage::recommended::Ipc;
+    type ConfigSerializer = serialize::recommended::Recommended;
+    type PersistentDynamicStorage<T: Debug + Send + Sync + ZeroCopySend + 'static> =
+        dynamic_storage::recommended::PersistentIpc<T>;
+    type Bag = bag::recommended::Recommended;
+    type DynamicStorage<T: Debug + Send + Sync + ZeroCopySend + 'static> =
+        dynamic_storage::recommended::Ipc<T>;
+    type ServiceNameHasher = hash::recommended::Recommended;
+    type SharedMemory = shared_memory::recommended::Ipc<PoolAllocator>;
+    type ResizableSharedMemory = resizable_shared_memory::recommended::Ipc<PoolAllocator>;
+    type Connection = zero_copy_connection::recommended::Ipc;
+    /// The one difference from `ipc::Service`: a futex in shared memory
+    /// instead of a Unix datagram socket.
+    type Event = futex::FutexShmCountingBitSet;
+    type Monitoring = monitoring::recommended::Ipc;
+    type Reactor = reactor::recommended::Ipc;
+    type ArcThreadSafetyPolicy<T: Send + Debug + Abandonable> =
+        arc_sync_policy::single_threaded::SingleThreaded<T>;
+    type BlackboardMgmt<KeyType: Send + Sync + Debug + ZeroCopySend + 'static> =
+        dynamic_storage::recommended::Ipc<KeyType>;
+    type BlackboardPayload = shared_memory::recommended::Ipc<BumpAllocator>;
+    type UniqueId = iceoryx2::unique_id_generator::unique_system_id::UniqueSystemId;
+}
+
+impl iceoryx2::service::internal::ServiceInternal<Bus> for Bus {}

@@ -16,7 +16,7 @@ use clap::Args;
 use shared_types::ReplayMode;
 use sim_client::{inspect, Client, ReplayOptions};
 
-use crate::support::BenchServer;
+use crate::support::{load_average, BenchServer};
 
 const T: Duration = Duration::from_secs(60);
 
@@ -208,12 +208,6 @@ fn big(gib: f64, dir: &Path) -> anyhow::Result<serde_json::Value> {
         "bytes": info.bytes, "frames": info.frames, "record_seconds": record_s,
         "info_seconds": read_s, "replay_start_seconds": seek_s,
     }))
-}
-
-fn load_average() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".into())
 }
 
 pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {

@@ -53,3 +53,82 @@ impl BenchServer {
         })
     }
 }
+
+/// The three load averages, as `/proc/loadavg` gives them.
+pub(crate) fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".into())
+}
+
+/// Busy and total jiffies of all cores, from `/proc/stat`.
+fn cpu_jiffies() -> Option<(u64, u64)> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    let fields: Vec<u64> = stat
+        .lines()
+        .next()?
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|f| f.parse().ok())
+        .collect();
+    let total: u64 = fields.iter().sum();
+    // idle + iowait are the 4th and 5th fields.
+    let idle = fields.get(3).copied().unwrap_or(0) + fields.get(4).copied().unwrap_or(0);
+    Some((total - idle, total))
+}
+
+/// How busy the cores are with other work, sampled over `window` before a
+/// benchmark starts: blocking wake-ups are slow on idle cores (a halted
+/// virtual CPU) and fast on busy ones, so every blocking figure says which.
+pub(crate) fn machine_state(window: Duration) -> String {
+    let before = cpu_jiffies();
+    std::thread::sleep(window);
+    match (before, cpu_jiffies()) {
+        (Some((b0, t0)), Some((b1, t1))) if t1 > t0 => {
+            let busy = (b1 - b0) as f64 / (t1 - t0) as f64;
+            let word = if busy < 0.15 { "idle" } else { "busy" };
+            format!(
+                "{word}: cores {:.0}% busy over the {:.1} s before the run, load average {}",
+                busy * 100.0,
+                window.as_secs_f64(),
+                load_average()
+            )
+        }
+        _ => format!("unknown: load average {}", load_average()),
+    }
+}
+
+/// `n` processes spinning at the lowest priority for as long as this lives:
+/// "the machine busy with other work".
+pub(crate) struct BackgroundLoad {
+    _burners: Vec<ChildGuard>,
+}
+
+impl BackgroundLoad {
+    pub(crate) fn start(n: usize) -> anyhow::Result<Self> {
+        let burners = (0..n)
+            .map(|_| {
+                let child = Command::new(std::env::current_exe()?)
+                    .args(["peer", "--kind", "burn"])
+                    .stdin(Stdio::null())
+                    .stdout(Stdio::null())
+                    .spawn()
+                    .context("starting a background load process")?;
+                Ok(ChildGuard::new(child, Duration::from_secs(1)))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(Self { _burners: burners })
+    }
+}
+
+/// The `burn` peer: spins at nice 19 until it is killed.
+pub(crate) fn burn() -> anyhow::Result<()> {
+    // SAFETY: setpriority only changes this process's scheduling priority.
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+    }
+    let mut x = 0u64;
+    loop {
+        x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+    }
+}

@@ -25,7 +25,7 @@ use sim_client::process::ChildGuard;
 use sim_client::{Client, WaitMode};
 
 use crate::stats::{header, Latencies};
-use crate::support::BenchServer;
+use crate::support::{machine_state, BackgroundLoad, BenchServer};
 
 #[derive(Debug, Args)]
 pub(crate) struct TickArgs {
@@ -35,6 +35,10 @@ pub(crate) struct TickArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Run with this many lowest-priority spinning processes beside the
+    /// benchmark ("the machine busy with other work"); 0: as the machine is.
+    #[arg(long, default_value_t = 0)]
+    busy: usize,
 }
 
 /// The other end of the raw ping-pong and TCP baselines.
@@ -162,6 +166,7 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
         "participant" => crate::commands::participant(&args.name),
         "tcp-blob" => crate::sensors::tcp_blob_peer(),
         "futex" => crate::futex::peer(&args.name),
+        "burn" => crate::support::burn(),
         "ticker" => {
             let client = Client::connect(&args.name, Duration::from_secs(10))?;
             let mut ticker = client.claim_ticker_as("bench-ticker")?;
@@ -284,6 +289,8 @@ fn simbus_round_trip(
 
 pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let n = args.iterations;
+    let _load = BackgroundLoad::start(args.busy)?;
+    let machine = machine_state(Duration::from_millis(500));
     let rows = [
         (
             "(a) raw iceoryx2, spin",
@@ -348,10 +355,12 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
             json.insert(name.into(), ratio.into());
         }
         json.insert("iterations".into(), n.into());
+        json.insert("machine".into(), machine.into());
         println!("{}", serde_json::Value::Object(json));
         return Ok(());
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
+    println!("machine: {machine}");
     println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
     println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");
     println!("futex: two processes sleeping in futex(2) on a shared page (the blocking floor)");

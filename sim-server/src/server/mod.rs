@@ -283,6 +283,15 @@ impl Server {
         // Readers of the sensors learn why their stream ended.
         d.sensors
             .end_all(SensorEnd::ServerStopped, d.clock.frame(), d.runtime.episode);
+        // What clients that died since the last sweep left behind goes now,
+        // not at the next server's start.
+        let cleanup = d.transport.node.try_cleanup_dead_nodes();
+        if cleanup.cleanups > 0 {
+            info!(
+                removed = cleanup.cleanups,
+                "removed resources of dead clients"
+            );
+        }
         let summary = RunSummary {
             frames: d.runtime.frames_computed - first_frame,
             wall_seconds: started.elapsed().as_secs_f64(),

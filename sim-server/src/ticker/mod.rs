@@ -175,22 +175,14 @@ impl Ticker {
                                 self.response(ResponseStatus::Ok, clock)
                             }
                             Err(current) => {
-                                info!(
-                                    pid,
-                                    owner_pid = current.pid,
-                                    "refused a second ticker"
-                                );
+                                info!(pid, owner_pid = current.pid, "refused a second ticker");
                                 self.response(ResponseStatus::NotTicker, clock)
                             }
                         }
                     }
                     Some(TickRequestKind::Release) => {
                         if self.ownership.release(origin) {
-                            info!(
-                                pid,
-                                frame = clock.frame(),
-                                "ticker released ownership"
-                            );
+                            info!(pid, frame = clock.frame(), "ticker released ownership");
                             self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
                             self.response(ResponseStatus::Ok, clock)
                         } else {
@@ -203,12 +195,7 @@ impl Ticker {
                     }
                     Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
                         let settings = WorldSettings::from(payload.settings);
-                        match runtime.change_settings(
-                            settings,
-                            true,
-                            pid,
-                            clock.frame() + 1,
-                        ) {
+                        match runtime.change_settings(settings, true, pid, clock.frame() + 1) {
                             Ok(effective_frame) => TickResponse {
                                 effective_frame,
                                 ..self.response(ResponseStatus::Ok, clock)

@@ -310,7 +310,6 @@ fn garbage_is_refused_with_typed_errors_and_changes_nothing() {
     let status = raw.control(ControlRequest::new(RequestKind::Status));
     assert_eq!(status.status, ResponseStatus::Ok as u32);
     let last = twins.borrow_mut().step();
-    drop(twins);
 
     // The watcher of the attacked world saw every frame, consecutively.
     ticker.release().expect("release");

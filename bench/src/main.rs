@@ -18,6 +18,7 @@ use clap::{Parser, Subcommand};
 mod carla;
 mod commands;
 mod failover;
+mod fanout;
 mod frames;
 mod futex;
 mod recorder;
@@ -59,6 +60,12 @@ enum Command {
     /// the native client: tick round trip, wait_for_tick latency, depth
     /// 640x480 frames per second (needs `cargo build --release`).
     Carla(carla::CarlaArgs),
+    /// Fan-out: the last of 1, 4, 16, 64 subscriber processes to hold a
+    /// frame or an 8 MiB capture, spinning and blocking.
+    Fanout(fanout::FanoutArgs),
+    /// A fan-out subscriber (used by `fanout`).
+    #[command(hide = true)]
+    FanoutPeer(fanout::FanoutPeerArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
@@ -77,6 +84,8 @@ fn main() -> ExitCode {
         Command::Sensors(a) => sensors::run(a),
         Command::Recorder(a) => recorder::run(a),
         Command::Carla(a) => carla::run(a),
+        Command::Fanout(a) => fanout::run(a),
+        Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {
             sim_server::cli::init_logging(a.verbose);

@@ -89,51 +89,97 @@ pub(super) fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -
     }
 }
 
-/// Ray-casts `channels` × `sweep.columns` rays; writes the returns first,
-/// then zeros. Returns how many returns there are.
+/// A lidar's ray directions in its own frame, channel by channel, one per
+/// azimuth step of a full turn: the trigonometry done once, at spawn.
+#[derive(Debug, Default)]
+pub(super) struct LidarRays {
+    per_channel: usize,
+    directions: Vec<Vector>,
+}
+
+impl LidarRays {
+    /// The directions of `spec` (channels × points per channel).
+    pub(super) fn new(spec: &SensorSpec) -> Self {
+        let [channels, per_channel, _, upper, lower, ..] = spec.params;
+        let (channels, per_channel) = (channels as usize, per_channel as usize);
+        let azimuths: Vec<(f32, f32)> = (0..per_channel)
+            .map(|i| (std::f32::consts::TAU * i as f32 / per_channel as f32).sin_cos())
+            .collect();
+        let mut directions = Vec::with_capacity(channels * per_channel);
+        for c in 0..channels {
+            let elevation = if channels > 1 {
+                upper - (upper - lower) * c as f32 / (channels - 1) as f32
+            } else {
+                upper
+            }
+            .to_radians();
+            let (sin_e, cos_e) = elevation.sin_cos();
+            directions.extend(
+                azimuths
+                    .iter()
+                    .map(|&(sin_a, cos_a)| Vector::new(cos_e * cos_a, sin_e, cos_e * sin_a)),
+            );
+        }
+        Self {
+            per_channel,
+            directions,
+        }
+    }
+}
+
+/// Ray-casts `channels` × `sweep.columns` rays, channels in parallel, each
+/// writing its returns at the start of its own stretch of the sample; the
+/// stretches are then closed up in channel order (the same points, in the
+/// same order, as one thread would write), and the rest zeroed. Returns how
+/// many returns there are.
 pub(super) fn lidar_into(
     world: &World,
     spec: &SensorSpec,
+    rays: &LidarRays,
     pose: Pose,
     sweep: Sweep,
     slots: &mut [MaybeUninit<LidarPoint>],
 ) -> usize {
-    let [channels, _, range, upper, lower, ..] = spec.params;
-    let (channels, per_channel) = (channels as usize, sweep.per_channel);
+    let range = spec.params[2];
+    let per_channel = sweep.per_channel;
     let exclude = world.body_of(spec.attach_to);
-    let mut hits = 0;
-    for c in 0..channels {
-        let elevation = if channels > 1 {
-            upper - (upper - lower) * c as f32 / (channels - 1) as f32
-        } else {
-            upper
-        }
-        .to_radians();
-        for column in sweep.start..sweep.start + sweep.columns {
-            let i = column % per_channel;
-            let azimuth = std::f32::consts::TAU * i as f32 / per_channel as f32;
-            let direction = Vector::new(
-                elevation.cos() * azimuth.cos(),
-                elevation.sin(),
-                elevation.cos() * azimuth.sin(),
-            );
-            if let Some(distance) =
-                world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
-            {
-                let point = direction * distance;
-                slots[hits].write(LidarPoint {
-                    x: point.x,
-                    y: point.y,
-                    z: point.z,
-                    intensity: 1.0 - distance / range,
-                });
-                hits += 1;
+    let columns = sweep.columns.min(per_channel);
+    if columns == 0 || rays.per_channel != per_channel {
+        slots.fill(MaybeUninit::new(LidarPoint::default()));
+        return 0;
+    }
+    let channels = (rays.directions.len() / per_channel).min(slots.len() / columns);
+    // Each channel's returns, at the start of its `columns` slots.
+    let counts: Vec<usize> = slots[..channels * columns]
+        .par_chunks_mut(columns)
+        .zip(rays.directions.par_chunks(per_channel))
+        .map(|(stretch, directions)| {
+            let mut hits = 0;
+            for column in sweep.start..sweep.start + columns {
+                let direction = directions[column % per_channel];
+                if let Some(distance) =
+                    world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
+                {
+                    let point = direction * distance;
+                    stretch[hits].write(LidarPoint {
+                        x: point.x,
+                        y: point.y,
+                        z: point.z,
+                        intensity: 1.0 - distance / range,
+                    });
+                    hits += 1;
+                }
             }
-        }
+            hits
+        })
+        .collect();
+    let mut hits = 0;
+    for (c, count) in counts.into_iter().enumerate() {
+        let from = c * columns;
+        slots.copy_within(from..from + count, hits);
+        hits += count;
     }
-    for slot in &mut slots[hits..] {
-        slot.write(LidarPoint::default());
-    }
+    slots[hits..].fill(MaybeUninit::new(LidarPoint::default()));
     hits
 }
 
@@ -169,5 +215,54 @@ mod tests {
         assert_eq!(lidar_sweep(&spec, 0, 1).columns, 1);
         let full = SensorSpec::lidar([0.0; 3], 4, 1000, 50.0, 10.0, -10.0);
         assert_eq!(lidar_sweep(&full, 0, 20_000_000).columns, 1000);
+    }
+
+    #[test]
+    fn parallel_channels_give_the_points_one_thread_would_in_channel_order() {
+        let mut world = World::new(&crate::Scene::Default.placements(0), 1);
+        // One step puts the colliders in the query structures.
+        world.step(&crate::clock::SubstepPlan::new(
+            10_000_000,
+            &shared_types::WorldSettings::default(),
+        ));
+        let spec = SensorSpec::lidar([0.0, 2.0, 0.0], 16, 256, 50.0, 10.0, -30.0);
+        let rays = LidarRays::new(&spec);
+        let pose = sensor_pose(&world, &spec).expect("a pose");
+        // A partial sweep that wraps around the turn.
+        let sweep = Sweep {
+            start: 200,
+            columns: 100,
+            per_channel: 256,
+        };
+        let mut slots = vec![MaybeUninit::new(LidarPoint::default()); 16 * 256];
+        let hits = lidar_into(&world, &spec, &rays, pose, sweep, &mut slots);
+        let mut expected = Vec::new();
+        for c in 0..16 {
+            for column in 200..300 {
+                let direction = rays.directions[c * 256 + column % 256];
+                if let Some(d) =
+                    world.cast_ray(pose.translation, pose.rotation * direction, 50.0, None)
+                {
+                    expected.push((direction * d, 1.0 - d / 50.0));
+                }
+            }
+        }
+        assert!(
+            hits > 0 && hits < 1600,
+            "a scene with hits and misses: {hits}"
+        );
+        assert_eq!(hits, expected.len());
+        for (i, slot) in slots.iter().enumerate() {
+            // SAFETY: lidar_into initialised every slot (they also started so).
+            let point = unsafe { slot.assume_init() };
+            match expected.get(i) {
+                Some((p, intensity)) => assert_eq!(
+                    (point.x, point.y, point.z, point.intensity),
+                    (p.x, p.y, p.z, *intensity),
+                    "point {i}"
+                ),
+                None => assert_eq!(point, LidarPoint::default(), "slot {i} after the returns"),
+            }
+        }
     }
 }

@@ -49,6 +49,8 @@ struct Sensor {
     last_capture_ns: u64,
     /// Lidar: the column (azimuth step) the next sweep starts at.
     lidar_column: usize,
+    /// Lidar: its ray directions, computed once.
+    lidar_rays: capture::LidarRays,
     captures: u64,
 }
 
@@ -246,6 +248,11 @@ impl Sensors {
             next_capture_ns,
             last_capture_ns: now_ns,
             lidar_column: 0,
+            lidar_rays: if kind == SensorKind::Lidar {
+                capture::LidarRays::new(&spec)
+            } else {
+                capture::LidarRays::default()
+            },
             captures: 0,
         };
         let info = sensor.info();
@@ -379,8 +386,14 @@ impl Sensors {
                     // every remaining slot.
                     unsafe {
                         publish(port, header, record.as_deref_mut(), |slots, header| {
-                            header.count =
-                                capture::lidar_into(world, &sensor.spec, pose, sweep, slots) as u32;
+                            header.count = capture::lidar_into(
+                                world,
+                                &sensor.spec,
+                                &sensor.lidar_rays,
+                                pose,
+                                sweep,
+                                slots,
+                            ) as u32;
                         })
                     }
                 }

@@ -1,0 +1,251 @@
+//! `fanout`: one publisher, many subscribers — how long until the *last*
+//! subscriber holds a frame, or an 8 MiB sensor capture, with 1, 4, 16 and
+//! 64 subscriber processes, spinning and blocking.
+//!
+//! The bench is the ticker of a synchronous world (empty scene; a 2048x1024
+//! depth camera for the sensor rows) and paces its ticks so that every
+//! subscriber can keep up. Each subscriber is its own process: it records,
+//! per frame, the time from publication (the header's platform timestamp,
+//! taken just before `send`) until it held the sample and had read its first
+//! and last element, and reports them at the end. A frame's fan-out latency
+//! is the largest of its subscribers'.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use clap::Args;
+use shared_types::SensorSpec;
+use sim_client::process::ChildGuard;
+use sim_client::{Client, WaitMode};
+
+use crate::stats::Latencies;
+use crate::support::{machine_state, now_ns, sync_ticker, BenchServer};
+
+#[derive(Debug, Args)]
+pub(crate) struct FanoutArgs {
+    /// Frames measured per row (after 10% warm-up).
+    #[arg(long, default_value_t = 300)]
+    samples: u64,
+    /// Subscriber counts to measure.
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+    subscribers: Vec<usize>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// The subscriber peer's arguments, passed on its command line.
+#[derive(Debug, Args)]
+pub(crate) struct FanoutPeerArgs {
+    /// The world.
+    #[arg(long)]
+    world: String,
+    /// `spin` or `block`.
+    #[arg(long)]
+    mode: String,
+    /// The sensor to read (0: frames).
+    #[arg(long, default_value_t = 0)]
+    sensor: u64,
+    /// Samples to record before reporting.
+    #[arg(long)]
+    samples: u64,
+}
+
+/// The subscriber: prints `ready`, records `frame latency_ns` per sample,
+/// and prints them all on one line when it has `samples`.
+pub(crate) fn peer(args: FanoutPeerArgs) -> anyhow::Result<()> {
+    let mode = if args.mode == "spin" {
+        WaitMode::Spin
+    } else {
+        WaitMode::Block
+    };
+    let timeout = Duration::from_secs(30);
+    let mut client = Client::connect(&args.world, Duration::from_secs(30))?;
+    let mut out = Vec::with_capacity(args.samples as usize);
+    if args.sensor == 0 {
+        client.set_wait_mode(mode);
+        println!("ready");
+        while (out.len() as u64) < args.samples {
+            let snapshot = client.wait_for_tick(timeout)?;
+            let held = now_ns();
+            let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
+            out.push((snapshot.frame(), held.saturating_sub(published)));
+        }
+    } else {
+        let mut sensor = client.sensor(args.sensor)?;
+        sensor.set_wait_mode(mode);
+        println!("ready");
+        while (out.len() as u64) < args.samples {
+            let capture = sensor.recv(timeout)?;
+            let depth = capture.depth().context("a depth capture")?;
+            // Hold it: the header and the first and last element read.
+            anyhow::ensure!(depth[0].is_finite() && depth[depth.len() - 1].is_finite());
+            let held = now_ns();
+            let published = (capture.header().platform_timestamp * 1e9) as u64;
+            out.push((capture.header().frame, held.saturating_sub(published)));
+        }
+    }
+    let line: Vec<String> = out.iter().map(|(f, l)| format!("{f}:{l}")).collect();
+    println!("{}", line.join(" "));
+    Ok(())
+}
+
+struct Subscriber {
+    guard: ChildGuard,
+    lines: std::sync::mpsc::Receiver<String>,
+}
+
+fn spawn_subscriber(
+    world: &str,
+    mode: &str,
+    sensor: u64,
+    samples: u64,
+) -> anyhow::Result<Subscriber> {
+    let mut child = Command::new(std::env::current_exe()?)
+        .args(["fanout-peer", "--world", world, "--mode", mode])
+        .args([
+            "--sensor",
+            &sensor.to_string(),
+            "--samples",
+            &samples.to_string(),
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting a fan-out subscriber")?;
+    let stdout = child.stdout.take().context("subscriber stdout")?;
+    let (tx, lines) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    Ok(Subscriber {
+        guard: ChildGuard::new(child, Duration::from_secs(2)),
+        lines,
+    })
+}
+
+/// One row: `n` subscribers of frames (`sensor` 0) or of a sensor.
+#[allow(clippy::too_many_arguments)]
+fn row(
+    world: &str,
+    ticker: &mut sim_client::Ticker,
+    n: usize,
+    mode: &str,
+    sensor: u64,
+    samples: u64,
+    pace: Duration,
+) -> anyhow::Result<Latencies> {
+    let warmup = samples / 10;
+    let total = samples + warmup;
+    let subscribers: Vec<Subscriber> = (0..n)
+        .map(|_| spawn_subscriber(world, mode, sensor, total))
+        .collect::<anyhow::Result<_>>()?;
+    for s in &subscribers {
+        let ready = s.lines.recv_timeout(Duration::from_secs(60))?;
+        anyhow::ensure!(ready == "ready", "a subscriber did not start: {ready}");
+    }
+    // Paced ticks: every subscriber has the frame long before the next.
+    let mut next = Instant::now();
+    let mut first_frame = None;
+    for _ in 0..total {
+        while Instant::now() < next {
+            std::hint::spin_loop();
+        }
+        next += pace;
+        let frame = ticker.tick(Duration::from_secs(30))?;
+        first_frame.get_or_insert(frame);
+    }
+    let first = first_frame.unwrap_or(0);
+    let mut worst: BTreeMap<u64, u64> = BTreeMap::new();
+    for mut s in subscribers {
+        let report = s
+            .lines
+            .recv_timeout(Duration::from_secs(120))
+            .context("a subscriber's report")?;
+        for item in report.split_whitespace() {
+            let (frame, latency) = item.split_once(':').context("frame:latency")?;
+            let (frame, latency): (u64, u64) = (frame.parse()?, latency.parse()?);
+            let w = worst.entry(frame).or_insert(0);
+            *w = (*w).max(latency);
+        }
+        s.guard.wait_timeout(Duration::from_secs(10))?;
+    }
+    let mut latencies = Latencies::new();
+    for (_, latency) in worst.range(first + warmup..) {
+        latencies.record(*latency);
+    }
+    Ok(latencies)
+}
+
+pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
+    let machine = machine_state(Duration::from_millis(500));
+    let most = args.subscribers.iter().copied().max().unwrap_or(1);
+    let limit = (most + 8).to_string();
+    let server = BenchServer::start(
+        "fanout",
+        &[
+            "--scene",
+            "empty",
+            "--max-clients",
+            &limit,
+            "--max-sensor-readers",
+            &limit,
+        ],
+    )?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let sensor = client.spawn_sensor(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 100.0))?;
+    let sensor_id = sensor.id();
+    drop(sensor);
+    let mut rows = Vec::new();
+    for stream in ["frames", "8 MiB depth"] {
+        for mode in ["spin", "block"] {
+            for &n in &args.subscribers {
+                // Room for every subscriber to be woken and run on 2 cores.
+                let pace = Duration::from_micros(1000 + 100 * n as u64);
+                let id = if stream == "frames" { 0 } else { sensor_id };
+                let latencies = row(&server.world, &mut ticker, n, mode, id, args.samples, pace)?;
+                rows.push((stream, mode, n, latencies));
+            }
+        }
+    }
+    ticker.release()?;
+    if args.json {
+        let json: Vec<_> = rows
+            .iter()
+            .map(|(stream, mode, n, l)| {
+                serde_json::json!({"stream": stream, "mode": mode, "subscribers": n, "last_subscriber": l.json()})
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"machine": machine, "rows": json, "samples": args.samples})
+        );
+        return Ok(());
+    }
+    println!(
+        "fan-out: publish -> the LAST of N subscriber processes holds the sample ({} frames per row, paced ticks)",
+        args.samples
+    );
+    println!("machine: {machine}");
+    println!(
+        "{:<12} {:<6} {:>5} {:>10} {:>10} {:>10}",
+        "stream", "wait", "subs", "p50 µs", "p99 µs", "p999 µs"
+    );
+    for (stream, mode, n, l) in &rows {
+        println!(
+            "{stream:<12} {mode:<6} {n:>5} {:>10.1} {:>10.1} {:>10.1}",
+            l.quantile_us(0.5),
+            l.quantile_us(0.99),
+            l.quantile_us(0.999)
+        );
+    }
+    Ok(())
+}

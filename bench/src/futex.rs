@@ -7,8 +7,9 @@ use std::fs::OpenOptions;
 use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use crate::stats::Latencies;
-use crate::tick::{measure, spawn_peer};
+use sim_client::process::ChildGuard;
+
+use crate::tick::spawn_peer;
 
 /// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
 struct SharedWords {
@@ -101,7 +102,9 @@ fn post(word: &AtomicU32, value: u32) {
 pub(crate) fn peer(path: &str) -> anyhow::Result<()> {
     let words = SharedWords::map(Path::new(path))?;
     println!("ready");
-    let mut last = words.ping().load(Ordering::Acquire);
+    // The bench zeroed the words before starting us; reading `ping` here
+    // instead could already see its first ping and then wait for a second.
+    let mut last = 0;
     loop {
         wait(words.ping(), last);
         last = words.ping().load(Ordering::Acquire);
@@ -109,8 +112,9 @@ pub(crate) fn peer(path: &str) -> anyhow::Result<()> {
     }
 }
 
-/// The floor row: `iterations` futex round trips between two processes.
-pub(crate) fn ping_pong(iterations: u64) -> anyhow::Result<Latencies> {
+/// The floor exchange: a futex round trip with a peer process. Returns the
+/// peer (stopped on drop) and one round trip per call.
+pub(crate) fn exchange() -> anyhow::Result<(ChildGuard, impl FnMut() -> anyhow::Result<()>)> {
     let path = std::env::temp_dir().join(format!("simbus-bench-futex-{}", std::process::id()));
     let words = SharedWords::map(&path)?;
     words.ping().store(0, Ordering::Release);
@@ -119,7 +123,7 @@ pub(crate) fn ping_pong(iterations: u64) -> anyhow::Result<Latencies> {
     let _ = std::fs::remove_file(&path);
     anyhow::ensure!(ready == "ready", "the futex peer did not start: {ready}");
     let mut n = 0u32;
-    let result = measure(iterations, || {
+    Ok((peer, move || {
         n = n.wrapping_add(1);
         post(words.ping(), n);
         wait(words.pong(), n.wrapping_sub(1));
@@ -128,7 +132,5 @@ pub(crate) fn ping_pong(iterations: u64) -> anyhow::Result<Latencies> {
             "futex ping-pong out of order"
         );
         Ok(())
-    });
-    drop(peer);
-    result
+    }))
 }

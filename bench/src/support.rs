@@ -33,6 +33,11 @@ pub(crate) struct BenchServer {
 }
 
 impl BenchServer {
+    /// The server's process id.
+    pub(crate) fn pid(&self) -> u32 {
+        self._guard.id()
+    }
+
     /// Starts `serve --world <unique> <args>` and waits until it answers.
     pub(crate) fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
         let world = format!("bench-{tag}-{}", std::process::id());

@@ -54,22 +54,6 @@ pub(crate) struct PeerArgs {
 
 const WARMUP_FRACTION: u64 = 10;
 
-pub(crate) fn measure(
-    iterations: u64,
-    mut round_trip: impl FnMut() -> anyhow::Result<()>,
-) -> anyhow::Result<Latencies> {
-    for _ in 0..iterations / WARMUP_FRACTION {
-        round_trip()?;
-    }
-    let mut latencies = Latencies::new();
-    for _ in 0..iterations {
-        let start = Instant::now();
-        round_trip()?;
-        latencies.record(start.elapsed().as_nanos() as u64);
-    }
-    Ok(latencies)
-}
-
 struct RawPorts<S: Service> {
     _node: Node<S>,
     tx: Publisher<S, u64, ()>,
@@ -150,9 +134,12 @@ impl<S: Service> RawPorts<S> {
                 "ping-pong peer stopped answering"
             );
             if block {
-                self.listener
-                    .timed_wait(|_| {}, Duration::from_millis(100))
-                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                // A SIGCONT (the bench stops peers between their slices)
+                // interrupts iceoryx2's socket wait: look again.
+                match self.listener.timed_wait(|_| {}, Duration::from_millis(100)) {
+                    Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => anyhow::bail!("{e:?}"),
+                }
             } else {
                 std::hint::spin_loop();
             }
@@ -223,43 +210,85 @@ pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, 
     Ok((guard, line.trim().to_owned()))
 }
 
+/// One exchange of the benchmark: its round trip, and the processes that
+/// serve it (stopped with SIGSTOP while other rows run, so that a spinning
+/// peer does not take a core from them).
+struct Row {
+    name: &'static str,
+    round_trip: Box<dyn FnMut() -> anyhow::Result<()>>,
+    peers: Vec<u32>,
+    _guards: Vec<ChildGuard>,
+    _server: Option<BenchServer>,
+    latencies: Latencies,
+}
+
+impl Row {
+    fn signal(&self, signal: i32) {
+        for &pid in &self.peers {
+            let _ = sim_client::process::send_signal(pid, signal);
+        }
+    }
+}
+
 /// `S`: iceoryx2's `ipc::Service` (its event a Unix datagram socket) or
 /// simbus's [`Bus`] (a futex); `kind` names the peer that runs the same.
-fn raw_ping_pong<S: Service>(kind: &str, iterations: u64) -> anyhow::Result<Latencies> {
+fn raw_row<S: Service + 'static>(name: &'static str, kind: &str) -> anyhow::Result<Row> {
     let block = kind != "iceoryx-spin";
-    let name = format!("bench-raw-{kind}-{}", std::process::id());
-    let ports = raw_ports::<S>(&name, "ping", "pong")?;
-    let (_peer, _) = spawn_peer(kind, &name)?;
+    let world = format!("bench-raw-{kind}-{}", std::process::id());
+    let ports = raw_ports::<S>(&world, "ping", "pong")?;
+    let (peer, _) = spawn_peer(kind, &world)?;
     let mut n = 0;
-    measure(iterations, || {
-        n += 1;
-        ports.send(n, block)?;
-        anyhow::ensure!(ports.receive(block)? == n, "ping-pong out of order");
-        Ok(())
+    Ok(Row {
+        name,
+        peers: vec![peer.id()],
+        _guards: vec![peer],
+        _server: None,
+        round_trip: Box::new(move || {
+            n += 1;
+            ports.send(n, block)?;
+            anyhow::ensure!(ports.receive(block)? == n, "ping-pong out of order");
+            Ok(())
+        }),
+        latencies: Latencies::new(),
     })
 }
 
-fn tcp_round_trip(iterations: u64) -> anyhow::Result<Latencies> {
-    let (_peer, port) = spawn_peer("tcp", "tcp")?;
+fn futex_row() -> anyhow::Result<Row> {
+    let (peer, round_trip) = crate::futex::exchange()?;
+    Ok(Row {
+        name: "(f) futex, block (floor)",
+        peers: vec![peer.id()],
+        _guards: vec![peer],
+        _server: None,
+        round_trip: Box::new(round_trip),
+        latencies: Latencies::new(),
+    })
+}
+
+fn tcp_row() -> anyhow::Result<Row> {
+    let (peer, port) = spawn_peer("tcp", "tcp")?;
     let mut stream = TcpStream::connect(("127.0.0.1", port.parse::<u16>()?))?;
     stream.set_nodelay(true)?;
     let mut frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
     let mut tick = 0u64;
-    measure(iterations, || {
-        tick += 1;
-        stream.write_all(&tick.to_le_bytes())?;
-        stream.read_exact(&mut frame)?;
-        Ok(())
+    Ok(Row {
+        name: "(c) TCP loopback",
+        peers: vec![peer.id()],
+        _guards: vec![peer],
+        _server: None,
+        round_trip: Box::new(move || {
+            tick += 1;
+            stream.write_all(&tick.to_le_bytes())?;
+            stream.read_exact(&mut frame)?;
+            Ok(())
+        }),
+        latencies: Latencies::new(),
     })
 }
 
 /// `server`: extra server flags (how it waits for ticks); `mode`: how the
 /// ticker and the subscriber wait.
-fn simbus_round_trip(
-    server: &[&str],
-    mode: WaitMode,
-    iterations: u64,
-) -> anyhow::Result<Latencies> {
+fn simbus_row(name: &'static str, server: &[&str], mode: WaitMode) -> anyhow::Result<Row> {
     let mut server_args = vec!["--scene", "empty", "--fixed-delta-seconds", "0.01"];
     server_args.extend_from_slice(server);
     let server = BenchServer::start(&format!("tick-{mode:?}"), &server_args)?;
@@ -275,50 +304,81 @@ fn simbus_round_trip(
     // Drain the frames published before synchronous mode began.
     while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
     let timeout = Duration::from_secs(10);
-    measure(iterations, || {
-        let frame = ticker.tick(timeout)?;
-        let snapshot = client.wait_for_tick(timeout)?;
-        anyhow::ensure!(
-            snapshot.frame() == frame,
-            "snapshot of frame {} after tick {frame}",
-            snapshot.frame()
-        );
-        Ok(())
+    Ok(Row {
+        name,
+        peers: vec![server.pid()],
+        _guards: Vec::new(),
+        _server: Some(server),
+        round_trip: Box::new(move || {
+            let frame = ticker.tick(timeout)?;
+            let snapshot = client.wait_for_tick(timeout)?;
+            anyhow::ensure!(
+                snapshot.frame() == frame,
+                "snapshot of frame {} after tick {frame}",
+                snapshot.frame()
+            );
+            Ok(())
+        }),
+        latencies: Latencies::new(),
     })
+}
+
+/// Rounds the measurement is cut into: every row runs a slice in each
+/// round, so all rows see the same machine, however its load drifts.
+const ROUNDS: u64 = 20;
+
+/// Measures `n` round trips per row, interleaved: in each round every row
+/// (its peers woken with SIGCONT, the others stopped) runs `n / ROUNDS`
+/// round trips after a short warm-up that is not counted.
+fn interleave(rows: &mut [Row], n: u64) -> anyhow::Result<()> {
+    for row in rows.iter() {
+        row.signal(libc::SIGSTOP);
+    }
+    let slice = (n / ROUNDS).max(1);
+    for _ in 0..ROUNDS {
+        for row in rows.iter_mut() {
+            row.signal(libc::SIGCONT);
+            for _ in 0..(slice / WARMUP_FRACTION).max(10) {
+                (row.round_trip)()?;
+            }
+            for _ in 0..slice {
+                let start = Instant::now();
+                (row.round_trip)()?;
+                row.latencies.record(start.elapsed().as_nanos() as u64);
+            }
+            row.signal(libc::SIGSTOP);
+        }
+    }
+    for row in rows.iter() {
+        row.signal(libc::SIGCONT);
+    }
+    Ok(())
 }
 
 pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let n = args.iterations;
     let _load = BackgroundLoad::start(args.busy)?;
     let machine = machine_state(Duration::from_millis(500));
-    let rows = [
-        (
-            "(a) raw iceoryx2, spin",
-            raw_ping_pong::<ipc::Service>("iceoryx-spin", n)?,
-        ),
-        (
-            "(a) raw iceoryx2, block",
-            raw_ping_pong::<ipc::Service>("iceoryx-block", n)?,
-        ),
-        (
-            "(a) raw iceoryx2 futex event, block",
-            raw_ping_pong::<Bus>("iceoryx-bus-block", n)?,
-        ),
-        ("(f) futex, block (floor)", crate::futex::ping_pong(n)?),
-        (
+    let mut rows = vec![
+        raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
+        raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
+        raw_row::<Bus>("(a) raw iceoryx2 futex event, block", "iceoryx-bus-block")?,
+        futex_row()?,
+        simbus_row(
             "(b) simbus, all spin",
-            simbus_round_trip(&["--wait-mode", "spin"], WaitMode::Spin, n)?,
-        ),
-        (
-            "(b) simbus, hybrid",
-            simbus_round_trip(&[], WaitMode::Hybrid, n)?,
-        ),
-        (
+            &["--wait-mode", "spin"],
+            WaitMode::Spin,
+        )?,
+        simbus_row("(b) simbus, hybrid", &[], WaitMode::Hybrid)?,
+        simbus_row(
             "(b) simbus, block",
-            simbus_round_trip(&["--wait-mode", "block"], WaitMode::Block, n)?,
-        ),
-        ("(c) TCP loopback", tcp_round_trip(n)?),
+            &["--wait-mode", "block"],
+            WaitMode::Block,
+        )?,
+        tcp_row()?,
     ];
+    interleave(&mut rows, n)?;
+    let rows: Vec<(&str, Latencies)> = rows.into_iter().map(|r| (r.name, r.latencies)).collect();
     let p50 = |prefix: &str| {
         rows.iter()
             .find(|(name, _)| name.starts_with(prefix))
@@ -360,6 +420,7 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
+    println!("rows interleaved: {ROUNDS} rounds, each row's peers running only during its slice");
     println!("machine: {machine}");
     println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
     println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");

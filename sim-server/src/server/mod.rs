@@ -372,7 +372,7 @@ impl Domains {
             physics_substeps,
             flags,
             first_actor_id: self.world.first_id(),
-            server_pid: std::process::id(),
+            server_pid: shared_types::this_process_id(),
             reserved: 0,
         }
     }
@@ -383,7 +383,7 @@ impl Domains {
             frame: self.clock.frame(),
             elapsed_ns: self.clock.elapsed_ns(),
             episode: self.runtime.episode,
-            server_pid: std::process::id(),
+            server_pid: shared_types::this_process_id(),
             actor_count: self.world.actor_count() as u32,
             settings: WireSettings::from(self.runtime.settings),
             scene: FixedText::new(&self.runtime.scene.to_string()),

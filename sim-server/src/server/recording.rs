@@ -162,7 +162,7 @@ impl Domains {
         let header = FrameHeader {
             episode: self.runtime.episode,
             flags: frame.header.flags | FrameHeader::REPLAY,
-            server_pid: std::process::id(),
+            server_pid: shared_types::this_process_id(),
             timestamp: shared_types::Timestamp {
                 platform_timestamp: platform_timestamp(),
                 ..t

@@ -216,7 +216,7 @@ fn spawn_subscriber(
 
 /// One row: `n` subscribers of frames (`sensor` 0) or of a sensor.
 #[allow(clippy::too_many_arguments)]
-fn row(
+pub(crate) fn row(
     world: &str,
     ticker: &mut sim_client::Ticker,
     n: usize,

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use shared_types::SensorSpec;
-use sim_client::{Client, WaitMode};
+use sim_client::Client;
 
 use crate::stats::{header, Latencies};
 use crate::support::{now_ns, sync_ticker, BenchServer};
@@ -71,33 +71,26 @@ fn tcp_latency(bytes: usize, samples: u64) -> anyhow::Result<Latencies> {
 }
 
 pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
-    // Delivery latency: capture published -> header and data readable.
+    // Delivery latency: capture published -> header and data readable, in
+    // a reader process spinning on the sensor itself (not behind a tick
+    // round trip), the ticker asleep between paced ticks.
     let server = BenchServer::start("sensors", &["--scene", "empty"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
-    // Spin: measure the transport, not how deeply an idle core slept.
-    ticker.set_wait_mode(WaitMode::Spin);
-    let timeout = Duration::from_secs(10);
     let mut rows = Vec::new();
     for (label, width, height) in SIZES {
-        let mut sensor =
+        let sensor =
             client.spawn_sensor(SensorSpec::depth([0.0; 3], width, height, 90.0, 100.0))?;
-        let mut latencies = Latencies::new();
-        for i in 0..args.samples + args.samples / 10 {
-            ticker.tick(timeout)?;
-            let capture = sensor.recv(timeout)?;
-            let depth = capture.depth().expect("a depth capture");
-            // Read the data in place: first and last value.
-            anyhow::ensure!(
-                depth[0] > 0.0 && depth[depth.len() - 1] > 0.0,
-                "empty capture"
-            );
-            let received = now_ns();
-            let published = (capture.header().platform_timestamp * 1e9) as u64;
-            if i >= args.samples / 10 {
-                latencies.record(received.saturating_sub(published));
-            }
-        }
+        let (latencies, lost) = crate::fanout::row(
+            &server.world,
+            &mut ticker,
+            1,
+            "spin",
+            sensor.id(),
+            args.samples,
+            Duration::from_millis(2),
+        )?;
+        anyhow::ensure!(lost == 0, "the reader lost {lost} captures");
         client.destroy_sensor(sensor.id())?;
         let bytes = (width * height * 4) as usize;
         rows.push((label, bytes, latencies, tcp_latency(bytes, args.samples)?));
@@ -110,6 +103,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     let server = BenchServer::start("sensor-frames", &["--scene", "default"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
+    let timeout = Duration::from_secs(30);
     let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
         let mut latencies = Latencies::new();
         for _ in 0..args.frames {
@@ -153,7 +147,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "sensor delivery: capture published -> header and data readable in the subscriber ({} captures each, spinning reader)",
+        "sensor delivery: capture sent -> a reader process spinning on the sensor holds it, first and last element read ({} captures each)",
         args.samples
     );
     println!(

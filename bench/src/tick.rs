@@ -35,6 +35,11 @@ pub(crate) struct TickArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Instead of the table: split the simbus blocking round trip into its
+    /// two hops (tick sent -> frame published, published -> snapshot held),
+    /// with the server and the clients in `--hops MODE` (spin, hybrid, block).
+    #[arg(long, value_name = "MODE")]
+    hops: Option<WaitMode>,
     /// Run with this many lowest-priority spinning processes beside the
     /// benchmark ("the machine busy with other work"); 0: as the machine is.
     #[arg(long, default_value_t = 0)]
@@ -323,6 +328,51 @@ fn simbus_row(name: &'static str, server: &[&str], mode: WaitMode) -> anyhow::Re
     })
 }
 
+/// The two hops of a tick round trip, from the frame's platform timestamp
+/// (taken as the server publishes it).
+fn hops(mode: WaitMode, n: u64, machine: &str) -> anyhow::Result<()> {
+    let name = mode.name();
+    let server = BenchServer::start(
+        "hops",
+        &[
+            "--scene",
+            "empty",
+            "--fixed-delta-seconds",
+            "0.01",
+            "--wait-mode",
+            name,
+        ],
+    )?;
+    let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
+    client.set_wait_mode(mode);
+    let mut ticker = crate::support::sync_ticker(&client, 0.01)?;
+    ticker.set_wait_mode(mode);
+    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    let timeout = Duration::from_secs(10);
+    let (mut to_server, mut to_client, mut whole) =
+        (Latencies::new(), Latencies::new(), Latencies::new());
+    for i in 0..n + n / 10 {
+        let sent = crate::support::now_ns();
+        let frame = ticker.tick(timeout)?;
+        let snapshot = client.wait_for_tick(timeout)?;
+        let held = crate::support::now_ns();
+        anyhow::ensure!(snapshot.frame() == frame, "out of order");
+        let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
+        if i >= n / 10 {
+            to_server.record(published.saturating_sub(sent));
+            to_client.record(held.saturating_sub(published));
+            whole.record(held.saturating_sub(sent));
+        }
+    }
+    println!("simbus tick round trip in two hops, server and clients in {name} mode ({n} ticks)");
+    println!("machine: {machine}");
+    println!("{}", header("hop"));
+    println!("{}", to_server.row("tick sent -> frame published"));
+    println!("{}", to_client.row("published -> snapshot held"));
+    println!("{}", whole.row("round trip"));
+    Ok(())
+}
+
 /// Rounds the measurement is cut into: every row runs a slice in each
 /// round, so all rows see the same machine, however its load drifts.
 const ROUNDS: u64 = 20;
@@ -359,6 +409,9 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     let n = args.iterations;
     let _load = BackgroundLoad::start(args.busy)?;
     let machine = machine_state(Duration::from_millis(500));
+    if let Some(mode) = args.hops {
+        return hops(mode, n, &machine);
+    }
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,

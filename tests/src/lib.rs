@@ -480,6 +480,11 @@ impl PrivateRoot {
         [("SIMBUS_IOX2_CONFIG", self.config.as_os_str())]
     }
 
+    /// The `/dev/shm` name prefix of this root.
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
     /// iceoryx2's directory of this root.
     pub fn directory(&self) -> PathBuf {
         self.scratch.path().join("iox2")

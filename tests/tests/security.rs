@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use simbus_tests::{bin, unique_world, ChildGuard, Scratch};
+use simbus_tests::{bin, unique_world, ChildGuard, PrivateRoot};
 
 /// Every file under `dir` (recursively) and its mode.
 fn modes(dir: &Path, out: &mut Vec<(String, u32, bool)>) {
@@ -23,45 +23,17 @@ fn modes(dir: &Path, out: &mut Vec<(String, u32, bool)>) {
     }
 }
 
-/// Removes what is left under a test's own iceoryx2 prefix in /dev/shm
-/// (iceoryx2 keeps its id counter), last, even when the test fails.
-struct Leftovers(String);
-
-impl Drop for Leftovers {
-    fn drop(&mut self) {
-        for entry in std::fs::read_dir("/dev/shm")
-            .into_iter()
-            .flatten()
-            .flatten()
-        {
-            if entry.file_name().to_string_lossy().starts_with(&self.0) {
-                let _ = std::fs::remove_file(entry.path());
-            }
-        }
-    }
-}
-
 #[test]
 fn a_worlds_shared_memory_and_files_are_its_owners_alone() {
-    let scratch = Scratch::new("security");
-    let prefix = format!("iox2_sec{}_", std::process::id());
-    let _leftovers = Leftovers(prefix.clone());
-    let root = scratch.path().join("iox2");
-    let config = scratch.write(
-        "iox2.toml",
-        format!(
-            "[global]\nroot-path = \"{}/\"\nprefix = \"{prefix}\"\n",
-            root.display()
-        )
-        .as_bytes(),
-    );
+    let private = PrivateRoot::new("security");
+    let root = private.directory();
     let world = unique_world("security");
     let run = |program: &str, args: &[&str]| {
         let mut command = Command::new(bin(program));
         command
             .args(["--world", world.as_str()])
             .args(args)
-            .env("SIMBUS_IOX2_CONFIG", &config)
+            .envs(private.env())
             .env("RUST_LOG", "warn")
             .stdin(Stdio::null());
         command
@@ -100,7 +72,11 @@ fn a_worlds_shared_memory_and_files_are_its_owners_alone() {
     let segments: Vec<_> = std::fs::read_dir("/dev/shm")
         .expect("/dev/shm")
         .filter_map(Result::ok)
-        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with(private.prefix())
+        })
         .map(|e| {
             let mode = e.metadata().expect("metadata").permissions().mode() & 0o777;
             (e.file_name().to_string_lossy().into_owned(), mode)

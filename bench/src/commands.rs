@@ -110,6 +110,7 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     let (_participant, ready) = spawn_peer("participant", &joined.world)?;
     anyhow::ensure!(ready == "ready", "the participant did not start: {ready}");
     let with = tick_round_trips(&joined.world, args.ticks)?;
+    let floor = crate::futex::floor(args.ticks, Duration::ZERO)?;
 
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     if args.json {
@@ -122,6 +123,7 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
                 "tick_without_participant": without.json(),
                 "tick_with_one_participant": with.json(),
                 "participant_cost_p50_us": p50(&with) - p50(&without),
+                "futex_round_trip": floor.json(),
             })
         );
         return Ok(());
@@ -142,10 +144,12 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     println!("{}", header("participants"));
     println!("{}", without.row("none"));
     println!("{}", with.row("one (waits, reports done)"));
+    println!("{}", floor.row("(a futex round trip)"));
     println!(
-        "one participant adds {:.1} µs at p50 ({:.2}x)",
+        "one participant adds {:.1} µs at p50 ({:.2}x), {:.2} futex round trips",
         p50(&with) - p50(&without),
-        p50(&with) / p50(&without)
+        p50(&with) / p50(&without),
+        (p50(&with) - p50(&without)) / p50(&floor)
     );
     Ok(())
 }

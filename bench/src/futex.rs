@@ -9,6 +9,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 use sim_client::process::ChildGuard;
 
+use crate::stats::Latencies;
+
 use crate::tick::spawn_peer;
 
 /// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
@@ -133,4 +135,23 @@ pub(crate) fn exchange() -> anyhow::Result<(ChildGuard, impl FnMut() -> anyhow::
         );
         Ok(())
     }))
+}
+
+/// `iterations` futex round trips, one every `pace` (zero: back to back),
+/// as the floor beside another benchmark's rows.
+pub(crate) fn floor(iterations: u64, pace: std::time::Duration) -> anyhow::Result<Latencies> {
+    let (_peer, mut round_trip) = exchange()?;
+    for _ in 0..iterations / 10 {
+        round_trip()?;
+    }
+    let mut latencies = Latencies::new();
+    for _ in 0..iterations {
+        if !pace.is_zero() {
+            std::thread::sleep(pace);
+        }
+        let start = std::time::Instant::now();
+        round_trip()?;
+        latencies.record(start.elapsed().as_nanos() as u64);
+    }
+    Ok(latencies)
 }

@@ -256,7 +256,9 @@ pub struct CommandResult {
 pub struct BatchHeader {
     /// [`PROTOCOL_VERSION`] of the sender.
     pub protocol_version: u32,
-    /// Process id of the sender (a ticking batch must come from the ticker's process).
+    /// Process id of the sender, as it states it: for logs only. Whether a
+    /// ticking batch comes from the ticker's process is decided by the
+    /// sending port (iceoryx2's request header), never by this field.
     pub pid: u32,
     /// [`BatchHeader::TICK`] and future flags.
     pub flags: u32,

@@ -30,7 +30,8 @@ pub struct LockstepRequest {
     pub protocol_version: u32,
     /// [`LockstepKind`] as `u32`.
     pub kind: u32,
-    /// The participant's process id.
+    /// The participant's process id, as it states it (the server watches
+    /// the process of the sending port instead).
     pub pid: u32,
     /// Zero.
     pub reserved: u32,

@@ -83,7 +83,8 @@ pub struct TickRequest {
     pub protocol_version: u32,
     /// [`TickRequestKind`] as `u32`.
     pub kind: u32,
-    /// Process id of the ticker.
+    /// Process id of the ticker, as it states it (ownership is given to
+    /// the process of the sending port instead).
     pub pid: u32,
     /// Zero.
     pub reserved: u32,

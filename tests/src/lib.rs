@@ -485,6 +485,21 @@ impl PrivateRoot {
         &self.prefix
     }
 
+    /// `sim-server --world <world> <args>` in this root.
+    pub fn server(&self, world: &str, args: &[&str]) -> Proc {
+        let mut all = vec!["--world", world];
+        all.extend_from_slice(args);
+        Proc::spawn_env("sim-server", &all, &self.env())
+    }
+
+    /// `sim-client --world <world> --timeout <timeout> <args>` in this
+    /// root, started.
+    pub fn client(&self, world: &str, timeout: &str, args: &[&str]) -> Proc {
+        let mut all = vec!["--world", world, "--timeout", timeout];
+        all.extend_from_slice(args);
+        Proc::spawn_env("sim-client", &all, &self.env())
+    }
+
     /// iceoryx2's directory of this root.
     pub fn directory(&self) -> PathBuf {
         self.scratch.path().join("iox2")

@@ -55,13 +55,8 @@ struct Chaos<'a> {
 
 impl Chaos<'_> {
     fn spawn(&self, role: Role) -> Proc {
-        let world = self.world.as_str();
-        let args: Vec<&str> = match role {
-            Role::Ticker => vec![
-                "--world",
-                world,
-                "--timeout",
-                "10",
+        let args: &[&str] = match role {
+            Role::Ticker => &[
                 "tick",
                 "--json",
                 "--rate",
@@ -70,28 +65,11 @@ impl Chaos<'_> {
                 "0.02",
                 "--leave-sync",
             ],
-            Role::Watcher => vec!["--world", world, "--timeout", "10", "watch", "--digest"],
-            Role::Participant => vec![
-                "--world",
-                world,
-                "--timeout",
-                "10",
-                "watch",
-                "--digest",
-                "--lockstep",
-            ],
-            Role::SensorReader => vec![
-                "--world",
-                world,
-                "--timeout",
-                "10",
-                "sensor",
-                "watch",
-                self.sensor.as_str(),
-                "--json",
-            ],
+            Role::Watcher => &["watch", "--digest"],
+            Role::Participant => &["watch", "--digest", "--lockstep"],
+            Role::SensorReader => &["sensor", "watch", self.sensor.as_str(), "--json"],
         };
-        Proc::spawn_env("sim-client", &args, &self.root.env())
+        self.root.client(&self.world, "10", args)
     }
 
     /// Collects what every member printed so far.
@@ -157,11 +135,9 @@ fn assert_consecutive(what: &str, frames: &[u64]) {
 fn run_chaos(seed: u64, length: Duration) {
     let root = PrivateRoot::new("chaos");
     let world = unique_world("chaos");
-    let mut server = Proc::spawn_env(
-        "sim-server",
+    let mut server = root.server(
+        &world,
         &[
-            "--world",
-            &world,
             "--scene",
             "default",
             "--fixed-delta-seconds",
@@ -171,12 +147,10 @@ fn run_chaos(seed: u64, length: Duration) {
             "--lockstep-timeout",
             "1",
         ],
-        &root.env(),
     );
     let cli = |args: &[&str]| {
-        let mut all = vec!["--world", world.as_str(), "--timeout", "20"];
-        all.extend_from_slice(args);
-        Proc::spawn_env("sim-client", &all, &root.env()).finish(Duration::from_secs(30))
+        root.client(&world, "20", args)
+            .finish(Duration::from_secs(30))
     };
     // Up and answering (the first request waits for the server's services).
     cli(&["status", "--json"]).assert_success();
@@ -221,34 +195,15 @@ fn run_chaos(seed: u64, length: Duration) {
     // The liveness probe: a status request every quarter second, each
     // answered within its 2 s timeout (the lockstep timeout is 1 s).
     let (stop_probe, stopped) = mpsc::channel::<()>();
-    let probe_world = world.clone();
-    let probe_env: Vec<(String, std::ffi::OsString)> = root
-        .env()
-        .iter()
-        .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
-        .collect();
-    let probe = std::thread::spawn(move || {
+    let (root_ref, world_ref) = (&root, world.as_str());
+    let probe = move || {
         let mut answered = 0u32;
         while let Err(mpsc::RecvTimeoutError::Timeout) =
             stopped.recv_timeout(Duration::from_millis(250))
         {
-            let env: Vec<(&str, &std::ffi::OsStr)> = probe_env
-                .iter()
-                .map(|(k, v)| (k.as_str(), v.as_os_str()))
-                .collect();
-            let status = Proc::spawn_env(
-                "sim-client",
-                &[
-                    "--world",
-                    &probe_world,
-                    "--timeout",
-                    "2",
-                    "status",
-                    "--json",
-                ],
-                &env,
-            )
-            .finish(Duration::from_secs(30));
+            let status = root_ref
+                .client(world_ref, "2", &["status", "--json"])
+                .finish(Duration::from_secs(30));
             assert!(
                 status.status.success(),
                 "the server did not answer a status request within 2 s: {status}"
@@ -256,63 +211,66 @@ fn run_chaos(seed: u64, length: Duration) {
             answered += 1;
         }
         answered
-    });
-
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (mut kills, mut stops, mut ticker_kills) = (0, 0, 0);
-    let end = Instant::now() + length;
-    let pace = mpsc::channel::<()>();
-    while Instant::now() < end {
-        // The schedule's own pace: a random pause between two blows.
-        let _ = pace
-            .1
-            .recv_timeout(Duration::from_millis(rng.random_range(30..150)));
-        chaos.drain();
-        while let Some(line) = witness.proc.line(Duration::ZERO) {
-            witness.lines.push(line);
-        }
-        let victim = rng.random_range(0..chaos.members.len());
-        let pid = chaos.members[victim].proc.pid();
-        if rng.random_range(0..3) == 0 {
-            // SIGKILL, and a new client of the same kind in its place.
-            send_signal(pid, libc::SIGKILL).expect("SIGKILL");
-            let role = chaos.members[victim].role;
-            let mut dead = chaos.members.remove(victim);
-            dead.proc.guard.wait_timeout(Duration::from_secs(5)).ok();
-            while let Some(line) = dead.proc.line(Duration::from_millis(50)) {
-                dead.lines.push(line);
-            }
-            chaos.retired.push((role, dead.lines));
-            let fresh = if role == Role::Ticker {
-                ticker_kills += 1;
-                chaos.start_ticker()
-            } else {
-                Member {
-                    role,
-                    proc: chaos.spawn(role),
-                    lines: Vec::new(),
-                }
-            };
-            chaos.members.push(fresh);
-            kills += 1;
-        } else {
-            // SIGSTOP for a moment shorter than the watchers' 16 frames of
-            // slack at 50 ticks a second, then SIGCONT.
-            send_signal(pid, libc::SIGSTOP).expect("SIGSTOP");
+    };
+    let (answered, kills, stops, ticker_kills) = std::thread::scope(|scope| {
+        let probe = scope.spawn(probe);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (mut kills, mut stops, mut ticker_kills) = (0, 0, 0);
+        let end = Instant::now() + length;
+        let pace = mpsc::channel::<()>();
+        while Instant::now() < end {
+            // The schedule's own pace: a random pause between two blows.
             let _ = pace
                 .1
-                .recv_timeout(Duration::from_millis(rng.random_range(10..120)));
-            send_signal(pid, libc::SIGCONT).expect("SIGCONT");
-            stops += 1;
+                .recv_timeout(Duration::from_millis(rng.random_range(30..150)));
+            chaos.drain();
+            while let Some(line) = witness.proc.line(Duration::ZERO) {
+                witness.lines.push(line);
+            }
+            let victim = rng.random_range(0..chaos.members.len());
+            let pid = chaos.members[victim].proc.pid();
+            if rng.random_range(0..3) == 0 {
+                // SIGKILL, and a new client of the same kind in its place.
+                send_signal(pid, libc::SIGKILL).expect("SIGKILL");
+                let role = chaos.members[victim].role;
+                let mut dead = chaos.members.remove(victim);
+                dead.proc.guard.wait_timeout(Duration::from_secs(5)).ok();
+                while let Some(line) = dead.proc.line(Duration::from_millis(50)) {
+                    dead.lines.push(line);
+                }
+                chaos.retired.push((role, dead.lines));
+                let fresh = if role == Role::Ticker {
+                    ticker_kills += 1;
+                    chaos.start_ticker()
+                } else {
+                    Member {
+                        role,
+                        proc: chaos.spawn(role),
+                        lines: Vec::new(),
+                    }
+                };
+                chaos.members.push(fresh);
+                kills += 1;
+            } else {
+                // SIGSTOP for a moment shorter than the watchers' 16 frames of
+                // slack at 50 ticks a second, then SIGCONT.
+                send_signal(pid, libc::SIGSTOP).expect("SIGSTOP");
+                let _ = pace
+                    .1
+                    .recv_timeout(Duration::from_millis(rng.random_range(10..120)));
+                send_signal(pid, libc::SIGCONT).expect("SIGCONT");
+                stops += 1;
+            }
         }
-    }
-    // Make sure the last ticker is not left stopped (a SIGCONT to a running
-    // process is harmless), then let every watcher see the last frames.
-    for m in &chaos.members {
-        let _ = send_signal(m.proc.pid(), libc::SIGCONT);
-    }
-    stop_probe.send(()).expect("stopping the probe");
-    let answered = probe.join().expect("the liveness probe failed");
+        // Make sure the last ticker is not left stopped (a SIGCONT to a running
+        // process is harmless), then let every watcher see the last frames.
+        for m in &chaos.members {
+            let _ = send_signal(m.proc.pid(), libc::SIGCONT);
+        }
+        stop_probe.send(()).expect("stopping the probe");
+        let answered = probe.join().expect("the liveness probe failed");
+        (answered, kills, stops, ticker_kills)
+    });
     assert!(answered > 0, "the liveness probe never ran");
 
     // Stop the ticker first and wait until the witness has its last frame.

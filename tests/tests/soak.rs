@@ -48,11 +48,9 @@ fn assert_every_frame(who: &str, seen: &[u64], from: u64, to: u64) {
 fn soak(frames: u64, warm: u64) {
     let root = PrivateRoot::new("soak");
     let world = unique_world("soak");
-    let server = Proc::spawn_env(
-        "sim-server",
+    let server = root.server(
+        &world,
         &[
-            "--world",
-            &world,
             "--scene",
             "default",
             "--fixed-delta-seconds",
@@ -61,13 +59,8 @@ fn soak(frames: u64, warm: u64) {
             "--lockstep-timeout",
             "10",
         ],
-        &root.env(),
     );
-    let spawn = |args: &[&str]| {
-        let mut all = vec!["--world", world.as_str(), "--timeout", "30"];
-        all.extend_from_slice(args);
-        Proc::spawn_env("sim-client", &all, &root.env())
-    };
+    let spawn = |args: &[&str]| root.client(&world, "30", args);
     let spawned = spawn(&["sensor", "spawn", "imu", "--json"]).finish(Duration::from_secs(60));
     spawned.assert_success();
     let sensor = spawned.json()[0]["id"]

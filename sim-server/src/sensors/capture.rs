@@ -95,6 +95,8 @@ pub(super) fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -
 pub(super) struct LidarRays {
     per_channel: usize,
     directions: Vec<Vector>,
+    /// Returns per channel of the last capture (kept: no allocation per frame).
+    counts: Vec<usize>,
 }
 
 impl LidarRays {
@@ -123,6 +125,7 @@ impl LidarRays {
         Self {
             per_channel,
             directions,
+            counts: Vec::with_capacity(channels),
         }
     }
 }
@@ -135,7 +138,7 @@ impl LidarRays {
 pub(super) fn lidar_into(
     world: &World,
     spec: &SensorSpec,
-    rays: &LidarRays,
+    rays: &mut LidarRays,
     pose: Pose,
     sweep: Sweep,
     slots: &mut [MaybeUninit<LidarPoint>],
@@ -150,31 +153,36 @@ pub(super) fn lidar_into(
     }
     let channels = (rays.directions.len() / per_channel).min(slots.len() / columns);
     // Each channel's returns, at the start of its `columns` slots.
-    let counts: Vec<usize> = slots[..channels * columns]
-        .par_chunks_mut(columns)
-        .zip(rays.directions.par_chunks(per_channel))
-        .map(|(stretch, directions)| {
-            let mut hits = 0;
-            for column in sweep.start..sweep.start + columns {
-                let direction = directions[column % per_channel];
-                if let Some(distance) =
-                    world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
-                {
-                    let point = direction * distance;
-                    stretch[hits].write(LidarPoint {
-                        x: point.x,
-                        y: point.y,
-                        z: point.z,
-                        intensity: 1.0 - distance / range,
-                    });
-                    hits += 1;
+    let LidarRays {
+        directions, counts, ..
+    } = rays;
+    counts.clear();
+    counts.par_extend(
+        slots[..channels * columns]
+            .par_chunks_mut(columns)
+            .zip(directions.par_chunks(per_channel))
+            .map(|(stretch, directions)| {
+                let mut hits = 0;
+                for column in sweep.start..sweep.start + columns {
+                    let direction = directions[column % per_channel];
+                    if let Some(distance) =
+                        world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
+                    {
+                        let point = direction * distance;
+                        stretch[hits].write(LidarPoint {
+                            x: point.x,
+                            y: point.y,
+                            z: point.z,
+                            intensity: 1.0 - distance / range,
+                        });
+                        hits += 1;
+                    }
                 }
-            }
-            hits
-        })
-        .collect();
+                hits
+            }),
+    );
     let mut hits = 0;
-    for (c, count) in counts.into_iter().enumerate() {
+    for (c, &count) in counts.iter().enumerate() {
         let from = c * columns;
         slots.copy_within(from..from + count, hits);
         hits += count;
@@ -226,7 +234,7 @@ mod tests {
             &shared_types::WorldSettings::default(),
         ));
         let spec = SensorSpec::lidar([0.0, 2.0, 0.0], 16, 256, 50.0, 10.0, -30.0);
-        let rays = LidarRays::new(&spec);
+        let mut rays = LidarRays::new(&spec);
         let pose = sensor_pose(&world, &spec).expect("a pose");
         // A partial sweep that wraps around the turn.
         let sweep = Sweep {
@@ -235,7 +243,7 @@ mod tests {
             per_channel: 256,
         };
         let mut slots = vec![MaybeUninit::new(LidarPoint::default()); 16 * 256];
-        let hits = lidar_into(&world, &spec, &rays, pose, sweep, &mut slots);
+        let hits = lidar_into(&world, &spec, &mut rays, pose, sweep, &mut slots);
         let mut expected = Vec::new();
         for c in 0..16 {
             for column in 200..300 {

@@ -389,7 +389,7 @@ impl Sensors {
                             header.count = capture::lidar_into(
                                 world,
                                 &sensor.spec,
-                                &sensor.lidar_rays,
+                                &mut sensor.lidar_rays,
                                 pose,
                                 sweep,
                                 slots,

@@ -285,13 +285,7 @@ impl Server {
             .end_all(SensorEnd::ServerStopped, d.clock.frame(), d.runtime.episode);
         // What clients that died since the last sweep left behind goes now,
         // not at the next server's start.
-        let cleanup = d.transport.node.try_cleanup_dead_nodes();
-        if cleanup.cleanups > 0 {
-            info!(
-                removed = cleanup.cleanups,
-                "removed resources of dead clients"
-            );
-        }
+        d.remove_dead_clients();
         let summary = RunSummary {
             frames: d.runtime.frames_computed - first_frame,
             wall_seconds: started.elapsed().as_secs_f64(),
@@ -504,6 +498,12 @@ impl Domains {
             return;
         }
         self.timers.cleanup = Instant::now();
+        self.remove_dead_clients();
+    }
+
+    /// Removes what dead client processes left in shared memory and in
+    /// iceoryx2's directories.
+    fn remove_dead_clients(&self) {
         let cleanup = self.transport.node.try_cleanup_dead_nodes();
         if cleanup.cleanups > 0 {
             info!(

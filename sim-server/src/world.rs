@@ -269,6 +269,20 @@ impl World {
             .map(|(_, distance)| distance)
     }
 
+    /// What [`World::cast_ray`] with `exclude` tests rays against: every
+    /// enabled collider not on the excluded body, with its pose. Casting against each with `Shape::cast_ray` and keeping
+    /// the nearest hit below the range is the same answer, bit for bit.
+    pub fn ray_targets(
+        &self,
+        exclude: Option<RigidBodyHandle>,
+    ) -> impl Iterator<Item = (&dyn Shape, &Pose)> + '_ {
+        self.physics
+            .colliders
+            .iter()
+            .filter(move |(_, c)| c.is_enabled() && (exclude.is_none() || c.parent() != exclude))
+            .map(|(_, c)| (c.shape(), c.position()))
+    }
+
     /// Every actor's state, in id order, as published.
     pub fn states(&self) -> Vec<ActorState> {
         (0..self.actor_count())

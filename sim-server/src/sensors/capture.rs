@@ -1,5 +1,5 @@
-//! What sensors see: ray casting the rapier world for the depth camera and
-//! the lidar, and the IMU's specific force. Each writes straight into the
+//! What sensors see: the lidar's ray casts (the depth camera's are in
+//! `camera`), and the IMU's specific force. Each writes straight into the
 //! loaned shared-memory sample it is given.
 
 use std::mem::MaybeUninit;
@@ -8,6 +8,7 @@ use rapier3d::prelude::{Pose, Rotation, Vector};
 use rayon::prelude::*;
 use shared_types::{ImuMeasurement, LidarPoint, SensorSpec};
 
+use super::culling;
 use crate::world::World;
 
 /// `q` as a unit rotation; all zeros means identity.
@@ -31,35 +32,6 @@ pub(super) fn sensor_pose(world: &World, spec: &SensorSpec) -> Option<Pose> {
     }
     let parent = world.pose_of(spec.attach_to)?;
     Some(parent * relative)
-}
-
-/// Ray-casts one planar depth per pixel straight into `slots`.
-pub(super) fn depth_into(
-    world: &World,
-    spec: &SensorSpec,
-    pose: Pose,
-    slots: &mut [MaybeUninit<f32>],
-) {
-    let [w, h, fov, far, ..] = spec.params;
-    let (width, height) = (w as usize, h as usize);
-    let focal = (w / 2.0) / (fov.to_radians() / 2.0).tan();
-    let exclude = world.body_of(spec.attach_to);
-    // Rows in parallel, each written in place into the shared-memory sample.
-    slots
-        .par_chunks_mut(width)
-        .take(height)
-        .enumerate()
-        .for_each(|(v, row)| {
-            let up = h / 2.0 - v as f32 - 0.5;
-            for (u, slot) in row.iter_mut().enumerate() {
-                let right = u as f32 + 0.5 - w / 2.0;
-                let direction = Vector::new(focal, up, right).normalize();
-                let distance =
-                    world.cast_ray(pose.translation, pose.rotation * direction, far, exclude);
-                // Planar depth: distance along the optical axis (+X).
-                slot.write(distance.map_or(far, |d| d * direction.x));
-            }
-        });
 }
 
 /// The part of a lidar turn one capture covers: `columns` azimuth steps from
@@ -95,6 +67,8 @@ pub(super) fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -
 pub(super) struct LidarRays {
     per_channel: usize,
     directions: Vec<Vector>,
+    /// Each direction's cube face and place on it (`culling::cube_face`).
+    faces: Vec<(u8, f32, f32)>,
     /// Returns per channel of the last capture (kept: no allocation per frame).
     counts: Vec<usize>,
 }
@@ -124,6 +98,7 @@ impl LidarRays {
         }
         Self {
             per_channel,
+            faces: directions.iter().map(|&d| culling::cube_face(d)).collect(),
             directions,
             counts: Vec::with_capacity(channels),
         }
@@ -154,19 +129,27 @@ pub(super) fn lidar_into(
     let channels = (rays.directions.len() / per_channel).min(slots.len() / columns);
     // Each channel's returns, at the start of its `columns` slots.
     let LidarRays {
-        directions, counts, ..
+        directions,
+        faces,
+        counts,
+        ..
     } = rays;
+    let cube = culling::Cube::new(world, &pose, range, exclude);
     counts.clear();
     counts.par_extend(
         slots[..channels * columns]
             .par_chunks_mut(columns)
             .zip(directions.par_chunks(per_channel))
-            .map(|(stretch, directions)| {
+            .zip(faces.par_chunks(per_channel))
+            .map(|((stretch, directions), faces)| {
                 let mut hits = 0;
                 for column in sweep.start..sweep.start + columns {
-                    let direction = directions[column % per_channel];
+                    let (direction, face) = (
+                        directions[column % per_channel],
+                        faces[column % per_channel],
+                    );
                     if let Some(distance) =
-                        world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
+                        culling::nearest(cube.along(face), pose.rotation * direction, range)
                     {
                         let point = direction * distance;
                         stretch[hits].write(LidarPoint {
@@ -226,40 +209,78 @@ mod tests {
     }
 
     #[test]
-    fn parallel_channels_give_the_points_one_thread_would_in_channel_order() {
+    fn parallel_channels_give_the_points_rapiers_query_would_in_channel_order() {
         let mut world = World::new(&crate::Scene::Default.placements(0), 1);
-        // One step puts the colliders in the query structures.
-        world.step(&crate::clock::SubstepPlan::new(
-            10_000_000,
-            &shared_types::WorldSettings::default(),
-        ));
-        let spec = SensorSpec::lidar([0.0, 2.0, 0.0], 16, 256, 50.0, 10.0, -30.0);
+        let plan =
+            crate::clock::SubstepPlan::new(10_000_000, &shared_types::WorldSettings::default());
+        // One step puts the colliders in the query structures; more set
+        // the sphere rolling and the boxes tumbling.
+        world.step(&plan);
+        lidar_matches_the_query_pipeline(
+            &world,
+            SensorSpec::lidar([0.0, 2.0, 0.0], 16, 256, 50.0, 10.0, -30.0),
+            200,
+            100,
+        );
+        for _ in 0..120 {
+            world.step(&plan);
+        }
+        let vehicle = world
+            .states()
+            .into_iter()
+            .find(|a| a.kind == shared_types::ActorKind::Vehicle as u32)
+            .expect("the default scene has vehicles")
+            .id;
+        // Steep channels (the cube's top and bottom faces too), on a
+        // vehicle it must not see, a whole turn; then among the boxes.
+        let on_vehicle =
+            SensorSpec::lidar([0.0, 1.5, 0.0], 24, 180, 30.0, 70.0, -80.0).attached_to(vehicle);
+        lidar_matches_the_query_pipeline(&world, on_vehicle, 0, 180);
+        lidar_matches_the_query_pipeline(
+            &world,
+            SensorSpec::lidar([6.0, 1.0, -1.0], 32, 360, 20.0, 60.0, -60.0),
+            90,
+            360,
+        );
+    }
+
+    /// Casts `columns` of `spec`'s turn from `start` and compares every
+    /// point, in order, with one ray at a time through rapier's query.
+    fn lidar_matches_the_query_pipeline(
+        world: &World,
+        spec: SensorSpec,
+        start: usize,
+        columns: usize,
+    ) {
+        let [channels, per_channel, range, ..] = spec.params;
+        let (channels, per_channel) = (channels as usize, per_channel as usize);
         let mut rays = LidarRays::new(&spec);
-        let pose = sensor_pose(&world, &spec).expect("a pose");
-        // A partial sweep that wraps around the turn.
+        let pose = sensor_pose(world, &spec).expect("a pose");
+        let exclude = world.body_of(spec.attach_to);
         let sweep = Sweep {
-            start: 200,
-            columns: 100,
-            per_channel: 256,
+            start,
+            columns,
+            per_channel,
         };
-        let mut slots = vec![MaybeUninit::new(LidarPoint::default()); 16 * 256];
-        let hits = lidar_into(&world, &spec, &mut rays, pose, sweep, &mut slots);
+        let mut slots = vec![MaybeUninit::new(LidarPoint::default()); channels * per_channel];
+        let hits = lidar_into(world, &spec, &mut rays, pose, sweep, &mut slots);
         let mut expected = Vec::new();
-        for c in 0..16 {
-            for column in 200..300 {
-                let direction = rays.directions[c * 256 + column % 256];
+        for c in 0..channels {
+            for column in start..start + columns {
+                let direction = rays.directions[c * per_channel + column % per_channel];
                 if let Some(d) =
-                    world.cast_ray(pose.translation, pose.rotation * direction, 50.0, None)
+                    world.cast_ray(pose.translation, pose.rotation * direction, range, exclude)
                 {
-                    expected.push((direction * d, 1.0 - d / 50.0));
+                    expected.push((direction * d, 1.0 - d / range));
                 }
             }
         }
         assert!(
-            hits > 0 && hits < 1600,
-            "a scene with hits and misses: {hits}"
+            hits > 0 && hits < channels * columns,
+            "{:?}: a scene with hits and misses: {hits}",
+            spec.position
         );
-        assert_eq!(hits, expected.len());
+        assert_eq!(hits, expected.len(), "{:?}", spec.position);
         for (i, slot) in slots.iter().enumerate() {
             // SAFETY: lidar_into initialised every slot (they also started so).
             let point = unsafe { slot.assume_init() };
@@ -267,7 +288,8 @@ mod tests {
                 Some((p, intensity)) => assert_eq!(
                     (point.x, point.y, point.z, point.intensity),
                     (p.x, p.y, p.z, *intensity),
-                    "point {i}"
+                    "{:?}: point {i}",
+                    spec.position
                 ),
                 None => assert_eq!(point, LidarPoint::default(), "slot {i} after the returns"),
             }

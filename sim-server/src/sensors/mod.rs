@@ -5,7 +5,9 @@
 //! sensor ends with its parent actor, its episode and the server, and its
 //! readers are told why.
 
+mod camera;
 mod capture;
+mod culling;
 
 use shared_types::Bus;
 use std::mem::MaybeUninit;
@@ -375,7 +377,7 @@ impl Sensors {
                 SensorPort::Depth(port) => unsafe {
                     publish(port, header, record.as_deref_mut(), |slots, header| {
                         header.count = slots.len() as u32;
-                        capture::depth_into(world, &sensor.spec, pose, slots)
+                        camera::depth_into(world, &sensor.spec, pose, slots)
                     })
                 },
                 SensorPort::Lidar(port) => {

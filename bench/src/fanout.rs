@@ -39,6 +39,10 @@ pub(crate) struct FanoutArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Also draw every row's distribution of the last subscriber's latency
+    /// (percentile plot, log µs) into this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<std::path::PathBuf>,
 }
 
 /// The subscriber peer's arguments, passed on its command line.
@@ -312,6 +316,22 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
         }
     }
     ticker.release()?;
+    if let Some(path) = &args.plot {
+        let names: Vec<String> = rows
+            .iter()
+            .map(|(stream, mode, n, ..)| format!("{stream}, {mode}, {n}"))
+            .collect();
+        let series: Vec<(&str, &Latencies)> = names
+            .iter()
+            .zip(&rows)
+            .map(|(name, (.., l, _))| (name.as_str(), l))
+            .collect();
+        crate::plot::percentiles(
+            path,
+            "Fan-out: the last subscriber's latency (stream, mode, subscribers)",
+            &series,
+        )?;
+    }
     if args.json {
         let json: Vec<_> = rows
             .iter()

@@ -9,6 +9,7 @@
 //! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
 //! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
 //! cargo run --release -p simbus-bench -- carla [--ticks N] [--frames N] [--python P] [--json]
+//! cargo run --release -p simbus-bench -- substeps [--out DIR] [--seconds S] [--json]
 //! ```
 
 use std::process::ExitCode;
@@ -21,9 +22,11 @@ mod failover;
 mod fanout;
 mod frames;
 mod futex;
+mod plot;
 mod recorder;
 mod sensors;
 mod stats;
+mod substeps;
 mod support;
 mod tick;
 
@@ -63,6 +66,7 @@ enum Command {
     /// Fan-out: the last of 1, 4, 16, 64 subscriber processes to hold a
     /// frame or an 8 MiB capture, spinning and blocking.
     Fanout(fanout::FanoutArgs),
+    Substeps(substeps::SubstepsArgs),
     /// A fan-out subscriber (used by `fanout`).
     #[command(hide = true)]
     FanoutPeer(fanout::FanoutPeerArgs),
@@ -85,6 +89,7 @@ fn main() -> ExitCode {
         Command::Recorder(a) => recorder::run(a),
         Command::Carla(a) => carla::run(a),
         Command::Fanout(a) => fanout::run(a),
+        Command::Substeps(a) => substeps::run(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {

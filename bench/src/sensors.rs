@@ -25,6 +25,10 @@ pub(crate) struct SensorsArgs {
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     json: bool,
+    /// Also draw the delivery distributions, simbus and TCP per size
+    /// (percentile plot, log µs), into this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<std::path::PathBuf>,
 }
 
 /// Payload sizes and the depth image that has them (4 bytes per pixel).
@@ -127,6 +131,24 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     frames.push(frame_time("+ lidar 64x1024")?);
     drop((depth, lidar));
 
+    if let Some(path) = &args.plot {
+        let names: Vec<(String, String)> = rows
+            .iter()
+            .map(|(label, ..)| (format!("simbus {label}"), format!("TCP {label}")))
+            .collect();
+        let series: Vec<(&str, &Latencies)> = names
+            .iter()
+            .zip(&rows)
+            .flat_map(|((simbus_name, tcp_name), (_, _, simbus, tcp))| {
+                [(simbus_name.as_str(), simbus), (tcp_name.as_str(), tcp)]
+            })
+            .collect();
+        crate::plot::percentiles(
+            path,
+            "Sensor delivery: capture sent -> reader holds it",
+            &series,
+        )?;
+    }
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     // Wall time per ray: what each sensor added to the frame, over its rays.
     let per_ray =

@@ -27,6 +27,20 @@ impl Latencies {
         [0.5, 0.99, 0.999].map(|q| self.quantile_us(q))
     }
 
+    /// The distribution as (latency µs, fraction at or below it), one point
+    /// per distinct recorded value (hdrhistogram's precision).
+    pub(crate) fn cdf_us(&self) -> Vec<(f64, f64)> {
+        let total = self.len().max(1) as f64;
+        let mut below = 0u64;
+        self.0
+            .iter_recorded()
+            .map(|v| {
+                below += v.count_at_value();
+                (v.value_iterated_to() as f64 / 1000.0, below as f64 / total)
+            })
+            .collect()
+    }
+
     pub(crate) fn json(&self) -> serde_json::Value {
         let [p50, p99, p999] = self.percentiles_us();
         serde_json::json!({ "samples": self.len(), "p50_us": p50, "p99_us": p99, "p999_us": p999 })

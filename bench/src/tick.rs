@@ -44,6 +44,10 @@ pub(crate) struct TickArgs {
     /// benchmark ("the machine busy with other work"); 0: as the machine is.
     #[arg(long, default_value_t = 0)]
     busy: usize,
+    /// Also draw the rows' latency distributions (percentile plot, log µs)
+    /// into this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<std::path::PathBuf>,
 }
 
 /// The other end of the raw ping-pong and TCP baselines.
@@ -432,6 +436,14 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     ];
     interleave(&mut rows, n)?;
     let rows: Vec<(&str, Latencies)> = rows.into_iter().map(|r| (r.name, r.latencies)).collect();
+    if let Some(path) = &args.plot {
+        let series: Vec<(&str, &Latencies)> = rows.iter().map(|(n, l)| (*n, l)).collect();
+        crate::plot::percentiles(
+            path,
+            &format!("Tick round trip, {n} per row, rows interleaved"),
+            &series,
+        )?;
+    }
     let p50 = |prefix: &str| {
         rows.iter()
             .find(|(name, _)| name.starts_with(prefix))

@@ -133,6 +133,11 @@ impl ServiceNames {
 }
 
 impl ServiceNames {
+    /// What every service name of the world starts with (`simbus/<world>`).
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
     /// Publish-subscribe of sensor `id`: a [`crate::SensorHeader`] user
     /// header and a slice of its kind's payload.
     pub fn sensor(&self, id: u64) -> String {

@@ -31,6 +31,7 @@
 #![warn(missing_docs)]
 
 mod batch;
+pub mod census;
 mod client;
 mod error;
 mod frames;

@@ -59,7 +59,12 @@ impl Participant {
     ) -> Result<Self, RequestError> {
         use iceoryx2::service::builder::request_response::RequestResponseOpenError;
         let names = ServiceNames::new(world);
-        let node = NodeBuilder::new()
+        // Named after the participant, so node lists (`top`) say who it is.
+        let mut builder = NodeBuilder::new();
+        if let Ok(node_name) = NodeName::new(&format!("lockstep:{name}")) {
+            builder = builder.name(&node_name);
+        }
+        let node = builder
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Bus>()
             .map_err(|e| RequestError::transport("node", e))?;

@@ -43,6 +43,13 @@ enum Command {
     Watch(cli::watch::WatchArgs),
     /// Show the world's mode, settings and current frame.
     Status(cli::status::StatusArgs),
+    /// One refreshing screen of a world: mode, settings, frame rate and
+    /// real-time factor, the ticker, lockstep participants, every client with
+    /// the services it has ports on, every sensor with its readers and
+    /// capture rate, and the shared memory the server maps.
+    ///
+    /// `--once --json` prints one JSON object for scripts.
+    Top(cli::top::TopArgs),
     /// Change the time settings, like CARLA's config.py.
     ///
     /// Changes hold from the frame printed. Invalid settings are refused with
@@ -142,6 +149,7 @@ fn main() -> ExitCode {
     let result = match args.command {
         Command::Watch(a) => cli::watch::run(world, timeout, a),
         Command::Status(a) => cli::status::run(world, timeout, a),
+        Command::Top(a) => cli::top::run(world, timeout, a),
         Command::Config(a) => cli::config::run(world, timeout, a),
         Command::Tick(a) => cli::tick::run(world, timeout, a),
         Command::Spawn(a) => cli::actors::spawn(world, timeout, a),

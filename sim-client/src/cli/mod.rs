@@ -10,6 +10,7 @@ pub(crate) mod recorder;
 pub(crate) mod sensor;
 pub(crate) mod status;
 pub(crate) mod tick;
+pub(crate) mod top;
 pub(crate) mod watch;
 
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -50,6 +50,12 @@ enum Command {
     ///
     /// `--once --json` prints one JSON object for scripts.
     Top(cli::top::TopArgs),
+    /// Serve the world live to Foxglove over its WebSocket protocol.
+    ///
+    /// Actors as a scene (`/simbus/scene`), the simulation clock, depth
+    /// cameras as images and lidars as point clouds, at the frame rate or at
+    /// most --max-hz. Open ws://HOST:PORT in Foxglove.
+    Foxglove(cli::foxglove::FoxgloveArgs),
     /// Change the time settings, like CARLA's config.py.
     ///
     /// Changes hold from the frame printed. Invalid settings are refused with
@@ -150,6 +156,7 @@ fn main() -> ExitCode {
         Command::Watch(a) => cli::watch::run(world, timeout, a),
         Command::Status(a) => cli::status::run(world, timeout, a),
         Command::Top(a) => cli::top::run(world, timeout, a),
+        Command::Foxglove(a) => cli::foxglove::run(world, timeout, a),
         Command::Config(a) => cli::config::run(world, timeout, a),
         Command::Tick(a) => cli::tick::run(world, timeout, a),
         Command::Spawn(a) => cli::actors::spawn(world, timeout, a),

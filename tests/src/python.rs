@@ -18,6 +18,8 @@ pub const PYTHON_REQUIREMENTS: &[&str] = &[
     "packaging==26.3",
     "pluggy==1.7.0",
     "msgpack==1.1.0",
+    "websockets==15.0.1",
+    "protobuf==5.29.5",
 ];
 
 /// The venv's `python`, creating the venv on first use (every test

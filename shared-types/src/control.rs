@@ -164,10 +164,44 @@ impl FixedText {
     }
 }
 
+/// Lockstep participants a [`StatusReport`] describes one by one (the
+/// count covers them all).
+pub const REPORTED_PARTICIPANTS: usize = 8;
+
+/// One lockstep participant in a [`StatusReport`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ParticipantStatus/1")]
+pub struct ParticipantStatus {
+    /// Its process (the joining port's).
+    pub pid: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The last frame it reported done.
+    pub done_frame: u64,
+    /// How long after that frame's publication its "done" came: how long it
+    /// made that frame's step wait at most. [`ParticipantStatus::NOT_YET`]
+    /// before its first report (or when the report was for an older frame).
+    pub done_after_ns: u64,
+    /// Its name.
+    pub name: FixedText,
+}
+
+impl ParticipantStatus {
+    /// `done_after_ns` before a "done" for the current frame came.
+    pub const NOT_YET: u64 = u64::MAX;
+
+    /// How long it made its last frame wait, if it reported one.
+    pub fn done_after(&self) -> Option<std::time::Duration> {
+        (self.done_after_ns != Self::NOT_YET)
+            .then(|| std::time::Duration::from_nanos(self.done_after_ns))
+    }
+}
+
 /// The world's state as the server reports it.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::StatusReport/2")]
+#[type_name("simbus::StatusReport/3")]
 pub struct StatusReport {
     /// The latest published frame.
     pub frame: u64,
@@ -195,12 +229,15 @@ pub struct StatusReport {
     pub max_sensor_readers: u32,
     /// Zero.
     pub reserved: u32,
+    /// The first [`REPORTED_PARTICIPANTS`] participants in joining order
+    /// (`participants` says how many of these are filled, at most all).
+    pub lockstep: [ParticipantStatus; REPORTED_PARTICIPANTS],
 }
 
 /// The server's answer to one [`ControlRequest`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlResponse/2")]
+#[type_name("simbus::ControlResponse/3")]
 pub struct ControlResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,

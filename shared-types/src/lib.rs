@@ -59,7 +59,8 @@ pub use command::{
     BatchHeader, BatchResponseHeader, Command, CommandKind, CommandResult, CommandStatus,
 };
 pub use control::{
-    ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, StatusReport,
+    ControlRequest, ControlResponse, FixedText, ParticipantStatus, RequestKind, ResponseStatus,
+    StatusReport, REPORTED_PARTICIPANTS,
 };
 pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};

@@ -5,11 +5,13 @@
 use shared_types::Bus;
 use std::time::{Duration, Instant};
 
+use bytemuck::Zeroable;
 use iceoryx2::identifiers::UniqueClientId;
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    FixedText, LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, PROTOCOL_VERSION,
+    FixedText, LockstepKind, LockstepRequest, LockstepResponse, ParticipantStatus, ResponseStatus,
+    PROTOCOL_VERSION, REPORTED_PARTICIPANTS,
 };
 use tracing::{debug, info, warn};
 
@@ -119,7 +121,11 @@ impl Lockstep {
                     Some(LockstepKind::Done) => {
                         // A "done" for an earlier episode means nothing now.
                         if payload.episode == episode {
-                            self.participants.done(origin, payload.frame);
+                            // Timed only for the frame now current (whose
+                            // publication time the clock holds).
+                            let after = (payload.frame == clock.frame())
+                                .then(|| clock.last_frame_at().elapsed());
+                            self.participants.done(origin, payload.frame, after);
                         }
                         ResponseStatus::Ok
                     }
@@ -181,6 +187,23 @@ impl Lockstep {
         self.told = false;
     }
 
+    /// The first participants as the status report describes them.
+    pub fn statuses(&self) -> [ParticipantStatus; REPORTED_PARTICIPANTS] {
+        let mut statuses = [ParticipantStatus::zeroed(); REPORTED_PARTICIPANTS];
+        for (status, p) in statuses.iter_mut().zip(&self.participants.list) {
+            *status = ParticipantStatus {
+                pid: p.pid,
+                reserved: 0,
+                done_frame: p.done.unwrap_or(0),
+                done_after_ns: p.done_after.map_or(ParticipantStatus::NOT_YET, |d| {
+                    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX - 1)
+                }),
+                name: FixedText::new(&p.name),
+            };
+        }
+        statuses
+    }
+
     /// The participants' processes.
     pub fn pids(&self) -> impl Iterator<Item = u32> + Clone + '_ {
         self.participants.list.iter().map(|p| p.pid)
@@ -210,6 +233,9 @@ pub struct Participant {
     pub name: String,
     /// The last frame of the current episode it is done with.
     pub done: Option<u64>,
+    /// How long after its frame's publication that "done" came, when it
+    /// was for the frame then current.
+    pub done_after: Option<Duration>,
 }
 
 /// Every participant of a world.
@@ -238,6 +264,7 @@ impl Participants {
                 pid,
                 name,
                 done: None,
+                done_after: None,
             });
         }
     }
@@ -255,10 +282,16 @@ impl Participants {
     }
 
     /// Records that `client` is done with `frame`; `false` if unknown.
-    pub(crate) fn done(&mut self, client: UniqueClientId, frame: u64) -> bool {
+    pub(crate) fn done(
+        &mut self,
+        client: UniqueClientId,
+        frame: u64,
+        after: Option<Duration>,
+    ) -> bool {
         match self.list.iter_mut().find(|p| p.client == client) {
             Some(p) => {
                 p.done = Some(p.done.map_or(frame, |done| done.max(frame)));
+                p.done_after = after;
                 true
             }
             None => false,

@@ -71,11 +71,14 @@ fn top_names_the_ticker_the_participant_the_reader_and_their_services() {
 
     let participants = screen["participants"].as_array().expect("participants");
     assert_eq!(participants.len(), 1, "{screen}");
-    let participant = participants[0].as_str().expect("a label");
+    assert_eq!(screen["participant_count"], 1);
+    assert_eq!(participants[0]["pid"], watcher.pid(), "{screen}");
+    assert_eq!(participants[0]["name"], "watch", "{screen}");
+    assert!(participants[0]["done_frame"].as_u64().expect("a frame") > 0);
+    // In synchronous mode a "done" always comes while its frame is current.
     assert!(
-        participant.contains(&format!("(pid {})", watcher.pid()))
-            && participant.contains("lockstep:"),
-        "{participant}"
+        participants[0]["done_after_us"].as_f64().expect("a wait") >= 0.0,
+        "{screen}"
     );
 
     assert!(services(client_of(screen, ticker.pid())).contains(&"tick"));

@@ -41,6 +41,18 @@ struct SensorLine {
     readers: Vec<String>,
 }
 
+/// One lockstep participant's line.
+#[derive(Debug, Serialize)]
+struct ParticipantLine {
+    name: String,
+    pid: u32,
+    /// The last frame it reported done.
+    done_frame: u64,
+    /// How long after that frame's publication its "done" came (µs): how
+    /// long it made that step wait at most.
+    done_after_us: Option<f64>,
+}
+
 /// One refresh.
 #[derive(Debug, Serialize)]
 struct Screen {
@@ -55,7 +67,9 @@ struct Screen {
     frames_per_second: f64,
     real_time_factor: f64,
     ticker: Option<serde_json::Value>,
-    participants: Vec<String>,
+    /// Participants in all (the server describes the first eight).
+    participant_count: u32,
+    participants: Vec<ParticipantLine>,
     clients: Vec<Holder>,
     sensors: Vec<SensorLine>,
     shared_memory: SharedMemory,
@@ -145,7 +159,18 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
         ticker: report.ticker.active().map(|t| {
             serde_json::json!({"node": t.node_name.to_string_lossy(), "pid": t.pid, "since_frame": t.since_frame})
         }),
-        participants: holding("lockstep"),
+        participant_count: report.participants,
+        participants: report
+            .lockstep
+            .iter()
+            .take(report.participants as usize)
+            .map(|p| ParticipantLine {
+                name: p.name.to_string_lossy(),
+                pid: p.pid,
+                done_frame: p.done_frame,
+                done_after_us: p.done_after().map(|d| d.as_secs_f64() * 1e6),
+            })
+            .collect(),
         clients: clients
             .into_iter()
             .filter(|h| h.pid != report.server_pid)
@@ -179,15 +204,14 @@ fn render(screen: &Screen) -> String {
         let _ = writeln!(out, "{name:<9} {value}");
     }
     let _ = writeln!(out, "ticker    {}", screen.ticker_line);
-    let _ = writeln!(
-        out,
-        "lockstep  {}",
-        if screen.participants.is_empty() {
-            "no participants".to_owned()
-        } else {
-            screen.participants.join(", ")
-        }
-    );
+    let _ = writeln!(out, "lockstep  {} participant(s)", screen.participant_count);
+    for p in &screen.participants {
+        let wait = p.done_after_us.map_or_else(
+            || "no report for the current frame yet".to_owned(),
+            |us| format!("done {us:.0} µs after frame {} was published", p.done_frame),
+        );
+        let _ = writeln!(out, "          {} (pid {}): {wait}", p.name, p.pid);
+    }
     let _ = writeln!(
         out,
         "shm       {} files, {:.1} MiB mapped by the server, {:.1} MiB resident",

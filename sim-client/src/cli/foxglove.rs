@@ -31,6 +31,7 @@ use foxglove::{Channel, Context, WebSocketServer};
 use shared_types::{ActorKind, ActorState, SensorInfo, SensorKind, WorldName, NANOS_PER_SECOND};
 use sim_client::{Client, Sensor, WaitMode};
 
+use super::carla::convert::compose;
 use crate::Failure;
 
 /// Serve the world live to Foxglove over its WebSocket protocol.
@@ -111,10 +112,7 @@ fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
             let (radius, half) = (ex, ey);
             let quarter = std::f32::consts::FRAC_1_SQRT_2;
             entity.cylinders.push(CylinderPrimitive {
-                pose: Some(compose(
-                    actor,
-                    &pose([0.0; 3], [quarter, 0.0, 0.0, quarter]),
-                )),
+                pose: Some(placed(actor, ([0.0; 3], [quarter, 0.0, 0.0, quarter]))),
                 size: Some(vector([2.0 * radius, 2.0 * radius, 2.0 * half])),
                 bottom_scale: 1.0,
                 top_scale: 1.0,
@@ -122,7 +120,7 @@ fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
             });
             for end in [-half, half] {
                 entity.spheres.push(SpherePrimitive {
-                    pose: Some(compose(actor, &pose([0.0, end, 0.0], IDENTITY))),
+                    pose: Some(placed(actor, ([0.0, end, 0.0], IDENTITY))),
                     size: Some(vector([2.0 * radius; 3])),
                     color,
                 });
@@ -137,56 +135,11 @@ fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
     entity
 }
 
-/// Rotates `v` by unit quaternion `q` (x, y, z, w).
-fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
-    let [qx, qy, qz, qw] = q;
-    // t = 2 q × v; v' = v + w t + q × t
-    let t = [
-        2.0 * (qy * v[2] - qz * v[1]),
-        2.0 * (qz * v[0] - qx * v[2]),
-        2.0 * (qx * v[1] - qy * v[0]),
-    ];
-    [
-        v[0] + qw * t[0] + (qy * t[2] - qz * t[1]),
-        v[1] + qw * t[1] + (qz * t[0] - qx * t[2]),
-        v[2] + qw * t[2] + (qx * t[1] - qy * t[0]),
-    ]
-}
-
-/// Quaternion product `a · b` (x, y, z, w).
-fn multiply(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
-    let [ax, ay, az, aw] = a;
-    let [bx, by, bz, bw] = b;
-    [
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ]
-}
-
-/// `part` (in the body's frame of `actor`) in the world frame.
-fn compose(actor: &ActorState, part: &Pose) -> Pose {
-    let q = actor.rotation.map(f64::from);
-    let (p, o) = (
-        part.position.unwrap_or_default(),
-        part.orientation.unwrap_or(Quaternion {
-            x: 0.0,
-            y: 0.0,
-            z: 0.0,
-            w: 1.0,
-        }),
-    );
-    let moved = rotate(q, [p.x, p.y, p.z]);
-    let [x, y, z, w] = multiply(q, [o.x, o.y, o.z, o.w]);
-    Pose {
-        position: Some(Vector3 {
-            x: f64::from(actor.position[0]) + moved[0],
-            y: f64::from(actor.position[1]) + moved[1],
-            z: f64::from(actor.position[2]) + moved[2],
-        }),
-        orientation: Some(Quaternion { x, y, z, w }),
-    }
+/// Something at `offset` (position, rotation) in the body of `actor`, in
+/// the world frame.
+fn placed(actor: &ActorState, offset: ([f32; 3], [f32; 4])) -> Pose {
+    let (position, rotation) = compose((actor.position, actor.rotation), offset);
+    pose(position, rotation)
 }
 
 /// A sensor forwarded to Foxglove.
@@ -235,10 +188,9 @@ fn sensor_pose(sensor: &Sensor, actors: &[ActorState]) -> Pose {
     } else {
         spec.rotation
     };
-    let relative = pose(spec.position, rotation);
     match actors.iter().find(|a| a.id == spec.attach_to) {
-        Some(parent) if spec.attach_to != 0 => compose(parent, &relative),
-        _ => relative,
+        Some(parent) if spec.attach_to != 0 => placed(parent, (spec.position, rotation)),
+        _ => pose(spec.position, rotation),
     }
 }
 

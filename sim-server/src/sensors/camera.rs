@@ -121,8 +121,6 @@ pub(super) fn depth_into(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::clock::SubstepPlan;
-    use shared_types::WorldSettings;
 
     /// The image rapier's query pipeline gives, one ray at a time.
     fn pipeline_image(world: &World, spec: &SensorSpec, pose: Pose) -> Vec<f32> {
@@ -142,18 +140,7 @@ mod tests {
 
     #[test]
     fn the_culled_camera_sees_what_the_query_pipeline_sees_bit_for_bit() {
-        let mut world = World::new(&crate::Scene::Default.placements(0), 1);
-        let plan = SubstepPlan::new(10_000_000, &WorldSettings::default());
-        // Things in motion: the sphere rolling, boxes tumbling, a capsule falling.
-        for _ in 0..120 {
-            world.step(&plan);
-        }
-        let vehicle = world
-            .states()
-            .into_iter()
-            .find(|a| a.kind == shared_types::ActorKind::Vehicle as u32)
-            .expect("the default scene has vehicles")
-            .id;
+        let (world, vehicle) = super::super::default_world_in_motion();
         let specs = [
             // Overlooking the scene, looking along +X.
             SensorSpec::depth([-4.0, 3.0, 0.0], 160, 120, 90.0, 100.0),

@@ -222,15 +222,7 @@ mod tests {
             200,
             100,
         );
-        for _ in 0..120 {
-            world.step(&plan);
-        }
-        let vehicle = world
-            .states()
-            .into_iter()
-            .find(|a| a.kind == shared_types::ActorKind::Vehicle as u32)
-            .expect("the default scene has vehicles")
-            .id;
+        let (world, vehicle) = super::super::default_world_in_motion();
         // Steep channels (the cube's top and bottom faces too), on a
         // vehicle it must not see, a whole turn; then among the boxes.
         let on_vehicle =

@@ -9,6 +9,25 @@ mod camera;
 mod capture;
 mod culling;
 
+/// The default scene after 1.2 s (the sphere rolling, boxes tumbling, the
+/// capsule falling) and the id of one of its vehicles: what the ray-casting
+/// tests look at.
+#[cfg(test)]
+fn default_world_in_motion() -> (World, u64) {
+    let mut world = World::new(&crate::Scene::Default.placements(0), 1);
+    let plan = crate::clock::SubstepPlan::new(10_000_000, &shared_types::WorldSettings::default());
+    for _ in 0..120 {
+        world.step(&plan);
+    }
+    let vehicle = world
+        .states()
+        .into_iter()
+        .find(|a| a.kind == shared_types::ActorKind::Vehicle as u32)
+        .expect("the default scene has vehicles")
+        .id;
+    (world, vehicle)
+}
+
 use shared_types::Bus;
 use std::mem::MaybeUninit;
 

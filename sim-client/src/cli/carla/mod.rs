@@ -10,7 +10,7 @@
 
 mod blueprints;
 mod commands;
-pub(super) mod convert;
+pub(crate) mod convert;
 mod rpc;
 mod sensors;
 mod session;

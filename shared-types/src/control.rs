@@ -307,10 +307,13 @@ mod tests {
 
     #[test]
     fn response_layout_is_fixed() {
-        // Same bytes as ControlResponse/1 (three error fields at offset 16).
-        assert_eq!(std::mem::size_of::<ControlResponse>(), 288);
+        // The error fields at offset 16 as in ControlResponse/1; /3 adds the
+        // eight participant statuses (96 bytes each) at the report's end.
+        assert_eq!(std::mem::size_of::<ParticipantStatus>(), 96);
+        assert_eq!(std::mem::size_of::<ControlResponse>(), 288 + 8 * 96);
         assert_eq!(std::mem::offset_of!(ControlResponse, settings_error), 16);
         assert_eq!(std::mem::offset_of!(ControlResponse, report), 48);
+        assert_eq!(std::mem::offset_of!(StatusReport, lockstep), 240);
     }
 
     #[test]

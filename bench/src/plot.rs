@@ -84,12 +84,28 @@ where
     Ok(())
 }
 
+type Canvas<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// A white 960x600 PNG canvas at `path`.
+fn canvas(path: &Path) -> anyhow::Result<Canvas<'_>> {
+    let root = BitMapBackend::new(path, (960, 600)).into_drawing_area();
+    root.fill(&WHITE)?;
+    Ok(root)
+}
+
+/// A chart on `root` with `title` and room for the axes' labels.
+fn titled<'a, 'b>(root: &'a Canvas<'b>, title: &str) -> ChartBuilder<'a, 'b, BitMapBackend<'b>> {
+    let mut builder = ChartBuilder::on(root);
+    builder
+        .caption(title, (FAMILY, 20))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(64);
+    builder
+}
+
 /// Draws the legend and writes the PNG.
-fn finish<X, Y>(
-    chart: &mut Chart<'_, X, Y>,
-    root: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
-    path: &Path,
-) -> anyhow::Result<()>
+fn finish<X, Y>(chart: &mut Chart<'_, X, Y>, root: &Canvas<'_>, path: &Path) -> anyhow::Result<()>
 where
     X: Ranged<ValueType = f64>,
     Y: Ranged<ValueType = f64>,
@@ -116,14 +132,8 @@ pub(crate) fn lines(
     register_font();
     let (x0, x1) = extent(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let (y0, y1) = extent(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
-    let root = BitMapBackend::new(path, (960, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FAMILY, 20))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(64)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
+    let root = canvas(path)?;
+    let mut chart = titled(&root, title).build_cartesian_2d(x0..x1, y0..y1)?;
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -158,14 +168,8 @@ pub(crate) fn percentiles(
     } else {
         (low / 1.5, high * 1.5)
     };
-    let root = BitMapBackend::new(path, (960, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FAMILY, 20))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(64)
-        .build_cartesian_2d((low..high).log_scale(), 0.0..1.0)?;
+    let root = canvas(path)?;
+    let mut chart = titled(&root, title).build_cartesian_2d((low..high).log_scale(), 0.0..1.0)?;
     chart
         .configure_mesh()
         .x_desc("latency, µs (log scale)")

@@ -304,7 +304,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: FoxgloveArgs) -> R
         last_sent = Some(Instant::now());
         let elapsed_ns = frame.timestamp().elapsed_ns;
         let time = stamp(elapsed_ns);
-        let actors = frame.actors().to_vec();
+        let actors = frame.actors();
         let update = SceneUpdate {
             deletions: Vec::new(),
             entities: actors.iter().map(|a| entity(a, time)).collect(),
@@ -312,7 +312,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: FoxgloveArgs) -> R
         server.broadcast_time(elapsed_ns);
         scene.log_with_time(&update, elapsed_ns);
         for forward in forwards.values_mut() {
-            forward_capture(forward, &actors);
+            forward_capture(forward, actors);
         }
         sent += 1;
         drop(frame);

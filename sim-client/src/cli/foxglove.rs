@@ -161,18 +161,24 @@ fn pick_up(
         if forwards.contains_key(&info.id) {
             continue;
         }
-        let forward = match SensorKind::from_u32(info.spec.kind) {
-            Some(SensorKind::Depth) => Forward::Depth(
-                client.sensor(info.id)?,
-                ctx.channel_builder(format!("/simbus/sensor/{}/depth", info.id))
-                    .build(),
-            ),
-            Some(SensorKind::Lidar) => Forward::Lidar(
-                client.sensor(info.id)?,
-                ctx.channel_builder(format!("/simbus/sensor/{}/points", info.id))
-                    .build(),
-            ),
+        let topic = match SensorKind::from_u32(info.spec.kind) {
+            Some(SensorKind::Depth) => "depth",
+            Some(SensorKind::Lidar) => "points",
             _ => continue,
+        };
+        // A sensor destroyed since the list was read is skipped, not fatal.
+        let sensor = match client.sensor(info.id) {
+            Ok(sensor) => sensor,
+            Err(e) => {
+                tracing::warn!("sensor {} not forwarded: {e}", info.id);
+                continue;
+            }
+        };
+        let builder = ctx.channel_builder(format!("/simbus/sensor/{}/{topic}", info.id));
+        let forward = if topic == "depth" {
+            Forward::Depth(sensor, builder.build())
+        } else {
+            Forward::Lidar(sensor, builder.build())
         };
         forwards.insert(info.id, forward);
     }
@@ -295,8 +301,13 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: FoxgloveArgs) -> R
             pick_up(&client, &ctx, &mut forwards)?;
             last_look = Some(Instant::now());
         }
-        let Some(frame) = super::in_slices(timeout, |slice| client.wait_for_frame(slice))? else {
-            break;
+        let frame = match super::in_slices(timeout, |slice| client.wait_for_frame(slice)) {
+            Ok(Some(frame)) => frame,
+            Ok(None) => break,
+            // A paused world (synchronous, nobody ticking): keep serving.
+            // A dead server ends the wait with its own error instead.
+            Err(sim_client::WaitError::Timeout { .. }) => continue,
+            Err(e) => return Err(e.into()),
         };
         if last_sent.is_some_and(|at| at.elapsed() < min_gap) {
             continue;

@@ -65,6 +65,10 @@ wire_enum! {
         /// Batch service: the world is replaying a recording, whose actors
         /// follow the recording; commands are refused until the replay ends.
         Replaying = 12,
+        /// A mirroring bridge answers for a server on another host that it
+        /// cannot reach now (the link is down or the exporting bridge is
+        /// gone); nothing was done.
+        Unreachable = 13,
     }
 }
 

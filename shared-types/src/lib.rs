@@ -32,6 +32,7 @@
 
 mod wire;
 
+pub mod bridge;
 pub mod carla;
 mod command;
 mod control;

@@ -86,8 +86,8 @@ pub struct TickRequest {
     /// Process id of the ticker, as it states it (ownership is given to
     /// the process of the sending port instead).
     pub pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// [`TickRequest::ON_BEHALF`], or zero.
+    pub flags: u32,
     /// Settings for [`TickRequestKind::ApplySettings`].
     pub settings: WireSettings,
     /// The ticker's node name, for [`TickRequestKind::Claim`].
@@ -95,13 +95,18 @@ pub struct TickRequest {
 }
 
 impl TickRequest {
+    /// Flag: a bridge claims for a ticker on another host, named by `pid`
+    /// and `node_name`. The bridge's own process holds the ownership (its
+    /// death ends it); the world reports the remote ticker as the owner.
+    pub const ON_BEHALF: u32 = 1;
+
     /// A request of `kind` from this process.
     pub fn new(kind: TickRequestKind, node_name: &str) -> Self {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
             pid: crate::this_process_id(),
-            reserved: 0,
+            flags: 0,
             settings: WorldSettings::default().into(),
             node_name: FixedText::new(node_name),
         }

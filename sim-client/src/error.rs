@@ -91,6 +91,13 @@ pub enum RequestError {
         /// types that do not match).
         server: Option<u32>,
     },
+    /// The world is mirrored from another host and its server cannot be
+    /// reached now (the link is down or the exporting bridge is gone).
+    #[error("the server of world '{world}' is on another host and the bridge cannot reach it now (link down or exporting bridge gone); nothing was done")]
+    Unreachable {
+        /// The world.
+        world: String,
+    },
     /// The server does not know the request.
     #[error("the server does not know this request (is it an older version?)")]
     UnknownRequest,

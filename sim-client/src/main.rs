@@ -56,6 +56,10 @@ enum Command {
     /// cameras as images and lidars as point clouds, at the frame rate or at
     /// most --max-hz. Open ws://HOST:PORT in Foxglove.
     Foxglove(cli::foxglove::FoxgloveArgs),
+    /// Bridge the world to other hosts: `bridge zenoh --listen` exports it
+    /// from the server's host, `bridge zenoh --connect` mirrors it into
+    /// another host's shared memory for unmodified local clients.
+    Bridge(cli::bridge::BridgeArgs),
     /// Change the time settings, like CARLA's config.py.
     ///
     /// Changes hold from the frame printed. Invalid settings are refused with
@@ -157,6 +161,7 @@ fn main() -> ExitCode {
         Command::Status(a) => cli::status::run(world, timeout, a),
         Command::Top(a) => cli::top::run(world, timeout, a),
         Command::Foxglove(a) => cli::foxglove::run(world, timeout, a),
+        Command::Bridge(a) => cli::bridge::run(world, timeout, a),
         Command::Config(a) => cli::config::run(world, timeout, a),
         Command::Tick(a) => cli::tick::run(world, timeout, a),
         Command::Spawn(a) => cli::actors::spawn(world, timeout, a),

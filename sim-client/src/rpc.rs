@@ -112,6 +112,11 @@ where
     ) -> Result<Resp, RequestError> {
         let answer = await_response(pending, timeout, &self.world, self.server_pid, wait)?;
         check_protocol(answer.version(), answer.status())?;
+        if answer.status() == ResponseStatus::Unreachable as u32 {
+            return Err(RequestError::Unreachable {
+                world: self.world.clone(),
+            });
+        }
         Ok(answer)
     }
 

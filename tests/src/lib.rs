@@ -13,7 +13,9 @@ use std::time::{Duration, Instant};
 
 pub use sim_client::process::{process_alive, send_signal, ChildGuard};
 
+mod hosts;
 mod python;
+pub use hosts::{Host, TwoHosts};
 pub use python::{python, PYTHON_REQUIREMENTS};
 
 /// A binary of the workspace (`sim-server`, `sim-client`), from the same
@@ -77,7 +79,26 @@ impl Proc {
 
     /// [`Proc::spawn`] with extra environment variables.
     pub fn spawn_env(program: &str, args: &[&str], env: &[(&str, &std::ffi::OsStr)]) -> Self {
-        let mut child = Command::new(bin(program))
+        Self::spawn_wrapped(&[], program, args, env)
+    }
+
+    /// [`Proc::spawn_env`] run through `wrapper` (e.g. `ip netns exec NS`,
+    /// which execs the program in place: the pid stays the program's).
+    pub fn spawn_wrapped(
+        wrapper: &[&str],
+        program: &str,
+        args: &[&str],
+        env: &[(&str, &std::ffi::OsStr)],
+    ) -> Self {
+        let mut command = match wrapper.split_first() {
+            Some((first, rest)) => {
+                let mut command = Command::new(first);
+                command.args(rest).arg(bin(program));
+                command
+            }
+            None => Command::new(bin(program)),
+        };
+        let mut child = command
             .args(args)
             .envs(env.iter().copied())
             .stdin(Stdio::null())

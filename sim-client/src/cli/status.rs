@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use clap::Args;
-use shared_types::{Timestamp, WorldName, WorldSettings};
+use shared_types::{StatusReport, Timestamp, WorldName, WorldSettings};
 use sim_client::Client;
 
 use crate::Failure;
@@ -27,26 +27,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     }
     .elapsed_seconds();
     if args.json {
-        let mut json = super::settings_json(&settings);
-        let extra = serde_json::json!({
-            "world": world.as_str(),
-            "frame": report.frame,
-            "elapsed_seconds": elapsed,
-            "episode": report.episode,
-            "scene": report.scene.to_string_lossy(),
-            "actors": report.actor_count,
-            "server_pid": report.server_pid,
-            "participants": report.participants,
-            "seed": report.seed,
-            "ticker": report.ticker.active().map(|t| serde_json::json!({
-                "node": t.node_name.to_string_lossy(),
-                "pid": t.pid,
-                "since_frame": t.since_frame,
-            })),
-        });
-        if let (Some(json), serde_json::Value::Object(extra)) = (json.as_object_mut(), extra) {
-            json.extend(extra);
-        }
+        let json = status_json(world, &report);
         println!("{json}");
         return Ok(());
     }
@@ -69,4 +50,34 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         println!("seed      {}", report.seed);
     }
     Ok(())
+}
+
+/// The world's status as `status --json` prints it.
+pub(crate) fn status_json(world: &WorldName, report: &StatusReport) -> serde_json::Value {
+    let mut json = super::settings_json(&WorldSettings::from(report.settings));
+    let elapsed = Timestamp {
+        elapsed_ns: report.elapsed_ns,
+        ..Default::default()
+    }
+    .elapsed_seconds();
+    let extra = serde_json::json!({
+        "world": world.as_str(),
+        "frame": report.frame,
+        "elapsed_seconds": elapsed,
+        "episode": report.episode,
+        "scene": report.scene.to_string_lossy(),
+        "actors": report.actor_count,
+        "server_pid": report.server_pid,
+        "participants": report.participants,
+        "seed": report.seed,
+        "ticker": report.ticker.active().map(|t| serde_json::json!({
+            "node": t.node_name.to_string_lossy(),
+            "pid": t.pid,
+            "since_frame": t.since_frame,
+        })),
+    });
+    if let (Some(json), serde_json::Value::Object(extra)) = (json.as_object_mut(), extra) {
+        json.extend(extra);
+    }
+    json
 }

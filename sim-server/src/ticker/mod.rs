@@ -157,9 +157,11 @@ impl Ticker {
             } else {
                 match kind {
                     Some(TickRequestKind::Claim) => {
+                        let on_behalf = payload.flags & TickRequest::ON_BEHALF != 0;
                         let candidate = Owner {
                             client: origin,
                             pid,
+                            reported_pid: if on_behalf { payload.pid } else { pid },
                             node_name: payload.node_name.to_string_lossy(),
                             since_frame: clock.frame(),
                         };

@@ -10,8 +10,12 @@ use shared_types::{FixedText, TickerInfo};
 pub struct Owner {
     /// Its port on the tick service.
     pub client: UniqueClientId,
-    /// Its process.
+    /// Its process (for a ticker on another host: the bridge's, whose
+    /// death ends the ownership).
     pub pid: u32,
+    /// The process reported as the ticker: `pid`, or for a ticker on
+    /// another host, its pid there (its bridge's word).
+    pub reported_pid: u32,
     /// Its iceoryx2 node name.
     pub node_name: String,
     /// The last frame published before it claimed ownership.
@@ -102,7 +106,7 @@ impl TickOwnership {
         match &self.owner {
             Some(o) => TickerInfo {
                 active: 1,
-                pid: o.pid,
+                pid: o.reported_pid,
                 since_frame: o.since_frame,
                 node_name: FixedText::new(&o.node_name),
             },

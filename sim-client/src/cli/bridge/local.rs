@@ -1,0 +1,438 @@
+//! A mirror's side of this host's shared memory: the world's services,
+//! created with the server's own configuration (so local clients open them
+//! as they would a server's), the frames and captures published there, and
+//! the local requests taken for forwarding.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::server::Server;
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::*;
+use shared_types::limits::{
+    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
+    INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,
+};
+use shared_types::{
+    ActorState, BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest,
+    ControlResponse, FrameHeader, ImuMeasurement, LidarPoint, LockstepRequest, LockstepResponse,
+    RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind, SensorRequest,
+    SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
+};
+
+/// A fixed-size request waiting for its answer.
+pub(super) type Active<Req, Resp> = ActiveRequest<Bus, Req, (), Resp, ()>;
+/// A batch waiting for its answer.
+pub(super) type ActiveBatch =
+    ActiveRequest<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+/// A sensor request waiting for its answer.
+pub(super) type ActiveSensors =
+    ActiveRequest<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+
+/// A local request taken for forwarding.
+pub(super) enum Local {
+    Control(Active<ControlRequest, ControlResponse>),
+    /// With the request as forwarded (the sender's pid and `host/node` name).
+    Tick(Active<TickRequest, TickResponse>, TickRequest),
+    Lockstep(Active<LockstepRequest, LockstepResponse>),
+    Recorder(Active<RecorderRequest, RecorderResponse>),
+    Batch(ActiveBatch),
+    Sensors(ActiveSensors),
+}
+
+type FixedServer<Req, Resp> = Server<Bus, Req, (), Resp, ()>;
+
+/// The world's services on this host.
+pub(super) struct LocalServices {
+    node: Node<Bus>,
+    frames: Publisher<Bus, [ActorState], FrameHeader>,
+    ready: Notifier<Bus>,
+    control: FixedServer<ControlRequest, ControlResponse>,
+    tick: FixedServer<TickRequest, TickResponse>,
+    lockstep: FixedServer<LockstepRequest, LockstepResponse>,
+    recorder: FixedServer<RecorderRequest, RecorderResponse>,
+    batch: Server<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>,
+    sensors: Server<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>,
+    /// Held so the wake-up event exists before local clients open it.
+    _wake: iceoryx2::service::port_factory::event::PortFactory<Bus>,
+}
+
+fn name(name: &str) -> anyhow::Result<ServiceName> {
+    ServiceName::new(name).map_err(|e| anyhow::anyhow!("service name {name}: {e:?}"))
+}
+
+fn failed(what: &'static str) -> impl Fn(&dyn std::fmt::Debug) -> anyhow::Error {
+    move |e| anyhow::anyhow!("{what}: {e:?}")
+}
+
+/// A fixed-size request service's server, configured as the server's.
+fn fixed<Req, Resp>(
+    node: &Node<Bus>,
+    service: &str,
+    limits: &WorldLimits,
+    max_clients: usize,
+    (active, buffer): (usize, usize),
+    fire_and_forget: bool,
+) -> anyhow::Result<FixedServer<Req, Resp>>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + 'static,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + 'static,
+{
+    let f = failed("creating a service of the world here (is a server or another mirror of it running on this host?)");
+    node.service_builder(&name(service)?)
+        .request_response::<Req, Resp>()
+        .max_servers(1)
+        .max_clients(max_clients)
+        .max_nodes(limits.nodes())
+        .max_active_requests_per_client(active)
+        .max_response_buffer_size(buffer)
+        .enable_fire_and_forget_requests(fire_and_forget)
+        .create()
+        .map_err(|e| f(&e))?
+        .server_builder()
+        .create()
+        .map_err(|e| f(&e))
+}
+
+impl LocalServices {
+    /// Creates the world's services here. Fails if a server or another
+    /// mirror of the world runs on this host.
+    pub(super) fn create(names: &ServiceNames, limits: &WorldLimits) -> anyhow::Result<Self> {
+        shared_types::environment::prepare().map_err(|e| anyhow::anyhow!(e))?;
+        let node = NodeBuilder::new()
+            .name(&NodeName::new("zenoh-mirror").map_err(|e| anyhow::anyhow!("{e:?}"))?)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Bus>()
+            .map_err(|e| anyhow::anyhow!("iceoryx2 node: {e:?}"))?;
+        node.try_cleanup_dead_nodes();
+        let f = failed("creating a service of the world here (is a server or another mirror of it running on this host?)");
+        let frames = node
+            .service_builder(&name(&names.frames)?)
+            .publish_subscribe::<[ActorState]>()
+            .user_header::<FrameHeader>()
+            .max_publishers(1)
+            .max_subscribers(limits.max_clients)
+            .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
+            .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
+            .history_size(1)
+            .enable_safe_overflow(true)
+            .max_nodes(limits.nodes())
+            .create()
+            .map_err(|e| f(&e))?
+            .publisher_builder()
+            .initial_max_slice_len(INITIAL_MAX_ACTORS)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| f(&e))?;
+        let ready = node
+            .service_builder(&name(&names.frame_ready)?)
+            .event()
+            .max_listeners(limits.event_listeners())
+            .max_notifiers(4)
+            .max_nodes(limits.nodes())
+            .open_or_create()
+            .map_err(|e| f(&e))?
+            .notifier_builder()
+            .create()
+            .map_err(|e| f(&e))?;
+        let wake = node
+            .service_builder(&name(&names.control_wake)?)
+            .event()
+            .max_listeners(limits.event_listeners())
+            .max_notifiers(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .open_or_create()
+            .map_err(|e| f(&e))?;
+        let control = fixed(&node, &names.control, limits, limits.max_clients, (2, 2), false)?;
+        let tick = fixed(&node, &names.tick, limits, 2, (4, 4), false)?;
+        let lockstep = fixed(&node, &names.lockstep, limits, limits.max_clients, (4, 2), true)?;
+        let recorder = fixed(&node, &names.recorder, limits, limits.max_clients, (2, 2), false)?;
+        let batch = node
+            .service_builder(&name(&names.batch)?)
+            .request_response::<[Command], [CommandResult]>()
+            .request_user_header::<BatchHeader>()
+            .response_user_header::<BatchResponseHeader>()
+            .max_servers(1)
+            .max_clients(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
+            .max_response_buffer_size(1)
+            .enable_safe_overflow_for_requests(false)
+            .enable_fire_and_forget_requests(true)
+            .create()
+            .map_err(|e| f(&e))?
+            .server_builder()
+            .initial_max_slice_len(INITIAL_MAX_BATCH)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| f(&e))?;
+        let sensors = node
+            .service_builder(&name(&names.sensors)?)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .max_servers(1)
+            .max_clients(limits.max_clients)
+            .max_nodes(limits.nodes())
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(1)
+            .create()
+            .map_err(|e| f(&e))?
+            .server_builder()
+            .initial_max_slice_len(16)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| f(&e))?;
+        Ok(Self {
+            node,
+            frames,
+            ready,
+            control,
+            tick,
+            lockstep,
+            recorder,
+            batch,
+            sensors,
+            _wake: wake,
+        })
+    }
+
+    /// Publishes a frame (kept as the one new subscribers get first).
+    pub(super) fn publish_frame(
+        &self,
+        header: &FrameHeader,
+        actors: &[ActorState],
+    ) -> anyhow::Result<()> {
+        let mut sample = self
+            .frames
+            .loan_slice_uninit(actors.len())
+            .map_err(|e| anyhow::anyhow!("frame loan: {e:?}"))?;
+        *sample.user_header_mut() = *header;
+        sample
+            .write_from_slice(actors)
+            .send()
+            .map_err(|e| anyhow::anyhow!("frame send: {e:?}"))?;
+        Ok(())
+    }
+
+    /// Wakes every local client blocked on the frame-ready event, after a
+    /// frame, a capture or an answer; connects new frame subscribers.
+    pub(super) fn notify(&self) {
+        if let Err(e) = self.ready.notify() {
+            tracing::debug!("frame-ready notify: {e:?}");
+        }
+    }
+
+    /// Connects frame subscribers that joined since the last frame (in
+    /// synchronous mode the next frame may be far).
+    pub(super) fn connect_new_subscribers(&self) {
+        if let Err(e) = self.frames.update_connections() {
+            tracing::debug!("connecting new subscribers: {e:?}");
+        }
+    }
+
+    /// Every local request waiting, in service order.
+    pub(super) fn receive_requests(&self, out: &mut Vec<Local>) -> anyhow::Result<()> {
+        let f = |e: &dyn std::fmt::Debug| anyhow::anyhow!("receiving a local request: {e:?}");
+        while let Some(r) = self.control.receive().map_err(|e| f(&e))? {
+            out.push(Local::Control(r));
+        }
+        while let Some(r) = self.tick.receive().map_err(|e| f(&e))? {
+            let payload = *r.payload();
+            out.push(Local::Tick(r, payload));
+        }
+        while let Some(r) = self.lockstep.receive().map_err(|e| f(&e))? {
+            out.push(Local::Lockstep(r));
+        }
+        while let Some(r) = self.recorder.receive().map_err(|e| f(&e))? {
+            out.push(Local::Recorder(r));
+        }
+        while let Some(r) = self.batch.receive().map_err(|e| f(&e))? {
+            out.push(Local::Batch(r));
+        }
+        while let Some(r) = self.sensors.receive().map_err(|e| f(&e))? {
+            out.push(Local::Sensors(r));
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for LocalServices {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LocalServices")
+            .field("node", self.node.name())
+            .finish()
+    }
+}
+
+/// One sensor's publisher here, by the kind of its payload.
+enum SensorPort {
+    Depth(Publisher<Bus, [f32], SensorHeader>),
+    Lidar(Publisher<Bus, [LidarPoint], SensorHeader>),
+    Imu(Publisher<Bus, [ImuMeasurement], SensorHeader>),
+}
+
+/// The sensors' publishers here, created when a sensor is first listed or
+/// first captures.
+#[derive(Default)]
+pub(super) struct SensorPorts {
+    ports: HashMap<u64, SensorPort>,
+}
+
+impl std::fmt::Debug for SensorPorts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SensorPorts")
+            .field("sensors", &self.ports.len())
+            .finish()
+    }
+}
+
+fn sensor_publisher<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<Bus>,
+    service: &str,
+    elements: usize,
+    max_readers: usize,
+) -> anyhow::Result<Publisher<Bus, [T], SensorHeader>> {
+    let f = failed("creating a sensor's service here");
+    node.service_builder(&name(service)?)
+        .publish_subscribe::<[T]>()
+        .user_header::<SensorHeader>()
+        .max_publishers(1)
+        .max_subscribers(max_readers)
+        .subscriber_max_buffer_size(SENSOR_SUBSCRIBER_BUFFER)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(0)
+        .enable_safe_overflow(true)
+        .max_nodes(max_readers + 16)
+        .payload_alignment(Alignment::new(16).expect("16 is a power of two"))
+        .open_or_create()
+        .map_err(|e| f(&e))?
+        .publisher_builder()
+        .initial_max_slice_len(elements.max(1))
+        .allocation_strategy(AllocationStrategy::PowerOfTwo)
+        .max_loaned_samples(1)
+        .create()
+        .map_err(|e| f(&e))
+}
+
+fn publish<T: bytemuck::Pod + std::fmt::Debug + ZeroCopySend>(
+    port: &Publisher<Bus, [T], SensorHeader>,
+    header: &SensorHeader,
+    payload: &[u8],
+) -> anyhow::Result<()> {
+    let size = std::mem::size_of::<T>();
+    if payload.len() % size != 0 {
+        anyhow::bail!("{} payload bytes are not whole elements of {size}", payload.len());
+    }
+    let mut sample = port
+        .loan_slice_uninit(payload.len() / size)
+        .map_err(|e| anyhow::anyhow!("capture loan: {e:?}"))?;
+    *sample.user_header_mut() = *header;
+    let sample = sample.write_from_fn(|i| bytemuck::pod_read_unaligned(&payload[i * size..][..size]));
+    sample
+        .send()
+        .map_err(|e| anyhow::anyhow!("capture send: {e:?}"))?;
+    Ok(())
+}
+
+impl SensorPorts {
+    /// Creates sensor `id`'s service here if it is not yet.
+    pub(super) fn ensure(
+        &mut self,
+        names: &ServiceNames,
+        limits: &WorldLimits,
+        local: &LocalServices,
+        id: u64,
+        kind: u32,
+        elements: usize,
+    ) -> anyhow::Result<()> {
+        if self.ports.contains_key(&id) {
+            return Ok(());
+        }
+        let (node, service, readers) = (&local.node, names.sensor(id), limits.max_sensor_readers);
+        let port = match SensorKind::from_u32(kind) {
+            Some(SensorKind::Depth) => {
+                SensorPort::Depth(sensor_publisher(node, &service, elements, readers)?)
+            }
+            Some(SensorKind::Lidar) => {
+                SensorPort::Lidar(sensor_publisher(node, &service, elements, readers)?)
+            }
+            Some(SensorKind::Imu) => {
+                SensorPort::Imu(sensor_publisher(node, &service, elements, readers)?)
+            }
+            None => anyhow::bail!("unknown sensor kind {kind}"),
+        };
+        self.ports.insert(id, port);
+        Ok(())
+    }
+
+    /// Publishes a capture here; a sensor's last capture ends its service.
+    pub(super) fn publish(
+        &mut self,
+        names: &ServiceNames,
+        limits: &WorldLimits,
+        local: &LocalServices,
+        header: &SensorHeader,
+        payload: &[u8],
+    ) -> anyhow::Result<()> {
+        let id = header.sensor_id;
+        let elements = payload.len() / 4;
+        self.ensure(names, limits, local, id, header.kind, elements)?;
+        let published = match &self.ports[&id] {
+            SensorPort::Depth(p) => publish(p, header, payload),
+            SensorPort::Lidar(p) => publish(p, header, payload),
+            SensorPort::Imu(p) => publish(p, header, payload),
+        };
+        if header.end().is_some() {
+            self.ports.remove(&id);
+        }
+        published
+    }
+}
+
+/// Until `stop`, calls `wake` whenever a local client wakes the server
+/// (after sending a request); stops when `wake` says the mirror is gone.
+pub(super) fn relay_wake_ups(names: &ServiceNames, wake: &impl Fn() -> bool, stop: &AtomicBool) {
+    let (_node, listener) = match wake_listener(names) {
+        Ok(ports) => ports,
+        Err(e) => {
+            tracing::error!("cannot listen for local requests: {e:#}");
+            return;
+        }
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let mut woken = false;
+        match listener.timed_wait(|_| woken = true, Duration::from_millis(100)) {
+            Ok(_) => {}
+            Err(e) => {
+                tracing::error!("waiting for local requests: {e:?}");
+                return;
+            }
+        }
+        if woken && !wake() {
+            return;
+        }
+    }
+}
+
+fn wake_listener(names: &ServiceNames) -> anyhow::Result<(Node<Bus>, Listener<Bus>)> {
+    let node = NodeBuilder::new()
+        .name(&NodeName::new("zenoh-mirror-wake").map_err(|e| anyhow::anyhow!("{e:?}"))?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Bus>()
+        .map_err(|e| anyhow::anyhow!("iceoryx2 node: {e:?}"))?;
+    let listener = node
+        .service_builder(&name(&names.control_wake)?)
+        .event()
+        .open()
+        .map_err(|e| anyhow::anyhow!("wake-up event: {e:?}"))?
+        .listener_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("wake-up listener: {e:?}"))?;
+    Ok((node, listener))
+}

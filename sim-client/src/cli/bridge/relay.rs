@@ -1,0 +1,409 @@
+//! The exporting side of a forwarded service: a request that came as a
+//! Zenoh query is sent through an ordinary simbus request port, and the
+//! server's answers go back as the query's replies.
+//!
+//! Every request is checked before it is sent (its size, its protocol
+//! version, a slice's length); a bad one is answered with a Zenoh error
+//! reply naming what is wrong, counted, and never reaches the server.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::pending_response::PendingResponse;
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::prelude::*;
+use shared_types::bridge::{self, PayloadError};
+use shared_types::{
+    BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ResponseStatus, SensorInfo,
+    SensorRequest, SensorResponseHeader, TickResponse,
+};
+use zenoh::query::Query;
+use zenoh::Wait as _;
+
+/// How long a forwarded request may wait for the server's answer.
+pub(super) const ANSWER_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// A request waiting for its answer, with the query to answer.
+struct InFlight<P> {
+    pending: P,
+    query: Query,
+    since: Instant,
+}
+
+/// A final answer: the query, the answer's bytes, and for a tick the
+/// frame it produced (its reply waits until that frame is published).
+pub(super) struct Answer {
+    pub query: Query,
+    pub bytes: Vec<u8>,
+    pub frame: Option<u64>,
+}
+
+impl std::fmt::Debug for Answer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Answer")
+            .field("key", &self.query.key_expr().as_str())
+            .field("bytes", &self.bytes.len())
+            .field("frame", &self.frame)
+            .finish()
+    }
+}
+
+/// Replies `bytes` to `query` on its own key.
+pub(super) fn reply(query: &Query, bytes: &[u8]) {
+    if let Err(e) = query.reply(query.key_expr().clone(), bytes.to_vec()).wait() {
+        tracing::debug!("reply to {} not sent: {e}", query.key_expr());
+    }
+}
+
+/// Replies an error `message` to `query`.
+pub(super) fn refuse(query: &Query, message: &str) {
+    if let Err(e) = query.reply_err(message.to_owned()).wait() {
+        tracing::debug!("error reply to {} not sent: {e}", query.key_expr());
+    }
+}
+
+/// The answers that finished, the requests that timed out or lost the
+/// server answered with an error.
+fn drain<P, T>(
+    flights: &mut Vec<InFlight<P>>,
+    mut receive: impl FnMut(&P) -> Result<Option<T>, String>,
+    mut finish: impl FnMut(&Query, T) -> Option<(Vec<u8>, Option<u64>)>,
+    connected: impl Fn(&P) -> bool,
+    answers: &mut Vec<Answer>,
+) {
+    let mut i = 0;
+    while i < flights.len() {
+        let flight = &flights[i];
+        let done = match receive(&flight.pending) {
+            Ok(Some(answer)) => finish(&flight.query, answer),
+            Ok(None) if !connected(&flight.pending) => {
+                refuse(&flight.query, "the server of the world is gone");
+                Some((Vec::new(), None))
+            }
+            Ok(None) if flight.since.elapsed() > ANSWER_TIMEOUT => {
+                refuse(&flight.query, "the server did not answer in time");
+                Some((Vec::new(), None))
+            }
+            Ok(None) => None,
+            Err(e) => {
+                refuse(&flight.query, &e);
+                Some((Vec::new(), None))
+            }
+        };
+        match done {
+            Some((bytes, frame)) => {
+                let flight = flights.swap_remove(i);
+                if !bytes.is_empty() {
+                    answers.push(Answer {
+                        query: flight.query,
+                        bytes,
+                        frame,
+                    });
+                }
+            }
+            None => i += 1,
+        }
+    }
+}
+
+/// A forwarded service of fixed-size requests and answers.
+pub(super) struct FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    client: RequestClient<Bus, Req, (), Resp, ()>,
+    flights: Vec<InFlight<PendingResponse<Bus, Req, (), Resp, ()>>>,
+}
+
+impl<Req, Resp> FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    /// Opens a client port of the service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> anyhow::Result<Self> {
+        let service = node
+            .service_builder(&ServiceName::new(name)?)
+            .request_response::<Req, Resp>()
+            .open()
+            .map_err(|e| anyhow::anyhow!("service {name}: {e:?}"))?;
+        let client = service
+            .client_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
+        Ok(Self {
+            client,
+            flights: Vec::new(),
+        })
+    }
+
+    /// Checks `bytes` as a `Req`.
+    pub(super) fn decode(bytes: &[u8]) -> Result<Req, PayloadError> {
+        bridge::decode_fixed::<Req>(bytes, std::any::type_name::<Req>())
+    }
+
+    /// Sends `request`; its answer will go to `query`.
+    pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), (Query, String)> {
+        match self.client.send_copy(request) {
+            Ok(pending) => {
+                self.flights.push(InFlight {
+                    pending,
+                    query,
+                    since: Instant::now(),
+                });
+                Ok(())
+            }
+            Err(e) => Err((query, format!("cannot send the request to the server: {e:?}"))),
+        }
+    }
+
+    /// Sends `request` without awaiting its answer.
+    pub(super) fn send_detached(&mut self, request: Req) -> anyhow::Result<()> {
+        self.client
+            .send_copy(request)
+            .map(drop)
+            .map_err(|e| anyhow::anyhow!("sending a request to the server: {e:?}"))
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        !self.flights.is_empty()
+    }
+
+    /// Moves the final answers that came to `answers`; an interim answer
+    /// (`interim` says which) is replied at once.
+    pub(super) fn poll(
+        &mut self,
+        interim: impl Fn(&Resp) -> bool,
+        frame_of: impl Fn(&Resp) -> Option<u64>,
+        answers: &mut Vec<Answer>,
+    ) {
+        drain(
+            &mut self.flights,
+            |p| {
+                p.receive()
+                    .map(|r| r.map(|r| *r.payload()))
+                    .map_err(|e| format!("receiving the server's answer: {e:?}"))
+            },
+            |query, answer| {
+                if interim(&answer) {
+                    reply(query, bytemuck::bytes_of(&answer));
+                    None
+                } else {
+                    Some((bytemuck::bytes_of(&answer).to_vec(), frame_of(&answer)))
+                }
+            },
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl<Req, Resp> std::fmt::Debug for FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FixedRelay")
+            .field("in_flight", &self.flights.len())
+            .finish()
+    }
+}
+
+/// Whether a tick answer is interim (a final one follows).
+pub(super) fn tick_interim(answer: &TickResponse) -> bool {
+    answer.status == ResponseStatus::WaitingForParticipants as u32
+}
+
+/// The frame an OK tick answer produced.
+pub(super) fn tick_frame(answer: &TickResponse) -> Option<u64> {
+    (answer.status == ResponseStatus::Ok as u32).then_some(answer.frame)
+}
+
+type BatchPort = RequestClient<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+type PendingBatch =
+    PendingResponse<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// The batch service: a header and commands, answered by a header and
+/// one result per command.
+pub(super) struct BatchRelay {
+    client: BatchPort,
+    flights: Vec<InFlight<PendingBatch>>,
+}
+
+/// The most commands one forwarded batch may hold.
+pub(super) const MAX_FORWARDED_BATCH: usize = 65_536;
+
+impl BatchRelay {
+    /// Opens a client port of the batch service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> anyhow::Result<Self> {
+        let client = node
+            .service_builder(&ServiceName::new(name)?)
+            .request_response::<[Command], [CommandResult]>()
+            .request_user_header::<BatchHeader>()
+            .response_user_header::<BatchResponseHeader>()
+            .open()
+            .map_err(|e| anyhow::anyhow!("service {name}: {e:?}"))?
+            .client_builder()
+            .initial_max_slice_len(shared_types::limits::INITIAL_MAX_BATCH)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
+        Ok(Self {
+            client,
+            flights: Vec::new(),
+        })
+    }
+
+    /// Checks `bytes` as a batch and sends it; its answer will go to `query`.
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), (Query, String)> {
+        let (header, commands) = match bridge::decode_slice::<BatchHeader, Command>(
+            bytes,
+            "batch",
+            MAX_FORWARDED_BATCH,
+        ) {
+            Ok(batch) => batch,
+            Err(e) => return Err((query, format!("malformed batch: {e}"))),
+        };
+        let sent = self
+            .client
+            .loan_slice_uninit(commands.len())
+            .map_err(|e| format!("{e:?}"))
+            .and_then(|mut request| {
+                *request.user_header_mut() = header;
+                request
+                    .write_from_slice(&commands)
+                    .send()
+                    .map_err(|e| format!("{e:?}"))
+            });
+        match sent {
+            Ok(pending) => {
+                self.flights.push(InFlight {
+                    pending,
+                    query,
+                    since: Instant::now(),
+                });
+                Ok(())
+            }
+            Err(e) => Err((query, format!("cannot send the batch to the server: {e}"))),
+        }
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        !self.flights.is_empty()
+    }
+
+    /// Moves the answers that came to `answers`.
+    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
+        drain(
+            &mut self.flights,
+            |p| {
+                p.receive()
+                    .map(|r| {
+                        r.map(|r| {
+                            let mut bytes = Vec::new();
+                            bridge::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                            (bytes, ())
+                        })
+                    })
+                    .map_err(|e| format!("receiving the server's answer: {e:?}"))
+            },
+            // A batch's frame may be one still to come (the next tick's):
+            // its answer is never held for it.
+            |_, (bytes, _)| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl std::fmt::Debug for BatchRelay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BatchRelay")
+            .field("in_flight", &self.flights.len())
+            .finish()
+    }
+}
+
+type SensorPort = RequestClient<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+type PendingSensors = PendingResponse<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+
+/// The sensor service: a request, answered by a header and sensor infos.
+pub(super) struct SensorRelay {
+    client: SensorPort,
+    flights: Vec<InFlight<PendingSensors>>,
+}
+
+impl SensorRelay {
+    /// Opens a client port of the sensor service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> anyhow::Result<Self> {
+        let client = node
+            .service_builder(&ServiceName::new(name)?)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .open()
+            .map_err(|e| anyhow::anyhow!("service {name}: {e:?}"))?
+            .client_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
+        Ok(Self {
+            client,
+            flights: Vec::new(),
+        })
+    }
+
+    /// Checks `bytes` as a sensor request and sends it.
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), (Query, String)> {
+        let request = match bridge::decode_fixed::<SensorRequest>(bytes, "sensor request") {
+            Ok(request) => request,
+            Err(e) => return Err((query, format!("malformed sensor request: {e}"))),
+        };
+        match self.client.send_copy(request) {
+            Ok(pending) => {
+                self.flights.push(InFlight {
+                    pending,
+                    query,
+                    since: Instant::now(),
+                });
+                Ok(())
+            }
+            Err(e) => Err((query, format!("cannot send the request to the server: {e:?}"))),
+        }
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        !self.flights.is_empty()
+    }
+
+    /// Moves the answers that came to `answers`.
+    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
+        drain(
+            &mut self.flights,
+            |p| {
+                p.receive()
+                    .map(|r| {
+                        r.map(|r| {
+                            let mut bytes = Vec::new();
+                            bridge::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                            bytes
+                        })
+                    })
+                    .map_err(|e| format!("receiving the server's answer: {e:?}"))
+            },
+            |_, bytes| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl std::fmt::Debug for SensorRelay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SensorRelay")
+            .field("in_flight", &self.flights.len())
+            .finish()
+    }
+}

@@ -1,0 +1,188 @@
+//! The Zenoh bridge across two hosts: a world exported from one network
+//! namespace and mirrored into another (each with its own iceoryx2 root,
+//! joined only by a veth pair) ticks in step on both — the same frames,
+//! the same digests, none lost — keeps one ticker across hosts, and
+//! survives its link going down and up: the remote ticker fails with a
+//! clear error, the server releases the ownership, a new ticker continues
+//! from the next frame.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use simbus_tests::{unique_world, Proc, TwoHosts};
+
+const LONG: Duration = Duration::from_secs(30);
+
+/// Waits for a stdout line of `proc` containing `needle`.
+fn wait_line(proc: &Proc, needle: &str) -> String {
+    let deadline = Instant::now() + LONG;
+    while Instant::now() < deadline {
+        if let Some(line) = proc.line(Duration::from_millis(200)) {
+            if line.contains(needle) {
+                return line;
+            }
+        }
+    }
+    panic!("no line with '{needle}' within {LONG:?}; stderr:\n{}", proc.stderr());
+}
+
+/// `frame F digest D` lines as a map.
+fn digests(lines: &[String]) -> BTreeMap<u64, String> {
+    lines
+        .iter()
+        .filter_map(|line| {
+            let mut words = line.split_whitespace();
+            match (words.next(), words.next(), words.next(), words.next()) {
+                (Some("frame"), Some(frame), Some("digest"), Some(digest)) => {
+                    Some((frame.parse().ok()?, digest.to_owned()))
+                }
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+/// The ticker the world's status names, as `(node, pid)`.
+fn status_ticker(hosts: &TwoHosts, world: &str) -> Option<(String, u64)> {
+    let status = hosts.a.client(world, "10", &["status", "--json"]).finish(LONG);
+    status.assert_success();
+    let json = status.json();
+    let ticker = &json.first().expect("status json")["ticker"];
+    ticker.as_object().map(|t| {
+        (
+            t["node"].as_str().unwrap_or_default().to_owned(),
+            t["pid"].as_u64().unwrap_or_default(),
+        )
+    })
+}
+
+#[test]
+fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
+    let hosts = TwoHosts::new("zb");
+    let world = unique_world("zb");
+    let endpoint = format!("tcp/{}:7447", hosts.a.address());
+    let _server = hosts.a.spawn(
+        "sim-server",
+        &["--world", &world, "--sync", "--delta-seconds", "0.05"],
+    );
+    let exporter = hosts
+        .a
+        .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
+    wait_line(&exporter, "exporting world");
+    let mirror = hosts
+        .b
+        .client(&world, "20", &["bridge", "zenoh", "--connect", &endpoint]);
+    wait_line(&mirror, "mirroring world");
+
+    // A watcher on each host, then 500 ticks from the second host.
+    let watch = ["watch", "--digest", "--frames", "501"];
+    let watch_a = hosts.a.client(&world, "20", &watch);
+    let watch_b = hosts.b.client(&world, "20", &watch);
+    wait_line(&watch_a, "frame 0 digest");
+    wait_line(&watch_b, "frame 0 digest");
+    let ticker = hosts.b.client(
+        &world,
+        "20",
+        &["tick", "--count", "500", "--leave-sync", "--json"],
+    );
+    let ticked = ticker.finish(LONG * 2);
+    ticked.assert_success();
+    let frames: Vec<u64> = ticked
+        .json()
+        .iter()
+        .map(|t| t["frame"].as_u64().expect("frame"))
+        .collect();
+    assert_eq!(frames, (1..=500).collect::<Vec<_>>(), "{ticked}");
+    let (seen_a, seen_b) = (watch_a.finish(LONG), watch_b.finish(LONG));
+    seen_a.assert_success();
+    seen_b.assert_success();
+    let (a, b) = (digests(&seen_a.stdout), digests(&seen_b.stdout));
+    assert_eq!(a.len(), 500, "host a saw frames 1..=500 once each:\n{seen_a}");
+    assert_eq!(a, b, "both hosts saw the same frames with the same digests");
+
+    // A remote ticker holds the world: a second one, on either host, is
+    // refused naming it (its node on its host, its pid there).
+    let holder = hosts.b.client(
+        &world,
+        "10",
+        &["tick", "--rate", "20", "--leave-sync", "--json"],
+    );
+    wait_line(&holder, "\"frame\"");
+    let (node, pid) = status_ticker(&hosts, &world).expect("the remote ticker holds the world");
+    assert_eq!(u64::from(holder.pid()), pid, "the remote ticker's pid is reported");
+    assert!(node.ends_with("/sim-client-tick"), "reported as host/node: {node}");
+    for host in [&hosts.a, &hosts.b] {
+        let second = host.client(&world, "10", &["tick", "--count", "1"]).finish(LONG);
+        assert!(!second.status.success(), "{second}");
+        assert!(
+            second.stderr.contains(&node) && second.stderr.contains(&pid.to_string()),
+            "the refusal names the remote owner {node} (pid {pid}):\n{second}"
+        );
+    }
+
+    // The link drops: the remote ticker fails with a clear error, the
+    // server releases the ownership held for it.
+    let down = Instant::now();
+    hosts.b.set_link(false);
+    let failed = holder.finish(LONG);
+    assert!(!failed.status.success(), "{failed}");
+    assert!(
+        failed.stderr.contains("cannot reach") || failed.stderr.contains("did not answer"),
+        "the remote ticker says why it stopped:\n{failed}"
+    );
+    let failed_after = down.elapsed();
+    while status_ticker(&hosts, &world).is_some() {
+        assert!(down.elapsed() < LONG, "the server kept the lost remote ticker's ownership");
+    }
+    let released_after = down.elapsed();
+    eprintln!("remote ticker failed after {failed_after:?}, ownership released after {released_after:?}");
+    let before: u64 = {
+        let status = hosts.a.client(&world, "10", &["status", "--json"]).finish(LONG);
+        status.json()[0]["frame"].as_u64().expect("frame")
+    };
+
+    // The link comes back: a new ticker there continues from the next frame.
+    hosts.b.set_link(true);
+    wait_line(&mirror, "link up");
+    let next = hosts
+        .b
+        .client(&world, "20", &["tick", "--count", "1", "--json"])
+        .finish(LONG);
+    next.assert_success();
+    assert_eq!(next.json()[0]["frame"].as_u64(), Some(before + 1), "{next}");
+}
+
+#[test]
+fn a_mirror_of_a_world_nobody_exports_says_so() {
+    let hosts = TwoHosts::new("zn");
+    let world = unique_world("zn");
+    let endpoint = format!("tcp/{}:7447", hosts.a.address());
+    // Something listens there, but it exports another world.
+    let _server = hosts.a.spawn("sim-server", &["--world", &world]);
+    let exporter = hosts
+        .a
+        .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
+    wait_line(&exporter, "exporting world");
+    let other = unique_world("zn-other");
+    let mirror = hosts
+        .b
+        .client(&other, "2", &["bridge", "zenoh", "--connect", &endpoint])
+        .finish(LONG);
+    mirror.assert_code(1);
+    assert!(
+        mirror.stderr.contains(&format!("no bridge exports world '{other}'")),
+        "{mirror}"
+    );
+    // Refused before anything starts: bad endpoint, bad lease.
+    let bad = hosts
+        .b
+        .client(&world, "2", &["bridge", "zenoh", "--connect", "nonsense"])
+        .finish(LONG);
+    assert!(!bad.status.success(), "{bad}");
+    assert!(bad.stderr.contains("nonsense"), "{bad}");
+    let lease = hosts
+        .b
+        .client(&world, "2", &["bridge", "zenoh", "--connect", &endpoint, "--lease-ms", "5"])
+        .finish(LONG);
+    lease.assert_code(2);
+}

@@ -11,6 +11,7 @@ use crate::{PrivateRoot, Proc};
 
 /// One host: a network namespace with one end of the veth pair and its own
 /// iceoryx2 root.
+#[derive(Debug)]
 pub struct Host {
     namespace: String,
     interface: String,
@@ -77,6 +78,7 @@ impl Host {
 
 /// Two hosts joined by a veth pair (`a` at .1, `b` at .2 of a /24 no other
 /// test uses). Removed on drop.
+#[derive(Debug)]
 pub struct TwoHosts {
     /// The first host.
     pub a: Host,

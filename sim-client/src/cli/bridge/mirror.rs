@@ -208,7 +208,8 @@ pub(super) fn run(
                     if key <= last {
                         continue;
                     }
-                    if header.episode == last.0 && key.1 > last.1 + 1 {
+                    let sync = header.settings.synchronous_mode != 0;
+                    if sync && header.episode == last.0 && key.1 > last.1 + 1 {
                         warn!(
                             from = last.1 + 1,
                             to = key.1 - 1,

@@ -73,9 +73,12 @@ fn drain<P, T>(
     let mut i = 0;
     while i < flights.len() {
         let flight = &flights[i];
+        // Asked before receiving: a server that answers and then lets go
+        // of the request between the two calls is not taken for gone.
+        let connected = connected(&flight.pending);
         let done = match receive(&flight.pending) {
             Ok(Some(answer)) => finish(&flight.query, answer),
-            Ok(None) if !connected(&flight.pending) => {
+            Ok(None) if !connected => {
                 refuse(&flight.query, "the server of the world is gone");
                 Some((Vec::new(), None))
             }

@@ -80,10 +80,21 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     let watch_b = hosts.b.client(&world, "20", &watch);
     wait_line(&watch_a, "frame 0 digest");
     wait_line(&watch_b, "frame 0 digest");
+    // A depth camera spawned from the second host, read on both: each
+    // reader joins the lockstep, so the ticks wait until both read.
+    let spawned = hosts
+        .b
+        .client(&world, "20", &["sensor", "spawn", "depth", "--size", "16,12", "--json"])
+        .finish(LONG);
+    spawned.assert_success();
+    let id = spawned.json()[0]["id"].as_u64().expect("sensor id").to_string();
+    let read = ["sensor", "watch", &id, "--captures", "10", "--lockstep", "--json"];
+    let camera_a = hosts.a.client(&world, "20", &read);
+    let camera_b = hosts.b.client(&world, "20", &read);
     let ticker = hosts.b.client(
         &world,
         "20",
-        &["tick", "--count", "500", "--leave-sync", "--json"],
+        &["tick", "--count", "500", "--participants", "2", "--leave-sync", "--json"],
     );
     let ticked = ticker.finish(LONG * 2);
     ticked.assert_success();
@@ -99,6 +110,21 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     let (a, b) = (digests(&seen_a.stdout), digests(&seen_b.stdout));
     assert_eq!(a.len(), 500, "host a saw frames 1..=500 once each:\n{seen_a}");
     assert_eq!(a, b, "both hosts saw the same frames with the same digests");
+    let captures = |proc: Proc| {
+        let done = proc.finish(LONG);
+        done.assert_success();
+        done.json()
+            .iter()
+            .map(|c| (c["frame"].as_u64(), c["sequence"].as_u64(), c["bytes"].as_u64()))
+            .collect::<Vec<_>>()
+    };
+    let (captured_a, captured_b) = (captures(camera_a), captures(camera_b));
+    assert_eq!(
+        captured_a.iter().map(|c| c.0).collect::<Vec<_>>(),
+        (1..=10).map(Some).collect::<Vec<_>>(),
+        "every frame's capture, in order"
+    );
+    assert_eq!(captured_a, captured_b, "the same captures on both hosts");
 
     // A remote ticker holds the world: a second one, on either host, is
     // refused naming it (its node on its host, its pid there).

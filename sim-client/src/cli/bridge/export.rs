@@ -3,8 +3,9 @@
 //! queryables through ordinary simbus ports, tick ownership held for a
 //! remote ticker and released when its mirror goes.
 //!
-//! Threads: one forwards frames (and `/clock`), one per sensor forwards
-//! captures; each owns its simbus ports. The main thread owns the request
+//! Threads: one forwards frames (and `/clock`) and the captures of every
+//! sensor, each frame after its captures as the server publishes them; it
+//! owns its simbus ports. The main thread owns the request
 //! ports and is woken through one channel by Zenoh's callbacks and by the
 //! frame thread (a tick's answer goes back only once its frame is out).
 
@@ -161,6 +162,7 @@ pub(super) fn run(
         .map_err(zenoh)?;
 
     let forwarded = Arc::new(AtomicU64::new(0));
+    let (follow, followed) = mpsc::channel::<Follow>();
     let frames = {
         let (session, keys, world, events) =
             (session.clone(), keys.clone(), world.clone(), events.clone());
@@ -168,7 +170,7 @@ pub(super) fn run(
         std::thread::Builder::new()
             .name("frames".into())
             .spawn(move || {
-                let why = forward_frames(&world, timeout, &session, &keys, &latest, ros2_clock, &forwarded, &events, stop)
+                let why = forward_frames(&world, timeout, &session, &keys, &latest, ros2_clock, &forwarded, &events, &followed, stop)
                     .err()
                     .map_or_else(|| "stopped".to_owned(), |e| format!("{e:#}"));
                 let _ = events.send(Event::FramesEnded(why));
@@ -196,7 +198,7 @@ pub(super) fn run(
     // participants apart by their port.
     let mut lockstep: HashMap<(String, u32), FixedRelay<LockstepRequest, LockstepResponse>> =
         HashMap::new();
-    let mut capture_threads: HashMap<u64, std::thread::JoinHandle<()>> = HashMap::new();
+    let mut following = BTreeSet::new();
     let mut owner: Option<RemoteTicker> = None;
     let mut claimants: Vec<RemoteTicker> = Vec::new();
     let mut mirrors = BTreeSet::new();
@@ -220,7 +222,7 @@ pub(super) fn run(
         }
         if Instant::now() >= next_sensor_scan {
             next_sensor_scan = Instant::now() + Duration::from_secs(1);
-            scan_sensors(&client, world, timeout, &session, &keys, &mut capture_threads, stop);
+            follow_sensors(&client, timeout, &mut following, &follow);
         }
         let busy = tick.busy()
             || control.busy()
@@ -333,7 +335,13 @@ pub(super) fn run(
         control.poll(|_| false, |_| None, &mut held);
         recorder.poll(|_| false, |_| None, &mut held);
         batch.poll(&mut held);
+        let before = held.len();
         sensors.poll(&mut held);
+        if held.len() > before {
+            // A sensor may have been spawned: its captures are forwarded
+            // from before the answer goes, so none is missed.
+            follow_sensors(&client, timeout, &mut following, &follow);
+        }
         for port in lockstep.values_mut() {
             port.poll(|_| false, |_| None, &mut held);
         }
@@ -461,8 +469,22 @@ fn answer_json(client: &Client, query: &Query, settings_only: bool) {
     }
 }
 
-/// Publishes every frame on Zenoh (and its time on `clock`), until the
-/// server is gone or `stop`.
+/// A sensor the frame thread is to forward, and whom to tell once it reads.
+struct Follow {
+    id: u64,
+    reading: Sender<()>,
+}
+
+/// One forwarded sensor: its reader and its publisher.
+struct Forwarding {
+    sensor: sim_client::Sensor,
+    publisher: zenoh::pubsub::Publisher<'static>,
+}
+
+/// Publishes every frame on Zenoh (and its time on `clock`), each after
+/// the captures of its frame, as the server publishes them: a remote
+/// reader that sees frame N finds its captures. Until the server is gone
+/// or `stop`.
 #[allow(clippy::too_many_arguments)]
 fn forward_frames(
     world: &WorldName,
@@ -473,34 +495,65 @@ fn forward_frames(
     ros2_clock: bool,
     forwarded: &AtomicU64,
     events: &Sender<Event>,
+    follow: &mpsc::Receiver<Follow>,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
     let zenoh = |e: zenoh::Error| anyhow::anyhow!("{e}");
     let mut client = Client::connect(world.as_str(), timeout)?;
-    let publisher = session
-        .declare_publisher(keys.frames())
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(zenoh)?;
-    let clock = session
-        .declare_publisher(bridge::ROS2_CLOCK_KEY)
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(zenoh)?;
+    // Express: each message leaves at once, in order, none batched.
+    let publisher = |key: String| {
+        session
+            .declare_publisher(key)
+            .congestion_control(CongestionControl::Block)
+            .express(true)
+            .wait()
+            .map_err(zenoh)
+    };
+    let frames = publisher(keys.frames())?;
+    let clock = publisher(bridge::ROS2_CLOCK_KEY.to_owned())?;
+    let mut sensors: HashMap<u64, Forwarding> = HashMap::new();
     let mut bytes = Vec::new();
     while !stop.load(Ordering::Relaxed) {
-        let frame = match client.wait_for_frame(Duration::from_millis(200)) {
+        while let Ok(Follow { id, reading }) = follow.try_recv() {
+            match client.sensor(id) {
+                Ok(sensor) => {
+                    sensors.insert(id, Forwarding { sensor, publisher: publisher(keys.sensor(id))? });
+                }
+                Err(e) => info!(sensor = id, "not forwarded: {e}"),
+            }
+            let _ = reading.send(());
+        }
+        let frame = match client.wait_for_frame(Duration::from_millis(100)) {
             Ok(frame) => frame,
             Err(WaitError::Timeout { .. }) => continue,
             Err(e) => return Err(e.into()),
         };
+        // The frame's captures first (the server published them before it).
+        sensors.retain(|id, forwarding| loop {
+            let capture = match forwarding.sensor.try_recv() {
+                Ok(Some(capture)) => capture,
+                Ok(None) => return true,
+                Err(e) => {
+                    info!(sensor = id, "stopped forwarding captures: {e}");
+                    return false;
+                }
+            };
+            bytes.clear();
+            bridge::encode_capture(capture.header(), capture.bytes(), &mut bytes);
+            let ended = capture.header().end().is_some();
+            drop(capture);
+            if let Err(e) = forwarding.publisher.put(bytes.as_slice()).wait() {
+                warn!(sensor = id, "capture not published: {e}");
+            }
+            if ended {
+                return false;
+            }
+        });
         bytes.clear();
         bridge::encode_frame(frame.header(), frame.actors(), &mut bytes);
         let (number, elapsed_ns) = (frame.frame(), frame.timestamp().elapsed_ns);
         drop(frame);
-        publisher.put(bytes.as_slice()).wait().map_err(zenoh)?;
+        frames.put(bytes.as_slice()).wait().map_err(zenoh)?;
         if ros2_clock {
             clock
                 .put(bridge::ros2_clock_cdr(elapsed_ns).as_slice())
@@ -516,73 +569,25 @@ fn forward_frames(
     Ok(())
 }
 
-/// Starts a capture-forwarding thread for every sensor not yet forwarded.
-fn scan_sensors(
+/// Has the frame thread forward every sensor not yet forwarded, and waits
+/// until it reads each (so a capture right after is forwarded).
+fn follow_sensors(
     client: &Client,
-    world: &WorldName,
     timeout: Duration,
-    session: &Session,
-    keys: &BridgeKeys,
-    threads: &mut HashMap<u64, std::thread::JoinHandle<()>>,
-    stop: &'static AtomicBool,
+    following: &mut BTreeSet<u64>,
+    follow: &Sender<Follow>,
 ) {
-    threads.retain(|_, t| !t.is_finished());
     let Ok(list) = client.list_sensors() else {
         return;
     };
-    for info in list {
-        if threads.contains_key(&info.id) {
-            continue;
-        }
-        let (session, key, world, id) = (session.clone(), keys.sensor(info.id), world.clone(), info.id);
-        let thread = std::thread::Builder::new()
-            .name(format!("sensor-{id}"))
-            .spawn(move || {
-                if let Err(e) = forward_captures(&world, timeout, id, &session, &key, stop) {
-                    info!(sensor = id, "stopped forwarding captures: {e:#}");
-                }
-            });
-        match thread {
-            Ok(thread) => {
-                threads.insert(id, thread);
+    let listed: BTreeSet<u64> = list.iter().map(|info| info.id).collect();
+    following.retain(|id| listed.contains(id));
+    for id in listed {
+        if following.insert(id) {
+            let (reading, read) = mpsc::channel();
+            if follow.send(Follow { id, reading }).is_ok() {
+                let _ = read.recv_timeout(timeout);
             }
-            Err(e) => warn!("cannot start a thread for sensor {id}: {e}"),
         }
     }
-}
-
-/// Publishes every capture of sensor `id` on `key` until its stream ends.
-fn forward_captures(
-    world: &WorldName,
-    timeout: Duration,
-    id: u64,
-    session: &Session,
-    key: &str,
-    stop: &AtomicBool,
-) -> anyhow::Result<()> {
-    let zenoh = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let client = Client::connect(world.as_str(), timeout)?;
-    let mut sensor = client.sensor(id)?;
-    let publisher = session
-        .declare_publisher(key.to_owned())
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .map_err(zenoh)?;
-    let mut bytes = Vec::new();
-    while !stop.load(Ordering::Relaxed) {
-        let capture = match sensor.recv(Duration::from_millis(200)) {
-            Ok(capture) => capture,
-            Err(WaitError::Timeout { .. }) => continue,
-            Err(e) => return Err(e.into()),
-        };
-        bytes.clear();
-        bridge::encode_capture(capture.header(), capture.bytes(), &mut bytes);
-        let ended = capture.header().end().is_some();
-        drop(capture);
-        publisher.put(bytes.as_slice()).wait().map_err(zenoh)?;
-        if ended {
-            break;
-        }
-    }
-    Ok(())
 }

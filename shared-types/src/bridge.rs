@@ -351,8 +351,8 @@ mod tests {
         assert_eq!(offset_of!(FrameHeader, first_actor_id), after_settings + 8);
         assert_eq!(offset_of!(FrameHeader, server_pid), after_settings + 16);
         assert_eq!(FRAME_HEADER_BYTES, after_settings + 24);
-        assert_eq!((after_settings, FRAME_HEADER_BYTES), (104, 128));
-        assert_eq!(std::mem::size_of::<ActorState>(), 88);
+        assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 96));
+        assert_eq!(std::mem::size_of::<ActorState>(), 96);
         assert_eq!(offset_of!(ActorState, position), 16);
     }
 

@@ -1,6 +1,8 @@
 //! A Python virtual environment for the tests that check simbus's output
 //! with tools simbus did not write (the `mcap` reader from PyPI, CARLA's
-//! own client library and pytest for the gateway). It is
+//! own client library and pytest for the gateway, the Foxglove protocol's
+//! `websockets` and `protobuf`, Zenoh's Python API and `rosbags`' ROS 2
+//! CDR decoder for the Zenoh bridge). It is
 //! created once per target directory, under a lock, with pinned packages;
 //! nothing is assumed installed but `python3`.
 
@@ -20,6 +22,13 @@ pub const PYTHON_REQUIREMENTS: &[&str] = &[
     "msgpack==1.1.0",
     "websockets==15.0.1",
     "protobuf==5.29.5",
+    "eclipse-zenoh==1.10.2",
+    "rosbags==0.11.9",
+    "apsw==3.54.1.0",
+    "backports.zstd==1.8.0",
+    "numpy==2.4.6",
+    "ruamel.yaml==0.19.1",
+    "typing_extensions==4.16.0",
 ];
 
 /// The venv's `python`, creating the venv on first use (every test

@@ -1,6 +1,8 @@
 //! The Python tests (`tests/python`, pytest): CARLA 0.9.16's own client
-//! library against the gateway, run in the venv the fixture creates with
-//! pinned packages. Each test starts its own server and gateway.
+//! library against the gateway, a Foxglove WebSocket client against the
+//! live view, a Zenoh peer and a ROS 2 CDR decoder against the Zenoh
+//! bridge; run in the venv the fixture creates with pinned packages. Each
+//! test starts its own server and the process it checks.
 
 #[test]
 fn the_python_tests_pass() {

@@ -1,0 +1,238 @@
+"""`sim-client bridge zenoh` read and attacked by a Zenoh peer simbus did not
+write: the `eclipse-zenoh` package decodes frames by the README's header
+layout, ROS 2's `/clock` is decoded by `rosbags` (its CDR decoder and the
+ROS 2 message definitions), and garbage, wrong versions and a flood of
+ticks from a foreign peer get clear errors and change nothing."""
+
+import json
+import os
+import re
+import struct
+import subprocess
+import threading
+import time
+
+import zenoh
+from rosbags.typesys import Stores, get_typestore
+
+from conftest import BIN, kill_all, wait_line, world_name
+
+DELTA_NS = 50_000_000
+FRAME_HEADER = 96
+ACTOR = 96
+PROTOCOL_VERSION = 2
+
+
+def free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def session(endpoint):
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+def sim_client(world, *args, env=None):
+    return subprocess.run(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10", *args],
+        capture_output=True, text=True, timeout=120, env=env,
+    )
+
+
+def start_export(world, procs, *extra):
+    """A sync server on `world` and an exporting bridge; the endpoint."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    procs.append(subprocess.Popen(
+        [os.path.join(BIN, "sim-server"), "--world", world, "--sync", "--delta-seconds", "0.05"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    ))
+    exporter = subprocess.Popen(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
+         "bridge", "zenoh", "--listen", endpoint, *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    procs.append(exporter)
+    wait_line(exporter, "exporting world")
+    return endpoint, exporter
+
+
+def replies(s, selector, payload=None, timeout=10.0):
+    """Every reply to one query: ("ok", bytes) or ("err", text)."""
+    out = []
+    for reply in s.get(selector, payload=payload, timeout=timeout):
+        if reply.ok is not None:
+            out.append(("ok", bytes(reply.ok.payload.to_bytes())))
+        else:
+            out.append(("err", reply.err.payload.to_string()))
+    return out
+
+
+def test_a_foreign_zenoh_peer_decodes_frames_and_ros2_clock(request):
+    world = world_name(request)
+    procs = []
+    try:
+        endpoint, _ = start_export(world, procs, "--ros2-clock")
+        s = session(endpoint)
+        frames, clocks = [], []
+        got = threading.Condition()
+
+        def keep(into):
+            def handler(sample):
+                with got:
+                    into.append(bytes(sample.payload.to_bytes()))
+                    got.notify_all()
+            return handler
+
+        subs = [s.declare_subscriber(f"simbus/{world}/frames", keep(frames)),
+                s.declare_subscriber("clock", keep(clocks))]
+        # A reply from the exporter means it has seen our subscriptions
+        # (declarations and queries travel in order on the one link).
+        assert replies(s, f"simbus/{world}/frames/latest")[0][0] == "ok"
+
+        ticked = sim_client(world, "tick", "--count", "20", "--leave-sync", "--json")
+        assert ticked.returncode == 0, ticked.stderr
+        ticks = [json.loads(line) for line in ticked.stdout.splitlines()]
+        assert [t["frame"] for t in ticks] == list(range(1, 21))
+        with got:
+            assert got.wait_for(lambda: len(frames) >= 20 and len(clocks) >= 20, timeout=30), (len(frames), len(clocks))
+
+        typestore = get_typestore(Stores.ROS2_HUMBLE)
+        for i, (payload, cdr) in enumerate(zip(frames[:20], clocks[:20]), start=1):
+            # The README's layout of the frame header.
+            version, actors, _episode = struct.unpack_from("<IIQ", payload, 0)
+            frame, elapsed_ns, delta_ns, platform = struct.unpack_from("<QQQd", payload, 16)
+            substeps, _flags, _first_actor, server_pid = struct.unpack_from("<IIQI", payload, 72)
+            assert version == PROTOCOL_VERSION
+            assert len(payload) == FRAME_HEADER + ACTOR * actors and actors > 0
+            assert (frame, elapsed_ns, delta_ns) == (i, i * DELTA_NS, DELTA_NS)
+            assert substeps == 5 and server_pid > 0 and platform > 1e9
+            actor_id, kind = struct.unpack_from("<QI", payload, FRAME_HEADER)
+            assert actor_id > 0 and 1 <= kind <= 5
+            # /clock: exactly the frame's simulation time.
+            clock = typestore.deserialize_cdr(cdr, "rosgraph_msgs/msg/Clock").clock
+            assert clock.sec * 1_000_000_000 + clock.nanosec == elapsed_ns
+
+        status = replies(s, f"simbus/{world}/status")
+        assert status[0][0] == "ok", status
+        report = json.loads(status[0][1])
+        assert report["world"] == world and report["frame"] == 20 and report["synchronous_mode"]
+        settings = json.loads(replies(s, f"simbus/{world}/settings")[0][1])
+        assert settings["fixed_delta_seconds"] == 0.05
+        for sub in subs:
+            sub.undeclare()
+        s.close()
+    finally:
+        kill_all(procs)
+
+
+def needed_size(s, world, service):
+    """The size of `service`'s request, from the exporter's own error."""
+    (kind, text), = replies(s, f"simbus/{world}/rpc/{service}?mirror=probe", payload=struct.pack("<I", PROTOCOL_VERSION))
+    assert kind == "err", text
+    return int(re.search(r"header of (\d+) bytes", text).group(1))
+
+
+def test_garbage_wrong_versions_and_a_tick_flood_change_nothing(request, tmp_path):
+    world = world_name(request)
+    procs = []
+    try:
+        endpoint, exporter = start_export(world, procs)
+        # A mirror on this machine, in its own iceoryx2 root.
+        config = tmp_path / "iox2.toml"
+        config.write_text(f'[global]\nroot-path = "{tmp_path}/iox2/"\nprefix = "iox2_py{os.getpid()}_"\n')
+        mirror_env = dict(os.environ, SIMBUS_IOX2_CONFIG=str(config))
+        mirror = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
+             "bridge", "zenoh", "--connect", endpoint],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            start_new_session=True, env=mirror_env,
+        )
+        procs.append(mirror)
+        wait_line(mirror, "mirroring world")
+        s = session(endpoint)
+
+        # Garbage frames: the mirror drops and counts them (put until it
+        # says so: the peer's link to the mirror comes up by gossip).
+        mirror_log, said = [], threading.Condition()
+
+        def read_log():
+            for line in mirror.stderr:
+                with said:
+                    mirror_log.append(line)
+                    said.notify_all()
+
+        threading.Thread(target=read_log, daemon=True).start()
+
+        def logged(text):
+            return any(text in line for line in mirror_log)
+
+        deadline = time.time() + 30
+        while not (logged("dropped a frame publication") and logged("dropped a capture publication")):
+            assert time.time() < deadline, "".join(mirror_log)
+            s.put(f"simbus/{world}/frames", b"garbage")
+            s.put(f"simbus/{world}/frames", struct.pack("<II", PROTOCOL_VERSION, 1000) + bytes(88))
+            s.put(f"simbus/{world}/sensor/7", b"\x00" * 3)
+            with said:
+                said.wait(timeout=0.2)
+
+        # Requests: without the mirror parameter, malformed, of another version.
+        errors = [replies(s, f"simbus/{world}/rpc/control", payload=b"x")[0],
+                  replies(s, f"simbus/{world}/rpc/nothing?mirror=m", payload=b"x")[0],
+                  replies(s, f"simbus/{world}/rpc/control?mirror=m", payload=b"x")[0]]
+        assert all(kind == "err" for kind, _ in errors), errors
+        assert "must name its mirror" in errors[0][1]
+        assert "no such service" in errors[1][1]
+        assert "malformed control request" in errors[2][1]
+        size = needed_size(s, world, "control")
+        (kind, text), = replies(s, f"simbus/{world}/rpc/control?mirror=m", payload=struct.pack("<I", 99) + bytes(size - 4))
+        assert kind == "err" and "protocol version 99" in text, text
+
+        # A flood of ticks from a peer that does not hold the world: every
+        # one answered (refused by the server, or dropped as too many in
+        # flight), nothing steps.
+        size = needed_size(s, world, "tick")
+        tick = struct.pack("<IIII", PROTOCOL_VERSION, 3, 1, 0) + bytes(size - 16)
+        answers = []
+        lock = threading.Lock()
+
+        def flood():
+            for _ in range(50):
+                for kind, body in replies(s, f"simbus/{world}/rpc/tick?mirror=flood", payload=tick):
+                    with lock:
+                        answers.append((kind, body))
+
+        threads = [threading.Thread(target=flood) for _ in range(6)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert len(answers) == 300
+        for kind, body in answers:
+            if kind == "ok":
+                status, = struct.unpack_from("<I", body, 4)
+                assert status == 5, status  # NotTicker
+            else:
+                assert "cannot send" in body, body
+
+        # The world is unchanged and the mirror still mirrors it.
+        status = sim_client(world, "status", "--json")
+        assert status.returncode == 0, status.stderr
+        report = json.loads(status.stdout)
+        assert report["frame"] == 0 and report["ticker"] is None
+        ticked = sim_client(world, "tick", "--count", "3", "--leave-sync", "--json", env=mirror_env)
+        assert ticked.returncode == 0, ticked.stderr
+        assert [json.loads(l)["frame"] for l in ticked.stdout.splitlines()] == [1, 2, 3]
+        s.close()
+        kill_all(procs)
+        procs = []
+        exporter_log = exporter.stderr.read()
+        assert "dropped a request from another host" in exporter_log, exporter_log
+    finally:
+        kill_all(procs)

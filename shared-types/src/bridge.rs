@@ -248,6 +248,10 @@ pub fn decode_capture(bytes: &[u8]) -> Result<(SensorHeader, &[u8]), PayloadErro
 /// A request (or answer) of a fixed-size type `T`, checked: exactly
 /// `size_of::<T>()` bytes, starting with [`PROTOCOL_VERSION`].
 pub fn decode_fixed<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadError> {
+    // The version first: another version's types may have other sizes.
+    if bytes.len() >= 4 {
+        check_version(bytes)?;
+    }
     let value: T = read_header(bytes, what)?;
     if bytes.len() != std::mem::size_of::<T>() {
         return Err(PayloadError::WrongLength {
@@ -256,7 +260,6 @@ pub fn decode_fixed<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, Paylo
             actual: bytes.len(),
         });
     }
-    check_version(bytes)?;
     Ok(value)
 }
 
@@ -267,8 +270,10 @@ pub fn decode_slice<H: Pod, T: Pod>(
     what: &'static str,
     max: usize,
 ) -> Result<(H, Vec<T>), PayloadError> {
+    if bytes.len() >= 4 {
+        check_version(bytes)?;
+    }
     let header: H = read_header(bytes, what)?;
-    check_version(bytes)?;
     let body = &bytes[std::mem::size_of::<H>()..];
     let size = std::mem::size_of::<T>().max(1);
     if body.len() % size != 0 || body.len() / size > max {

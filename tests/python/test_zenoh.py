@@ -134,7 +134,7 @@ def test_a_foreign_zenoh_peer_decodes_frames_and_ros2_clock(request):
 
 def needed_size(s, world, service):
     """The size of `service`'s request, from the exporter's own error."""
-    (kind, text), = replies(s, f"simbus/{world}/rpc/{service}?mirror=probe", payload=struct.pack("<I", PROTOCOL_VERSION))
+    (kind, text), = replies(s, f"simbus/{world}/rpc/{service}?mirror=probe", payload=struct.pack("<II", PROTOCOL_VERSION, 0))
     assert kind == "err", text
     return int(re.search(r"header of (\d+) bytes", text).group(1))
 
@@ -236,3 +236,30 @@ def test_garbage_wrong_versions_and_a_tick_flood_change_nothing(request, tmp_pat
         assert "dropped a request from another host" in exporter_log, exporter_log
     finally:
         kill_all(procs)
+
+
+def test_a_mirror_refuses_an_exporter_of_another_protocol_version(request):
+    """A fake exporter (this Zenoh peer) answers in protocol version 99: the
+    mirror names both versions and creates nothing."""
+    world = world_name(request)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("listen/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    s = zenoh.open(conf)
+    asked = []
+
+    def answer(query):
+        asked.append(str(query.key_expr))
+        query.reply(query.key_expr, struct.pack("<II", 99, 0) + bytes(64))
+
+    queryable = s.declare_queryable(f"simbus/{world}/rpc/control", answer)
+    try:
+        mirror = sim_client(world, "bridge", "zenoh", "--connect", endpoint)
+        assert mirror.returncode == 1, mirror.stderr
+        assert "protocol version 99 is not this version's 2" in mirror.stderr, mirror.stderr
+        assert asked == [f"simbus/{world}/rpc/control"]
+    finally:
+        queryable.undeclare()
+        s.close()

@@ -206,6 +206,34 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
         .finish(LONG);
     assert!(!bad.status.success(), "{bad}");
     assert!(bad.stderr.contains("nonsense"), "{bad}");
+    let config = simbus_tests::Scratch::new("zn");
+    let broken = config.write("broken.json5", b"{ mode: ");
+    let refused = hosts
+        .b
+        .client(&world, "2", &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config"])
+        .finish(LONG);
+    assert!(!refused.status.success(), "{refused}");
+    let refused = hosts
+        .b
+        .client(
+            &world,
+            "2",
+            &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config", broken.to_str().expect("path")],
+        )
+        .finish(LONG);
+    refused.assert_code(2);
+    assert!(refused.stderr.contains("broken.json5"), "{refused}");
+    // A good file is used: a mirror in client mode, no scouting, reaches the exporter.
+    let client_mode = config.write(
+        "client.json5",
+        b"{ mode: \"client\", scouting: { multicast: { enabled: false } } }",
+    );
+    let mirror = hosts.b.client(
+        &world,
+        "10",
+        &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config", client_mode.to_str().expect("path")],
+    );
+    wait_line(&mirror, "mirroring world");
     let lease = hosts
         .b
         .client(&world, "2", &["bridge", "zenoh", "--connect", &endpoint, "--lease-ms", "5"])

@@ -10,6 +10,7 @@
 //! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
 //! cargo run --release -p simbus-bench -- carla [--ticks N] [--frames N] [--python P] [--json]
 //! cargo run --release -p simbus-bench -- substeps [--out DIR] [--seconds S] [--json]
+//! cargo run --release -p simbus-bench -- zenoh [--ticks N] [--captures N] [--no-veth] [--json]
 //! ```
 
 use std::process::ExitCode;
@@ -29,6 +30,7 @@ mod stats;
 mod substeps;
 mod support;
 mod tick;
+mod zenoh;
 
 /// simbus benchmarks. Each prints a table (or --json) of figures measured in
 /// one run on this machine; compare ratios, not absolute numbers, across machines.
@@ -67,6 +69,14 @@ enum Command {
     /// frame or an 8 MiB capture, spinning and blocking.
     Fanout(fanout::FanoutArgs),
     Substeps(substeps::SubstepsArgs),
+    /// The Zenoh bridge: tick round trip and frame latency locally, through
+    /// a mirror on loopback and across a veth pair (root), against TCP;
+    /// 1 and 8 MiB captures across the link; ticks per second with 1000
+    /// actors; the ownership release bound after the link drops.
+    Zenoh(zenoh::ZenohArgs),
+    /// The measuring client of `zenoh` (run in the host it measures from).
+    #[command(hide = true)]
+    ZenohPeer(zenoh::ZenohPeerArgs),
     /// A fan-out subscriber (used by `fanout`).
     #[command(hide = true)]
     FanoutPeer(fanout::FanoutPeerArgs),
@@ -90,6 +100,8 @@ fn main() -> ExitCode {
         Command::Carla(a) => carla::run(a),
         Command::Fanout(a) => fanout::run(a),
         Command::Substeps(a) => substeps::run(a),
+        Command::Zenoh(a) => zenoh::run(a),
+        Command::ZenohPeer(a) => zenoh::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {

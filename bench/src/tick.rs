@@ -274,23 +274,30 @@ fn futex_row() -> anyhow::Result<Row> {
     })
 }
 
-fn tcp_row() -> anyhow::Result<Row> {
+/// CARLA's per-tick exchange over TCP loopback (a tick request, a frame
+/// header back) with a peer process: the peer, and one exchange.
+pub(crate) fn tcp_exchange() -> anyhow::Result<(ChildGuard, impl FnMut() -> anyhow::Result<()>)> {
     let (peer, port) = spawn_peer("tcp", "tcp")?;
     let mut stream = TcpStream::connect(("127.0.0.1", port.parse::<u16>()?))?;
     stream.set_nodelay(true)?;
     let mut frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
     let mut tick = 0u64;
+    Ok((peer, move || {
+        tick += 1;
+        stream.write_all(&tick.to_le_bytes())?;
+        stream.read_exact(&mut frame)?;
+        Ok(())
+    }))
+}
+
+fn tcp_row() -> anyhow::Result<Row> {
+    let (peer, round_trip) = tcp_exchange()?;
     Ok(Row {
         name: "(c) TCP loopback",
         peers: vec![peer.id()],
         _guards: vec![peer],
         _server: None,
-        round_trip: Box::new(move || {
-            tick += 1;
-            stream.write_all(&tick.to_le_bytes())?;
-            stream.read_exact(&mut frame)?;
-            Ok(())
-        }),
+        round_trip: Box::new(round_trip),
         latencies: Latencies::new(),
     })
 }

@@ -357,8 +357,27 @@ mod tests {
         assert_eq!(offset_of!(FrameHeader, server_pid), after_settings + 16);
         assert_eq!(FRAME_HEADER_BYTES, after_settings + 24);
         assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 96));
+        let settings = offset_of!(FrameHeader, settings);
+        assert_eq!(settings + offset_of!(crate::WireSettings, fixed_delta_seconds), 48);
+        assert_eq!(settings + offset_of!(crate::WireSettings, max_substep_delta_time), 56);
+        assert_eq!(settings + offset_of!(crate::WireSettings, max_substeps), 64);
+        assert_eq!(settings + offset_of!(crate::WireSettings, synchronous_mode), 68);
+        assert_eq!(settings + offset_of!(crate::WireSettings, substepping), 69);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
-        assert_eq!(offset_of!(ActorState, position), 16);
+        assert_eq!(std::mem::size_of::<SensorHeader>(), 104);
+        assert_eq!(
+            [
+                offset_of!(ActorState, kind),
+                offset_of!(ActorState, flags),
+                offset_of!(ActorState, position),
+                offset_of!(ActorState, rotation),
+                offset_of!(ActorState, linear_velocity),
+                offset_of!(ActorState, angular_velocity),
+                offset_of!(ActorState, acceleration),
+                offset_of!(ActorState, extent),
+            ],
+            [8, 12, 16, 28, 44, 56, 68, 80]
+        );
     }
 
     #[test]

@@ -1,0 +1,396 @@
+//! `simbus-bench zenoh`: the Zenoh bridge against shared memory and TCP, in
+//! one run: tick round trip and frame latency (server publish to reader)
+//! for a ticker on the server's host, through a mirror on loopback, through
+//! a mirror across a veth pair between two network namespaces (needs root),
+//! and CARLA-style TCP loopback; 1 MiB and 8 MiB depth captures across the
+//! link; ticks per second a mirror sustains with 1000 actors; and how long
+//! after the link drops the server releases a remote ticker's ownership.
+//!
+//! Every process runs the real binaries (`simbus-bench serve` as the
+//! server, `sim-client bridge zenoh` as the bridges, `simbus-bench
+//! zenoh-peer` as the measuring client), each in its host's iceoryx2 root.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use clap::Args;
+use shared_types::SensorSpec;
+use sim_client::Client;
+use simbus_tests::{PrivateRoot, Proc, TwoHosts};
+
+use crate::stats::{header, Latencies};
+use crate::support::{machine_state, now_ns, sync_ticker};
+
+/// Options of `simbus-bench zenoh`.
+#[derive(Debug, Args)]
+pub(crate) struct ZenohArgs {
+    /// Ticks per latency row.
+    #[arg(long, default_value_t = 2000)]
+    ticks: u64,
+    /// Captures per sensor row.
+    #[arg(long, default_value_t = 100)]
+    captures: u64,
+    /// Trials of the ownership release after the link drops (veth only).
+    #[arg(long, default_value_t = 3)]
+    release_trials: u32,
+    /// Skip the veth rows (they need root for `ip netns`).
+    #[arg(long)]
+    no_veth: bool,
+    /// One JSON object instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Options of the measuring client (run in the host it measures from).
+#[derive(Debug, Args)]
+pub(crate) struct ZenohPeerArgs {
+    /// The world.
+    #[arg(long)]
+    world: String,
+    /// `tick` (round trips and frame latencies), `depth W H` (capture
+    /// latencies) or `rate` (ticks per second over --count ticks).
+    #[arg(long)]
+    mode: String,
+    /// Ticks or captures.
+    #[arg(long)]
+    count: u64,
+    /// Depth image size for `depth`.
+    #[arg(long, num_args = 2, value_names = ["W", "H"])]
+    size: Vec<u32>,
+}
+
+/// The measuring client: one JSON line with its samples in nanoseconds.
+pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
+    let mut client = Client::connect(&args.world, Duration::from_secs(20))?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let timeout = Duration::from_secs(30);
+    let warmup = args.count / 10;
+    match args.mode.as_str() {
+        "tick" => {
+            let (mut round_trips, mut frames) = (Vec::new(), Vec::new());
+            for i in 0..args.count + warmup {
+                let start = Instant::now();
+                let frame = ticker.tick(timeout)?;
+                let round_trip = start.elapsed().as_nanos() as u64;
+                let snapshot = client.wait_for_frame(timeout)?;
+                anyhow::ensure!(snapshot.frame() == frame, "frame {} after tick {frame}", snapshot.frame());
+                let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
+                if i >= warmup {
+                    round_trips.push(round_trip);
+                    frames.push(now_ns().saturating_sub(published));
+                }
+            }
+            println!("{}", serde_json::json!({"round_trip": round_trips, "frame": frames}));
+        }
+        "depth" => {
+            let &[width, height] = args.size.as_slice() else {
+                anyhow::bail!("--size W H");
+            };
+            let spec = SensorSpec::depth([0.0, 3.0, 0.0], width, height, 90.0, 100.0);
+            let mut sensor = client.spawn_sensor(spec)?;
+            let mut latencies = Vec::new();
+            for i in 0..args.count + warmup {
+                let frame = ticker.tick(timeout)?;
+                let capture = sensor.recv(timeout)?;
+                anyhow::ensure!(capture.header().frame == frame, "capture of another frame");
+                let published = (capture.header().platform_timestamp * 1e9) as u64;
+                if i >= warmup {
+                    latencies.push(now_ns().saturating_sub(published));
+                }
+            }
+            client.destroy_sensor(sensor.id())?;
+            println!("{}", serde_json::json!({"capture": latencies}));
+        }
+        "rate" => {
+            let start = Instant::now();
+            for _ in 0..args.count {
+                ticker.tick(timeout)?;
+            }
+            let rate = args.count as f64 / start.elapsed().as_secs_f64();
+            println!("{}", serde_json::json!({"ticks_per_second": rate}));
+        }
+        mode => anyhow::bail!("unknown mode {mode}"),
+    }
+    ticker.release()?;
+    Ok(())
+}
+
+/// A server with an exporting bridge, and a mirror (or none).
+struct Setup {
+    world: String,
+    /// Runs a process on the server's host.
+    server_host: Host,
+    /// Runs a process on the mirror's host.
+    mirror_host: Host,
+    _procs: Vec<Proc>,
+}
+
+/// Where a process runs: a root, and a network namespace or none.
+#[derive(Clone)]
+struct Host {
+    env: Vec<(String, std::ffi::OsString)>,
+    namespace: Option<String>,
+}
+
+impl Host {
+    fn of_root(root: &PrivateRoot, namespace: Option<&str>) -> Self {
+        Self {
+            env: root
+                .env()
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+                .collect(),
+            namespace: namespace.map(str::to_owned),
+        }
+    }
+
+    fn spawn(&self, program: &str, args: &[&str]) -> Proc {
+        let env: Vec<(&str, &std::ffi::OsStr)> =
+            self.env.iter().map(|(k, v)| (k.as_str(), v.as_os_str())).collect();
+        match &self.namespace {
+            Some(ns) => Proc::spawn_wrapped(&["ip", "netns", "exec", ns], program, args, &env),
+            None => Proc::spawn_env(program, args, &env),
+        }
+    }
+
+    /// Runs the measuring client here and parses its line.
+    fn measure(&self, world: &str, args: &[&str]) -> anyhow::Result<serde_json::Value> {
+        let mut all = vec!["zenoh-peer", "--world", world];
+        all.extend_from_slice(args);
+        let done = self.spawn("simbus-bench", &all).finish(Duration::from_secs(600));
+        anyhow::ensure!(done.status.success(), "{done}");
+        let line = done.stdout.last().context("the peer printed nothing")?;
+        Ok(serde_json::from_str(line)?)
+    }
+}
+
+fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while Instant::now() < deadline {
+        if proc.line(Duration::from_millis(200)).is_some_and(|l| l.contains(needle)) {
+            return Ok(());
+        }
+    }
+    anyhow::bail!("no '{needle}' line; stderr:\n{}", proc.stderr())
+}
+
+impl Setup {
+    /// Server (`server_args`) and exporter on `server_host`, a mirror on
+    /// `mirror_host` (none when both are the same).
+    fn start(
+        tag: &str,
+        server_host: Host,
+        mirror_host: Option<Host>,
+        address: &str,
+        server_args: &[&str],
+    ) -> anyhow::Result<Self> {
+        static PORTS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let n = PORTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let world = format!("bench-zenoh-{tag}-{}", std::process::id());
+        let endpoint = format!("tcp/{address}:{}", 17_000 + (std::process::id() % 1000) * 20 + n);
+        let mut args = vec!["serve", "--world", &world, "--sync", "--delta-seconds", "0.01"];
+        args.extend_from_slice(server_args);
+        let server = server_host.spawn("simbus-bench", &args);
+        let bridge = |host: &Host, flag: &str| {
+            host.spawn(
+                "sim-client",
+                &["--world", &world, "--timeout", "30", "bridge", "zenoh", flag, &endpoint],
+            )
+        };
+        let exporter = bridge(&server_host, "--listen");
+        wait_line(&exporter, "exporting world")?;
+        let mut procs = vec![server, exporter];
+        if let Some(host) = &mirror_host {
+            let mirror = bridge(host, "--connect");
+            wait_line(&mirror, "mirroring world")?;
+            procs.push(mirror);
+        }
+        Ok(Self {
+            world,
+            mirror_host: mirror_host.unwrap_or_else(|| server_host.clone()),
+            server_host,
+            _procs: procs,
+        })
+    }
+}
+
+fn latencies(json: &serde_json::Value, key: &str) -> Latencies {
+    let mut latencies = Latencies::new();
+    for sample in json[key].as_array().into_iter().flatten() {
+        latencies.record(sample.as_u64().unwrap_or(0));
+    }
+    latencies
+}
+
+/// The TCP loopback exchange CARLA's client makes per tick (a request, a
+/// frame header back), timed.
+fn tcp_round_trips(ticks: u64) -> anyhow::Result<Latencies> {
+    let (_peer, mut exchange) = crate::tick::tcp_exchange()?;
+    let mut latencies = Latencies::new();
+    for i in 0..ticks + ticks / 10 {
+        let start = Instant::now();
+        exchange()?;
+        if i >= ticks / 10 {
+            latencies.record(start.elapsed().as_nanos() as u64);
+        }
+    }
+    Ok(latencies)
+}
+
+struct Figures {
+    rows: Vec<(String, Latencies, Latencies)>,
+    captures: Vec<(String, Latencies)>,
+    rates: Vec<(String, f64)>,
+    release: Option<Latencies>,
+}
+
+pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
+    // The binaries live next to this one (target/<profile>).
+    let dir = std::env::current_exe()?
+        .parent()
+        .context("the bench's directory")?
+        .to_path_buf();
+    std::env::set_var("SIMBUS_BIN_DIR", &dir);
+    anyhow::ensure!(
+        dir.join("sim-client").exists(),
+        "{} not found: `cargo build --release` first",
+        dir.join("sim-client").display()
+    );
+    let state = machine_state(Duration::from_secs(2));
+    let ticks = args.ticks.to_string();
+    let captures = args.captures.to_string();
+    let mut figures = Figures { rows: Vec::new(), captures: Vec::new(), rates: Vec::new(), release: None };
+
+    let (root_a, root_b) = (PrivateRoot::new("bza"), PrivateRoot::new("bzb"));
+    let (a, b) = (Host::of_root(&root_a, None), Host::of_root(&root_b, None));
+    let hosts = if args.no_veth { None } else { Some(TwoHosts::new("bzv")) };
+    let mut setups: Vec<(&str, Setup)> = vec![
+        ("local (shared memory)", Setup::start("local", a.clone(), None, "127.0.0.1", &[])?),
+        ("mirror, loopback", Setup::start("loop", a.clone(), Some(b.clone()), "127.0.0.1", &[])?),
+    ];
+    if let Some(hosts) = &hosts {
+        let (va, vb) = (
+            Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
+            Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
+        );
+        setups.push(("mirror, veth", Setup::start("veth", va, Some(vb), hosts.a.address(), &[])?));
+    }
+    for (name, setup) in &setups {
+        let json = setup.mirror_host.measure(&setup.world, &["--mode", "tick", "--count", &ticks])?;
+        figures.rows.push((name.to_string(), latencies(&json, "round_trip"), latencies(&json, "frame")));
+        eprintln!("zenoh: {name} done");
+    }
+    figures.rows.push(("TCP loopback (CARLA-style)".into(), tcp_round_trips(args.ticks)?, Latencies::new()));
+    for (name, setup) in setups.iter().skip(1) {
+        for (label, size) in [("1 MiB", ["512", "512"]), ("8 MiB", ["2048", "1024"])] {
+            let json = setup.mirror_host.measure(
+                &setup.world,
+                &["--mode", "depth", "--count", &captures, "--size", size[0], size[1]],
+            )?;
+            figures.captures.push((format!("{label}, {name}"), latencies(&json, "capture")));
+        }
+    }
+    drop(setups);
+    // 1000 actors: ticks per second a ticker sustains here and through mirrors.
+    let mut rate_setups = vec![
+        ("local", Setup::start("rl", a.clone(), None, "127.0.0.1", &["--scene", "boxes:1000"])?),
+        ("mirror, loopback", Setup::start("rm", a.clone(), Some(b.clone()), "127.0.0.1", &["--scene", "boxes:1000"])?),
+    ];
+    if let Some(hosts) = &hosts {
+        let (va, vb) = (
+            Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
+            Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
+        );
+        rate_setups.push(("mirror, veth", Setup::start("rv", va, Some(vb), hosts.a.address(), &["--scene", "boxes:1000"])?));
+    }
+    for (name, setup) in &rate_setups {
+        let json = setup.mirror_host.measure(&setup.world, &["--mode", "rate", "--count", "500"])?;
+        figures.rates.push((name.to_string(), json["ticks_per_second"].as_f64().unwrap_or(0.0)));
+    }
+    drop(rate_setups);
+    if let Some(hosts) = &hosts {
+        figures.release = Some(release_bound(hosts, args.release_trials)?);
+    }
+    report(&args, &state, &figures);
+    Ok(())
+}
+
+/// Link down under a remote ticker, until the server's status names no
+/// ticker (polled with `sim-client status`, ~10 ms resolution).
+fn release_bound(hosts: &TwoHosts, trials: u32) -> anyhow::Result<Latencies> {
+    let (va, vb) = (
+        Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
+        Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
+    );
+    let mut bound = Latencies::new();
+    for trial in 0..trials {
+        let setup = Setup::start(&format!("rel{trial}"), va.clone(), Some(vb.clone()), hosts.a.address(), &[])?;
+        let holder = setup.mirror_host.spawn(
+            "sim-client",
+            &["--world", &setup.world, "--timeout", "10", "tick", "--rate", "50", "--leave-sync"],
+        );
+        wait_line(&holder, "frame")?;
+        let down = Instant::now();
+        hosts.b.set_link(false);
+        loop {
+            let status = setup.server_host.spawn("sim-client", &["--world", &setup.world, "status", "--json"]).finish(Duration::from_secs(30));
+            let held = status.json().first().is_some_and(|s| !s["ticker"].is_null());
+            if !held {
+                break;
+            }
+            anyhow::ensure!(down.elapsed() < Duration::from_secs(30), "ownership never released");
+        }
+        bound.record(down.elapsed().as_nanos() as u64);
+        hosts.b.set_link(true);
+        drop(holder);
+    }
+    Ok(bound)
+}
+
+fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
+    let p50 = |l: &Latencies| l.quantile_us(0.5);
+    if args.json {
+        let json = serde_json::json!({
+            "machine": state,
+            "ticks": figures.rows.iter().map(|(n, rt, f)| serde_json::json!({"path": n, "round_trip": rt.json(), "frame": f.json()})).collect::<Vec<_>>(),
+            "captures": figures.captures.iter().map(|(n, l)| serde_json::json!({"row": n, "latency": l.json()})).collect::<Vec<_>>(),
+            "ticks_per_second_1000_actors": figures.rates.iter().map(|(n, r)| serde_json::json!({"path": n, "rate": r})).collect::<Vec<_>>(),
+            "ownership_release_ms": figures.release.as_ref().map(|l| serde_json::json!({"p50": l.quantile_us(0.5) / 1e3, "max": l.quantile_us(1.0) / 1e3})),
+        });
+        println!("{json}");
+        return;
+    }
+    println!("machine: {state}");
+    println!("\ntick round trip, µs ({} ticks per row)", args.ticks);
+    println!("{}", header("path"));
+    for (name, round_trip, _) in &figures.rows {
+        println!("{}", round_trip.row(name));
+    }
+    println!("\nframe latency, server publish to reader, µs");
+    println!("{}", header("path"));
+    for (name, _, frame) in figures.rows.iter().filter(|(_, _, f)| f.len() > 0) {
+        println!("{}", frame.row(name));
+    }
+    if let (Some(local), Some(tcp)) = (figures.rows.first(), figures.rows.iter().find(|r| r.0.starts_with("TCP"))) {
+        for (name, round_trip, _) in figures.rows.iter().skip(1).filter(|r| !r.0.starts_with("TCP")) {
+            println!(
+                "{name}: {:.1}x the local round trip, {:.2}x TCP loopback's",
+                p50(round_trip) / p50(&local.1),
+                p50(round_trip) / p50(&tcp.1)
+            );
+        }
+    }
+    println!("\ndepth capture latency across the link, µs ({} captures per row)", args.captures);
+    println!("{}", header("row"));
+    for (name, latency) in &figures.captures {
+        println!("{}", latency.row(name));
+    }
+    println!("\nticks per second with 1000 actors (frame {} KiB)", (96 + 96 * 1001) / 1024);
+    for (name, rate) in &figures.rates {
+        println!("{name:<28} {rate:>10.0}");
+    }
+    if let Some(release) = &figures.release {
+        println!("\nownership released after the link drops (lease 1000 ms), ms");
+        println!("{}", release.row_ms("veth link down"));
+    }
+}

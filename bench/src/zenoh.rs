@@ -67,13 +67,21 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
     let warmup = args.count / 10;
     match args.mode.as_str() {
         "tick" => {
+            // The frame current at connection comes first.
+            let mut last = client.wait_for_frame(timeout)?.frame();
             let (mut round_trips, mut frames) = (Vec::new(), Vec::new());
             for i in 0..args.count + warmup {
                 let start = Instant::now();
                 let frame = ticker.tick(timeout)?;
                 let round_trip = start.elapsed().as_nanos() as u64;
-                let snapshot = client.wait_for_frame(timeout)?;
+                let mut snapshot = client.wait_for_frame(timeout)?;
+                while snapshot.frame() < frame && snapshot.frame() > last {
+                    last = snapshot.frame();
+                    drop(snapshot);
+                    snapshot = client.wait_for_frame(timeout)?;
+                }
                 anyhow::ensure!(snapshot.frame() == frame, "frame {} after tick {frame}", snapshot.frame());
+                last = frame;
                 let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
                 if i >= warmup {
                     round_trips.push(round_trip);

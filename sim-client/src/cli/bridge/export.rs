@@ -273,13 +273,16 @@ pub(super) fn run(
                     Forwarded::Lockstep => match FixedRelay::<LockstepRequest, LockstepResponse>::decode(&bytes) {
                         Ok(request) => {
                             let participant = (mirror, request.pid);
-                            let port = match lockstep.entry(participant.clone()) {
-                                std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+                            let port = match lockstep.entry(participant) {
+                                std::collections::hash_map::Entry::Occupied(e) => Ok(e.into_mut()),
                                 std::collections::hash_map::Entry::Vacant(e) => {
-                                    e.insert(FixedRelay::open(client.node(), &names.lockstep)?)
+                                    FixedRelay::open(client.node(), &names.lockstep).map(|port| e.insert(port))
                                 }
                             };
-                            port.send(request, query)
+                            match port {
+                                Ok(port) => port.send(request, query),
+                                Err(e) => Err((query, format!("no lockstep port for this participant: {e:#}"))),
+                            }
                         }
                         Err(e) => Err((query, format!("malformed lockstep request: {e}"))),
                     },

@@ -4,7 +4,6 @@
 //! the local requests taken for forwarding.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use iceoryx2::active_request::ActiveRequest;
@@ -58,8 +57,8 @@ pub(super) struct LocalServices {
     recorder: FixedServer<RecorderRequest, RecorderResponse>,
     batch: Server<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>,
     sensors: Server<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>,
-    /// Held so the wake-up event exists before local clients open it.
-    _wake: iceoryx2::service::port_factory::event::PortFactory<Bus>,
+    /// Woken by local clients after a request, and by [`wake`].
+    wake: Listener<Bus>,
 }
 
 fn name(name: &str) -> anyhow::Result<ServiceName> {
@@ -148,6 +147,9 @@ impl LocalServices {
             .max_notifiers(limits.max_clients)
             .max_nodes(limits.nodes())
             .open_or_create()
+            .map_err(|e| f(&e))?
+            .listener_builder()
+            .create()
             .map_err(|e| f(&e))?;
         let control = fixed(&node, &names.control, limits, limits.max_clients, (2, 2), false)?;
         let tick = fixed(&node, &names.tick, limits, 2, (4, 4), false)?;
@@ -198,8 +200,17 @@ impl LocalServices {
             recorder,
             batch,
             sensors,
-            _wake: wake,
+            wake,
         })
+    }
+
+    /// Sleeps until a local client sends a request or [`wake`] is called,
+    /// at most `timeout`.
+    pub(super) fn wait(&self, timeout: Duration) -> anyhow::Result<()> {
+        self.wake
+            .timed_wait(|_| {}, timeout)
+            .map(drop)
+            .map_err(|e| anyhow::anyhow!("waiting for local requests: {e:?}"))
     }
 
     /// Publishes a frame (kept as the one new subscribers get first).
@@ -395,44 +406,44 @@ impl SensorPorts {
     }
 }
 
-/// Until `stop`, calls `wake` whenever a local client wakes the server
-/// (after sending a request); stops when `wake` says the mirror is gone.
-pub(super) fn relay_wake_ups(names: &ServiceNames, wake: &impl Fn() -> bool, stop: &AtomicBool) {
-    let (_node, listener) = match wake_listener(names) {
-        Ok(ports) => ports,
-        Err(e) => {
-            tracing::error!("cannot listen for local requests: {e:#}");
-            return;
-        }
-    };
-    while !stop.load(Ordering::Relaxed) {
-        let mut woken = false;
-        match listener.timed_wait(|_| woken = true, Duration::from_millis(100)) {
-            Ok(_) => {}
-            Err(e) => {
-                tracing::error!("waiting for local requests: {e:?}");
-                return;
+/// Wakes the mirror's main thread (blocked in [`LocalServices::wait`])
+/// from any thread: Zenoh's callbacks call it after queueing an event.
+/// iceoryx2 ports stay on the thread that made them, so each calling thread
+/// opens its own notifier once.
+pub(super) fn wake(names: &ServiceNames) {
+    thread_local! {
+        static NOTIFIER: std::cell::RefCell<Option<(Node<Bus>, Notifier<Bus>)>> =
+            const { std::cell::RefCell::new(None) };
+    }
+    NOTIFIER.with(|cell| {
+        let mut cell = cell.borrow_mut();
+        if cell.is_none() {
+            match wake_notifier(names) {
+                Ok(ports) => *cell = Some(ports),
+                Err(e) => tracing::warn!("cannot wake the mirror from this thread: {e:#}"),
             }
         }
-        if woken && !wake() {
-            return;
+        if let Some((_, notifier)) = cell.as_ref() {
+            if let Err(e) = notifier.notify() {
+                tracing::debug!("wake-up not delivered: {e:?}");
+            }
         }
-    }
+    });
 }
 
-fn wake_listener(names: &ServiceNames) -> anyhow::Result<(Node<Bus>, Listener<Bus>)> {
+fn wake_notifier(names: &ServiceNames) -> anyhow::Result<(Node<Bus>, Notifier<Bus>)> {
     let node = NodeBuilder::new()
         .name(&NodeName::new("zenoh-mirror-wake").map_err(|e| anyhow::anyhow!("{e:?}"))?)
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Bus>()
         .map_err(|e| anyhow::anyhow!("iceoryx2 node: {e:?}"))?;
-    let listener = node
+    let notifier = node
         .service_builder(&name(&names.control_wake)?)
         .event()
         .open()
         .map_err(|e| anyhow::anyhow!("wake-up event: {e:?}"))?
-        .listener_builder()
+        .notifier_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("wake-up listener: {e:?}"))?;
-    Ok((node, listener))
+        .map_err(|e| anyhow::anyhow!("wake-up notifier: {e:?}"))?;
+    Ok((node, notifier))
 }

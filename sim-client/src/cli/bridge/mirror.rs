@@ -11,10 +11,9 @@
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError, Sender};
+use std::sync::mpsc::{self, Sender, TryRecvError};
 use std::time::{Duration, Instant};
 
-use anyhow::Context as _;
 use iceoryx2::prelude::*;
 use shared_types::bridge::{self, BridgeKeys, Forwarded};
 use shared_types::{
@@ -31,6 +30,9 @@ use super::local::{Active, Local, LocalServices, SensorPorts};
 use super::ZenohArgs;
 use crate::Failure;
 
+/// How long a tick's answer waits here for its frame.
+const HOLD_LIMIT: Duration = Duration::from_secs(2);
+
 /// What wakes the mirror's main thread.
 enum Event {
     /// A frame from the exporter.
@@ -43,8 +45,6 @@ enum Event {
     Done(u64),
     /// The exporter's liveliness token appeared (`true`) or went.
     Exporter(bool),
-    /// A local client sent a request.
-    Wake,
 }
 
 /// A forwarded request: the local request and whether it was answered.
@@ -135,42 +135,35 @@ pub(super) fn run(
         .declare_token(keys.mirror(&zid))
         .wait()
         .map_err(zenoh)?;
-    let to_main = events.clone();
+    let (to_main, wake_names) = (events.clone(), names.clone());
     let _exporter = session
         .liveliness()
         .declare_subscriber(keys.exporter())
         .history(true)
         .callback(move |sample| {
             let _ = to_main.send(Event::Exporter(sample.kind() == SampleKind::Put));
+            super::local::wake(&wake_names);
         })
         .wait()
         .map_err(zenoh)?;
-    let to_main = events.clone();
+    let (to_main, wake_names) = (events.clone(), names.clone());
     let _frames = session
         .declare_subscriber(keys.frames())
         .callback(move |sample| {
             let _ = to_main.send(Event::Frame(sample.payload().to_bytes().into_owned()));
+            super::local::wake(&wake_names);
         })
         .wait()
         .map_err(zenoh)?;
-    let to_main = events.clone();
+    let (to_main, wake_names) = (events.clone(), names.clone());
     let _captures = session
         .declare_subscriber(keys.sensors())
         .callback(move |sample| {
             let _ = to_main.send(Event::Capture(sample.payload().to_bytes().into_owned()));
+            super::local::wake(&wake_names);
         })
         .wait()
         .map_err(zenoh)?;
-    let waker = {
-        let (events, names) = (events.clone(), names.clone());
-        std::thread::Builder::new()
-            .name("wake".into())
-            .spawn(move || {
-                super::local::relay_wake_ups(&names, &|| events.send(Event::Wake).is_ok(), stop)
-            })
-            .context("starting the wake-up thread")?
-    };
-
     println!(
         "mirroring world '{world}' from {endpoint} (server pid {} there, frame {}); local clients connect as usual",
         status.report.server_pid, header.timestamp.frame
@@ -180,7 +173,8 @@ pub(super) fn run(
     let host = host_name();
     let mut sensors = SensorPorts::default();
     let mut in_flight: HashMap<u64, InFlight> = HashMap::new();
-    let mut held: Vec<(Active<TickRequest, TickResponse>, TickResponse)> = Vec::new();
+    // Tick answers waiting for their frame, and since when.
+    let mut held: Vec<(Active<TickRequest, TickResponse>, TickResponse, Instant)> = Vec::new();
     let mut next_id = 0u64;
     let mut linked = true;
     let mut local_ticker: Option<(u32, String)> = None;
@@ -193,13 +187,15 @@ pub(super) fn run(
         if stop.load(Ordering::Relaxed) {
             break Ok(());
         }
-        if waker.is_finished() {
-            break Err(anyhow::anyhow!("the wake-up thread ended").into());
-        }
-        let event = match incoming.recv_timeout(Duration::from_millis(50)) {
+        // One wait for everything: local clients and Zenoh's callbacks
+        // both wake the listener (see `local::wake`).
+        let event = match incoming.try_recv() {
             Ok(event) => Some(event),
-            Err(RecvTimeoutError::Timeout) => None,
-            Err(RecvTimeoutError::Disconnected) => break Ok(()),
+            Err(TryRecvError::Empty) => {
+                local.wait(Duration::from_millis(50))?;
+                incoming.try_recv().ok()
+            }
+            Err(TryRecvError::Disconnected) => break Ok(()),
         };
         match event {
             Some(Event::Frame(bytes)) => match bridge::decode_frame(&bytes) {
@@ -222,7 +218,7 @@ pub(super) fn run(
                     header.server_pid = my_pid;
                     local.publish_frame(&header, &actors)?;
                     // Tick answers held for this frame go now.
-                    held.retain(|(active, answer)| {
+                    held.retain(|(active, answer, _)| {
                         if answer.frame > key.1 {
                             return true;
                         }
@@ -276,7 +272,7 @@ pub(super) fn run(
                             if answer.frame <= last.1 {
                                 send_tick(&active, answer);
                             } else {
-                                held.push((active, answer));
+                                held.push((active, answer, Instant::now()));
                             }
                         }
                     }
@@ -306,7 +302,7 @@ pub(super) fn run(
                                 unreachable_answer(&flight.local);
                             }
                         }
-                        for (active, _) in held.drain(..) {
+                        for (active, _, _) in held.drain(..) {
                             let _ = active.send_copy(status_answer(ResponseStatus::Unreachable));
                         }
                         // The exporter releases the ownership it held for us.
@@ -315,7 +311,7 @@ pub(super) fn run(
                     }
                 }
             }
-            Some(Event::Wake) | None => {}
+            None => {}
         }
         // Local requests: forwarded, or answered 'unreachable' at once.
         local.connect_new_subscribers();
@@ -334,25 +330,33 @@ pub(super) fn run(
             next_id += 1;
             let id = next_id;
             let (service, bytes) = request_bytes(&request);
-            forward(&session, &keys, service, &zid, bytes, request_timeout, id, &events);
+            forward(&session, &names, &keys, service, &zid, bytes, request_timeout, id, &events);
             in_flight.insert(id, InFlight { local: request, answered: false });
         }
-        // A local ticker that died is released for it.
+        // A local ticker that died is released for it; a tick answer whose
+        // frame never came (a new episode, a lost publication) goes anyway.
         if Instant::now() >= next_liveness_check {
             next_liveness_check = Instant::now() + Duration::from_millis(100);
+            held.retain(|(active, answer, since)| {
+                if since.elapsed() < HOLD_LIMIT {
+                    return true;
+                }
+                warn!(frame = answer.frame, "the frame of a tick's answer did not arrive; answering without it");
+                send_tick(active, *answer);
+                false
+            });
             if let Some((pid, name)) = local_ticker.clone() {
                 if !sim_client::process_alive(pid) {
                     info!(pid, "the local ticker died; releasing its ownership");
                     let mut release = TickRequest::new(TickRequestKind::Release, &name);
                     release.pid = pid;
                     next_id += 1;
-                    forward(&session, &keys, Forwarded::Tick, &zid, bridge::bytes_of(&release).to_vec(), request_timeout, next_id, &events);
+                    forward(&session, &names, &keys, Forwarded::Tick, &zid, bridge::bytes_of(&release).to_vec(), request_timeout, next_id, &events);
                     local_ticker = None;
                 }
             }
         }
     };
-    drop(waker);
     info!(dropped, "mirror ended");
     result
 }
@@ -362,6 +366,7 @@ pub(super) fn run(
 #[allow(clippy::too_many_arguments)]
 fn forward(
     session: &Session,
+    names: &ServiceNames,
     keys: &BridgeKeys,
     service: Forwarded,
     zid: &str,
@@ -371,19 +376,21 @@ fn forward(
     events: &Sender<Event>,
 ) {
     /// Sends [`Event::Done`] when Zenoh drops the callback (no more replies).
-    struct Finished(u64, Sender<Event>);
+    struct Finished(u64, Sender<Event>, ServiceNames);
     impl Drop for Finished {
         fn drop(&mut self) {
             let _ = self.1.send(Event::Done(self.0));
+            super::local::wake(&self.2);
         }
     }
-    let finished = Finished(id, events.clone());
-    let to_main = events.clone();
+    let finished = Finished(id, events.clone(), names.clone());
+    let (to_main, wake_names) = (events.clone(), names.clone());
     let selector = format!("{}?mirror={zid}", keys.rpc(service));
     let sent = session
         .get(selector)
         .payload(bytes)
         .timeout(timeout)
+        .express(true)
         .callback(move |reply| {
             let _ = &finished;
             let reply = match reply.result() {
@@ -391,6 +398,7 @@ fn forward(
                 Err(e) => Err(String::from_utf8_lossy(&e.payload().to_bytes()).into_owned()),
             };
             let _ = to_main.send(Event::Reply(id, reply));
+            super::local::wake(&wake_names);
         })
         .wait();
     if let Err(e) = sent {

@@ -49,7 +49,12 @@ impl std::fmt::Debug for Answer {
 
 /// Replies `bytes` to `query` on its own key.
 pub(super) fn reply(query: &Query, bytes: &[u8]) {
-    if let Err(e) = query.reply(query.key_expr().clone(), bytes.to_vec()).wait() {
+    // Express: sent at once, not batched with what may follow.
+    if let Err(e) = query
+        .reply(query.key_expr().clone(), bytes.to_vec())
+        .express(true)
+        .wait()
+    {
         tracing::debug!("reply to {} not sent: {e}", query.key_expr());
     }
 }

@@ -57,10 +57,16 @@ pub(crate) struct ZenohPeerArgs {
     /// Depth image size for `depth`.
     #[arg(long, num_args = 2, value_names = ["W", "H"])]
     size: Vec<u32>,
+    /// For `echo`: the Zenoh endpoint to listen on.
+    #[arg(long, default_value = "")]
+    endpoint: String,
 }
 
 /// The measuring client: one JSON line with its samples in nanoseconds.
 pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
+    if args.mode == "echo" {
+        return zenoh_echo(&args.endpoint);
+    }
     let mut client = Client::connect(&args.world, Duration::from_secs(20))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
     let timeout = Duration::from_secs(30);
@@ -121,6 +127,70 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
     }
     ticker.release()?;
     Ok(())
+}
+
+fn zenoh_session(key: &str, endpoint: &str) -> anyhow::Result<zenoh::Session> {
+    use zenoh::Wait as _;
+    let mut config = zenoh::Config::default();
+    let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    config.insert_json5("scouting/multicast/enabled", "false").map_err(error)?;
+    config.insert_json5(key, &serde_json::to_string(&[endpoint])?).map_err(error)?;
+    zenoh::open(config).wait().map_err(error)
+}
+
+/// The echo end of the Zenoh floor: every sample on `bench/ping` is put
+/// back on `bench/pong`, express.
+pub(crate) fn zenoh_echo(endpoint: &str) -> anyhow::Result<()> {
+    use zenoh::Wait as _;
+    let session = zenoh_session("listen/endpoints", endpoint)?;
+    let pong = session
+        .declare_publisher("bench/pong")
+        .express(true)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let ping = session
+        .declare_subscriber("bench/ping")
+        .wait()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    println!("ready");
+    while let Ok(sample) = ping.recv() {
+        pong.put(sample.payload().clone()).wait().map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    Ok(())
+}
+
+/// Zenoh's own round trip between two processes on loopback (a put and
+/// the echo's put back, express): the floor under a mirror's tick.
+fn zenoh_floor(ticks: u64) -> anyhow::Result<Latencies> {
+    use zenoh::Wait as _;
+    let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
+    let echo = Host { env: Vec::new(), namespace: None }
+        .spawn("simbus-bench", &["zenoh-peer", "--world", "floor", "--mode", "echo", "--count", "0", "--endpoint", &endpoint]);
+    wait_line(&echo, "ready")?;
+    let session = zenoh_session("connect/endpoints", &endpoint)?;
+    let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    let ping = session.declare_publisher("bench/ping").express(true).wait().map_err(error)?;
+    let pong = session.declare_subscriber("bench/pong").wait().map_err(error)?;
+    // Until the echo's subscription has reached us and answers.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        ping.put(vec![0u8; 8]).wait().map_err(error)?;
+        if pong.recv_timeout(Duration::from_millis(100)).map_err(error)?.is_some() {
+            break;
+        }
+        anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
+    }
+    while pong.try_recv().map_err(error)?.is_some() {}
+    let mut latencies = Latencies::new();
+    for i in 0..ticks + ticks / 10 {
+        let start = Instant::now();
+        ping.put(vec![0u8; 8]).wait().map_err(error)?;
+        pong.recv().map_err(error)?;
+        if i >= ticks / 10 {
+            latencies.record(start.elapsed().as_nanos() as u64);
+        }
+    }
+    Ok(latencies)
 }
 
 /// A server with an exporting bridge, and a mirror (or none).
@@ -289,6 +359,7 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
         eprintln!("zenoh: {name} done");
     }
     figures.rows.push(("TCP loopback (CARLA-style)".into(), tcp_round_trips(args.ticks)?, Latencies::new()));
+    figures.rows.push(("Zenoh put/echo, loopback".into(), zenoh_floor(args.ticks)?, Latencies::new()));
     for (name, setup) in setups.iter().skip(1) {
         for (label, size) in [("1 MiB", ["512", "512"]), ("8 MiB", ["2048", "1024"])] {
             let json = setup.mirror_host.measure(
@@ -380,11 +451,13 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
         println!("{}", frame.row(name));
     }
     if let (Some(local), Some(tcp)) = (figures.rows.first(), figures.rows.iter().find(|r| r.0.starts_with("TCP"))) {
-        for (name, round_trip, _) in figures.rows.iter().skip(1).filter(|r| !r.0.starts_with("TCP")) {
+        let floor = figures.rows.iter().find(|r| r.0.starts_with("Zenoh"));
+        for (name, round_trip, _) in figures.rows.iter().filter(|r| r.0.starts_with("mirror")) {
             println!(
-                "{name}: {:.1}x the local round trip, {:.2}x TCP loopback's",
+                "{name}: {:.1}x the local round trip, {:.2}x TCP loopback's, {:.2}x Zenoh's own round trip",
                 p50(round_trip) / p50(&local.1),
-                p50(round_trip) / p50(&tcp.1)
+                p50(round_trip) / p50(&tcp.1),
+                floor.map_or(f64::NAN, |f| p50(round_trip) / p50(&f.1)),
             );
         }
     }

@@ -86,7 +86,11 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
                     drop(snapshot);
                     snapshot = client.wait_for_frame(timeout)?;
                 }
-                anyhow::ensure!(snapshot.frame() == frame, "frame {} after tick {frame}", snapshot.frame());
+                anyhow::ensure!(
+                    snapshot.frame() == frame,
+                    "frame {} after tick {frame}",
+                    snapshot.frame()
+                );
                 last = frame;
                 let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
                 if i >= warmup {
@@ -94,7 +98,10 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
                     frames.push(now_ns().saturating_sub(published));
                 }
             }
-            println!("{}", serde_json::json!({"round_trip": round_trips, "frame": frames}));
+            println!(
+                "{}",
+                serde_json::json!({"round_trip": round_trips, "frame": frames})
+            );
         }
         "depth" => {
             let &[width, height] = args.size.as_slice() else {
@@ -133,8 +140,12 @@ fn zenoh_session(key: &str, endpoint: &str) -> anyhow::Result<zenoh::Session> {
     use zenoh::Wait as _;
     let mut config = zenoh::Config::default();
     let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    config.insert_json5("scouting/multicast/enabled", "false").map_err(error)?;
-    config.insert_json5(key, &serde_json::to_string(&[endpoint])?).map_err(error)?;
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .map_err(error)?;
+    config
+        .insert_json5(key, &serde_json::to_string(&[endpoint])?)
+        .map_err(error)?;
     zenoh::open(config).wait().map_err(error)
 }
 
@@ -154,7 +165,9 @@ pub(crate) fn zenoh_echo(endpoint: &str) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     println!("ready");
     while let Ok(sample) = ping.recv() {
-        pong.put(sample.payload().clone()).wait().map_err(|e| anyhow::anyhow!("{e}"))?;
+        pong.put(sample.payload().clone())
+            .wait()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     Ok(())
 }
@@ -164,18 +177,45 @@ pub(crate) fn zenoh_echo(endpoint: &str) -> anyhow::Result<()> {
 fn zenoh_floor(ticks: u64) -> anyhow::Result<Latencies> {
     use zenoh::Wait as _;
     let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
-    let echo = Host { env: Vec::new(), namespace: None }
-        .spawn("simbus-bench", &["zenoh-peer", "--world", "floor", "--mode", "echo", "--count", "0", "--endpoint", &endpoint]);
+    let echo = Host {
+        env: Vec::new(),
+        namespace: None,
+    }
+    .spawn(
+        "simbus-bench",
+        &[
+            "zenoh-peer",
+            "--world",
+            "floor",
+            "--mode",
+            "echo",
+            "--count",
+            "0",
+            "--endpoint",
+            &endpoint,
+        ],
+    );
     wait_line(&echo, "ready")?;
     let session = zenoh_session("connect/endpoints", &endpoint)?;
     let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let ping = session.declare_publisher("bench/ping").express(true).wait().map_err(error)?;
-    let pong = session.declare_subscriber("bench/pong").wait().map_err(error)?;
+    let ping = session
+        .declare_publisher("bench/ping")
+        .express(true)
+        .wait()
+        .map_err(error)?;
+    let pong = session
+        .declare_subscriber("bench/pong")
+        .wait()
+        .map_err(error)?;
     // Until the echo's subscription has reached us and answers.
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
         ping.put(vec![0u8; 8]).wait().map_err(error)?;
-        if pong.recv_timeout(Duration::from_millis(100)).map_err(error)?.is_some() {
+        if pong
+            .recv_timeout(Duration::from_millis(100))
+            .map_err(error)?
+            .is_some()
+        {
             break;
         }
         anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
@@ -223,8 +263,11 @@ impl Host {
     }
 
     fn spawn(&self, program: &str, args: &[&str]) -> Proc {
-        let env: Vec<(&str, &std::ffi::OsStr)> =
-            self.env.iter().map(|(k, v)| (k.as_str(), v.as_os_str())).collect();
+        let env: Vec<(&str, &std::ffi::OsStr)> = self
+            .env
+            .iter()
+            .map(|(k, v)| (k.as_str(), v.as_os_str()))
+            .collect();
         match &self.namespace {
             Some(ns) => Proc::spawn_wrapped(&["ip", "netns", "exec", ns], program, args, &env),
             None => Proc::spawn_env(program, args, &env),
@@ -235,7 +278,9 @@ impl Host {
     fn measure(&self, world: &str, args: &[&str]) -> anyhow::Result<serde_json::Value> {
         let mut all = vec!["zenoh-peer", "--world", world];
         all.extend_from_slice(args);
-        let done = self.spawn("simbus-bench", &all).finish(Duration::from_secs(600));
+        let done = self
+            .spawn("simbus-bench", &all)
+            .finish(Duration::from_secs(600));
         anyhow::ensure!(done.status.success(), "{done}");
         let line = done.stdout.last().context("the peer printed nothing")?;
         Ok(serde_json::from_str(line)?)
@@ -245,7 +290,10 @@ impl Host {
 fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
     let deadline = Instant::now() + Duration::from_secs(60);
     while Instant::now() < deadline {
-        if proc.line(Duration::from_millis(200)).is_some_and(|l| l.contains(needle)) {
+        if proc
+            .line(Duration::from_millis(200))
+            .is_some_and(|l| l.contains(needle))
+        {
             return Ok(());
         }
     }
@@ -265,14 +313,33 @@ impl Setup {
         static PORTS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
         let n = PORTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let world = format!("bench-zenoh-{tag}-{}", std::process::id());
-        let endpoint = format!("tcp/{address}:{}", 17_000 + (std::process::id() % 1000) * 20 + n);
-        let mut args = vec!["serve", "--world", &world, "--sync", "--delta-seconds", "0.01"];
+        let endpoint = format!(
+            "tcp/{address}:{}",
+            17_000 + (std::process::id() % 1000) * 20 + n
+        );
+        let mut args = vec![
+            "serve",
+            "--world",
+            &world,
+            "--sync",
+            "--delta-seconds",
+            "0.01",
+        ];
         args.extend_from_slice(server_args);
         let server = server_host.spawn("simbus-bench", &args);
         let bridge = |host: &Host, flag: &str| {
             host.spawn(
                 "sim-client",
-                &["--world", &world, "--timeout", "30", "bridge", "zenoh", flag, &endpoint],
+                &[
+                    "--world",
+                    &world,
+                    "--timeout",
+                    "30",
+                    "bridge",
+                    "zenoh",
+                    flag,
+                    &endpoint,
+                ],
             )
         };
         let exporter = bridge(&server_host, "--listen");
@@ -337,54 +404,122 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     let state = machine_state(Duration::from_secs(2));
     let ticks = args.ticks.to_string();
     let captures = args.captures.to_string();
-    let mut figures = Figures { rows: Vec::new(), captures: Vec::new(), rates: Vec::new(), release: None };
+    let mut figures = Figures {
+        rows: Vec::new(),
+        captures: Vec::new(),
+        rates: Vec::new(),
+        release: None,
+    };
 
     let (root_a, root_b) = (PrivateRoot::new("bza"), PrivateRoot::new("bzb"));
     let (a, b) = (Host::of_root(&root_a, None), Host::of_root(&root_b, None));
-    let hosts = if args.no_veth { None } else { Some(TwoHosts::new("bzv")) };
+    let hosts = if args.no_veth {
+        None
+    } else {
+        Some(TwoHosts::new("bzv"))
+    };
     let mut setups: Vec<(&str, Setup)> = vec![
-        ("local (shared memory)", Setup::start("local", a.clone(), None, "127.0.0.1", &[])?),
-        ("mirror, loopback", Setup::start("loop", a.clone(), Some(b.clone()), "127.0.0.1", &[])?),
+        (
+            "local (shared memory)",
+            Setup::start("local", a.clone(), None, "127.0.0.1", &[])?,
+        ),
+        (
+            "mirror, loopback",
+            Setup::start("loop", a.clone(), Some(b.clone()), "127.0.0.1", &[])?,
+        ),
     ];
     if let Some(hosts) = &hosts {
         let (va, vb) = (
             Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
             Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
         );
-        setups.push(("mirror, veth", Setup::start("veth", va, Some(vb), hosts.a.address(), &[])?));
+        setups.push((
+            "mirror, veth",
+            Setup::start("veth", va, Some(vb), hosts.a.address(), &[])?,
+        ));
     }
     for (name, setup) in &setups {
-        let json = setup.mirror_host.measure(&setup.world, &["--mode", "tick", "--count", &ticks])?;
-        figures.rows.push((name.to_string(), latencies(&json, "round_trip"), latencies(&json, "frame")));
+        let json = setup
+            .mirror_host
+            .measure(&setup.world, &["--mode", "tick", "--count", &ticks])?;
+        figures.rows.push((
+            name.to_string(),
+            latencies(&json, "round_trip"),
+            latencies(&json, "frame"),
+        ));
         eprintln!("zenoh: {name} done");
     }
-    figures.rows.push(("TCP loopback (CARLA-style)".into(), tcp_round_trips(args.ticks)?, Latencies::new()));
-    figures.rows.push(("Zenoh put/echo, loopback".into(), zenoh_floor(args.ticks)?, Latencies::new()));
+    figures.rows.push((
+        "TCP loopback (CARLA-style)".into(),
+        tcp_round_trips(args.ticks)?,
+        Latencies::new(),
+    ));
+    figures.rows.push((
+        "Zenoh put/echo, loopback".into(),
+        zenoh_floor(args.ticks)?,
+        Latencies::new(),
+    ));
     for (name, setup) in setups.iter().skip(1) {
         for (label, size) in [("1 MiB", ["512", "512"]), ("8 MiB", ["2048", "1024"])] {
             let json = setup.mirror_host.measure(
                 &setup.world,
-                &["--mode", "depth", "--count", &captures, "--size", size[0], size[1]],
+                &[
+                    "--mode", "depth", "--count", &captures, "--size", size[0], size[1],
+                ],
             )?;
-            figures.captures.push((format!("{label}, {name}"), latencies(&json, "capture")));
+            figures
+                .captures
+                .push((format!("{label}, {name}"), latencies(&json, "capture")));
         }
     }
     drop(setups);
     // 1000 actors: ticks per second a ticker sustains here and through mirrors.
     let mut rate_setups = vec![
-        ("local", Setup::start("rl", a.clone(), None, "127.0.0.1", &["--scene", "boxes:1000"])?),
-        ("mirror, loopback", Setup::start("rm", a.clone(), Some(b.clone()), "127.0.0.1", &["--scene", "boxes:1000"])?),
+        (
+            "local",
+            Setup::start(
+                "rl",
+                a.clone(),
+                None,
+                "127.0.0.1",
+                &["--scene", "boxes:1000"],
+            )?,
+        ),
+        (
+            "mirror, loopback",
+            Setup::start(
+                "rm",
+                a.clone(),
+                Some(b.clone()),
+                "127.0.0.1",
+                &["--scene", "boxes:1000"],
+            )?,
+        ),
     ];
     if let Some(hosts) = &hosts {
         let (va, vb) = (
             Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
             Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
         );
-        rate_setups.push(("mirror, veth", Setup::start("rv", va, Some(vb), hosts.a.address(), &["--scene", "boxes:1000"])?));
+        rate_setups.push((
+            "mirror, veth",
+            Setup::start(
+                "rv",
+                va,
+                Some(vb),
+                hosts.a.address(),
+                &["--scene", "boxes:1000"],
+            )?,
+        ));
     }
     for (name, setup) in &rate_setups {
-        let json = setup.mirror_host.measure(&setup.world, &["--mode", "rate", "--count", "500"])?;
-        figures.rates.push((name.to_string(), json["ticks_per_second"].as_f64().unwrap_or(0.0)));
+        let json = setup
+            .mirror_host
+            .measure(&setup.world, &["--mode", "rate", "--count", "500"])?;
+        figures.rates.push((
+            name.to_string(),
+            json["ticks_per_second"].as_f64().unwrap_or(0.0),
+        ));
     }
     drop(rate_setups);
     if let Some(hosts) = &hosts {
@@ -403,21 +538,45 @@ fn release_bound(hosts: &TwoHosts, trials: u32) -> anyhow::Result<Latencies> {
     );
     let mut bound = Latencies::new();
     for trial in 0..trials {
-        let setup = Setup::start(&format!("rel{trial}"), va.clone(), Some(vb.clone()), hosts.a.address(), &[])?;
+        let setup = Setup::start(
+            &format!("rel{trial}"),
+            va.clone(),
+            Some(vb.clone()),
+            hosts.a.address(),
+            &[],
+        )?;
         let holder = setup.mirror_host.spawn(
             "sim-client",
-            &["--world", &setup.world, "--timeout", "10", "tick", "--rate", "50", "--leave-sync"],
+            &[
+                "--world",
+                &setup.world,
+                "--timeout",
+                "10",
+                "tick",
+                "--rate",
+                "50",
+                "--leave-sync",
+            ],
         );
         wait_line(&holder, "frame")?;
         let down = Instant::now();
         hosts.b.set_link(false);
         loop {
-            let status = setup.server_host.spawn("sim-client", &["--world", &setup.world, "status", "--json"]).finish(Duration::from_secs(30));
-            let held = status.json().first().is_some_and(|s| !s["ticker"].is_null());
+            let status = setup
+                .server_host
+                .spawn("sim-client", &["--world", &setup.world, "status", "--json"])
+                .finish(Duration::from_secs(30));
+            let held = status
+                .json()
+                .first()
+                .is_some_and(|s| !s["ticker"].is_null());
             if !held {
                 break;
             }
-            anyhow::ensure!(down.elapsed() < Duration::from_secs(30), "ownership never released");
+            anyhow::ensure!(
+                down.elapsed() < Duration::from_secs(30),
+                "ownership never released"
+            );
         }
         bound.record(down.elapsed().as_nanos() as u64);
         hosts.b.set_link(true);
@@ -450,7 +609,10 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
     for (name, _, frame) in figures.rows.iter().filter(|(_, _, f)| f.len() > 0) {
         println!("{}", frame.row(name));
     }
-    if let (Some(local), Some(tcp)) = (figures.rows.first(), figures.rows.iter().find(|r| r.0.starts_with("TCP"))) {
+    if let (Some(local), Some(tcp)) = (
+        figures.rows.first(),
+        figures.rows.iter().find(|r| r.0.starts_with("TCP")),
+    ) {
         let floor = figures.rows.iter().find(|r| r.0.starts_with("Zenoh"));
         for (name, round_trip, _) in figures.rows.iter().filter(|r| r.0.starts_with("mirror")) {
             println!(
@@ -461,12 +623,18 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
             );
         }
     }
-    println!("\ndepth capture latency across the link, µs ({} captures per row)", args.captures);
+    println!(
+        "\ndepth capture latency across the link, µs ({} captures per row)",
+        args.captures
+    );
     println!("{}", header("row"));
     for (name, latency) in &figures.captures {
         println!("{}", latency.row(name));
     }
-    println!("\nticks per second with 1000 actors (frame {} KiB)", (96 + 96 * 1001) / 1024);
+    println!(
+        "\nticks per second with 1000 actors (frame {} KiB)",
+        (96 + 96 * 1001) / 1024
+    );
     for (name, rate) in &figures.rates {
         println!("{name:<28} {rate:>10.0}");
     }

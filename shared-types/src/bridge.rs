@@ -276,7 +276,7 @@ pub fn decode_slice<H: Pod, T: Pod>(
     let header: H = read_header(bytes, what)?;
     let body = &bytes[std::mem::size_of::<H>()..];
     let size = std::mem::size_of::<T>().max(1);
-    if body.len() % size != 0 || body.len() / size > max {
+    if !body.len().is_multiple_of(size) || body.len() / size > max {
         return Err(PayloadError::WrongLength {
             what,
             announced: (body.len() / size).min(max) * size,
@@ -358,10 +358,19 @@ mod tests {
         assert_eq!(FRAME_HEADER_BYTES, after_settings + 24);
         assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 96));
         let settings = offset_of!(FrameHeader, settings);
-        assert_eq!(settings + offset_of!(crate::WireSettings, fixed_delta_seconds), 48);
-        assert_eq!(settings + offset_of!(crate::WireSettings, max_substep_delta_time), 56);
+        assert_eq!(
+            settings + offset_of!(crate::WireSettings, fixed_delta_seconds),
+            48
+        );
+        assert_eq!(
+            settings + offset_of!(crate::WireSettings, max_substep_delta_time),
+            56
+        );
         assert_eq!(settings + offset_of!(crate::WireSettings, max_substeps), 64);
-        assert_eq!(settings + offset_of!(crate::WireSettings, synchronous_mode), 68);
+        assert_eq!(
+            settings + offset_of!(crate::WireSettings, synchronous_mode),
+            68
+        );
         assert_eq!(settings + offset_of!(crate::WireSettings, substepping), 69);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
         assert_eq!(std::mem::size_of::<SensorHeader>(), 104);

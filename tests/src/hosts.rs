@@ -114,8 +114,18 @@ impl TwoHosts {
             ip(&["-n", &host.namespace, "link", "set", "lo", "up"]);
         }
         ip(&[
-            "link", "add", &hosts.a.interface, "netns", &hosts.a.namespace, "type", "veth",
-            "peer", "name", &hosts.b.interface, "netns", &hosts.b.namespace,
+            "link",
+            "add",
+            &hosts.a.interface,
+            "netns",
+            &hosts.a.namespace,
+            "type",
+            "veth",
+            "peer",
+            "name",
+            &hosts.b.interface,
+            "netns",
+            &hosts.b.namespace,
         ]);
         for host in [&hosts.a, &hosts.b] {
             ip(&[

@@ -23,7 +23,10 @@ fn wait_line(proc: &Proc, needle: &str) -> String {
             }
         }
     }
-    panic!("no line with '{needle}' within {LONG:?}; stderr:\n{}", proc.stderr());
+    panic!(
+        "no line with '{needle}' within {LONG:?}; stderr:\n{}",
+        proc.stderr()
+    );
 }
 
 /// `frame F digest D` lines as a map.
@@ -44,7 +47,10 @@ fn digests(lines: &[String]) -> BTreeMap<u64, String> {
 
 /// The ticker the world's status names, as `(node, pid)`.
 fn status_ticker(hosts: &TwoHosts, world: &str) -> Option<(String, u64)> {
-    let status = hosts.a.client(world, "10", &["status", "--json"]).finish(LONG);
+    let status = hosts
+        .a
+        .client(world, "10", &["status", "--json"])
+        .finish(LONG);
     status.assert_success();
     let json = status.json();
     let ticker = &json.first().expect("status json")["ticker"];
@@ -84,17 +90,40 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     // reader joins the lockstep, so the ticks wait until both read.
     let spawned = hosts
         .b
-        .client(&world, "20", &["sensor", "spawn", "depth", "--size", "16,12", "--json"])
+        .client(
+            &world,
+            "20",
+            &["sensor", "spawn", "depth", "--size", "16,12", "--json"],
+        )
         .finish(LONG);
     spawned.assert_success();
-    let id = spawned.json()[0]["id"].as_u64().expect("sensor id").to_string();
-    let read = ["sensor", "watch", &id, "--captures", "10", "--lockstep", "--json"];
+    let id = spawned.json()[0]["id"]
+        .as_u64()
+        .expect("sensor id")
+        .to_string();
+    let read = [
+        "sensor",
+        "watch",
+        &id,
+        "--captures",
+        "10",
+        "--lockstep",
+        "--json",
+    ];
     let camera_a = hosts.a.client(&world, "20", &read);
     let camera_b = hosts.b.client(&world, "20", &read);
     let ticker = hosts.b.client(
         &world,
         "20",
-        &["tick", "--count", "500", "--participants", "2", "--leave-sync", "--json"],
+        &[
+            "tick",
+            "--count",
+            "500",
+            "--participants",
+            "2",
+            "--leave-sync",
+            "--json",
+        ],
     );
     let ticked = ticker.finish(LONG * 2);
     ticked.assert_success();
@@ -108,14 +137,24 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     seen_a.assert_success();
     seen_b.assert_success();
     let (a, b) = (digests(&seen_a.stdout), digests(&seen_b.stdout));
-    assert_eq!(a.len(), 500, "host a saw frames 1..=500 once each:\n{seen_a}");
+    assert_eq!(
+        a.len(),
+        500,
+        "host a saw frames 1..=500 once each:\n{seen_a}"
+    );
     assert_eq!(a, b, "both hosts saw the same frames with the same digests");
     let captures = |proc: Proc| {
         let done = proc.finish(LONG);
         done.assert_success();
         done.json()
             .iter()
-            .map(|c| (c["frame"].as_u64(), c["sequence"].as_u64(), c["bytes"].as_u64()))
+            .map(|c| {
+                (
+                    c["frame"].as_u64(),
+                    c["sequence"].as_u64(),
+                    c["bytes"].as_u64(),
+                )
+            })
             .collect::<Vec<_>>()
     };
     let (captured_a, captured_b) = (captures(camera_a), captures(camera_b));
@@ -135,10 +174,19 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     );
     wait_line(&holder, "\"frame\"");
     let (node, pid) = status_ticker(&hosts, &world).expect("the remote ticker holds the world");
-    assert_eq!(u64::from(holder.pid()), pid, "the remote ticker's pid is reported");
-    assert!(node.ends_with("/sim-client-tick"), "reported as host/node: {node}");
+    assert_eq!(
+        u64::from(holder.pid()),
+        pid,
+        "the remote ticker's pid is reported"
+    );
+    assert!(
+        node.ends_with("/sim-client-tick"),
+        "reported as host/node: {node}"
+    );
     for host in [&hosts.a, &hosts.b] {
-        let second = host.client(&world, "10", &["tick", "--count", "1"]).finish(LONG);
+        let second = host
+            .client(&world, "10", &["tick", "--count", "1"])
+            .finish(LONG);
         assert!(!second.status.success(), "{second}");
         assert!(
             second.stderr.contains(&node) && second.stderr.contains(&pid.to_string()),
@@ -158,12 +206,20 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     );
     let failed_after = down.elapsed();
     while status_ticker(&hosts, &world).is_some() {
-        assert!(down.elapsed() < LONG, "the server kept the lost remote ticker's ownership");
+        assert!(
+            down.elapsed() < LONG,
+            "the server kept the lost remote ticker's ownership"
+        );
     }
     let released_after = down.elapsed();
-    eprintln!("remote ticker failed after {failed_after:?}, ownership released after {released_after:?}");
+    eprintln!(
+        "remote ticker failed after {failed_after:?}, ownership released after {released_after:?}"
+    );
     let before: u64 = {
-        let status = hosts.a.client(&world, "10", &["status", "--json"]).finish(LONG);
+        let status = hosts
+            .a
+            .client(&world, "10", &["status", "--json"])
+            .finish(LONG);
         status.json()[0]["frame"].as_u64().expect("frame")
     };
 
@@ -196,7 +252,9 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
         .finish(LONG);
     mirror.assert_code(1);
     assert!(
-        mirror.stderr.contains(&format!("no bridge exports world '{other}'")),
+        mirror
+            .stderr
+            .contains(&format!("no bridge exports world '{other}'")),
         "{mirror}"
     );
     // Refused before anything starts: bad endpoint, bad lease.
@@ -210,7 +268,11 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
     let broken = config.write("broken.json5", b"{ mode: ");
     let refused = hosts
         .b
-        .client(&world, "2", &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config"])
+        .client(
+            &world,
+            "2",
+            &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config"],
+        )
         .finish(LONG);
     assert!(!refused.status.success(), "{refused}");
     let refused = hosts
@@ -218,7 +280,14 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
         .client(
             &world,
             "2",
-            &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config", broken.to_str().expect("path")],
+            &[
+                "bridge",
+                "zenoh",
+                "--connect",
+                &endpoint,
+                "--zenoh-config",
+                broken.to_str().expect("path"),
+            ],
         )
         .finish(LONG);
     refused.assert_code(2);
@@ -231,12 +300,23 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
     let mirror = hosts.b.client(
         &world,
         "10",
-        &["bridge", "zenoh", "--connect", &endpoint, "--zenoh-config", client_mode.to_str().expect("path")],
+        &[
+            "bridge",
+            "zenoh",
+            "--connect",
+            &endpoint,
+            "--zenoh-config",
+            client_mode.to_str().expect("path"),
+        ],
     );
     wait_line(&mirror, "mirroring world");
     let lease = hosts
         .b
-        .client(&world, "2", &["bridge", "zenoh", "--connect", &endpoint, "--lease-ms", "5"])
+        .client(
+            &world,
+            "2",
+            &["bridge", "zenoh", "--connect", &endpoint, "--lease-ms", "5"],
+        )
         .finish(LONG);
     lease.assert_code(2);
 }

@@ -2,10 +2,10 @@
 
 pub(crate) mod actors;
 pub(crate) mod autopilot;
+pub(crate) mod bridge;
 pub(crate) mod carla;
 pub(crate) mod config;
 pub(crate) mod demo;
-pub(crate) mod bridge;
 pub(crate) mod foxglove;
 pub(crate) mod pictures;
 pub(crate) mod recorder;

@@ -19,8 +19,8 @@ use anyhow::Context as _;
 use shared_types::bridge::{self, BridgeKeys, Forwarded};
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, LockstepKind, LockstepRequest, LockstepResponse,
-    RecorderRequest, RecorderResponse, ResponseStatus, ServiceNames, TickRequest,
-    TickRequestKind, TickResponse, TickerInfo, WorldName, WorldSettings,
+    RecorderRequest, RecorderResponse, ResponseStatus, ServiceNames, TickRequest, TickRequestKind,
+    TickResponse, TickerInfo, WorldName, WorldSettings,
 };
 use sim_client::{Client, WaitError};
 use tracing::{info, warn};
@@ -67,7 +67,10 @@ impl Dropped {
         relay::refuse(query, why);
         // At most one warning a second, with the count since the last.
         self.unwarned += 1;
-        if self.last_warning.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+        if self
+            .last_warning
+            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
+        {
             warn!(
                 key = %query.key_expr(),
                 dropped = self.unwarned,
@@ -151,7 +154,10 @@ pub(super) fn run(
     let _latest = session
         .declare_queryable(&latest_key)
         .callback(move |query| {
-            let bytes = latest_for_query.lock().map(|b| b.clone()).unwrap_or_default();
+            let bytes = latest_for_query
+                .lock()
+                .map(|b| b.clone())
+                .unwrap_or_default();
             if bytes.is_empty() {
                 relay::refuse(&query, "no frame published yet");
             } else {
@@ -170,17 +176,19 @@ pub(super) fn run(
         std::thread::Builder::new()
             .name("frames".into())
             .spawn(move || {
-                let why = forward_frames(&world, timeout, &session, &keys, &latest, ros2_clock, &forwarded, &events, &followed, stop)
-                    .err()
-                    .map_or_else(|| "stopped".to_owned(), |e| format!("{e:#}"));
+                let why = forward_frames(
+                    &world, timeout, &session, &keys, &latest, ros2_clock, &forwarded, &events,
+                    &followed, stop,
+                )
+                .err()
+                .map_or_else(|| "stopped".to_owned(), |e| format!("{e:#}"));
                 let _ = events.send(Event::FramesEnded(why));
             })
             .context("starting the frame thread")?
     };
 
     let node = client.node();
-    let mut control =
-        FixedRelay::<ControlRequest, ControlResponse>::open(node, &names.control)?;
+    let mut control = FixedRelay::<ControlRequest, ControlResponse>::open(node, &names.control)?;
     let mut tick = FixedRelay::<TickRequest, TickResponse>::open(node, &names.tick)?;
     let mut recorder =
         FixedRelay::<RecorderRequest, RecorderResponse>::open(node, &names.recorder)?;
@@ -231,7 +239,11 @@ pub(super) fn run(
             || sensors.busy()
             || lockstep.values().any(FixedRelay::busy)
             || !held.is_empty();
-        let wait = if busy { idle } else { Duration::from_millis(100) };
+        let wait = if busy {
+            idle
+        } else {
+            Duration::from_millis(100)
+        };
         let event = match incoming.recv_timeout(wait) {
             Ok(event) => {
                 idle = Duration::from_micros(20);
@@ -246,7 +258,10 @@ pub(super) fn run(
         match event {
             Some(Event::Query(query)) => {
                 let key = query.key_expr().as_str().to_owned();
-                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                let bytes = query
+                    .payload()
+                    .map(|p| p.to_bytes().into_owned())
+                    .unwrap_or_default();
                 if key == keys.status() || key == keys.settings() {
                     answer_json(&client, &query, key == keys.settings());
                     continue;
@@ -256,40 +271,77 @@ pub(super) fn run(
                     continue;
                 };
                 let Some(mirror) = mirror_of(&query) else {
-                    dropped.note(&query, "a request must name its mirror (?mirror=<zenoh id>)");
+                    dropped.note(
+                        &query,
+                        "a request must name its mirror (?mirror=<zenoh id>)",
+                    );
                     continue;
                 };
                 let sent = match service {
-                    Forwarded::Control => match FixedRelay::<ControlRequest, ControlResponse>::decode(&bytes) {
-                        Ok(request) => control.send(request, query),
-                        Err(e) => Err((query, format!("malformed control request: {e}"))),
-                    },
-                    Forwarded::Recorder => match FixedRelay::<RecorderRequest, RecorderResponse>::decode(&bytes) {
-                        Ok(request) => recorder.send(request, query),
-                        Err(e) => Err((query, format!("malformed recorder request: {e}"))),
-                    },
+                    Forwarded::Control => {
+                        match FixedRelay::<ControlRequest, ControlResponse>::decode(&bytes) {
+                            Ok(request) => control.send(request, query),
+                            Err(e) => Err(relay::refused(
+                                query,
+                                format!("malformed control request: {e}"),
+                            )),
+                        }
+                    }
+                    Forwarded::Recorder => {
+                        match FixedRelay::<RecorderRequest, RecorderResponse>::decode(&bytes) {
+                            Ok(request) => recorder.send(request, query),
+                            Err(e) => Err(relay::refused(
+                                query,
+                                format!("malformed recorder request: {e}"),
+                            )),
+                        }
+                    }
                     Forwarded::Batch => batch.forward(&bytes, query),
                     Forwarded::Sensors => sensors.forward(&bytes, query),
-                    Forwarded::Lockstep => match FixedRelay::<LockstepRequest, LockstepResponse>::decode(&bytes) {
-                        Ok(request) => {
-                            let participant = (mirror, request.pid);
-                            let port = match lockstep.entry(participant) {
-                                std::collections::hash_map::Entry::Occupied(e) => Ok(e.into_mut()),
-                                std::collections::hash_map::Entry::Vacant(e) => {
-                                    FixedRelay::open(client.node(), &names.lockstep).map(|port| e.insert(port))
+                    Forwarded::Lockstep => {
+                        match FixedRelay::<LockstepRequest, LockstepResponse>::decode(&bytes) {
+                            Ok(request) => {
+                                let participant = (mirror, request.pid);
+                                let port = match lockstep.entry(participant) {
+                                    std::collections::hash_map::Entry::Occupied(e) => {
+                                        Ok(e.into_mut())
+                                    }
+                                    std::collections::hash_map::Entry::Vacant(e) => {
+                                        FixedRelay::open(client.node(), &names.lockstep)
+                                            .map(|port| e.insert(port))
+                                    }
+                                };
+                                match port {
+                                    Ok(port) => port.send(request, query),
+                                    Err(e) => Err(relay::refused(
+                                        query,
+                                        format!("no lockstep port for this participant: {e:#}"),
+                                    )),
                                 }
-                            };
-                            match port {
-                                Ok(port) => port.send(request, query),
-                                Err(e) => Err((query, format!("no lockstep port for this participant: {e:#}"))),
                             }
+                            Err(e) => Err(relay::refused(
+                                query,
+                                format!("malformed lockstep request: {e}"),
+                            )),
                         }
-                        Err(e) => Err((query, format!("malformed lockstep request: {e}"))),
-                    },
-                    Forwarded::Tick => match FixedRelay::<TickRequest, TickResponse>::decode(&bytes) {
-                        Ok(request) => forward_tick(request, mirror, query, &mut tick, &owner, &mut claimants, &forwarded),
-                        Err(e) => Err((query, format!("malformed tick request: {e}"))),
-                    },
+                    }
+                    Forwarded::Tick => {
+                        match FixedRelay::<TickRequest, TickResponse>::decode(&bytes) {
+                            Ok(request) => forward_tick(
+                                request,
+                                mirror,
+                                query,
+                                &mut tick,
+                                &owner,
+                                &mut claimants,
+                                &forwarded,
+                            ),
+                            Err(e) => Err(relay::refused(
+                                query,
+                                format!("malformed tick request: {e}"),
+                            )),
+                        }
+                    }
                 };
                 match sent {
                     // An idle (paced or waiting) server answers at once.
@@ -298,7 +350,10 @@ pub(super) fn run(
                             tracing::debug!("wake-up not delivered: {e:?}");
                         }
                     }
-                    Err((query, why)) => dropped.note(&query, &why),
+                    Err(refused) => {
+                        let (query, why) = *refused;
+                        dropped.note(&query, &why);
+                    }
                 }
             }
             Some(Event::Mirror(zid, true)) => {
@@ -313,7 +368,11 @@ pub(super) fn run(
                     release_for(&mut tick, &lost);
                 }
                 // Its lockstep participants leave.
-                let gone: Vec<_> = lockstep.keys().filter(|(m, _)| *m == zid).cloned().collect();
+                let gone: Vec<_> = lockstep
+                    .keys()
+                    .filter(|(m, _)| *m == zid)
+                    .cloned()
+                    .collect();
                 for key in gone {
                     if let Some(port) = lockstep.remove(&key) {
                         leave_for(port, key.1);
@@ -330,7 +389,8 @@ pub(super) fn run(
         tick.poll(relay::tick_interim, relay::tick_frame, &mut answers);
         for answer in answers.drain(..) {
             // The server's word on who ticks now decides the remote owner.
-            if let Ok(response) = bridge::decode_fixed::<TickResponse>(&answer.bytes, "tick answer") {
+            if let Ok(response) = bridge::decode_fixed::<TickResponse>(&answer.bytes, "tick answer")
+            {
                 owner = remote_owner(&response.ticker, &mut claimants);
             }
             held.push(answer);
@@ -379,7 +439,7 @@ fn forward_tick(
     owner: &Option<RemoteTicker>,
     claimants: &mut Vec<RemoteTicker>,
     forwarded: &AtomicU64,
-) -> Result<(), (Query, String)> {
+) -> Result<(), relay::Refused> {
     let kind = TickRequestKind::from_u32(request.kind);
     let me = RemoteTicker {
         mirror,
@@ -460,7 +520,9 @@ fn answer_json(client: &Client, query: &Query, settings_only: bool) {
         Ok(status) if settings_only => serde_json::to_string(&crate::cli::settings_json(
             &WorldSettings::from(status.settings),
         )),
-        Ok(status) => serde_json::to_string(&crate::cli::status::status_json(client.world(), &status)),
+        Ok(status) => {
+            serde_json::to_string(&crate::cli::status::status_json(client.world(), &status))
+        }
         Err(e) => {
             relay::refuse(query, &e.to_string());
             return;
@@ -520,7 +582,13 @@ fn forward_frames(
         while let Ok(Follow { id, reading }) = follow.try_recv() {
             match client.sensor(id) {
                 Ok(sensor) => {
-                    sensors.insert(id, Forwarding { sensor, publisher: publisher(keys.sensor(id))? });
+                    sensors.insert(
+                        id,
+                        Forwarding {
+                            sensor,
+                            publisher: publisher(keys.sensor(id))?,
+                        },
+                    );
                 }
                 Err(e) => info!(sensor = id, "not forwarded: {e}"),
             }

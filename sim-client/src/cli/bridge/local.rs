@@ -151,10 +151,31 @@ impl LocalServices {
             .listener_builder()
             .create()
             .map_err(|e| f(&e))?;
-        let control = fixed(&node, &names.control, limits, limits.max_clients, (2, 2), false)?;
+        let control = fixed(
+            &node,
+            &names.control,
+            limits,
+            limits.max_clients,
+            (2, 2),
+            false,
+        )?;
         let tick = fixed(&node, &names.tick, limits, 2, (4, 4), false)?;
-        let lockstep = fixed(&node, &names.lockstep, limits, limits.max_clients, (4, 2), true)?;
-        let recorder = fixed(&node, &names.recorder, limits, limits.max_clients, (2, 2), false)?;
+        let lockstep = fixed(
+            &node,
+            &names.lockstep,
+            limits,
+            limits.max_clients,
+            (4, 2),
+            true,
+        )?;
+        let recorder = fixed(
+            &node,
+            &names.recorder,
+            limits,
+            limits.max_clients,
+            (2, 2),
+            false,
+        )?;
         let batch = node
             .service_builder(&name(&names.batch)?)
             .request_response::<[Command], [CommandResult]>()
@@ -337,14 +358,18 @@ fn publish<T: bytemuck::Pod + std::fmt::Debug + ZeroCopySend>(
     payload: &[u8],
 ) -> anyhow::Result<()> {
     let size = std::mem::size_of::<T>();
-    if payload.len() % size != 0 {
-        anyhow::bail!("{} payload bytes are not whole elements of {size}", payload.len());
+    if !payload.len().is_multiple_of(size) {
+        anyhow::bail!(
+            "{} payload bytes are not whole elements of {size}",
+            payload.len()
+        );
     }
     let mut sample = port
         .loan_slice_uninit(payload.len() / size)
         .map_err(|e| anyhow::anyhow!("capture loan: {e:?}"))?;
     *sample.user_header_mut() = *header;
-    let sample = sample.write_from_fn(|i| bytemuck::pod_read_unaligned(&payload[i * size..][..size]));
+    let sample =
+        sample.write_from_fn(|i| bytemuck::pod_read_unaligned(&payload[i * size..][..size]));
     sample
         .send()
         .map_err(|e| anyhow::anyhow!("capture send: {e:?}"))?;

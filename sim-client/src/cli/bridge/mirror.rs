@@ -95,12 +95,18 @@ pub(super) fn run(
 
     // The world must be exported there: its status, then its current frame.
     let hello = ControlRequest::new(RequestKind::Status);
-    let status = match query_once(&session, &keys.rpc(Forwarded::Control), &zid, bridge::bytes_of(&hello), timeout) {
+    let status = match query_once(
+        &session,
+        &keys.rpc(Forwarded::Control),
+        &zid,
+        bridge::bytes_of(&hello),
+        timeout,
+    ) {
         Ok(bytes) => bytes,
         Err(None) => {
             return Err(anyhow::anyhow!(
-                "no bridge exports world '{world}' at {endpoint} (nothing answered within {timeout:?})"
-            )
+            "no bridge exports world '{world}' at {endpoint} (nothing answered within {timeout:?})"
+        )
             .into())
         }
         Err(Some(e)) => return Err(anyhow::anyhow!("the exporting bridge refused: {e}").into()),
@@ -114,8 +120,12 @@ pub(super) fn run(
             .into())
         }
     };
-    let first = query_once(&session, &keys.latest_frame(), &zid, &[], timeout)
-        .map_err(|e| anyhow::anyhow!("world '{world}' has no frame to mirror: {}", e.unwrap_or_default()))?;
+    let first = query_once(&session, &keys.latest_frame(), &zid, &[], timeout).map_err(|e| {
+        anyhow::anyhow!(
+            "world '{world}' has no frame to mirror: {}",
+            e.unwrap_or_default()
+        )
+    })?;
     let (mut header, actors) = bridge::decode_frame(&first)
         .map_err(|e| anyhow::anyhow!("the exporter's frame is unreadable: {e}"))?;
 
@@ -236,7 +246,11 @@ pub(super) fn run(
                 Ok((header, payload)) => {
                     if let Err(e) = sensors.publish(&names, &limits, &local, &header, payload) {
                         dropped += 1;
-                        warn!(dropped, sensor = header.sensor_id, "dropped a capture: {e:#}");
+                        warn!(
+                            dropped,
+                            sensor = header.sensor_id,
+                            "dropped a capture: {e:#}"
+                        );
                     } else {
                         local.notify();
                     }
@@ -252,7 +266,15 @@ pub(super) fn run(
                 };
                 flight.answered = true;
                 let answered = match reply {
-                    Ok(bytes) => answer_local(&flight.local, &bytes, &names, &limits, &local, &mut sensors, &mut local_ticker),
+                    Ok(bytes) => answer_local(
+                        &flight.local,
+                        &bytes,
+                        &names,
+                        &limits,
+                        &local,
+                        &mut sensors,
+                        &mut local_ticker,
+                    ),
                     Err(e) => {
                         warn!("the exporter refused a request: {e}");
                         refuse_local(&flight.local, ResponseStatus::Refused);
@@ -267,8 +289,13 @@ pub(super) fn run(
                         unreachable_answer(&flight.local);
                     }
                     Answered::AfterFrame(answer) => {
+                        let answer = *answer;
                         // Sent once its frame is published here.
-                        if let Some(InFlight { local: Local::Tick(active, _), .. }) = in_flight.remove(&id) {
+                        if let Some(InFlight {
+                            local: Local::Tick(active, _),
+                            ..
+                        }) = in_flight.remove(&id)
+                        {
                             if answer.frame <= last.1 {
                                 send_tick(&active, answer);
                             } else {
@@ -288,29 +315,30 @@ pub(super) fn run(
                     }
                 }
             }
-            Some(Event::Exporter(alive)) => {
-                if alive != linked {
-                    linked = alive;
-                    if alive {
-                        info!("the exporting bridge is reachable again");
-                        println!("link up: the exporting bridge is reachable again");
-                    } else {
-                        warn!("the exporting bridge is out of reach; requests are answered 'unreachable'");
-                        println!("link down: the exporting bridge is out of reach");
-                        for (_, flight) in in_flight.drain() {
-                            if !flight.answered {
-                                unreachable_answer(&flight.local);
-                            }
+            Some(Event::Exporter(alive)) if alive != linked => {
+                linked = alive;
+                if alive {
+                    info!("the exporting bridge is reachable again");
+                    println!("link up: the exporting bridge is reachable again");
+                } else {
+                    warn!(
+                        "the exporting bridge is out of reach; requests are answered 'unreachable'"
+                    );
+                    println!("link down: the exporting bridge is out of reach");
+                    for (_, flight) in in_flight.drain() {
+                        if !flight.answered {
+                            unreachable_answer(&flight.local);
                         }
-                        for (active, _, _) in held.drain(..) {
-                            let _ = active.send_copy(status_answer(ResponseStatus::Unreachable));
-                        }
-                        // The exporter releases the ownership it held for us.
-                        local_ticker = None;
-                        local.notify();
                     }
+                    for (active, _, _) in held.drain(..) {
+                        let _ = active.send_copy(status_answer(ResponseStatus::Unreachable));
+                    }
+                    // The exporter releases the ownership it held for us.
+                    local_ticker = None;
+                    local.notify();
                 }
             }
+            Some(Event::Exporter(_)) => {}
             None => {}
         }
         // Local requests: forwarded, or answered 'unreachable' at once.
@@ -330,8 +358,24 @@ pub(super) fn run(
             next_id += 1;
             let id = next_id;
             let (service, bytes) = request_bytes(&request);
-            forward(&session, &names, &keys, service, &zid, bytes, request_timeout, id, &events);
-            in_flight.insert(id, InFlight { local: request, answered: false });
+            forward(
+                &session,
+                &names,
+                &keys,
+                service,
+                &zid,
+                bytes,
+                request_timeout,
+                id,
+                &events,
+            );
+            in_flight.insert(
+                id,
+                InFlight {
+                    local: request,
+                    answered: false,
+                },
+            );
         }
         // A local ticker that died is released for it; a tick answer whose
         // frame never came (a new episode, a lost publication) goes anyway.
@@ -341,7 +385,10 @@ pub(super) fn run(
                 if since.elapsed() < HOLD_LIMIT {
                     return true;
                 }
-                warn!(frame = answer.frame, "the frame of a tick's answer did not arrive; answering without it");
+                warn!(
+                    frame = answer.frame,
+                    "the frame of a tick's answer did not arrive; answering without it"
+                );
                 send_tick(active, *answer);
                 false
             });
@@ -351,7 +398,17 @@ pub(super) fn run(
                     let mut release = TickRequest::new(TickRequestKind::Release, &name);
                     release.pid = pid;
                     next_id += 1;
-                    forward(&session, &names, &keys, Forwarded::Tick, &zid, bridge::bytes_of(&release).to_vec(), request_timeout, next_id, &events);
+                    forward(
+                        &session,
+                        &names,
+                        &keys,
+                        Forwarded::Tick,
+                        &zid,
+                        bridge::bytes_of(&release).to_vec(),
+                        request_timeout,
+                        next_id,
+                        &events,
+                    );
                     local_ticker = None;
                 }
             }
@@ -423,7 +480,9 @@ fn query_once(
     match replies.recv() {
         Ok(reply) => match reply.result() {
             Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
-            Err(e) => Err(Some(String::from_utf8_lossy(&e.payload().to_bytes()).into_owned())),
+            Err(e) => Err(Some(
+                String::from_utf8_lossy(&e.payload().to_bytes()).into_owned(),
+            )),
         },
         Err(_) => Err(None),
     }
@@ -488,7 +547,7 @@ enum Answered {
     /// Not an answer of the request's kind.
     Unreadable(String),
     /// A tick's answer, to be sent once its frame is published here.
-    AfterFrame(TickResponse),
+    AfterFrame(Box<TickResponse>),
 }
 
 fn send_tick(active: &Active<TickRequest, TickResponse>, answer: TickResponse) {
@@ -511,14 +570,16 @@ fn answer_local(
 ) -> Answered {
     let bad = |e: shared_types::bridge::PayloadError| Answered::Unreadable(e.to_string());
     let sent = match request {
-        Local::Control(a) => match bridge::decode_fixed::<ControlResponse>(bytes, "control answer") {
+        Local::Control(a) => match bridge::decode_fixed::<ControlResponse>(bytes, "control answer")
+        {
             Ok(mut answer) => {
                 answer.report.server_pid = std::process::id();
                 a.send_copy(answer)
             }
             Err(e) => return bad(e),
         },
-        Local::Tick(a, request) => match bridge::decode_fixed::<TickResponse>(bytes, "tick answer") {
+        Local::Tick(a, request) => match bridge::decode_fixed::<TickResponse>(bytes, "tick answer")
+        {
             Ok(answer) => {
                 let ok = answer.status == ResponseStatus::Ok as u32;
                 match TickRequestKind::from_u32(request.kind) {
@@ -529,21 +590,29 @@ fn answer_local(
                     _ => {}
                 }
                 if ok && TickRequestKind::from_u32(request.kind) == Some(TickRequestKind::Tick) {
-                    return Answered::AfterFrame(answer);
+                    return Answered::AfterFrame(Box::new(answer));
                 }
                 a.send_copy(answer)
             }
             Err(e) => return bad(e),
         },
-        Local::Lockstep(a) => match bridge::decode_fixed::<LockstepResponse>(bytes, "lockstep answer") {
-            Ok(answer) => a.send_copy(answer),
-            Err(e) => return bad(e),
-        },
-        Local::Recorder(a) => match bridge::decode_fixed::<RecorderResponse>(bytes, "recorder answer") {
-            Ok(answer) => a.send_copy(answer),
-            Err(e) => return bad(e),
-        },
-        Local::Batch(a) => match bridge::decode_slice::<BatchResponseHeader, CommandResult>(bytes, "batch answer", super::relay::MAX_FORWARDED_BATCH) {
+        Local::Lockstep(a) => {
+            match bridge::decode_fixed::<LockstepResponse>(bytes, "lockstep answer") {
+                Ok(answer) => a.send_copy(answer),
+                Err(e) => return bad(e),
+            }
+        }
+        Local::Recorder(a) => {
+            match bridge::decode_fixed::<RecorderResponse>(bytes, "recorder answer") {
+                Ok(answer) => a.send_copy(answer),
+                Err(e) => return bad(e),
+            }
+        }
+        Local::Batch(a) => match bridge::decode_slice::<BatchResponseHeader, CommandResult>(
+            bytes,
+            "batch answer",
+            super::relay::MAX_FORWARDED_BATCH,
+        ) {
             Ok((header, results)) => a
                 .loan_slice_uninit(results.len())
                 .map_err(iceoryx2::port::SendError::from)
@@ -553,11 +622,25 @@ fn answer_local(
                 }),
             Err(e) => return bad(e),
         },
-        Local::Sensors(a) => match bridge::decode_slice::<SensorResponseHeader, SensorInfo>(bytes, "sensor answer", 4096) {
+        Local::Sensors(a) => match bridge::decode_slice::<SensorResponseHeader, SensorInfo>(
+            bytes,
+            "sensor answer",
+            4096,
+        ) {
             Ok((header, infos)) => {
                 for info in &infos {
-                    if let Err(e) = sensors.ensure(names, limits, local, info.id, info.spec.kind, info.spec.elements()) {
-                        warn!(sensor = info.id, "cannot create the sensor's service here: {e:#}");
+                    if let Err(e) = sensors.ensure(
+                        names,
+                        limits,
+                        local,
+                        info.id,
+                        info.spec.kind,
+                        info.spec.elements(),
+                    ) {
+                        warn!(
+                            sensor = info.id,
+                            "cannot create the sensor's service here: {e:#}"
+                        );
                     }
                 }
                 a.loan_slice_uninit(infos.len())

@@ -64,7 +64,12 @@ enum Protocol {
 #[derive(Debug, Args)]
 pub(crate) struct ZenohArgs {
     /// Export the world, listening on this Zenoh endpoint (tcp/ADDR:PORT).
-    #[arg(long, value_name = "ENDPOINT", conflicts_with = "connect", required_unless_present = "connect")]
+    #[arg(
+        long,
+        value_name = "ENDPOINT",
+        conflicts_with = "connect",
+        required_unless_present = "connect"
+    )]
     listen: Option<String>,
     /// Mirror the world exported at this Zenoh endpoint (tcp/HOST:PORT).
     #[arg(long, value_name = "ENDPOINT")]

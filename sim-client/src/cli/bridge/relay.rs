@@ -29,6 +29,14 @@ struct InFlight<P> {
     since: Instant,
 }
 
+/// A request refused before it reached the server: its query and why.
+pub(super) type Refused = Box<(Query, String)>;
+
+/// A [`Refused`] request.
+pub(super) fn refused(query: Query, why: String) -> Refused {
+    Box::new((query, why))
+}
+
 /// A final answer: the query, the answer's bytes, and for a tick the
 /// frame it produced (its reply waits until that frame is published).
 pub(super) struct Answer {
@@ -113,6 +121,9 @@ fn drain<P, T>(
     }
 }
 
+/// A fixed-size request waiting for its answer.
+type Flight<Req, Resp> = InFlight<PendingResponse<Bus, Req, (), Resp, ()>>;
+
 /// A forwarded service of fixed-size requests and answers.
 pub(super) struct FixedRelay<Req, Resp>
 where
@@ -120,7 +131,7 @@ where
     Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
 {
     client: RequestClient<Bus, Req, (), Resp, ()>,
-    flights: Vec<InFlight<PendingResponse<Bus, Req, (), Resp, ()>>>,
+    flights: Vec<Flight<Req, Resp>>,
 }
 
 impl<Req, Resp> FixedRelay<Req, Resp>
@@ -151,7 +162,7 @@ where
     }
 
     /// Sends `request`; its answer will go to `query`.
-    pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), (Query, String)> {
+    pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), Refused> {
         match self.client.send_copy(request) {
             Ok(pending) => {
                 self.flights.push(InFlight {
@@ -161,7 +172,10 @@ where
                 });
                 Ok(())
             }
-            Err(e) => Err((query, format!("cannot send the request to the server: {e:?}"))),
+            Err(e) => Err(refused(
+                query,
+                format!("cannot send the request to the server: {e:?}"),
+            )),
         }
     }
 
@@ -265,15 +279,13 @@ impl BatchRelay {
     }
 
     /// Checks `bytes` as a batch and sends it; its answer will go to `query`.
-    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), (Query, String)> {
-        let (header, commands) = match bridge::decode_slice::<BatchHeader, Command>(
-            bytes,
-            "batch",
-            MAX_FORWARDED_BATCH,
-        ) {
-            Ok(batch) => batch,
-            Err(e) => return Err((query, format!("malformed batch: {e}"))),
-        };
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), Refused> {
+        let (header, commands) =
+            match bridge::decode_slice::<BatchHeader, Command>(bytes, "batch", MAX_FORWARDED_BATCH)
+            {
+                Ok(batch) => batch,
+                Err(e) => return Err(refused(query, format!("malformed batch: {e}"))),
+            };
         let sent = self
             .client
             .loan_slice_uninit(commands.len())
@@ -294,7 +306,10 @@ impl BatchRelay {
                 });
                 Ok(())
             }
-            Err(e) => Err((query, format!("cannot send the batch to the server: {e}"))),
+            Err(e) => Err(refused(
+                query,
+                format!("cannot send the batch to the server: {e}"),
+            )),
         }
     }
 
@@ -363,10 +378,10 @@ impl SensorRelay {
     }
 
     /// Checks `bytes` as a sensor request and sends it.
-    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), (Query, String)> {
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), Refused> {
         let request = match bridge::decode_fixed::<SensorRequest>(bytes, "sensor request") {
             Ok(request) => request,
-            Err(e) => return Err((query, format!("malformed sensor request: {e}"))),
+            Err(e) => return Err(refused(query, format!("malformed sensor request: {e}"))),
         };
         match self.client.send_copy(request) {
             Ok(pending) => {
@@ -377,7 +392,10 @@ impl SensorRelay {
                 });
                 Ok(())
             }
-            Err(e) => Err((query, format!("cannot send the request to the server: {e:?}"))),
+            Err(e) => Err(refused(
+                query,
+                format!("cannot send the request to the server: {e:?}"),
+            )),
         }
     }
 

@@ -31,6 +31,7 @@ mod substeps;
 mod support;
 mod tick;
 mod zenoh;
+mod zenoh_peer;
 
 /// simbus benchmarks. Each prints a table (or --json) of figures measured in
 /// one run on this machine; compare ratios, not absolute numbers, across machines.
@@ -76,7 +77,7 @@ enum Command {
     Zenoh(zenoh::ZenohArgs),
     /// The measuring client of `zenoh` (run in the host it measures from).
     #[command(hide = true)]
-    ZenohPeer(zenoh::ZenohPeerArgs),
+    ZenohPeer(zenoh_peer::ZenohPeerArgs),
     /// A fan-out subscriber (used by `fanout`).
     #[command(hide = true)]
     FanoutPeer(fanout::FanoutPeerArgs),
@@ -101,7 +102,7 @@ fn main() -> ExitCode {
         Command::Fanout(a) => fanout::run(a),
         Command::Substeps(a) => substeps::run(a),
         Command::Zenoh(a) => zenoh::run(a),
-        Command::ZenohPeer(a) => zenoh::peer(a),
+        Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
         Command::Serve(a) => {

@@ -4,14 +4,13 @@
 //! remote ticker and released when its mirror goes.
 //!
 //! Threads: one forwards frames (and `/clock`) and the captures of every
-//! sensor, each frame after its captures as the server publishes them; it
-//! owns its simbus ports. The main thread owns the request
+//! sensor (`frames.rs`); it owns its simbus ports. The main thread owns the request
 //! ports and is woken through one channel by Zenoh's callbacks and by the
 //! frame thread (a tick's answer goes back only once its frame is out).
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError, Sender};
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -22,13 +21,13 @@ use shared_types::{
     RecorderRequest, RecorderResponse, ResponseStatus, ServiceNames, TickRequest, TickRequestKind,
     TickResponse, TickerInfo, WorldName, WorldSettings,
 };
-use sim_client::{Client, WaitError};
+use sim_client::Client;
 use tracing::{info, warn};
-use zenoh::qos::CongestionControl;
 use zenoh::query::Query;
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait as _};
 
+use super::frames::{follow_sensors, forward_frames, Follow};
 use super::relay::{self, Answer, BatchRelay, FixedRelay, SensorRelay};
 use super::ZenohArgs;
 use crate::Failure;
@@ -172,13 +171,24 @@ pub(super) fn run(
     let frames = {
         let (session, keys, world, events) =
             (session.clone(), keys.clone(), world.clone(), events.clone());
-        let (latest, ros2_clock, forwarded) = (latest, args.ros2_clock, forwarded.clone());
+        let (latest, ros2_clock, forwarded) = (latest.clone(), args.ros2_clock, forwarded.clone());
         std::thread::Builder::new()
             .name("frames".into())
             .spawn(move || {
+                let forwarded_one = || {
+                    let _ = events.send(Event::Forwarded);
+                };
                 let why = forward_frames(
-                    &world, timeout, &session, &keys, &latest, ros2_clock, &forwarded, &events,
-                    &followed, stop,
+                    &world,
+                    timeout,
+                    &session,
+                    &keys,
+                    &latest,
+                    ros2_clock,
+                    &forwarded,
+                    &forwarded_one,
+                    &followed,
+                    stop,
                 )
                 .err()
                 .map_or_else(|| "stopped".to_owned(), |e| format!("{e:#}"));
@@ -194,14 +204,7 @@ pub(super) fn run(
         FixedRelay::<RecorderRequest, RecorderResponse>::open(node, &names.recorder)?;
     let mut batch = BatchRelay::open(node, &names.batch)?;
     let mut sensors = SensorRelay::open(node, &names.sensors)?;
-    let wake = node
-        .service_builder(&iceoryx2::prelude::ServiceName::new(&names.control_wake)?)
-        .event()
-        .open()
-        .map_err(|e| anyhow::anyhow!("wake-up event: {e:?}"))?
-        .notifier_builder()
-        .create()
-        .map_err(|e| anyhow::anyhow!("wake-up notifier: {e:?}"))?;
+    let wake = super::local::wake_notifier_on(node, &names)?;
     // One lockstep port per remote participant: the server tells
     // participants apart by their port.
     let mut lockstep: HashMap<(String, u32), FixedRelay<LockstepRequest, LockstepResponse>> =
@@ -216,6 +219,18 @@ pub(super) fn run(
     let mut next_sensor_scan = Instant::now();
     let mut idle = Duration::from_micros(20);
 
+    // Announced once the current frame is out (a peer that then asks for
+    // the latest frame gets it).
+    let deadline = Instant::now() + timeout;
+    while latest.lock().map_or(true, |bytes| bytes.is_empty()) {
+        if frames.is_finished() || Instant::now() >= deadline {
+            return Err(anyhow::anyhow!(
+                "the world's current frame was not forwarded within {timeout:?}"
+            )
+            .into());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
     println!(
         "exporting world '{world}' on {} (server pid {}, frame {})",
         args.listen.as_deref().unwrap_or("?"),
@@ -531,134 +546,5 @@ fn answer_json(client: &Client, query: &Query, settings_only: bool) {
     match text {
         Ok(text) => relay::reply(query, text.as_bytes()),
         Err(e) => relay::refuse(query, &e.to_string()),
-    }
-}
-
-/// A sensor the frame thread is to forward, and whom to tell once it reads.
-struct Follow {
-    id: u64,
-    reading: Sender<()>,
-}
-
-/// One forwarded sensor: its reader and its publisher.
-struct Forwarding {
-    sensor: sim_client::Sensor,
-    publisher: zenoh::pubsub::Publisher<'static>,
-}
-
-/// Publishes every frame on Zenoh (and its time on `clock`), each after
-/// the captures of its frame, as the server publishes them: a remote
-/// reader that sees frame N finds its captures. Until the server is gone
-/// or `stop`.
-#[allow(clippy::too_many_arguments)]
-fn forward_frames(
-    world: &WorldName,
-    timeout: Duration,
-    session: &Session,
-    keys: &BridgeKeys,
-    latest: &Mutex<Vec<u8>>,
-    ros2_clock: bool,
-    forwarded: &AtomicU64,
-    events: &Sender<Event>,
-    follow: &mpsc::Receiver<Follow>,
-    stop: &AtomicBool,
-) -> anyhow::Result<()> {
-    let zenoh = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let mut client = Client::connect(world.as_str(), timeout)?;
-    // Express: each message leaves at once, in order, none batched.
-    let publisher = |key: String| {
-        session
-            .declare_publisher(key)
-            .congestion_control(CongestionControl::Block)
-            .express(true)
-            .wait()
-            .map_err(zenoh)
-    };
-    let frames = publisher(keys.frames())?;
-    let clock = publisher(bridge::ROS2_CLOCK_KEY.to_owned())?;
-    let mut sensors: HashMap<u64, Forwarding> = HashMap::new();
-    let mut bytes = Vec::new();
-    while !stop.load(Ordering::Relaxed) {
-        while let Ok(Follow { id, reading }) = follow.try_recv() {
-            match client.sensor(id) {
-                Ok(sensor) => {
-                    sensors.insert(
-                        id,
-                        Forwarding {
-                            sensor,
-                            publisher: publisher(keys.sensor(id))?,
-                        },
-                    );
-                }
-                Err(e) => info!(sensor = id, "not forwarded: {e}"),
-            }
-            let _ = reading.send(());
-        }
-        let frame = match client.wait_for_frame(Duration::from_millis(100)) {
-            Ok(frame) => frame,
-            Err(WaitError::Timeout { .. }) => continue,
-            Err(e) => return Err(e.into()),
-        };
-        // The frame's captures first (the server published them before it).
-        sensors.retain(|id, forwarding| loop {
-            let capture = match forwarding.sensor.try_recv() {
-                Ok(Some(capture)) => capture,
-                Ok(None) => return true,
-                Err(e) => {
-                    info!(sensor = id, "stopped forwarding captures: {e}");
-                    return false;
-                }
-            };
-            bytes.clear();
-            bridge::encode_capture(capture.header(), capture.bytes(), &mut bytes);
-            let ended = capture.header().end().is_some();
-            drop(capture);
-            if let Err(e) = forwarding.publisher.put(bytes.as_slice()).wait() {
-                warn!(sensor = id, "capture not published: {e}");
-            }
-            if ended {
-                return false;
-            }
-        });
-        bytes.clear();
-        bridge::encode_frame(frame.header(), frame.actors(), &mut bytes);
-        let (number, elapsed_ns) = (frame.frame(), frame.timestamp().elapsed_ns);
-        drop(frame);
-        frames.put(bytes.as_slice()).wait().map_err(zenoh)?;
-        if ros2_clock {
-            clock
-                .put(bridge::ros2_clock_cdr(elapsed_ns).as_slice())
-                .wait()
-                .map_err(zenoh)?;
-        }
-        if let Ok(mut latest) = latest.lock() {
-            latest.clone_from(&bytes);
-        }
-        forwarded.store(number, Ordering::Release);
-        let _ = events.send(Event::Forwarded);
-    }
-    Ok(())
-}
-
-/// Has the frame thread forward every sensor not yet forwarded, and waits
-/// until it reads each (so a capture right after is forwarded).
-fn follow_sensors(
-    client: &Client,
-    timeout: Duration,
-    following: &mut BTreeSet<u64>,
-    follow: &Sender<Follow>,
-) {
-    let Ok(list) = client.list_sensors() else {
-        return;
-    };
-    let listed: BTreeSet<u64> = list.iter().map(|info| info.id).collect();
-    following.retain(|id| listed.contains(id));
-    for id in listed {
-        if following.insert(id) {
-            let (reading, read) = mpsc::channel();
-            if follow.send(Follow { id, reading }).is_ok() {
-                let _ = read.recv_timeout(timeout);
-            }
-        }
     }
 }

@@ -462,13 +462,21 @@ fn wake_notifier(names: &ServiceNames) -> anyhow::Result<(Node<Bus>, Notifier<Bu
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Bus>()
         .map_err(|e| anyhow::anyhow!("iceoryx2 node: {e:?}"))?;
-    let notifier = node
-        .service_builder(&name(&names.control_wake)?)
+    let notifier = wake_notifier_on(&node, names)?;
+    Ok((node, notifier))
+}
+
+/// A notifier of the world's wake-up event (what clients notify after a
+/// request) on `node`.
+pub(super) fn wake_notifier_on(
+    node: &Node<Bus>,
+    names: &ServiceNames,
+) -> anyhow::Result<Notifier<Bus>> {
+    node.service_builder(&name(&names.control_wake)?)
         .event()
         .open()
         .map_err(|e| anyhow::anyhow!("wake-up event: {e:?}"))?
         .notifier_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("wake-up notifier: {e:?}"))?;
-    Ok((node, notifier))
+        .map_err(|e| anyhow::anyhow!("wake-up notifier: {e:?}"))
 }

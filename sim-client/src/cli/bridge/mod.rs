@@ -22,7 +22,9 @@
 //! [`shared_types::ResponseStatus::Unreachable`]. Both happen within the
 //! Zenoh lease (`--lease-ms`).
 
+mod answers;
 mod export;
+mod frames;
 mod link;
 mod local;
 mod mirror;

@@ -74,55 +74,101 @@ pub(super) fn refuse(query: &Query, message: &str) {
     }
 }
 
-/// The answers that finished, the requests that timed out or lost the
-/// server answered with an error.
-fn drain<P, T>(
-    flights: &mut Vec<InFlight<P>>,
-    mut receive: impl FnMut(&P) -> Result<Option<T>, String>,
-    mut finish: impl FnMut(&Query, T) -> Option<(Vec<u8>, Option<u64>)>,
-    connected: impl Fn(&P) -> bool,
-    answers: &mut Vec<Answer>,
-) {
-    let mut i = 0;
-    while i < flights.len() {
-        let flight = &flights[i];
-        // Asked before receiving: a server that answers and then lets go
-        // of the request between the two calls is not taken for gone.
-        let connected = connected(&flight.pending);
-        let done = match receive(&flight.pending) {
-            Ok(Some(answer)) => finish(&flight.query, answer),
-            Ok(None) if !connected => {
-                refuse(&flight.query, "the server of the world is gone");
-                Some((Vec::new(), None))
+/// The requests of one port waiting for their answers.
+struct Flights<P>(Vec<InFlight<P>>);
+
+impl<P> Default for Flights<P> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<P> Flights<P> {
+    /// Keeps a sent request until its answer comes; a request that could
+    /// not be sent is refused.
+    fn admit<E: std::fmt::Debug>(
+        &mut self,
+        sent: Result<P, E>,
+        query: Query,
+    ) -> Result<(), Refused> {
+        match sent {
+            Ok(pending) => {
+                self.0.push(InFlight {
+                    pending,
+                    query,
+                    since: Instant::now(),
+                });
+                Ok(())
             }
-            Ok(None) if flight.since.elapsed() > ANSWER_TIMEOUT => {
-                refuse(&flight.query, "the server did not answer in time");
-                Some((Vec::new(), None))
-            }
-            Ok(None) => None,
-            Err(e) => {
-                refuse(&flight.query, &e);
-                Some((Vec::new(), None))
-            }
-        };
-        match done {
-            Some((bytes, frame)) => {
-                let flight = flights.swap_remove(i);
-                if !bytes.is_empty() {
-                    answers.push(Answer {
-                        query: flight.query,
-                        bytes,
-                        frame,
-                    });
+            Err(e) => Err(refused(
+                query,
+                format!("cannot send the request to the server: {e:?}"),
+            )),
+        }
+    }
+
+    /// Whether answers are awaited.
+    fn busy(&self) -> bool {
+        !self.0.is_empty()
+    }
+
+    /// Moves the answers that finished to `answers`; requests that timed
+    /// out or lost the server are answered with an error.
+    fn drain<T>(
+        &mut self,
+        mut receive: impl FnMut(&P) -> Result<Option<T>, String>,
+        mut finish: impl FnMut(&Query, T) -> Option<(Vec<u8>, Option<u64>)>,
+        connected: impl Fn(&P) -> bool,
+        answers: &mut Vec<Answer>,
+    ) {
+        let flights = &mut self.0;
+        let mut i = 0;
+        while i < flights.len() {
+            let flight = &flights[i];
+            // Asked before receiving: a server that answers and then lets go
+            // of the request between the two calls is not taken for gone.
+            let connected = connected(&flight.pending);
+            let done = match receive(&flight.pending) {
+                Ok(Some(answer)) => finish(&flight.query, answer),
+                Ok(None) if !connected => {
+                    refuse(&flight.query, "the server of the world is gone");
+                    Some((Vec::new(), None))
                 }
+                Ok(None) if flight.since.elapsed() > ANSWER_TIMEOUT => {
+                    refuse(&flight.query, "the server did not answer in time");
+                    Some((Vec::new(), None))
+                }
+                Ok(None) => None,
+                Err(e) => {
+                    refuse(&flight.query, &e);
+                    Some((Vec::new(), None))
+                }
+            };
+            match done {
+                Some((bytes, frame)) => {
+                    let flight = flights.swap_remove(i);
+                    if !bytes.is_empty() {
+                        answers.push(Answer {
+                            query: flight.query,
+                            bytes,
+                            frame,
+                        });
+                    }
+                }
+                None => i += 1,
             }
-            None => i += 1,
         }
     }
 }
 
+impl<P> std::fmt::Debug for Flights<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} in flight", self.0.len())
+    }
+}
+
 /// A fixed-size request waiting for its answer.
-type Flight<Req, Resp> = InFlight<PendingResponse<Bus, Req, (), Resp, ()>>;
+type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
 
 /// A forwarded service of fixed-size requests and answers.
 pub(super) struct FixedRelay<Req, Resp>
@@ -131,7 +177,7 @@ where
     Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
 {
     client: RequestClient<Bus, Req, (), Resp, ()>,
-    flights: Vec<Flight<Req, Resp>>,
+    flights: Flights<Pending<Req, Resp>>,
 }
 
 impl<Req, Resp> FixedRelay<Req, Resp>
@@ -152,7 +198,7 @@ where
             .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
         Ok(Self {
             client,
-            flights: Vec::new(),
+            flights: Flights::default(),
         })
     }
 
@@ -163,20 +209,7 @@ where
 
     /// Sends `request`; its answer will go to `query`.
     pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), Refused> {
-        match self.client.send_copy(request) {
-            Ok(pending) => {
-                self.flights.push(InFlight {
-                    pending,
-                    query,
-                    since: Instant::now(),
-                });
-                Ok(())
-            }
-            Err(e) => Err(refused(
-                query,
-                format!("cannot send the request to the server: {e:?}"),
-            )),
-        }
+        self.flights.admit(self.client.send_copy(request), query)
     }
 
     /// Sends `request` without awaiting its answer.
@@ -189,7 +222,7 @@ where
 
     /// Whether answers are awaited.
     pub(super) fn busy(&self) -> bool {
-        !self.flights.is_empty()
+        self.flights.busy()
     }
 
     /// Moves the final answers that came to `answers`; an interim answer
@@ -200,8 +233,7 @@ where
         frame_of: impl Fn(&Resp) -> Option<u64>,
         answers: &mut Vec<Answer>,
     ) {
-        drain(
-            &mut self.flights,
+        self.flights.drain(
             |p| {
                 p.receive()
                     .map(|r| r.map(|r| *r.payload()))
@@ -228,7 +260,7 @@ where
 {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("FixedRelay")
-            .field("in_flight", &self.flights.len())
+            .field("flights", &self.flights)
             .finish()
     }
 }
@@ -251,7 +283,7 @@ type PendingBatch =
 /// one result per command.
 pub(super) struct BatchRelay {
     client: BatchPort,
-    flights: Vec<InFlight<PendingBatch>>,
+    flights: Flights<PendingBatch>,
 }
 
 /// The most commands one forwarded batch may hold.
@@ -274,7 +306,7 @@ impl BatchRelay {
             .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
         Ok(Self {
             client,
-            flights: Vec::new(),
+            flights: Flights::default(),
         })
     }
 
@@ -289,39 +321,25 @@ impl BatchRelay {
         let sent = self
             .client
             .loan_slice_uninit(commands.len())
-            .map_err(|e| format!("{e:?}"))
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
             .and_then(|mut request| {
                 *request.user_header_mut() = header;
                 request
                     .write_from_slice(&commands)
                     .send()
-                    .map_err(|e| format!("{e:?}"))
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))
             });
-        match sent {
-            Ok(pending) => {
-                self.flights.push(InFlight {
-                    pending,
-                    query,
-                    since: Instant::now(),
-                });
-                Ok(())
-            }
-            Err(e) => Err(refused(
-                query,
-                format!("cannot send the batch to the server: {e}"),
-            )),
-        }
+        self.flights.admit(sent, query)
     }
 
     /// Whether answers are awaited.
     pub(super) fn busy(&self) -> bool {
-        !self.flights.is_empty()
+        self.flights.busy()
     }
 
     /// Moves the answers that came to `answers`.
     pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        drain(
-            &mut self.flights,
+        self.flights.drain(
             |p| {
                 p.receive()
                     .map(|r| {
@@ -345,7 +363,7 @@ impl BatchRelay {
 impl std::fmt::Debug for BatchRelay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("BatchRelay")
-            .field("in_flight", &self.flights.len())
+            .field("flights", &self.flights)
             .finish()
     }
 }
@@ -356,7 +374,7 @@ type PendingSensors = PendingResponse<Bus, SensorRequest, (), [SensorInfo], Sens
 /// The sensor service: a request, answered by a header and sensor infos.
 pub(super) struct SensorRelay {
     client: SensorPort,
-    flights: Vec<InFlight<PendingSensors>>,
+    flights: Flights<PendingSensors>,
 }
 
 impl SensorRelay {
@@ -373,7 +391,7 @@ impl SensorRelay {
             .map_err(|e| anyhow::anyhow!("client of {name}: {e:?}"))?;
         Ok(Self {
             client,
-            flights: Vec::new(),
+            flights: Flights::default(),
         })
     }
 
@@ -383,31 +401,17 @@ impl SensorRelay {
             Ok(request) => request,
             Err(e) => return Err(refused(query, format!("malformed sensor request: {e}"))),
         };
-        match self.client.send_copy(request) {
-            Ok(pending) => {
-                self.flights.push(InFlight {
-                    pending,
-                    query,
-                    since: Instant::now(),
-                });
-                Ok(())
-            }
-            Err(e) => Err(refused(
-                query,
-                format!("cannot send the request to the server: {e:?}"),
-            )),
-        }
+        self.flights.admit(self.client.send_copy(request), query)
     }
 
     /// Whether answers are awaited.
     pub(super) fn busy(&self) -> bool {
-        !self.flights.is_empty()
+        self.flights.busy()
     }
 
     /// Moves the answers that came to `answers`.
     pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        drain(
-            &mut self.flights,
+        self.flights.drain(
             |p| {
                 p.receive()
                     .map(|r| {
@@ -429,7 +433,7 @@ impl SensorRelay {
 impl std::fmt::Debug for SensorRelay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SensorRelay")
-            .field("in_flight", &self.flights.len())
+            .field("flights", &self.flights)
             .finish()
     }
 }

@@ -150,6 +150,10 @@ mod tests {
             ResponseStatus::from_u32(9),
             Some(ResponseStatus::NotParticipant)
         );
-        assert_eq!(ResponseStatus::from_u32(13), None);
+        assert_eq!(
+            ResponseStatus::from_u32(13),
+            Some(ResponseStatus::Unreachable)
+        );
+        assert_eq!(ResponseStatus::from_u32(14), None);
     }
 }

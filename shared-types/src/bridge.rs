@@ -355,8 +355,13 @@ mod tests {
         assert_eq!(offset_of!(FrameHeader, flags), after_settings + 4);
         assert_eq!(offset_of!(FrameHeader, first_actor_id), after_settings + 8);
         assert_eq!(offset_of!(FrameHeader, server_pid), after_settings + 16);
-        assert_eq!(FRAME_HEADER_BYTES, after_settings + 24);
-        assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 96));
+        assert_eq!(offset_of!(FrameHeader, recorded_frame), after_settings + 24);
+        assert_eq!(
+            offset_of!(FrameHeader, recorded_elapsed_ns),
+            after_settings + 32
+        );
+        assert_eq!(FRAME_HEADER_BYTES, after_settings + 40);
+        assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 112));
         let settings = offset_of!(FrameHeader, settings);
         assert_eq!(
             settings + offset_of!(crate::WireSettings, fixed_delta_seconds),

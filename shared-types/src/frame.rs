@@ -43,7 +43,7 @@ pub fn nanos_to_seconds(nanos: u64) -> f64 {
 /// The user header of every frame sample.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::FrameHeader/2")]
+#[type_name("simbus::FrameHeader/3")]
 pub struct FrameHeader {
     /// [`crate::PROTOCOL_VERSION`] of the server that wrote the frame.
     pub protocol_version: u32,
@@ -69,6 +69,14 @@ pub struct FrameHeader {
     pub server_pid: u32,
     /// Zero.
     pub reserved: u32,
+    /// A replayed frame ([`FrameHeader::REPLAY`]): the id the frame had in
+    /// the recording (`timestamp.frame` is the server's own, next id: frame
+    /// ids on the bus never go back). Zero for a live frame.
+    pub recorded_frame: u64,
+    /// A replayed frame: its simulation time in the recording, nanoseconds
+    /// (`timestamp.elapsed_ns` is the server's own time, which goes on).
+    /// Zero for a live frame.
+    pub recorded_elapsed_ns: u64,
 }
 
 impl FrameHeader {
@@ -77,6 +85,26 @@ impl FrameHeader {
     pub const SUBSTEPS_CAPPED: u32 = 1;
     /// Flag: the frame is a replay of a recording (not computed live).
     pub const REPLAY: u32 = 2;
+
+    /// Whether the frame is a replay of a recording.
+    pub fn is_replay(&self) -> bool {
+        self.flags & Self::REPLAY != 0
+    }
+
+    /// The frame's own identity: for a replayed frame the frame id and
+    /// simulation time it had in the recording, for a live one its
+    /// timestamp's. A replay digests like the frames it replays.
+    pub fn source_timestamp(&self) -> Timestamp {
+        if self.is_replay() {
+            Timestamp {
+                frame: self.recorded_frame,
+                elapsed_ns: self.recorded_elapsed_ns,
+                ..self.timestamp
+            }
+        } else {
+            self.timestamp
+        }
+    }
 }
 
 wire_enum! {
@@ -161,7 +189,7 @@ mod tests {
     fn layouts_have_no_padding_and_fixed_sizes() {
         // Pod derives already refuse padding; the sizes are part of the protocol.
         assert_eq!(std::mem::size_of::<Timestamp>(), 32);
-        assert_eq!(std::mem::size_of::<FrameHeader>(), 96);
+        assert_eq!(std::mem::size_of::<FrameHeader>(), 112);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
     }
 

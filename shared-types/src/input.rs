@@ -1,27 +1,146 @@
-//! Checked conversions of numbers people type (seconds, rates, counts) into
-//! the values simbus uses. Both command lines parse their flags with these,
-//! so a bad value is refused with the same words everywhere, before anything
-//! changes, instead of panicking in a conversion.
+//! Checked conversions of numbers people type (seconds, rates, counts,
+//! positions) into the values simbus uses. Both command lines parse every
+//! numeric flag with one of these, so a bad value (NaN, ±inf, a zero that
+//! would mean nothing, an absurd magnitude) is refused with the flag and
+//! its range named, exit 2, before anything starts or changes — instead of
+//! panicking in a conversion or being sent to a server.
 //!
-//! Each function has the shape clap's `value_parser` takes.
+//! Each function has the shape clap's `value_parser` takes; each states
+//! its range once, in the constants below or in the limits it cites.
 //!
 //! ```
-//! use shared_types::input::{timeout, max_substeps};
+//! use shared_types::input::{timeout, max_substeps, fps, Readable};
 //!
 //! assert_eq!(timeout("2.5").unwrap().as_millis(), 2500);
 //! assert!(timeout("1e20").unwrap_err().contains("at most"));
 //! assert!(max_substeps("-1").unwrap_err().contains("1..=16"));
+//! assert!(fps("1e-300").unwrap_err().contains("0.000277778..=1e6"));
+//! assert_eq!(Readable(1.0 / 30.0).to_string(), "0.0333333");
 //! ```
 
+use std::fmt;
+use std::ops::RangeInclusive;
 use std::time::Duration;
 
-use crate::limits::MAX_WAIT_SECONDS;
-use crate::MAX_SUBSTEPS_LIMIT;
+use crate::limits::{
+    MAX_ACTOR_POSITION, MAX_MAX_CLIENTS, MAX_MAX_SENSOR_READERS, MAX_WAIT_SECONDS,
+};
+use crate::recording::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
+use crate::{
+    WorldSettings, MAX_DELTA_SECONDS, MAX_SENSOR_TICK_SECONDS, MAX_SUBSTEPS_LIMIT,
+    MIN_DELTA_SECONDS,
+};
+
+/// The highest rate any flag accepts (`--rate`, `--max-fps`, `--max-hz`,
+/// `--rotation-frequency`): one per microsecond, the shortest step the
+/// clock keeps ([`MIN_DELTA_SECONDS`]).
+pub const MAX_RATE_HZ: f64 = 1e6;
+/// The longest `--hybrid-window-us`: a server polls at most one second
+/// after a frame before it sleeps.
+pub const MAX_HYBRID_WINDOW_MICROS: u64 = 1_000_000;
+/// The slowest replay time factor.
+pub const MIN_TIME_FACTOR: f64 = 1e-3;
+/// The fastest replay time factor.
+pub const MAX_TIME_FACTOR: f64 = 1e3;
+/// The longest sensor range or distance a flag accepts, metres (ten times
+/// the world's reach, [`MAX_ACTOR_POSITION`]).
+pub const MAX_DISTANCE_METRES: f64 = 1e6;
+/// The most lidar channels (as [`crate::SensorSpec::check`] allows).
+pub const MAX_LIDAR_CHANNELS: u32 = 256;
+/// The most lidar points per channel (as [`crate::SensorSpec::check`] allows).
+pub const MAX_LIDAR_POINTS: u32 = 65_536;
+/// The shortest `top --interval`, seconds.
+pub const MIN_REFRESH_SECONDS: f64 = 0.05;
+/// The longest `top --interval`, seconds.
+pub const MAX_REFRESH_SECONDS: f64 = 3600.0;
+
+/// A number as people read it back: at most six significant digits,
+/// trailing zeros dropped, in exponent form below 1e-4 and from 1e6 on
+/// (`0.0333333`, `0.05`, `3600`, `1e300`), never 300 digits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Readable(pub f64);
+
+impl fmt::Display for Readable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        if !x.is_finite() || x == 0.0 {
+            return write!(f, "{x}");
+        }
+        let magnitude = x.abs();
+        if (1e-4..1e6).contains(&magnitude) {
+            let decimals = (5 - magnitude.log10().floor() as i32).max(0) as usize;
+            let text = format!("{x:.decimals$}");
+            let text = if text.contains('.') {
+                text.trim_end_matches('0').trim_end_matches('.')
+            } else {
+                &text
+            };
+            f.write_str(text)
+        } else {
+            let text = format!("{x:.5e}");
+            match text.split_once('e') {
+                Some((mantissa, exponent)) if mantissa.contains('.') => {
+                    let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+                    write!(f, "{mantissa}e{exponent}")
+                }
+                _ => f.write_str(&text),
+            }
+        }
+    }
+}
+
+/// A number exactly as it is (the shortest text that reads back as the
+/// same `f64`), in exponent form below 1e-4 and from 1e6 on: for errors,
+/// where a rounded value could hide why it was refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exact(pub f64);
+
+impl fmt::Display for Exact {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        if x.is_finite() && x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+            write!(f, "{x:e}")
+        } else {
+            write!(f, "{x}")
+        }
+    }
+}
 
 fn number(text: &str) -> Result<f64, String> {
     text.trim()
         .parse::<f64>()
         .map_err(|_| format!("'{text}' is not a number"))
+}
+
+/// A finite number in `range`, or an error stating the range in `unit`.
+fn real_in(text: &str, range: RangeInclusive<f64>, unit: &str) -> Result<f64, String> {
+    let value = number(text)?;
+    if value.is_finite() && range.contains(&value) {
+        return Ok(value);
+    }
+    Err(format!(
+        "must be a finite number{unit} in {}..={}, got {text}",
+        Readable(*range.start()),
+        Readable(*range.end())
+    ))
+}
+
+/// A whole number in `range` (a decimal point, an exponent or a sign that
+/// takes it out of range is refused with the range named).
+fn whole_in(text: &str, range: RangeInclusive<u64>) -> Result<u64, String> {
+    let (start, end) = (*range.start(), *range.end());
+    let out_of_range = || {
+        if end == u64::MAX {
+            format!("must be a whole number >= {start}, got {text}")
+        } else {
+            format!("must be a whole number in {start}..={end}, got {text}")
+        }
+    };
+    let value: i128 = text.trim().parse().map_err(|_| out_of_range())?;
+    u64::try_from(value)
+        .ok()
+        .filter(|n| range.contains(n))
+        .ok_or_else(out_of_range)
 }
 
 /// A wait in seconds: finite, positive, at most [`MAX_WAIT_SECONDS`].
@@ -49,13 +168,18 @@ pub fn wait(seconds: f64) -> Result<Duration, String> {
     Ok(Duration::from_secs_f64(seconds))
 }
 
-/// A rate in hertz whose period a clock can wait for (at most one tick per
-/// [`MAX_WAIT_SECONDS`]).
+/// A rate in hertz: positive, at most [`MAX_RATE_HZ`], and with a period a
+/// clock can wait for (at most one tick per [`MAX_WAIT_SECONDS`]).
 pub fn rate(text: &str) -> Result<f64, String> {
     let hz = number(text)?;
     if !(hz.is_finite() && hz > 0.0) {
         return Err(format!(
-            "must be a positive, finite number of Hz, got {text}"
+            "must be a positive, finite number of Hz, at most {MAX_RATE_HZ:e}, got {text}"
+        ));
+    }
+    if hz > MAX_RATE_HZ {
+        return Err(format!(
+            "must be at most {MAX_RATE_HZ:e} Hz (one per microsecond), got {text}"
         ));
     }
     wait(1.0 / hz).map_err(|_| {
@@ -67,11 +191,19 @@ pub fn rate(text: &str) -> Result<f64, String> {
     Ok(hz)
 }
 
+/// A rate limit in hertz: 0 (no limit) or a [`rate`].
+pub fn rate_limit(text: &str) -> Result<f64, String> {
+    match number(text)? {
+        0.0 => Ok(0.0),
+        _ => rate(text).map_err(|e| format!("{e} (or 0: no limit)")),
+    }
+}
+
 /// A simulation time in seconds the integer-nanosecond clock can reach:
 /// finite, `0..=18446744073` s.
 pub fn sim_time(text: &str) -> Result<f64, String> {
     let seconds = number(text)?;
-    if !(seconds.is_finite() && (0.0..=crate::MAX_SENSOR_TICK_SECONDS).contains(&seconds)) {
+    if !(seconds.is_finite() && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&seconds)) {
         return Err(format!(
             "must be a finite number of seconds in 0..=18446744073 (the clock's range), got {text}"
         ));
@@ -79,20 +211,104 @@ pub fn sim_time(text: &str) -> Result<f64, String> {
     Ok(seconds)
 }
 
-/// Any number of seconds, negative and non-finite included, for settings
-/// that the settings rules check themselves (their error names the rule).
+/// An offset in simulation seconds, negative counting from the end:
+/// finite, within the clock's range either way.
+pub fn sim_offset(text: &str) -> Result<f64, String> {
+    real_in(
+        text,
+        -MAX_SENSOR_TICK_SECONDS..=MAX_SENSOR_TICK_SECONDS,
+        " of seconds (negative: from the end)",
+    )
+}
+
+/// A sensor's capture period: 0 (every frame) or up to the clock's range.
+pub fn sensor_tick(text: &str) -> Result<f64, String> {
+    sim_time(text).map_err(|e| format!("{e}; 0 captures every frame"))
+}
+
+/// Any number of seconds, negative and non-finite included, for values
+/// that are checked later by rules that name themselves.
 pub fn seconds(text: &str) -> Result<f64, String> {
     number(text)
 }
 
+/// The settings' range of a fixed step, in words.
+fn step_range() -> String {
+    format!(
+        "a fixed step is {}..={} s",
+        Readable(MIN_DELTA_SECONDS),
+        Readable(MAX_DELTA_SECONDS)
+    )
+}
+
+/// `fixed_delta_seconds`: 0 (variable step) or a fixed step the settings
+/// accept ([`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`]); the error
+/// names the settings rule.
+pub fn fixed_delta_seconds(text: &str) -> Result<f64, String> {
+    let dt = number(text)?;
+    let settings = WorldSettings {
+        fixed_delta_seconds: Some(dt),
+        substepping: false,
+        ..WorldSettings::default()
+    };
+    settings
+        .validate()
+        .map_err(|e| format!("{e}; 0 means variable step, {}", step_range()))?;
+    Ok(dt)
+}
+
+/// A fixed step that must be fixed (no 0): [`MIN_DELTA_SECONDS`]`..=`
+/// [`MAX_DELTA_SECONDS`].
+pub fn fixed_step(text: &str) -> Result<f64, String> {
+    match fixed_delta_seconds(text)? {
+        0.0 => Err(format!(
+            "must be a fixed step ({}), got {text}",
+            step_range()
+        )),
+        dt => Ok(dt),
+    }
+}
+
+/// `fps`: 0 (variable step) or a rate whose step `1/fps` the settings
+/// accept, i.e. `1/`[`MAX_DELTA_SECONDS`]`..=1/`[`MIN_DELTA_SECONDS`].
+pub fn fps(text: &str) -> Result<f64, String> {
+    let fps = number(text)?;
+    let range = || {
+        format!(
+            "it must be 0 (variable step) or in {}..={} ({})",
+            Readable(1.0 / MAX_DELTA_SECONDS),
+            Readable(1.0 / MIN_DELTA_SECONDS),
+            step_range()
+        )
+    };
+    match WorldSettings::delta_from_fps(fps) {
+        Err(e) => Err(format!("{e}; {}", range())),
+        Ok(None) => Ok(0.0),
+        Ok(Some(dt)) if (MIN_DELTA_SECONDS..=MAX_DELTA_SECONDS).contains(&dt) => Ok(fps),
+        Ok(Some(_)) => Err(format!("fps = {} is out of range: {}", Exact(fps), range())),
+    }
+}
+
+/// `max_substep_delta_time`: [`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`].
+pub fn max_substep_delta_time(text: &str) -> Result<f64, String> {
+    let dt = number(text)?;
+    let settings = WorldSettings {
+        max_substep_delta_time: dt,
+        ..WorldSettings::default()
+    };
+    settings.validate().map_err(|e| {
+        format!(
+            "{e}; the range is {}..={} s",
+            Readable(MIN_DELTA_SECONDS),
+            Readable(MAX_DELTA_SECONDS)
+        )
+    })?;
+    Ok(dt)
+}
+
 /// `max_substeps`: a whole number in `1..=16`.
 pub fn max_substeps(text: &str) -> Result<u32, String> {
-    let out_of_range = || format!("must be a whole number in 1..={MAX_SUBSTEPS_LIMIT}, got {text}");
-    let value: i128 = text.trim().parse().map_err(|_| out_of_range())?;
-    u32::try_from(value)
-        .ok()
-        .filter(|n| (1..=MAX_SUBSTEPS_LIMIT).contains(n))
-        .ok_or_else(out_of_range)
+    whole_in(text, 1..=u64::from(MAX_SUBSTEPS_LIMIT)).map(|n| n as u32)
 }
 
 /// A whole number of microseconds, at most [`MAX_WAIT_SECONDS`].
@@ -109,6 +325,175 @@ pub fn micros(text: &str) -> Result<Duration, String> {
     Ok(Duration::from_micros(value))
 }
 
+/// A distance in metres: positive, finite and at most
+/// [`MAX_DISTANCE_METRES`] (`recorder blocked --min-distance`, sensor
+/// ranges).
+///
+/// ```
+/// use shared_types::input::metres;
+///
+/// assert_eq!(metres("0.1"), Ok(0.1));
+/// assert!(metres("NaN").unwrap_err().contains("positive, finite number of metres"));
+/// assert!(metres("0").is_err() && metres("inf").is_err() && metres("-1").is_err());
+/// ```
+pub fn metres(text: &str) -> Result<f64, String> {
+    let value = number(text)?;
+    if !(value.is_finite() && value > 0.0 && value <= MAX_DISTANCE_METRES) {
+        return Err(format!(
+            "must be a positive, finite number of metres, at most {}, got {text}",
+            Readable(MAX_DISTANCE_METRES)
+        ));
+    }
+    Ok(value)
+}
+
+/// `--hybrid-window-us`: `0..=`[`MAX_HYBRID_WINDOW_MICROS`] microseconds
+/// (0: sleep at once).
+pub fn hybrid_window(text: &str) -> Result<Duration, String> {
+    whole_in(text, 0..=MAX_HYBRID_WINDOW_MICROS)
+        .map(Duration::from_micros)
+        .map_err(|e| format!("{e} (microseconds; 0 sleeps at once)"))
+}
+
+/// `--keyframe-seconds`: simulation seconds between keyframes,
+/// [`MIN_KEYFRAME_SECONDS`]`..=`[`MAX_KEYFRAME_SECONDS`].
+pub fn keyframe_seconds(text: &str) -> Result<f64, String> {
+    real_in(
+        text,
+        MIN_KEYFRAME_SECONDS..=MAX_KEYFRAME_SECONDS,
+        " of seconds",
+    )
+}
+
+/// A count that must be at least 1 (`--max-frames`, `--frames`,
+/// `--captures`, `--every`: 0 would mean nothing).
+pub fn count(text: &str) -> Result<u64, String> {
+    whole_in(text, 1..=u64::MAX)
+}
+
+/// `--max-clients`: `1..=`[`MAX_MAX_CLIENTS`].
+pub fn max_clients(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=MAX_MAX_CLIENTS as u64).map(|n| n as usize)
+}
+
+/// `--max-sensor-readers`: `1..=`[`MAX_MAX_SENSOR_READERS`].
+pub fn max_sensor_readers(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=MAX_MAX_SENSOR_READERS as u64).map(|n| n as usize)
+}
+
+/// Lockstep participants to wait for: `0..=`[`MAX_MAX_CLIENTS`] (a world
+/// admits no more).
+pub fn participants(text: &str) -> Result<u32, String> {
+    whole_in(text, 0..=MAX_MAX_CLIENTS as u64).map(|n| n as u32)
+}
+
+/// A replay's time factor: [`MIN_TIME_FACTOR`]`..=`[`MAX_TIME_FACTOR`].
+pub fn time_factor(text: &str) -> Result<f64, String> {
+    real_in(
+        text,
+        MIN_TIME_FACTOR..=MAX_TIME_FACTOR,
+        " (times the recording's speed)",
+    )
+}
+
+/// `top --interval`: [`MIN_REFRESH_SECONDS`]`..=`[`MAX_REFRESH_SECONDS`].
+pub fn refresh_interval(text: &str) -> Result<f64, String> {
+    real_in(
+        text,
+        MIN_REFRESH_SECONDS..=MAX_REFRESH_SECONDS,
+        " of seconds",
+    )
+}
+
+/// A sensor's range, metres: a [`metres`] value.
+pub fn sensor_range(text: &str) -> Result<f32, String> {
+    metres(text).map(|m| m as f32)
+}
+
+/// A depth camera's horizontal field of view, degrees: above 0, below 180.
+pub fn field_of_view(text: &str) -> Result<f32, String> {
+    let degrees = number(text)?;
+    if degrees.is_finite() && degrees > 0.0 && degrees < 180.0 {
+        return Ok(degrees as f32);
+    }
+    Err(format!(
+        "must be a finite number of degrees above 0 and below 180, got {text}"
+    ))
+}
+
+/// A lidar's channel count: `1..=`[`MAX_LIDAR_CHANNELS`].
+pub fn lidar_channels(text: &str) -> Result<u32, String> {
+    whole_in(text, 1..=u64::from(MAX_LIDAR_CHANNELS)).map(|n| n as u32)
+}
+
+/// A lidar's points per channel: `1..=`[`MAX_LIDAR_POINTS`].
+pub fn lidar_points(text: &str) -> Result<u32, String> {
+    whole_in(text, 1..=u64::from(MAX_LIDAR_POINTS)).map(|n| n as u32)
+}
+
+/// A lidar's rotation frequency: 0 (a full turn every capture) up to
+/// [`MAX_RATE_HZ`].
+pub fn rotation_frequency(text: &str) -> Result<f32, String> {
+    real_in(
+        text,
+        0.0..=MAX_RATE_HZ,
+        " of Hz (0: a full turn every capture)",
+    )
+    .map(|hz| hz as f32)
+}
+
+/// The most pixels on each side of a depth image (as
+/// [`crate::SensorSpec::check`] allows).
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
+/// An image size `W,H` in pixels, each a whole number in
+/// `1..=`[`MAX_IMAGE_SIDE`] (the spec's check bounds their product).
+pub fn image_size(text: &str) -> Result<[u32; 2], String> {
+    let refused = || {
+        format!("must be W,H: two whole numbers of pixels in 1..={MAX_IMAGE_SIDE}, got '{text}'")
+    };
+    let sides: Vec<u32> = text
+        .split(',')
+        .map(|part| {
+            whole_in(part, 1..=u64::from(MAX_IMAGE_SIDE))
+                .ok()
+                .map(|n| n as u32)
+        })
+        .collect::<Option<_>>()
+        .ok_or_else(refused)?;
+    sides.try_into().map_err(|_| refused())
+}
+
+/// A position `x,y,z` in metres, each within ±[`MAX_ACTOR_POSITION`] of
+/// the origin (the world's reach).
+pub fn position(text: &str) -> Result<[f32; 3], String> {
+    let refused = || {
+        format!(
+            "must be x,y,z: three finite numbers within +-{MAX_ACTOR_POSITION} m of the origin, got '{text}'"
+        )
+    };
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|part| number(part).ok())
+        .collect::<Option<_>>()
+        .ok_or_else(refused)?;
+    let limit = f64::from(MAX_ACTOR_POSITION);
+    let [x, y, z]: [f64; 3] = values.try_into().map_err(|_| refused())?;
+    if [x, y, z].iter().all(|v| v.is_finite() && v.abs() <= limit) {
+        Ok([x as f32, y as f32, z as f32])
+    } else {
+        Err(refused())
+    }
+}
+
+/// A scene name (`default`, `empty` or `boxes:N`, N in
+/// `1..=`[`crate::scene::MAX_SCENE_BOXES`]), checked as the server reads it.
+pub fn scene(text: &str) -> Result<String, String> {
+    text.parse::<crate::scene::SceneName>()
+        .map(|name| name.to_string())
+        .map_err(|e| e.to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,15 +507,79 @@ mod tests {
         assert!(timeout("inf").is_err());
         assert_eq!(timeout("1e9").unwrap(), Duration::from_secs(1_000_000_000));
         assert!(rate("1e-30").unwrap_err().contains("one tick every"));
+        assert!(rate("1e300").unwrap_err().contains("at most 1e6 Hz"));
         assert_eq!(rate("20").unwrap(), 20.0);
+        assert_eq!(rate_limit("0").unwrap(), 0.0);
+        assert!(rate_limit("NaN").is_err());
         assert!(sim_time("inf").unwrap_err().contains("finite"));
         assert!(sim_time("-1").is_err());
         assert_eq!(sim_time("2.5").unwrap(), 2.5);
+        assert_eq!(sim_offset("-2.5").unwrap(), -2.5);
+        assert!(sim_offset("-1e300").is_err());
         assert!(max_substeps("-1").unwrap_err().contains("1..=16"));
         assert!(max_substeps("17").is_err());
         assert!(max_substeps("99999999999999999999").is_err());
         assert_eq!(max_substeps("16").unwrap(), 16);
         assert!(wait(1e30).is_err());
         assert!(micros("-5").is_err());
+        assert!(hybrid_window("99999999999")
+            .unwrap_err()
+            .contains("0..=1000000"));
+        assert_eq!(hybrid_window("0").unwrap(), Duration::ZERO);
+        assert!(keyframe_seconds("NaN").is_err());
+        assert!(keyframe_seconds("0").is_err());
+        assert_eq!(keyframe_seconds("10").unwrap(), 10.0);
+        assert!(count("0").unwrap_err().contains(">= 1"));
+        assert_eq!(count("3").unwrap(), 3);
+        assert!(max_clients("0").unwrap_err().contains("1..=1024"));
+        assert!(field_of_view("180").is_err());
+        assert!(sensor_range("1e300").is_err());
+        assert!(position("1e9,0,0").unwrap_err().contains("+-100000 m"));
+        assert!(position("NaN,0,0").is_err());
+        assert!(position("1,2").is_err());
+        assert_eq!(position("-1, 2,3").unwrap(), [-1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn settings_flags_name_their_rule_and_range() {
+        assert_eq!(fixed_delta_seconds("0").unwrap(), 0.0);
+        let huge = fixed_delta_seconds("1e300").unwrap_err();
+        assert!(
+            huge.contains("1e300 s is longer than the maximum of 3600 s"),
+            "{huge}"
+        );
+        assert!(huge.len() < 200, "no 300-digit numbers: {huge}");
+        assert!(fixed_delta_seconds("-1").unwrap_err().contains("negative"));
+        assert!(fixed_delta_seconds("NaN")
+            .unwrap_err()
+            .contains("not a finite number"));
+        assert!(fixed_step("0").unwrap_err().contains("1e-6..=3600 s"));
+        assert_eq!(fps("0").unwrap(), 0.0);
+        assert_eq!(fps("30").unwrap(), 30.0);
+        let tiny = fps("1e-300").unwrap_err();
+        assert!(tiny.contains("fps = 1e-300 is out of range"), "{tiny}");
+        assert!(tiny.contains("0.000277778..=1e6"), "{tiny}");
+        assert!(fps("1e300").is_err());
+        assert!(fps("-20").unwrap_err().contains("fps = -20 is negative"));
+        assert!(max_substep_delta_time("0")
+            .unwrap_err()
+            .contains("1e-6..=3600 s"));
+    }
+
+    #[test]
+    fn numbers_read_back_readably() {
+        assert_eq!(Readable(1.0 / 30.0).to_string(), "0.0333333");
+        assert_eq!(Readable(0.05).to_string(), "0.05");
+        assert_eq!(Readable(3600.0).to_string(), "3600");
+        assert_eq!(Readable(1e300).to_string(), "1e300");
+        assert_eq!(Readable(1e-6).to_string(), "1e-6");
+        assert_eq!(Readable(1.0 / 3600.0).to_string(), "0.000277778");
+        assert_eq!(Readable(0.0).to_string(), "0");
+        assert_eq!(Readable(f64::NAN).to_string(), "NaN");
+        assert_eq!(Exact(1e300).to_string(), "1e300");
+        assert_eq!(
+            Exact(0.03333333333333333).to_string(),
+            "0.03333333333333333"
+        );
     }
 }

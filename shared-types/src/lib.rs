@@ -43,6 +43,7 @@ mod lockstep;
 mod names;
 mod recorder;
 pub mod recording;
+pub mod scene;
 pub use recorder::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
     ReplayState,
@@ -83,7 +84,7 @@ pub use wire::UnknownWireValue;
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// This process's id, read once: every request carries it, and asking the
 /// kernel for it on every request would be a syscall on the hot path.

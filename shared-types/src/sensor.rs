@@ -75,6 +75,13 @@ pub enum SensorSpecError {
     /// Position, rotation and parameters must be finite numbers.
     #[error("position, rotation and parameters must be finite numbers")]
     NotFinite,
+    /// The position must be within ±[`crate::limits::MAX_ACTOR_POSITION`] m
+    /// on each axis (of its actor, or of the origin), as actors must.
+    #[error(
+        "position must be within +-{} m on each axis (of its actor, or of the origin)",
+        crate::limits::MAX_ACTOR_POSITION
+    )]
+    Position,
     /// `sensor_tick` must be a finite number of seconds in 0..=18446744073 (the clock's range).
     #[error(
         "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)"
@@ -219,6 +226,10 @@ impl SensorSpec {
             .all(|v| v.is_finite());
         if !finite {
             return Err(SensorSpecError::NotFinite);
+        }
+        let reach = crate::limits::MAX_ACTOR_POSITION;
+        if self.position.iter().any(|v| v.abs() > reach) {
+            return Err(SensorSpecError::Position);
         }
         if !(self.sensor_tick.is_finite()
             && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&self.sensor_tick))
@@ -492,6 +503,14 @@ mod tests {
             .is_err());
         assert!(SensorSpec::imu([f32::NAN, 0.0, 0.0]).check().is_err());
         assert!(SensorSpec::imu([0.0; 3]).every(-1.0).check().is_err());
+        // Issue #24: sensors are kept within the world's reach, as actors are.
+        assert_eq!(
+            SensorSpec::imu([1e9, 0.0, 0.0]).check(),
+            Err(SensorSpecError::Position)
+        );
+        assert!(SensorSpec::imu([0.0, -100_000.0, 100_000.0])
+            .check()
+            .is_ok());
         assert_eq!(SensorSpec::depth([0.0; 3], 4, 3, 60.0, 10.0).elements(), 12);
         // 2048 x 1024 x 4 B = 8 MiB is fine; 8192 x 8192 x 4 B = 256 MiB is not.
         assert!(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 10.0)

@@ -143,7 +143,7 @@ impl fmt::Display for SettingsField {
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum SettingsError {
     /// A value is NaN or infinite.
-    #[error("{field} = {value} is not a finite number")]
+    #[error("{field} = {} is not a finite number", crate::input::Exact(*value))]
     NotFinite {
         /// The setting.
         field: SettingsField,
@@ -151,7 +151,7 @@ pub enum SettingsError {
         value: f64,
     },
     /// A value is negative.
-    #[error("{field} = {value} is negative; {}", field.sign_rule())]
+    #[error("{field} = {} is negative; {}", crate::input::Exact(*value), field.sign_rule())]
     Negative {
         /// The setting.
         field: SettingsField,
@@ -159,7 +159,11 @@ pub enum SettingsError {
         value: f64,
     },
     /// A time is shorter than [`MIN_DELTA_SECONDS`].
-    #[error("{field} = {value} s is shorter than the minimum of {min} s")]
+    #[error(
+        "{field} = {} s is shorter than the minimum of {} s",
+        crate::input::Exact(*value),
+        crate::input::Exact(*min)
+    )]
     TooSmall {
         /// The setting.
         field: SettingsField,
@@ -169,7 +173,11 @@ pub enum SettingsError {
         min: f64,
     },
     /// A time is longer than [`MAX_DELTA_SECONDS`].
-    #[error("{field} = {value} s is longer than the maximum of {max} s")]
+    #[error(
+        "{field} = {} s is longer than the maximum of {} s",
+        crate::input::Exact(*value),
+        crate::input::Exact(*max)
+    )]
     TooLarge {
         /// The setting.
         field: SettingsField,

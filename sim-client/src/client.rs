@@ -331,6 +331,12 @@ impl Client {
         scene: &str,
         reset_settings: bool,
     ) -> Result<StatusReport, LoadWorldError> {
+        if let Err(reason) = scene.parse::<shared_types::scene::SceneName>() {
+            return Err(LoadWorldError::UnknownScene {
+                scene: scene.to_owned(),
+                reason,
+            });
+        }
         self.load(
             ControlRequest::load_world(Some(scene), reset_settings),
             scene,
@@ -351,6 +357,12 @@ impl Client {
             Some(ResponseStatus::Ok) => Ok(response.report),
             Some(ResponseStatus::UnknownScene) => Err(LoadWorldError::UnknownScene {
                 scene: scene.to_owned(),
+                reason: scene
+                    .parse::<shared_types::scene::SceneName>()
+                    .err()
+                    .unwrap_or_else(|| {
+                        shared_types::scene::SceneNameError::Unknown(scene.to_owned())
+                    }),
             }),
             Some(ResponseStatus::LoadFailed) => Err(LoadWorldError::Failed {
                 world: self.world.to_string(),

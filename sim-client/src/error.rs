@@ -292,11 +292,14 @@ impl TickError {
 /// Why [`crate::Client::load_world`] or [`crate::Client::reload_world`] failed.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadWorldError {
-    /// The server knows no such scene; nothing changed.
-    #[error("unknown scene '{scene}': expected 'default', 'empty' or 'boxes:N'")]
+    /// No such scene (refused before asking, or by the server); nothing
+    /// changed. The reason states the rule (`boxes:N needs N in 1..=100000`).
+    #[error("{reason}")]
     UnknownScene {
         /// The scene asked for.
         scene: String,
+        /// Which rule of the scene grammar it breaks.
+        reason: shared_types::scene::SceneNameError,
     },
     /// `--reset-settings` while a ticker holds the world: only it changes
     /// settings; nothing changed.

@@ -25,10 +25,13 @@ pub struct FileInfo {
     pub header: RecordingHeader,
     /// Frames recorded.
     pub frames: u64,
-    /// First and last recorded frame ids.
+    /// The first recorded frame id (of the first episode: ids start again
+    /// with each episode, see `episode_list`).
     pub first_frame: u64,
-    /// The last.
+    /// The last recorded frame id (of the last episode).
     pub last_frame: u64,
+    /// The frames of each episode the recording covers, in order.
+    pub episode_list: Vec<EpisodeFrames>,
     /// Simulation seconds covered (summed over episodes).
     pub duration_seconds: f64,
     /// Episodes begun during the recording (loads and reloads).
@@ -57,14 +60,27 @@ pub struct FileInfo {
     pub raw_bytes: u64,
     /// `raw_bytes / bytes`.
     pub compression_ratio: f64,
-    /// The file was not closed (its server was killed): every complete
-    /// chunk was read.
+    /// The file is still being recorded, or was not closed (its server was
+    /// killed): every complete chunk was read.
     pub truncated: bool,
     /// Why the recording stopped, if it was closed.
     pub stopped: Option<String>,
     /// With `show_all`: every frame (id, time, delta, actors).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub frame_list: Vec<FrameLine>,
+}
+
+/// The frames one episode contributed to a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EpisodeFrames {
+    /// The episode.
+    pub episode: u64,
+    /// Its frames in the recording.
+    pub frames: u64,
+    /// Its first recorded frame id.
+    pub first_frame: u64,
+    /// Its last recorded frame id.
+    pub last_frame: u64,
 }
 
 /// One frame, for `recorder info --all`.
@@ -103,13 +119,21 @@ pub struct Collision {
     pub impulse: f32,
 }
 
-/// An actor that stayed (nearly) still (`recorder blocked`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Blocked {
+/// An actor that stayed (nearly) still at least once (`recorder blocked`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlockedActor {
     /// The actor.
     pub actor: u64,
     /// Its kind.
     pub kind: &'static str,
+    /// Each stretch in which it moved less than the distance for at least
+    /// the time, in order.
+    pub stretches: Vec<Blocked>,
+}
+
+/// One stretch in which an actor stayed (nearly) still.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Blocked {
     /// The frame it stopped at.
     pub frame: u64,
     /// When it stopped (recording seconds).
@@ -118,6 +142,23 @@ pub struct Blocked {
     pub duration_seconds: f64,
     /// How far it moved meanwhile, metres.
     pub distance: f32,
+}
+
+/// Why [`actors_blocked`] gave no answer.
+#[derive(Debug, thiserror::Error)]
+pub enum BlockedError {
+    /// `min_time` is not a finite number of seconds in the clock's range.
+    #[error(
+        "min_time must be a finite number of seconds in 0..={max}, got {0}",
+        max = shared_types::MAX_SENSOR_TICK_SECONDS
+    )]
+    MinTime(f64),
+    /// `min_distance` is not a positive, finite number of metres.
+    #[error("min_distance must be a positive, finite number of metres, got {0}")]
+    MinDistance(f64),
+    /// The recording cannot be read.
+    #[error(transparent)]
+    File(#[from] RecordingError),
 }
 
 fn kind_name(kind: u32) -> &'static str {
@@ -145,6 +186,7 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
         frames: 0,
         first_frame: 0,
         last_frame: 0,
+        episode_list: Vec::new(),
         duration_seconds: 0.0,
         episodes: 0,
         commands: 0,
@@ -176,6 +218,18 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
             }
             info.frames += 1;
             info.last_frame = t.frame;
+            match info.episode_list.last_mut() {
+                Some(e) if e.episode == header.episode => {
+                    e.frames += 1;
+                    e.last_frame = t.frame;
+                }
+                _ => info.episode_list.push(EpisodeFrames {
+                    episode: header.episode,
+                    frames: 1,
+                    first_frame: t.frame,
+                    last_frame: t.frame,
+                }),
+            }
             last_log = *log_ns;
             info.max_actors = info.max_actors.max(actors.len() as u64);
             info.raw_bytes +=
@@ -264,13 +318,14 @@ pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>
 }
 
 /// CARLA's `show_recorder_actors_blocked(name, min_time, min_distance)`:
-/// every stretch of at least `min_time` seconds in which a movable actor
-/// moved less than `min_distance` metres.
+/// every movable actor that, at least once, moved less than `min_distance`
+/// metres (positive, finite) for at least `min_time` seconds (finite, not
+/// negative), with each such stretch; actors in id order.
 pub fn actors_blocked(
     path: &str,
     min_time: f64,
-    min_distance: f32,
-) -> Result<Vec<Blocked>, RecordingError> {
+    min_distance: f64,
+) -> Result<Vec<BlockedActor>, BlockedError> {
     struct Still {
         kind: u32,
         since_ns: u64,
@@ -279,19 +334,32 @@ pub fn actors_blocked(
         last_ns: u64,
         moved: f32,
     }
-    let min_ns = (min_time.max(0.0) * NANOS_PER_SECOND as f64) as u64;
+    if !(min_time.is_finite() && (0.0..=shared_types::MAX_SENSOR_TICK_SECONDS).contains(&min_time))
+    {
+        return Err(BlockedError::MinTime(min_time));
+    }
+    if !(min_distance.is_finite() && min_distance > 0.0) {
+        return Err(BlockedError::MinDistance(min_distance));
+    }
+    let min_ns = (min_time * NANOS_PER_SECOND as f64) as u64;
+    let min_distance = min_distance as f32;
     let mut still: BTreeMap<u64, Still> = BTreeMap::new();
-    let mut out = Vec::new();
-    let close = |id: u64, s: &Still, out: &mut Vec<Blocked>| {
+    let mut out: BTreeMap<u64, BlockedActor> = BTreeMap::new();
+    let close = |id: u64, s: &Still, out: &mut BTreeMap<u64, BlockedActor>| {
         if s.last_ns.saturating_sub(s.since_ns) >= min_ns {
-            out.push(Blocked {
-                actor: id,
-                kind: kind_name(s.kind),
-                frame: s.since_frame,
-                from_seconds: seconds(s.since_ns),
-                duration_seconds: seconds(s.last_ns.saturating_sub(s.since_ns)),
-                distance: s.moved,
-            });
+            out.entry(id)
+                .or_insert_with(|| BlockedActor {
+                    actor: id,
+                    kind: kind_name(s.kind),
+                    stretches: Vec::new(),
+                })
+                .stretches
+                .push(Blocked {
+                    frame: s.since_frame,
+                    from_seconds: seconds(s.since_ns),
+                    duration_seconds: seconds(s.last_ns.saturating_sub(s.since_ns)),
+                    distance: s.moved,
+                });
         }
     };
     entries(path, |entry| {
@@ -330,10 +398,5 @@ pub fn actors_blocked(
     for (id, s) in &still {
         close(*id, s, &mut out);
     }
-    out.sort_by(|a, b| {
-        a.from_seconds
-            .total_cmp(&b.from_seconds)
-            .then(a.actor.cmp(&b.actor))
-    });
-    Ok(out)
+    Ok(out.into_values().collect())
 }

@@ -7,26 +7,34 @@ use clap::{Parser, Subcommand};
 use shared_types::{input, WorldName};
 use tracing_subscriber::EnvFilter;
 
+#[macro_use]
 mod cli;
+
+/// The heading of the options every subcommand takes, after its own.
+const GLOBAL: &str = "Global options";
 
 /// Watch, inspect and configure a simbus world.
 ///
 /// Every command talks to the server of one world (--world, or SIMBUS_WORLD).
 /// Start one with `sim-server`, or try everything at once with `sim-client demo`.
+///
+/// A closed stdout (`sim-client watch | head -1`) ends a command quietly
+/// with exit status 0, after it has put back what it changed (a ticker
+/// gives the world back, as `tick` promises).
 #[derive(Debug, Parser)]
 #[command(name = "sim-client", version)]
 struct Args {
     /// World to talk to [default: default; `demo`: a new world demo-<pid>].
-    #[arg(long, global = true, env = "SIMBUS_WORLD")]
+    #[arg(long, global = true, env = "SIMBUS_WORLD", help_heading = GLOBAL)]
     world: Option<WorldName>,
 
     /// Seconds to wait for the server to answer, and for each frame or
     /// capture a command waits for.
-    #[arg(long, global = true, value_name = "S", default_value = "5", allow_negative_numbers = true, value_parser = input::timeout)]
+    #[arg(long, global = true, value_name = "S", default_value = "5", allow_negative_numbers = true, value_parser = input::timeout, help_heading = GLOBAL)]
     timeout: Duration,
 
     /// More logging (-v debug, -vv trace); RUST_LOG overrides.
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, help_heading = GLOBAL)]
     verbose: u8,
 
     #[command(subcommand)]
@@ -73,9 +81,10 @@ enum Command {
     /// Claims tick ownership (only one client may tick: a second one is
     /// refused with the owner named), switches the world to synchronous mode
     /// with a fixed step and ticks. --count and --until-sim-time bound the
-    /// run, --rate paces it; without a bound it ticks until Ctrl-C. On exit
-    /// the world returns to asynchronous mode (unless --leave-sync) and
-    /// ownership is released.
+    /// run, --rate paces it; without a bound it ticks until Ctrl-C. However
+    /// it ends (a bound, Ctrl-C, SIGTERM, an error, a closed stdout, a
+    /// panic) the world gets its own step back and returns to asynchronous
+    /// mode (unless --leave-sync), and ownership is released.
     Tick(cli::tick::TickArgs),
     /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
     Spawn(cli::actors::SpawnArgs),
@@ -134,7 +143,10 @@ impl<E: Into<anyhow::Error>> From<E> for Failure {
 
 fn init_logging(verbose: u8) {
     let default = match verbose {
-        0 => "warn",
+        // Zenoh's own warnings (a connection being retried) are not the
+        // user's business unless asked for (-v, RUST_LOG): the bridge
+        // says itself what failed.
+        0 => "warn,zenoh=error",
         1 => "debug",
         _ => "trace",
     };
@@ -156,7 +168,7 @@ fn main() -> ExitCode {
         .clone()
         .unwrap_or_else(|| WorldName::new("default").expect("'default' is a valid world name"));
     let world = &world;
-    let result = match args.command {
+    let run = || match args.command {
         Command::Watch(a) => cli::watch::run(world, timeout, a),
         Command::Status(a) => cli::status::run(world, timeout, a),
         Command::Top(a) => cli::top::run(world, timeout, a),
@@ -174,6 +186,15 @@ fn main() -> ExitCode {
         Command::Recorder(a) => cli::recorder::run(world, timeout, a),
         Command::Replay(a) => cli::recorder::replay(world, timeout, a),
         Command::CarlaGateway(a) => cli::carla::run(world, timeout, a),
+    };
+    let result = match cli::output::run(run) {
+        cli::output::Ended::Returned(result) => result,
+        // Nobody reads any more: what the command changed is put back (its
+        // guards ran while it unwound); nothing to say, and nowhere to.
+        cli::output::Ended::StdoutClosed => Ok(()),
+        cli::output::Ended::StdoutFailed(e) => Err(Failure::Runtime(
+            anyhow::Error::from(e).context("writing to stdout"),
+        )),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

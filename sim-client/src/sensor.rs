@@ -102,6 +102,15 @@ pub enum SensorError {
     /// memory for its captures.
     #[error("sensor refused: {0}")]
     Refused(SensorRefusal),
+    /// No sensor has this id in the world: never spawned, or it has ended
+    /// (the server's [`SensorRefusal::UnknownSensor`], with the id asked for).
+    #[error("unknown sensor {id} in world '{world}' (never spawned, or it has ended)")]
+    UnknownSensor {
+        /// The sensor id asked for.
+        id: u64,
+        /// The world.
+        world: String,
+    },
     /// The request failed.
     #[error(transparent)]
     Request(#[from] RequestError),
@@ -513,7 +522,7 @@ impl Client {
         self.list_sensors()?
             .into_iter()
             .find(|s| s.id == id)
-            .ok_or(SensorError::Refused(SensorRefusal::UnknownSensor))
+            .ok_or_else(|| self.unknown_sensor(id))
     }
 
     /// Every sensor of the world.
@@ -527,12 +536,23 @@ impl Client {
 
     /// Removes sensor `id` from the world (CARLA's `sensor.stop()` + destroy).
     pub fn destroy_sensor(&self, id: u64) -> Result<(), SensorError> {
-        self.sensor_request(SensorRequest::new(
+        match self.sensor_request(SensorRequest::new(
             SensorRequestKind::Destroy,
             id,
             SensorSpec::default(),
-        ))
-        .map(drop)
+        )) {
+            Ok(_) => Ok(()),
+            Err(SensorError::Refused(SensorRefusal::UnknownSensor)) => Err(self.unknown_sensor(id)),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// [`SensorError::UnknownSensor`] for `id` in this client's world.
+    fn unknown_sensor(&self, id: u64) -> SensorError {
+        SensorError::UnknownSensor {
+            id,
+            world: self.world.as_str().to_owned(),
+        }
     }
 }
 

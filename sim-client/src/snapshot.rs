@@ -65,6 +65,13 @@ impl FrameView {
         self.header().settings.into()
     }
 
+    /// A replayed frame's id in the recording (see [`WorldSnapshot::recorded_frame`]).
+    pub fn recorded_frame(&self) -> Option<u64> {
+        self.header()
+            .is_replay()
+            .then_some(self.header().recorded_frame)
+    }
+
     /// The frame's digest (see [`WorldSnapshot::digest`]).
     pub fn digest(&self) -> u64 {
         digest(self.header(), self.actors())
@@ -83,8 +90,11 @@ impl FrameView {
 /// The digest of a frame: its id, simulation time and every actor's state,
 /// bit for bit (xxh3), with actor ids counted from the episode's first one,
 /// so a reloaded world (whose actors get new ids) digests like a fresh server.
+/// A replayed frame digests with the id and time it had in the recording
+/// ([`FrameHeader::source_timestamp`]), so a replay digests like the run it
+/// replays.
 fn digest(header: &FrameHeader, actors: &[ActorState]) -> u64 {
-    let t = &header.timestamp;
+    let t = &header.source_timestamp();
     let mut hasher = xxhash_rust::xxh3::Xxh3::new();
     hasher.update(&t.frame.to_le_bytes());
     hasher.update(&t.elapsed_ns.to_le_bytes());
@@ -133,10 +143,20 @@ impl WorldSnapshot {
         self.header.settings.into()
     }
 
+    /// For a replayed frame, the id it had in the recording (its own
+    /// [`WorldSnapshot::frame`] is the server's next id, as in CARLA: frame
+    /// ids never go back); `None` for a live frame.
+    pub fn recorded_frame(&self) -> Option<u64> {
+        self.header
+            .is_replay()
+            .then_some(self.header.recorded_frame)
+    }
+
     /// A 64-bit digest of the frame: its id, simulation time and every
     /// actor's state, bit for bit (xxh3), with actor ids counted from the
     /// episode's first actor id. Two runs that print the same
-    /// digests frame after frame computed identical worlds.
+    /// digests frame after frame computed identical worlds. A replayed
+    /// frame digests with its recorded id and time, like the frame it replays.
     pub fn digest(&self) -> u64 {
         digest(&self.header, &self.actors)
     }

@@ -28,32 +28,33 @@ pub struct ServerArgs {
     #[arg(long, env = "SIMBUS_WORLD", default_value = "default")]
     pub world: WorldName,
 
-    /// Scene to load: default, empty or boxes:N.
+    /// Scene to load: default, empty or boxes:N (N in 1..=100000).
     #[arg(long, default_value = "default")]
     pub scene: Scene,
 
-    /// Fixed time-step in seconds (0 = variable step). Also spelled
-    /// --fixed-delta-seconds, CARLA's name.
+    /// Fixed time-step in seconds: 1e-6..=3600 (0 = variable step). Also
+    /// spelled --fixed-delta-seconds, CARLA's name.
     #[arg(
         long = "delta-seconds",
         visible_alias = "fixed-delta-seconds",
         value_name = "S",
         conflicts_with = "fps",
         allow_negative_numbers = true,
-        value_parser = input::seconds
+        value_parser = input::fixed_delta_seconds
     )]
     pub fixed_delta_seconds: Option<f64>,
 
-    /// Fixed time-step as frames per simulated second (dt = 1/N; 0 = variable).
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step as frames per simulated second (dt = 1/N, so N in
+    /// 0.000277778..=1e6; 0 = variable).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
     pub fps: Option<f64>,
 
     /// Run each frame as one physics step, however long.
     #[arg(long)]
     pub no_substepping: bool,
 
-    /// Longest physics substep in seconds.
-    #[arg(long, value_name = "S", default_value_t = 0.01, allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Longest physics substep in seconds (1e-6..=3600).
+    #[arg(long, value_name = "S", default_value_t = 0.01, allow_negative_numbers = true, value_parser = input::max_substep_delta_time)]
     pub max_substep_delta_time: f64,
 
     /// Most physics substeps per frame (1..=16).
@@ -64,8 +65,9 @@ pub struct ServerArgs {
     #[arg(long)]
     pub realtime: bool,
 
-    /// Variable step: compute at most this many frames per second (0 = no limit).
-    #[arg(long, value_name = "HZ", default_value_t = 100.0, allow_negative_numbers = true, value_parser = max_fps)]
+    /// Variable step: compute at most this many frames per second (at most
+    /// 1e6; 0 = no limit).
+    #[arg(long, value_name = "HZ", default_value_t = 100.0, allow_negative_numbers = true, value_parser = input::rate_limit)]
     pub max_fps: f64,
 
     /// When the ticker dies in synchronous mode: wait for a new ticker, or
@@ -85,13 +87,19 @@ pub struct ServerArgs {
     #[arg(long)]
     pub sync: bool,
 
-    /// Seed for the scene's placement: the same seed, the same world.
-    #[arg(long, value_name = "S", default_value_t = 0)]
+    /// Seed for the scene's placement: the same seed, the same world
+    /// (any whole number in 0..=18446744073709551615).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     pub seed: u64,
 
     /// Hybrid waiting: after each frame, poll this many microseconds for the
-    /// next tick before sleeping.
-    #[arg(long = "hybrid-window-us", value_name = "US", default_value = "100", value_parser = input::micros)]
+    /// next tick before sleeping (0..=1000000).
+    #[arg(long = "hybrid-window-us", value_name = "US", default_value = "100", allow_negative_numbers = true, value_parser = input::hybrid_window)]
     pub hybrid_window: Duration,
 
     /// Drop a lockstep participant that keeps a tick waiting this many
@@ -101,22 +109,22 @@ pub struct ServerArgs {
     pub lockstep_timeout: Duration,
 
     /// Simulation seconds between two keyframes of a recording (the
-    /// serialized world a replay seeks to).
-    #[arg(long, value_name = "S", default_value = "10", value_parser = input::seconds)]
+    /// serialized world a replay seeks to): 0.001..=1e9.
+    #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::keyframe_seconds)]
     pub keyframe_seconds: f64,
 
     /// How many clients of each kind the world admits: frame subscribers,
     /// control, batch, lockstep and sensor-request clients (each costs
-    /// shared memory; see the README's limits table).
-    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_CLIENTS)]
+    /// shared memory; see the README's limits table): 1..=1024.
+    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_CLIENTS, allow_negative_numbers = true, value_parser = input::max_clients)]
     pub max_clients: usize,
 
-    /// How many readers each sensor admits.
-    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_SENSOR_READERS)]
+    /// How many readers each sensor admits: 1..=256.
+    #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_SENSOR_READERS, allow_negative_numbers = true, value_parser = input::max_sensor_readers)]
     pub max_sensor_readers: usize,
 
-    /// Exit after computing N frames.
-    #[arg(long, value_name = "N")]
+    /// Exit after computing N frames (N >= 1).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::count)]
     pub max_frames: Option<u64>,
 
     /// Print a JSON summary (frames, wall_seconds, fps) on exit.
@@ -149,14 +157,6 @@ impl ServerArgs {
             );
         }
         Ok(settings.normalized())
-    }
-}
-
-/// `--max-fps`: 0 (no limit) or a rate whose period a clock can wait for.
-fn max_fps(text: &str) -> Result<f64, String> {
-    match input::seconds(text)? {
-        0.0 => Ok(0.0),
-        _ => input::rate(text),
     }
 }
 

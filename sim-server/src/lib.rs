@@ -94,6 +94,16 @@ pub enum ServerError {
     /// The start settings were refused.
     #[error("invalid settings: {0}")]
     Settings(SettingsError),
+    /// The time between keyframes is not a number of seconds in range.
+    #[error("keyframe interval {seconds} s is out of range: it must be in {min}..={max} s (--keyframe-seconds)")]
+    KeyframeSeconds {
+        /// The refused interval.
+        seconds: f64,
+        /// The shortest accepted.
+        min: f64,
+        /// The longest accepted.
+        max: f64,
+    },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}")]
     Transport {

@@ -14,8 +14,11 @@ use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
 use shared_types::ActorKind;
 
-/// The most boxes `boxes:N` accepts.
-pub const MAX_SCENE_BOXES: u32 = 100_000;
+use shared_types::scene::SceneName;
+pub use shared_types::scene::MAX_SCENE_BOXES;
+
+/// Why a scene name was refused (the grammar is shared with clients).
+pub use shared_types::scene::SceneNameError as SceneError;
 
 /// A scene a world can be loaded from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,34 +31,21 @@ pub enum Scene {
     Boxes(u32),
 }
 
-/// Why a scene name was refused.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum SceneError {
-    /// Not one of the known scenes.
-    #[error("unknown scene '{0}': expected 'default', 'empty' or 'boxes:N'")]
-    Unknown(String),
-    /// `boxes:N` with N not a number in range.
-    #[error("invalid box count in '{0}': N must be a whole number from 1 to {MAX_SCENE_BOXES}")]
-    BoxCount(String),
+impl From<SceneName> for Scene {
+    fn from(name: SceneName) -> Self {
+        match name {
+            SceneName::Default => Self::Default,
+            SceneName::Empty => Self::Empty,
+            SceneName::Boxes(n) => Self::Boxes(n),
+        }
+    }
 }
 
 impl FromStr for Scene {
     type Err = SceneError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "default" => Ok(Self::Default),
-            "empty" => Ok(Self::Empty),
-            _ => {
-                let count = s
-                    .strip_prefix("boxes:")
-                    .ok_or_else(|| SceneError::Unknown(s.to_owned()))?;
-                match count.parse::<u32>() {
-                    Ok(n) if (1..=MAX_SCENE_BOXES).contains(&n) => Ok(Self::Boxes(n)),
-                    _ => Err(SceneError::BoxCount(s.to_owned())),
-                }
-            }
-        }
+        s.parse::<SceneName>().map(Self::from)
     }
 }
 

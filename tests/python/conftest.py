@@ -1,9 +1,10 @@
 """Fixtures for the CARLA gateway tests: each test gets its own sim-server
-and carla-gateway on a unique world and free ports, killed after it."""
+and carla-gateway on a unique world and free ports (`--port 0`: the
+gateway picks them and names them), killed after it."""
 
+import json
 import os
 import signal
-import socket
 import subprocess
 import time
 
@@ -12,28 +13,11 @@ import pytest
 BIN = os.environ["SIMBUS_BIN_DIR"]
 
 
-def free_port_pair():
-    """Two consecutive free ports (RPC and streaming)."""
-    for _ in range(100):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        if port >= 65534:
-            continue
-        try:
-            with socket.socket() as a, socket.socket() as b:
-                a.bind(("127.0.0.1", port))
-                b.bind(("127.0.0.1", port + 1))
-            return port
-        except OSError:
-            continue
-    raise RuntimeError("no free port pair")
-
-
 class Gateway:
-    def __init__(self, world, port, procs):
+    def __init__(self, world, port, streaming_port, procs):
         self.world = world
         self.port = port
+        self.streaming_port = streaming_port
         self.procs = procs
 
     def client(self, timeout=10.0):
@@ -62,21 +46,22 @@ def wait_line(proc, needle, timeout=30):
 
 
 def start(world, server_args, procs):
-    """Starts a sim-server on `world` and a gateway in front of it; both
-    are appended to `procs` (killed by the caller)."""
-    port = free_port_pair()
+    """Starts a sim-server on `world` and a gateway in front of it, on two
+    free ports the gateway picks and prints; both are appended to `procs`
+    (killed by the caller)."""
     server = subprocess.Popen(
         [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )
     procs.append(server)
     gateway = subprocess.Popen(
-        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10", "carla-gateway", "--port", str(port)],
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
+         "carla-gateway", "--port", "0", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
     )
     procs.append(gateway)
-    wait_line(gateway, "carla-gateway:")
-    return Gateway(world, port, procs)
+    listening = json.loads(wait_line(gateway, '"streaming_port"'))
+    return Gateway(world, listening["port"], listening["streaming_port"], procs)
 
 
 def kill_all(procs):

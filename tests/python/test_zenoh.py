@@ -18,9 +18,9 @@ from rosbags.typesys import Stores, get_typestore
 from conftest import BIN, kill_all, wait_line, world_name
 
 DELTA_NS = 50_000_000
-FRAME_HEADER = 96
+FRAME_HEADER = 112
 ACTOR = 96
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 
 
 def free_port():
@@ -190,7 +190,7 @@ def test_garbage_wrong_versions_and_a_tick_flood_change_nothing(request, tmp_pat
         while not (logged("dropped a frame publication") and logged("dropped a capture publication")):
             assert time.time() < deadline, "".join(mirror_log)
             s.put(f"simbus/{world}/frames", b"garbage")
-            s.put(f"simbus/{world}/frames", struct.pack("<II", PROTOCOL_VERSION, 1000) + bytes(88))
+            s.put(f"simbus/{world}/frames", struct.pack("<II", PROTOCOL_VERSION, 1000) + bytes(FRAME_HEADER - 8))
             s.put(f"simbus/{world}/sensor/7", b"\x00" * 3)
             with said:
                 said.wait(timeout=0.2)
@@ -271,7 +271,7 @@ def test_a_mirror_refuses_an_exporter_of_another_protocol_version(request):
     try:
         mirror = sim_client(world, "bridge", "zenoh", "--connect", endpoint)
         assert mirror.returncode == 1, mirror.stderr
-        assert "protocol version 99 is not this version's 2" in mirror.stderr, mirror.stderr
+        assert f"protocol version 99 is not this version's {PROTOCOL_VERSION}" in mirror.stderr, mirror.stderr
         assert asked == [f"simbus/{world}/rpc/control"]
     finally:
         queryable.undeclare()

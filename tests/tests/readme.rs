@@ -3,6 +3,11 @@
 //! 1000 frames by an unpaced ticker, print identical digest files with every
 //! frame, none missed. (It failed before: an unpaced ticker outran the
 //! watcher, which silently dropped frames.)
+//!
+//! The README's sample of the demo's output is what the demo prints: the
+//! same line formats, the same first frame and the same cadence (it had
+//! drifted: a sample from frame 1 with a line at frame 175, while the demo
+//! starts at frame 0 and prints every 25 frames).
 
 use std::io::Read;
 use std::os::unix::process::CommandExt;
@@ -13,15 +18,96 @@ use simbus_tests::{bin, unique_world, ChildGuard};
 
 /// The shell block that follows `marker` in the README.
 fn readme_block(marker: &str) -> String {
+    readme_fenced(marker, "sh")
+}
+
+/// The ```` ```language ```` block that follows `marker` in the README.
+fn readme_fenced(marker: &str, language: &str) -> String {
     let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"))
         .expect("README.md");
     let after = &readme[readme.find(marker).expect("marker in README")..];
+    let fence = format!("```{language}\n");
     let start = after
-        .find("```sh\n")
-        .expect("a ```sh block after the marker")
-        + 6;
+        .find(&fence)
+        .unwrap_or_else(|| panic!("a {fence} block after the marker"))
+        + fence.len();
     let end = after[start..].find("```").expect("the block ends") + start;
     after[start..end].to_owned()
+}
+
+/// A line's shape: every number (sign, digits, decimals) as `N`, every run
+/// of spaces as one.
+fn shape(line: &str) -> String {
+    let mut out = String::new();
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        let signed = c == '-' && chars.peek().is_some_and(char::is_ascii_digit);
+        if c.is_ascii_digit() || signed {
+            while chars.next_if(|c| c.is_ascii_digit() || *c == '.').is_some() {}
+            out.push('N');
+        } else if c == ' ' {
+            while chars.next_if_eq(&' ').is_some() {}
+            out.push(' ');
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A demo summary line's time and frame, as printed: `t =   0.50 s  frame    25`.
+fn time_and_frame(line: &str) -> &str {
+    let end = line
+        .find("  moving")
+        .unwrap_or_else(|| panic!("a summary line: {line}"));
+    &line[..end]
+}
+
+/// A demo summary line's frame id.
+fn frame_of(line: &str) -> u64 {
+    let (_, frame) = time_and_frame(line)
+        .split_once("frame")
+        .unwrap_or_else(|| panic!("a frame in {line}"));
+    frame.trim().parse().expect("a frame id")
+}
+
+#[test]
+fn the_demo_prints_what_the_readme_shows() {
+    let sample = readme_fenced("<!-- demo-output", "text");
+    let mut sample = sample.lines();
+    assert_eq!(sample.next(), Some("$ ./target/release/sim-client demo"));
+    let sample: Vec<&str> = sample.collect();
+    let gap = sample
+        .iter()
+        .position(|l| *l == "...")
+        .expect("a `...` line in the sample");
+    let (head, tail) = (&sample[..gap], &sample[gap + 1..]);
+    assert!(head.len() >= 3, "the first line and some summary lines");
+    assert_eq!(tail.len(), 1, "the last line after `...`");
+
+    // The demo as the README runs it: its own world, 300 frames.
+    let demo = simbus_tests::Proc::spawn("sim-client", &["demo"]).finish(Duration::from_secs(120));
+    demo.assert_success();
+    let real = &demo.stdout;
+    assert!(real.len() > head.len() + 1, "{demo}");
+    let summaries = &real[1..real.len() - 1];
+
+    // The same line formats.
+    assert_eq!(shape(head[0]), shape(&real[0]), "{demo}");
+    for (sample, real) in head[1..].iter().zip(summaries) {
+        assert_eq!(shape(sample), shape(real), "{demo}");
+        // The same first frame and cadence: time and frame as printed.
+        assert_eq!(time_and_frame(sample), time_and_frame(real), "{demo}");
+    }
+    assert_eq!(shape(tail[0]), shape(&real[real.len() - 1]), "{demo}");
+    assert!(
+        real[real.len() - 1].starts_with("demo finished: watched 300 frames ("),
+        "{demo}"
+    );
+    // And the cadence holds throughout: from frame 0, a line every 25
+    // frames (0.5 s at the default step of 0.02 s).
+    let frames: Vec<u64> = summaries.iter().map(|l| frame_of(l)).collect();
+    assert_eq!(frames, (0..300).step_by(25).collect::<Vec<u64>>(), "{demo}");
 }
 
 /// Kills the whole process group of the script (the servers and clients it

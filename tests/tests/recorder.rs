@@ -99,7 +99,11 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
         .expect("replay");
     assert_eq!(status.replay.total, original.len() as u64);
     let replayed = replayed_frames(&mut replay_client, &mut replay_ticker);
-    let replayed: Vec<(u64, u64)> = replayed.iter().map(|s| (s.frame(), s.digest())).collect();
+    // Replayed frames are the server's next ids; the recorded id is in the header.
+    let replayed: Vec<(u64, u64)> = replayed
+        .iter()
+        .map(|s| (s.recorded_frame().expect("a replayed frame"), s.digest()))
+        .collect();
     assert_eq!(replayed.len(), original.len());
     for (i, (a, b)) in original.iter().zip(&replayed).enumerate() {
         assert_eq!(a, b, "replayed frame #{i} differs from the original");
@@ -219,7 +223,7 @@ fn start_and_duration_select_frames_and_a_sync_replay_waits_for_the_tick() {
             frames,
             "start {start} duration {duration}"
         );
-        let first = replayed[0].timestamp().elapsed_ns - start_elapsed;
+        let first = replayed[0].header.recorded_elapsed_ns - start_elapsed;
         assert_eq!(first, first_ms * 1_000_000, "start {start}");
     }
     let past_end = client
@@ -277,7 +281,7 @@ fn a_variable_step_recording_replays_its_deltas_exactly_or_interpolated() {
     let exact_deltas: Vec<u64> = exact.iter().map(|s| s.timestamp().delta_ns).collect();
     assert_eq!(exact_deltas, deltas);
     let span = |s: &[WorldSnapshot]| {
-        s.last().unwrap().timestamp().elapsed_ns - s[0].timestamp().elapsed_ns
+        s.last().unwrap().header.recorded_elapsed_ns - s[0].header.recorded_elapsed_ns
     };
     assert_eq!(span(&exact), recorded_seconds);
 
@@ -296,7 +300,7 @@ fn a_variable_step_recording_replays_its_deltas_exactly_or_interpolated() {
     assert!(interpolated.len() as u64 >= recorded_seconds / 50_000_000);
     const TOLERANCE: f32 = 1e-3;
     for snapshot in &interpolated {
-        let t = snapshot.timestamp().elapsed_ns;
+        let t = snapshot.header.recorded_elapsed_ns;
         let after = frames
             .partition_point(|f| f.1.timestamp.elapsed_ns < t)
             .min(frames.len() - 1);
@@ -391,9 +395,14 @@ fn inspection_answers_as_data_and_a_foreign_mcap_reader_reads_the_file() {
         ],
     ))
     .unwrap();
+    // One entry per actor, each with its stretches.
     assert!(blocked
         .iter()
-        .all(|b| b["duration_seconds"].as_f64().unwrap() >= 5.0));
+        .all(|b| b["stretches"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|s| s["duration_seconds"].as_f64().unwrap() >= 5.0)));
     assert!(blocked.iter().all(|b| b["kind"] != "static"));
 
     // An MCAP reader simbus did not write: the `mcap` package from PyPI.
@@ -431,7 +440,7 @@ print(json.dumps({"topics": topics, "frames": frames, "schemas": schemas, "profi
         .as_array()
         .unwrap()
         .iter()
-        .any(|s| s == "simbus::FrameHeader/2"));
+        .any(|s| s == "simbus::FrameHeader/3"));
 }
 
 /// A synchronous world with a fixed 0.05 s step on the default scene (and

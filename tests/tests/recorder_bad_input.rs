@@ -101,24 +101,31 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
             .unwrap();
         writer.finish().unwrap();
     }
-    let truncated = scratch.write("truncated.mcap", &good_bytes[..good_bytes.len() / 2]);
+    // Cut inside MCAP's header record: nothing complete.
+    let truncated = scratch.write("truncated.mcap", &good_bytes[..30]);
+    // Cut half way: the recording's header (a chunk of its own) is
+    // complete, its frames are not.
+    let half = scratch.write("half.mcap", &good_bytes[..good_bytes.len() / 2]);
     let mut flipped_bytes = good_bytes.clone();
     flipped_bytes[good_bytes.len() / 3] ^= 0x10;
     let flipped = scratch.write("flipped.mcap", &flipped_bytes);
     let future = scratch.file("future.mcap");
-    rewrite(&good, &future, (FRAME_SCHEMA, "simbus::FrameHeader/3"));
+    rewrite(&good, &future, (FRAME_SCHEMA, "simbus::FrameHeader/4"));
     let missing = scratch.file("missing.mcap");
 
     let cases: [(&Path, &str); 7] = [
         (&missing, "No such file"),
         (scratch.path(), "is a directory"),
-        (&not_mcap, "not a readable MCAP file"),
+        (&not_mcap, "is not an MCAP file: it holds text"),
         (&foreign, "not a simbus recording"),
-        (&truncated, "is truncated before its first complete chunk"),
+        (
+            &truncated,
+            "is still being recorded, or was not closed (its server was killed or the copy is cut short): it ends before its first complete chunk",
+        ),
         (&flipped, "damaged"),
         (
             &future,
-            "simbus::FrameHeader/3; this simbus reads simbus::FrameHeader/2",
+            "simbus::FrameHeader/4; this simbus reads simbus::FrameHeader/3",
         ),
     ];
     let before = where_is(&client);
@@ -135,6 +142,19 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
         finished.assert_code(2);
         assert!(finished.stderr.contains(says), "{finished}");
     }
+    let (refusal, message) = refused(client.replay(&half, &ReplayOptions::default()));
+    assert_eq!(refusal, RecorderRefusal::BadFile, "{message}");
+    assert!(message.contains("holds no frame"), "{message}");
+    let finished = world.cli(&["recorder", "info", half.to_str().unwrap()]);
+    finished.assert_success();
+    assert!(
+        finished
+            .stdout
+            .iter()
+            .any(|l| l
+                .starts_with("closed       no: still being recorded, or its server was killed")),
+        "{finished}"
+    );
     assert_eq!(where_is(&client), before, "nothing changed");
 
     // Requests that collide or make no sense.

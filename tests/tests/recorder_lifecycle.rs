@@ -63,7 +63,13 @@ fn a_killed_server_leaves_every_complete_chunk_readable_and_replayable() {
     let status = replay_client.replay(&path, &options).unwrap();
     assert_eq!(status.replay.total, info.frames);
     let replayed = replayed_frames(&mut replay_client, &mut replay_ticker);
-    assert_eq!(replayed.iter().map(|s| s.frame()).collect::<Vec<_>>(), ids);
+    assert_eq!(
+        replayed
+            .iter()
+            .map(|s| s.recorded_frame().expect("a replayed frame"))
+            .collect::<Vec<_>>(),
+        ids
+    );
 }
 
 #[test]
@@ -133,7 +139,7 @@ fn recorded_sensors_capture_the_replayed_scene_bit_for_bit() {
         }
     }
 
-    let (_fresh, replay_client, mut replay_ticker) = sync_world("rec-sens-b", &[]);
+    let (_fresh, mut replay_client, mut replay_ticker) = sync_world("rec-sens-b", &[]);
     let options = ReplayOptions {
         mode: Some(ReplayMode::Exact),
         replay_sensors: true,
@@ -149,10 +155,18 @@ fn recorded_sensors_capture_the_replayed_scene_bit_for_bit() {
         let frame = replay_ticker.tick(T).unwrap();
         let capture = sensor.recv(T).unwrap();
         assert_eq!(capture.header().frame, frame);
+        // The replayed frame's id is the server's; the recorded one is in its header.
+        let snapshot = loop {
+            let snapshot = replay_client.wait_for_tick(T).unwrap();
+            if snapshot.frame() == frame {
+                break snapshot;
+            }
+        };
+        let recorded_frame = snapshot.recorded_frame().expect("a replayed frame");
         assert_eq!(
             Some(capture.bytes()),
-            recorded.get(&frame).map(|d| d.as_slice()),
-            "frame {frame}"
+            recorded.get(&recorded_frame).map(|d| d.as_slice()),
+            "frame {frame} (recorded {recorded_frame})"
         );
         compared += 1;
     }
@@ -209,10 +223,11 @@ fn resimulating_from_a_keyframe_gives_the_original_digests() {
     let replayed = replayed_frames(&mut client, &mut ticker);
     assert_eq!(replayed.len(), 37);
     for snapshot in &replayed {
+        let recorded_frame = snapshot.recorded_frame().expect("a replayed frame");
         assert_eq!(
             Some(&snapshot.digest()),
-            original.get(&snapshot.frame()),
-            "frame {}",
+            original.get(&recorded_frame),
+            "frame {} (recorded {recorded_frame})",
             snapshot.frame()
         );
     }

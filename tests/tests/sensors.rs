@@ -275,7 +275,7 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
         ),
         (
             &["sensor", "spawn", "depth", "--size", "0,10"][..],
-            "width and height",
+            "two whole numbers of pixels in 1..=8192",
         ),
         (
             &["sensor", "spawn", "depth", "--size", "8192,8192"][..],

@@ -7,7 +7,7 @@
 //! | topic | schema | message |
 //! |---|---|---|
 //! | `/simbus/header` | `simbus::RecordingHeader/1` (JSON) | [`RecordingHeader`], once, first |
-//! | `/simbus/frames` | `simbus::FrameHeader/2` | a [`FrameHeader`] then `actor_count` [`ActorState`]s |
+//! | `/simbus/frames` | `simbus::FrameHeader/3` | a [`FrameHeader`] then `actor_count` [`ActorState`]s |
 //! | `/simbus/commands` | `simbus::RecordedCommand/1` | one [`RecordedCommand`] |
 //! | `/simbus/events` | `simbus::RecordedEvent/1` (JSON) | one [`RecordedEvent`] |
 //! | `/simbus/collisions` | `simbus::RecordedCollision/1` | one [`RecordedCollision`] |
@@ -27,6 +27,7 @@
 //! does not know and refuses a known schema of a newer version than its own,
 //! naming it ([`RecordingError::FutureSchema`]).
 
+mod json_f64;
 mod read;
 
 pub use read::{Entry, RecordingReader};
@@ -67,7 +68,12 @@ pub const SCENE_TOPIC: &str = "/foxglove/scene";
 /// Schema of [`HEADER_TOPIC`].
 pub const HEADER_SCHEMA: &str = "simbus::RecordingHeader/1";
 /// Schema of [`FRAMES_TOPIC`]: the frame header's own type name.
-pub const FRAME_SCHEMA: &str = "simbus::FrameHeader/2";
+pub const FRAME_SCHEMA: &str = "simbus::FrameHeader/3";
+/// The frame schema of recordings made before the header had its
+/// `recorded_frame` fields: read with those fields zero.
+pub const LEGACY_FRAME_SCHEMA: &str = "simbus::FrameHeader/2";
+/// The size of a [`LEGACY_FRAME_SCHEMA`] frame header, in bytes.
+pub const LEGACY_FRAME_HEADER_BYTES: usize = 96;
 /// Schema of [`COMMANDS_TOPIC`].
 pub const COMMAND_SCHEMA: &str = "simbus::RecordedCommand/1";
 /// Schema of [`EVENTS_TOPIC`].
@@ -98,6 +104,11 @@ pub const SCHEMAS: [&str; 9] = [
 
 /// Default simulation time between two keyframes.
 pub const DEFAULT_KEYFRAME_SECONDS: f64 = 10.0;
+/// The shortest simulation time between two keyframes a server accepts.
+pub const MIN_KEYFRAME_SECONDS: f64 = 1e-3;
+/// The longest simulation time between two keyframes a server accepts
+/// (one keyframe, at the start, for any run shorter than ~31 years).
+pub const MAX_KEYFRAME_SECONDS: f64 = 1e9;
 
 /// The first message of a recording (also written as MCAP metadata `simbus`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -123,10 +134,12 @@ pub struct RecordingHeader {
     /// Its episode.
     pub episode: u64,
     /// Wall-clock seconds since the Unix epoch at the start.
+    #[serde(with = "json_f64")]
     pub start_platform_timestamp: f64,
     /// Whether sensor captures are recorded.
     pub sensors: bool,
     /// Simulation seconds between keyframes.
+    #[serde(with = "json_f64")]
     pub keyframe_seconds: f64,
 }
 
@@ -136,10 +149,12 @@ pub struct RecordedSettings {
     /// See [`WorldSettings::synchronous_mode`].
     pub synchronous_mode: bool,
     /// See [`WorldSettings::fixed_delta_seconds`].
+    #[serde(with = "json_f64::option")]
     pub fixed_delta_seconds: Option<f64>,
     /// See [`WorldSettings::substepping`].
     pub substepping: bool,
     /// See [`WorldSettings::max_substep_delta_time`].
+    #[serde(with = "json_f64")]
     pub max_substep_delta_time: f64,
     /// See [`WorldSettings::max_substeps`].
     pub max_substeps: u32,
@@ -266,12 +281,14 @@ pub enum RecordedEvent {
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
     /// The file cannot be opened or read.
-    #[error("cannot read {path}: {source}")]
+    // `error` is in the message and deliberately not the `source()`: a
+    // chain printer (`{:#}`) would say it twice.
+    #[error("cannot read {path}: {error}")]
     Io {
         /// The file.
         path: String,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The path is a directory.
     #[error("{path} is a directory, not a recording")]
@@ -279,13 +296,14 @@ pub enum RecordingError {
         /// The path.
         path: String,
     },
-    /// Not an MCAP file.
-    #[error("{path} is not a readable MCAP file: {error}")]
+    /// Not an MCAP file: empty, text, or bytes that do not begin with
+    /// MCAP's magic.
+    #[error("{path} is not an MCAP file: {found}")]
     NotMcap {
         /// The file.
         path: String,
-        /// What the MCAP reader said.
-        error: mcap::McapError,
+        /// What it holds instead.
+        found: NotMcap,
     },
     /// A chunk's CRC does not match, or a record is broken: the file is damaged.
     #[error("{path} is damaged: {error}")]
@@ -295,9 +313,11 @@ pub enum RecordingError {
         /// What the MCAP reader said.
         error: mcap::McapError,
     },
-    /// The file ends before its first complete chunk (its server was killed
-    /// right after it started recording, or the copy is cut short).
-    #[error("{path} is truncated before its first complete chunk: nothing in it can be read")]
+    /// An MCAP file that ends before its first complete chunk: it is still
+    /// being recorded (a chunk is written once 1 MiB is gathered), or it
+    /// was never closed (its server was killed right after it started
+    /// recording, or the copy is cut short).
+    #[error("{path} is still being recorded, or was not closed (its server was killed or the copy is cut short): it ends before its first complete chunk, so nothing in it can be read yet")]
     Truncated {
         /// The file.
         path: String,
@@ -346,12 +366,33 @@ impl RecordingError {
     }
 }
 
+/// What a file that is not MCAP holds instead ([`RecordingError::NotMcap`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotMcap {
+    /// Nothing: the file is empty.
+    Empty,
+    /// Text (its first bytes are printable UTF-8).
+    Text,
+    /// Other bytes, not MCAP's magic.
+    OtherBytes,
+}
+
+impl std::fmt::Display for NotMcap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Empty => "it is empty",
+            Self::Text => "it holds text",
+            Self::OtherBytes => "it does not begin with MCAP's magic bytes",
+        })
+    }
+}
+
 /// Checks a schema name against the versions this build knows: `Ok(true)`
 /// for one of [`SCHEMAS`], `Ok(false)` for a schema this build does not know
 /// at all (a later version's new channel, skipped), an error for a known
 /// schema of a newer version.
 pub fn check_schema(name: &str) -> Result<bool, &'static str> {
-    if SCHEMAS.contains(&name) {
+    if SCHEMAS.contains(&name) || name == LEGACY_FRAME_SCHEMA {
         return Ok(true);
     }
     let (base, version) = match name.rsplit_once('/') {
@@ -379,7 +420,8 @@ mod tests {
     #[test]
     fn newer_schemas_are_refused_and_unknown_ones_skipped() {
         assert_eq!(check_schema(FRAME_SCHEMA), Ok(true));
-        assert_eq!(check_schema("simbus::FrameHeader/3"), Err(FRAME_SCHEMA));
+        assert_eq!(check_schema("simbus::FrameHeader/4"), Err(FRAME_SCHEMA));
+        assert_eq!(check_schema(LEGACY_FRAME_SCHEMA), Ok(true));
         assert_eq!(check_schema("simbus::Weather/1"), Ok(false));
         assert_eq!(check_schema("simbus::FrameHeader/1"), Ok(false));
     }

@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Seek};
 use std::sync::Arc;
 
 use mcap::sans_io::linear_reader::LinearReaderOptions;
@@ -54,6 +54,8 @@ pub enum Entry {
 enum Channel {
     Header,
     Frames,
+    /// Frames of [`super::LEGACY_FRAME_SCHEMA`]: a shorter header.
+    LegacyFrames,
     Commands,
     Events,
     Collisions,
@@ -92,9 +94,9 @@ impl std::fmt::Debug for RecordingReader {
 impl RecordingReader {
     /// Opens `path` and reads its header.
     pub fn open(path: &str) -> Result<Self, RecordingError> {
-        let io = |source| RecordingError::Io {
+        let io = |error| RecordingError::Io {
             path: path.to_string(),
-            source,
+            error,
         };
         let metadata = std::fs::metadata(path).map_err(io)?;
         if metadata.is_dir() {
@@ -102,7 +104,19 @@ impl RecordingReader {
                 path: path.to_string(),
             });
         }
-        let file = File::open(path).map_err(io)?;
+        let mut file = File::open(path).map_err(io)?;
+        let mut head = Vec::with_capacity(HEAD_BYTES);
+        (&mut file)
+            .take(HEAD_BYTES as u64)
+            .read_to_end(&mut head)
+            .map_err(io)?;
+        file.rewind().map_err(io)?;
+        if let Some(found) = not_mcap(&head) {
+            return Err(RecordingError::NotMcap {
+                path: path.to_string(),
+                found,
+            });
+        }
         let options = LinearReaderOptions::default()
             .with_prevalidate_chunk_crcs(true)
             .with_validate_data_section_crc(true)
@@ -136,7 +150,11 @@ impl RecordingReader {
         };
         let first = match reader.messages.next() {
             Some(Ok(message)) => message,
-            Some(Err(mcap::McapError::UnexpectedEof)) => {
+            // Still being written (the chunk in progress has a placeholder
+            // header), or never closed: nothing complete yet.
+            Some(Err(mcap::McapError::UnexpectedEof | mcap::McapError::UnexpectedEoc))
+                if !reader.closed =>
+            {
                 return Err(RecordingError::Truncated {
                     path: path.to_string(),
                 })
@@ -147,8 +165,14 @@ impl RecordingReader {
         if reader.channel_of(&first.channel)? != Channel::Header {
             return Err(not_simbus());
         }
+        // The header channel is simbus's: a header it cannot read is a
+        // damaged one, said as such (not "not a simbus recording").
         let header: RecordingHeader =
-            serde_json::from_slice(&first.data).map_err(|_| not_simbus())?;
+            serde_json::from_slice(&first.data).map_err(|e| RecordingError::Malformed {
+                path: path.to_string(),
+                topic: HEADER_TOPIC.to_string(),
+                reason: e.to_string(),
+            })?;
         if header.recording_version > RECORDING_VERSION {
             return Err(RecordingError::FutureSchema {
                 path: path.to_string(),
@@ -170,8 +194,9 @@ impl RecordingReader {
         self.bytes
     }
 
-    /// Whether the file ended in the middle of a chunk: it was not closed
-    /// (its server was killed) and holds what was written up to then.
+    /// Whether the file ended in the middle of a chunk: it is still being
+    /// recorded, or was not closed (its server was killed), and holds what
+    /// was written up to then.
     pub fn truncated(&self) -> bool {
         self.truncated
     }
@@ -182,9 +207,9 @@ impl RecordingReader {
         match source {
             E::BadMagic => RecordingError::NotMcap {
                 path,
-                error: source,
+                found: NotMcap::OtherBytes,
             },
-            E::Io(e) => RecordingError::Io { path, source: e },
+            E::Io(error) => RecordingError::Io { path, error },
             error => RecordingError::Corrupt { path, error },
         }
     }
@@ -198,6 +223,7 @@ impl RecordingReader {
             Ok(true) => match (channel.topic.as_str(), schema) {
                 (HEADER_TOPIC, HEADER_SCHEMA) => Channel::Header,
                 (FRAMES_TOPIC, FRAME_SCHEMA) => Channel::Frames,
+                (FRAMES_TOPIC, LEGACY_FRAME_SCHEMA) => Channel::LegacyFrames,
                 (COMMANDS_TOPIC, COMMAND_SCHEMA) => Channel::Commands,
                 (EVENTS_TOPIC, EVENT_SCHEMA) => Channel::Events,
                 (COLLISIONS_TOPIC, COLLISION_SCHEMA) => Channel::Collisions,
@@ -251,8 +277,13 @@ impl RecordingReader {
             };
             let entry = match channel {
                 Channel::Skipped | Channel::Header => continue,
-                Channel::Frames => {
-                    let Some((header, rest)) = split_pod::<FrameHeader>(data) else {
+                Channel::Frames | Channel::LegacyFrames => {
+                    let split = if channel == Channel::Frames {
+                        split_pod::<FrameHeader>(data)
+                    } else {
+                        split_legacy_header(data)
+                    };
+                    let Some((header, rest)) = split else {
                         return malformed("shorter than a frame header");
                     };
                     let actors: Option<Vec<ActorState>> = pods(rest);
@@ -307,9 +338,39 @@ impl RecordingReader {
     }
 }
 
+/// Bytes from a file's start that [`not_mcap`] looks at.
+const HEAD_BYTES: usize = 512;
+
+/// What a file starting with `head` holds, if it is not MCAP: empty, text
+/// or other bytes. A file that begins with MCAP's magic (or a piece of it:
+/// one still being created) is MCAP as far as its first bytes go.
+pub(super) fn not_mcap(head: &[u8]) -> Option<NotMcap> {
+    if head.is_empty() {
+        return Some(NotMcap::Empty);
+    }
+    let magic = &mcap::MAGIC[..head.len().min(mcap::MAGIC.len())];
+    if head.starts_with(magic) {
+        return None;
+    }
+    let text = match std::str::from_utf8(head) {
+        Ok(text) => text,
+        // Cut in the middle of a character by `HEAD_BYTES`.
+        Err(e) if e.error_len().is_none() => {
+            std::str::from_utf8(&head[..e.valid_up_to()]).unwrap_or_default()
+        }
+        Err(_) => "",
+    };
+    let printable = |c: char| !c.is_control() || c.is_whitespace();
+    Some(if !text.is_empty() && text.chars().all(printable) {
+        NotMcap::Text
+    } else {
+        NotMcap::OtherBytes
+    })
+}
+
 /// Whether the file at `path` ends with MCAP's magic, as a finished file does.
 fn ends_with_magic(path: &str) -> bool {
-    use std::io::{Read, Seek, SeekFrom};
+    use std::io::SeekFrom;
     let mut tail = [0u8; 8];
     File::open(path)
         .and_then(|mut f| {
@@ -340,6 +401,18 @@ fn split_pod<T: Pod>(data: &[u8]) -> Option<(T, &[u8])> {
     Some((bytemuck::pod_read_unaligned(head), &data[size..]))
 }
 
+/// A [`super::LEGACY_FRAME_SCHEMA`] header at the start of `data`, its
+/// later fields zero, and the rest.
+fn split_legacy_header(data: &[u8]) -> Option<(FrameHeader, &[u8])> {
+    let head = data.get(..LEGACY_FRAME_HEADER_BYTES)?;
+    let mut bytes = [0u8; std::mem::size_of::<FrameHeader>()];
+    bytes[..LEGACY_FRAME_HEADER_BYTES].copy_from_slice(head);
+    Some((
+        bytemuck::pod_read_unaligned(&bytes),
+        &data[LEGACY_FRAME_HEADER_BYTES..],
+    ))
+}
+
 /// `data` as exactly one `T`.
 fn exact_pod<T: Pod>(data: &[u8]) -> Option<T> {
     (data.len() == std::mem::size_of::<T>()).then(|| bytemuck::pod_read_unaligned(data))
@@ -357,3 +430,6 @@ fn pods<T: Pod>(data: &[u8]) -> Option<Vec<T>> {
             .collect(),
     )
 }
+
+#[cfg(test)]
+mod tests;

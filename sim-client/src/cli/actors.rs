@@ -32,6 +32,7 @@ pub(crate) struct SpawnArgs {
 #[derive(Debug, Args)]
 pub(crate) struct DestroyArgs {
     /// The actor id.
+    #[arg(allow_negative_numbers = true)]
     id: u64,
 }
 
@@ -49,7 +50,8 @@ pub(crate) struct ReloadArgs {
 /// Load a scene as a new episode.
 #[derive(Debug, Args)]
 pub(crate) struct LoadArgs {
-    /// default, empty or boxes:N.
+    /// default, empty or boxes:N (N in 1..=100000).
+    #[arg(value_parser = shared_types::input::scene)]
     scene: String,
     /// Also reset the settings to the defaults (async, variable step).
     #[arg(long)]
@@ -147,10 +149,10 @@ fn loaded(
         }
         Ok(report) => {
             println!(
-                "loaded {} as episode {} ({} actors), frame {}",
+                "loaded {} as episode {} ({}), frame {}",
                 report.scene.to_string_lossy(),
                 report.episode,
-                report.actor_count,
+                super::words::count(report.actor_count, "actor"),
                 report.frame
             );
             Ok(())

@@ -2,7 +2,7 @@
 //! vehicles with seeded randomness (CARLA's Traffic Manager, kept in step).
 
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::Args;
@@ -17,13 +17,14 @@ use crate::Failure;
 #[derive(Debug, Args)]
 pub(crate) struct AutopilotArgs {
     /// Seed of the random driving.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     seed: u64,
-    /// New controls every N frames.
-    #[arg(long, value_name = "N", default_value_t = 50)]
+    /// New controls every N frames (N >= 1).
+    #[arg(long, value_name = "N", default_value_t = 50, allow_negative_numbers = true, value_parser = shared_types::input::count)]
     every: u64,
-    /// Stop after N frames (default: until Ctrl-C or the server goes away).
-    #[arg(long, value_name = "N")]
+    /// Stop after N frames, N >= 1 (default: until Ctrl-C or the server
+    /// goes away).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = shared_types::input::count)]
     frames: Option<u64>,
 }
 
@@ -47,12 +48,19 @@ pub(crate) fn run(
     let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
     let mut episode = None;
     let mut handled = 0;
+    // The last frame seen and when: no frame for --timeout is an error that
+    // says why (a stopped server, a synchronous world nobody ticks).
+    let mut last = (Some(frame), Instant::now());
     while args.frames.is_none_or(|n| handled < n) && !interrupted.load(Ordering::Relaxed) {
-        let snapshot = match client.wait_for_tick(Duration::from_millis(200)) {
+        let snapshot = match client.wait_for_tick(Duration::from_millis(200).min(timeout)) {
             Ok(snapshot) => snapshot,
-            Err(WaitError::Timeout { .. }) => continue,
+            Err(WaitError::Timeout { .. }) if last.1.elapsed() < timeout => continue,
+            Err(WaitError::Timeout { .. }) => {
+                return Err(super::stall::no_frames(&mut client, timeout, last.0).into())
+            }
             Err(e) => return Err(anyhow!(e).into()),
         };
+        last = (Some(snapshot.frame()), Instant::now());
         if episode != Some(snapshot.episode()) {
             // Every episode drives the same way from its frame 0.
             episode = Some(snapshot.episode());
@@ -78,6 +86,9 @@ pub(crate) fn run(
         participant.done(snapshot.episode(), snapshot.frame())?;
         handled += 1;
     }
-    eprintln!("autopilot: handled {handled} frames");
+    eprintln!(
+        "autopilot: handled {}",
+        super::words::count(handled, "frame")
+    );
     Ok(())
 }

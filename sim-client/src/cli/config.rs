@@ -12,17 +12,19 @@ use crate::Failure;
 /// Options of `sim-client config` (described on the command).
 #[derive(Debug, Args)]
 pub(crate) struct ConfigArgs {
-    /// Fixed time-step in seconds (0 = variable step).
-    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step in seconds: 1e-6..=3600 (0 = variable step).
+    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::fixed_delta_seconds)]
     delta_seconds: Option<f64>,
 
-    /// Fixed time-step as frames per simulated second (0 = variable step).
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step as frames per simulated second: 0.000277778..=1e6,
+    /// a step of 1e-6..=3600 s (0 = variable step).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
     fps: Option<f64>,
 
     /// Leave synchronous mode: the server stops waiting for ticks. Anyone
     /// may; it ends the ticker's ownership, and the ticker's next tick fails
-    /// naming this client. (Other changes are the ticker's while it ticks.)
+    /// naming this client. (Other changes are the ticker's while it ticks;
+    /// given with --no-sync, they are applied once it has left.)
     #[arg(long)]
     no_sync: bool,
 
@@ -38,8 +40,8 @@ pub(crate) struct ConfigArgs {
     #[arg(long)]
     substepping: bool,
 
-    /// Longest physics substep in seconds.
-    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Longest physics substep in seconds (1e-6..=3600).
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::max_substep_delta_time)]
     max_substep_delta_time: Option<f64>,
 
     /// Most physics substeps per frame (1..=16).
@@ -109,6 +111,20 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
     let mut settings = current;
     if args.changes_anything() {
         settings = args.apply_to(current).map_err(super::refused_or_runtime)?;
+        // Like CARLA's config.py, `--no-sync` with other changes applies
+        // them all. While a ticker holds the world only it changes
+        // settings, but anyone may leave synchronous mode (which ends its
+        // ownership): so leave it first, then change the rest.
+        let only_leaving = WorldSettings {
+            synchronous_mode: false,
+            ..current
+        }
+        .normalized();
+        if args.no_sync && current.synchronous_mode && settings != only_leaving {
+            client
+                .apply_settings(only_leaving)
+                .map_err(super::refused_or_runtime)?;
+        }
         effective_frame = Some(
             client
                 .apply_settings(settings)

@@ -1,7 +1,9 @@
 //! `sim-client demo`: a server on the default scene, watched live.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
+use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::{anyhow, Context};
@@ -11,21 +13,22 @@ use shared_types::{input, ActorKind, ActorState, Command as SimCommand, WorldNam
 use sim_client::process::ChildGuard;
 use sim_client::{Client, WorldSnapshot};
 
+use super::words::count;
 use crate::Failure;
 
 /// Options of `sim-client demo` (described on the command).
 #[derive(Debug, Args)]
 pub(crate) struct DemoArgs {
-    /// Frames to watch before stopping.
-    #[arg(long, value_name = "N", default_value_t = 300)]
+    /// Frames to watch before stopping (N >= 1).
+    #[arg(long, value_name = "N", default_value_t = 300, allow_negative_numbers = true, value_parser = input::count)]
     frames: u64,
 
-    /// Scene for the server: default, empty or boxes:N.
-    #[arg(long, default_value = "default")]
+    /// Scene for the server: default, empty or boxes:N (N in 1..=100000).
+    #[arg(long, default_value = "default", value_parser = input::scene)]
     scene: String,
 
-    /// Fixed time-step of the server, in seconds.
-    #[arg(long, value_name = "S", default_value_t = 0.02, allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step of the server, in seconds (1e-6..=3600).
+    #[arg(long, value_name = "S", default_value_t = 0.02, allow_negative_numbers = true, value_parser = input::fixed_step)]
     delta_seconds: f64,
 
     /// The sim-server binary (default: next to this sim-client).
@@ -138,15 +141,45 @@ fn die_with_parent(command: &mut Command) {
     }
 }
 
+/// Copies the server's stderr to ours as it comes, so its messages are
+/// seen; the thread ends with the server's stderr and says whether the
+/// server wrote anything.
+fn forward_stderr(mut from: impl std::io::Read + Send + 'static) -> JoinHandle<bool> {
+    std::thread::spawn(move || {
+        let mut said = false;
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = from.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            said = true;
+            let mut stderr = std::io::stderr().lock();
+            let _ = stderr.write_all(&buf[..n]);
+            let _ = stderr.flush();
+        }
+        said
+    })
+}
+
 /// Connects to the demo server's world, giving up at once if the server
-/// exits (it refused its options, or the world is taken).
-fn connect(world: &str, server: &mut ChildGuard, timeout: Duration) -> Result<Client, Failure> {
+/// exits (it refused its options, or the world is taken), saying whether
+/// it left a message (`said`: the [`forward_stderr`] thread).
+fn connect(
+    world: &str,
+    server: &mut ChildGuard,
+    said: &mut Option<JoinHandle<bool>>,
+    timeout: Duration,
+) -> Result<Client, Failure> {
     let deadline = std::time::Instant::now() + timeout;
     loop {
         if let Some(status) = server.try_wait()? {
-            return Err(Failure::Runtime(anyhow!(
-                "the demo server exited at once ({status}); its message is above"
-            )));
+            // Its stderr closed when it exited: everything it wrote is out.
+            let said = said.take().is_none_or(|t| t.join().unwrap_or(true));
+            return Err(Failure::Runtime(if said {
+                anyhow!("the demo server exited at once ({status}); its message is above")
+            } else {
+                anyhow!("the demo server exited at once ({status}) without a message")
+            }));
         }
         let slice = deadline
             .saturating_duration_since(std::time::Instant::now())
@@ -187,16 +220,21 @@ pub(crate) fn run(
         .args(["--world", &world, "--scene", &args.scene, "--realtime"])
         .args(["--delta-seconds", &args.delta_seconds.to_string()])
         .stdin(Stdio::null())
-        .stdout(Stdio::null());
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
     if std::env::var_os("RUST_LOG").is_none() {
         command.env("RUST_LOG", "warn");
     }
     die_with_parent(&mut command);
-    let child = command
+    let mut child = command
         .spawn()
         .with_context(|| format!("starting {}", binary.display()))?;
+    let mut said = child.stderr.take().map(forward_stderr);
     let mut server = ChildGuard::new(child, Duration::from_secs(3));
-    let mut client = connect(&world, &mut server, timeout)?;
+    let mut client = connect(&world, &mut server, &mut said, timeout)?;
+    // Every frame in order (not the newest), so no summary line is
+    // skipped with the frame it belongs to.
+    client.set_every_frame(true);
     println!(
         "demo: started sim-server (pid {}) on world '{world}', scene {}, fixed step {} s at wall-clock speed",
         server.id(),
@@ -250,6 +288,9 @@ pub(crate) fn run(
     } else {
         "finished"
     };
-    println!("demo {how}: watched {seen} frames ({missed} missed); server stopped ({status})");
+    println!(
+        "demo {how}: watched {} ({missed} missed); server stopped ({status})",
+        count(seen, "frame")
+    );
     Ok(())
 }

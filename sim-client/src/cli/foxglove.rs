@@ -41,10 +41,10 @@ pub(crate) struct FoxgloveArgs {
     #[arg(long, default_value = "127.0.0.1")]
     host: String,
     /// Port to listen on (0: any free port; the one taken is printed).
-    #[arg(long, default_value_t = 8765)]
+    #[arg(long, default_value_t = 8765, allow_negative_numbers = true)]
     port: u16,
-    /// Most frames sent per wall second (0: every frame).
-    #[arg(long, default_value_t = 30.0)]
+    /// Most frames sent per wall second, at most 1e6 (0: every frame).
+    #[arg(long, value_name = "HZ", default_value_t = 30.0, allow_negative_numbers = true, value_parser = shared_types::input::rate_limit)]
     max_hz: f64,
 }
 
@@ -329,6 +329,6 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: FoxgloveArgs) -> R
         drop(frame);
     }
     server.stop().wait_blocking();
-    eprintln!("foxglove: {sent} frames sent");
+    eprintln!("foxglove: {} sent", super::words::count(sent, "frame"));
     Ok(())
 }

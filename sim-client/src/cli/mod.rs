@@ -1,5 +1,45 @@
 //! The `sim-client` subcommands.
 
+// Every subcommand prints through these, not std's macros of the same
+// names (they shadow them in every module below and, through
+// `#[macro_use]`, in main.rs): a closed stdout ends the command quietly,
+// after its guards ran, instead of panicking. See [`output`].
+
+/// `println!` that stops the command quietly when stdout is closed.
+macro_rules! println {
+    () => {
+        $crate::cli::output::stdout(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::cli::output::stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` that stops the command quietly when stdout is closed.
+macro_rules! print {
+    ($($arg:tt)*) => {
+        $crate::cli::output::stdout(format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that drops the message when stderr is closed.
+macro_rules! eprintln {
+    () => {
+        $crate::cli::output::stderr(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::cli::output::stderr(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `eprint!` that drops the message when stderr is closed.
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => {
+        $crate::cli::output::stderr(format_args!($($arg)*))
+    };
+}
+
 pub(crate) mod actors;
 pub(crate) mod autopilot;
 pub(crate) mod bridge;
@@ -7,18 +47,22 @@ pub(crate) mod carla;
 pub(crate) mod config;
 pub(crate) mod demo;
 pub(crate) mod foxglove;
+pub(crate) mod output;
 pub(crate) mod pictures;
 pub(crate) mod recorder;
 pub(crate) mod sensor;
+pub(crate) mod stall;
 pub(crate) mod status;
 pub(crate) mod tick;
 pub(crate) mod top;
 pub(crate) mod watch;
+pub(crate) mod words;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use anyhow::anyhow;
+use shared_types::input::Readable;
 use shared_types::WorldSettings;
 
 use crate::Failure;
@@ -127,7 +171,8 @@ pub(crate) fn settings_json(settings: &WorldSettings) -> serde_json::Value {
     })
 }
 
-/// The settings as readable lines.
+/// The settings as readable lines (seconds to six significant digits;
+/// `--json` has them exact).
 pub(crate) fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, String)> {
     vec![
         (
@@ -141,7 +186,8 @@ pub(crate) fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, Str
         (
             "step",
             match settings.fixed_delta_seconds {
-                Some(dt) => format!("fixed {dt} s ({:.2} FPS)", 1.0 / dt),
+                // Readably: 0.0333333 s (30 FPS), not 0.03333333333333333.
+                Some(dt) => format!("fixed {} s ({} FPS)", Readable(dt), Readable(1.0 / dt)),
                 None => "variable (follows wall time)".to_owned(),
             },
         ),
@@ -150,7 +196,8 @@ pub(crate) fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, Str
             if settings.substepping {
                 format!(
                     "on: at most {} of {} s",
-                    settings.max_substeps, settings.max_substep_delta_time
+                    settings.max_substeps,
+                    Readable(settings.max_substep_delta_time)
                 )
             } else {
                 "off: one physics step per frame".to_owned()

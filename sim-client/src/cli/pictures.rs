@@ -13,6 +13,17 @@ struct Canvas {
     pixels: Vec<u8>,
 }
 
+/// The 3×5 glyph of a legend character: a digit, or the decimal point.
+fn glyph(c: u8) -> [u8; 5] {
+    match c {
+        b'0'..=b'9' => DIGITS[usize::from(c - b'0')],
+        _ => POINT,
+    }
+}
+
+/// The decimal point, in the middle column of the bottom row.
+const POINT: [u8; 5] = [0, 0, 0, 0, 2];
+
 /// 3×5 digits for the legend, one row of 3 bits per line.
 const DIGITS: [[u8; 5]; 10] = [
     [7, 5, 5, 5, 7],
@@ -42,11 +53,11 @@ impl Canvas {
         }
     }
 
-    /// Writes `number` at (x, y) in 3×5 digits scaled `scale` times.
-    fn number(&mut self, x: usize, y: usize, number: u32, value: u8, scale: usize) {
-        for (i, digit) in number.to_string().bytes().enumerate() {
-            let glyph = DIGITS[usize::from(digit - b'0')];
-            for (row, bits) in glyph.iter().enumerate() {
+    /// Writes `number` (digits and a decimal point, as [`tick_labels`]
+    /// makes them) at (x, y) in 3×5 glyphs scaled `scale` times.
+    fn number(&mut self, x: usize, y: usize, number: &str, value: u8, scale: usize) {
+        for (i, c) in number.bytes().enumerate() {
+            for (row, bits) in glyph(c).iter().enumerate() {
                 for col in 0..3 {
                     if bits & (4 >> col) != 0 {
                         for dy in 0..scale {
@@ -79,15 +90,14 @@ impl Canvas {
             }
         }
         let ticks = 4;
-        for t in 0..=ticks {
+        for (t, label) in tick_labels(max, ticks).iter().enumerate() {
             let x = left + span * t / ticks;
             for y in top + bar..top + bar + 2 * scale {
                 for dx in 0..scale.div_ceil(2) {
                     self.set(x + dx, y, 255);
                 }
             }
-            let label = (max * t as f32 / ticks as f32).round() as u32;
-            let width = 4 * scale * label.to_string().len();
+            let width = 4 * scale * label.len();
             let at = x
                 .saturating_sub(width / 2)
                 .min(self.width.saturating_sub(width));
@@ -103,6 +113,21 @@ impl Canvas {
         encoder.write_header()?.write_image_data(&self.pixels)?;
         Ok(())
     }
+}
+
+/// The labels of a legend's `ticks + 1` evenly spaced ticks from 0 to
+/// `max` metres, as their real values: whole numbers without a decimal
+/// point, others with as few decimals as they need (at most 3): a 30 m
+/// legend reads 0, 7.5, 15, 22.5, 30 (not 8 and 23).
+fn tick_labels(max: f32, ticks: usize) -> Vec<String> {
+    (0..=ticks)
+        .map(|t| {
+            let value = f64::from(max) * t as f64 / ticks as f64;
+            let text = format!("{value:.3}");
+            let text = text.trim_end_matches('0').trim_end_matches('.');
+            if text.is_empty() { "0" } else { text }.to_owned()
+        })
+        .collect()
 }
 
 /// How many pixels a legend digit's dot is: 2 up to 320 pixels wide, then
@@ -226,5 +251,26 @@ mod tests {
         assert_eq!(text_scale(320), 2);
         assert_eq!(text_scale(2048), 12);
         assert!(legend_height(2048) > legend_height(320));
+    }
+
+    #[test]
+    fn legend_labels_are_the_real_values_not_rounded_to_whole_metres() {
+        assert_eq!(tick_labels(30.0, 4), ["0", "7.5", "15", "22.5", "30"]);
+        assert_eq!(tick_labels(100.0, 4), ["0", "25", "50", "75", "100"]);
+        assert_eq!(tick_labels(0.5, 4), ["0", "0.125", "0.25", "0.375", "0.5"]);
+        assert_eq!(tick_labels(2.0, 4), ["0", "0.5", "1", "1.5", "2"]);
+    }
+
+    #[test]
+    fn a_decimal_point_is_drawn_as_a_dot_between_digits() {
+        let mut canvas = Canvas::new(40, 10, 0);
+        canvas.number(0, 0, "7.5", 255, 1);
+        let lit = |x: usize, y: usize| canvas.pixels[y * canvas.width + x] == 255;
+        // The point: the middle column of the second glyph's bottom row only.
+        assert!(lit(5, 4));
+        assert!((0..4).all(|y| !lit(5, y)));
+        assert!(!lit(4, 4) && !lit(6, 4));
+        // The digits on either side are drawn.
+        assert!(lit(0, 0) && lit(8, 0));
     }
 }

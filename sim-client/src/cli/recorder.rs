@@ -10,9 +10,12 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use shared_types::{input, ReplayMode, ReplayState, WorldName};
 use sim_client::inspect;
-use sim_client::{Client, RecorderError, RecorderStatus, ReplayOptions};
+use sim_client::{Client, RecorderError, ReplayOptions};
 
+use crate::cli::words::count;
 use crate::Failure;
+
+mod print;
 
 /// Record the world into an MCAP file, or inspect a recording.
 #[derive(Debug, Args)]
@@ -52,8 +55,8 @@ enum RecorderCommand {
     },
     /// Set the running replay's time factor (CARLA's set_replayer_time_factor).
     TimeFactor {
-        /// Simulation speed relative to the recording, above 0.
-        #[arg(value_parser = input::seconds)]
+        /// Simulation speed relative to the recording, 0.001..=1000.
+        #[arg(allow_negative_numbers = true, value_parser = input::time_factor)]
         factor: f64,
     },
     /// Stop the running replay (CARLA's stop_replayer).
@@ -88,17 +91,18 @@ enum RecorderCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Actors that moved less than --min-distance for at least --min-time.
+    /// Actors that moved less than --min-distance for at least --min-time:
+    /// each such actor once, with every stretch it stayed (nearly) still.
     Blocked {
         /// The recording.
         file: String,
-        /// Seconds an actor must stay (nearly) still.
-        #[arg(long, default_value = "30", value_parser = input::seconds)]
+        /// Seconds an actor must stay (nearly) still: finite, 0..=18446744073.
+        #[arg(long, default_value = "30", allow_negative_numbers = true, value_parser = input::sim_time)]
         min_time: f64,
-        /// Metres it may move meanwhile.
-        #[arg(long, default_value = "0.1", value_parser = input::seconds)]
+        /// Metres it may move meanwhile: positive, finite.
+        #[arg(long, default_value = "0.1", allow_negative_numbers = true, value_parser = input::metres)]
         min_distance: f64,
-        /// Print one JSON array.
+        /// Print one JSON array: an object per actor with its stretches.
         #[arg(long)]
         json: bool,
     },
@@ -116,19 +120,24 @@ pub(crate) struct ReplayArgs {
     /// The recording (an MCAP file the server can read).
     file: PathBuf,
     /// Seconds from the recording's start (negative: from its end).
-    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::seconds)]
+    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::sim_offset)]
     start: f64,
-    /// Seconds to replay (0: to the end).
-    #[arg(long, default_value = "0", value_parser = input::seconds)]
+    /// Seconds to replay, 0..=18446744073 (0: to the end).
+    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::sim_time)]
     duration: f64,
     /// Sensors spawned without a parent during the replay ride on this recorded actor.
-    #[arg(long, value_name = "ID", default_value = "0")]
+    #[arg(
+        long,
+        value_name = "ID",
+        default_value = "0",
+        allow_negative_numbers = true
+    )]
     follow: u64,
     /// Spawn the recorded sensors again; they capture the replayed scene.
     #[arg(long)]
     replay_sensors: bool,
-    /// Speed relative to the recording (asynchronous mode).
-    #[arg(long, default_value = "1", value_parser = input::seconds)]
+    /// Speed relative to the recording, 0.001..=1000 (asynchronous mode).
+    #[arg(long, default_value = "1", allow_negative_numbers = true, value_parser = input::time_factor)]
     time_factor: f64,
     /// exact: recorded deltas and states; interpolate: the server's own
     /// step, states interpolated; resimulate: recorded commands on real
@@ -215,8 +224,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
                 print_json(&status);
             } else {
                 println!(
-                    "recording stopped: {} frames, {} bytes, {}",
-                    status.frames, status.bytes, status.path
+                    "recording stopped: {}, {}, {}",
+                    count(status.frames, "frame"),
+                    count(status.bytes, "byte"),
+                    status.path
                 );
                 if !status.message.is_empty() {
                     println!("warning: {}", status.message);
@@ -229,7 +240,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             if json {
                 print_json(&status);
             } else {
-                print_status(&status);
+                print::status(&status);
             }
         }
         RecorderCommand::TimeFactor { factor } => {
@@ -245,9 +256,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
                 .stop_replayer(keep_actors)
                 .map_err(refused_or_runtime)?;
             println!(
-                "replay stopped after {} of {} frames{}",
+                "replay stopped after {} of {}{}",
                 status.replay.frames,
-                status.replay.total,
+                count(status.replay.total, "frame"),
                 if keep_actors {
                     "; the replayed world goes on live"
                 } else {
@@ -260,7 +271,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             if json {
                 print_json(&info);
             } else {
-                print_info(&info);
+                print::info(&info);
             }
         }
         RecorderCommand::Collisions {
@@ -280,21 +291,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             if json {
                 print_json(&list);
             } else {
-                println!(
-                    "{:>8} {:>10}  {:<18} {:<18} {:>10}",
-                    "frame", "time (s)", "actor", "actor", "impulse"
-                );
-                for c in &list {
-                    println!(
-                        "{:>8} {:>10.3}  {:<18} {:<18} {:>10.3}",
-                        c.frame,
-                        c.elapsed_seconds,
-                        format!("{} ({})", c.actor_a, c.kind_a),
-                        format!("{} ({})", c.actor_b, c.kind_b),
-                        c.impulse
-                    );
-                }
-                println!("{} collisions", list.len());
+                print::collisions(&list);
             }
         }
         RecorderCommand::Blocked {
@@ -303,109 +300,19 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             min_distance,
             json,
         } => {
-            let list = inspect::actors_blocked(&file, min_time, min_distance as f32)
-                .map_err(file_error)?;
+            let list =
+                inspect::actors_blocked(&file, min_time, min_distance).map_err(|e| match e {
+                    inspect::BlockedError::File(e) => file_error(e),
+                    e => Failure::Refused(e.into()),
+                })?;
             if json {
                 print_json(&list);
             } else {
-                println!(
-                    "{:>8} {:<16} {:>10} {:>12} {:>10}",
-                    "frame", "actor", "from (s)", "for (s)", "moved (m)"
-                );
-                for b in &list {
-                    println!(
-                        "{:>8} {:<16} {:>10.3} {:>12.3} {:>10.3}",
-                        b.frame,
-                        format!("{} ({})", b.actor, b.kind),
-                        b.from_seconds,
-                        b.duration_seconds,
-                        b.distance
-                    );
-                }
-                println!("{} actors blocked for at least {min_time} s (moving less than {min_distance} m)", list.len());
+                print::blocked(&list, min_time, min_distance);
             }
         }
     }
     Ok(())
-}
-
-fn print_status(status: &RecorderStatus) {
-    if status.recording {
-        println!(
-            "recording  {} ({} frames so far)",
-            status.path, status.frames
-        );
-    } else if !status.path.is_empty() {
-        println!(
-            "recorder   stopped; last: {} ({} frames, {} bytes)",
-            status.path, status.frames, status.bytes
-        );
-    } else {
-        println!("recorder   idle");
-    }
-    let r = &status.replay;
-    println!(
-        "replay     {} ({}): {} of {} frames, time factor {}",
-        r.state, r.mode, r.frames, r.total, r.time_factor
-    );
-    if r.mode == "resimulate" && r.frames > 0 {
-        match r.mismatch {
-            None => println!("verified   identical: {} frames", r.verified),
-            Some(m) => println!(
-                "verified   differs at frame {} (actor {})",
-                m.frame, m.actor
-            ),
-        }
-    }
-    if !status.message.is_empty() {
-        println!("message    {}", status.message);
-    }
-}
-
-fn print_info(info: &inspect::FileInfo) {
-    let h = &info.header;
-    println!(
-        "file         {} ({} bytes, compression {:.1}x)",
-        info.path, info.bytes, info.compression_ratio
-    );
-    println!(
-        "written by   simbus {} (recording version {}, protocol {})",
-        h.simbus_version, h.recording_version, h.protocol_version
-    );
-    println!(
-        "world        {} (scene {}, seed {})",
-        h.world, h.scene, h.seed
-    );
-    let settings = shared_types::WorldSettings::from(h.settings);
-    for (name, value) in super::settings_lines(&settings) {
-        println!("{name:<12} {value}");
-    }
-    println!(
-        "frames       {} (frame {} to {}), {:.3} s, {} episode changes",
-        info.frames, info.first_frame, info.last_frame, info.duration_seconds, info.episodes
-    );
-    println!(
-        "actors       {} spawned, {} destroyed, at most {} at once",
-        info.actors_spawned, info.actors_destroyed, info.max_actors
-    );
-    println!("commands     {}", info.commands);
-    println!("collisions   {}", info.collisions);
-    println!(
-        "sensors      {} ({} captures recorded)",
-        info.sensors, info.captures
-    );
-    println!("keyframes    {}", info.keyframes);
-    match (&info.stopped, info.truncated) {
-        (_, true) => println!("closed       no: the file ends mid-chunk (its server was killed); read up to the last complete chunk"),
-        (Some(reason), false) => println!("closed       yes ({reason})"),
-        (None, false) => println!("closed       no stop event"),
-    }
-    for f in &info.frame_list {
-        println!(
-            "  frame {:>8}  episode {:>3}  t {:>12.6} s  dt {:.6} s  substeps {:>2}  actors {}",
-            f.frame, f.episode, f.elapsed_seconds, f.delta_seconds, f.substeps, f.actors
-        );
-    }
 }
 
 pub(crate) fn replay(
@@ -419,6 +326,16 @@ pub(crate) fn replay(
         )));
     }
     let client = connect(world, timeout)?;
+    if !args.detach {
+        // A synchronous replay advances one frame per tick: following one
+        // that nobody ticks would wait for nothing. Nothing has changed yet.
+        let status = client.status()?;
+        if status.settings.synchronous_mode != 0 && status.ticker.active == 0 {
+            return Err(Failure::Runtime(anyhow!(
+                "world '{world}' is in synchronous mode and nobody ticks it: a replay there advances one recorded frame per tick; start a ticker first (`sim-client tick`), or start the replay with --detach and tick it yourself"
+            )));
+        }
+    }
     let options = ReplayOptions {
         start: args.start,
         duration: args.duration,
@@ -437,9 +354,9 @@ pub(crate) fn replay(
         .unwrap_or(false);
     if !args.json {
         println!(
-            "replaying {} ({} frames, {}){}",
+            "replaying {} ({}, {}){}",
             args.file.display(),
-            started.replay.total,
+            count(started.replay.total, "frame"),
             started.replay.mode,
             if synchronous {
                 "; synchronous mode: it advances one frame per tick"
@@ -449,6 +366,10 @@ pub(crate) fn replay(
         );
     }
     if args.detach {
+        // The replay as it starts; `recorder status --json` follows it.
+        if args.json {
+            print_json(&started);
+        }
         return Ok(());
     }
     let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout())).then(|| {
@@ -469,7 +390,10 @@ pub(crate) fn replay(
             if let Some(bar) = &bar {
                 bar.abandon();
             }
-            println!("replay stopped after {} frames", status.replay.frames);
+            println!(
+                "replay stopped after {}",
+                count(status.replay.frames, "frame")
+            );
             return Ok(());
         }
         let status = client.recorder_status().map_err(refused_or_runtime)?;
@@ -500,13 +424,21 @@ pub(crate) fn replay(
     if args.json {
         print_json(&status);
     } else {
-        println!("replay {}: {} of {} frames", r.state, r.frames, r.total);
+        println!(
+            "replay {}: {} of {}",
+            r.state,
+            r.frames,
+            count(r.total, "frame")
+        );
         if args.verify {
             match r.mismatch {
-                None => println!("identical: {} frames", r.verified),
+                None => println!("identical: {}", count(r.verified, "frame")),
                 Some(m) => println!(
-                    "differs: frame {} (actor {}) is not the recorded one; {} frames before it were identical",
-                    m.frame, m.actor, r.verified
+                    "differs: frame {} (actor {}) is not the recorded one; {} before it {} identical",
+                    m.frame,
+                    m.actor,
+                    count(r.verified, "frame"),
+                    if r.verified == 1 { "was" } else { "were" }
                 ),
             }
         }

@@ -4,9 +4,10 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
-use shared_types::{input, SensorKind, SensorSpec, WorldName};
+use shared_types::{input, ImuMeasurement, SensorKind, SensorSpec, WorldName};
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
 
+use super::words::count;
 use crate::Failure;
 
 /// Sensors: depth camera, lidar and IMU, read in place from shared memory.
@@ -24,11 +25,13 @@ enum SensorCommand {
     List(ListArgs),
     /// One line per capture of a sensor.
     Watch(WatchArgs),
-    /// Write captures as pictures: depth as PNG, lidar as PLY and a top-down PNG.
+    /// Write captures to files: depth as PNG, lidar as PLY and a top-down
+    /// PNG, IMU readings as JSON.
     Save(SaveArgs),
     /// Remove a sensor.
     Destroy {
         /// The sensor id.
+        #[arg(allow_negative_numbers = true)]
         id: u64,
     },
 }
@@ -40,14 +43,21 @@ struct SpawnArgs {
     kind: String,
     /// Actor to ride on (default: fixed in the world). The sensor is
     /// destroyed with it.
-    #[arg(long, value_name = "ID", default_value_t = 0)]
+    #[arg(
+        long,
+        value_name = "ID",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     attach: u64,
-    /// Position relative to the actor (or the world), x,y,z in metres.
+    /// Position relative to the actor (or the world), x,y,z in metres,
+    /// each within +-100000.
     #[arg(
         long,
         value_name = "X,Y,Z",
         default_value = "0,2,0",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = |s: &str| input::position(s).map(|_| s.to_owned())
     )]
     at: String,
     /// Orientation relative to the actor (or the world): yaw (about Y,
@@ -60,30 +70,32 @@ struct SpawnArgs {
         allow_hyphen_values = true
     )]
     rotation: String,
-    /// Capture period in simulation seconds (0: every frame).
-    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Capture period in simulation seconds, 0..=18446744073 (0: every frame).
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true, value_parser = input::sensor_tick)]
     sensor_tick: f64,
-    /// Depth: image width and height in pixels [default: 640,480].
-    #[arg(long, value_name = "W,H")]
+    /// Depth: image width and height in pixels, each 1..=8192 [default: 640,480].
+    #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = |s: &str| input::image_size(s).map(|_| s.to_owned()))]
     size: Option<String>,
-    /// Depth: horizontal field of view in degrees [default: 90].
-    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    /// Depth: horizontal field of view in degrees, above 0 and below 180
+    /// [default: 90].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = input::field_of_view)]
     fov: Option<f32>,
-    /// Depth: far range; lidar: range, in metres [default: depth 100, lidar 50].
-    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    /// Depth: far range; lidar: range, in metres, above 0 and at most 1e6
+    /// [default: depth 100, lidar 50].
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = input::sensor_range)]
     range: Option<f32>,
-    /// Lidar: channels (rings) [default: 32].
-    #[arg(long, value_name = "N")]
+    /// Lidar: channels (rings), 1..=256 [default: 32].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_channels)]
     channels: Option<u32>,
-    /// Lidar: points per channel in a full turn [default: 512].
-    #[arg(long, value_name = "N")]
+    /// Lidar: points per channel in a full turn, 1..=65536 [default: 512].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_points)]
     points: Option<u32>,
     /// Lidar: elevation of the top and bottom channels, degrees [default: 10,-30].
     #[arg(long, value_name = "UPPER,LOWER", allow_hyphen_values = true)]
     fov_range: Option<String>,
     /// Lidar: turns per simulated second; each capture covers hz × dt of a
-    /// turn (0: a full turn every capture) [default: 0].
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    /// turn (0: a full turn every capture; at most 1e6) [default: 0].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rotation_frequency)]
     rotation_frequency: Option<f32>,
     /// Print {"id": N, ...}.
     #[arg(long)]
@@ -100,11 +112,13 @@ struct ListArgs {
 #[derive(Debug, Args)]
 struct WatchArgs {
     /// The sensor id.
+    #[arg(allow_negative_numbers = true)]
     id: u64,
-    /// Stop after N captures.
-    #[arg(long, value_name = "N")]
+    /// Stop after N captures (N >= 1).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::count)]
     captures: Option<u64>,
-    /// One JSON object per capture (frame, bytes, ...).
+    /// One JSON object per capture (frame, bytes, ...; an IMU's
+    /// accelerometer, gyroscope and compass).
     #[arg(long)]
     json: bool,
     /// Join the lockstep: in synchronous mode the server waits for this
@@ -116,22 +130,23 @@ struct WatchArgs {
 #[derive(Debug, Args)]
 struct SaveArgs {
     /// The sensor id.
+    #[arg(allow_negative_numbers = true)]
     id: u64,
-    /// How many captures to save.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    /// How many captures to save (N >= 1).
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = input::count)]
     captures: u64,
     /// Directory to write into (created if missing).
     #[arg(long, value_name = "DIR")]
     out: std::path::PathBuf,
     /// Depth: the range the picture's grey scale spans, metres (default:
     /// the farthest hit in the image, so a 20 m scene is not all white).
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = |s: &str| input::metres(s).map(|m| m as f32))]
     range: Option<f32>,
 }
 
 fn failure(e: SensorError) -> Failure {
     match e {
-        SensorError::Refused(_) => Failure::Refused(e.into()),
+        SensorError::Refused(_) | SensorError::UnknownSensor { .. } => Failure::Refused(e.into()),
         e => Failure::Runtime(e.into()),
     }
 }
@@ -168,8 +183,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
                         t => format!("every {} s", seconds_text(t)),
                     };
                     println!(
-                        "sensor {:>3}  {kind:<5}  {on:<14} {every}  {} captures",
-                        s.id, s.captures
+                        "sensor {:>3}  {kind:<5}  {on:<14} {every}  {}",
+                        s.id,
+                        count(s.captures, "capture")
                     );
                 }
             }
@@ -298,26 +314,57 @@ fn seconds_text(seconds: f64) -> String {
     }
 }
 
+/// What `sensor watch --json` prints for a capture, and `sensor save`
+/// writes for an IMU's: the header, and an IMU's readings.
+fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
+    let h = capture.header();
+    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
+    let mut json = serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
+        "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
+        "bytes": capture.bytes().len(), "missed": missed,
+        "position": h.position});
+    if let (Some(imu), Some(object)) = (capture.imu(), json.as_object_mut()) {
+        object.insert("accelerometer".into(), imu.accelerometer.into());
+        object.insert("gyroscope".into(), imu.gyroscope.into());
+        object.insert("compass".into(), compass(h.rotation).into());
+    }
+    json
+}
+
+/// The compass of a sensor at orientation `q`: radians clockwise from
+/// north, as CARLA's `IMUMeasurement.compass` (and the gateway) reads it.
+fn compass(q: [f32; 4]) -> f32 {
+    super::carla::convert::compass(q)
+}
+
+/// An IMU's readings as one readable phrase.
+fn imu_text(imu: &ImuMeasurement, rotation: [f32; 4]) -> String {
+    let [ax, ay, az] = imu.accelerometer;
+    let [gx, gy, gz] = imu.gyroscope;
+    format!(
+        "accelerometer ({ax:.3}, {ay:.3}, {az:.3}) m/s²  gyroscope ({gx:.3}, {gy:.3}, {gz:.3}) rad/s  compass {:.3} rad",
+        compass(rotation)
+    )
+}
+
 fn print_capture(capture: &Capture, missed: u64, json: bool) {
     let h = capture.header();
     let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
     if json {
-        println!(
-            "{}",
-            serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
-                "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
-                "bytes": capture.bytes().len(), "missed": missed,
-                "position": h.position})
-        );
+        println!("{}", capture_json(capture, missed));
     } else {
+        let readings = capture
+            .imu()
+            .map(|imu| format!("  {}", imu_text(imu, h.rotation)))
+            .unwrap_or_default();
         println!(
-            "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {} bytes  {} values",
+            "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {}  {}{readings}",
             h.sensor_id,
             h.frame,
             h.elapsed_ns as f64 / 1e9,
             h.sequence,
-            capture.bytes().len(),
-            h.count
+            count(capture.bytes().len() as u64, "byte"),
+            count(h.count, "value")
         );
     }
 }
@@ -396,13 +443,22 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
             super::pictures::save_lidar_top_down(&png, points, params[2])
                 .with_context(|| format!("writing {}", png.display()))?;
             println!(
-                "wrote {} and {} ({} points)",
+                "wrote {} and {} ({})",
                 ply.display(),
                 png.display(),
-                points.len()
+                count(points.len() as u64, "point")
             );
         } else if let Some(imu) = capture.imu() {
-            println!("frame {}: imu {imu:?} (nothing to draw)", h.frame);
+            // Nothing to draw: the readings, as `sensor watch --json` prints them.
+            let path = stem.with_extension("json");
+            let mut text = capture_json(&capture, sensor.missed()).to_string();
+            text.push('\n');
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+            println!(
+                "wrote {} (imu: {})",
+                path.display(),
+                imu_text(imu, h.rotation)
+            );
         }
     }
     Ok(())

@@ -33,9 +33,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     }
     println!("world     {world} (server pid {})", report.server_pid);
     println!(
-        "scene     {} ({} actors)",
+        "scene     {} ({})",
         report.scene.to_string_lossy(),
-        report.actor_count
+        super::words::count(report.actor_count, "actor")
     );
     println!(
         "frame     {} (t = {elapsed:.6} s, episode {})",
@@ -45,7 +45,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         println!("{name:<9} {value}");
     }
     println!("ticker    {}", report.ticker);
-    println!("lockstep  {} participant(s)", report.participants);
+    println!(
+        "lockstep  {}",
+        super::words::count(report.participants, "participant")
+    );
     if report.seed != 0 {
         println!("seed      {}", report.seed);
     }

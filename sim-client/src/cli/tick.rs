@@ -17,11 +17,12 @@ const NODE_NAME: &str = "sim-client-tick";
 /// Options of `sim-client tick` (described on the command).
 #[derive(Debug, Args)]
 pub(crate) struct TickArgs {
-    /// Stop after N ticks.
-    #[arg(long, value_name = "N")]
+    /// Stop after N ticks (0: change nothing).
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
     count: Option<u64>,
 
-    /// At most HZ ticks per wall-clock second (default: as fast as possible).
+    /// At most HZ ticks per wall-clock second, at most 1e6 (default: as
+    /// fast as possible).
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rate)]
     rate: Option<f64>,
 
@@ -29,25 +30,28 @@ pub(crate) struct TickArgs {
     #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::sim_time)]
     until_sim_time: Option<f64>,
 
-    /// Fixed time-step in seconds (default: the world's, else 0.05).
-    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step in seconds, 1e-6..=3600 (default: the world's, else
+    /// 0.05; 0: variable step, with --allow-variable-step).
+    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::fixed_delta_seconds)]
     delta_seconds: Option<f64>,
 
-    /// Fixed time-step as frames per simulated second.
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::seconds)]
+    /// Fixed time-step as frames per simulated second: 0.000277778..=1e6
+    /// (0: variable step, with --allow-variable-step).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
     fps: Option<f64>,
 
     /// Before the first tick, wait (up to --timeout) until N lockstep
     /// participants (autopilot, `watch --lockstep`, ...) have joined, so
-    /// none misses the first frame.
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    /// none misses the first frame (0..=1024).
+    #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true, value_parser = input::participants)]
     participants: u32,
 
     /// Accept a variable step in synchronous mode (dt = the ticker's wait; not recommended).
     #[arg(long)]
     allow_variable_step: bool,
 
-    /// Leave the world in synchronous mode on exit (it then waits for the next ticker).
+    /// Leave the world in synchronous mode on exit, with its own step (it
+    /// then waits for the next ticker).
     #[arg(long)]
     leave_sync: bool,
 
@@ -106,9 +110,13 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     let from = ticker
         .apply_settings(sync)
         .map_err(super::refused_or_runtime)?;
+    // From here on the world is given back however this run ends: a bound,
+    // Ctrl-C, an error, a closed stdout or a panic (the guard's drop).
+    let mut holding = Holding::new(ticker, sync, current, args.leave_sync);
     match delta {
         Some(dt) => eprintln!(
-            "tick: ticker of world '{world}'; synchronous mode, fixed step {dt} s, from frame {from}"
+            "tick: ticker of world '{world}'; synchronous mode, fixed step {} s, from frame {from}",
+            shared_types::input::Readable(dt)
         ),
         None => eprintln!(
             "tick: warning: synchronous mode with a variable step (--allow-variable-step); physics is unreliable"
@@ -118,42 +126,115 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
         eprintln!("tick: warning: {warning}");
     }
 
-    let result = match tick_loop(&mut ticker, timeout, &args, interrupted) {
+    let ticks = match tick_loop(holding.ticker(), timeout, &args, interrupted) {
         Err(revoked @ TickError::Revoked { .. }) => {
             // Ownership is gone and the world already left synchronous
             // mode: nothing to put back.
-            let _ = ticker.release();
+            holding.revoked();
             return Err(Failure::Runtime(revoked.into()));
         }
         other => other,
     };
-    // Put back the settings this run changed: the world's own step and
-    // asynchronous mode (or stay synchronous with --leave-sync).
-    let restore = if args.leave_sync {
-        Ok(())
-    } else {
-        let before = WorldSettings {
-            synchronous_mode: false,
-            ..current
-        };
-        ticker
-            .apply_settings(before)
-            .map(|_| ())
-            .map_err(|e| anyhow!(e).context("restoring the world's settings"))
-    };
-    let release = ticker.release().map_err(|e| anyhow!(e));
-    let ticks = result.map_err(anyhow::Error::from)?;
+    let (restore, release) = holding.give_back();
+    let ticks = ticks.map_err(anyhow::Error::from)?;
     restore?;
     release?;
     eprintln!(
-        "tick: {ticks} ticks; released ownership, world left in {} mode",
-        if args.leave_sync {
-            "synchronous"
-        } else {
-            "asynchronous, with its settings as before"
-        }
+        "tick: {ticks} ticks; released ownership, {}",
+        left_as(&current, args.leave_sync)
     );
     Ok(())
+}
+
+/// How the world is left, as the last line says it.
+fn left_as(current: &WorldSettings, leave_sync: bool) -> String {
+    if !leave_sync {
+        return "world left in asynchronous mode, with its settings as before".to_owned();
+    }
+    match current.fixed_delta_seconds {
+        Some(dt) => format!(
+            "world left in synchronous mode with its own step ({dt} s), waiting for the next ticker"
+        ),
+        None => {
+            "world left in synchronous mode with its own variable step, waiting for the next ticker"
+                .to_owned()
+        }
+    }
+}
+
+/// The ticker of a run and what to put back when the run ends. Dropped
+/// without [`Holding::give_back`] (an early return, an unwind from a closed
+/// stdout, a panic) it still puts the settings back and releases.
+struct Holding {
+    ticker: Option<Ticker>,
+    /// The settings to put back: the world's own, asynchronous (or
+    /// synchronous with --leave-sync); `None` once nothing is to be put back.
+    restore: Option<WorldSettings>,
+}
+
+impl Holding {
+    /// Holds `ticker`, which applied `applied` to a world whose settings
+    /// were `before` this run.
+    fn new(
+        ticker: Ticker,
+        applied: WorldSettings,
+        before: WorldSettings,
+        leave_sync: bool,
+    ) -> Self {
+        let restore = WorldSettings {
+            synchronous_mode: leave_sync,
+            ..before
+        };
+        Self {
+            ticker: Some(ticker),
+            restore: (restore != applied).then_some(restore),
+        }
+    }
+
+    /// The ticker, to tick with.
+    fn ticker(&mut self) -> &mut Ticker {
+        self.ticker.as_mut().expect("held until given back")
+    }
+
+    /// Ownership was revoked and the world left synchronous mode: only
+    /// release is left to do.
+    fn revoked(mut self) {
+        self.restore = None;
+        if let Some(ticker) = self.ticker.take() {
+            let _ = ticker.release();
+        }
+    }
+
+    /// Puts the world's settings back, then releases ownership; both
+    /// results, so a failed restore still releases.
+    fn give_back(mut self) -> (anyhow::Result<()>, anyhow::Result<()>) {
+        let mut ticker = self.ticker.take().expect("held until given back");
+        let restore = match self.restore.take() {
+            Some(settings) => ticker
+                .apply_settings(settings)
+                .map(|_| ())
+                .map_err(|e| anyhow!(e).context("restoring the world's settings")),
+            None => Ok(()),
+        };
+        let release = ticker.release().map_err(|e| anyhow!(e));
+        (restore, release)
+    }
+}
+
+impl Drop for Holding {
+    fn drop(&mut self) {
+        if self.ticker.is_none() {
+            return;
+        }
+        let (restore, release) = Self {
+            ticker: self.ticker.take(),
+            restore: self.restore.take(),
+        }
+        .give_back();
+        for e in [restore.err(), release.err()].into_iter().flatten() {
+            eprintln!("tick: {e:#}");
+        }
+    }
 }
 
 /// Waits until at least `count` lockstep participants have joined.

@@ -19,8 +19,9 @@ use crate::Failure;
 /// Show a world's clients, sensors, rates and shared memory, refreshing.
 #[derive(Debug, Args)]
 pub(crate) struct TopArgs {
-    /// Seconds between refreshes (rates are measured over this interval).
-    #[arg(long, default_value_t = 1.0)]
+    /// Seconds between refreshes, 0.05..=3600 (rates are measured over
+    /// this interval).
+    #[arg(long, value_name = "S", default_value_t = 1.0, allow_negative_numbers = true, value_parser = shared_types::input::refresh_interval)]
     interval: f64,
     /// Measure one interval, print once and exit.
     #[arg(long)]
@@ -192,8 +193,12 @@ fn render(screen: &Screen) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "world {}  server pid {}  scene {}  episode {}  {} actors",
-        screen.world, screen.server_pid, screen.scene, screen.episode, screen.actors
+        "world {}  server pid {}  scene {}  episode {}  {}",
+        screen.world,
+        screen.server_pid,
+        screen.scene,
+        screen.episode,
+        super::words::count(screen.actors, "actor")
     );
     let _ = writeln!(
         out,
@@ -204,7 +209,11 @@ fn render(screen: &Screen) -> String {
         let _ = writeln!(out, "{name:<9} {value}");
     }
     let _ = writeln!(out, "ticker    {}", screen.ticker_line);
-    let _ = writeln!(out, "lockstep  {} participant(s)", screen.participant_count);
+    let _ = writeln!(
+        out,
+        "lockstep  {}",
+        super::words::count(screen.participant_count, "participant")
+    );
     for p in &screen.participants {
         let wait = p.done_after_us.map_or_else(
             || "no report for the current frame yet".to_owned(),
@@ -220,7 +229,11 @@ fn render(screen: &Screen) -> String {
         mib(screen.shared_memory.resident_bytes)
     );
     let _ = writeln!(out);
-    let _ = writeln!(out, "{} client(s)", screen.clients.len());
+    let _ = writeln!(
+        out,
+        "{}",
+        super::words::count(screen.clients.len() as u64, "client")
+    );
     let _ = writeln!(
         out,
         "{:<8} {:<12} {:<40} services",
@@ -237,7 +250,11 @@ fn render(screen: &Screen) -> String {
         );
     }
     let _ = writeln!(out);
-    let _ = writeln!(out, "{} sensor(s)", screen.sensors.len());
+    let _ = writeln!(
+        out,
+        "{}",
+        super::words::count(screen.sensors.len() as u64, "sensor")
+    );
     let _ = writeln!(
         out,
         "{:<6} {:<7} {:>9} {:>10} {:>10}  readers",

@@ -11,8 +11,8 @@ use crate::Failure;
 /// Options of `sim-client watch` (described on the command).
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
-    /// Stop after N frames.
-    #[arg(long, value_name = "N")]
+    /// Stop after N frames (N >= 1).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = shared_types::input::count)]
     frames: Option<u64>,
 
     /// One JSON object per line.
@@ -61,7 +61,12 @@ pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
         "synchronous_mode": s.settings().synchronous_mode,
         "fixed_delta_seconds": s.settings().fixed_delta_seconds,
         "missed": s.missed(),
-        "replay": s.header().flags & shared_types::FrameHeader::REPLAY != 0,
+        "replay": s.header().is_replay(),
+        // A replayed frame: its id and time in the recording.
+        "recorded_frame": s.header().is_replay().then_some(s.header().recorded_frame),
+        "recorded_elapsed_seconds": s.header().is_replay().then(|| {
+            shared_types::nanos_to_seconds(s.header().recorded_elapsed_ns)
+        }),
         "digest": format!("{:016x}", s.digest()),
     })
 }
@@ -79,8 +84,11 @@ fn frame_line(s: &FrameView) -> String {
     if s.missed() > 0 {
         line.push_str(&format!("  (missed {})", s.missed()));
     }
-    if s.header().flags & shared_types::FrameHeader::REPLAY != 0 {
-        line.push_str("  (replay)");
+    if s.header().is_replay() {
+        line.push_str(&format!(
+            "  (replay of recorded frame {})",
+            s.header().recorded_frame
+        ));
     }
     line
 }
@@ -116,8 +124,8 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
         } else if args.digest {
             if snapshot.missed() > 0 {
                 println!(
-                    "missed {} frames ({}..={})",
-                    snapshot.missed(),
+                    "missed {} ({}..={})",
+                    super::words::count(snapshot.missed(), "frame"),
                     snapshot.frame() - snapshot.missed(),
                     snapshot.frame() - 1
                 );
@@ -136,8 +144,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     }
     if args.digest && missed > 0 {
         return Err(Failure::Runtime(anyhow::anyhow!(
-            "missed {missed} frames, so the digests have gaps; in synchronous mode add \
-             --lockstep so the server waits for this watcher"
+            "missed {}, so the digests have gaps; in synchronous mode add \
+             --lockstep so the server waits for this watcher",
+            super::words::count(missed, "frame")
         )));
     }
     Ok(())

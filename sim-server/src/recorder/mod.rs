@@ -9,9 +9,12 @@
 //! `stop`, when the server stops, and on a load of another scene; a
 //! killed server leaves every complete chunk readable.
 
+mod create;
 mod keyframe;
 mod service;
 mod writer;
+
+pub(crate) use create::StartError;
 
 pub(crate) use keyframe::Keyframe;
 pub use service::RecorderPort;
@@ -74,6 +77,9 @@ pub struct Recorder {
     pub(crate) last: LastRecording,
     collisions: Vec<RecordedCollision>,
     captures: Vec<(SensorHeader, Vec<u8>)>,
+    /// The header of the last frame published: a recording starts with
+    /// that frame as it was sent (its substeps, flags and time).
+    published: Option<FrameHeader>,
 }
 
 impl Drop for Recorder {
@@ -86,6 +92,18 @@ impl Recorder {
     /// Whether a recording runs.
     pub fn is_recording(&self) -> bool {
         self.active.is_some()
+    }
+
+    /// Notes the header of a frame just published (a copy, no allocation).
+    pub(crate) fn published(&mut self, header: &FrameHeader) {
+        self.published = Some(*header);
+    }
+
+    /// The header of the last frame published, if it is `frame` of
+    /// `episode`.
+    pub(crate) fn last_published(&self, frame: u64, episode: u64) -> Option<FrameHeader> {
+        self.published
+            .filter(|h| h.timestamp.frame == frame && h.episode == episode)
     }
 
     /// The running recording's path and frames so far.
@@ -103,15 +121,14 @@ impl Recorder {
         sensors: Vec<SensorNote>,
         frame: (&FrameHeader, &World),
         scene: String,
-    ) -> Result<(), String> {
-        let handle =
-            writer::create(path, &header).map_err(|e| format!("cannot create {path}: {e}"))?;
+    ) -> Result<(), StartError> {
+        let handle = writer::create(path, &header)?;
         let (items, receiver) = sync_channel(QUEUE);
         let thread_path = path.to_string();
         let thread = std::thread::Builder::new()
             .name("simbus-recorder".into())
             .spawn(move || writer::run(handle, receiver, thread_path))
-            .map_err(|e| format!("cannot start the recorder thread: {e}"))?;
+            .map_err(StartError::Thread)?;
         let every = (header.keyframe_seconds * NANOS_PER_SECOND as f64) as u64;
         self.active = Some(Active {
             items,

@@ -163,10 +163,16 @@ fn answer(d: &mut Domains, request: &RecorderRequest, preparing: Option<&str>) -
             "refused a recorder request: protocol version {} is not the server's {PROTOCOL_VERSION}",
             request.protocol_version
         );
-        return d.recorder_status(RecorderResponse::new(ResponseStatus::ProtocolMismatch));
+        return d.recorder_status(
+            RecorderKind::Status,
+            RecorderResponse::new(ResponseStatus::ProtocolMismatch),
+        );
     }
     let Some(kind) = RecorderKind::from_u32(request.kind) else {
-        return d.recorder_status(RecorderResponse::new(ResponseStatus::UnknownRequest));
+        return d.recorder_status(
+            RecorderKind::Status,
+            RecorderResponse::new(ResponseStatus::UnknownRequest),
+        );
     };
     let done = match kind {
         RecorderKind::Status => Ok(()),
@@ -213,10 +219,11 @@ fn reply(
     done: Result<(), Refusal>,
 ) -> RecorderResponse {
     match done {
-        Ok(()) => d.recorder_status(RecorderResponse::new(ResponseStatus::Ok)),
+        Ok(()) => d.recorder_status(kind, RecorderResponse::new(ResponseStatus::Ok)),
         Err((refusal, message)) => {
             info!(client_pid, ?kind, "refused: {message}");
-            let mut response = d.recorder_status(RecorderResponse::new(ResponseStatus::Refused));
+            let mut response =
+                d.recorder_status(kind, RecorderResponse::new(ResponseStatus::Refused));
             response.refusal = refusal as u32;
             response.message = PathText::cut(&message);
             response
@@ -250,7 +257,7 @@ fn start(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
     }
     let path = path_of(request)?;
     d.start_recording(&path, request.flags & RecorderRequest::SENSORS != 0)
-        .map_err(|message| (RecorderRefusal::CannotWrite, message))
+        .map_err(|e| (RecorderRefusal::CannotWrite, e.to_string()))
 }
 
 /// A replay request checked against what runs now.

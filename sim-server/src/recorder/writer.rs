@@ -14,6 +14,8 @@ use shared_types::recording::*;
 use shared_types::{ActorKind, ActorState, FrameHeader, SensorHeader};
 use tracing::{info, warn};
 
+use super::create::{create_file, describe, StartError};
+
 /// Bytes of messages gathered before a chunk is compressed and written: a
 /// killed server loses at most the chunk being gathered.
 const CHUNK_BYTES: u64 = 1 << 20;
@@ -81,8 +83,17 @@ struct Writer {
 type McapResult<T> = Result<T, mcap::McapError>;
 
 /// Creates `path` and writes the header; the file is ready for [`run`].
-pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterHandle> {
-    let file = File::create(path)?;
+/// A path that cannot be created is refused with the file system's reason.
+pub(crate) fn create(path: &str, header: &RecordingHeader) -> Result<WriterHandle, StartError> {
+    let file = create_file(path)?;
+    begin(file, header).map_err(|error| StartError::Header {
+        path: path.to_string(),
+        error,
+    })
+}
+
+/// Writes the header into the created `file`.
+fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
     let mut mcap = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("simbus {}", env!("CARGO_PKG_VERSION")))
@@ -112,7 +123,7 @@ pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterH
     let frames = wire(
         &mut mcap,
         FRAME_SCHEMA,
-        "#[repr(C)] simbus::FrameHeader/2 (96 bytes, little-endian) followed by actor_count simbus::ActorState/1 (96 bytes each); see shared-types/src/frame.rs",
+        "#[repr(C)] simbus::FrameHeader/3 (112 bytes, little-endian) followed by actor_count simbus::ActorState/1 (96 bytes each); see shared-types/src/frame.rs",
         FRAMES_TOPIC,
     )?;
     let commands = wire(
@@ -166,6 +177,10 @@ pub(crate) fn create(path: &str, header: &RecordingHeader) -> McapResult<WriterH
         },
         &header_json,
     )?;
+    // The header in a chunk of its own, on disk now: a recording still
+    // being written reads as one (its header, then every complete chunk),
+    // not as an empty or damaged file.
+    mcap.flush()?;
     Ok(WriterHandle(Writer {
         mcap,
         frames,
@@ -203,7 +218,7 @@ pub(crate) fn run(
         if let Err(e) = writer.write(item) {
             warn!(path, "recording failed: {e}");
             // Dropping the receiver tells the frame loop at its next send.
-            return Err(format!("writing {path} failed: {e}"));
+            return Err(format!("writing {path} failed: {}", describe(&e)));
         }
     }
     let mut written = writer.written;
@@ -221,7 +236,7 @@ pub(crate) fn run(
 /// Writes the summary and footer, flushes and syncs the file: a recording
 /// that could not be closed is an error, not a silent loss.
 fn finish(mut writer: Writer) -> Result<(), Box<dyn std::error::Error>> {
-    writer.mcap.finish()?;
+    writer.mcap.finish().map_err(|e| describe(&e))?;
     let mut file = writer.mcap.into_inner();
     file.flush()?;
     file.into_inner().map_err(|e| e.into_error())?.sync_all()?;
@@ -543,3 +558,7 @@ fn scene_update_schema() -> serde_json::Value {
         }
     })
 }
+
+#[cfg(test)]
+#[path = "header_roundtrip.rs"]
+mod header_roundtrip;

@@ -80,7 +80,6 @@ impl Default for ReplayReport {
 #[derive(Debug)]
 pub(crate) struct SavedWorld {
     pub(crate) world: World,
-    pub(crate) clock: Clock,
     pub(crate) scene: Scene,
 }
 
@@ -129,14 +128,16 @@ impl Replayer {
         self.active.is_some()
     }
 
-    /// Installs a prepared replay; returns the world, clock and scene it
-    /// starts from, for the caller to swap in.
-    pub(crate) fn begin(&mut self, prepared: Prepared) -> (World, Clock, Scene) {
+    /// Installs a prepared replay; returns the world and scene it starts
+    /// from, for the caller to swap in. (The recording's clock is not the
+    /// server's: replayed frames are numbered on from the live ones, their
+    /// recorded ids and times travel in their headers.)
+    pub(crate) fn begin(&mut self, prepared: Prepared) -> (World, Scene) {
         self.sensor_ids.clear();
         self.keep_actors = prepared.keep_actors;
         self.report = prepared.report;
         self.active = Some(prepared.replay);
-        (prepared.world, prepared.clock, prepared.scene)
+        (prepared.world, prepared.scene)
     }
 
     /// The recorded actor sensors spawned without a parent ride on.
@@ -261,7 +262,9 @@ impl Replayer {
                 }
             }
         }
-        let new_episode = replay.episode.is_some_and(|e| e != frame.header.episode);
+        // The first replayed frame starts a new episode, and so does each
+        // recorded load or reload.
+        let new_episode = replay.episode != Some(frame.header.episode);
         replay.episode = Some(frame.header.episode);
         let last = match mode {
             // Exact and resimulate: the selected number of recorded frames.
@@ -289,7 +292,6 @@ pub(crate) struct Prepared {
     report: ReplayReport,
     keep_actors: bool,
     world: World,
-    clock: Clock,
     scene: Scene,
 }
 
@@ -345,7 +347,7 @@ pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
         ReplayMode::Exact
     });
     let reader = RecordingReader::open(&request.path).map_err(bad_file)?;
-    let (cursor, world, clock, scene) = Cursor::start(reader, &selection, mode)?;
+    let (cursor, world, _recorded_clock, scene) = Cursor::start(reader, &selection, mode)?;
     info!(
         path = request.path,
         mode = mode.name(),
@@ -380,7 +382,6 @@ pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
         report,
         keep_actors: request.keep_actors,
         world,
-        clock,
         scene,
     })
 }

@@ -109,6 +109,22 @@ struct Timers {
     probe: Instant,
 }
 
+/// Refuses a keyframe interval a recording could not use (NaN, infinite,
+/// zero or absurd): the library checks what the CLI's parser checks.
+fn check_keyframe_seconds(seconds: Option<f64>) -> Result<(), ServerError> {
+    use shared_types::recording::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
+    match seconds {
+        Some(s) if !(MIN_KEYFRAME_SECONDS..=MAX_KEYFRAME_SECONDS).contains(&s) => {
+            Err(ServerError::KeyframeSeconds {
+                seconds: s,
+                min: MIN_KEYFRAME_SECONDS,
+                max: MAX_KEYFRAME_SECONDS,
+            })
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Wall-clock seconds since the Unix epoch, as frames and captures carry it.
 pub(crate) fn platform_timestamp() -> f64 {
     SystemTime::now()
@@ -122,6 +138,7 @@ impl Server {
     pub fn start(config: ServerConfig) -> Result<Self, ServerError> {
         let settings = config.settings.normalized();
         settings.validate()?;
+        check_keyframe_seconds(config.keyframe_seconds)?;
         for warning in settings.warnings() {
             warn!("{warning}");
         }
@@ -343,6 +360,7 @@ impl Domains {
     fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), ServerError> {
         let header = self.frame_header(physics_substeps, flags);
         self.frames.publish(header, &self.world)?;
+        self.recorder.published(&header);
         if self.recorder.is_recording() {
             let scene = self.runtime.scene.to_string();
             self.recorder.frame(&header, &self.world, scene);
@@ -368,6 +386,8 @@ impl Domains {
             first_actor_id: self.world.first_id(),
             server_pid: shared_types::this_process_id(),
             reserved: 0,
+            recorded_frame: 0,
+            recorded_elapsed_ns: 0,
         }
     }
 
@@ -511,6 +531,25 @@ impl Domains {
                 removed = cleanup.cleanups,
                 "removed resources of dead clients"
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_keyframe_interval_a_recording_cannot_use_is_refused_by_the_library() {
+        for bad in [f64::NAN, f64::INFINITY, -1.0, 0.0, 1e300] {
+            let error = check_keyframe_seconds(Some(bad)).unwrap_err();
+            assert!(
+                error.to_string().contains("--keyframe-seconds"),
+                "{bad}: {error}"
+            );
+        }
+        for good in [None, Some(0.001), Some(10.0), Some(1e9)] {
+            check_keyframe_seconds(good).unwrap();
         }
     }
 }

@@ -7,7 +7,9 @@ use std::time::Instant;
 use shared_types::recording::{
     RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
 };
-use shared_types::{FrameHeader, PathText, RecorderResponse, SensorEnd, PROTOCOL_VERSION};
+use shared_types::{
+    FrameHeader, PathText, RecorderKind, RecorderResponse, ReplayMode, SensorEnd, PROTOCOL_VERSION,
+};
 use tracing::{info, warn};
 
 use super::{platform_timestamp, Domains};
@@ -17,7 +19,11 @@ use crate::ServerError;
 
 impl Domains {
     /// Starts recording to `path` from the current frame.
-    pub(crate) fn start_recording(&mut self, path: &str, sensors: bool) -> Result<(), String> {
+    pub(crate) fn start_recording(
+        &mut self,
+        path: &str,
+        sensors: bool,
+    ) -> Result<(), crate::recorder::StartError> {
         let header = RecordingHeader {
             recording_version: RECORDING_VERSION,
             simbus_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -36,7 +42,20 @@ impl Domains {
                 .keyframe_seconds
                 .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
         };
-        let frame = self.frame_header(0, 0);
+        // The current frame as it was published (its substeps, flags and
+        // time), with the actors the world holds now.
+        let now = self.frame_header(0, 0);
+        let frame = match self
+            .recorder
+            .last_published(now.timestamp.frame, now.episode)
+        {
+            Some(published) => FrameHeader {
+                actor_count: now.actor_count,
+                first_actor_id: now.first_actor_id,
+                ..published
+            },
+            None => now,
+        };
         let scene = self.runtime.scene.to_string();
         // The sensors alive now are part of the recording, before its first frame.
         let sensors = self.sensors.recorded_spawns(self.clock.frame());
@@ -45,12 +64,14 @@ impl Domains {
     }
 
     /// Checks the recording, then replaces the world with the one the
-    /// replay starts from (the live one is put aside), as a new episode.
-    /// The first replayed frame comes with the next step (the next tick in
-    /// synchronous mode).
+    /// replay starts from (the live one is put aside). The live sensors
+    /// end now; the first replayed frame comes with the next step (the
+    /// next tick in synchronous mode), as the next frame id and the first
+    /// of a new episode: frame ids on the bus never go back, so lockstep
+    /// participants and readers follow a replay like any other frames.
     pub(crate) fn start_replay(&mut self, prepared: Prepared) {
         let path = prepared.path().to_string();
-        let (world, clock, scene) = self.replayer.begin(prepared);
+        let (world, scene) = self.replayer.begin(prepared);
         self.sensors.end_all(
             SensorEnd::EpisodeEnded,
             self.clock.frame(),
@@ -58,16 +79,13 @@ impl Domains {
         );
         let live = SavedWorld {
             world: std::mem::replace(&mut self.world, world),
-            clock: std::mem::replace(&mut self.clock, clock),
             scene: std::mem::replace(&mut self.runtime.scene, scene),
         };
         self.replayer.saved = Some(live);
-        self.runtime.episode += 1;
         self.runtime.pacer.reset();
-        self.lockstep.new_episode();
         info!(
             path,
-            episode = self.runtime.episode,
+            frame = self.clock.frame() + 1,
             "replay starts with the next {}",
             if self.runtime.settings.synchronous_mode {
                 "tick"
@@ -88,7 +106,9 @@ impl Domains {
         self.leave_replay(keep_actors)
     }
 
-    /// After a replay: keep its world live, or bring back the one from before.
+    /// After a replay: keep its world live, or bring back the one from
+    /// before, published at once as the next frame id (in no simulation
+    /// time) and the first frame of a new episode.
     fn leave_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
         self.replayer.sensor_ids.clear();
         let saved = self.replayer.saved.take();
@@ -97,28 +117,24 @@ impl Domains {
             self.clock.frame(),
             self.runtime.episode,
         );
-        let clock = match (keep_actors, saved) {
-            (false, Some(saved)) => {
-                self.world = saved.world;
-                self.runtime.scene = saved.scene;
-                saved.clock
-            }
-            _ => self.clock.clone(),
-        };
-        // The clock goes on from its frame, its wall time from now: a
-        // variable step must not span the replay.
+        if let (false, Some(saved)) = (keep_actors, saved) {
+            self.world = saved.world;
+            self.runtime.scene = saved.scene;
+        }
+        // Frame ids go on; a variable step counts wall time from now, not
+        // across the replay.
         self.clock = Clock::at(
-            clock.frame(),
-            clock.elapsed_ns(),
-            clock.delta_ns(),
+            self.clock.frame() + 1,
+            self.clock.elapsed_ns(),
+            0,
             Instant::now(),
         );
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
-        self.lockstep.new_episode();
         info!(
             keep_actors,
             episode = self.runtime.episode,
+            frame = self.clock.frame(),
             "replay over; the world goes on live"
         );
         self.publish(0, 0)?;
@@ -135,18 +151,26 @@ impl Domains {
             return Ok(());
         };
         if frame.new_episode {
-            // A recorded load or reload: a new episode here too, so every
-            // (episode, frame) a client sees is new.
-            self.sensors.end_all(
-                SensorEnd::EpisodeEnded,
-                self.clock.frame(),
-                self.runtime.episode,
-            );
+            // The replay's first frame, or a recorded load or reload: a new
+            // episode here too. The live sensors ended when the replay
+            // started; a recorded load ends the replayed ones.
+            if self.replayer.report.produced > 1 {
+                self.sensors.end_all(
+                    SensorEnd::EpisodeEnded,
+                    self.clock.frame(),
+                    self.runtime.episode,
+                );
+            }
             self.runtime.episode += 1;
-            self.lockstep.new_episode();
         }
-        let t = frame.header.timestamp;
-        self.clock = Clock::at_timestamp(&t, now);
+        let recorded = frame.header.timestamp;
+        // The server's own next frame: exact and resimulate step by the
+        // recorded delta, interpolate by the server's own step.
+        let step = match self.replayer.report.mode {
+            ReplayMode::Interpolate => delta_ns,
+            ReplayMode::Exact | ReplayMode::Resimulate => recorded.delta_ns,
+        };
+        self.clock.advance(step, now);
         self.runtime.frames_computed += 1;
         self.replay_sensors();
         if !self.sensors.is_empty() {
@@ -164,9 +188,13 @@ impl Domains {
             flags: frame.header.flags | FrameHeader::REPLAY,
             server_pid: shared_types::this_process_id(),
             timestamp: shared_types::Timestamp {
+                frame: self.clock.frame(),
+                elapsed_ns: self.clock.elapsed_ns(),
+                delta_ns: self.clock.delta_ns(),
                 platform_timestamp: platform_timestamp(),
-                ..t
             },
+            recorded_frame: recorded.frame,
+            recorded_elapsed_ns: recorded.elapsed_ns,
             actor_count: frame.actors.len() as u32,
             // The settings frames are delivered under are the server's.
             settings: self.runtime.settings.into(),
@@ -176,7 +204,11 @@ impl Domains {
         self.ticker.answer_stepped(ticks, &self.clock);
         self.frames.notify()?;
         if frame.last {
-            info!(frame = t.frame, "replay finished");
+            info!(
+                frame = self.clock.frame(),
+                recorded_frame = recorded.frame,
+                "replay finished"
+            );
             self.leave_replay(self.replayer.keep_actors)?;
         }
         Ok(())
@@ -215,8 +247,17 @@ impl Domains {
         }
     }
 
-    /// The recorder service's view of the recorder and the replayer.
-    pub(crate) fn recorder_status(&self, mut response: RecorderResponse) -> RecorderResponse {
+    /// The recorder service's view of the recorder and the replayer, as
+    /// the answer to a request of `kind`. Its message is the recorder's
+    /// last error for `start` and `stop`, the replay's (why it ended) for
+    /// requests about the replay, either for `status`: a replay stopped
+    /// long ago is no warning about a recording.
+    pub(crate) fn recorder_status(
+        &self,
+        kind: RecorderKind,
+        mut response: RecorderResponse,
+    ) -> RecorderResponse {
+        let mut recorder_error = None;
         match self.recorder.progress() {
             Some((path, frames)) => {
                 response.recording = 1;
@@ -228,9 +269,7 @@ impl Domains {
                 response.frames_written = last.frames;
                 response.bytes_written = last.bytes;
                 response.path = PathText::cut(&last.path);
-                if let Some(error) = &last.error {
-                    response.message = PathText::cut(error);
-                }
+                recorder_error = last.error.as_deref();
             }
         }
         let report = &self.replayer.report;
@@ -248,8 +287,16 @@ impl Domains {
         if self.recorder.progress().is_none() && !report.path.is_empty() && response.path.len == 0 {
             response.path = PathText::cut(&report.path);
         }
-        if response.message.len == 0 && !report.message.is_empty() {
-            response.message = PathText::cut(&report.message);
+        let replay_message = (!report.message.is_empty()).then_some(report.message.as_str());
+        let message = match kind {
+            RecorderKind::Start | RecorderKind::Stop => recorder_error,
+            RecorderKind::Replay | RecorderKind::StopReplay | RecorderKind::TimeFactor => {
+                replay_message
+            }
+            RecorderKind::Status => recorder_error.or(replay_message),
+        };
+        if let Some(message) = message {
+            response.message = PathText::cut(message);
         }
         response
     }

@@ -78,7 +78,8 @@ pub(super) fn run(
 
     // The world must be exported there: its status, then its current frame.
     let hello = ControlRequest::new(RequestKind::Status);
-    let status = match query_once(
+    info!(%world, %endpoint, "asking for the world's status (waiting up to {timeout:?})");
+    let status = match query_until(
         &session,
         &keys.rpc(Forwarded::Control),
         &zid,
@@ -443,6 +444,33 @@ fn forward(
         .wait();
     if let Err(e) = sent {
         warn!("cannot forward a request: {e}");
+    }
+}
+
+/// [`query_once`] asked again until something answers or `timeout` is
+/// over: while the link is still being made (the exporter not up yet, or
+/// Zenoh retrying the connection), a query finds no route and ends at
+/// once, which is not "nothing answered within `timeout`".
+fn query_until(
+    session: &Session,
+    key: &str,
+    zid: &str,
+    payload: &[u8],
+    timeout: Duration,
+) -> Result<Vec<u8>, Option<String>> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match query_once(session, key, zid, payload, left) {
+            Err(None)
+                if Instant::now() < deadline
+                    && !crate::cli::interrupted().load(std::sync::atomic::Ordering::Relaxed) =>
+            {
+                // The next try after Zenoh's own connection retry (250 ms).
+                std::thread::sleep(left.min(Duration::from_millis(100)));
+            }
+            other => return other,
+        }
     }
 }
 

@@ -87,10 +87,10 @@ pub(crate) struct ZenohArgs {
     ros2_clock: bool,
     /// Zenoh's lease: a silent link is declared dead after this long, which
     /// bounds how late a lost remote ticker's ownership is released.
-    #[arg(long, value_name = "MS", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(100..=60_000))]
+    #[arg(long, value_name = "MS", default_value_t = 1000, allow_negative_numbers = true, value_parser = clap::value_parser!(u64).range(100..=60_000))]
     lease_ms: u64,
     /// Mirroring: how long a forwarded request may wait for its answer.
-    #[arg(long, value_name = "S", default_value = "60", value_parser = shared_types::input::timeout)]
+    #[arg(long, value_name = "S", default_value = "60", allow_negative_numbers = true, value_parser = shared_types::input::timeout)]
     request_timeout: Duration,
 }
 

@@ -593,8 +593,9 @@ impl Session {
                     .replay_file(&name, start, duration, follow, sensors)
                     .map_err(refused)?;
                 Ok(Answer::Value(Value::from(format!(
-                    "Replaying {name}: {} frames ({})",
-                    status.replay.total, status.replay.mode
+                    "Replaying {name}: {} ({})",
+                    crate::cli::words::count(status.replay.total, "frame"),
+                    status.replay.mode
                 ))))
             }
             "stop_replayer" => {
@@ -629,9 +630,8 @@ impl Session {
             }
             _ => {
                 let name = arg_str(args, 0, method)?;
-                let list =
-                    sim_client::inspect::actors_blocked(&name, number(1)?, number(2)? as f32)
-                        .map_err(|e| e.to_string())?;
+                let list = sim_client::inspect::actors_blocked(&name, number(1)?, number(2)?)
+                    .map_err(|e| e.to_string())?;
                 json(serde_json::to_string_pretty(&list))
             }
         }

@@ -1,0 +1,121 @@
+//! Recordings made before frame headers carried `recorded_frame` (schema
+//! `simbus::FrameHeader/2`, a 96-byte header) still read: every frame with
+//! its actors, the new fields zero.
+
+use std::io::BufWriter;
+
+use mcap::records::MessageHeader;
+use shared_types::recording::{
+    Entry, RecordingHeader, RecordingReader, FRAMES_TOPIC, HEADER_SCHEMA, HEADER_TOPIC,
+    LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA, PROFILE, RECORDING_VERSION, WIRE_ENCODING,
+};
+use shared_types::{ActorState, FrameHeader, WorldSettings, PROTOCOL_VERSION};
+
+#[test]
+fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {
+    let dir = std::env::temp_dir().join(format!("simbus-legacy-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("legacy.mcap");
+    let header = RecordingHeader {
+        recording_version: RECORDING_VERSION,
+        simbus_version: "0.1.0".to_string(),
+        protocol_version: 2,
+        world: "old".to_string(),
+        scene: "default".to_string(),
+        seed: 1,
+        settings: WorldSettings::default().into(),
+        start_frame: 7,
+        start_elapsed_ns: 350_000_000,
+        episode: 0,
+        start_platform_timestamp: 1.0,
+        sensors: false,
+        keyframe_seconds: 10.0,
+    };
+    let frames: Vec<(FrameHeader, Vec<ActorState>)> = (0..3u64)
+        .map(|i| {
+            let header = FrameHeader {
+                protocol_version: 2,
+                actor_count: 2,
+                timestamp: shared_types::Timestamp {
+                    frame: 7 + i,
+                    elapsed_ns: 350_000_000 + i * 50_000_000,
+                    delta_ns: 50_000_000,
+                    platform_timestamp: 1.0,
+                },
+                first_actor_id: 1,
+                // What a version 2 writer cannot have written: must read as zero.
+                recorded_frame: 99,
+                recorded_elapsed_ns: 99,
+                ..FrameHeader::default()
+            };
+            let actors = (1..=2)
+                .map(|id| ActorState {
+                    id,
+                    kind: 2,
+                    position: [i as f32, id as f32, 0.0],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    ..ActorState::default()
+                })
+                .collect();
+            (header, actors)
+        })
+        .collect();
+    {
+        let file = std::fs::File::create(&path).unwrap();
+        let mut mcap = mcap::WriteOptions::new()
+            .profile(PROFILE)
+            .create(BufWriter::new(file))
+            .unwrap();
+        let schema = mcap.add_schema(HEADER_SCHEMA, "jsonschema", b"{}").unwrap();
+        let header_channel = mcap
+            .add_channel(schema, HEADER_TOPIC, "json", &Default::default())
+            .unwrap();
+        let schema = mcap
+            .add_schema(LEGACY_FRAME_SCHEMA, WIRE_ENCODING, b"96 bytes")
+            .unwrap();
+        let frame_channel = mcap
+            .add_channel(schema, FRAMES_TOPIC, WIRE_ENCODING, &Default::default())
+            .unwrap();
+        let message = |channel_id, sequence, log_time| MessageHeader {
+            channel_id,
+            sequence,
+            log_time,
+            publish_time: log_time,
+        };
+        mcap.write_to_known_channel(
+            &message(header_channel, 0, 0),
+            &serde_json::to_vec(&header).unwrap(),
+        )
+        .unwrap();
+        for (i, (header, actors)) in frames.iter().enumerate() {
+            let mut bytes = bytemuck::bytes_of(header)[..LEGACY_FRAME_HEADER_BYTES].to_vec();
+            bytes.extend_from_slice(bytemuck::cast_slice(actors));
+            mcap.write_to_known_channel(
+                &message(frame_channel, i as u32, i as u64 * 50_000_000),
+                &bytes,
+            )
+            .unwrap();
+        }
+        mcap.finish().unwrap();
+    }
+
+    let mut reader =
+        RecordingReader::open(path.to_str().unwrap()).expect("a version 2 recording opens");
+    let mut read = Vec::new();
+    while let Some(entry) = reader.next() {
+        if let Entry::Frame { header, actors, .. } = entry.expect("every message reads") {
+            read.push((header, actors));
+        }
+    }
+    assert_eq!(read.len(), frames.len());
+    for ((header, actors), (written, written_actors)) in read.iter().zip(&frames) {
+        assert_eq!(header.timestamp, written.timestamp);
+        assert_eq!((header.recorded_frame, header.recorded_elapsed_ns), (0, 0));
+        assert_eq!(actors, written_actors);
+    }
+    assert_ne!(
+        PROTOCOL_VERSION, 2,
+        "this build writes a newer frame header"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

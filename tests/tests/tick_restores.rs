@@ -1,0 +1,137 @@
+//! `sim-client tick` puts back what it changed: the world's own step
+//! always (with --leave-sync too), asynchronous mode unless --leave-sync;
+//! and its last line says how it left the world.
+
+use std::time::Duration;
+
+use simbus_tests::{send_signal, TestWorld};
+
+/// `(synchronous_mode, fixed_delta_seconds, ticker)` from the world's status.
+fn time_settings(world: &TestWorld) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
+    let status = world.status();
+    (
+        status["synchronous_mode"].clone(),
+        status["fixed_delta_seconds"].clone(),
+        status["ticker"].clone(),
+    )
+}
+
+#[test]
+fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
+    let world = TestWorld::start("tick-own-step", &["--delta-seconds", "0.02"]);
+    let ticked = world.cli(&[
+        "tick",
+        "--delta-seconds",
+        "0.05",
+        "--count",
+        "3",
+        "--leave-sync",
+    ]);
+    ticked.assert_success();
+    let (sync, step, ticker) = time_settings(&world);
+    assert_eq!(sync, true, "{}", world.status());
+    assert_eq!(
+        step,
+        0.02,
+        "the world's own step is back: {}",
+        world.status()
+    );
+    assert!(ticker.is_null(), "{}", world.status());
+    assert_eq!(
+        ticked.stderr.lines().last(),
+        Some(
+            "tick: 3 ticks; released ownership, world left in synchronous mode with its own step \
+             (0.02 s), waiting for the next ticker"
+        ),
+        "{ticked}"
+    );
+
+    // The next plain ticker ticks with, and puts back, the world's own
+    // step: the earlier --leave-sync lost nothing.
+    let ticked = world.cli(&["tick", "--count", "2"]);
+    ticked.assert_success();
+    assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
+    let (sync, step, ticker) = time_settings(&world);
+    assert_eq!(sync, false, "{}", world.status());
+    assert_eq!(step, 0.02, "{}", world.status());
+    assert!(ticker.is_null(), "{}", world.status());
+}
+
+#[test]
+fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
+    let world = TestWorld::start("tick-variable", &[]);
+    let ticked = world.cli(&["tick", "--count", "2", "--leave-sync"]);
+    ticked.assert_success();
+    let (sync, step, _) = time_settings(&world);
+    assert_eq!(sync, true, "{}", world.status());
+    assert!(step.is_null(), "variable again: {}", world.status());
+    assert_eq!(
+        ticked.stderr.lines().last(),
+        Some(
+            "tick: 2 ticks; released ownership, world left in synchronous mode with its own \
+             variable step, waiting for the next ticker"
+        ),
+        "{ticked}"
+    );
+    // A plain ticker then uses 0.05 s as on a fresh world and leaves the
+    // world asynchronous with its variable step.
+    let ticked = world.cli(&["tick", "--count", "2"]);
+    ticked.assert_success();
+    assert!(ticked.stderr.contains("fixed step 0.05 s"), "{ticked}");
+    let (sync, step, _) = time_settings(&world);
+    assert_eq!(sync, false, "{}", world.status());
+    assert!(step.is_null(), "{}", world.status());
+}
+
+#[test]
+fn tick_says_it_left_the_world_asynchronous_with_its_settings_as_before() {
+    let world = TestWorld::start("tick-last-line", &["--delta-seconds", "0.02"]);
+    let ticked = world.cli(&["tick", "--delta-seconds", "0.05", "--count", "3"]);
+    ticked.assert_success();
+    assert_eq!(ticked.stdout.len(), 3, "{ticked}");
+    assert_eq!(
+        ticked.stderr.lines().last(),
+        Some(
+            "tick: 3 ticks; released ownership, world left in asynchronous mode, with its \
+             settings as before"
+        ),
+        "{ticked}"
+    );
+    let (sync, step, ticker) = time_settings(&world);
+    assert_eq!(sync, false, "{}", world.status());
+    assert_eq!(step, 0.02, "{}", world.status());
+    assert!(ticker.is_null(), "{}", world.status());
+}
+
+#[test]
+fn a_ticker_stopped_by_a_signal_gives_the_world_back() {
+    let world = TestWorld::start("tick-signal", &["--delta-seconds", "0.02"]);
+    for (signal, name) in [
+        (libc::SIGINT, "SIGINT"),
+        (libc::SIGTERM, "SIGTERM"),
+        (libc::SIGHUP, "SIGHUP"),
+    ] {
+        let ticker = world.spawn_cli(&["tick", "--delta-seconds", "0.05"]);
+        let first = ticker.line(Duration::from_secs(30));
+        assert!(
+            first
+                .as_deref()
+                .is_some_and(|l| l.starts_with("tick  frame")),
+            "{name}: {first:?}; stderr:\n{}",
+            ticker.stderr()
+        );
+        send_signal(ticker.pid(), signal).expect("signalling the ticker");
+        let ended = ticker.finish(Duration::from_secs(30));
+        ended.assert_success();
+        assert!(
+            ended.stderr.lines().last().is_some_and(
+                |l| l.ends_with("world left in asynchronous mode, with its settings as before")
+            ),
+            "{name}: {ended}"
+        );
+        let (sync, step, ticker) = time_settings(&world);
+        assert_eq!(sync, false, "{name}: {}", world.status());
+        assert_eq!(step, 0.02, "{name}: {}", world.status());
+        assert!(ticker.is_null(), "{name}: {}", world.status());
+    }
+}

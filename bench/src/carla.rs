@@ -13,8 +13,8 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use clap::Args;
 use shared_types::SensorSpec;
-use sim_client::process::ChildGuard;
 use sim_client::Client;
+use simbus_process::ChildGuard;
 
 use crate::stats::{header, Latencies};
 use crate::support::{now_ns, sync_ticker, BenchServer};

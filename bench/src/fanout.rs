@@ -18,8 +18,8 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Args;
 use shared_types::SensorSpec;
-use sim_client::process::ChildGuard;
 use sim_client::{Client, WaitMode};
+use simbus_process::ChildGuard;
 
 use crate::stats::Latencies;
 use crate::support::{machine_state, now_ns, sync_ticker, BenchServer};

@@ -7,7 +7,7 @@ use std::fs::OpenOptions;
 use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use sim_client::process::ChildGuard;
+use simbus_process::ChildGuard;
 
 use crate::stats::Latencies;
 

@@ -26,6 +26,9 @@ mod futex;
 mod plot;
 mod recorder;
 mod sensors;
+/// The `sim-server` command line: the very file the server binary compiles.
+#[path = "../../sim-server/src/cli.rs"]
+mod server_cli;
 mod stats;
 mod substeps;
 mod support;
@@ -86,7 +89,7 @@ enum Command {
     Peer(tick::PeerArgs),
     /// Runs a server (used by the benchmarks to start one in its own process).
     #[command(hide = true)]
-    Serve(sim_server::cli::ServerArgs),
+    Serve(server_cli::ServerArgs),
 }
 
 fn main() -> ExitCode {
@@ -105,10 +108,7 @@ fn main() -> ExitCode {
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
-        Command::Serve(a) => {
-            sim_server::cli::init_logging(a.verbose);
-            sim_server::cli::run(a).map_err(|e| anyhow::anyhow!("{e}"))
-        }
+        Command::Serve(a) => return server_cli::main(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

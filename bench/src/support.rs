@@ -5,8 +5,8 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use shared_types::WorldSettings;
-use sim_client::process::ChildGuard;
 use sim_client::{Client, Ticker};
+use simbus_process::ChildGuard;
 
 /// Wall-clock nanoseconds (what `platform_timestamp` is measured in).
 pub(crate) fn now_ns() -> u64 {

@@ -21,8 +21,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::Service;
 use shared_types::{Bus, FrameHeader, WorldSettings};
-use sim_client::process::ChildGuard;
 use sim_client::{Client, WaitMode};
+use simbus_process::ChildGuard;
 
 use crate::stats::{header, Latencies};
 use crate::support::{machine_state, BackgroundLoad, BenchServer};
@@ -234,7 +234,7 @@ struct Row {
 impl Row {
     fn signal(&self, signal: i32) {
         for &pid in &self.peers {
-            let _ = sim_client::process::send_signal(pid, signal);
+            let _ = simbus_process::send_signal(pid, signal);
         }
     }
 }

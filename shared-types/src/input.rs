@@ -9,12 +9,14 @@
 //! its range once, in the constants below or in the limits it cites.
 //!
 //! ```
-//! use shared_types::input::{timeout, max_substeps, fps, Readable};
+//! use shared_types::input::{timeout, max_substeps, fps, InputError, Readable};
 //!
 //! assert_eq!(timeout("2.5").unwrap().as_millis(), 2500);
-//! assert!(timeout("1e20").unwrap_err().contains("at most"));
-//! assert!(max_substeps("-1").unwrap_err().contains("1..=16"));
-//! assert!(fps("1e-300").unwrap_err().contains("0.000277778..=1e6"));
+//! assert!(timeout("1e20").unwrap_err().to_string().contains("at most"));
+//! let refused = max_substeps("-1").unwrap_err();
+//! assert!(matches!(refused, InputError::NotWhole { start: 1, end: 16, .. }));
+//! assert!(refused.to_string().contains("1..=16"));
+//! assert!(fps("1e-300").unwrap_err().to_string().contains("0.000277778..=1e6"));
 //! assert_eq!(Readable(1.0 / 30.0).to_string(), "0.0333333");
 //! ```
 
@@ -31,6 +33,12 @@ use crate::{
     MIN_DELTA_SECONDS,
 };
 
+mod error;
+/// The sensor limits a spec's check enforces, re-exported where the flags
+/// that set them are parsed (one definition, in [`crate::SensorSpec`]'s module).
+pub use crate::{MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS};
+pub use error::InputError;
+
 /// The highest rate any flag accepts (`--rate`, `--max-fps`, `--max-hz`,
 /// `--rotation-frequency`): one per microsecond, the shortest step the
 /// clock keeps ([`MIN_DELTA_SECONDS`]).
@@ -45,10 +53,6 @@ pub const MAX_TIME_FACTOR: f64 = 1e3;
 /// The longest sensor range or distance a flag accepts, metres (ten times
 /// the world's reach, [`MAX_ACTOR_POSITION`]).
 pub const MAX_DISTANCE_METRES: f64 = 1e6;
-/// The most lidar channels (as [`crate::SensorSpec::check`] allows).
-pub const MAX_LIDAR_CHANNELS: u32 = 256;
-/// The most lidar points per channel (as [`crate::SensorSpec::check`] allows).
-pub const MAX_LIDAR_POINTS: u32 = 65_536;
 /// The shortest `top --interval`, seconds.
 pub const MIN_REFRESH_SECONDS: f64 = 0.05;
 /// The longest `top --interval`, seconds.
@@ -106,35 +110,35 @@ impl fmt::Display for Exact {
     }
 }
 
-fn number(text: &str) -> Result<f64, String> {
+fn number(text: &str) -> Result<f64, InputError> {
     text.trim()
         .parse::<f64>()
-        .map_err(|_| format!("'{text}' is not a number"))
+        .map_err(|_| InputError::NotANumber {
+            text: text.to_owned(),
+        })
 }
 
 /// A finite number in `range`, or an error stating the range in `unit`.
-fn real_in(text: &str, range: RangeInclusive<f64>, unit: &str) -> Result<f64, String> {
+fn real_in(text: &str, range: RangeInclusive<f64>, unit: &'static str) -> Result<f64, InputError> {
     let value = number(text)?;
     if value.is_finite() && range.contains(&value) {
         return Ok(value);
     }
-    Err(format!(
-        "must be a finite number{unit} in {}..={}, got {text}",
-        Readable(*range.start()),
-        Readable(*range.end())
-    ))
+    Err(InputError::OutOfRange {
+        text: text.to_owned(),
+        start: *range.start(),
+        end: *range.end(),
+        unit,
+    })
 }
 
 /// A whole number in `range` (a decimal point, an exponent or a sign that
 /// takes it out of range is refused with the range named).
-fn whole_in(text: &str, range: RangeInclusive<u64>) -> Result<u64, String> {
-    let (start, end) = (*range.start(), *range.end());
-    let out_of_range = || {
-        if end == u64::MAX {
-            format!("must be a whole number >= {start}, got {text}")
-        } else {
-            format!("must be a whole number in {start}..={end}, got {text}")
-        }
+fn whole_in(text: &str, range: RangeInclusive<u64>) -> Result<u64, InputError> {
+    let out_of_range = || InputError::NotWhole {
+        text: text.to_owned(),
+        start: *range.start(),
+        end: *range.end(),
     };
     let value: i128 = text.trim().parse().map_err(|_| out_of_range())?;
     u64::try_from(value)
@@ -144,76 +148,71 @@ fn whole_in(text: &str, range: RangeInclusive<u64>) -> Result<u64, String> {
 }
 
 /// A wait in seconds: finite, positive, at most [`MAX_WAIT_SECONDS`].
-pub fn timeout(text: &str) -> Result<Duration, String> {
+pub fn timeout(text: &str) -> Result<Duration, InputError> {
     let seconds = number(text)?;
     if !(seconds.is_finite() && seconds > 0.0) {
-        return Err(format!(
-            "must be a positive, finite number of seconds, got {text}"
-        ));
+        return Err(InputError::NotPositiveSeconds {
+            text: text.to_owned(),
+        });
     }
-    wait(seconds).map_err(|e| format!("{e}, got {text}"))
+    wait(seconds).map_err(|e| InputError::Timeout {
+        text: text.to_owned(),
+        source: Box::new(e),
+    })
 }
 
 /// `seconds` as a [`Duration`] a clock can wait for: finite, not negative,
 /// at most [`MAX_WAIT_SECONDS`].
-pub fn wait(seconds: f64) -> Result<Duration, String> {
+pub fn wait(seconds: f64) -> Result<Duration, InputError> {
     if !(seconds.is_finite() && seconds >= 0.0) {
-        return Err("must be a finite number of seconds >= 0".to_owned());
+        return Err(InputError::WaitNotFinite { seconds });
     }
     if seconds > MAX_WAIT_SECONDS {
-        return Err(format!(
-            "must be at most {MAX_WAIT_SECONDS:e} seconds (about 31 years)"
-        ));
+        return Err(InputError::WaitTooLong { seconds });
     }
     Ok(Duration::from_secs_f64(seconds))
 }
 
 /// A rate in hertz: positive, at most [`MAX_RATE_HZ`], and with a period a
 /// clock can wait for (at most one tick per [`MAX_WAIT_SECONDS`]).
-pub fn rate(text: &str) -> Result<f64, String> {
+pub fn rate(text: &str) -> Result<f64, InputError> {
     let hz = number(text)?;
+    let text = text.to_owned();
     if !(hz.is_finite() && hz > 0.0) {
-        return Err(format!(
-            "must be a positive, finite number of Hz, at most {MAX_RATE_HZ:e}, got {text}"
-        ));
+        return Err(InputError::RateNotPositive { text });
     }
     if hz > MAX_RATE_HZ {
-        return Err(format!(
-            "must be at most {MAX_RATE_HZ:e} Hz (one per microsecond), got {text}"
-        ));
+        return Err(InputError::RateTooHigh { text });
     }
-    wait(1.0 / hz).map_err(|_| {
-        format!(
-            "{text} Hz means one tick every {:.0e} s; the longest period is {MAX_WAIT_SECONDS:e} s",
-            1.0 / hz
-        )
-    })?;
+    if wait(1.0 / hz).is_err() {
+        return Err(InputError::PeriodTooLong { text, hz });
+    }
     Ok(hz)
 }
 
 /// A rate limit in hertz: 0 (no limit) or a [`rate`].
-pub fn rate_limit(text: &str) -> Result<f64, String> {
+pub fn rate_limit(text: &str) -> Result<f64, InputError> {
     match number(text)? {
         0.0 => Ok(0.0),
-        _ => rate(text).map_err(|e| format!("{e} (or 0: no limit)")),
+        _ => rate(text).map_err(|e| e.hinted(" (or 0: no limit)")),
     }
 }
 
 /// A simulation time in seconds the integer-nanosecond clock can reach:
 /// finite, `0..=18446744073` s.
-pub fn sim_time(text: &str) -> Result<f64, String> {
+pub fn sim_time(text: &str) -> Result<f64, InputError> {
     let seconds = number(text)?;
     if !(seconds.is_finite() && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&seconds)) {
-        return Err(format!(
-            "must be a finite number of seconds in 0..=18446744073 (the clock's range), got {text}"
-        ));
+        return Err(InputError::SimTime {
+            text: text.to_owned(),
+        });
     }
     Ok(seconds)
 }
 
 /// An offset in simulation seconds, negative counting from the end:
 /// finite, within the clock's range either way.
-pub fn sim_offset(text: &str) -> Result<f64, String> {
+pub fn sim_offset(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
         -MAX_SENSOR_TICK_SECONDS..=MAX_SENSOR_TICK_SECONDS,
@@ -222,29 +221,20 @@ pub fn sim_offset(text: &str) -> Result<f64, String> {
 }
 
 /// A sensor's capture period: 0 (every frame) or up to the clock's range.
-pub fn sensor_tick(text: &str) -> Result<f64, String> {
-    sim_time(text).map_err(|e| format!("{e}; 0 captures every frame"))
+pub fn sensor_tick(text: &str) -> Result<f64, InputError> {
+    sim_time(text).map_err(|e| e.hinted("; 0 captures every frame"))
 }
 
 /// Any number of seconds, negative and non-finite included, for values
 /// that are checked later by rules that name themselves.
-pub fn seconds(text: &str) -> Result<f64, String> {
+pub fn seconds(text: &str) -> Result<f64, InputError> {
     number(text)
-}
-
-/// The settings' range of a fixed step, in words.
-fn step_range() -> String {
-    format!(
-        "a fixed step is {}..={} s",
-        Readable(MIN_DELTA_SECONDS),
-        Readable(MAX_DELTA_SECONDS)
-    )
 }
 
 /// `fixed_delta_seconds`: 0 (variable step) or a fixed step the settings
 /// accept ([`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`]); the error
 /// names the settings rule.
-pub fn fixed_delta_seconds(text: &str) -> Result<f64, String> {
+pub fn fixed_delta_seconds(text: &str) -> Result<f64, InputError> {
     let dt = number(text)?;
     let settings = WorldSettings {
         fixed_delta_seconds: Some(dt),
@@ -253,74 +243,60 @@ pub fn fixed_delta_seconds(text: &str) -> Result<f64, String> {
     };
     settings
         .validate()
-        .map_err(|e| format!("{e}; 0 means variable step, {}", step_range()))?;
+        .map_err(|source| InputError::FixedDelta { source })?;
     Ok(dt)
 }
 
 /// A fixed step that must be fixed (no 0): [`MIN_DELTA_SECONDS`]`..=`
 /// [`MAX_DELTA_SECONDS`].
-pub fn fixed_step(text: &str) -> Result<f64, String> {
+pub fn fixed_step(text: &str) -> Result<f64, InputError> {
     match fixed_delta_seconds(text)? {
-        0.0 => Err(format!(
-            "must be a fixed step ({}), got {text}",
-            step_range()
-        )),
+        0.0 => Err(InputError::NotFixedStep {
+            text: text.to_owned(),
+        }),
         dt => Ok(dt),
     }
 }
 
 /// `fps`: 0 (variable step) or a rate whose step `1/fps` the settings
 /// accept, i.e. `1/`[`MAX_DELTA_SECONDS`]`..=1/`[`MIN_DELTA_SECONDS`].
-pub fn fps(text: &str) -> Result<f64, String> {
+pub fn fps(text: &str) -> Result<f64, InputError> {
     let fps = number(text)?;
-    let range = || {
-        format!(
-            "it must be 0 (variable step) or in {}..={} ({})",
-            Readable(1.0 / MAX_DELTA_SECONDS),
-            Readable(1.0 / MIN_DELTA_SECONDS),
-            step_range()
-        )
-    };
     match WorldSettings::delta_from_fps(fps) {
-        Err(e) => Err(format!("{e}; {}", range())),
+        Err(source) => Err(InputError::Fps { source }),
         Ok(None) => Ok(0.0),
         Ok(Some(dt)) if (MIN_DELTA_SECONDS..=MAX_DELTA_SECONDS).contains(&dt) => Ok(fps),
-        Ok(Some(_)) => Err(format!("fps = {} is out of range: {}", Exact(fps), range())),
+        Ok(Some(_)) => Err(InputError::FpsOutOfRange { fps }),
     }
 }
 
 /// `max_substep_delta_time`: [`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`].
-pub fn max_substep_delta_time(text: &str) -> Result<f64, String> {
+pub fn max_substep_delta_time(text: &str) -> Result<f64, InputError> {
     let dt = number(text)?;
     let settings = WorldSettings {
         max_substep_delta_time: dt,
         ..WorldSettings::default()
     };
-    settings.validate().map_err(|e| {
-        format!(
-            "{e}; the range is {}..={} s",
-            Readable(MIN_DELTA_SECONDS),
-            Readable(MAX_DELTA_SECONDS)
-        )
-    })?;
+    settings
+        .validate()
+        .map_err(|source| InputError::MaxSubstepDelta { source })?;
     Ok(dt)
 }
 
 /// `max_substeps`: a whole number in `1..=16`.
-pub fn max_substeps(text: &str) -> Result<u32, String> {
+pub fn max_substeps(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_SUBSTEPS_LIMIT)).map(|n| n as u32)
 }
 
 /// A whole number of microseconds, at most [`MAX_WAIT_SECONDS`].
-pub fn micros(text: &str) -> Result<Duration, String> {
-    let value: u64 = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("must be a whole number of microseconds >= 0, got {text}"))?;
+pub fn micros(text: &str) -> Result<Duration, InputError> {
+    let value: u64 = text.trim().parse().map_err(|_| InputError::NotMicros {
+        text: text.to_owned(),
+    })?;
     if value as f64 / 1e6 > MAX_WAIT_SECONDS {
-        return Err(format!(
-            "must be at most {MAX_WAIT_SECONDS:e} seconds, got {text} µs"
-        ));
+        return Err(InputError::MicrosTooLong {
+            text: text.to_owned(),
+        });
     }
     Ok(Duration::from_micros(value))
 }
@@ -330,34 +306,35 @@ pub fn micros(text: &str) -> Result<Duration, String> {
 /// ranges).
 ///
 /// ```
-/// use shared_types::input::metres;
+/// use shared_types::input::{metres, InputError};
 ///
 /// assert_eq!(metres("0.1"), Ok(0.1));
-/// assert!(metres("NaN").unwrap_err().contains("positive, finite number of metres"));
+/// let refused = metres("NaN").unwrap_err();
+/// assert!(matches!(&refused, InputError::Metres { text } if text == "NaN"));
+/// assert!(refused.to_string().contains("positive, finite number of metres"));
 /// assert!(metres("0").is_err() && metres("inf").is_err() && metres("-1").is_err());
 /// ```
-pub fn metres(text: &str) -> Result<f64, String> {
+pub fn metres(text: &str) -> Result<f64, InputError> {
     let value = number(text)?;
     if !(value.is_finite() && value > 0.0 && value <= MAX_DISTANCE_METRES) {
-        return Err(format!(
-            "must be a positive, finite number of metres, at most {}, got {text}",
-            Readable(MAX_DISTANCE_METRES)
-        ));
+        return Err(InputError::Metres {
+            text: text.to_owned(),
+        });
     }
     Ok(value)
 }
 
 /// `--hybrid-window-us`: `0..=`[`MAX_HYBRID_WINDOW_MICROS`] microseconds
 /// (0: sleep at once).
-pub fn hybrid_window(text: &str) -> Result<Duration, String> {
+pub fn hybrid_window(text: &str) -> Result<Duration, InputError> {
     whole_in(text, 0..=MAX_HYBRID_WINDOW_MICROS)
         .map(Duration::from_micros)
-        .map_err(|e| format!("{e} (microseconds; 0 sleeps at once)"))
+        .map_err(|e| e.hinted(" (microseconds; 0 sleeps at once)"))
 }
 
 /// `--keyframe-seconds`: simulation seconds between keyframes,
 /// [`MIN_KEYFRAME_SECONDS`]`..=`[`MAX_KEYFRAME_SECONDS`].
-pub fn keyframe_seconds(text: &str) -> Result<f64, String> {
+pub fn keyframe_seconds(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
         MIN_KEYFRAME_SECONDS..=MAX_KEYFRAME_SECONDS,
@@ -367,28 +344,28 @@ pub fn keyframe_seconds(text: &str) -> Result<f64, String> {
 
 /// A count that must be at least 1 (`--max-frames`, `--frames`,
 /// `--captures`, `--every`: 0 would mean nothing).
-pub fn count(text: &str) -> Result<u64, String> {
+pub fn count(text: &str) -> Result<u64, InputError> {
     whole_in(text, 1..=u64::MAX)
 }
 
 /// `--max-clients`: `1..=`[`MAX_MAX_CLIENTS`].
-pub fn max_clients(text: &str) -> Result<usize, String> {
+pub fn max_clients(text: &str) -> Result<usize, InputError> {
     whole_in(text, 1..=MAX_MAX_CLIENTS as u64).map(|n| n as usize)
 }
 
 /// `--max-sensor-readers`: `1..=`[`MAX_MAX_SENSOR_READERS`].
-pub fn max_sensor_readers(text: &str) -> Result<usize, String> {
+pub fn max_sensor_readers(text: &str) -> Result<usize, InputError> {
     whole_in(text, 1..=MAX_MAX_SENSOR_READERS as u64).map(|n| n as usize)
 }
 
 /// Lockstep participants to wait for: `0..=`[`MAX_MAX_CLIENTS`] (a world
 /// admits no more).
-pub fn participants(text: &str) -> Result<u32, String> {
+pub fn participants(text: &str) -> Result<u32, InputError> {
     whole_in(text, 0..=MAX_MAX_CLIENTS as u64).map(|n| n as u32)
 }
 
 /// A replay's time factor: [`MIN_TIME_FACTOR`]`..=`[`MAX_TIME_FACTOR`].
-pub fn time_factor(text: &str) -> Result<f64, String> {
+pub fn time_factor(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
         MIN_TIME_FACTOR..=MAX_TIME_FACTOR,
@@ -397,7 +374,7 @@ pub fn time_factor(text: &str) -> Result<f64, String> {
 }
 
 /// `top --interval`: [`MIN_REFRESH_SECONDS`]`..=`[`MAX_REFRESH_SECONDS`].
-pub fn refresh_interval(text: &str) -> Result<f64, String> {
+pub fn refresh_interval(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
         MIN_REFRESH_SECONDS..=MAX_REFRESH_SECONDS,
@@ -406,34 +383,34 @@ pub fn refresh_interval(text: &str) -> Result<f64, String> {
 }
 
 /// A sensor's range, metres: a [`metres`] value.
-pub fn sensor_range(text: &str) -> Result<f32, String> {
+pub fn sensor_range(text: &str) -> Result<f32, InputError> {
     metres(text).map(|m| m as f32)
 }
 
 /// A depth camera's horizontal field of view, degrees: above 0, below 180.
-pub fn field_of_view(text: &str) -> Result<f32, String> {
+pub fn field_of_view(text: &str) -> Result<f32, InputError> {
     let degrees = number(text)?;
     if degrees.is_finite() && degrees > 0.0 && degrees < 180.0 {
         return Ok(degrees as f32);
     }
-    Err(format!(
-        "must be a finite number of degrees above 0 and below 180, got {text}"
-    ))
+    Err(InputError::FieldOfView {
+        text: text.to_owned(),
+    })
 }
 
 /// A lidar's channel count: `1..=`[`MAX_LIDAR_CHANNELS`].
-pub fn lidar_channels(text: &str) -> Result<u32, String> {
+pub fn lidar_channels(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_LIDAR_CHANNELS)).map(|n| n as u32)
 }
 
 /// A lidar's points per channel: `1..=`[`MAX_LIDAR_POINTS`].
-pub fn lidar_points(text: &str) -> Result<u32, String> {
+pub fn lidar_points(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_LIDAR_POINTS)).map(|n| n as u32)
 }
 
 /// A lidar's rotation frequency: 0 (a full turn every capture) up to
 /// [`MAX_RATE_HZ`].
-pub fn rotation_frequency(text: &str) -> Result<f32, String> {
+pub fn rotation_frequency(text: &str) -> Result<f32, InputError> {
     real_in(
         text,
         0.0..=MAX_RATE_HZ,
@@ -442,15 +419,11 @@ pub fn rotation_frequency(text: &str) -> Result<f32, String> {
     .map(|hz| hz as f32)
 }
 
-/// The most pixels on each side of a depth image (as
-/// [`crate::SensorSpec::check`] allows).
-pub const MAX_IMAGE_SIDE: u32 = 8192;
-
 /// An image size `W,H` in pixels, each a whole number in
 /// `1..=`[`MAX_IMAGE_SIDE`] (the spec's check bounds their product).
-pub fn image_size(text: &str) -> Result<[u32; 2], String> {
-    let refused = || {
-        format!("must be W,H: two whole numbers of pixels in 1..={MAX_IMAGE_SIDE}, got '{text}'")
+pub fn image_size(text: &str) -> Result<[u32; 2], InputError> {
+    let refused = || InputError::ImageSize {
+        text: text.to_owned(),
     };
     let sides: Vec<u32> = text
         .split(',')
@@ -466,11 +439,9 @@ pub fn image_size(text: &str) -> Result<[u32; 2], String> {
 
 /// A position `x,y,z` in metres, each within ±[`MAX_ACTOR_POSITION`] of
 /// the origin (the world's reach).
-pub fn position(text: &str) -> Result<[f32; 3], String> {
-    let refused = || {
-        format!(
-            "must be x,y,z: three finite numbers within +-{MAX_ACTOR_POSITION} m of the origin, got '{text}'"
-        )
+pub fn position(text: &str) -> Result<[f32; 3], InputError> {
+    let refused = || InputError::Position {
+        text: text.to_owned(),
     };
     let values: Vec<f64> = text
         .split(',')
@@ -488,10 +459,9 @@ pub fn position(text: &str) -> Result<[f32; 3], String> {
 
 /// A scene name (`default`, `empty` or `boxes:N`, N in
 /// `1..=`[`crate::scene::MAX_SCENE_BOXES`]), checked as the server reads it.
-pub fn scene(text: &str) -> Result<String, String> {
-    text.parse::<crate::scene::SceneName>()
-        .map(|name| name.to_string())
-        .map_err(|e| e.to_string())
+pub fn scene(text: &str) -> Result<String, InputError> {
+    let name = text.parse::<crate::scene::SceneName>()?;
+    Ok(name.to_string())
 }
 
 #[cfg(test)]
@@ -506,17 +476,26 @@ mod tests {
         assert!(timeout("nan").is_err());
         assert!(timeout("inf").is_err());
         assert_eq!(timeout("1e9").unwrap(), Duration::from_secs(1_000_000_000));
-        assert!(rate("1e-30").unwrap_err().contains("one tick every"));
-        assert!(rate("1e300").unwrap_err().contains("at most 1e6 Hz"));
+        assert!(rate("1e-30")
+            .unwrap_err()
+            .to_string()
+            .contains("one tick every"));
+        assert!(rate("1e300")
+            .unwrap_err()
+            .to_string()
+            .contains("at most 1e6 Hz"));
         assert_eq!(rate("20").unwrap(), 20.0);
         assert_eq!(rate_limit("0").unwrap(), 0.0);
         assert!(rate_limit("NaN").is_err());
-        assert!(sim_time("inf").unwrap_err().contains("finite"));
+        assert!(sim_time("inf").unwrap_err().to_string().contains("finite"));
         assert!(sim_time("-1").is_err());
         assert_eq!(sim_time("2.5").unwrap(), 2.5);
         assert_eq!(sim_offset("-2.5").unwrap(), -2.5);
         assert!(sim_offset("-1e300").is_err());
-        assert!(max_substeps("-1").unwrap_err().contains("1..=16"));
+        assert!(max_substeps("-1")
+            .unwrap_err()
+            .to_string()
+            .contains("1..=16"));
         assert!(max_substeps("17").is_err());
         assert!(max_substeps("99999999999999999999").is_err());
         assert_eq!(max_substeps("16").unwrap(), 16);
@@ -524,17 +503,24 @@ mod tests {
         assert!(micros("-5").is_err());
         assert!(hybrid_window("99999999999")
             .unwrap_err()
+            .to_string()
             .contains("0..=1000000"));
         assert_eq!(hybrid_window("0").unwrap(), Duration::ZERO);
         assert!(keyframe_seconds("NaN").is_err());
         assert!(keyframe_seconds("0").is_err());
         assert_eq!(keyframe_seconds("10").unwrap(), 10.0);
-        assert!(count("0").unwrap_err().contains(">= 1"));
+        assert!(count("0").unwrap_err().to_string().contains(">= 1"));
         assert_eq!(count("3").unwrap(), 3);
-        assert!(max_clients("0").unwrap_err().contains("1..=1024"));
+        assert!(max_clients("0")
+            .unwrap_err()
+            .to_string()
+            .contains("1..=1024"));
         assert!(field_of_view("180").is_err());
         assert!(sensor_range("1e300").is_err());
-        assert!(position("1e9,0,0").unwrap_err().contains("+-100000 m"));
+        assert!(position("1e9,0,0")
+            .unwrap_err()
+            .to_string()
+            .contains("+-100000 m"));
         assert!(position("NaN,0,0").is_err());
         assert!(position("1,2").is_err());
         assert_eq!(position("-1, 2,3").unwrap(), [-1.0, 2.0, 3.0]);
@@ -543,26 +529,37 @@ mod tests {
     #[test]
     fn settings_flags_name_their_rule_and_range() {
         assert_eq!(fixed_delta_seconds("0").unwrap(), 0.0);
-        let huge = fixed_delta_seconds("1e300").unwrap_err();
+        let huge = fixed_delta_seconds("1e300").unwrap_err().to_string();
         assert!(
             huge.contains("1e300 s is longer than the maximum of 3600 s"),
             "{huge}"
         );
         assert!(huge.len() < 200, "no 300-digit numbers: {huge}");
-        assert!(fixed_delta_seconds("-1").unwrap_err().contains("negative"));
+        assert!(fixed_delta_seconds("-1")
+            .unwrap_err()
+            .to_string()
+            .contains("negative"));
         assert!(fixed_delta_seconds("NaN")
             .unwrap_err()
+            .to_string()
             .contains("not a finite number"));
-        assert!(fixed_step("0").unwrap_err().contains("1e-6..=3600 s"));
+        assert!(fixed_step("0")
+            .unwrap_err()
+            .to_string()
+            .contains("1e-6..=3600 s"));
         assert_eq!(fps("0").unwrap(), 0.0);
         assert_eq!(fps("30").unwrap(), 30.0);
-        let tiny = fps("1e-300").unwrap_err();
+        let tiny = fps("1e-300").unwrap_err().to_string();
         assert!(tiny.contains("fps = 1e-300 is out of range"), "{tiny}");
         assert!(tiny.contains("0.000277778..=1e6"), "{tiny}");
         assert!(fps("1e300").is_err());
-        assert!(fps("-20").unwrap_err().contains("fps = -20 is negative"));
+        assert!(fps("-20")
+            .unwrap_err()
+            .to_string()
+            .contains("fps = -20 is negative"));
         assert!(max_substep_delta_time("0")
             .unwrap_err()
+            .to_string()
             .contains("1e-6..=3600 s"));
     }
 

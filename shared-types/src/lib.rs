@@ -32,8 +32,6 @@
 
 mod wire;
 
-pub mod bridge;
-pub mod carla;
 mod command;
 mod control;
 pub mod environment;
@@ -70,7 +68,8 @@ pub use names::{ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError,
-    MAX_CAPTURE_BYTES, MAX_SENSOR_TICK_SECONDS,
+    MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
+    MAX_SENSOR_TICK_SECONDS,
 };
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
@@ -154,21 +153,37 @@ pub mod limits {
         }
 
         /// Checks both limits against `1..=MAX_*`.
-        pub fn validate(&self) -> Result<(), String> {
+        pub fn validate(&self) -> Result<(), LimitsError> {
             if !(1..=MAX_MAX_CLIENTS).contains(&self.max_clients) {
-                return Err(format!(
-                    "{MAX_CLIENTS_FLAG} must be in 1..={MAX_MAX_CLIENTS}, got {}",
-                    self.max_clients
-                ));
+                return Err(LimitsError::MaxClients(self.max_clients));
             }
             if !(1..=MAX_MAX_SENSOR_READERS).contains(&self.max_sensor_readers) {
-                return Err(format!(
-                    "{MAX_SENSOR_READERS_FLAG} must be in 1..={MAX_MAX_SENSOR_READERS}, got {}",
-                    self.max_sensor_readers
-                ));
+                return Err(LimitsError::MaxSensorReaders(self.max_sensor_readers));
             }
             Ok(())
         }
+    }
+
+    /// Why [`WorldLimits::validate`] refused a limit (the value given).
+    ///
+    /// ```
+    /// use shared_types::limits::{LimitsError, WorldLimits};
+    ///
+    /// let limits = WorldLimits { max_clients: 0, ..WorldLimits::default() };
+    /// assert_eq!(limits.validate(), Err(LimitsError::MaxClients(0)));
+    /// assert_eq!(
+    ///     limits.validate().unwrap_err().to_string(),
+    ///     "--max-clients must be in 1..=1024, got 0"
+    /// );
+    /// ```
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+    pub enum LimitsError {
+        /// `max_clients` outside `1..=`[`MAX_MAX_CLIENTS`].
+        #[error("{MAX_CLIENTS_FLAG} must be in 1..={MAX_MAX_CLIENTS}, got {0}")]
+        MaxClients(usize),
+        /// `max_sensor_readers` outside `1..=`[`MAX_MAX_SENSOR_READERS`].
+        #[error("{MAX_SENSOR_READERS_FLAG} must be in 1..={MAX_MAX_SENSOR_READERS}, got {0}")]
+        MaxSensorReaders(usize),
     }
 
     /// How many snapshots a subscriber may have queued before the oldest is

@@ -11,6 +11,14 @@ use crate::PROTOCOL_VERSION;
 /// The largest capture a sensor may publish (its shared memory holds a few
 /// dozen of them).
 pub const MAX_CAPTURE_BYTES: usize = 32 * 1024 * 1024;
+/// The most pixels on each side of a depth image ([`SensorSpec::check`]
+/// also bounds their product by [`MAX_CAPTURE_BYTES`]).
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+/// The most lidar channels ([`SensorSpec::check`] also bounds channels ×
+/// points by [`MAX_CAPTURE_BYTES`]).
+pub const MAX_LIDAR_CHANNELS: u32 = 256;
+/// The most lidar points per channel.
+pub const MAX_LIDAR_POINTS: u32 = 65_536;
 
 wire_enum! {
     /// What a sensor measures.
@@ -87,8 +95,10 @@ pub enum SensorSpecError {
         "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)"
     )]
     SensorTick,
-    /// Depth width and height must be whole numbers in 1..=8192 with width x height at most 8388608 pixels (32 MiB per capture).
-    #[error("depth width and height must be whole numbers in 1..=8192 with width x height at most 8388608 pixels (32 MiB per capture)")]
+    /// Depth width and height must be whole numbers in
+    /// `1..=`[`MAX_IMAGE_SIDE`] with width x height at most 8388608 pixels
+    /// (32 MiB per capture).
+    #[error("depth width and height must be whole numbers in 1..={MAX_IMAGE_SIDE} with width x height at most 8388608 pixels (32 MiB per capture)")]
     DepthSize,
     /// Depth field of view must be in (0, 180) degrees.
     #[error("depth field of view must be in (0, 180) degrees")]
@@ -96,8 +106,10 @@ pub enum SensorSpecError {
     /// Depth far range must be positive.
     #[error("depth far range must be positive")]
     DepthRange,
-    /// Lidar channels must be in 1..=256 and points per channel in 1..=65536, with channels x points at most 2097152 (32 MiB per capture).
-    #[error("lidar channels must be in 1..=256 and points per channel in 1..=65536, with channels x points at most 2097152 (32 MiB per capture)")]
+    /// Lidar channels must be in `1..=`[`MAX_LIDAR_CHANNELS`] and points per
+    /// channel in `1..=`[`MAX_LIDAR_POINTS`], with channels x points at most
+    /// 2097152 (32 MiB per capture).
+    #[error("lidar channels must be in 1..={MAX_LIDAR_CHANNELS} and points per channel in 1..={MAX_LIDAR_POINTS}, with channels x points at most 2097152 (32 MiB per capture)")]
     LidarSize,
     /// Lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90.
     #[error("lidar range must be positive and -90 <= lower_fov <= upper_fov <= 90")]
@@ -236,10 +248,10 @@ impl SensorSpec {
         {
             return Err(SensorSpecError::SensorTick);
         }
-        let whole = |v: f32, max: f32| v >= 1.0 && v <= max && v.fract() == 0.0;
+        let whole = |v: f32, max: u32| v >= 1.0 && v <= max as f32 && v.fract() == 0.0;
         match self.sensor_kind() {
             Some(SensorKind::Depth) => {
-                if !(whole(p[0], 8192.0) && whole(p[1], 8192.0))
+                if !(whole(p[0], MAX_IMAGE_SIDE) && whole(p[1], MAX_IMAGE_SIDE))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
                     return Err(SensorSpecError::DepthSize);
@@ -252,7 +264,7 @@ impl SensorSpec {
                 }
             }
             Some(SensorKind::Lidar) => {
-                if !(whole(p[0], 256.0) && whole(p[1], 65536.0))
+                if !(whole(p[0], MAX_LIDAR_CHANNELS) && whole(p[1], MAX_LIDAR_POINTS))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
                     return Err(SensorSpecError::LidarSize);
@@ -527,6 +539,50 @@ mod tests {
         assert!(too_big.unwrap_err().to_string().contains("8388608 pixels"));
         let forever = SensorSpec::imu([0.0; 3]).every(1e300).check();
         assert!(forever.unwrap_err().to_string().contains("18446744073"));
+    }
+
+    #[test]
+    fn the_check_and_the_flags_share_one_set_of_size_limits() {
+        // Each side / count at its limit passes (with the other kept small
+        // enough for the capture's byte cap), one past it does not: the
+        // same constants bound `sim-client sensor --size/--channels/--points`.
+        let depth = |w, h| SensorSpec::depth([0.0; 3], w, h, 90.0, 10.0).check();
+        assert_eq!(depth(MAX_IMAGE_SIDE, 1), Ok(()));
+        assert_eq!(depth(1, MAX_IMAGE_SIDE), Ok(()));
+        assert_eq!(
+            depth(MAX_IMAGE_SIDE + 1, 1),
+            Err(SensorSpecError::DepthSize)
+        );
+        assert_eq!(
+            depth(1, MAX_IMAGE_SIDE + 1),
+            Err(SensorSpecError::DepthSize)
+        );
+        let lidar = |c, p| SensorSpec::lidar([0.0; 3], c, p, 50.0, 10.0, -30.0).check();
+        assert_eq!(lidar(MAX_LIDAR_CHANNELS, 1), Ok(()));
+        assert_eq!(lidar(1, MAX_LIDAR_POINTS), Ok(()));
+        assert_eq!(
+            lidar(MAX_LIDAR_CHANNELS + 1, 1),
+            Err(SensorSpecError::LidarSize)
+        );
+        assert_eq!(
+            lidar(1, MAX_LIDAR_POINTS + 1),
+            Err(SensorSpecError::LidarSize)
+        );
+        let message = SensorSpecError::LidarSize.to_string();
+        assert!(
+            message.contains("1..=256 and points per channel in 1..=65536"),
+            "{message}"
+        );
+        let side = format!("{MAX_IMAGE_SIDE}");
+        assert_eq!(
+            crate::input::image_size(&format!("{side},1")),
+            Ok([MAX_IMAGE_SIDE, 1])
+        );
+        assert!(crate::input::image_size(&format!("{},1", MAX_IMAGE_SIDE + 1)).is_err());
+        let channels = format!("{}", MAX_LIDAR_CHANNELS + 1);
+        assert!(crate::input::lidar_channels(&channels).is_err());
+        let points = format!("{}", MAX_LIDAR_POINTS + 1);
+        assert!(crate::input::lidar_points(&points).is_err());
     }
 
     #[test]

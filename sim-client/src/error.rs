@@ -27,9 +27,10 @@ pub enum ConnectError {
         /// How long the client waited.
         timeout: Duration,
     },
-    /// iceoryx2's shared directory cannot be used by this user.
-    #[error("{0}")]
-    SharedDirectory(String),
+    /// iceoryx2 cannot be used as configured: its configuration file does
+    /// not load, or its shared directory belongs to another user.
+    #[error(transparent)]
+    SharedDirectory(#[from] shared_types::environment::EnvironmentError),
     /// The server speaks another protocol version.
     #[error("world '{world}' runs a server with another protocol version ({detail}); this client speaks version {client}")]
     ProtocolMismatch {

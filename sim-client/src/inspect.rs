@@ -11,6 +11,7 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
+use shared_types::input::Exact;
 use shared_types::recording::{
     Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader,
 };
@@ -149,12 +150,16 @@ pub struct Blocked {
 pub enum BlockedError {
     /// `min_time` is not a finite number of seconds in the clock's range.
     #[error(
-        "min_time must be a finite number of seconds in 0..={max}, got {0}",
+        "min_time must be a finite number of seconds in 0..={max}, got {}",
+        Exact(*.0),
         max = shared_types::MAX_SENSOR_TICK_SECONDS
     )]
     MinTime(f64),
     /// `min_distance` is not a positive, finite number of metres.
-    #[error("min_distance must be a positive, finite number of metres, got {0}")]
+    #[error(
+        "min_distance must be a positive, finite number of metres, got {}",
+        Exact(*.0)
+    )]
     MinDistance(f64),
     /// The recording cannot be read.
     #[error(transparent)]
@@ -399,4 +404,27 @@ pub fn actors_blocked(
         close(*id, s, &mut out);
     }
     Ok(out.into_values().collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refused_bounds_print_the_number_given_readably() {
+        // Checked before the file is opened; 1e300 is not 300 digits.
+        let e = actors_blocked("/nonexistent.mcap", 1e300, 1.0).unwrap_err();
+        assert!(matches!(e, BlockedError::MinTime(t) if t == 1e300));
+        assert_eq!(
+            e.to_string(),
+            "min_time must be a finite number of seconds in 0..=18446744073, got 1e300"
+        );
+        let e = actors_blocked("/nonexistent.mcap", 1.0, -1e300).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "min_distance must be a positive, finite number of metres, got -1e300"
+        );
+        let e = actors_blocked("/nonexistent.mcap", 1.0, 0.25).unwrap_err();
+        assert!(matches!(e, BlockedError::File(_)), "{e}");
+    }
 }

@@ -31,14 +31,12 @@
 #![warn(missing_docs)]
 
 mod batch;
-pub mod census;
 mod client;
 mod error;
 mod frames;
 pub mod inspect;
 mod lockstep;
 mod open;
-pub mod process;
 mod recorder;
 mod rpc;
 mod sensor;
@@ -53,7 +51,6 @@ pub use error::{
     WaitError,
 };
 pub use lockstep::Participant;
-pub use process::process_alive;
 pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };
@@ -61,8 +58,20 @@ pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
 pub use ticker::Ticker;
+pub use wait::process_alive;
 
 /// The README's Rust examples, compiled as doctests so they stay true.
 #[cfg(doctest)]
 #[doc = include_str!("../../README.md")]
 struct ReadmeExamples;
+
+/// The Rust examples of the book's guide (`docs/src/guide.md`), compiled
+/// as doctests the same way; every chapter with Rust code is one such item.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/src/guide.md")]
+struct GuideExamples;
+
+/// The Rust examples of the book's sensors chapter (`docs/src/sensors.md`).
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/src/sensors.md")]
+struct SensorsExamples;

@@ -8,7 +8,24 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 
-use crate::{process_alive, WaitMode};
+use crate::WaitMode;
+
+/// Whether the process `pid` still runs (a zombie does not): how a client
+/// notices that its server died. Linux reads `/proc`; elsewhere every
+/// process is assumed alive and timeouts decide.
+pub fn process_alive(pid: u32) -> bool {
+    if !cfg!(target_os = "linux") {
+        return true;
+    }
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        // The state is the first field after the parenthesised command name.
+        Ok(stat) => stat
+            .rfind(')')
+            .and_then(|i| stat[i + 1..].split_whitespace().next())
+            .is_some_and(|state| state != "Z" && state != "X"),
+        Err(_) => false,
+    }
+}
 
 /// How long [`WaitMode::Hybrid`] (and [`Wait::Backoff`]) polls before it sleeps.
 pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);

@@ -15,28 +15,35 @@ use tracing::{debug, warn};
 
 use crate::clock::Clock;
 use crate::ports::{sender_pid, service_name, Transport};
-use crate::recorder::Recorder;
-use crate::sensors::Sensors;
-use crate::ticker::Ticker;
 use crate::world::World;
 use crate::ServerError;
 
 type BatchServer = RequestServer<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
 /// A batch request (already applied) waiting for its answer.
-pub type PendingBatch =
+pub(crate) type PendingBatch =
     ActiveRequest<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// What applying batches asks of the other domains, for the loop to do.
+#[derive(Debug)]
+pub(crate) enum BatchEffect<'a> {
+    /// A command was applied for the next frame, with this result (a
+    /// recording keeps both).
+    Applied(&'a Command, &'a CommandResult),
+    /// A ticking batch, applied, waits for its frame: the ticker answers it.
+    Tick(PendingBatch, Vec<CommandResult>),
+}
 
 /// The batch service.
 #[derive(Debug)]
-pub struct Batches {
+pub(crate) struct Batches {
     port: BatchServer,
 }
 
 impl Batches {
     /// Opens the batch service. A batch is never dropped: a sender that
     /// outruns the server waits.
-    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.batch)?)
@@ -61,16 +68,18 @@ impl Batches {
     }
 
     /// Applies every pending batch, in arrival order, at this frame
-    /// boundary. A sensor whose parent a batch destroyed ends with it.
-    pub fn handle(
+    /// boundary; what that asks of the other domains goes to `effect`
+    /// (every command applied, for the recording; every ticking batch, for
+    /// the ticker `ticker_pid`). Returns whether a batch was applied: a
+    /// sensor whose parent a batch destroyed then ends with it.
+    pub(crate) fn handle(
         &mut self,
         world: &mut World,
-        ticker: &mut Ticker,
-        sensors: &mut Sensors,
-        recorder: &mut Recorder,
+        ticker_pid: Option<u32>,
         clock: &Clock,
-        episode: u64,
-    ) -> Result<(), ServerError> {
+        mut effect: impl FnMut(BatchEffect<'_>),
+    ) -> Result<bool, ServerError> {
+        let mut applied = false;
         while let Some(request) = self
             .port
             .receive()
@@ -86,7 +95,7 @@ impl Batches {
             // Who may tick is decided by the sending port's process, never
             // by the pid the header claims.
             let sender = sender_pid(request.header());
-            if tick && ticker.owner_pid() != Some(sender) {
+            if tick && ticker_pid != Some(sender) {
                 warn!(
                     pid = sender,
                     claimed_pid = header.pid,
@@ -102,7 +111,7 @@ impl Batches {
                     .iter()
                     .map(|c| {
                         let result = world.apply(c);
-                        recorder.command(next_frame, episode, c, &result);
+                        effect(BatchEffect::Applied(c, &result));
                         result
                     })
                     .collect();
@@ -111,8 +120,8 @@ impl Batches {
                     commands = results.len(),
                     "ticking batch applied"
                 );
-                sensors.end_orphans(world, clock.frame(), episode);
-                ticker.queue_batch(request, results);
+                applied = true;
+                effect(BatchEffect::Tick(request, results));
                 continue;
             }
             // Each result is written straight into the loaned answer.
@@ -127,7 +136,7 @@ impl Batches {
                     };
                     let response = response.write_from_fn(|i| {
                         let result = world.apply(&commands[i]);
-                        recorder.command(next_frame, episode, &commands[i], &result);
+                        effect(BatchEffect::Applied(&commands[i], &result));
                         failed += usize::from(result.status != CommandStatus::Ok as u32);
                         result
                     });
@@ -140,7 +149,7 @@ impl Batches {
                     debug!("batch response not loaned: {e:?}");
                     for command in commands {
                         let result = world.apply(command);
-                        recorder.command(next_frame, episode, command, &result);
+                        effect(BatchEffect::Applied(command, &result));
                     }
                 }
             }
@@ -150,16 +159,16 @@ impl Batches {
                 failed,
                 "batch applied"
             );
-            sensors.end_orphans(world, clock.frame(), episode);
+            applied = true;
         }
-        Ok(())
+        Ok(applied)
     }
 }
 
 impl Batches {
     /// Refuses every pending batch: a replay runs, its actors follow the
     /// recording (and a spawn would shift the recorded actor ids).
-    pub fn refuse_while_replaying(&mut self, clock: &Clock) -> Result<(), ServerError> {
+    pub(crate) fn refuse_while_replaying(&mut self, clock: &Clock) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
             .receive()
@@ -176,7 +185,7 @@ impl Batches {
 }
 
 /// Answers a batch with `status`, the frame it concerns and its results.
-pub fn respond_batch(
+pub(crate) fn respond_batch(
     request: &PendingBatch,
     status: ResponseStatus,
     frame: u64,

@@ -1,6 +1,8 @@
-//! The `sim-server` command line, as a library so that tools (the benchmark)
-//! can run a server process with exactly the same options.
+//! The `sim-server` command line: the binary's, not the library's (which
+//! knows no clap and no anyhow). The benchmark's hidden `serve` compiles
+//! this same file, so that it runs a server with exactly these options.
 
+use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -12,7 +14,7 @@ use shared_types::limits::{self, WorldLimits};
 use shared_types::{input, WaitMode, WorldName, WorldSettings};
 use tracing_subscriber::EnvFilter;
 
-use crate::{OnTickerLoss, Scene, Server, ServerConfig};
+use sim_server::{OnTickerLoss, Scene, Server, ServerConfig, ServerError};
 
 /// Run a simbus world: step a rapier3d physics scene and publish every frame
 /// over iceoryx2 shared memory.
@@ -23,14 +25,14 @@ use crate::{OnTickerLoss, Scene, Server, ServerConfig};
 /// with --realtime. Stop it with Ctrl-C (or SIGTERM).
 #[derive(Debug, Parser)]
 #[command(name = "sim-server", version)]
-pub struct ServerArgs {
+pub(crate) struct ServerArgs {
     /// World name: prefixes every service, so worlds never meet.
     #[arg(long, env = "SIMBUS_WORLD", default_value = "default")]
-    pub world: WorldName,
+    pub(crate) world: WorldName,
 
     /// Scene to load: default, empty or boxes:N (N in 1..=100000).
     #[arg(long, default_value = "default")]
-    pub scene: Scene,
+    pub(crate) scene: Scene,
 
     /// Fixed time-step in seconds: 1e-6..=3600 (0 = variable step). Also
     /// spelled --fixed-delta-seconds, CARLA's name.
@@ -42,50 +44,50 @@ pub struct ServerArgs {
         allow_negative_numbers = true,
         value_parser = input::fixed_delta_seconds
     )]
-    pub fixed_delta_seconds: Option<f64>,
+    pub(crate) fixed_delta_seconds: Option<f64>,
 
     /// Fixed time-step as frames per simulated second (dt = 1/N, so N in
     /// 0.000277778..=1e6; 0 = variable).
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
-    pub fps: Option<f64>,
+    pub(crate) fps: Option<f64>,
 
     /// Run each frame as one physics step, however long.
     #[arg(long)]
-    pub no_substepping: bool,
+    pub(crate) no_substepping: bool,
 
     /// Longest physics substep in seconds (1e-6..=3600).
     #[arg(long, value_name = "S", default_value_t = 0.01, allow_negative_numbers = true, value_parser = input::max_substep_delta_time)]
-    pub max_substep_delta_time: f64,
+    pub(crate) max_substep_delta_time: f64,
 
     /// Most physics substeps per frame (1..=16).
     #[arg(long, value_name = "N", default_value_t = 10, allow_negative_numbers = true, value_parser = input::max_substeps)]
-    pub max_substeps: u32,
+    pub(crate) max_substeps: u32,
 
     /// Fixed step: pace frames so simulation time follows wall time.
     #[arg(long)]
-    pub realtime: bool,
+    pub(crate) realtime: bool,
 
     /// Variable step: compute at most this many frames per second (at most
     /// 1e6; 0 = no limit).
     #[arg(long, value_name = "HZ", default_value_t = 100.0, allow_negative_numbers = true, value_parser = input::rate_limit)]
-    pub max_fps: f64,
+    pub(crate) max_fps: f64,
 
     /// When the ticker dies in synchronous mode: wait for a new ticker, or
     /// fall back to asynchronous mode.
-    #[arg(long, value_enum, default_value_t = OnTickerLoss::Wait)]
-    pub on_ticker_loss: OnTickerLoss,
+    #[arg(long, value_enum, default_value_t = TickerLoss::Wait)]
+    pub(crate) on_ticker_loss: TickerLoss,
 
     /// Synchronous mode: how to wait for the next tick — block (sleep on
     /// the wake-up event), spin (poll: lowest latency, one core busy) or
     /// hybrid (poll for --hybrid-window-us after each frame, then sleep).
     /// The same words as clients' wait modes.
     #[arg(long, value_name = "MODE", default_value = "hybrid")]
-    pub wait_mode: WaitMode,
+    pub(crate) wait_mode: WaitMode,
 
     /// Start in synchronous mode, waiting for the first ticker (needs a fixed
     /// step), so a run is deterministic from frame 0.
     #[arg(long)]
-    pub sync: bool,
+    pub(crate) sync: bool,
 
     /// Seed for the scene's placement: the same seed, the same world
     /// (any whole number in 0..=18446744073709551615).
@@ -95,50 +97,51 @@ pub struct ServerArgs {
         default_value_t = 0,
         allow_negative_numbers = true
     )]
-    pub seed: u64,
+    pub(crate) seed: u64,
 
     /// Hybrid waiting: after each frame, poll this many microseconds for the
     /// next tick before sleeping (0..=1000000).
     #[arg(long = "hybrid-window-us", value_name = "US", default_value = "100", allow_negative_numbers = true, value_parser = input::hybrid_window)]
-    pub hybrid_window: Duration,
+    pub(crate) hybrid_window: Duration,
 
     /// Drop a lockstep participant that keeps a tick waiting this many
     /// seconds. A tick held up by a participant is told so, and waits for
     /// this long too, whatever its own timeout.
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
-    pub lockstep_timeout: Duration,
+    pub(crate) lockstep_timeout: Duration,
 
     /// Simulation seconds between two keyframes of a recording (the
     /// serialized world a replay seeks to): 0.001..=1e9.
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::keyframe_seconds)]
-    pub keyframe_seconds: f64,
+    pub(crate) keyframe_seconds: f64,
 
     /// How many clients of each kind the world admits: frame subscribers,
     /// control, batch, lockstep and sensor-request clients (each costs
-    /// shared memory; see the README's limits table): 1..=1024.
+    /// shared memory; see the book's Limits chapter, docs/src/limits.md):
+    /// 1..=1024.
     #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_CLIENTS, allow_negative_numbers = true, value_parser = input::max_clients)]
-    pub max_clients: usize,
+    pub(crate) max_clients: usize,
 
     /// How many readers each sensor admits: 1..=256.
     #[arg(long, value_name = "N", default_value_t = limits::DEFAULT_MAX_SENSOR_READERS, allow_negative_numbers = true, value_parser = input::max_sensor_readers)]
-    pub max_sensor_readers: usize,
+    pub(crate) max_sensor_readers: usize,
 
     /// Exit after computing N frames (N >= 1).
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::count)]
-    pub max_frames: Option<u64>,
+    pub(crate) max_frames: Option<u64>,
 
     /// Print a JSON summary (frames, wall_seconds, fps) on exit.
     #[arg(long)]
-    pub json: bool,
+    pub(crate) json: bool,
 
     /// More logging (-v debug, -vv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
-    pub verbose: u8,
+    pub(crate) verbose: u8,
 }
 
 impl ServerArgs {
     /// The start settings these options describe, validated.
-    pub fn settings(&self) -> anyhow::Result<WorldSettings> {
+    pub(crate) fn settings(&self) -> anyhow::Result<WorldSettings> {
         let fixed_delta_seconds = match (self.fixed_delta_seconds, self.fps) {
             (_, Some(fps)) => WorldSettings::delta_from_fps(fps)?,
             (dt, None) => dt,
@@ -160,10 +163,42 @@ impl ServerArgs {
     }
 }
 
+/// The policy when the ticker dies in synchronous mode, as the command
+/// line spells it ([`OnTickerLoss`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum TickerLoss {
+    /// Stay in synchronous mode and wait for a new ticker.
+    Wait,
+    /// Fall back to asynchronous mode.
+    Async,
+}
+
+impl From<TickerLoss> for OnTickerLoss {
+    fn from(loss: TickerLoss) -> Self {
+        match loss {
+            TickerLoss::Wait => Self::Wait,
+            TickerLoss::Async => Self::Async,
+        }
+    }
+}
+
+/// Runs a server as `args` say, logging to stderr; a failure is printed
+/// and becomes the exit code (2: refused input, 1: failed).
+pub(crate) fn main(args: ServerArgs) -> ExitCode {
+    init_logging(args.verbose);
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("sim-server: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}
+
 /// Why a server run failed: input refused before anything started (exit
 /// 2), or a failure while starting or running (exit 1).
 #[derive(Debug)]
-pub enum RunError {
+pub(crate) enum RunError {
     /// Invalid settings or flags; nothing was started.
     Refused(anyhow::Error),
     /// The server could not start or stopped on an error.
@@ -172,7 +207,7 @@ pub enum RunError {
 
 impl RunError {
     /// The process exit code for this failure.
-    pub fn exit_code(&self) -> u8 {
+    pub(crate) fn exit_code(&self) -> u8 {
         match self {
             Self::Refused(_) => 2,
             Self::Failed(_) => 1,
@@ -191,7 +226,7 @@ impl std::fmt::Display for RunError {
 
 /// Logs to stderr through `tracing`: `RUST_LOG` if set, else info (-v debug,
 /// -vv trace); iceoryx2's own log goes through the same subscriber.
-pub fn init_logging(verbose: u8) {
+fn init_logging(verbose: u8) {
     iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
     let default = match verbose {
         0 => "info",
@@ -207,7 +242,7 @@ pub fn init_logging(verbose: u8) {
 }
 
 /// Runs a server as the options say, until Ctrl-C / SIGTERM or `--max-frames`.
-pub fn run(args: ServerArgs) -> Result<(), RunError> {
+fn run(args: ServerArgs) -> Result<(), RunError> {
     let settings = args.settings().map_err(RunError::Refused)?;
     let limits = WorldLimits {
         max_clients: args.max_clients,
@@ -229,7 +264,7 @@ pub fn run(args: ServerArgs) -> Result<(), RunError> {
         realtime: args.realtime,
         max_fps: args.max_fps,
         max_frames: args.max_frames,
-        on_ticker_loss: args.on_ticker_loss,
+        on_ticker_loss: args.on_ticker_loss.into(),
         wait_mode: args.wait_mode,
         hybrid_window: args.hybrid_window,
         seed: args.seed,
@@ -238,7 +273,7 @@ pub fn run(args: ServerArgs) -> Result<(), RunError> {
         limits,
     };
     let mut server = Server::start(config).map_err(|e| match e {
-        crate::ServerError::Settings(e) => RunError::Refused(e.into()),
+        ServerError::Settings(e) => RunError::Refused(e.into()),
         e => RunError::Failed(e.into()),
     })?;
     let summary = server

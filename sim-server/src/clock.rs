@@ -4,10 +4,17 @@
 //! Time is kept as `u64` nanoseconds so that a million frames of 0.1 s land
 //! exactly on 100 000 s; seconds are only computed for display and physics.
 
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use shared_types::{seconds_to_nanos, WorldSettings, LONG_SUBSTEP_NS, NANOS_PER_SECOND};
 use tracing::warn;
+
+/// Wall-clock seconds since the Unix epoch, as frames and captures carry it.
+pub(crate) fn platform_timestamp() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
 
 /// How one frame's delta is split into physics steps.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -3,21 +3,18 @@
 //! one place the server loop sleeps.
 
 use shared_types::Bus;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    ControlRequest, ControlResponse, RequestKind, ResponseStatus, WorldName, WorldSettings,
-    PROTOCOL_VERSION,
+    ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, WorldName,
+    WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug, info, warn};
 
 use crate::ports::{service_name, Transport};
-use crate::server::Domains;
-use crate::state::Refusal;
-use crate::ticker::Ticker;
 use crate::{Scene, ServerError};
 
 /// Below this, waits are plain sleeps (event timeouts are this coarse).
@@ -27,7 +24,7 @@ type ControlServer = RequestServer<Bus, ControlRequest, (), ControlResponse, ()>
 
 /// The control service and the wake-up listener.
 #[derive(Debug)]
-pub struct Control {
+pub(crate) struct Control {
     port: ControlServer,
     wake: Listener<Bus>,
 }
@@ -35,7 +32,7 @@ pub struct Control {
 impl Control {
     /// Opens the control service (admitting one server: a second live
     /// server on the world is refused) and the wake-up event.
-    pub fn open(
+    pub(crate) fn open(
         transport: &Transport,
         world: &WorldName,
         limits: &WorldLimits,
@@ -81,7 +78,7 @@ impl Control {
     /// The event listener's timeout is rounded up to the kernel's tick (a
     /// few milliseconds), so the last stretch before a due frame is a plain,
     /// precise sleep.
-    pub fn idle(&self, timeout: Duration) -> Result<(), ServerError> {
+    pub(crate) fn idle(&self, timeout: Duration) -> Result<(), ServerError> {
         if timeout <= COARSE_WAIT {
             std::thread::sleep(timeout);
             return Ok(());
@@ -92,7 +89,7 @@ impl Control {
     /// Sleeps until a client announces a request, or about `timeout` passed
     /// (as coarse as the event's timeouts: for waits that need no precise
     /// end, such as a synchronous world waiting for its tick).
-    pub fn wait_for_request(&self, timeout: Duration) -> Result<(), ServerError> {
+    pub(crate) fn wait_for_request(&self, timeout: Duration) -> Result<(), ServerError> {
         match self.wake.timed_wait(|_| {}, timeout) {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
@@ -100,14 +97,18 @@ impl Control {
         }
     }
 
-    /// Answers every pending control request.
-    pub(crate) fn handle(&mut self, world: &mut Domains) -> Result<(), ServerError> {
+    /// Answers every pending control request: each is decoded into the
+    /// call it makes, which `answer` carries out on the world.
+    pub(crate) fn handle(
+        &mut self,
+        mut answer: impl FnMut(ControlCall) -> ControlResponse,
+    ) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
             .receive()
             .map_err(|e| ServerError::transport("control receive", e))?
         {
-            let response = answer(world, request.payload());
+            let response = answer(decode(request.payload()));
             if let Err(e) = request.send_copy(response) {
                 debug!("control response not delivered (client gone?): {e:?}");
             }
@@ -116,7 +117,35 @@ impl Control {
     }
 }
 
-fn answer(world: &mut Domains, request: &ControlRequest) -> ControlResponse {
+/// A control request, decoded: what a client asks of the world.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum ControlCall {
+    /// Hello, status or get settings: the world's status.
+    Status,
+    /// Refused before it reaches the world (protocol version, unknown
+    /// request or scene), with this status.
+    Refuse(ResponseStatus),
+    /// New settings from `pid`, a client named `name`.
+    ApplySettings {
+        /// The settings asked for, normalized.
+        settings: WorldSettings,
+        /// The client's process.
+        pid: u32,
+        /// The client's name.
+        name: FixedText,
+    },
+    /// Load `scene` (`None`: reload the current one) as a new episode.
+    Load {
+        /// The scene to load; `None` for a reload.
+        scene: Option<Scene>,
+        /// Back to the default settings too.
+        reset: bool,
+        /// The client's process.
+        pid: u32,
+    },
+}
+
+fn decode(request: &ControlRequest) -> ControlCall {
     if request.protocol_version != PROTOCOL_VERSION {
         warn!(
             client_pid = request.client_pid,
@@ -124,86 +153,69 @@ fn answer(world: &mut Domains, request: &ControlRequest) -> ControlResponse {
             "refused a request: protocol version {} is not the server's {PROTOCOL_VERSION}",
             request.protocol_version
         );
-        return ControlResponse::refused(ResponseStatus::ProtocolMismatch, world.report());
+        return ControlCall::Refuse(ResponseStatus::ProtocolMismatch);
     }
     match RequestKind::from_u32(request.kind) {
         Some(RequestKind::Hello) => {
             debug!(client_pid = request.client_pid, "client connected");
-            ControlResponse::ok(world.report())
+            ControlCall::Status
         }
-        Some(RequestKind::GetSettings | RequestKind::Status) => ControlResponse::ok(world.report()),
-        Some(RequestKind::ApplySettings) => apply_settings(world, request),
+        Some(RequestKind::GetSettings | RequestKind::Status) => ControlCall::Status,
+        Some(RequestKind::ApplySettings) => ControlCall::ApplySettings {
+            settings: WorldSettings::from(request.settings).normalized(),
+            pid: request.client_pid,
+            name: request.client_name,
+        },
         Some(kind @ (RequestKind::LoadWorld | RequestKind::ReloadWorld)) => {
-            let scene: Scene = match kind {
+            let scene = match kind {
                 RequestKind::LoadWorld => match request.scene.to_string_lossy().parse() {
-                    Ok(scene) => scene,
+                    Ok(scene) => Some(scene),
                     Err(e) => {
                         info!(client_pid = request.client_pid, "refused to load: {e}");
-                        return ControlResponse::refused(
-                            ResponseStatus::UnknownScene,
-                            world.report(),
-                        );
+                        return ControlCall::Refuse(ResponseStatus::UnknownScene);
                     }
                 },
-                _ => world.runtime.scene,
+                _ => None,
             };
-            let reset = request.flags & ControlRequest::RESET_SETTINGS != 0;
-            let ticker = world.ticker.owner_pid();
-            if reset && ticker.is_some() && ticker != Some(request.client_pid) {
-                // Resetting settings is a settings change: the ticker's
-                // (its own process may).
-                info!(
-                    client_pid = request.client_pid,
-                    "refused to reset settings: the ticker holds the world"
-                );
-                return ControlResponse::refused(ResponseStatus::NotTicker, world.report());
-            }
-            match world.load_world(scene, reset, request.client_pid, Instant::now()) {
-                Ok(()) => ControlResponse::ok(world.report()),
-                Err(e) => {
-                    warn!("loading {scene} failed: {e}");
-                    ControlResponse::refused(ResponseStatus::LoadFailed, world.report())
-                }
+            ControlCall::Load {
+                scene,
+                reset: request.flags & ControlRequest::RESET_SETTINGS != 0,
+                pid: request.client_pid,
             }
         }
-        None => ControlResponse::refused(ResponseStatus::UnknownRequest, world.report()),
+        None => ControlCall::Refuse(ResponseStatus::UnknownRequest),
     }
 }
 
-/// Settings from a client that is not the ticker. While a ticker holds the
-/// world only it changes settings; anyone may leave synchronous mode
-/// (CARLA's escape hatch), which ends the ticker's ownership.
-fn apply_settings(world: &mut Domains, request: &ControlRequest) -> ControlResponse {
-    let settings = WorldSettings::from(request.settings).normalized();
-    let current = world.runtime.settings;
-    if let Some(ticker_pid) = world.ticker.owner_pid() {
+/// What settings from a client that is not the ticker do while a ticker
+/// holds the world. Only the ticker changes settings; anyone may leave
+/// synchronous mode (CARLA's escape hatch), which ends the ticker's
+/// ownership.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum WhileTicked {
+    /// The same settings: nothing changes.
+    Unchanged,
+    /// Synchronous mode left, nothing else: the ticker's ownership ends.
+    EndsOwnership,
+    /// Any other change: refused.
+    Refused,
+}
+
+impl WhileTicked {
+    /// What `requested` does to `current` while a ticker holds the world.
+    pub(crate) fn of(current: WorldSettings, requested: WorldSettings) -> Self {
         let leaving_sync = current.synchronous_mode
-            && settings
+            && requested
                 == WorldSettings {
                     synchronous_mode: false,
                     ..current
                 };
         if leaving_sync {
-            let by = Ticker::named(request.client_pid, request.client_name, world.clock.frame());
-            world.ticker.revoke(by, &world.clock);
-        } else if settings != current {
-            info!(
-                pid = request.client_pid,
-                ticker_pid, "refused settings: the ticker holds the world"
-            );
-            return ControlResponse::refused(ResponseStatus::NotTicker, world.report());
+            Self::EndsOwnership
+        } else if requested != current {
+            Self::Refused
+        } else {
+            Self::Unchanged
         }
-    }
-    let next_frame = world.clock.frame() + 1;
-    match world
-        .runtime
-        .change_settings(settings, false, request.client_pid, next_frame)
-    {
-        Ok(effective_frame) => ControlResponse {
-            effective_frame,
-            ..ControlResponse::ok(world.report())
-        },
-        Err(Refusal::Invalid(error)) => ControlResponse::invalid_settings(&error, world.report()),
-        Err(Refusal::Status(status)) => ControlResponse::refused(status, world.report()),
     }
 }

@@ -18,7 +18,7 @@ use crate::ServerError;
 
 /// The frame publisher and the frame-ready notifier.
 #[derive(Debug)]
-pub struct Frames {
+pub(crate) struct Frames {
     publisher: Publisher<Bus, [ActorState], FrameHeader>,
     ready: Notifier<Bus>,
 }
@@ -26,7 +26,7 @@ pub struct Frames {
 impl Frames {
     /// Opens the world's frame service (every new subscriber gets the
     /// current frame) and its frame-ready event.
-    pub fn open(
+    pub(crate) fn open(
         transport: &Transport,
         initial_actors: usize,
         limits: &WorldLimits,
@@ -69,7 +69,7 @@ impl Frames {
 
     /// Writes `header` and every actor of `world` straight into a loaned
     /// sample and sends it. No copy, no allocation.
-    pub fn publish(&self, header: FrameHeader, world: &World) -> Result<(), ServerError> {
+    pub(crate) fn publish(&self, header: FrameHeader, world: &World) -> Result<(), ServerError> {
         let sample = self
             .publisher
             .loan_slice_uninit(world.actor_count())
@@ -84,7 +84,7 @@ impl Frames {
     }
 
     /// Sends `header` with `actors` (a replayed frame).
-    pub fn publish_states(
+    pub(crate) fn publish_states(
         &self,
         header: FrameHeader,
         actors: &[ActorState],
@@ -102,7 +102,7 @@ impl Frames {
     }
 
     /// Wakes every client blocked on the frame-ready event.
-    pub fn notify(&self) -> Result<(), ServerError> {
+    pub(crate) fn notify(&self) -> Result<(), ServerError> {
         self.ready
             .notify()
             .map_err(|e| ServerError::transport("frame-ready notify", e))?;
@@ -112,7 +112,7 @@ impl Frames {
     /// Connects subscribers that joined since the last frame, so they get
     /// the current frame now, not only when the next one is sent (in
     /// synchronous mode that may be a long wait).
-    pub fn connect_new_subscribers(&self) {
+    pub(crate) fn connect_new_subscribers(&self) {
         if let Err(e) = self.publisher.update_connections() {
             debug!("connecting new subscribers: {e}");
         }

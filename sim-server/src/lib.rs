@@ -5,26 +5,28 @@
 //! iceoryx2 shared memory for any number of clients.
 //!
 //! One domain, one module — each owns its iceoryx2 port(s), its state and
-//! its request handling; the [`server`] loop only orders them:
+//! its request handling; the `server` loop only orders them:
 //!
-//! - [`config`]: how the server was started (immutable); [`state`]: what
+//! - `config`: how the server was started (immutable); `state`: what
 //!   changes while it runs (settings, scene, episode, pacing).
 //! - [`clock`]: integer-nanosecond time, fixed / variable step, substep
 //!   plan, and the pacing of asynchronous frames.
 //! - [`scene`]: the initial contents of a world (`default`, `empty`, `boxes:N`).
 //! - [`world`]: rapier bodies and the actors that name them;
-//!   [`commands`]: what each wire command does to them; [`vehicles`]: the
+//!   `commands`: what each wire command does to them; `vehicles`: the
 //!   ray-cast vehicles.
-//! - [`frames`]: publishing each frame's snapshot.
-//! - [`control`]: status, settings, load and reload — and the wake-up event
+//! - `frames`: publishing each frame's snapshot.
+//! - `control`: status, settings, load and reload — and the wake-up event
 //!   the loop sleeps on.
-//! - [`ticker`]: the tick service, tick ownership, its loss and revocation.
-//! - [`batches`]: command batches.
-//! - [`lockstep`]: participants the server waits for in synchronous mode.
-//! - [`sensors`]: depth camera, lidar and IMU, written straight into shared memory.
-//! - [`ports`], [`liveness`]: the node the domains open their ports on, and
+//! - `ticker`: the tick service, tick ownership, its loss and revocation.
+//! - `batches`: command batches.
+//! - `lockstep`: participants the server waits for in synchronous mode.
+//! - `sensors`: depth camera, lidar and IMU, written straight into shared memory.
+//! - `ports`, `liveness`: the node the domains open their ports on, and
 //!   which client processes still live.
-//! - [`cli`]: the `sim-server` command line.
+//!
+//! The `sim-server` command line is the binary's (`src/cli.rs`), not the
+//! library's.
 //!
 //! A server runs in-process too (this example computes 100 frames as fast
 //! as it can and returns):
@@ -52,24 +54,23 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
-pub mod batches;
-pub mod cli;
+pub(crate) mod batches;
 pub mod clock;
-pub mod commands;
-pub mod config;
-pub mod control;
-pub mod frames;
-pub mod liveness;
-pub mod lockstep;
-pub mod ports;
-pub mod recorder;
-pub mod replayer;
+pub(crate) mod commands;
+pub(crate) mod config;
+pub(crate) mod control;
+pub(crate) mod frames;
+pub(crate) mod liveness;
+pub(crate) mod lockstep;
+pub(crate) mod ports;
+pub(crate) mod recorder;
+pub(crate) mod replayer;
 pub mod scene;
-pub mod sensors;
-pub mod server;
-pub mod state;
-pub mod ticker;
-pub mod vehicles;
+pub(crate) mod sensors;
+pub(crate) mod server;
+pub(crate) mod state;
+pub(crate) mod ticker;
+pub(crate) mod vehicles;
 pub mod world;
 
 pub use config::ServerConfig;
@@ -88,9 +89,10 @@ pub enum ServerError {
         /// The world name.
         world: String,
     },
-    /// iceoryx2's shared directory cannot be used by this user.
-    #[error("{0}")]
-    SharedDirectory(String),
+    /// iceoryx2 cannot be used as configured (its configuration file, or a
+    /// shared directory another user owns).
+    #[error(transparent)]
+    SharedDirectory(shared_types::environment::EnvironmentError),
     /// The start settings were refused.
     #[error("invalid settings: {0}")]
     Settings(SettingsError),
@@ -125,6 +127,19 @@ impl ServerError {
             source: error.into(),
         }
     }
+}
+
+/// An error and its sources in one line (`what failed: why: ...`), as a
+/// client reads it in an answer's message.
+pub(crate) fn message(error: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        text.push_str(": ");
+        text.push_str(&cause.to_string());
+        source = cause.source();
+    }
+    text
 }
 
 impl From<SettingsError> for ServerError {

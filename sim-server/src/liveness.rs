@@ -8,7 +8,7 @@ use shared_types::Bus;
 
 /// The process ids of every live iceoryx2 node, or `None` when the node
 /// list cannot be read (then nobody is declared dead).
-pub fn living_pids() -> Option<Vec<u32>> {
+pub(crate) fn living_pids() -> Option<Vec<u32>> {
     let mut pids = Vec::new();
     let listed = Node::<Bus>::list(Config::global_config(), |state| {
         if let NodeState::Alive(view) = &state {
@@ -24,16 +24,16 @@ pub fn living_pids() -> Option<Vec<u32>> {
 /// A liveness check over one node list: `alive(pid)` is true unless the
 /// list was read and holds no live node of `pid`.
 #[derive(Debug)]
-pub struct LiveProcesses(Option<Vec<u32>>);
+pub(crate) struct LiveProcesses(Option<Vec<u32>>);
 
 impl LiveProcesses {
     /// Reads the node list once.
-    pub fn now() -> Self {
+    pub(crate) fn now() -> Self {
         Self(living_pids())
     }
 
     /// Whether `pid` has a live node (or the list could not be read).
-    pub fn alive(&self, pid: u32) -> bool {
+    pub(crate) fn alive(&self, pid: u32) -> bool {
         self.0.as_ref().is_none_or(|pids| pids.contains(&pid))
     }
 }
@@ -45,7 +45,7 @@ impl LiveProcesses {
 /// pidfd means the process exited; the node list then confirms, as it also
 /// decides for a pid the kernel gave no pidfd for.
 #[derive(Debug, Default)]
-pub struct PidWatch {
+pub(crate) struct PidWatch {
     entries: Vec<Watched>,
 }
 
@@ -60,11 +60,11 @@ struct Watched {
 
 impl PidWatch {
     /// How often the server's loop wakes to probe while it watches.
-    pub const PROBE_PERIOD: std::time::Duration = std::time::Duration::from_millis(4);
+    pub(crate) const PROBE_PERIOD: std::time::Duration = std::time::Duration::from_millis(4);
 
     /// Watches exactly `pids`: opens pidfds for new ones, closes the rest
     /// (no allocation once the set is known: the loop calls this often).
-    pub fn watch(&mut self, pids: impl Iterator<Item = u32> + Clone) {
+    pub(crate) fn watch(&mut self, pids: impl Iterator<Item = u32> + Clone) {
         self.entries.retain(|e| pids.clone().any(|p| p == e.pid));
         for pid in pids {
             if !self.entries.iter().any(|e| e.pid == pid) {
@@ -78,7 +78,7 @@ impl PidWatch {
     }
 
     /// Whether anything is left to probe.
-    pub fn is_idle(&self) -> bool {
+    pub(crate) fn is_idle(&self) -> bool {
         self.entries.iter().all(|e| e.reported)
     }
 
@@ -86,7 +86,7 @@ impl PidWatch {
     /// that could not be watched. Each pid is reported once while it stays
     /// watched: a pid the node list still shows alive cannot trigger sweeps
     /// over and over (the periodic sweep keeps covering it).
-    pub fn exited(&mut self) -> Vec<u32> {
+    pub(crate) fn exited(&mut self) -> Vec<u32> {
         use std::os::fd::AsRawFd;
         let mut polled = Vec::new();
         let mut owners = Vec::new();

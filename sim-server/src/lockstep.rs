@@ -18,7 +18,6 @@ use tracing::{debug, info, warn};
 use crate::clock::Clock;
 use crate::liveness::LiveProcesses;
 use crate::ports::{sender_pid, service_name, Transport};
-use crate::ticker::Ticker;
 use crate::ServerError;
 
 /// A tick held up by a participant this long is told which one, and how
@@ -30,7 +29,7 @@ type LockstepServer = RequestServer<Bus, LockstepRequest, (), LockstepResponse, 
 
 /// The lockstep service and its participants.
 #[derive(Debug)]
-pub struct Lockstep {
+pub(crate) struct Lockstep {
     port: LockstepServer,
     participants: Participants,
     /// Since when a tick waits for participants.
@@ -41,7 +40,7 @@ pub struct Lockstep {
 
 impl Lockstep {
     /// Opens the lockstep service.
-    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.lockstep)?)
@@ -66,29 +65,29 @@ impl Lockstep {
     }
 
     /// How many participants there are.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.participants.len()
     }
 
     /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.participants.is_empty()
     }
 
     /// Whether every participant is done with `frame` (the world may step).
-    pub fn all_done(&self, frame: u64) -> bool {
+    pub(crate) fn all_done(&self, frame: u64) -> bool {
         self.participants.all_done(frame)
     }
 
     /// A new episode starts at frame 0: everyone must report it anew.
-    pub fn new_episode(&mut self) {
+    pub(crate) fn new_episode(&mut self) {
         self.participants.new_episode();
     }
 
     /// Joins, leaves and "done with frame N" of participants. A "done"
     /// from a client that is not (or no longer) a participant is answered
     /// `NotParticipant`, so a dropped one learns it.
-    pub fn handle(&mut self, episode: u64, clock: &Clock) -> Result<(), ServerError> {
+    pub(crate) fn handle(&mut self, episode: u64, clock: &Clock) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
             .receive()
@@ -146,49 +145,53 @@ impl Lockstep {
     }
 
     /// A tick waits for participants at `now`: after [`WAIT_NOTICE_AFTER`]
-    /// the ticker is told which one; after `timeout` the late ones are
-    /// dropped (a hung reader must not stop the world).
-    pub fn held_up(&mut self, now: Instant, timeout: Duration, ticker: &Ticker, clock: &Clock) {
+    /// returns (once) the participant it waits for, whom the ticker is to
+    /// be told of; after `timeout` the late ones are dropped (a hung reader
+    /// must not stop the world).
+    pub(crate) fn held_up(
+        &mut self,
+        now: Instant,
+        timeout: Duration,
+        frame: u64,
+    ) -> Option<Participant> {
         let since = *self.waiting_since.get_or_insert(now);
         let waited = now.duration_since(since);
         if waited >= timeout {
             self.waiting_since = None;
             self.told = false;
-            for late in self.participants.drop_not_done(clock.frame()) {
+            for late in self.participants.drop_not_done(frame) {
                 warn!(
                     pid = late.pid,
                     name = %late.name,
-                    frame = clock.frame(),
+                    frame,
                     ?timeout,
                     "lockstep participant did not report done in time; no longer waiting for it"
                 );
             }
-            return;
+            return None;
         }
         if self.told || waited < WAIT_NOTICE_AFTER {
-            return;
+            return None;
         }
         self.told = true;
-        if let Some(late) = self.participants.first_not_done(clock.frame()) {
-            info!(
-                pid = late.pid,
-                name = %late.name,
-                frame = clock.frame(),
-                "a tick waits for a lockstep participant"
-            );
-            let participant = Ticker::named(late.pid, FixedText::new(&late.name), clock.frame());
-            ticker.tell_held_up(participant, timeout, clock);
-        }
+        let late = self.participants.first_not_done(frame)?;
+        info!(
+            pid = late.pid,
+            name = %late.name,
+            frame,
+            "a tick waits for a lockstep participant"
+        );
+        Some(late.clone())
     }
 
     /// The world stepped: no tick waits any more.
-    pub fn stepped(&mut self) {
+    pub(crate) fn stepped(&mut self) {
         self.waiting_since = None;
         self.told = false;
     }
 
     /// The first participants as the status report describes them.
-    pub fn statuses(&self) -> [ParticipantStatus; REPORTED_PARTICIPANTS] {
+    pub(crate) fn statuses(&self) -> [ParticipantStatus; REPORTED_PARTICIPANTS] {
         let mut statuses = [ParticipantStatus::zeroed(); REPORTED_PARTICIPANTS];
         for (status, p) in statuses.iter_mut().zip(&self.participants.list) {
             *status = ParticipantStatus {
@@ -205,12 +208,12 @@ impl Lockstep {
     }
 
     /// The participants' processes.
-    pub fn pids(&self) -> impl Iterator<Item = u32> + Clone + '_ {
+    pub(crate) fn pids(&self) -> impl Iterator<Item = u32> + Clone + '_ {
         self.participants.list.iter().map(|p| p.pid)
     }
 
     /// Drops the participants whose process died (by `sweep`).
-    pub fn drop_dead(&mut self, sweep: &LiveProcesses, frame: u64) {
+    pub(crate) fn drop_dead(&mut self, sweep: &LiveProcesses, frame: u64) {
         for dead in self.participants.drop_dead(|pid| sweep.alive(pid)) {
             warn!(
                 pid = dead.pid,
@@ -224,7 +227,7 @@ impl Lockstep {
 
 /// One participant and the last frame it reported done in this episode.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Participant {
+pub(crate) struct Participant {
     /// Its port on the lockstep service.
     pub client: UniqueClientId,
     /// Its process.

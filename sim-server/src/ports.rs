@@ -11,7 +11,7 @@ use crate::ServerError;
 
 /// The server's node and the names of its world's services.
 #[derive(Debug)]
-pub struct Transport {
+pub(crate) struct Transport {
     /// The server's iceoryx2 node (named `sim-server`).
     pub node: Node<Bus>,
     /// The world's service names.
@@ -21,7 +21,7 @@ pub struct Transport {
 impl Transport {
     /// Creates the server's node for `world`, removing what dead processes
     /// left behind (a crashed predecessor's services included).
-    pub fn open(world: &WorldName) -> Result<Self, ServerError> {
+    pub(crate) fn open(world: &WorldName) -> Result<Self, ServerError> {
         shared_types::environment::prepare().map_err(ServerError::SharedDirectory)?;
         let node_name =
             NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
@@ -56,14 +56,16 @@ impl Transport {
 }
 
 /// `name` as an iceoryx2 service name.
-pub fn service_name(name: &str) -> Result<ServiceName, ServerError> {
+pub(crate) fn service_name(name: &str) -> Result<ServiceName, ServerError> {
     ServiceName::new(name).map_err(|e| ServerError::transport("service name", e))
 }
 
 /// The process that sent a request, as iceoryx2's port recorded it in the
 /// request's header (the sending node's id carries its creator's pid), not
 /// as the request's payload claims: a client cannot name another process.
-pub fn sender_pid(header: &iceoryx2::service::header::request_response::RequestHeader) -> u32 {
+pub(crate) fn sender_pid(
+    header: &iceoryx2::service::header::request_response::RequestHeader,
+) -> u32 {
     header
         .node_id()
         .pid::<Bus>()

@@ -17,7 +17,7 @@ const WARN_PERIOD: Duration = Duration::from_secs(5);
 
 /// Why a settings change was refused.
 #[derive(Debug)]
-pub enum Refusal {
+pub(crate) enum Refusal {
     /// The settings break a rule.
     Invalid(SettingsError),
     /// Refused for another reason, answered with this status.
@@ -26,7 +26,7 @@ pub enum Refusal {
 
 /// The runtime state of a world.
 #[derive(Debug)]
-pub struct Runtime {
+pub(crate) struct Runtime {
     /// The settings in force for the next frame.
     pub settings: WorldSettings,
     /// The scene the current episode was loaded from.
@@ -42,7 +42,7 @@ pub struct Runtime {
 
 impl Runtime {
     /// The state at start: `config`'s scene and (validated) settings, episode 1.
-    pub fn new(config: &ServerConfig, settings: WorldSettings) -> Self {
+    pub(crate) fn new(config: &ServerConfig, settings: WorldSettings) -> Self {
         Self {
             settings,
             scene: config.scene,
@@ -56,7 +56,7 @@ impl Runtime {
     /// Validates and applies `settings` from process `pid`; returns the
     /// first frame computed with them (`next_frame`). Only the ticker
     /// (`from_ticker`) may enter synchronous mode.
-    pub fn change_settings(
+    pub(crate) fn change_settings(
         &mut self,
         settings: WorldSettings,
         from_ticker: bool,
@@ -95,7 +95,7 @@ impl Runtime {
 
     /// Warns (at most every 5 s) when `frame` of `delta_ns` run as `plan`
     /// makes physics unreliable.
-    pub fn warn_if_unreliable(
+    pub(crate) fn warn_if_unreliable(
         &mut self,
         frame: u64,
         delta_ns: u64,

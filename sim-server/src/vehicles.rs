@@ -7,7 +7,7 @@ use rapier3d::prelude::*;
 
 /// A vehicle's controller and the control it holds until told otherwise.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
-pub struct Vehicle {
+pub(crate) struct Vehicle {
     actor: u64,
     controller: DynamicRayCastVehicleController,
     throttle: f32,
@@ -17,7 +17,7 @@ pub struct Vehicle {
 }
 
 /// Chassis half extents of a spawned vehicle: 2 m long (X), 0.5 m high, 1 m wide.
-pub const VEHICLE_HALF_EXTENTS: [f32; 3] = [1.0, 0.25, 0.5];
+pub(crate) const VEHICLE_HALF_EXTENTS: [f32; 3] = [1.0, 0.25, 0.5];
 /// Engine force per driven (rear) wheel at full throttle, newtons.
 const MAX_ENGINE_FORCE: f32 = 300.0;
 /// Brake force per wheel at full brake.
@@ -27,7 +27,7 @@ const MAX_STEER: f32 = 0.5;
 
 impl Vehicle {
     /// Holds this control until the next one.
-    pub fn set_control(&mut self, throttle: f32, steer: f32, brake: f32, hand_brake: bool) {
+    pub(crate) fn set_control(&mut self, throttle: f32, steer: f32, brake: f32, hand_brake: bool) {
         self.throttle = throttle;
         self.steer = steer;
         self.brake = brake;
@@ -37,14 +37,14 @@ impl Vehicle {
 
 /// Every vehicle of a world.
 #[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Vehicles {
+pub(crate) struct Vehicles {
     list: Vec<Vehicle>,
 }
 
 impl Vehicles {
     /// Adds a vehicle for actor `actor` whose chassis is `body`, with half
     /// extents `half`, standing still.
-    pub fn add(&mut self, actor: u64, body: RigidBodyHandle, half: Vector) {
+    pub(crate) fn add(&mut self, actor: u64, body: RigidBodyHandle, half: Vector) {
         self.list.push(Vehicle {
             actor,
             controller: vehicle_controller(body, half),
@@ -56,23 +56,23 @@ impl Vehicles {
     }
 
     /// Removes the vehicle of actor `actor`, if it is one.
-    pub fn remove(&mut self, actor: u64) {
+    pub(crate) fn remove(&mut self, actor: u64) {
         self.list.retain(|vehicle| vehicle.actor != actor);
     }
 
     /// Every vehicle's chassis body.
-    pub fn chassis(&self) -> impl Iterator<Item = RigidBodyHandle> + '_ {
+    pub(crate) fn chassis(&self) -> impl Iterator<Item = RigidBodyHandle> + '_ {
         self.list.iter().map(|v| v.controller.chassis)
     }
 
     /// The vehicle of actor `actor`, if it is one.
-    pub fn get_mut(&mut self, actor: u64) -> Option<&mut Vehicle> {
+    pub(crate) fn get_mut(&mut self, actor: u64) -> Option<&mut Vehicle> {
         self.list.iter_mut().find(|v| v.actor == actor)
     }
 
     /// Applies each vehicle's control to its wheels and lets its controller
     /// push the chassis, for a physics step of `dt` seconds.
-    pub fn update(&mut self, physics: &mut PhysicsWorld, dt: f32) {
+    pub(crate) fn update(&mut self, physics: &mut PhysicsWorld, dt: f32) {
         for vehicle in &mut self.list {
             let chassis = vehicle.controller.chassis;
             for (i, wheel) in vehicle.controller.wheels_mut().iter_mut().enumerate() {

@@ -1,21 +1,16 @@
 """CARLA 0.9.16's own client spawns, moves and destroys simbus actors,
 batches commands, and listens to simbus sensors through the gateway: the
 seeds' camera loop, a depth image decoded to a known distance, lidar and
-IMU, the determinism recipe on two server + gateway pairs, CARLA's
-config.py, and bad input."""
+IMU, the determinism recipe on two server + gateway pairs, and bad input
+(CARLA's config.py calls: test_carla_config.py)."""
 
 import math
-import os
 import queue
 import socket
-import subprocess
-import sys
 
 import carla
 import msgpack
 import pytest
-
-HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def sync(world, delta=0.05):
@@ -25,11 +20,25 @@ def sync(world, delta=0.05):
     world.apply_settings(settings)
 
 
+def synced(gateway):
+    """A client of `gateway`, its world in synchronous mode with a 0.05 s
+    step, and the world's blueprint library."""
+    client = gateway.client()
+    world = client.get_world()
+    sync(world)
+    return client, world, world.get_blueprint_library()
+
+
+def blueprint(library, type_id, **attributes):
+    """The blueprint `type_id` of `library` with `attributes` set."""
+    found = library.find(type_id)
+    for name, value in attributes.items():
+        found.set_attribute(name, str(value))
+    return found
+
+
 def small_camera(library, width=64, height=48):
-    blueprint = library.find("sensor.camera.depth")
-    blueprint.set_attribute("image_size_x", str(width))
-    blueprint.set_attribute("image_size_y", str(height))
-    return blueprint
+    return blueprint(library, "sensor.camera.depth", image_size_x=width, image_size_y=height)
 
 
 def test_the_blueprint_library_has_simbus_actors_and_sensors(gateway):
@@ -92,10 +101,7 @@ def test_seed_synchronous_camera_queue_200_ticks_none_missing(gateway):
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_a_depth_image_decodes_to_the_distance_of_a_known_box(gateway, tmp_path):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    library = world.get_blueprint_library()
+    client, world, library = synced(gateway)
     box = library.find("static.prop.box")
     # A 1 m cube whose near face is 9.5 m ahead of the camera (it falls
     # 1.2 cm in the one frame captured).
@@ -128,21 +134,11 @@ def test_a_depth_image_decodes_to_the_distance_of_a_known_box(gateway, tmp_path)
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_lidar_and_imu_measurements_arrive_as_carlas_types(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    library = world.get_blueprint_library()
-    box = library.find("static.prop.box")
-    box.set_attribute("extent_y", "20")
-    box.set_attribute("extent_z", "20")
+    client, world, library = synced(gateway)
+    box = blueprint(library, "static.prop.box", extent_y=20, extent_z=20)
     world.spawn_actor(box, carla.Transform(carla.Location(x=5.5, z=0.0)))
-    lidar_bp = library.find("sensor.lidar.ray_cast")
-    lidar_bp.set_attribute("channels", "4")
-    lidar_bp.set_attribute("points_per_second", "8000")
-    lidar_bp.set_attribute("rotation_frequency", "20")
-    lidar_bp.set_attribute("range", "50")
-    lidar_bp.set_attribute("upper_fov", "5")
-    lidar_bp.set_attribute("lower_fov", "-5")
+    lidar_bp = blueprint(library, "sensor.lidar.ray_cast", channels=4, points_per_second=8000,
+                         rotation_frequency=20, range=50, upper_fov=5, lower_fov=-5)
     # Fixed in the world: the lidar, an IMU; an IMU on a falling ball.
     lidar = world.spawn_actor(lidar_bp, carla.Transform())
     imu = world.spawn_actor(library.find("sensor.other.imu"), carla.Transform())
@@ -185,12 +181,8 @@ def test_lidar_and_imu_measurements_arrive_as_carlas_types(gateway):
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_actors_spawn_move_and_are_destroyed(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    library = world.get_blueprint_library()
-    box = library.find("static.prop.box")
-    box.set_attribute("role_name", "hero")
+    client, world, library = synced(gateway)
+    box = blueprint(library, "static.prop.box", role_name="hero")
     actor = world.spawn_actor(box, carla.Transform(carla.Location(x=1, y=2, z=3), carla.Rotation(yaw=30)))
     assert actor.type_id == "static.prop.box"
     assert actor.attributes["role_name"] == "hero"
@@ -234,10 +226,7 @@ def test_actors_spawn_move_and_are_destroyed(gateway):
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_batches_answer_one_response_per_command_with_errors_per_command(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    library = world.get_blueprint_library()
+    client, world, library = synced(gateway)
     box = library.find("static.prop.box")
     SpawnActor, FutureActor = carla.command.SpawnActor, carla.command.FutureActor
     responses = client.apply_batch_sync([
@@ -310,50 +299,6 @@ def test_the_determinism_recipe_gives_identical_transforms_on_two_servers(gatewa
     assert frame_a == frame_b
     assert len(poses_a) > 12
     assert poses_a == poses_b
-
-
-def run_config(gateway, *args):
-    return subprocess.run(
-        [sys.executable, os.path.join(HERE, "carla_util", "config.py"),
-         "--host", "127.0.0.1", "-p", str(gateway.port), *args],
-        capture_output=True, text=True, timeout=120,
-    )
-
-
-def test_carlas_config_py_sets_and_shows_the_settings(gateway):
-    world = gateway.client().get_world()
-    done = run_config(gateway, "--delta-seconds", "0.05")
-    assert done.returncode == 0, done.stderr
-    assert "set fixed frame rate 50.00 milliseconds (20 FPS)" in done.stdout
-    assert world.get_settings().fixed_delta_seconds == pytest.approx(0.05)
-    done = run_config(gateway, "--fps", "10")
-    assert done.returncode == 0, done.stderr
-    assert world.get_settings().fixed_delta_seconds == pytest.approx(0.1)
-    sync(world, 0.1)
-    done = run_config(gateway, "--no-sync")
-    assert done.returncode == 0, done.stderr
-    assert "disable synchronous mode." in done.stdout
-    assert world.get_settings().synchronous_mode is False
-    done = run_config(gateway, "--inspect")
-    assert done.returncode == 0, done.stderr
-    assert "version:" in done.stdout and "0.9.16" in done.stdout
-    assert "map:" in done.stdout and "default" in done.stdout
-    assert "100.00 ms (10 FPS)" in done.stdout, done.stdout
-    assert "sync mode:" in done.stdout and "disabled" in done.stdout
-    assert "* vehicles:" in done.stdout
-    done = run_config(gateway, "--list")
-    assert done.returncode == 0, done.stderr
-    assert "boxes:100" in done.stdout and "empty" in done.stdout
-    done = run_config(gateway, "-b", "sensor.*")
-    assert done.returncode == 0, done.stderr
-    assert "sensor.camera.depth" in done.stdout and "static.prop.box" not in done.stdout
-    # (`--delta-seconds 0` fails inside config.py with 0.9.16's client
-    # itself: it reads fixed_delta_seconds = 0.0 back as None and compares.)
-    done = run_config(gateway, "-m", "empty")
-    assert done.returncode == 0, done.stderr
-    assert gateway.client().get_world().get_map().name == "empty"
-    done = run_config(gateway, "-r")
-    assert done.returncode == 0, done.stderr
 
 
 class Raw:

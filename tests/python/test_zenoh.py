@@ -1,5 +1,5 @@
 """`sim-client bridge zenoh` read and attacked by a Zenoh peer simbus did not
-write: the `eclipse-zenoh` package decodes frames by the README's header
+write: the `eclipse-zenoh` package decodes frames by the book's header
 layout, ROS 2's `/clock` is decoded by `rosbags` (its CDR decoder and the
 ROS 2 message definitions), and garbage, wrong versions and a flood of
 ticks from a foreign peer get clear errors and change nothing."""
@@ -118,7 +118,7 @@ def test_a_foreign_zenoh_peer_decodes_frames_and_ros2_clock(request):
         frames, clocks = ticked_frames(), ticked_clocks()
 
         for i, (payload, cdr) in enumerate(zip(frames[:20], clocks[:20]), start=1):
-            # The README's layout of the frame header.
+            # The book's layout of the frame header (docs/src/wire.md).
             version, actors, _episode = struct.unpack_from("<IIQ", payload, 0)
             frame, elapsed_ns, delta_ns, platform = struct.unpack_from("<QQQd", payload, 16)
             substeps, _flags, _first_actor, server_pid = struct.unpack_from("<IIQI", payload, 72)

@@ -11,12 +11,16 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-pub use sim_client::process::{process_alive, send_signal, ChildGuard};
+pub use sim_client::process_alive;
+pub use simbus_process::{send_signal, ChildGuard};
 
 mod hosts;
 mod python;
+pub mod raw;
+mod root;
 pub use hosts::{Host, TwoHosts};
-pub use python::{python, PYTHON_REQUIREMENTS};
+pub use python::{python, python_requirements};
+pub use root::PrivateRoot;
 
 /// A binary of the workspace (`sim-server`, `sim-client`), from the same
 /// target directory as the running test (override with `SIMBUS_BIN_DIR`).
@@ -66,8 +70,11 @@ pub struct Proc {
     /// The child, killed and reaped on drop.
     pub guard: ChildGuard,
     command: String,
-    lines: mpsc::Receiver<String>,
-    stderr: std::sync::Arc<std::sync::Mutex<String>>,
+    /// Stdout, line by line (in a mutex so that a `&Proc` can be shared
+    /// with the threads of a scope).
+    lines: std::sync::Mutex<mpsc::Receiver<String>>,
+    /// Everything written to stderr so far, and a signal for each piece.
+    stderr: std::sync::Arc<(std::sync::Mutex<String>, std::sync::Condvar)>,
     stderr_reader: Option<std::thread::JoinHandle<()>>,
 }
 
@@ -121,7 +128,10 @@ impl Proc {
                 }
             }
         });
-        let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let stderr = std::sync::Arc::new((
+            std::sync::Mutex::new(String::new()),
+            std::sync::Condvar::new(),
+        ));
         let sink = stderr.clone();
         let stderr_reader = std::thread::spawn(move || {
             let mut buf = [0u8; 4096];
@@ -129,15 +139,17 @@ impl Proc {
                 if n == 0 {
                     break;
                 }
-                sink.lock()
+                let (text, written) = &*sink;
+                text.lock()
                     .unwrap()
                     .push_str(&String::from_utf8_lossy(&buf[..n]));
+                written.notify_all();
             }
         });
         Self {
             guard: ChildGuard::new(child, Duration::from_secs(5)),
             command,
-            lines,
+            lines: std::sync::Mutex::new(lines),
             stderr,
             stderr_reader: Some(stderr_reader),
         }
@@ -150,12 +162,48 @@ impl Proc {
 
     /// The next stdout line, waiting up to `timeout`.
     pub fn line(&self, timeout: Duration) -> Option<String> {
-        self.lines.recv_timeout(timeout).ok()
+        self.lines.lock().unwrap().recv_timeout(timeout).ok()
     }
 
     /// What the process wrote to stderr so far.
     pub fn stderr(&self) -> String {
-        self.stderr.lock().unwrap().clone()
+        self.stderr.0.lock().unwrap().clone()
+    }
+
+    /// Waits (at most `timeout`) for a stdout line containing `needle` and
+    /// returns it; the lines before it are consumed. Panics, showing
+    /// stderr, if none comes.
+    pub fn wait_line(&self, needle: &str, timeout: Duration) -> String {
+        let deadline = Instant::now() + timeout;
+        while let Some(line) = self.line(deadline.saturating_duration_since(Instant::now())) {
+            if line.contains(needle) {
+                return line;
+            }
+        }
+        panic!(
+            "{}: no stdout line with '{needle}' within {timeout:?}; stderr:\n{}",
+            self.command,
+            self.stderr()
+        );
+    }
+
+    /// Waits (at most `timeout`) until the process has written `needle` to
+    /// stderr (a log line: the fixture runs it at `RUST_LOG=info`) and
+    /// returns the line that holds it. Panics, showing stderr, if it does
+    /// not.
+    pub fn wait_stderr(&self, needle: &str, timeout: Duration) -> String {
+        let (text, written) = &*self.stderr;
+        let (text, waited) = written
+            .wait_timeout_while(text.lock().unwrap(), timeout, |text| !text.contains(needle))
+            .unwrap();
+        assert!(
+            !waited.timed_out(),
+            "{}: nothing on stderr with '{needle}' within {timeout:?}; stderr:\n{}",
+            self.command,
+            *text
+        );
+        let line = text.lines().find(|line| line.contains(needle));
+        line.unwrap_or(needle).to_owned()
     }
 
     /// Waits up to `timeout` for the process to exit by itself, then returns
@@ -175,7 +223,8 @@ impl Proc {
         };
         // The pipes close when the process exits: read them to the end.
         let mut stdout = Vec::new();
-        while let Ok(line) = self.lines.recv_timeout(Duration::from_secs(10)) {
+        let lines = self.lines.get_mut().unwrap();
+        while let Ok(line) = lines.recv_timeout(Duration::from_secs(10)) {
             stdout.push(line);
         }
         if let Some(reader) = self.stderr_reader.take() {
@@ -342,6 +391,17 @@ impl TestWorld {
     pub fn status(&self) -> serde_json::Value {
         status(&self.name)
     }
+
+    /// `(synchronous_mode, fixed_delta_seconds, ticker)` from the world's
+    /// status: what a change of its time settings touches.
+    pub fn time_settings(&self) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
+        let status = self.status();
+        (
+            status["synchronous_mode"].clone(),
+            status["fixed_delta_seconds"].clone(),
+            status["ticker"].clone(),
+        )
+    }
 }
 
 impl std::ops::Deref for TestWorld {
@@ -458,118 +518,5 @@ pub fn wait_for_participants(client: &sim_client::Client, count: u32) {
             "only {joined} of {count} lockstep participants joined"
         );
         std::thread::yield_now();
-    }
-}
-
-/// An iceoryx2 root of one test's own: a directory for iceoryx2's files and
-/// a `/dev/shm` name prefix, written to a config file that the processes get
-/// through `SIMBUS_IOX2_CONFIG`. What the test's processes leave behind can
-/// then be counted exactly, whatever else runs on the machine. Removes its
-/// shared memory on drop, even when the test fails.
-#[derive(Debug)]
-pub struct PrivateRoot {
-    scratch: Scratch,
-    prefix: String,
-    config: PathBuf,
-}
-
-impl PrivateRoot {
-    /// A fresh root for test `tag`.
-    pub fn new(tag: &str) -> Self {
-        static COUNTER: AtomicU32 = AtomicU32::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let scratch = Scratch::new(tag);
-        let prefix = format!("iox2_{tag}{}x{n}_", std::process::id());
-        let root = scratch.path().join("iox2");
-        let config = scratch.write(
-            "iox2.toml",
-            format!(
-                "[global]\nroot-path = \"{}/\"\nprefix = \"{prefix}\"\n",
-                root.display()
-            )
-            .as_bytes(),
-        );
-        Self {
-            scratch,
-            prefix,
-            config,
-        }
-    }
-
-    /// The environment that puts a process in this root.
-    pub fn env(&self) -> [(&'static str, &std::ffi::OsStr); 1] {
-        [("SIMBUS_IOX2_CONFIG", self.config.as_os_str())]
-    }
-
-    /// The `/dev/shm` name prefix of this root.
-    pub fn prefix(&self) -> &str {
-        &self.prefix
-    }
-
-    /// `sim-server --world <world> <args>` in this root.
-    pub fn server(&self, world: &str, args: &[&str]) -> Proc {
-        let mut all = vec!["--world", world];
-        all.extend_from_slice(args);
-        Proc::spawn_env("sim-server", &all, &self.env())
-    }
-
-    /// `sim-client --world <world> --timeout <timeout> <args>` in this
-    /// root, started.
-    pub fn client(&self, world: &str, timeout: &str, args: &[&str]) -> Proc {
-        let mut all = vec!["--world", world, "--timeout", timeout];
-        all.extend_from_slice(args);
-        Proc::spawn_env("sim-client", &all, &self.env())
-    }
-
-    /// iceoryx2's directory of this root.
-    pub fn directory(&self) -> PathBuf {
-        self.scratch.path().join("iox2")
-    }
-
-    /// The `/dev/shm` files of this root, but iceoryx2's global id counter
-    /// (`…global_mgmt`, shared by every process of a root by design).
-    pub fn shared_memory(&self) -> Vec<String> {
-        std::fs::read_dir("/dev/shm")
-            .into_iter()
-            .flatten()
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|name| name.starts_with(&self.prefix) && !name.ends_with(".global_mgmt"))
-            .collect()
-    }
-
-    /// Every file under this root's iceoryx2 directory (nodes, services).
-    pub fn files(&self) -> Vec<String> {
-        fn walk(dir: &std::path::Path, out: &mut Vec<String>) {
-            for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-                let path = entry.path();
-                if path.is_dir() {
-                    walk(&path, out);
-                } else {
-                    out.push(path.display().to_string());
-                }
-            }
-        }
-        let mut out = Vec::new();
-        walk(&self.directory(), &mut out);
-        out
-    }
-}
-
-impl Drop for PrivateRoot {
-    fn drop(&mut self) {
-        for entry in std::fs::read_dir("/dev/shm")
-            .into_iter()
-            .flatten()
-            .flatten()
-        {
-            if entry
-                .file_name()
-                .to_string_lossy()
-                .starts_with(&self.prefix)
-            {
-                let _ = std::fs::remove_file(entry.path());
-            }
-        }
     }
 }

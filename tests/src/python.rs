@@ -2,37 +2,25 @@
 //! with tools simbus did not write (the `mcap` reader from PyPI, CARLA's
 //! own client library and pytest for the gateway, the Foxglove protocol's
 //! `websockets` and `protobuf`, Zenoh's Python API and `rosbags`' ROS 2
-//! CDR decoder for the Zenoh bridge). It is
-//! created once per target directory, under a lock, with pinned packages;
-//! nothing is assumed installed but `python3`.
+//! CDR decoder for the Zenoh bridge). It is created once per target
+//! directory (`target/simbus-venv`), under a lock, with the exact pins of
+//! `tests/python/requirements.txt`, and made again whenever that file
+//! changes; nothing is assumed installed but `python3`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The pinned packages the Python checks use.
-pub const PYTHON_REQUIREMENTS: &[&str] = &[
-    "mcap==1.2.2",
-    "zstandard==0.25.0",
-    "lz4==4.4.5",
-    "carla==0.9.16",
-    "pytest==8.3.4",
-    "iniconfig==2.3.1",
-    "packaging==26.3",
-    "pluggy==1.7.0",
-    "msgpack==1.1.0",
-    "websockets==15.0.1",
-    "protobuf==5.29.5",
-    "eclipse-zenoh==1.10.2",
-    "rosbags==0.11.9",
-    "apsw==3.54.1.0",
-    "backports.zstd==1.8.0",
-    "numpy==2.4.6",
-    "ruamel.yaml==0.19.1",
-    "typing_extensions==4.16.0",
-];
+/// The file that pins every Python package the tests use:
+/// `tests/python/requirements.txt`.
+pub fn python_requirements() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("python")
+        .join("requirements.txt")
+}
 
-/// The venv's `python`, creating the venv on first use (every test
-/// process shares it; a lock file keeps two from building it at once).
+/// The venv's `python`, creating the venv on first use and again when
+/// [`python_requirements`] changed since it was made (every test process
+/// shares it; a lock file keeps two from building it at once).
 pub fn python() -> PathBuf {
     let target = crate::bin("sim-client")
         .parent()
@@ -41,8 +29,11 @@ pub fn python() -> PathBuf {
         .to_path_buf();
     let venv = target.join("simbus-venv");
     let python = venv.join("bin").join("python");
-    let marker = venv.join("simbus-requirements.txt");
-    let wanted = PYTHON_REQUIREMENTS.join("\n");
+    // The stamp: the requirements the venv was made from, word for word.
+    let stamp = venv.join("simbus-requirements.txt");
+    let requirements = python_requirements();
+    let wanted = std::fs::read_to_string(&requirements)
+        .unwrap_or_else(|e| panic!("reading {}: {e}", requirements.display()));
     let lock = std::fs::OpenOptions::new()
         .create(true)
         .truncate(false)
@@ -58,8 +49,7 @@ pub fn python() -> PathBuf {
         "locking the venv: {}",
         std::io::Error::last_os_error()
     );
-    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists()
-    {
+    if std::fs::read_to_string(&stamp).ok().as_deref() == Some(wanted.as_str()) && python.exists() {
         return python;
     }
     let run = |command: &mut Command| {
@@ -80,8 +70,9 @@ pub fn python() -> PathBuf {
             "install",
             "--quiet",
             "--disable-pip-version-check",
+            "-r",
         ])
-        .args(PYTHON_REQUIREMENTS));
-    std::fs::write(&marker, wanted).expect("venv marker");
+        .arg(&requirements));
+    std::fs::write(&stamp, wanted).expect("venv stamp");
     python
 }

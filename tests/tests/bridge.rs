@@ -13,22 +13,6 @@ use simbus_tests::{unique_world, Proc, TwoHosts};
 
 const LONG: Duration = Duration::from_secs(30);
 
-/// Waits for a stdout line of `proc` containing `needle`.
-fn wait_line(proc: &Proc, needle: &str) -> String {
-    let deadline = Instant::now() + LONG;
-    while Instant::now() < deadline {
-        if let Some(line) = proc.line(Duration::from_millis(200)) {
-            if line.contains(needle) {
-                return line;
-            }
-        }
-    }
-    panic!(
-        "no line with '{needle}' within {LONG:?}; stderr:\n{}",
-        proc.stderr()
-    );
-}
-
 /// `frame F digest D` lines as a map.
 fn digests(lines: &[String]) -> BTreeMap<u64, String> {
     lines
@@ -74,18 +58,18 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     let exporter = hosts
         .a
         .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
-    wait_line(&exporter, "exporting world");
+    exporter.wait_line("exporting world", LONG);
     let mirror = hosts
         .b
         .client(&world, "20", &["bridge", "zenoh", "--connect", &endpoint]);
-    wait_line(&mirror, "mirroring world");
+    mirror.wait_line("mirroring world", LONG);
 
     // A watcher on each host, then 500 ticks from the second host.
     let watch = ["watch", "--digest", "--frames", "501"];
     let watch_a = hosts.a.client(&world, "20", &watch);
     let watch_b = hosts.b.client(&world, "20", &watch);
-    wait_line(&watch_a, "frame 0 digest");
-    wait_line(&watch_b, "frame 0 digest");
+    watch_a.wait_line("frame 0 digest", LONG);
+    watch_b.wait_line("frame 0 digest", LONG);
     // A depth camera spawned from the second host, read on both: each
     // reader joins the lockstep, so the ticks wait until both read.
     let spawned = hosts
@@ -172,7 +156,7 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
         "10",
         &["tick", "--rate", "20", "--leave-sync", "--json"],
     );
-    wait_line(&holder, "\"frame\"");
+    holder.wait_line("\"frame\"", LONG);
     let (node, pid) = status_ticker(&hosts, &world).expect("the remote ticker holds the world");
     assert_eq!(
         u64::from(holder.pid()),
@@ -225,7 +209,7 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
 
     // The link comes back: a new ticker there continues from the next frame.
     hosts.b.set_link(true);
-    wait_line(&mirror, "link up");
+    mirror.wait_line("link up", LONG);
     let next = hosts
         .b
         .client(&world, "20", &["tick", "--count", "1", "--json"])
@@ -244,7 +228,7 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
     let exporter = hosts
         .a
         .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
-    wait_line(&exporter, "exporting world");
+    exporter.wait_line("exporting world", LONG);
     let other = unique_world("zn-other");
     let mirror = hosts
         .b
@@ -309,7 +293,7 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
             client_mode.to_str().expect("path"),
         ],
     );
-    wait_line(&mirror, "mirroring world");
+    mirror.wait_line("mirroring world", LONG);
     let lease = hosts
         .b
         .client(

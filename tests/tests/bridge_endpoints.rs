@@ -8,9 +8,9 @@
 //! asked for (RUST_LOG, -v).
 
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use simbus_tests::{bin, unique_world, ChildGuard, PrivateRoot, Proc, TestWorld};
+use simbus_tests::{bin, client, unique_world, ChildGuard, PrivateRoot, TestWorld};
 
 const LONG: Duration = Duration::from_secs(30);
 
@@ -20,22 +20,6 @@ fn idle_port() -> u16 {
         .and_then(|l| l.local_addr())
         .expect("a free port")
         .port()
-}
-
-/// Waits for a stdout line of `proc` containing `needle`.
-fn wait_line(proc: &Proc, needle: &str) -> String {
-    let deadline = Instant::now() + LONG;
-    while Instant::now() < deadline {
-        if let Some(line) = proc.line(Duration::from_millis(200)) {
-            if line.contains(needle) {
-                return line;
-            }
-        }
-    }
-    panic!(
-        "no line with '{needle}' within {LONG:?}; stderr:\n{}",
-        proc.stderr()
-    );
 }
 
 #[test]
@@ -48,20 +32,7 @@ fn a_malformed_endpoint_is_refused_saying_the_form_it_needs() {
             "127.0.0.1:7447",
             "tcp/host:port",
         ] {
-            let out = Proc::spawn(
-                "sim-client",
-                &[
-                    "--world",
-                    &world,
-                    "--timeout",
-                    "1",
-                    "bridge",
-                    "zenoh",
-                    flag,
-                    bad,
-                ],
-            )
-            .finish(LONG);
+            let out = client(&world, &["--timeout", "1", "bridge", "zenoh", flag, bad]);
             out.assert_code(2);
             assert!(
                 out.stderr.contains(&format!(
@@ -138,18 +109,10 @@ fn a_mirror_started_before_its_exporter_mirrors_the_world_once_it_is_up() {
     );
     // It asks for the world (it says so at the fixture's RUST_LOG=info)
     // before the exporter starts: nothing answers that first question.
-    let deadline = Instant::now() + LONG;
-    while !mirror.stderr().contains("asking for the world's status") {
-        assert!(
-            Instant::now() < deadline,
-            "the mirror never asked {endpoint}; stderr:\n{}",
-            mirror.stderr()
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    mirror.wait_stderr("asking for the world's status", LONG);
     let exporter = world.spawn_cli(&["bridge", "zenoh", "--listen", &endpoint]);
-    wait_line(&exporter, "exporting world");
-    let line = wait_line(&mirror, "mirroring world");
+    exporter.wait_line("exporting world", LONG);
+    let line = mirror.wait_line("mirroring world", LONG);
     assert!(
         line.contains(&format!(
             "mirroring world '{}' from {endpoint}",

@@ -96,23 +96,14 @@ fn assert_all_quiet(world: &str, cases: &[(&[&str], usize)]) {
     assert!(problems.is_empty(), "{}", problems.join("\n\n"));
 }
 
-/// The `fixed_delta_seconds`, `synchronous_mode` and `ticker` the world's
-/// status reports.
-fn time_settings(world: &TestWorld) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
-    let status = world.status();
-    (
-        status["synchronous_mode"].clone(),
-        status["fixed_delta_seconds"].clone(),
-        status["ticker"].clone(),
-    )
-}
-
 #[test]
 fn every_printing_command_ends_quietly_when_its_stdout_is_closed() {
     let world = TestWorld::start("pipe-all", &["--delta-seconds", "0.02"]);
     let scratch = Scratch::new("pipe-all");
     let recording = scratch.file("run.mcap");
     let recording = recording.to_str().expect("a UTF-8 path");
+    let second_recording = scratch.file("second.mcap");
+    let second_recording = second_recording.to_str().expect("a UTF-8 path");
     let pictures = scratch.file("pictures");
     let pictures = pictures.to_str().expect("a UTF-8 path");
 
@@ -178,6 +169,16 @@ fn every_printing_command_ends_quietly_when_its_stdout_is_closed() {
         (&["destroy", &actor_id], 0),
         (&["sensor", "destroy", &imu], 0),
         (&["replay", recording], 0),
+        (
+            &["replay", recording, "--detach", "--time-factor", "0.01"],
+            0,
+        ),
+        (&["recorder", "time-factor", "0.02"], 0),
+        (&["recorder", "stop-replay"], 0),
+        (&["recorder", "start", second_recording], 0),
+        (&["recorder", "stop"], 0),
+        (&["config", "--no-sync"], 0),
+        (&["bridge", "zenoh", "--listen", "tcp/127.0.0.1:0"], 0),
         (&["reload"], 0),
         (&["load", "boxes:3", "--json"], 0),
     ];
@@ -186,7 +187,7 @@ fn every_printing_command_ends_quietly_when_its_stdout_is_closed() {
     let demo = closed_after(&unique_world("pipe-demo"), &["demo", "--frames", "5"], 0);
     assert_eq!(demo.problem(), None);
     // Nothing was left ticking the world, nor in synchronous mode.
-    let (sync, _, ticker) = time_settings(&world);
+    let (sync, _, ticker) = world.time_settings();
     assert_eq!(sync, false, "{}", world.status());
     assert!(ticker.is_null(), "{}", world.status());
 }
@@ -233,7 +234,7 @@ fn a_ticker_whose_stdout_closes_gives_the_world_back() {
             );
         }
         // Asynchronous again, the world's own step, nobody ticking.
-        let (sync, step, ticker) = time_settings(&world);
+        let (sync, step, ticker) = world.time_settings();
         assert_eq!(sync, false, "after {args:?}: {}", world.status());
         assert_eq!(step, 0.02, "after {args:?}: {}", world.status());
         assert!(ticker.is_null(), "after {args:?}: {}", world.status());
@@ -242,4 +243,22 @@ fn a_ticker_whose_stdout_closes_gives_the_world_back() {
     let ticked = world.cli(&["tick", "--count", "2", "--json"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
+}
+
+#[test]
+fn a_replay_whose_stdout_closes_is_stopped_and_the_world_given_back() {
+    let world = TestWorld::start("pipe-replay", &["--delta-seconds", "0.02"]);
+    let scratch = Scratch::new("pipe-replay");
+    let recording = scratch.file("run.mcap");
+    let recording = recording.to_str().expect("a UTF-8 path");
+    world
+        .cli(&["recorder", "start", recording])
+        .assert_success();
+    world.cli(&["watch", "--frames", "20"]).assert_success();
+    world.cli(&["recorder", "stop"]).assert_success();
+    // At a hundredth of its pace the replay would run for a minute.
+    let ended = closed_after(&world, &["replay", recording, "--time-factor", "0.01"], 0);
+    assert!(ended.problem().is_none(), "{:?}", ended.problem());
+    let status = world.connect().recorder_status().unwrap();
+    assert_eq!(status.replay.state, "stopped", "{status:?}");
 }

@@ -150,37 +150,45 @@ fn a_changed_seed_changes_the_digests() {
 /// which frames it missed and exits 1, instead of dropping them silently.
 #[test]
 fn a_digest_watcher_that_misses_frames_says_so_and_fails() {
-    let name = TestWorld::start("digest-gap", &["--sync", "--delta-seconds", "0.02"]);
-    let client = Client::connect(&name, T).unwrap();
-    let mut ticker = client.claim_ticker().unwrap();
-    let mut watcher = Proc::spawn(
-        "sim-client",
-        &["--world", &name, "watch", "--digest", "--frames", "60"],
-    );
-    assert!(watcher
-        .line(T)
-        .is_some_and(|l| l.starts_with("frame 0 digest")));
-    simbus_tests::send_signal(watcher.pid(), libc::SIGSTOP).unwrap();
-    // Far more than the 16 frames a subscriber queues.
-    for _ in 0..40 {
-        ticker.tick(T).unwrap();
+    // In every output format, at the first gap (not after --frames).
+    for format in [&[][..], &["--json"][..]] {
+        let name = TestWorld::start("digest-gap", &["--sync", "--delta-seconds", "0.02"]);
+        let client = Client::connect(&name, T).unwrap();
+        let mut ticker = client.claim_ticker().unwrap();
+        let mut args = vec!["--world", &name, "watch", "--digest", "--frames", "100000"];
+        args.extend_from_slice(format);
+        let mut watcher = Proc::spawn("sim-client", &args);
+        assert!(watcher.line(T).is_some(), "the watcher printed frame 0");
+        simbus_tests::send_signal(watcher.pid(), libc::SIGSTOP).unwrap();
+        // Far more than the 16 frames a subscriber queues.
+        for _ in 0..40 {
+            ticker.tick(T).unwrap();
+        }
+        simbus_tests::send_signal(watcher.pid(), libc::SIGCONT).unwrap();
+        let deadline = Instant::now() + T;
+        while watcher.guard.try_wait().unwrap().is_none() {
+            assert!(Instant::now() < deadline, "the watcher ended at the gap");
+            ticker.tick(T).unwrap();
+        }
+        let out = watcher.finish(T);
+        assert_eq!(out.status.code(), Some(1), "{format:?}: {}", out.stderr);
+        if format.is_empty() {
+            assert!(
+                out.stdout.iter().any(|l| l.starts_with("missed ")),
+                "the gap is in the output: {:?}",
+                out.stdout
+            );
+        } else {
+            assert!(
+                out.json().iter().any(|f| f["missed"].as_u64() > Some(0)),
+                "the gap is in the output: {:?}",
+                out.stdout
+            );
+        }
+        assert!(
+            out.stderr.contains("the digests have gaps"),
+            "{format:?}: {}",
+            out.stderr
+        );
     }
-    simbus_tests::send_signal(watcher.pid(), libc::SIGCONT).unwrap();
-    let deadline = Instant::now() + T;
-    while watcher.guard.try_wait().unwrap().is_none() {
-        assert!(Instant::now() < deadline, "the watcher ended");
-        ticker.tick(T).unwrap();
-    }
-    let out = watcher.finish(T);
-    assert_eq!(out.status.code(), Some(1), "{}", out.stderr);
-    assert!(
-        out.stdout.iter().any(|l| l.starts_with("missed ")),
-        "the gap is in the output: {:?}",
-        out.stdout
-    );
-    assert!(
-        out.stderr.contains("the digests have gaps"),
-        "{}",
-        out.stderr
-    );
 }

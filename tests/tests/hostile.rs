@@ -15,122 +15,16 @@
 //!   world seeing every frame.
 
 use std::cell::RefCell;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use iceoryx2::prelude::*;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use shared_types::{
-    BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest, ControlResponse,
-    FixedText, RequestKind, ResponseStatus, ServiceNames, WireSettings, WorldName, WorldSettings,
-    PROTOCOL_VERSION,
+    BatchHeader, Command, ControlRequest, FixedText, RequestKind, ResponseStatus, WireSettings,
+    WorldSettings, PROTOCOL_VERSION,
 };
+use simbus_tests::raw::RawPorts;
 use simbus_tests::{sync_world, TestWorld};
-
-/// Raw ports on one world's control and batch services, and the event that
-/// wakes its server: what any process of the same user can open.
-struct Raw {
-    control: iceoryx2::port::client::Client<Bus, ControlRequest, (), ControlResponse, ()>,
-    batch: iceoryx2::port::client::Client<
-        Bus,
-        [Command],
-        BatchHeader,
-        [CommandResult],
-        BatchResponseHeader,
-    >,
-    wake: iceoryx2::port::notifier::Notifier<Bus>,
-    _node: Node<Bus>,
-}
-
-const ANSWER: Duration = Duration::from_secs(10);
-
-impl Raw {
-    fn open(world: &str) -> Self {
-        let names = ServiceNames::new(&WorldName::new(world).expect("world name"));
-        let node = NodeBuilder::new()
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
-            .expect("node");
-        let name = |n: &str| ServiceName::new(n).expect("service name");
-        let control = node
-            .service_builder(&name(&names.control))
-            .request_response::<ControlRequest, ControlResponse>()
-            .open()
-            .expect("the control service")
-            .client_builder()
-            .create()
-            .expect("control client");
-        let batch = node
-            .service_builder(&name(&names.batch))
-            .request_response::<[Command], [CommandResult]>()
-            .request_user_header::<BatchHeader>()
-            .response_user_header::<BatchResponseHeader>()
-            .open()
-            .expect("the batch service")
-            .client_builder()
-            .initial_max_slice_len(64)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
-            .expect("batch client");
-        let wake = node
-            .service_builder(&name(&names.control_wake))
-            .event()
-            .open()
-            .expect("the wake event")
-            .notifier_builder()
-            .create()
-            .expect("wake notifier");
-        Self {
-            control,
-            batch,
-            wake,
-            _node: node,
-        }
-    }
-
-    /// Sends `request` and returns the server's answer.
-    fn control(&self, request: ControlRequest) -> ControlResponse {
-        let pending = self.control.send_copy(request).expect("send");
-        self.wake.notify().expect("wake");
-        let deadline = Instant::now() + ANSWER;
-        loop {
-            if let Some(response) = pending.receive().expect("receive") {
-                return *response.payload();
-            }
-            assert!(
-                Instant::now() < deadline,
-                "no answer to {request:?} within {ANSWER:?}"
-            );
-            std::thread::yield_now();
-        }
-    }
-
-    /// Sends a batch with `header` and returns the answer's header and results.
-    fn batch(
-        &self,
-        header: BatchHeader,
-        commands: &[Command],
-    ) -> (BatchResponseHeader, Vec<CommandResult>) {
-        let mut request = self
-            .batch
-            .loan_slice_uninit(commands.len())
-            .expect("batch loan");
-        *request.user_header_mut() = header;
-        let pending = request
-            .write_from_slice(commands)
-            .send()
-            .expect("batch send");
-        self.wake.notify().expect("wake");
-        let deadline = Instant::now() + ANSWER;
-        loop {
-            if let Some(response) = pending.receive().expect("receive") {
-                return (*response.user_header(), response.payload().to_vec());
-            }
-            assert!(Instant::now() < deadline, "no answer to a batch");
-            std::thread::yield_now();
-        }
-    }
-}
 
 /// Requests that must all be refused: out-of-range kinds, another protocol
 /// version, settings that break a rule, an unknown scene.
@@ -247,7 +141,7 @@ fn garbage_is_refused_with_typed_errors_and_changes_nothing() {
     let (twin, mut twin_client, mut twin_ticker) =
         sync_world("hostile-twin", &["--scene", "default"]);
     let watcher = world.spawn_cli(&["watch", "--digest"]);
-    let raw = Raw::open(&world);
+    let raw = RawPorts::open(&world);
     let twins = RefCell::new(Twins {
         client: &mut client,
         ticker: &mut ticker,
@@ -338,7 +232,7 @@ fn a_ticking_batch_is_authorised_by_its_port_not_by_the_pid_it_claims() {
         serde_json::from_str(&ticker.line(Duration::from_secs(20)).expect("a first tick"))
             .expect("tick --json");
     assert!(first["frame"].as_u64().is_some());
-    let raw = Raw::open(&world);
+    let raw = RawPorts::open(&world);
     let forged = BatchHeader {
         pid: ticker.pid(),
         ..BatchHeader::new(true)
@@ -367,7 +261,7 @@ fn a_ticking_batch_is_authorised_by_its_port_not_by_the_pid_it_claims() {
 #[test]
 fn another_protocol_version_is_told_the_servers() {
     let world = TestWorld::start("version", &["--scene", "empty"]);
-    let raw = Raw::open(&world);
+    let raw = RawPorts::open(&world);
     let mut request = ControlRequest::new(RequestKind::Hello);
     request.protocol_version = PROTOCOL_VERSION + 1;
     let answer = raw.control(request);

@@ -9,11 +9,11 @@ use std::time::Duration;
 
 use iceoryx2::prelude::*;
 use shared_types::{
-    BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest, ControlResponse,
-    LockstepRequest, LockstepResponse, SensorInfo, SensorRequest, SensorResponseHeader, SensorSpec,
-    ServiceNames, WorldName,
+    Command, LockstepRequest, LockstepResponse, SensorInfo, SensorRequest, SensorResponseHeader,
+    SensorSpec,
 };
 use sim_client::{Client, ConnectError, RequestError, SensorError};
+use simbus_tests::raw::{batch_service, control_service, service_name, service_names};
 use simbus_tests::{client, Proc, TestWorld};
 
 const T: Duration = Duration::from_secs(60);
@@ -21,28 +21,17 @@ const T: Duration = Duration::from_secs(60);
 /// Clients connected to each request-response service of `world`:
 /// (control, batch, lockstep, sensors).
 fn request_clients(world: &str) -> [usize; 4] {
-    let names = ServiceNames::new(&WorldName::new(world).unwrap());
+    let names = service_names(world);
     let node = NodeBuilder::new().create::<Bus>().unwrap();
-    let name = |n: &str| ServiceName::new(n).unwrap();
-    let control = node
-        .service_builder(&name(&names.control))
-        .request_response::<ControlRequest, ControlResponse>()
-        .open()
-        .unwrap();
-    let batch = node
-        .service_builder(&name(&names.batch))
-        .request_response::<[Command], [CommandResult]>()
-        .request_user_header::<BatchHeader>()
-        .response_user_header::<BatchResponseHeader>()
-        .open()
-        .unwrap();
+    let control = control_service(&node, &names);
+    let batch = batch_service(&node, &names);
     let lockstep = node
-        .service_builder(&name(&names.lockstep))
+        .service_builder(&service_name(&names.lockstep))
         .request_response::<LockstepRequest, LockstepResponse>()
         .open()
         .unwrap();
     let sensors = node
-        .service_builder(&name(&names.sensors))
+        .service_builder(&service_name(&names.sensors))
         .request_response::<SensorRequest, [SensorInfo]>()
         .response_user_header::<SensorResponseHeader>()
         .open()

@@ -41,12 +41,17 @@ fn the_server_waits_for_a_participant_and_drops_it_when_it_is_sigkilled() {
     send_signal(autopilot.pid(), libc::SIGSTOP).unwrap();
     wait_until_stopped(autopilot.pid());
     let frozen = client.status().unwrap().frame;
-    let name = world.name();
+    let (name, server) = (world.name(), &world.server);
+    let held_up = format!(
+        "a tick waits for a lockstep participant pid={}",
+        autopilot.pid()
+    );
     std::thread::scope(|scope| {
-        // Meanwhile (ports are per thread): look, then kill the participant.
+        // Meanwhile (ports are per thread): once the server says a tick
+        // waits for the participant, look, then kill the participant.
         let observer = scope.spawn(|| {
             let observer = Client::connect(name, T).unwrap();
-            std::thread::sleep(Duration::from_millis(300));
+            server.wait_stderr(&held_up, T);
             let frame = observer.status().unwrap().frame;
             autopilot.guard.kill().unwrap();
             frame

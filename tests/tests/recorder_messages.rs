@@ -7,7 +7,8 @@
 //! file and in an exact replay; a recording still being written, an empty
 //! or text file, a missing file and a file of several episodes are each
 //! described as what they are; counts read `1 frame`; `replay --json
-//! --detach` prints its object; the README shows `blocked`'s defaults.
+//! --detach` prints its object; the book's recorder chapter shows
+//! `blocked`'s defaults.
 
 use std::path::Path;
 use std::time::Duration;
@@ -380,9 +381,12 @@ fn counts_read_as_words_and_a_detached_json_replay_prints_its_object() {
 }
 
 #[test]
-fn the_readme_shows_blocked_with_its_defaults() {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"))
-        .expect("README.md");
+fn the_book_shows_blocked_with_its_defaults() {
+    let readme = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../docs/src/recorder.md"
+    ))
+    .expect("docs/src/recorder.md");
     let line = readme
         .lines()
         .find(|l| l.starts_with("| `recorder blocked "))

@@ -7,7 +7,7 @@
 use std::time::Duration;
 
 use shared_types::SensorSpec;
-use simbus_tests::{unique_world, Proc, Scratch, TestWorld};
+use simbus_tests::{unique_world, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 
@@ -19,11 +19,9 @@ fn save_refuses_a_range_that_is_not_a_positive_number_before_asking_anyone() {
     let dir = Scratch::new("save-range");
     let out_dir = dir.path().to_str().expect("path");
     for range in ["0", "NaN", "-5", "inf"] {
-        let out = Proc::spawn(
-            "sim-client",
+        let out = simbus_tests::client(
+            &world,
             &[
-                "--world",
-                &world,
                 "--timeout",
                 "1",
                 "sensor",
@@ -34,8 +32,7 @@ fn save_refuses_a_range_that_is_not_a_positive_number_before_asking_anyone() {
                 "--range",
                 range,
             ],
-        )
-        .finish(T);
+        );
         out.assert_code(2);
         assert!(out.stderr.contains("--range"), "{out}");
         assert!(

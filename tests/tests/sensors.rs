@@ -302,38 +302,32 @@ fn listen_calls_back_with_every_capture_until_stopped() {
     let camera = client
         .spawn_sensor(SensorSpec::depth([0.0; 3], 8, 8, 60.0, 10.0))
         .unwrap();
-    let frames = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    let seen = frames.clone();
+    let (seen, captures) = std::sync::mpsc::channel();
     let listening = camera
         .listen(move |c| {
-            seen.lock()
-                .unwrap()
-                .push((c.header().frame, c.bytes().len()))
+            seen.send((c.header().frame, c.bytes().len()))
+                .expect("the test reads every capture")
         })
         .unwrap();
-    let mut ticked = Vec::new();
     for _ in 0..20 {
-        ticked.push(ticker.tick(T).unwrap());
-        // Give the callback thread the capture before the next tick.
-        let deadline = std::time::Instant::now() + T;
-        while frames.lock().unwrap().len() < ticked.len() {
-            assert!(
-                std::time::Instant::now() < deadline,
-                "callback for {ticked:?}"
-            );
-            std::thread::sleep(Duration::from_millis(1));
-        }
+        let frame = ticker.tick(T).unwrap();
+        // The callback has the capture before the next tick.
+        let (captured, bytes) = captures.recv_timeout(T).expect("the callback of a capture");
+        assert_eq!(
+            (captured, bytes),
+            (frame, 8 * 8 * 4),
+            "every capture once, in order"
+        );
     }
+    // Stopping ends the callbacks (and drops the callback) before it
+    // returns: a capture of the next frame is never passed to it.
     listening.stop();
     ticker.tick(T).unwrap();
-    std::thread::sleep(Duration::from_millis(200));
-    let frames = frames.lock().unwrap().clone();
     assert_eq!(
-        frames.iter().map(|f| f.0).collect::<Vec<_>>(),
-        ticked,
-        "every capture once, none after stop"
+        captures.recv_timeout(T),
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected),
+        "no capture after stop"
     );
-    assert!(frames.iter().all(|f| f.1 == 8 * 8 * 4));
 }
 
 #[test]

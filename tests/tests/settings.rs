@@ -3,14 +3,12 @@
 //! the CLI, by the client library, and by the server itself for senders that
 //! skip the client's checks; a wrong protocol version is refused.
 
-use shared_types::Bus;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use iceoryx2::prelude::*;
 use serde_json::Value;
 use shared_types::{
-    ControlRequest, ControlResponse, ResponseStatus, ServiceNames, SettingsError, WireSettings,
-    WorldName, WorldSettings, PROTOCOL_VERSION,
+    ControlRequest, ControlResponse, ResponseStatus, SettingsError, WireSettings, WorldSettings,
+    PROTOCOL_VERSION,
 };
 use sim_client::{ApplySettingsError, Client};
 use simbus_tests::{client, status, Proc, TestWorld};
@@ -125,27 +123,9 @@ fn every_invalid_setting_is_refused_with_its_rule_and_changes_nothing() {
     }
 }
 
+/// Sends `request` to `world`'s control service as a raw client would.
 fn raw_request(world: &str, request: ControlRequest) -> ControlResponse {
-    let node = NodeBuilder::new()
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .unwrap();
-    let names = ServiceNames::new(&WorldName::new(world).unwrap());
-    let service = node
-        .service_builder(&ServiceName::new(&names.control).unwrap())
-        .request_response::<ControlRequest, ControlResponse>()
-        .open()
-        .unwrap();
-    let client = service.client_builder().create().unwrap();
-    let pending = client.send_copy(request).unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    loop {
-        if let Some(response) = pending.receive().unwrap() {
-            return *response.payload();
-        }
-        assert!(Instant::now() < deadline, "the server did not answer");
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    simbus_tests::raw::RawPorts::open(world).control(request)
 }
 
 #[test]

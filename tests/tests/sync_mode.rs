@@ -4,11 +4,11 @@
 //! ticker is refused by the transport with the owner named, a dead ticker is
 //! replaced with no frame skipped or repeated, and nobody ever hangs.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 use shared_types::WorldSettings;
-use sim_client::{Client, TickError, Ticker, WaitMode};
+use sim_client::{Client, TickError, Ticker, WaitError, WaitMode};
 use simbus_tests::{
     assert_fails_without_server, client, server, status, unique_world, Proc, TestWorld,
 };
@@ -36,11 +36,36 @@ fn frame_of(line: &str) -> u64 {
 fn nothing_moves_without_a_tick_and_each_tick_publishes_exactly_one_frame() {
     let world = TestWorld::start("one-frame", &["--fixed-delta-seconds", "0.01"]);
     let mut client = Client::connect(&world, T).unwrap();
-    let mut ticker = sync_ticker(&client, 0.02);
-    // Drain whatever async frames are queued; then the world is frozen.
-    while client.wait_for_tick(Duration::from_millis(300)).is_ok() {}
-    let frozen = status(&world)["frame"].as_u64().unwrap();
-    std::thread::sleep(Duration::from_millis(300));
+    let mut ticker = client.claim_ticker().expect("claim");
+    let first = ticker
+        .apply_settings(WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: Some(0.02),
+            ..client.get_settings().unwrap()
+        })
+        .expect("enter sync");
+    // The world stopped at the frame before the first one computed with
+    // the new settings: read the asynchronous frames up to it.
+    let frozen = first - 1;
+    loop {
+        let frame = client
+            .wait_for_tick(T)
+            .expect("the frames up to the change")
+            .frame();
+        assert!(
+            frame <= frozen,
+            "frame {frame} after the world stopped at {frozen}"
+        );
+        if frame == frozen {
+            break;
+        }
+    }
+    // Then no frame comes, however long one waits for it.
+    let waited = client.wait_for_tick(Duration::from_millis(300));
+    assert!(
+        matches!(waited, Err(WaitError::Timeout { .. })),
+        "a frame without a tick: {waited:?}"
+    );
     assert_eq!(status(&world)["frame"].as_u64(), Some(frozen));
     let start_ns = client.status().unwrap().elapsed_ns;
 
@@ -154,18 +179,12 @@ fn a_ticker_killed_with_sigkill_is_replaced_and_no_frame_is_skipped_or_repeated(
     assert!(first_seen >= last_ticked);
     old.guard.kill().unwrap();
 
-    // A new ticker claims as soon as the dead one is noticed.
+    // A new ticker claims as soon as the server noticed the dead one.
     let client = Client::connect(&world, T).unwrap();
-    let start = Instant::now();
-    let mut ticker = loop {
-        match client.claim_ticker() {
-            Ok(ticker) => break ticker,
-            Err(TickError::NotTicker { .. }) if start.elapsed() < Duration::from_secs(10) => {
-                std::thread::sleep(Duration::from_millis(5));
-            }
-            Err(e) => panic!("no failover within 10 s: {e}"),
-        }
-    };
+    world.server.wait_stderr("ticker died", T);
+    let mut ticker = client
+        .claim_ticker()
+        .expect("the claim once the server dropped the dead ticker");
     // The world stayed synchronous (--on-ticker-loss wait) and frozen.
     let frozen = status(&world);
     assert_eq!(frozen["synchronous_mode"], true);
@@ -277,11 +296,10 @@ fn on_ticker_loss_async_falls_back_to_asynchronous_mode() {
     ticker.line(T).expect("ticking");
     assert_eq!(status(&world)["synchronous_mode"], true);
     ticker.guard.kill().unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while status(&world)["synchronous_mode"] == true {
-        assert!(Instant::now() < deadline, "fell back to async");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    world
+        .server
+        .wait_stderr("ticker died; falling back to asynchronous mode", T);
+    assert_eq!(status(&world)["synchronous_mode"], false);
     let out = client_cli(&world, &["watch", "--frames", "3"]);
     out.assert_success();
 }

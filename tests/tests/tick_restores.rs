@@ -6,16 +6,6 @@ use std::time::Duration;
 
 use simbus_tests::{send_signal, TestWorld};
 
-/// `(synchronous_mode, fixed_delta_seconds, ticker)` from the world's status.
-fn time_settings(world: &TestWorld) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
-    let status = world.status();
-    (
-        status["synchronous_mode"].clone(),
-        status["fixed_delta_seconds"].clone(),
-        status["ticker"].clone(),
-    )
-}
-
 #[test]
 fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     let world = TestWorld::start("tick-own-step", &["--delta-seconds", "0.02"]);
@@ -28,7 +18,7 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
         "--leave-sync",
     ]);
     ticked.assert_success();
-    let (sync, step, ticker) = time_settings(&world);
+    let (sync, step, ticker) = world.time_settings();
     assert_eq!(sync, true, "{}", world.status());
     assert_eq!(
         step,
@@ -51,7 +41,7 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
-    let (sync, step, ticker) = time_settings(&world);
+    let (sync, step, ticker) = world.time_settings();
     assert_eq!(sync, false, "{}", world.status());
     assert_eq!(step, 0.02, "{}", world.status());
     assert!(ticker.is_null(), "{}", world.status());
@@ -62,7 +52,7 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
     let world = TestWorld::start("tick-variable", &[]);
     let ticked = world.cli(&["tick", "--count", "2", "--leave-sync"]);
     ticked.assert_success();
-    let (sync, step, _) = time_settings(&world);
+    let (sync, step, _) = world.time_settings();
     assert_eq!(sync, true, "{}", world.status());
     assert!(step.is_null(), "variable again: {}", world.status());
     assert_eq!(
@@ -78,7 +68,7 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.05 s"), "{ticked}");
-    let (sync, step, _) = time_settings(&world);
+    let (sync, step, _) = world.time_settings();
     assert_eq!(sync, false, "{}", world.status());
     assert!(step.is_null(), "{}", world.status());
 }
@@ -97,7 +87,7 @@ fn tick_says_it_left_the_world_asynchronous_with_its_settings_as_before() {
         ),
         "{ticked}"
     );
-    let (sync, step, ticker) = time_settings(&world);
+    let (sync, step, ticker) = world.time_settings();
     assert_eq!(sync, false, "{}", world.status());
     assert_eq!(step, 0.02, "{}", world.status());
     assert!(ticker.is_null(), "{}", world.status());
@@ -129,7 +119,7 @@ fn a_ticker_stopped_by_a_signal_gives_the_world_back() {
             ),
             "{name}: {ended}"
         );
-        let (sync, step, ticker) = time_settings(&world);
+        let (sync, step, ticker) = world.time_settings();
         assert_eq!(sync, false, "{name}: {}", world.status());
         assert_eq!(step, 0.02, "{name}: {}", world.status());
         assert!(ticker.is_null(), "{name}: {}", world.status());

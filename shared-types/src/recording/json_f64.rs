@@ -154,4 +154,18 @@ mod tests {
         let bad = json.replace("null", "\"fast\"");
         assert!(serde_json::from_str::<RecordingHeader>(&bad).is_err());
     }
+
+    #[test]
+    fn a_header_without_fixed_delta_seconds_reads_as_variable_step() {
+        // `with = ...` on an Option field makes the key required unless the
+        // field also has `default`: a header (or settings event) written
+        // without it must read, as a plain `Option<f64>` would.
+        let json = serde_json::to_string(&header(10.0, None))
+            .unwrap()
+            .replace("\"fixed_delta_seconds\":null,", "");
+        assert!(!json.contains("fixed_delta_seconds"), "{json}");
+        let back: RecordingHeader = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, header(10.0, None));
+        assert_eq!(back.settings.fixed_delta_seconds, None);
+    }
 }

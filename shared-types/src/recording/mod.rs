@@ -148,8 +148,9 @@ pub struct RecordingHeader {
 pub struct RecordedSettings {
     /// See [`WorldSettings::synchronous_mode`].
     pub synchronous_mode: bool,
-    /// See [`WorldSettings::fixed_delta_seconds`].
-    #[serde(with = "json_f64::option")]
+    /// See [`WorldSettings::fixed_delta_seconds`]; absent reads as `None`
+    /// (variable step), as a plain `Option` would.
+    #[serde(default, with = "json_f64::option")]
     pub fixed_delta_seconds: Option<f64>,
     /// See [`WorldSettings::substepping`].
     pub substepping: bool,

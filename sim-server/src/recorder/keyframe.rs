@@ -52,7 +52,7 @@ impl<'a> Keyframe<&'a World> {
 /// Why a keyframe cannot be restored.
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum KeyframeError {
-    #[error("the keyframe is not readable: {0}")]
+    #[error("the keyframe is not readable")]
     Decode(#[from] rmp_serde::decode::Error),
     #[error("the keyframe has layout version {0}; this server reads {KEYFRAME_VERSION}")]
     Version(u32),

@@ -11,13 +11,16 @@
 
 mod create;
 mod keyframe;
+mod refusal;
+mod scene_update;
 mod service;
 mod writer;
 
 pub(crate) use create::StartError;
 
-pub(crate) use keyframe::Keyframe;
-pub use service::RecorderPort;
+pub(crate) use keyframe::{Keyframe, KeyframeError};
+pub(crate) use refusal::Refused;
+pub(crate) use service::{RecorderCall, RecorderPort};
 
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::thread::JoinHandle;
@@ -29,7 +32,7 @@ use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_
 use tracing::{info, warn};
 
 use crate::world::World;
-use writer::{Item, Written};
+use writer::{Item, WriteError, Written};
 
 /// Items in flight to the writer before the frame loop waits for it.
 const QUEUE: usize = 256;
@@ -46,7 +49,7 @@ pub(crate) enum SensorNote {
 #[derive(Debug)]
 struct Active {
     items: SyncSender<Item>,
-    thread: JoinHandle<Result<Written, String>>,
+    thread: JoinHandle<Result<Written, WriteError>>,
     path: String,
     sensors: bool,
     frames: u64,
@@ -72,7 +75,7 @@ pub(crate) struct LastRecording {
 /// The recorder's state. Dropped with a recording running (the server
 /// failed), it closes the file first.
 #[derive(Debug, Default)]
-pub struct Recorder {
+pub(crate) struct Recorder {
     active: Option<Active>,
     pub(crate) last: LastRecording,
     collisions: Vec<RecordedCollision>,
@@ -90,7 +93,7 @@ impl Drop for Recorder {
 
 impl Recorder {
     /// Whether a recording runs.
-    pub fn is_recording(&self) -> bool {
+    pub(crate) fn is_recording(&self) -> bool {
         self.active.is_some()
     }
 
@@ -171,7 +174,7 @@ impl Recorder {
         let result = active
             .thread
             .join()
-            .unwrap_or_else(|_| Err("the recorder thread panicked".to_string()));
+            .unwrap_or_else(|_| Err(WriteError::Panicked));
         self.last = match result {
             Ok(written) => LastRecording {
                 path: active.path,
@@ -183,7 +186,7 @@ impl Recorder {
                 path: active.path,
                 frames: active.frames,
                 bytes: 0,
-                error: Some(error),
+                error: Some(error.to_string()),
             },
         };
         info!(

@@ -1,49 +1,71 @@
-//! The recorder service: requests to record and replay, answered with how
-//! the recorder and the replayer are doing.
+//! The recorder service: requests to record and replay, decoded into the
+//! calls they make and answered with how the recorder and the replayer
+//! are doing.
 //!
 //! A replay request is answered once its recording has been read through
-//! and its world built — on a thread of its own, so a large file never
-//! stalls the frame loop; meanwhile the world goes on, and a second replay
-//! or a recording is refused.
+//! and its world built (off the frame loop, by the replayer); meanwhile
+//! the world goes on, and the request waits here for its answer.
 
 use shared_types::Bus;
-use std::thread::JoinHandle;
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
-    ResponseStatus, PROTOCOL_VERSION,
+    PathText, RecorderKind, RecorderRequest, RecorderResponse, ReplayMode, ResponseStatus,
+    PROTOCOL_VERSION,
 };
-use tracing::{debug, info, warn};
+use tracing::{debug, warn};
 
+use super::Refused;
 use crate::ports::{service_name, Transport};
-use crate::replayer::{prepare, Prepared, Refused, ReplayRequest};
-use crate::server::Domains;
+use crate::replayer::ReplayRequest;
 use crate::ServerError;
 
 type Port = RequestServer<Bus, RecorderRequest, (), RecorderResponse, ()>;
 type Request = ActiveRequest<Bus, RecorderRequest, (), RecorderResponse, ()>;
 
-/// A replay being prepared: the request waiting for its answer, and the job.
+/// The recorder service's server port, and the replay request waiting for
+/// its answer.
 #[derive(Debug)]
-struct Preparing {
-    request: Request,
-    path: String,
-    job: JoinHandle<Result<Prepared, Refused>>,
+pub(crate) struct RecorderPort {
+    port: Port,
+    waiting: Option<Request>,
 }
 
-/// The recorder service's server port.
+/// A recorder request, decoded: what a client asks of the recorder or the
+/// replayer. What only the request itself can tell (a path, a mode) is
+/// checked here; what depends on what runs, where it is carried out.
 #[derive(Debug)]
-pub struct RecorderPort {
-    port: Port,
-    preparing: Option<Preparing>,
+pub(crate) enum RecorderCall {
+    /// Refused before it reaches the recorder (protocol version, unknown
+    /// request), with this status.
+    Refuse(ResponseStatus),
+    /// How the recorder and the replayer are doing.
+    Status,
+    /// Record to `path`.
+    Start {
+        /// The file, or why the request names none.
+        path: Result<String, Refused>,
+        /// Sensor captures too.
+        sensors: bool,
+    },
+    /// Stop recording.
+    Stop,
+    /// Replay a recording (answered once it is prepared).
+    Replay(Result<ReplayRequest, Refused>),
+    /// Stop the replay.
+    StopReplay {
+        /// Keep the replayed world live.
+        keep_actors: bool,
+    },
+    /// Replay at this speed.
+    TimeFactor(f64),
 }
 
 impl RecorderPort {
     /// Opens the recorder service.
-    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.recorder)?)
@@ -60,90 +82,36 @@ impl RecorderPort {
             .map_err(|e| ServerError::transport("recorder server", e))?;
         Ok(Self {
             port,
-            preparing: None,
+            waiting: None,
         })
     }
 
-    /// Answers every pending recorder request, and a replay request whose
-    /// preparation finished (starting that replay).
-    pub(crate) fn handle(&mut self, domains: &mut Domains) -> Result<(), ServerError> {
-        if self.preparing.as_ref().is_some_and(|p| p.job.is_finished()) {
-            if let Some(preparing) = self.preparing.take() {
-                let result = preparing.job.join().unwrap_or_else(|_| {
-                    Err((
-                        RecorderRefusal::BadFile,
-                        format!("reading {} failed unexpectedly", preparing.path),
-                    ))
-                });
-                let done = result.map(|prepared| domains.start_replay(prepared));
-                respond(
-                    &preparing.request,
-                    reply(domains, RecorderKind::Replay, 0, done),
-                );
-            }
-        }
+    /// Answers every pending recorder request with what `answer` makes of
+    /// its call; `None` means later (a replay being prepared: see
+    /// [`RecorderPort::answer_replay`]).
+    pub(crate) fn handle(
+        &mut self,
+        mut answer: impl FnMut(RecorderCall, u32) -> Option<RecorderResponse>,
+    ) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
             .receive()
             .map_err(|e| ServerError::transport("recorder receive", e))?
         {
             let payload = *request.payload();
-            if payload.protocol_version == PROTOCOL_VERSION
-                && payload.kind == RecorderKind::Replay as u32
-            {
-                match self.start_preparing(domains, &payload) {
-                    Ok(job) => {
-                        self.preparing = Some(Preparing {
-                            request,
-                            path: payload.path.to_string_lossy(),
-                            job,
-                        });
-                    }
-                    Err(refused) => respond(
-                        &request,
-                        reply(
-                            domains,
-                            RecorderKind::Replay,
-                            payload.client_pid,
-                            Err(refused),
-                        ),
-                    ),
-                }
-                continue;
+            match answer(decode(&payload), payload.client_pid) {
+                Some(response) => respond(&request, response),
+                None => self.waiting = Some(request),
             }
-            let response = answer(
-                domains,
-                &payload,
-                self.preparing.as_ref().map(|p| p.path.as_str()),
-            );
-            respond(&request, response);
         }
         Ok(())
     }
 
-    /// Checks a replay request against what runs, then reads its recording
-    /// on a thread of its own.
-    fn start_preparing(
-        &self,
-        d: &Domains,
-        request: &RecorderRequest,
-    ) -> Result<JoinHandle<Result<Prepared, Refused>>, Refusal> {
-        if let Some(preparing) = &self.preparing {
-            return Err((
-                RecorderRefusal::Replaying,
-                format!("already preparing a replay of {}", preparing.path),
-            ));
+    /// Answers the replay request that waited for its preparation.
+    pub(crate) fn answer_replay(&mut self, response: RecorderResponse) {
+        if let Some(request) = self.waiting.take() {
+            respond(&request, response);
         }
-        let replay = replay_request(d, request)?;
-        std::thread::Builder::new()
-            .name("simbus-replay-prepare".into())
-            .spawn(move || prepare(&replay))
-            .map_err(|e| {
-                (
-                    RecorderRefusal::BadFile,
-                    format!("cannot start reading: {e}"),
-                )
-            })
     }
 }
 
@@ -153,135 +121,48 @@ fn respond(request: &Request, response: RecorderResponse) {
     }
 }
 
-/// A refusal: the reason as a code and in words.
-type Refusal = Refused;
-
-fn answer(d: &mut Domains, request: &RecorderRequest, preparing: Option<&str>) -> RecorderResponse {
+fn decode(request: &RecorderRequest) -> RecorderCall {
     if request.protocol_version != PROTOCOL_VERSION {
         warn!(
             client_pid = request.client_pid,
             "refused a recorder request: protocol version {} is not the server's {PROTOCOL_VERSION}",
             request.protocol_version
         );
-        return d.recorder_status(
-            RecorderKind::Status,
-            RecorderResponse::new(ResponseStatus::ProtocolMismatch),
-        );
+        return RecorderCall::Refuse(ResponseStatus::ProtocolMismatch);
     }
     let Some(kind) = RecorderKind::from_u32(request.kind) else {
-        return d.recorder_status(
-            RecorderKind::Status,
-            RecorderResponse::new(ResponseStatus::UnknownRequest),
-        );
+        return RecorderCall::Refuse(ResponseStatus::UnknownRequest);
     };
-    let done = match kind {
-        RecorderKind::Status => Ok(()),
-        RecorderKind::Start => match preparing {
-            Some(path) => Err((
-                RecorderRefusal::Replaying,
-                format!("a replay of {path} is being prepared"),
-            )),
-            None => start(d, request),
+    match kind {
+        RecorderKind::Status => RecorderCall::Status,
+        RecorderKind::Start => RecorderCall::Start {
+            path: path_of(request),
+            sensors: request.flags & RecorderRequest::SENSORS != 0,
         },
-        RecorderKind::Stop => {
-            let frame = d.clock.frame();
-            match d.recorder.stop("stop", frame) {
-                Some(_) => Ok(()),
-                None => Err((
-                    RecorderRefusal::NotRecording,
-                    "no recording is running".to_string(),
-                )),
-            }
-        }
-        // Answered by `RecorderPort::handle` once prepared.
-        RecorderKind::Replay => Ok(()),
-        RecorderKind::StopReplay => {
-            if d.replayer.is_running() || d.replayer.saved.is_some() {
-                d.stop_replay(request.flags & RecorderRequest::KEEP_ACTORS != 0)
-                    .map_err(|e| (RecorderRefusal::NotReplaying, e.to_string()))
-            } else {
-                Err((
-                    RecorderRefusal::NotReplaying,
-                    "no replay is running".to_string(),
-                ))
-            }
-        }
-        RecorderKind::TimeFactor => d.replayer.set_time_factor(request.time_factor),
-    };
-    reply(d, kind, request.client_pid, done)
-}
-
-/// The answer to a request of `kind` that did `done`.
-fn reply(
-    d: &Domains,
-    kind: RecorderKind,
-    client_pid: u32,
-    done: Result<(), Refusal>,
-) -> RecorderResponse {
-    match done {
-        Ok(()) => d.recorder_status(kind, RecorderResponse::new(ResponseStatus::Ok)),
-        Err((refusal, message)) => {
-            info!(client_pid, ?kind, "refused: {message}");
-            let mut response =
-                d.recorder_status(kind, RecorderResponse::new(ResponseStatus::Refused));
-            response.refusal = refusal as u32;
-            response.message = PathText::cut(&message);
-            response
-        }
+        RecorderKind::Stop => RecorderCall::Stop,
+        RecorderKind::Replay => RecorderCall::Replay(replay_request(request)),
+        RecorderKind::StopReplay => RecorderCall::StopReplay {
+            keep_actors: request.flags & RecorderRequest::KEEP_ACTORS != 0,
+        },
+        RecorderKind::TimeFactor => RecorderCall::TimeFactor(request.time_factor),
     }
 }
 
-fn path_of(request: &RecorderRequest) -> Result<String, Refusal> {
+fn path_of(request: &RecorderRequest) -> Result<String, Refused> {
     let path = request.path.to_string_lossy();
     if path.is_empty() || request.path.len as usize > PathText::CAPACITY {
-        return Err((
-            RecorderRefusal::InvalidArgument,
-            "no file path given".to_string(),
-        ));
+        return Err(Refused::NoPath);
     }
     Ok(path)
 }
 
-fn start(d: &mut Domains, request: &RecorderRequest) -> Result<(), Refusal> {
-    if let Some((path, _)) = d.recorder.progress() {
-        return Err((
-            RecorderRefusal::AlreadyRecording,
-            format!("already recording to {path}"),
-        ));
-    }
-    if d.replayer.is_running() {
-        return Err((
-            RecorderRefusal::Replaying,
-            "a replay is running; stop it first".to_string(),
-        ));
-    }
-    let path = path_of(request)?;
-    d.start_recording(&path, request.flags & RecorderRequest::SENSORS != 0)
-        .map_err(|e| (RecorderRefusal::CannotWrite, e.to_string()))
-}
-
-/// A replay request checked against what runs now.
-fn replay_request(d: &Domains, request: &RecorderRequest) -> Result<ReplayRequest, Refusal> {
-    if d.replayer.is_running() {
-        return Err((
-            RecorderRefusal::Replaying,
-            format!("already replaying {}", d.replayer.report.path),
-        ));
-    }
-    if let Some((path, _)) = d.recorder.progress() {
-        return Err((
-            RecorderRefusal::Recording,
-            format!("recording to {path}; stop the recorder first"),
-        ));
-    }
+/// A replay request as far as the request alone can tell.
+fn replay_request(request: &RecorderRequest) -> Result<ReplayRequest, Refused> {
     let mode = match request.mode {
         0 => None,
-        m => Some(ReplayMode::from_u32(m).ok_or((
-            RecorderRefusal::InvalidArgument,
-            format!("unknown replay mode {m}"),
-        ))?),
+        m => Some(ReplayMode::from_u32(m).ok_or(Refused::UnknownMode(m))?),
     };
-    let replay = ReplayRequest {
+    Ok(ReplayRequest {
         path: path_of(request)?,
         start_seconds: request.start_seconds,
         duration_seconds: request.duration_seconds,
@@ -290,6 +171,5 @@ fn replay_request(d: &Domains, request: &RecorderRequest) -> Result<ReplayReques
         keep_actors: request.flags & RecorderRequest::KEEP_ACTORS != 0,
         time_factor: request.time_factor,
         mode,
-    };
-    Ok(replay)
+    })
 }

@@ -5,10 +5,10 @@
 use std::collections::VecDeque;
 
 use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
-use shared_types::{ActorState, FrameHeader, RecorderRefusal, ReplayMode, SensorSpec};
+use shared_types::{ActorState, FrameHeader, ReplayMode, SensorSpec};
 
 use super::selection::Selection;
-use super::{episode_of, episode_world, recorded_plan, restore};
+use super::{episode_of, episode_world, recorded_plan, restore, ReplayError};
 use crate::clock::Clock;
 use crate::world::World;
 use crate::Scene;
@@ -63,8 +63,6 @@ pub(crate) struct Cursor {
     pub(crate) passed: u64,
 }
 
-type Refused = (RecorderRefusal, String);
-
 impl Cursor {
     /// Restores `selection`'s keyframe from `reader` and rolls forward to
     /// its first frame; returns the cursor and the world, clock and scene
@@ -73,15 +71,14 @@ impl Cursor {
         mut reader: RecordingReader,
         selection: &Selection,
         mode: ReplayMode,
-    ) -> Result<(Self, World, Clock, Scene), Refused> {
-        let bad = |message: String| (RecorderRefusal::BadFile, message);
+    ) -> Result<(Self, World, Clock, Scene), ReplayError> {
         let mut keyframes = 0;
         let mut alive: Vec<(u64, SensorSpec)> = Vec::new();
         let mut last_frame: Option<Recorded> = None;
         let (mut world, mut clock, scene) = loop {
             match reader.next() {
-                None => return Err(bad("the recording ended before its keyframe".into())),
-                Some(Err(e)) => return Err(bad(e.to_string())),
+                None => return Err(ReplayError::NoKeyframe),
+                Some(Err(e)) => return Err(e.into()),
                 Some(Ok(Entry::Frame {
                     log_ns,
                     header,
@@ -100,16 +97,14 @@ impl Cursor {
                 }
                 Some(Ok(Entry::Keyframe { data, .. })) => {
                     if keyframes == selection.keyframe {
-                        break restore(&data).map_err(|e| bad(format!("its keyframe: {e}")))?;
+                        break restore(&data).map_err(ReplayError::Keyframe)?;
                     }
                     keyframes += 1;
                 }
                 Some(Ok(_)) => {}
             }
         };
-        let scene: Scene = scene
-            .parse()
-            .map_err(|e| bad(format!("the keyframe's scene: {e}")))?;
+        let scene: Scene = scene.parse().map_err(ReplayError::KeyframeScene)?;
         let mut cursor = Self {
             reader,
             seed: selection.seed,
@@ -130,12 +125,12 @@ impl Cursor {
         }
         // Roll forward (not published) to just before the first replayed frame.
         while index + 1 < selection.first_index && cursor.first.is_none() {
-            cursor.fill().map_err(bad)?;
-            let Some(frame) = cursor.take(&mut world).map_err(bad)? else {
-                return Err(bad("the recording ended before the start".into()));
+            cursor.fill()?;
+            let Some(frame) = cursor.take(&mut world)? else {
+                return Err(ReplayError::EndedBeforeStart);
             };
             if mode == ReplayMode::Resimulate {
-                step(&mut world, &frame).map_err(bad)?;
+                step(&mut world, &frame)?;
             }
             clock = Clock::at_timestamp(&frame.header.timestamp, std::time::Instant::now());
             index += 1;
@@ -156,14 +151,14 @@ impl Cursor {
     }
 
     /// Reads until the buffer ends with a frame (or the file ends).
-    fn fill(&mut self) -> Result<(), String> {
+    fn fill(&mut self) -> Result<(), ReplayError> {
         if self.first.is_some() || matches!(self.buffer.back(), Some(Entry::Frame { .. })) {
             return Ok(());
         }
         while !self.done {
             match self.reader.next() {
                 None => self.done = true,
-                Some(Err(e)) => return Err(e.to_string()),
+                Some(Err(e)) => return Err(e.into()),
                 Some(Ok(entry)) => {
                     let frame = matches!(entry, Entry::Frame { .. });
                     if matches!(
@@ -203,7 +198,7 @@ impl Cursor {
 
     /// Applies the buffered commands and episodes to `world` and takes the
     /// frame that follows them.
-    fn take(&mut self, world: &mut World) -> Result<Option<Recorded>, String> {
+    fn take(&mut self, world: &mut World) -> Result<Option<Recorded>, ReplayError> {
         if let Some(first) = self.first.take() {
             self.passed += 1;
             return Ok(Some(first));
@@ -249,7 +244,7 @@ impl Cursor {
         &mut self,
         world: &mut World,
         mode: ReplayMode,
-    ) -> Result<Option<Interpolated>, String> {
+    ) -> Result<Option<Interpolated>, ReplayError> {
         let Some(frame) = self.take(world)? else {
             return Ok(None);
         };
@@ -293,7 +288,7 @@ impl Cursor {
         &mut self,
         world: &mut World,
         at: u64,
-    ) -> Result<Option<Interpolated>, String> {
+    ) -> Result<Option<Interpolated>, ReplayError> {
         loop {
             match self.next_log_ns() {
                 Some(log_ns) if log_ns <= at || self.previous.is_none() => {
@@ -368,16 +363,15 @@ impl Cursor {
 /// Steps `world` through a recorded frame as the recording's server did.
 /// The world came from a file: should rapier panic on it anyway, the
 /// replay fails instead of the server.
-fn step(world: &mut World, frame: &Recorded) -> Result<(), String> {
+fn step(world: &mut World, frame: &Recorded) -> Result<(), ReplayError> {
     if frame.header.physics_substeps == 0 {
         return Ok(());
     }
     let plan = recorded_plan(&frame.header);
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| world.step(&plan))).map_err(|_| {
-        format!(
-            "physics failed on frame {} of the recording (is the file damaged?)",
-            frame.header.timestamp.frame
-        )
+        ReplayError::Physics {
+            frame: frame.header.timestamp.frame,
+        }
     })
 }
 

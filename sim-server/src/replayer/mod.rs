@@ -9,22 +9,23 @@
 //! ordinary frame of a new episode, flagged [`FrameHeader::REPLAY`].
 
 mod cursor;
+mod error;
 mod selection;
 
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
-use shared_types::{
-    ActorState, FrameHeader, RecorderRefusal, ReplayMode, ReplayState, WorldSettings,
-};
+use shared_types::{ActorState, FrameHeader, ReplayMode, ReplayState, WorldSettings};
 use tracing::{info, warn};
 
 use crate::clock::{Clock, SubstepPlan};
-use crate::recorder::Keyframe;
+use crate::recorder::{Keyframe, Refused};
 use crate::world::World;
 use crate::Scene;
 use cursor::Cursor;
 pub(crate) use cursor::SensorChange;
+pub(crate) use error::{KeyframeFault, ReplayError};
 use selection::Selection;
 
 /// A replay request, checked.
@@ -112,7 +113,7 @@ pub(crate) struct ReplayFrame {
 
 /// The replayer's state.
 #[derive(Debug, Default)]
-pub struct Replayer {
+pub(crate) struct Replayer {
     active: Option<Replay>,
     pub(crate) report: ReplayReport,
     pub(crate) saved: Option<SavedWorld>,
@@ -120,12 +121,56 @@ pub struct Replayer {
     pub(crate) sensor_ids: Vec<(u64, u64)>,
     /// Whether the current replay keeps its world when it ends.
     pub(crate) keep_actors: bool,
+    /// The replay being prepared, if one is.
+    preparing: Option<Preparing>,
+}
+
+/// A replay being prepared: its recording, and the thread reading it.
+#[derive(Debug)]
+struct Preparing {
+    path: String,
+    job: JoinHandle<Result<Prepared, Refused>>,
 }
 
 impl Replayer {
     /// Whether a replay runs.
-    pub fn is_running(&self) -> bool {
+    pub(crate) fn is_running(&self) -> bool {
         self.active.is_some()
+    }
+
+    /// The recording of the replay being prepared, if one is.
+    pub(crate) fn preparing(&self) -> Option<&str> {
+        self.preparing.as_ref().map(|p| p.path.as_str())
+    }
+
+    /// Reads and checks `request`'s recording on a thread of its own, so
+    /// that a large file never stalls the frame loop (see [`prepare`]).
+    pub(crate) fn prepare_in_background(&mut self, request: ReplayRequest) -> Result<(), Refused> {
+        if let Some(path) = self.preparing() {
+            return Err(Refused::AlreadyPreparing(path.to_string()));
+        }
+        let path = request.path.clone();
+        let job = std::thread::Builder::new()
+            .name("simbus-replay-prepare".into())
+            .spawn(move || prepare(&request))
+            .map_err(Refused::ReaderThread)?;
+        self.preparing = Some(Preparing { path, job });
+        Ok(())
+    }
+
+    /// The replay whose preparation finished since last asked (or why it
+    /// is refused), if one did.
+    pub(crate) fn prepared(&mut self) -> Option<Result<Prepared, Refused>> {
+        if !self.preparing.as_ref()?.job.is_finished() {
+            return None;
+        }
+        let preparing = self.preparing.take()?;
+        Some(
+            preparing
+                .job
+                .join()
+                .unwrap_or_else(|_| Err(Refused::ReaderPanicked(preparing.path))),
+        )
     }
 
     /// Installs a prepared replay; returns the world and scene it starts
@@ -161,18 +206,12 @@ impl Replayer {
     }
 
     /// Sets the time factor (refused unless positive and finite).
-    pub(crate) fn set_time_factor(&mut self, factor: f64) -> Result<(), (RecorderRefusal, String)> {
+    pub(crate) fn set_time_factor(&mut self, factor: f64) -> Result<(), Refused> {
         if !(factor.is_finite() && factor > 0.0) {
-            return Err((
-                RecorderRefusal::InvalidArgument,
-                format!("time factor {factor} must be a positive number"),
-            ));
+            return Err(Refused::TimeFactor(factor));
         }
         let Some(replay) = &mut self.active else {
-            return Err((
-                RecorderRefusal::NotReplaying,
-                "no replay is running".to_string(),
-            ));
+            return Err(Refused::NotReplaying);
         };
         self.report.time_factor = factor;
         // Pace from here on at the new factor.
@@ -237,7 +276,8 @@ impl Replayer {
                 self.end(ReplayState::Finished, String::new());
                 return None;
             }
-            Err(message) => {
+            Err(error) => {
+                let message = crate::message(&error);
                 warn!("replay failed: {message}");
                 self.end(ReplayState::Failed, message);
                 return None;
@@ -302,33 +342,16 @@ impl Prepared {
     }
 }
 
-/// A refusal: the reason as a code and in words.
-pub(crate) type Refused = (RecorderRefusal, String);
-
-/// A recording that cannot be read, as a refusal.
-pub(crate) fn bad_file(error: shared_types::recording::RecordingError) -> Refused {
-    (RecorderRefusal::BadFile, error.to_string())
-}
-
 /// Reads and checks `request`'s recording (all of it: a damaged file is
 /// refused before anything changes) and builds the world it starts from.
 /// Touches nothing of the server's, so it runs on its own thread.
 pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
     if !(request.time_factor.is_finite() && request.time_factor > 0.0) {
-        return Err((
-            RecorderRefusal::InvalidArgument,
-            format!(
-                "time factor {} must be a positive number",
-                request.time_factor
-            ),
-        ));
+        return Err(Refused::TimeFactor(request.time_factor));
     }
     let finite = request.start_seconds.is_finite() && request.duration_seconds.is_finite();
     if !(finite && request.duration_seconds >= 0.0) {
-        return Err((
-            RecorderRefusal::InvalidArgument,
-            "start must be a number and duration a number of seconds, 0 or more".to_string(),
-        ));
+        return Err(Refused::BadSpan);
     }
     let selection = Selection::scan(
         &request.path,
@@ -336,17 +359,14 @@ pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
         request.duration_seconds,
     )?;
     if request.follow_id != 0 && !selection.actor_ids.contains(&request.follow_id) {
-        return Err((
-            RecorderRefusal::UnknownActor,
-            format!("actor {} is not in the recording", request.follow_id),
-        ));
+        return Err(Refused::UnknownActor(request.follow_id));
     }
     let mode = request.mode.unwrap_or(if selection.variable_step {
         ReplayMode::Interpolate
     } else {
         ReplayMode::Exact
     });
-    let reader = RecordingReader::open(&request.path).map_err(bad_file)?;
+    let reader = RecordingReader::open(&request.path).map_err(ReplayError::from)?;
     let (cursor, world, _recorded_clock, scene) = Cursor::start(reader, &selection, mode)?;
     info!(
         path = request.path,
@@ -391,10 +411,8 @@ pub(crate) fn episode_world(
     scene: &str,
     seed: u64,
     first_id: u64,
-) -> Result<(World, Scene), String> {
-    let scene: Scene = scene
-        .parse()
-        .map_err(|e| format!("the recording's scene: {e}"))?;
+) -> Result<(World, Scene), ReplayError> {
+    let scene: Scene = scene.parse().map_err(ReplayError::EpisodeScene)?;
     Ok((World::new(&scene.placements(seed), first_id), scene))
 }
 
@@ -407,12 +425,12 @@ pub(crate) fn recorded_plan(header: &FrameHeader) -> SubstepPlan {
 }
 
 /// A keyframe decoded into the world and clock it describes.
-pub(crate) fn restore(bytes: &[u8]) -> Result<(World, Clock, String), String> {
-    let keyframe = Keyframe::decode(bytes).map_err(|e| e.to_string())?;
+pub(crate) fn restore(bytes: &[u8]) -> Result<(World, Clock, String), KeyframeFault> {
+    let keyframe = Keyframe::decode(bytes)?;
     keyframe
         .world
         .check()
-        .map_err(|e| format!("the keyframe's world is inconsistent: {e}"))?;
+        .map_err(KeyframeFault::Inconsistent)?;
     let clock = Clock::at(
         keyframe.frame,
         keyframe.elapsed_ns,

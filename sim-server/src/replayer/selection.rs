@@ -5,9 +5,10 @@
 use std::collections::HashSet;
 
 use shared_types::recording::{Entry, RecordingReader};
-use shared_types::{RecorderRefusal, NANOS_PER_SECOND};
+use shared_types::NANOS_PER_SECOND;
 
-use super::bad_file;
+use super::ReplayError;
+use crate::recorder::Refused;
 
 /// The frames a replay covers.
 #[derive(Debug, Clone)]
@@ -43,8 +44,8 @@ impl Selection {
         path: &str,
         start_seconds: f64,
         duration_seconds: f64,
-    ) -> Result<Self, (RecorderRefusal, String)> {
-        let mut reader = RecordingReader::open(path).map_err(bad_file)?;
+    ) -> Result<Self, Refused> {
+        let mut reader = RecordingReader::open(path).map_err(ReplayError::from)?;
         let seed = reader.header().seed;
         // (recording time, frame id) of every frame; (keyframe, index of its frame).
         let mut frames: Vec<(u64, u64)> = Vec::new();
@@ -52,7 +53,7 @@ impl Selection {
         let mut actor_ids = HashSet::new();
         let mut variable_step = false;
         while let Some(entry) = reader.next() {
-            match entry.map_err(bad_file)? {
+            match entry.map_err(ReplayError::from)? {
                 Entry::Frame {
                     log_ns,
                     header,
@@ -66,21 +67,13 @@ impl Selection {
                 }
                 Entry::Keyframe { .. } => match frames.len().checked_sub(1) {
                     Some(index) => keyframes.push(index as u64),
-                    None => {
-                        return Err((
-                            RecorderRefusal::BadFile,
-                            format!("{path}: a keyframe before any frame"),
-                        ))
-                    }
+                    None => return Err(Refused::KeyframeFirst(path.to_string())),
                 },
                 _ => {}
             }
         }
         let (Some(&(end_ns, _)), Some(&first_keyframe)) = (frames.last(), keyframes.first()) else {
-            return Err((
-                RecorderRefusal::BadFile,
-                format!("{path} holds no frame (or no keyframe) to replay"),
-            ));
+            return Err(Refused::NothingToReplay(path.to_string()));
         };
         let seconds = |ns: u64| ns as f64 / NANOS_PER_SECOND as f64;
         let to_ns = |s: f64| (s * NANOS_PER_SECOND as f64).round() as u64;
@@ -90,13 +83,10 @@ impl Selection {
             to_ns(start_seconds)
         };
         if start_ns > end_ns {
-            return Err((
-                RecorderRefusal::StartPastEnd,
-                format!(
-                    "start {start_seconds} s is past the end of the recording ({:.3} s long)",
-                    seconds(end_ns)
-                ),
-            ));
+            return Err(Refused::StartPastEnd {
+                start: start_seconds,
+                length: seconds(end_ns),
+            });
         }
         let end_log_ns = if duration_seconds == 0.0 {
             end_ns

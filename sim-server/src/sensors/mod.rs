@@ -76,14 +76,14 @@ struct Sensor {
 }
 
 /// Every sensor of a world, and the service that manages them.
-pub struct Sensors {
+pub(crate) struct Sensors {
     port: SensorServer,
     list: Vec<Sensor>,
     next_id: u64,
     /// Readers each sensor admits (`--max-sensor-readers`).
     max_readers: usize,
     /// Spawns and ends since the recorder last took them.
-    pub(crate) journal: Vec<SensorNote>,
+    journal: Vec<SensorNote>,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
@@ -127,7 +127,7 @@ impl std::fmt::Debug for Sensors {
 impl Sensors {
     /// Opens the sensor service; no sensors yet, each will admit
     /// `limits.max_sensor_readers` readers.
-    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.sensors)?)
@@ -157,7 +157,7 @@ impl Sensors {
     /// Spawns, destroys and lists sensors.
     /// During a replay, a sensor spawned without a parent rides on `follow`
     /// (0: none).
-    pub fn handle(
+    pub(crate) fn handle(
         &mut self,
         transport: &Transport,
         world: &World,
@@ -287,7 +287,7 @@ impl Sensors {
     }
 
     /// Removes sensor `id`, telling its readers; `false` if there is none.
-    pub fn destroy(&mut self, id: u64, frame: u64, episode: u64) -> bool {
+    pub(crate) fn destroy(&mut self, id: u64, frame: u64, episode: u64) -> bool {
         let Some(index) = self.list.iter().position(|s| s.id == id) else {
             return false;
         };
@@ -312,19 +312,24 @@ impl Sensors {
             .collect()
     }
 
+    /// The spawns and ends since last taken, for the recording.
+    pub(crate) fn take_journal(&mut self) -> std::vec::Drain<'_, SensorNote> {
+        self.journal.drain(..)
+    }
+
     /// Whether there is no sensor.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.list.is_empty()
     }
 
     /// Every sensor.
-    pub fn list(&self) -> Vec<SensorInfo> {
+    pub(crate) fn list(&self) -> Vec<SensorInfo> {
         self.list.iter().map(Sensor::info).collect()
     }
 
     /// Ends the sensors whose parent actor is gone: a sensor dies with the
     /// actor it rides on, as in CARLA.
-    pub fn end_orphans(&mut self, world: &World, frame: u64, episode: u64) {
+    pub(crate) fn end_orphans(&mut self, world: &World, frame: u64, episode: u64) {
         if !self
             .list
             .iter()
@@ -347,7 +352,7 @@ impl Sensors {
 
     /// Ends every sensor, telling its readers `reason` (a new episode starts
     /// without sensors; the server stops). Sensor ids are not reused.
-    pub fn end_all(&mut self, reason: SensorEnd, frame: u64, episode: u64) {
+    pub(crate) fn end_all(&mut self, reason: SensorEnd, frame: u64, episode: u64) {
         for sensor in self.list.drain(..) {
             self.journal.push(SensorNote::Ended {
                 frame,
@@ -360,7 +365,7 @@ impl Sensors {
     /// Captures and publishes every sensor due at this frame; a copy of
     /// each capture goes to `record` when it is given (a recording with
     /// sensors).
-    pub fn capture(
+    pub(crate) fn capture(
         &mut self,
         world: &World,
         frame: u64,
@@ -515,7 +520,7 @@ unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod + 'static>(
         .map_err(|e| ServerError::transport("sensor loan", e))?;
     let mut header = header;
     fill(sample.payload_mut(), &mut header);
-    header.platform_timestamp = crate::server::platform_timestamp();
+    header.platform_timestamp = crate::clock::platform_timestamp();
     *sample.user_header_mut() = header;
     // SAFETY: the caller guarantees `fill` wrote every element.
     let sample = unsafe { sample.assume_init() };

@@ -9,19 +9,19 @@
 //! it. While a replay runs, a replayed frame takes the place of a computed
 //! one; while a recording runs, every published frame is recorded.
 
+mod answers;
 mod recording;
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use shared_types::{
-    FixedText, FrameHeader, SensorEnd, StatusReport, Timestamp, WaitMode, WireSettings,
-    WorldSettings, PROTOCOL_VERSION,
+    FixedText, FrameHeader, SensorEnd, Timestamp, WaitMode, WorldSettings, PROTOCOL_VERSION,
 };
 use tracing::{debug_span, info, warn};
 
-use crate::batches::Batches;
-use crate::clock::{Clock, SubstepPlan};
+use crate::batches::{BatchEffect, Batches};
+use crate::clock::{platform_timestamp, Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
 use crate::liveness::{LiveProcesses, PidWatch};
@@ -80,21 +80,22 @@ pub struct Server {
     domains: Domains,
 }
 
-/// Every domain but control, which answers requests about all of them.
+/// Every domain but the two request ports whose answers concern all of
+/// them (control, recorder): the loop hands their decoded calls here.
 #[derive(Debug)]
-pub(crate) struct Domains {
-    pub(crate) config: ServerConfig,
-    pub(crate) runtime: Runtime,
-    pub(crate) transport: Transport,
-    pub(crate) world: World,
-    pub(crate) clock: Clock,
-    pub(crate) frames: Frames,
-    pub(crate) ticker: Ticker,
-    pub(crate) batches: Batches,
-    pub(crate) lockstep: Lockstep,
-    pub(crate) sensors: Sensors,
-    pub(crate) recorder: Recorder,
-    pub(crate) replayer: Replayer,
+struct Domains {
+    config: ServerConfig,
+    runtime: Runtime,
+    transport: Transport,
+    world: World,
+    clock: Clock,
+    frames: Frames,
+    ticker: Ticker,
+    batches: Batches,
+    lockstep: Lockstep,
+    sensors: Sensors,
+    recorder: Recorder,
+    replayer: Replayer,
     timers: Timers,
     /// Fast death notice of the ticker and the lockstep participants.
     pidwatch: PidWatch,
@@ -123,13 +124,6 @@ fn check_keyframe_seconds(seconds: Option<f64>) -> Result<(), ServerError> {
         }
         _ => Ok(()),
     }
-}
-
-/// Wall-clock seconds since the Unix epoch, as frames and captures carry it.
-pub(crate) fn platform_timestamp() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 impl Server {
@@ -205,26 +199,35 @@ impl Server {
                 break;
             }
             // Every domain answers what arrived, in this order.
-            self.control.handle(d)?;
-            self.recorder.handle(d)?;
+            self.control.handle(|call| d.answer_control(call))?;
+            if let Some(response) = d.replay_prepared() {
+                self.recorder.answer_replay(response);
+            }
+            self.recorder
+                .handle(|call, client_pid| d.answer_recorder(call, client_pid))?;
             let episode = d.runtime.episode;
             if d.replayer.is_running() {
                 d.batches.refuse_while_replaying(&d.clock)?;
             } else {
-                d.batches.handle(
-                    &mut d.world,
-                    &mut d.ticker,
-                    &mut d.sensors,
-                    &mut d.recorder,
-                    &d.clock,
-                    episode,
-                )?;
+                let (frame, ticker_pid) = (d.clock.frame(), d.ticker.owner_pid());
+                let (recorder, ticker) = (&mut d.recorder, &mut d.ticker);
+                let applied = d
+                    .batches
+                    .handle(&mut d.world, ticker_pid, &d.clock, |effect| match effect {
+                        BatchEffect::Applied(command, result) => {
+                            recorder.command(frame + 1, episode, command, result)
+                        }
+                        BatchEffect::Tick(request, results) => ticker.queue_batch(request, results),
+                    })?;
+                if applied {
+                    d.sensors.end_orphans(&d.world, frame, episode);
+                }
             }
             d.lockstep.handle(episode, &d.clock)?;
             let follow = d.replayer.follow_id();
             d.sensors
                 .handle(&d.transport, &d.world, &d.clock, episode, follow)?;
-            d.recorder.sensor_notes(d.sensors.journal.drain(..));
+            d.recorder.sensor_notes(d.sensors.take_journal());
             d.ticker.handle(&mut d.runtime, &d.clock)?;
             d.housekeeping();
             let now = Instant::now();
@@ -245,8 +248,13 @@ impl Server {
                     continue;
                 }
                 if ticked {
-                    d.lockstep
-                        .held_up(now, d.config.lockstep_timeout, &d.ticker, &d.clock);
+                    let timeout = d.config.lockstep_timeout;
+                    if let Some(late) = d.lockstep.held_up(now, timeout, d.clock.frame()) {
+                        let frame = d.clock.frame();
+                        let name = FixedText::new(&late.name);
+                        let participant = Ticker::named(late.pid, name, frame);
+                        d.ticker.tell_held_up(participant, timeout, &d.clock);
+                    }
                 }
                 let polling = match d.config.wait_mode {
                     WaitMode::Spin => true,
@@ -391,30 +399,10 @@ impl Domains {
         }
     }
 
-    /// The world's status as the control service reports it.
-    pub(crate) fn report(&self) -> StatusReport {
-        StatusReport {
-            frame: self.clock.frame(),
-            elapsed_ns: self.clock.elapsed_ns(),
-            episode: self.runtime.episode,
-            server_pid: shared_types::this_process_id(),
-            actor_count: self.world.actor_count() as u32,
-            settings: WireSettings::from(self.runtime.settings),
-            scene: FixedText::new(&self.runtime.scene.to_string()),
-            ticker: self.ticker.info(),
-            seed: self.config.seed,
-            participants: self.lockstep.len() as u32,
-            max_clients: self.config.limits.max_clients as u32,
-            max_sensor_readers: self.config.limits.max_sensor_readers as u32,
-            reserved: 0,
-            lockstep: self.lockstep.statuses(),
-        }
-    }
-
     /// Replaces the world with `scene`'s initial state as a new episode,
     /// starting again at frame 0; settings are kept unless `reset`. The old
     /// episode's sensors end; actor ids go on from the old episode's.
-    pub(crate) fn load_world(
+    fn load_world(
         &mut self,
         scene: Scene,
         reset: bool,
@@ -437,7 +425,7 @@ impl Domains {
             self.clock.frame(),
             self.runtime.episode,
         );
-        self.recorder.sensor_notes(self.sensors.journal.drain(..));
+        self.recorder.sensor_notes(self.sensors.take_journal());
         let first_id = self.world.next_id();
         self.world = World::new(&scene.placements(self.config.seed), first_id);
         self.runtime.scene = scene;

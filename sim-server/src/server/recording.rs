@@ -8,22 +8,125 @@ use shared_types::recording::{
     RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
 };
 use shared_types::{
-    FrameHeader, PathText, RecorderKind, RecorderResponse, ReplayMode, SensorEnd, PROTOCOL_VERSION,
+    FrameHeader, PathText, RecorderKind, RecorderResponse, ReplayMode, ResponseStatus, SensorEnd,
+    PROTOCOL_VERSION,
 };
 use tracing::{info, warn};
 
-use super::{platform_timestamp, Domains};
-use crate::clock::Clock;
-use crate::replayer::{Prepared, SavedWorld, SensorChange};
+use super::Domains;
+use crate::clock::{platform_timestamp, Clock};
+use crate::recorder::{RecorderCall, Refused};
+use crate::replayer::{Prepared, ReplayRequest, SavedWorld, SensorChange};
 use crate::ServerError;
 
 impl Domains {
-    /// Starts recording to `path` from the current frame.
-    pub(crate) fn start_recording(
+    /// Carries out a decoded recorder request from `client_pid` and answers
+    /// it; `None` for a replay being prepared, answered once it is (see
+    /// [`Domains::replay_prepared`]).
+    pub(super) fn answer_recorder(
         &mut self,
-        path: &str,
+        call: RecorderCall,
+        client_pid: u32,
+    ) -> Option<RecorderResponse> {
+        let (kind, done) = match call {
+            RecorderCall::Refuse(status) => {
+                let response = RecorderResponse::new(status);
+                return Some(self.recorder_status(RecorderKind::Status, response));
+            }
+            RecorderCall::Status => (RecorderKind::Status, Ok(())),
+            RecorderCall::Start { path, sensors } => {
+                (RecorderKind::Start, self.start_recording(path, sensors))
+            }
+            RecorderCall::Stop => {
+                let stopped = self.recorder.stop("stop", self.clock.frame()).is_some();
+                let done = if stopped {
+                    Ok(())
+                } else {
+                    Err(Refused::NotRecording)
+                };
+                (RecorderKind::Stop, done)
+            }
+            RecorderCall::Replay(request) => match self.prepare_replay(request) {
+                Ok(()) => return None,
+                Err(refused) => (RecorderKind::Replay, Err(refused)),
+            },
+            RecorderCall::StopReplay { keep_actors } => {
+                let done = if self.replayer.is_running() || self.replayer.saved.is_some() {
+                    self.stop_replay(keep_actors).map_err(Refused::StopReplay)
+                } else {
+                    Err(Refused::NotReplaying)
+                };
+                (RecorderKind::StopReplay, done)
+            }
+            RecorderCall::TimeFactor(factor) => (
+                RecorderKind::TimeFactor,
+                self.replayer.set_time_factor(factor),
+            ),
+        };
+        Some(self.reply(kind, client_pid, done))
+    }
+
+    /// The answer to the replay request whose preparation finished, if one
+    /// did: the replay starts, or is refused.
+    pub(super) fn replay_prepared(&mut self) -> Option<RecorderResponse> {
+        let prepared = self.replayer.prepared()?;
+        let done = prepared.map(|prepared| self.start_replay(prepared));
+        Some(self.reply(RecorderKind::Replay, 0, done))
+    }
+
+    /// The answer to a request of `kind` that did `done`.
+    fn reply(
+        &self,
+        kind: RecorderKind,
+        client_pid: u32,
+        done: Result<(), Refused>,
+    ) -> RecorderResponse {
+        match done {
+            Ok(()) => self.recorder_status(kind, RecorderResponse::new(ResponseStatus::Ok)),
+            Err(refused) => {
+                let message = crate::message(&refused);
+                info!(client_pid, ?kind, "refused: {message}");
+                let mut response =
+                    self.recorder_status(kind, RecorderResponse::new(ResponseStatus::Refused));
+                response.refusal = refused.code() as u32;
+                response.message = PathText::cut(&message);
+                response
+            }
+        }
+    }
+
+    /// Checks a replay request against what runs, then has the replayer
+    /// read its recording off the frame loop.
+    fn prepare_replay(&mut self, request: Result<ReplayRequest, Refused>) -> Result<(), Refused> {
+        if let Some(path) = self.replayer.preparing() {
+            return Err(Refused::AlreadyPreparing(path.to_string()));
+        }
+        if self.replayer.is_running() {
+            return Err(Refused::AlreadyReplaying(self.replayer.report.path.clone()));
+        }
+        if let Some((path, _)) = self.recorder.progress() {
+            return Err(Refused::Recording(path.to_string()));
+        }
+        self.replayer.prepare_in_background(request?)
+    }
+
+    /// Starts recording to `path` from the current frame, unless a
+    /// recording or a replay (or its preparation) runs.
+    fn start_recording(
+        &mut self,
+        path: Result<String, Refused>,
         sensors: bool,
-    ) -> Result<(), crate::recorder::StartError> {
+    ) -> Result<(), Refused> {
+        if let Some(path) = self.replayer.preparing() {
+            return Err(Refused::PreparingReplay(path.to_string()));
+        }
+        if let Some((path, _)) = self.recorder.progress() {
+            return Err(Refused::AlreadyRecording(path.to_string()));
+        }
+        if self.replayer.is_running() {
+            return Err(Refused::ReplayRuns);
+        }
+        let path = path?;
         let header = RecordingHeader {
             recording_version: RECORDING_VERSION,
             simbus_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -60,16 +163,17 @@ impl Domains {
         // The sensors alive now are part of the recording, before its first frame.
         let sensors = self.sensors.recorded_spawns(self.clock.frame());
         self.recorder
-            .start(path, header, sensors, (&frame, &self.world), scene)
+            .start(&path, header, sensors, (&frame, &self.world), scene)
+            .map_err(Refused::CannotWrite)
     }
 
-    /// Checks the recording, then replaces the world with the one the
+    /// Replaces the world with the one the
     /// replay starts from (the live one is put aside). The live sensors
     /// end now; the first replayed frame comes with the next step (the
     /// next tick in synchronous mode), as the next frame id and the first
     /// of a new episode: frame ids on the bus never go back, so lockstep
     /// participants and readers follow a replay like any other frames.
-    pub(crate) fn start_replay(&mut self, prepared: Prepared) {
+    fn start_replay(&mut self, prepared: Prepared) {
         let path = prepared.path().to_string();
         let (world, scene) = self.replayer.begin(prepared);
         self.sensors.end_all(
@@ -98,7 +202,7 @@ impl Domains {
     /// Stops the replay: with `keep_actors` the replayed world goes on live
     /// from where it is; otherwise the world from before the replay comes
     /// back. Either way a new episode starts and its frame is published.
-    pub(crate) fn stop_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
+    fn stop_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
         self.replayer.end(
             shared_types::ReplayState::Stopped,
             "stopped by a client".to_string(),
@@ -142,7 +246,7 @@ impl Domains {
     }
 
     /// Produces the next replayed frame in place of a computed one.
-    pub(crate) fn replay_frame(&mut self, now: Instant, ticks: usize) -> Result<(), ServerError> {
+    pub(super) fn replay_frame(&mut self, now: Instant, ticks: usize) -> Result<(), ServerError> {
         let delta_ns = self.clock.next_delta_ns(&self.runtime.settings, now);
         let Some(frame) = self.replayer.next_frame(&mut self.world, delta_ns) else {
             // Nothing more to replay.
@@ -185,6 +289,9 @@ impl Domains {
         );
         let header = FrameHeader {
             episode: self.runtime.episode,
+            // A recording of an older protocol replays as this one's frames.
+            protocol_version: PROTOCOL_VERSION,
+            reserved: 0,
             flags: frame.header.flags | FrameHeader::REPLAY,
             server_pid: shared_types::this_process_id(),
             timestamp: shared_types::Timestamp {
@@ -201,6 +308,7 @@ impl Domains {
             ..frame.header
         };
         self.frames.publish_states(header, &frame.actors)?;
+        self.recorder.published(&header);
         self.ticker.answer_stepped(ticks, &self.clock);
         self.frames.notify()?;
         if frame.last {
@@ -252,7 +360,7 @@ impl Domains {
     /// last error for `start` and `stop`, the replay's (why it ended) for
     /// requests about the replay, either for `status`: a replay stopped
     /// long ago is no warning about a recording.
-    pub(crate) fn recorder_status(
+    fn recorder_status(
         &self,
         kind: RecorderKind,
         mut response: RecorderResponse,
@@ -302,7 +410,7 @@ impl Domains {
     }
 
     /// Records that a new episode began (load or reload).
-    pub(crate) fn record_episode(&mut self, reset_settings: bool) {
+    pub(super) fn record_episode(&mut self, reset_settings: bool) {
         self.recorder.event(RecordedEvent::Episode {
             episode: self.runtime.episode,
             scene: self.runtime.scene.to_string(),

@@ -17,7 +17,7 @@ use shared_types::{
 };
 use tracing::{debug, info, warn};
 
-pub use ownership::{Owner, TickOwnership};
+pub(crate) use ownership::{Owner, TickOwnership};
 
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
@@ -27,7 +27,7 @@ use crate::state::{Refusal, Runtime};
 use crate::ServerError;
 
 /// The policy when the ticker dies while the world is in synchronous mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum OnTickerLoss {
     /// Stay in synchronous mode and wait for a new ticker.
     #[default]
@@ -41,7 +41,7 @@ type PendingTick = ActiveRequest<Bus, TickRequest, (), TickResponse, ()>;
 
 /// A request for one frame step, answered once the frame is published.
 #[derive(Debug)]
-pub enum PendingStep {
+pub(crate) enum PendingStep {
     /// `Ticker::tick`.
     Tick(PendingTick),
     /// `apply_batch_sync(.., tick = true)`, with the batch's results.
@@ -50,7 +50,7 @@ pub enum PendingStep {
 
 /// The tick service, its owner and the steps waiting for a frame.
 #[derive(Debug)]
-pub struct Ticker {
+pub(crate) struct Ticker {
     port: TickServer,
     ownership: TickOwnership,
     pending: VecDeque<PendingStep>,
@@ -58,7 +58,7 @@ pub struct Ticker {
 
 impl Ticker {
     /// Opens the tick service.
-    pub fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
             .node
             .service_builder(&service_name(&transport.names.tick)?)
@@ -83,24 +83,24 @@ impl Ticker {
     }
 
     /// The owner as it travels on the wire.
-    pub fn info(&self) -> TickerInfo {
+    pub(crate) fn info(&self) -> TickerInfo {
         self.ownership.info()
     }
 
     /// The owner's process id, if a ticker holds the world.
-    pub fn owner_pid(&self) -> Option<u32> {
+    pub(crate) fn owner_pid(&self) -> Option<u32> {
         self.ownership.owner().map(|o| o.pid)
     }
 
     /// Whether a tick (or a ticking batch) waits for its frame.
-    pub fn has_pending(&self) -> bool {
+    pub(crate) fn has_pending(&self) -> bool {
         !self.pending.is_empty()
     }
 
     /// Forgets the steps whose sender stopped waiting (a tick that timed
     /// out on the client): no frame is stepped for nobody. Call before a
     /// step, not on every turn of the loop (it takes a lock per step).
-    pub fn drop_abandoned(&mut self) {
+    pub(crate) fn drop_abandoned(&mut self) {
         let before = self.pending.len();
         self.pending.retain(|step| match step {
             PendingStep::Tick(tick) => tick.is_connected(),
@@ -113,12 +113,12 @@ impl Ticker {
     }
 
     /// How many steps wait for a frame.
-    pub fn pending_count(&self) -> usize {
+    pub(crate) fn pending_count(&self) -> usize {
         self.pending.len()
     }
 
     /// Queues a ticking batch, answered with the frame it steps.
-    pub fn queue_batch(&mut self, request: PendingBatch, results: Vec<CommandResult>) {
+    pub(crate) fn queue_batch(&mut self, request: PendingBatch, results: Vec<CommandResult>) {
         self.pending.push_back(PendingStep::Batch(request, results));
     }
 
@@ -133,7 +133,11 @@ impl Ticker {
 
     /// Answers every pending request of the ticker; ticks are queued for
     /// the frame loop. Settings from the ticker change `runtime`.
-    pub fn handle(&mut self, runtime: &mut Runtime, clock: &Clock) -> Result<(), ServerError> {
+    pub(crate) fn handle(
+        &mut self,
+        runtime: &mut Runtime,
+        clock: &Clock,
+    ) -> Result<(), ServerError> {
         while let Some(request) = self
             .port
             .receive()
@@ -226,7 +230,7 @@ impl Ticker {
     }
 
     /// Answers the first `count` waiting steps with the frame just published.
-    pub fn answer_stepped(&mut self, count: usize, clock: &Clock) {
+    pub(crate) fn answer_stepped(&mut self, count: usize, clock: &Clock) {
         for _ in 0..count {
             let Some(step) = self.pending.pop_front() else {
                 break;
@@ -247,7 +251,12 @@ impl Ticker {
 
     /// Answers every waiting step with `status` (the ticker released, died
     /// or was revoked by `revoked_by`).
-    pub fn drop_pending(&mut self, status: ResponseStatus, revoked_by: TickerInfo, clock: &Clock) {
+    pub(crate) fn drop_pending(
+        &mut self,
+        status: ResponseStatus,
+        revoked_by: TickerInfo,
+        clock: &Clock,
+    ) {
         for step in std::mem::take(&mut self.pending) {
             match step {
                 PendingStep::Tick(tick) => {
@@ -268,7 +277,7 @@ impl Ticker {
 
     /// Ends the ticker's ownership because `by` left synchronous mode: its
     /// waiting ticks and its next requests are told who did.
-    pub fn revoke(&mut self, by: TickerInfo, clock: &Clock) {
+    pub(crate) fn revoke(&mut self, by: TickerInfo, clock: &Clock) {
         if let Some(owner) = self.ownership.revoke(by) {
             warn!(
                 pid = by.pid,
@@ -283,7 +292,12 @@ impl Ticker {
 
     /// Tells the waiting tick which lockstep participant holds it up and how
     /// long the server waits for it (an interim answer; the frame follows).
-    pub fn tell_held_up(&self, participant: TickerInfo, lockstep_timeout: Duration, clock: &Clock) {
+    pub(crate) fn tell_held_up(
+        &self,
+        participant: TickerInfo,
+        lockstep_timeout: Duration,
+        clock: &Clock,
+    ) {
         if let Some(PendingStep::Tick(tick)) = self.pending.front() {
             let response = TickResponse {
                 waiting_for: participant,
@@ -299,7 +313,7 @@ impl Ticker {
     /// Drops a ticker whose process died (by `sweep`), applying `policy`;
     /// returns whether it did (its port is freed by the next cleanup, which
     /// takes ~15 ms: after the claims and status requests already waiting).
-    pub fn drop_if_dead(
+    pub(crate) fn drop_if_dead(
         &mut self,
         sweep: &LiveProcesses,
         runtime: &mut Runtime,
@@ -335,7 +349,7 @@ impl Ticker {
 
     /// The client info of a process `pid` named `name`, as a ticker answer
     /// names it (who revoked, who holds a tick up).
-    pub fn named(pid: u32, name: FixedText, frame: u64) -> TickerInfo {
+    pub(crate) fn named(pid: u32, name: FixedText, frame: u64) -> TickerInfo {
         TickerInfo {
             active: 1,
             pid,

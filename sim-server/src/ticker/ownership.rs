@@ -7,7 +7,7 @@ use shared_types::{FixedText, TickerInfo};
 
 /// The current ticker.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Owner {
+pub(crate) struct Owner {
     /// Its port on the tick service.
     pub client: UniqueClientId,
     /// Its process (for a ticker on another host: the bridge's, whose
@@ -24,7 +24,7 @@ pub struct Owner {
 
 /// Who, if anyone, holds tick ownership.
 #[derive(Debug, Default)]
-pub struct TickOwnership {
+pub(crate) struct TickOwnership {
     owner: Option<Owner>,
     /// A ticker whose ownership another client ended by leaving
     /// synchronous mode, and who did it: its next request is told so.
@@ -33,18 +33,18 @@ pub struct TickOwnership {
 
 impl TickOwnership {
     /// The owner, if any.
-    pub fn owner(&self) -> Option<&Owner> {
+    pub(crate) fn owner(&self) -> Option<&Owner> {
         self.owner.as_ref()
     }
 
     /// Whether `client` is the owner.
-    pub fn is_owner(&self, client: UniqueClientId) -> bool {
+    pub(crate) fn is_owner(&self, client: UniqueClientId) -> bool {
         self.owner.as_ref().is_some_and(|o| o.client == client)
     }
 
     /// Makes `candidate` the owner, unless another live owner holds it: then
     /// the current owner is returned as the error. A dead owner is replaced.
-    pub fn claim(
+    pub(crate) fn claim(
         &mut self,
         candidate: Owner,
         owner_alive: impl Fn(u32) -> bool,
@@ -63,7 +63,7 @@ impl TickOwnership {
 
     /// Ends the ownership of `client`; `false` if it was not the owner. A
     /// revoked ticker's release is accepted (and forgets the revocation).
-    pub fn release(&mut self, client: UniqueClientId) -> bool {
+    pub(crate) fn release(&mut self, client: UniqueClientId) -> bool {
         if self.revoked_by(client).is_some() {
             self.revoked = None;
             return true;
@@ -78,14 +78,14 @@ impl TickOwnership {
 
     /// Ends the current ownership because `by` left synchronous mode;
     /// returns the owner it ended.
-    pub fn revoke(&mut self, by: TickerInfo) -> Option<Owner> {
+    pub(crate) fn revoke(&mut self, by: TickerInfo) -> Option<Owner> {
         let owner = self.owner.take()?;
         self.revoked = Some((owner.client, by));
         Some(owner)
     }
 
     /// Who ended `client`'s ownership, if it was revoked.
-    pub fn revoked_by(&self, client: UniqueClientId) -> Option<TickerInfo> {
+    pub(crate) fn revoked_by(&self, client: UniqueClientId) -> Option<TickerInfo> {
         self.revoked
             .as_ref()
             .filter(|(revoked, _)| *revoked == client)
@@ -93,7 +93,7 @@ impl TickOwnership {
     }
 
     /// Removes and returns the owner if `owner_alive` says its process died.
-    pub fn take_if_dead(&mut self, owner_alive: impl Fn(u32) -> bool) -> Option<Owner> {
+    pub(crate) fn take_if_dead(&mut self, owner_alive: impl Fn(u32) -> bool) -> Option<Owner> {
         if self.owner.as_ref().is_some_and(|o| !owner_alive(o.pid)) {
             self.owner.take()
         } else {
@@ -102,7 +102,7 @@ impl TickOwnership {
     }
 
     /// The owner as it travels on the wire.
-    pub fn info(&self) -> TickerInfo {
+    pub(crate) fn info(&self) -> TickerInfo {
         match &self.owner {
             Some(o) => TickerInfo {
                 active: 1,

@@ -1,0 +1,489 @@
+//! The blueprint library the gateway offers (`world.get_blueprint_library()`)
+//! and what a CARLA actor description spawns in simbus: a prop, the
+//! ray-cast vehicle, or a sensor.
+
+use std::collections::HashMap;
+
+use rmpv::Value;
+use shared_types::{Command, SensorSpec};
+
+use crate::convert;
+use crate::error::BlueprintError;
+use crate::wire::{CarlaTransform, DEPTH_FAR_METRES};
+
+/// CARLA's `ActorAttributeType`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Int = 2,
+    Float = 3,
+    String = 4,
+}
+
+/// One attribute of a blueprint: name, type, default, whether a script
+/// may change it.
+struct Attribute {
+    id: &'static str,
+    kind: Kind,
+    default: &'static str,
+    modifiable: bool,
+}
+
+const fn float(id: &'static str, default: &'static str) -> Attribute {
+    Attribute {
+        id,
+        kind: Kind::Float,
+        default,
+        modifiable: true,
+    }
+}
+
+const fn int(id: &'static str, default: &'static str) -> Attribute {
+    Attribute {
+        id,
+        kind: Kind::Int,
+        default,
+        modifiable: true,
+    }
+}
+
+const fn fixed(id: &'static str, kind: Kind, default: &'static str) -> Attribute {
+    Attribute {
+        id,
+        kind,
+        default,
+        modifiable: false,
+    }
+}
+
+const ROLE_NAME: Attribute = Attribute {
+    id: "role_name",
+    kind: Kind::String,
+    default: "",
+    modifiable: true,
+};
+
+/// One blueprint. Body blueprints' uids are simbus's `ActorKind` numbers.
+struct Blueprint {
+    uid: u32,
+    id: &'static str,
+    tags: &'static str,
+    attributes: &'static [Attribute],
+}
+
+/// The blueprints. Sizes are half extents and radii in metres; sensor
+/// attributes keep CARLA's names, units and defaults. Noise and drop-off
+/// attributes exist (scripts set them to 0) but simbus's sensors are exact:
+/// other values are refused at spawn.
+const LIBRARY: &[Blueprint] = &[
+    Blueprint {
+        uid: 2,
+        id: "static.prop.box",
+        tags: "static,prop",
+        attributes: &[
+            ROLE_NAME,
+            float("extent_x", "0.5"),
+            float("extent_y", "0.5"),
+            float("extent_z", "0.5"),
+        ],
+    },
+    Blueprint {
+        uid: 3,
+        id: "static.prop.sphere",
+        tags: "static,prop",
+        attributes: &[ROLE_NAME, float("radius", "0.5")],
+    },
+    Blueprint {
+        uid: 4,
+        id: "static.prop.capsule",
+        tags: "static,prop",
+        attributes: &[
+            ROLE_NAME,
+            float("radius", "0.3"),
+            float("half_height", "0.5"),
+        ],
+    },
+    Blueprint {
+        uid: 5,
+        id: "vehicle.simbus.car",
+        tags: "vehicle,car,simbus",
+        attributes: &[
+            ROLE_NAME,
+            fixed("number_of_wheels", Kind::Int, "4"),
+            fixed("base_type", Kind::String, "car"),
+            fixed("generation", Kind::Int, "2"),
+        ],
+    },
+    Blueprint {
+        uid: 6,
+        id: "sensor.camera.depth",
+        tags: "sensor,camera,depth",
+        attributes: &[
+            ROLE_NAME,
+            int("image_size_x", "800"),
+            int("image_size_y", "600"),
+            float("fov", "90.0"),
+            float("sensor_tick", "0.0"),
+        ],
+    },
+    Blueprint {
+        uid: 7,
+        id: "sensor.lidar.ray_cast",
+        tags: "sensor,lidar,ray_cast",
+        attributes: &[
+            ROLE_NAME,
+            int("channels", "32"),
+            int("points_per_second", "56000"),
+            float("range", "10.0"),
+            float("upper_fov", "10.0"),
+            float("lower_fov", "-30.0"),
+            float("rotation_frequency", "10.0"),
+            float("sensor_tick", "0.0"),
+            float("horizontal_fov", "360.0"),
+            float("noise_stddev", "0.0"),
+            float("dropoff_general_rate", "0.0"),
+            float("dropoff_intensity_limit", "0.0"),
+            float("dropoff_zero_intensity", "0.0"),
+            float("atmosphere_attenuation_rate", "0.0"),
+        ],
+    },
+    Blueprint {
+        uid: 8,
+        id: "sensor.other.imu",
+        tags: "sensor,other,imu",
+        attributes: &[
+            ROLE_NAME,
+            float("sensor_tick", "0.0"),
+            float("noise_accel_stddev_x", "0.0"),
+            float("noise_accel_stddev_y", "0.0"),
+            float("noise_accel_stddev_z", "0.0"),
+            float("noise_gyro_stddev_x", "0.0"),
+            float("noise_gyro_stddev_y", "0.0"),
+            float("noise_gyro_stddev_z", "0.0"),
+            float("noise_gyro_bias_x", "0.0"),
+            float("noise_gyro_bias_y", "0.0"),
+            float("noise_gyro_bias_z", "0.0"),
+            int("noise_seed", "0"),
+        ],
+    },
+];
+
+/// The simbus actor kind a body blueprint's uid spawns (their uids are
+/// simbus's `ActorKind` numbers).
+pub(crate) fn kind_of_uid(uid: u64) -> u32 {
+    u32::try_from(uid).unwrap_or(0)
+}
+
+/// The library as CARLA's `[ActorDefinition]`:
+/// `[uid, id, tags, [[id, type, value, recommended, modifiable, restricted]]]`.
+pub(crate) fn library() -> Value {
+    Value::Array(
+        LIBRARY
+            .iter()
+            .map(|bp| {
+                let attributes = bp
+                    .attributes
+                    .iter()
+                    .map(|a| {
+                        Value::Array(vec![
+                            Value::from(a.id),
+                            Value::from(a.kind as u8),
+                            Value::from(a.default),
+                            Value::Array(Vec::new()),
+                            Value::Boolean(a.modifiable),
+                            Value::Boolean(false),
+                        ])
+                    })
+                    .collect();
+                Value::Array(vec![
+                    Value::from(bp.uid),
+                    Value::from(bp.id),
+                    Value::from(bp.tags),
+                    Value::Array(attributes),
+                ])
+            })
+            .collect(),
+    )
+}
+
+/// What a description spawns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Spawn {
+    /// A prop or the vehicle: one simbus command.
+    Body(Command),
+    /// A sensor, and the CARLA type id it reports.
+    Sensor(SensorSpec),
+}
+
+/// A parsed CARLA `ActorDescription` `[uid, id, [[id, type, value]]]`:
+/// the blueprint id and every attribute's value (defaults filled in).
+#[derive(Debug, Clone)]
+pub(crate) struct Description {
+    pub(crate) id: String,
+    values: HashMap<String, String>,
+    /// The description as it came.
+    raw: Value,
+}
+
+impl Description {
+    /// Reads a description; refuses blueprints simbus does not have.
+    pub(crate) fn parse(value: &Value) -> Result<Self, BlueprintError> {
+        let fields = value.as_array().ok_or(BlueprintError::NotArray)?;
+        let id = fields
+            .get(1)
+            .and_then(Value::as_str)
+            .ok_or(BlueprintError::NoId)?;
+        let blueprint =
+            LIBRARY
+                .iter()
+                .find(|bp| bp.id == id)
+                .ok_or_else(|| BlueprintError::Unknown {
+                    id: id.to_string(),
+                    known: LIBRARY
+                        .iter()
+                        .map(|bp| bp.id)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                })?;
+        let mut values: HashMap<String, String> = blueprint
+            .attributes
+            .iter()
+            .map(|a| (a.id.to_string(), a.default.to_string()))
+            .collect();
+        for attribute in fields
+            .get(2)
+            .and_then(Value::as_array)
+            .into_iter()
+            .flatten()
+        {
+            let pair = attribute.as_array().and_then(|a| {
+                Some((
+                    a.first()?.as_str()?.to_string(),
+                    a.get(2)?.as_str()?.to_string(),
+                ))
+            });
+            if let Some((name, text)) = pair {
+                values.insert(name, text);
+            }
+        }
+        Ok(Self {
+            id: id.to_string(),
+            values,
+            raw: value.clone(),
+        })
+    }
+
+    /// The description as an actor's record carries it: as it came, with
+    /// the blueprint's uid (a body's uid is its simbus kind).
+    pub(crate) fn record(&self) -> Value {
+        let uid = LIBRARY
+            .iter()
+            .find(|bp| bp.id == self.id)
+            .map_or(0, |bp| bp.uid);
+        let mut record = self.raw.clone();
+        if let Value::Array(fields) = &mut record {
+            if let Some(first) = fields.first_mut() {
+                *first = Value::from(uid);
+            }
+        }
+        record
+    }
+
+    fn number(&self, name: &str) -> Result<f32, BlueprintError> {
+        let text = self.values.get(name).map_or("", String::as_str);
+        text.trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| BlueprintError::NotANumber {
+                blueprint: self.id.clone(),
+                name: name.to_string(),
+                text: text.to_string(),
+            })
+    }
+
+    /// Refuses a non-zero value for an attribute simbus does not model.
+    fn zero(&self, names: &[&str]) -> Result<(), BlueprintError> {
+        for name in names {
+            if self.values.contains_key(*name) && self.number(name)? != 0.0 {
+                return Err(BlueprintError::NotZero {
+                    blueprint: self.id.clone(),
+                    name: name.to_string(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// What spawning this at `transform` (relative to the parent, if any)
+    /// makes. Positions and sizes go through simbus's own checks at spawn.
+    pub(crate) fn spawn(&self, transform: &CarlaTransform) -> Result<Spawn, BlueprintError> {
+        let (position, rotation) = convert::pose(transform);
+        let body = |command: Command| {
+            Ok(Spawn::Body(Command {
+                rotation,
+                ..command
+            }))
+        };
+        match self.id.as_str() {
+            "static.prop.box" => {
+                // CARLA's extent (x forward, y right, z up) in simbus's axes.
+                let half = convert::vector([
+                    self.number("extent_x")?,
+                    self.number("extent_y")?,
+                    self.number("extent_z")?,
+                ]);
+                body(Command::spawn_box(position, half))
+            }
+            "static.prop.sphere" => body(Command::spawn_sphere(position, self.number("radius")?)),
+            "static.prop.capsule" => body(Command::spawn_capsule(
+                position,
+                self.number("radius")?,
+                self.number("half_height")?,
+            )),
+            "vehicle.simbus.car" => body(Command::spawn_vehicle(position)),
+            "sensor.camera.depth" => {
+                let (w, h) = (self.number("image_size_x")?, self.number("image_size_y")?);
+                let spec = SensorSpec::depth(
+                    position,
+                    w as u32,
+                    h as u32,
+                    self.number("fov")?,
+                    DEPTH_FAR_METRES,
+                );
+                self.sensor(spec, rotation)
+            }
+            "sensor.lidar.ray_cast" => self.lidar(position, rotation),
+            _ => {
+                self.zero(&[
+                    "noise_accel_stddev_x",
+                    "noise_accel_stddev_y",
+                    "noise_accel_stddev_z",
+                    "noise_gyro_stddev_x",
+                    "noise_gyro_stddev_y",
+                    "noise_gyro_stddev_z",
+                    "noise_gyro_bias_x",
+                    "noise_gyro_bias_y",
+                    "noise_gyro_bias_z",
+                ])?;
+                self.sensor(SensorSpec::imu(position), rotation)
+            }
+        }
+    }
+
+    /// A ray-cast lidar: CARLA's attributes as simbus's lidar.
+    fn lidar(&self, position: [f32; 3], rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
+        self.zero(&[
+            "noise_stddev",
+            "dropoff_general_rate",
+            "dropoff_intensity_limit",
+            "dropoff_zero_intensity",
+            "atmosphere_attenuation_rate",
+        ])?;
+        if self.number("horizontal_fov")? != 360.0 {
+            return Err(BlueprintError::HorizontalFov(self.id.clone()));
+        }
+        let channels = self.number("channels")?;
+        let frequency = self.number("rotation_frequency")?;
+        if !(channels >= 1.0 && frequency > 0.0) {
+            return Err(BlueprintError::LidarRates(self.id.clone()));
+        }
+        // CARLA's points per second over all channels, as points per
+        // channel in one full turn.
+        let per_turn = (self.number("points_per_second")? / frequency / channels).round();
+        let spec = SensorSpec::lidar(
+            position,
+            channels as u32,
+            per_turn.max(1.0) as u32,
+            self.number("range")?,
+            self.number("upper_fov")?,
+            self.number("lower_fov")?,
+        )
+        .rotating(frequency);
+        self.sensor(spec, rotation)
+    }
+
+    fn sensor(&self, spec: SensorSpec, rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
+        let tick = self.number("sensor_tick")?;
+        let spec = SensorSpec { rotation, ..spec }.every(f64::from(tick));
+        spec.check().map_err(|source| BlueprintError::Sensor {
+            blueprint: self.id.clone(),
+            source,
+        })?;
+        Ok(Spawn::Sensor(spec))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn description(id: &str, attributes: &[(&str, &str)]) -> Value {
+        Value::Array(vec![
+            Value::from(0u32),
+            Value::from(id),
+            Value::Array(
+                attributes
+                    .iter()
+                    .map(|(k, v)| {
+                        Value::Array(vec![Value::from(*k), Value::from(3u8), Value::from(*v)])
+                    })
+                    .collect(),
+            ),
+        ])
+    }
+
+    #[test]
+    fn every_blueprint_spawns_with_its_defaults() {
+        for bp in LIBRARY {
+            let d = Description::parse(&description(bp.id, &[])).expect(bp.id);
+            d.spawn(&CarlaTransform::default()).expect(bp.id);
+        }
+    }
+
+    #[test]
+    fn a_lidar_gets_carlas_points_per_turn_and_spin() {
+        let d = Description::parse(&description(
+            "sensor.lidar.ray_cast",
+            &[
+                ("channels", "16"),
+                ("points_per_second", "160000"),
+                ("rotation_frequency", "20"),
+            ],
+        ))
+        .unwrap();
+        let Spawn::Sensor(spec) = d.spawn(&CarlaTransform::default()).unwrap() else {
+            panic!("not a sensor");
+        };
+        assert_eq!(spec.params[0], 16.0);
+        assert_eq!(spec.params[1], 500.0);
+        assert_eq!(spec.params[5], 20.0);
+    }
+
+    #[test]
+    fn unknown_blueprints_bad_numbers_and_noise_are_refused_by_name() {
+        let e = Description::parse(&description("vehicle.tesla.model3", &[]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("vehicle.tesla.model3") && e.contains("static.prop.box"),
+            "{e}"
+        );
+        let d =
+            Description::parse(&description("static.prop.sphere", &[("radius", "big")])).unwrap();
+        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+        assert!(e.contains("radius"), "{e}");
+        let d = Description::parse(&description(
+            "sensor.lidar.ray_cast",
+            &[("noise_stddev", "0.1")],
+        ))
+        .unwrap();
+        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+        assert!(e.contains("noise_stddev"), "{e}");
+        let d = Description::parse(&description(
+            "sensor.camera.depth",
+            &[("image_size_x", "100000")],
+        ))
+        .unwrap();
+        assert!(d.spawn(&CarlaTransform::default()).is_err());
+    }
+}

@@ -1,0 +1,182 @@
+//! The CARLA gateway (`sim-client carla-gateway`): CARLA 0.9.16's own
+//! Python client library drives a simbus world through this crate, which
+//! speaks CARLA's RPC (msgpack-RPC) and streaming protocols on TCP and is
+//! an ordinary client of the world: it holds simbus ports, and a CARLA
+//! connection that turns synchronous mode on claims the world's tick
+//! ownership like any ticker.
+//!
+//! Each CARLA connection is served on its own thread with its own simbus
+//! client; a connection that sends garbage, too much, or vanishes is
+//! dropped (and its tick ownership released) without touching the others.
+//!
+//! The crate owns CARLA's wire layouts ([`wire`]); it prints nothing:
+//! [`serve`] tells its caller where it listens, and logs with `tracing`.
+
+mod blueprints;
+mod commands;
+mod convert;
+mod error;
+mod rpc;
+mod sensors;
+mod session;
+mod stream;
+pub mod wire;
+
+use std::net::TcpListener;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use shared_types::WorldName;
+use tracing::{info, warn};
+
+pub use error::GatewayError;
+use session::Session;
+use stream::Hub;
+
+/// The stack of a connection's thread: room for a batch's `.then(...)` and
+/// the simbus client's calls, whatever the build.
+const SESSION_STACK: usize = 8 << 20;
+/// How often [`serve`] reads its stop flag.
+const STOP_CHECK: Duration = Duration::from_millis(100);
+
+/// Where to serve CARLA clients, and how long to wait for the world.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The address to listen on.
+    pub host: String,
+    /// The RPC port (CARLA's `carla.Client(host, port)`); 0: any free port
+    /// (and any free streaming port).
+    pub port: u16,
+    /// The streaming port (0: any free port); `None`: `port + 1` (with
+    /// port 0, any free port). See [`streaming_port`].
+    pub streaming_port: Option<u16>,
+    /// How long a call waits for the world's server, and for a tick.
+    pub timeout: Duration,
+}
+
+/// Where the gateway listens, once it does: the ports actually bound.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Listening {
+    /// The RPC port.
+    pub port: u16,
+    /// The streaming port (in every stream token CARLA clients get).
+    pub streaming_port: u16,
+}
+
+/// The streaming port to bind for RPC port `port`: `explicit` as given;
+/// else `port + 1`, refused where that wraps past 65535 or lands on a
+/// privileged port (below 1024) nobody asked for; with port 0, any free
+/// port (0).
+pub fn streaming_port(port: u16, explicit: Option<u16>) -> Result<u16, GatewayError> {
+    if let Some(explicit) = explicit {
+        return Ok(explicit);
+    }
+    if port == 0 {
+        return Ok(0);
+    }
+    match port.checked_add(1) {
+        None => Err(GatewayError::NoStreamingPort { port }),
+        Some(next) if next < 1024 => Err(GatewayError::PrivilegedStreamingPort { port, next }),
+        Some(next) => Ok(next),
+    }
+}
+
+/// Serves `world` to CARLA clients until `stop` is set; `on_listening` is
+/// told the ports bound once both listeners are. The listeners' and
+/// connections' threads end with the process (the server sees the
+/// gateway's tick ownership and ports go with it).
+pub fn serve(
+    world: &WorldName,
+    config: &Config,
+    stop: &AtomicBool,
+    on_listening: impl FnOnce(&Listening),
+) -> Result<(), GatewayError> {
+    let streaming_port = streaming_port(config.port, config.streaming_port)?;
+    let host = config.host.as_str();
+    let listen = |what: &'static str, port: u16| {
+        TcpListener::bind((host, port)).map_err(|source| GatewayError::Listen {
+            what,
+            host: host.to_string(),
+            port,
+            source,
+        })
+    };
+    let rpc = listen("clients", config.port)?;
+    let streams = listen("streams", streaming_port)?;
+    let address = |what: &'static str, listener: &TcpListener| {
+        listener
+            .local_addr()
+            .map(|a| a.port())
+            .map_err(|source| GatewayError::Address { what, source })
+    };
+    // The ports actually bound (port 0 binds any free one): these go to
+    // the caller and into every stream token CARLA clients get.
+    let listening = Listening {
+        port: address("RPC", &rpc)?,
+        streaming_port: address("streaming", &streams)?,
+    };
+    let hub = Arc::new(Hub::default());
+    {
+        let hub = hub.clone();
+        std::thread::spawn(move || stream::accept(streams, hub));
+    }
+    {
+        let (world, hub) = (world.to_string(), hub.clone());
+        std::thread::spawn(move || stream::pump(world, hub));
+    }
+    on_listening(&listening);
+    let (world, timeout) = (world.to_string(), config.timeout);
+    std::thread::spawn(move || accept(rpc, world, timeout, listening.streaming_port, hub));
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(STOP_CHECK);
+    }
+    info!("carla-gateway stopped");
+    Ok(())
+}
+
+/// Accepts CARLA connections, each served on its own thread.
+fn accept(rpc: TcpListener, world: String, timeout: Duration, streaming_port: u16, hub: Arc<Hub>) {
+    for socket in rpc.incoming() {
+        let socket = match socket {
+            Ok(socket) => socket,
+            Err(e) => {
+                warn!("accepting a CARLA client: {e}");
+                continue;
+            }
+        };
+        let Ok(peer) = socket.peer_addr() else {
+            continue;
+        };
+        let (world, hub) = (world.clone(), hub.clone());
+        let spawned = std::thread::Builder::new()
+            .name("carla-session".into())
+            .stack_size(SESSION_STACK)
+            .spawn(move || Session::new(world, timeout, peer, streaming_port, hub).serve(socket));
+        if let Err(e) = spawned {
+            warn!("no thread for a CARLA client: {e}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::streaming_port;
+
+    #[test]
+    fn the_streaming_port_never_wraps_nor_lands_on_a_privileged_port_unasked() {
+        assert_eq!(streaming_port(2000, None).ok(), Some(2001));
+        assert_eq!(streaming_port(0, None).ok(), Some(0), "--port 0: both free");
+        assert_eq!(streaming_port(1023, None).ok(), Some(1024));
+        assert!(streaming_port(65535, None).is_err(), "65535 + 1 wraps");
+        assert!(streaming_port(1, None).is_err(), "port 2 is privileged");
+        assert!(
+            streaming_port(1022, None).is_err(),
+            "port 1023 is privileged"
+        );
+        // Asked for: as given.
+        assert_eq!(streaming_port(65535, Some(40000)).ok(), Some(40000));
+        assert_eq!(streaming_port(1, Some(2)).ok(), Some(2));
+        assert_eq!(streaming_port(0, Some(0)).ok(), Some(0));
+    }
+}

@@ -1,0 +1,217 @@
+//! Sensor streams: while a CARLA client listens to a sensor, a forwarder
+//! thread reads its captures from shared memory and sends each as the
+//! message CARLA's client decodes (`carla.Image` in the depth encoding,
+//! `carla.LidarMeasurement`, `carla.IMUMeasurement`).
+
+use std::sync::mpsc;
+use std::sync::Arc;
+use std::time::Duration;
+
+use rmpv::Value;
+use shared_types::SensorSpec;
+use sim_client::{Capture, Client, WaitError};
+use tracing::{debug, info};
+
+use crate::convert;
+use crate::error::{CallError, Source};
+use crate::stream::{lock, Hub};
+use crate::wire::{self as carla, SENSOR_ID_BASE};
+
+/// The CARLA actor id (and stream id) of simbus sensor `id`.
+pub(crate) fn carla_id(simbus_id: u64) -> Option<u32> {
+    u32::try_from(simbus_id)
+        .ok()
+        .and_then(|n| n.checked_add(SENSOR_ID_BASE))
+}
+
+/// The simbus sensor behind CARLA actor `id`, if it names one.
+pub(crate) fn simbus_id(id: u32) -> Option<u64> {
+    id.checked_sub(SENSOR_ID_BASE)
+        .filter(|&n| n > 0)
+        .map(u64::from)
+}
+
+/// A client will connect to sensor stream `stream` (it asked for its
+/// token): make sure a forwarder feeds it, subscribed before this returns,
+/// so that every capture from now on reaches the listener.
+pub(crate) fn expect(
+    hub: &Arc<Hub>,
+    world: &str,
+    stream: u32,
+    timeout: Duration,
+) -> Result<(), CallError> {
+    let spec = {
+        let registry = lock(&hub.registry);
+        registry.sensors.get(&stream).map(|s| (s.simbus_id, s.spec))
+    };
+    let Some((simbus_id, spec)) = spec else {
+        return Err(CallError::NoSensorStream(stream));
+    };
+    if !hub.expect(stream) {
+        return Ok(());
+    }
+    let (ready, started) = mpsc::channel();
+    let (hub2, world) = (hub.clone(), world.to_string());
+    std::thread::spawn(move || forward(&hub2, &world, stream, simbus_id, spec, &ready));
+    match started.recv_timeout(timeout) {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => {
+            hub.forwarder_failed(stream);
+            Err(e)
+        }
+        Err(_) => Err(CallError::SensorTimeout {
+            id: simbus_id,
+            timeout,
+        }),
+    }
+}
+
+fn forward(
+    hub: &Hub,
+    world: &str,
+    stream: u32,
+    simbus_id: u64,
+    spec: SensorSpec,
+    ready: &mpsc::Sender<Result<(), CallError>>,
+) {
+    let opened = Client::connect(world, Duration::from_secs(5))
+        .map_err(|e| Arc::new(e) as Source)
+        .and_then(|client| {
+            let sensor = client
+                .sensor(simbus_id)
+                .map_err(|e| Arc::new(e) as Source)?;
+            Ok((client.server_pid(), sensor))
+        });
+    let (server_pid, mut sensor) = match opened {
+        Ok(opened) => opened,
+        Err(e) => {
+            let _ = ready.send(Err(CallError::SensorOpen {
+                id: simbus_id,
+                source: e,
+            }));
+            return;
+        }
+    };
+    let _ = ready.send(Ok(()));
+    info!(sensor = simbus_id, "forwarding a sensor to CARLA listeners");
+    loop {
+        match sensor.recv(Duration::from_millis(500)) {
+            Ok(capture) => {
+                let h = capture.header();
+                hub.after_world_state(server_pid, h.episode, h.frame, Duration::from_millis(200));
+                if let Some(message) = message(&capture, &spec) {
+                    hub.send(stream, &message);
+                }
+            }
+            Err(WaitError::NoCapture { .. }) => {}
+            Err(e) => {
+                debug!(sensor = simbus_id, "sensor stream ended: {e}");
+                lock(&hub.registry).sensors.remove(&stream);
+                hub.close(stream);
+                return;
+            }
+        }
+        if hub.retire(stream) {
+            debug!(sensor = simbus_id, "nobody listens any more");
+            return;
+        }
+    }
+}
+
+/// One capture as CARLA's stream message.
+pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
+    let h = capture.header();
+    let transform = convert::transform(h.position, h.rotation);
+    let elapsed = shared_types::nanos_to_seconds(h.elapsed_ns);
+    let sensor_type = match capture {
+        Capture::Depth(_) => carla::DEPTH_SENSOR_TYPE,
+        Capture::Lidar(_) => carla::LIDAR_SENSOR_TYPE,
+        Capture::Imu(_) => carla::IMU_SENSOR_TYPE,
+    };
+    // Room for the headers and the payload: one allocation for an image.
+    let room = carla::SENSOR_HEADER_LEN + carla::IMAGE_HEADER_LEN + capture.bytes().len();
+    let mut out = Vec::with_capacity(room);
+    carla::sensor_header(&mut out, sensor_type, h.frame, elapsed, transform);
+    match capture {
+        Capture::Depth(_) => depth(&mut out, capture, spec)?,
+        Capture::Lidar(_) => lidar(&mut out, capture, spec)?,
+        Capture::Imu(_) => imu(&mut out, capture)?,
+    }
+    Some(out)
+}
+
+/// A depth capture as `carla.Image`'s payload: the image header, then
+/// CARLA's depth encoding per pixel.
+fn depth(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
+    let depth = capture.depth()?;
+    let [w, hgt] = capture.header().size;
+    out.reserve(carla::IMAGE_HEADER_LEN + depth.len() * 4);
+    carla::image_header(out, w, hgt, spec.params[2]);
+    for &d in depth {
+        out.extend_from_slice(&carla::depth_pixel(d));
+    }
+    Some(())
+}
+
+/// A lidar capture as `carla.LidarMeasurement`'s payload: the points per
+/// channel, then each return in CARLA's axes.
+fn lidar(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
+    let points = capture.points()?;
+    let [channels, ..] = capture.header().size;
+    let [_, _, _, upper, lower, ..] = spec.params;
+    let channel_of = |p: &shared_types::LidarPoint| {
+        if channels <= 1 {
+            return 0;
+        }
+        let r = (p.x * p.x + p.y * p.y + p.z * p.z)
+            .sqrt()
+            .max(f32::MIN_POSITIVE);
+        let elevation = (p.y / r).clamp(-1.0, 1.0).asin().to_degrees();
+        let c = ((upper - elevation) / (upper - lower) * (channels - 1) as f32).round();
+        (c.max(0.0) as usize).min(channels as usize - 1)
+    };
+    let mut counts = vec![0u32; channels.max(1) as usize];
+    for p in points {
+        counts[channel_of(p)] += 1;
+    }
+    let angle = points
+        .last()
+        .map_or(0.0, |p| p.z.atan2(p.x).rem_euclid(std::f32::consts::TAU));
+    carla::lidar_header(out, angle, &counts);
+    // simbus writes the returns channel by channel, as CARLA reads them.
+    for p in points {
+        let [x, y, z] = convert::vector([p.x, p.y, p.z]);
+        for v in [x, y, z, p.intensity] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    Some(())
+}
+
+/// An IMU capture as `carla.IMUMeasurement`'s payload (msgpack):
+/// accelerometer, gyroscope (rad/s) and compass, in CARLA's axes.
+fn imu(out: &mut Vec<u8>, capture: &Capture) -> Option<()> {
+    let imu = capture.imu()?;
+    let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
+    let gyro = convert::angular_velocity(imu.gyroscope).map(f32::to_radians);
+    let payload = Value::Array(vec![
+        vector(convert::vector(imu.accelerometer)),
+        vector(gyro),
+        Value::F32(convert::compass(capture.header().rotation)),
+    ]);
+    rmpv::encode::write_value(out, &payload).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sensor_ids_map_both_ways_and_stay_apart_from_actors() {
+        assert_eq!(carla_id(3), Some(SENSOR_ID_BASE + 3));
+        assert_eq!(simbus_id(SENSOR_ID_BASE + 3), Some(3));
+        assert_eq!(simbus_id(42), None);
+        assert_eq!(simbus_id(SENSOR_ID_BASE), None);
+        assert_eq!(carla_id(u64::MAX), None);
+    }
+}

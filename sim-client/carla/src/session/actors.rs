@@ -1,0 +1,442 @@
+//! The actors' calls: records and bounding boxes, spawns (bodies through a
+//! simbus batch, sensors through simbus's sensor service), destruction,
+//! batches with their `.then(...)` commands, and the calls on one actor.
+
+use rmpv::Value;
+use shared_types::{ActorKind, CommandStatus};
+use tracing::debug;
+
+use super::Session;
+use crate::blueprints::{self, Description, Spawn};
+use crate::commands::{self, BatchCommand, Op};
+use crate::error::CallError;
+use crate::rpc::Answer;
+use crate::sensors;
+use crate::stream::{lock, SensorEntry};
+use crate::wire::{token, CarlaTransform};
+
+/// One result per command of a batch: the actor's CARLA id, or why not.
+type Results = Vec<Result<u32, CallError>>;
+
+impl Session {
+    pub(super) fn on_get_actors_by_id(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let ids = args
+            .first()
+            .and_then(Value::as_array)
+            .ok_or(CallError::Shape {
+                method: "get_actors_by_id",
+                what: "no id list",
+            })?;
+        let records = ids
+            .iter()
+            .filter_map(commands::actor_id)
+            .filter_map(|id| self.actor_record(id))
+            .collect();
+        Ok(Answer::Value(Value::Array(records)))
+    }
+
+    pub(super) fn on_get_actor_definitions(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(blueprints::library()))
+    }
+
+    pub(super) fn on_get_actor_bounding_box(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let id = args
+            .first()
+            .and_then(commands::actor_id)
+            .ok_or(CallError::Shape {
+                method: "get_actor_bounding_box",
+                what: "no actor id",
+            })?;
+        let extent = lock(&self.hub.actors)
+            .get(&id)
+            .map_or([0.0; 3], |a| a.extent);
+        Ok(Answer::Value(bounding_box(id, extent)))
+    }
+
+    pub(super) fn on_spawn_actor(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        self.spawn_call("spawn_actor", args, false)
+    }
+
+    pub(super) fn on_spawn_actor_with_parent(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        self.spawn_call("spawn_actor_with_parent", args, true)
+    }
+
+    /// `spawn_actor` (description, transform) and
+    /// `spawn_actor_with_parent` (and the parent's id): the actor's record.
+    fn spawn_call(
+        &mut self,
+        method: &'static str,
+        args: &[Value],
+        with_parent: bool,
+    ) -> Result<Answer, CallError> {
+        let description = Description::parse(args.first().unwrap_or(&Value::Nil))
+            .map_err(|source| CallError::Description { method, source })?;
+        let transform = args
+            .get(1)
+            .and_then(commands::transform)
+            .ok_or(CallError::Shape {
+                method,
+                what: "the transform is of the wrong shape",
+            })?;
+        let parent = match with_parent {
+            false => None,
+            true => Some(
+                args.get(2)
+                    .and_then(commands::actor_id)
+                    .ok_or(CallError::Shape {
+                        method,
+                        what: "the parent is not an actor id",
+                    })?,
+            ),
+        };
+        let id = self.spawn(&description, &transform, parent)?;
+        let record = self.actor_record(id).ok_or(CallError::Vanished(id))?;
+        Ok(Answer::Value(record))
+    }
+
+    pub(super) fn on_destroy_actor(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let id = args
+            .first()
+            .and_then(commands::actor_id)
+            .ok_or(CallError::Shape {
+                method: "destroy_actor",
+                what: "no actor id",
+            })?;
+        let results = self.run_batch(vec![Ok(BatchCommand::Actor(id, Op::Destroy))]);
+        results.into_iter().next().unwrap_or(Ok(id))?;
+        Ok(Answer::Value(Value::Boolean(true)))
+    }
+
+    /// CARLA's `apply_batch`/`apply_batch_sync`: one `Response<ActorId>`
+    /// per command, not wrapped; a tick after, if asked.
+    pub(super) fn on_apply_batch(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let list = args
+            .first()
+            .and_then(Value::as_array)
+            .ok_or(CallError::Shape {
+                method: "apply_batch",
+                what: "no command list",
+            })?;
+        let batch = list
+            .iter()
+            .map(|c| commands::batch_command(c, None))
+            .collect();
+        let results = self.run_batch(batch);
+        if args.get(1).and_then(Value::as_bool) == Some(true) {
+            self.tick()?;
+        }
+        let responses = results
+            .into_iter()
+            .map(|r| match r {
+                Ok(id) => Value::Array(vec![Value::Array(vec![Value::from(1u8), Value::from(id)])]),
+                Err(e) => Value::Array(vec![Value::Array(vec![
+                    Value::from(0u8),
+                    Value::Array(vec![Value::from(e.to_string())]),
+                ])]),
+            })
+            .collect();
+        Ok(Answer::Raw(Value::Array(responses)))
+    }
+
+    /// A call on one actor (`set_actor_transform`, ...): `void` says
+    /// whether CARLA answers it with `Response<void>`.
+    pub(super) fn on_actor_op(
+        &mut self,
+        (id, op): (u32, Op),
+        void: bool,
+    ) -> Result<Answer, CallError> {
+        let results = self.run_batch(vec![Ok(BatchCommand::Actor(id, op))]);
+        results.into_iter().next().unwrap_or(Ok(id))?;
+        Ok(if void {
+            Answer::Done
+        } else {
+            Answer::Value(Value::Nil)
+        })
+    }
+
+    /// CARLA's `rpc::Actor` of actor `id`, if the world has it.
+    fn actor_record(&self, id: u32) -> Option<Value> {
+        let registry = lock(&self.hub.registry);
+        if let Some(sensor) = registry.sensors.get(&id) {
+            return Some(actor_record(
+                id,
+                sensor.parent,
+                sensor.description.clone(),
+                [0.0; 3],
+                Value::Binary(token(id, self.streaming_port).to_vec()),
+            ));
+        }
+        let (kind, extent) = match lock(&self.hub.actors).get(&id) {
+            Some(a) => (a.kind, a.extent),
+            None => {
+                // Spawned through the gateway, not in a frame yet.
+                let description = registry.descriptions.get(&id)?;
+                let uid = description.as_array()?.first()?.as_u64()?;
+                (blueprints::kind_of_uid(uid), [0.0; 3])
+            }
+        };
+        let description = registry.descriptions.get(&id).cloned().unwrap_or_else(|| {
+            Value::Array(vec![
+                Value::from(kind),
+                Value::from(type_id(kind)),
+                Value::Array(Vec::new()),
+            ])
+        });
+        Some(actor_record(
+            id,
+            0,
+            description,
+            extent,
+            Value::Binary(Vec::new()),
+        ))
+    }
+
+    /// Spawns one actor (a sensor through simbus's sensor service, a body
+    /// through a batch) and returns its CARLA id.
+    fn spawn(
+        &mut self,
+        description: &Description,
+        transform: &CarlaTransform,
+        parent: Option<u32>,
+    ) -> Result<u32, CallError> {
+        let spawn = description.spawn(transform).map_err(CallError::Spawn)?;
+        let id = match spawn {
+            Spawn::Body(command) => {
+                if let Some(parent) = parent {
+                    return Err(CallError::OnlySensorsAttach {
+                        blueprint: description.id.clone(),
+                        parent,
+                    });
+                }
+                self.apply(&[command])?
+                    .into_iter()
+                    .next()
+                    .unwrap_or(Err(CallError::NoAnswer))?
+            }
+            Spawn::Sensor(spec) => return self.spawn_sensor(description, spec, parent),
+        };
+        lock(&self.hub.registry)
+            .descriptions
+            .insert(id, description.record());
+        Ok(id)
+    }
+
+    /// Spawns a sensor through simbus's sensor service, on `parent` if
+    /// given, and registers it for the streams.
+    fn spawn_sensor(
+        &mut self,
+        description: &Description,
+        spec: shared_types::SensorSpec,
+        parent: Option<u32>,
+    ) -> Result<u32, CallError> {
+        let parent = parent.unwrap_or(0);
+        if sensors::simbus_id(parent).is_some() {
+            return Err(CallError::SensorOnSensor(parent));
+        }
+        let spec = spec.attached_to(u64::from(parent));
+        let info = self
+            .client()?
+            .create_sensor(spec)
+            .map_err(CallError::simbus)?;
+        let id = sensors::carla_id(info.id).ok_or(CallError::SensorIdRange(info.id))?;
+        lock(&self.hub.registry).sensors.insert(
+            id,
+            SensorEntry {
+                simbus_id: info.id,
+                spec,
+                description: description.record(),
+                parent,
+            },
+        );
+        Ok(id)
+    }
+
+    /// Applies simbus commands in one batch: per command, the actor's id or
+    /// why it failed.
+    fn apply(&mut self, batch: &[shared_types::Command]) -> Result<Results, CallError> {
+        if batch.is_empty() {
+            return Ok(Vec::new());
+        }
+        let response = self
+            .client()?
+            .apply_batch_sync(batch, false)
+            .map_err(CallError::simbus)?;
+        Ok(response
+            .results
+            .iter()
+            .zip(batch)
+            .map(|(r, c)| match CommandStatus::from_u32(r.status) {
+                Some(CommandStatus::Ok) => {
+                    u32::try_from(r.actor).map_err(|_| CallError::ActorIdRange(r.actor))
+                }
+                status => {
+                    let status = status.unwrap_or(CommandStatus::UnknownCommand);
+                    Err(match c.actor {
+                        0 => CallError::SpawnRefused(status),
+                        actor => CallError::CommandRefused { actor, status },
+                    })
+                }
+            })
+            .collect())
+    }
+
+    /// Runs CARLA commands in order: one simbus batch for the commands on
+    /// bodies, sensors through the sensor service, then every spawned
+    /// actor's `.then(...)` commands. One result per command.
+    fn run_batch(&mut self, batch: Vec<Result<BatchCommand, CallError>>) -> Results {
+        let mut results: Results = Vec::with_capacity(batch.len());
+        let mut simbus = Vec::new();
+        let mut slots = Vec::new();
+        let mut after = Vec::new();
+        for (i, command) in batch.into_iter().enumerate() {
+            let result = match command {
+                Err(e) => Err(e),
+                Ok(BatchCommand::Spawn {
+                    description,
+                    transform,
+                    parent,
+                    then,
+                }) => match description.spawn(&transform) {
+                    Ok(Spawn::Body(command)) if parent.is_none() => {
+                        slots.push(i);
+                        simbus.push(command);
+                        after.push((i, then, description));
+                        Ok(0)
+                    }
+                    _ => {
+                        let id = self.spawn(&description, &transform, parent);
+                        if let Ok(id) = id {
+                            self.then(id, &then);
+                        }
+                        id
+                    }
+                },
+                Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::simbus_id(id).is_some() => {
+                    self.destroy_sensor(id)
+                }
+                Ok(BatchCommand::Actor(id, op)) => {
+                    let last = lock(&self.hub.actors).get(&id).copied();
+                    op.command(id, last.as_ref()).map(|command| {
+                        slots.push(i);
+                        simbus.push(command);
+                        if let Op::Control(control) = op {
+                            lock(&self.hub.registry).controls.insert(id, control);
+                        }
+                        id
+                    })
+                }
+            };
+            results.push(result);
+        }
+        self.apply_in_slots(&simbus, slots, &mut results);
+        for (i, then, description) in after {
+            if let Ok(id) = results[i] {
+                lock(&self.hub.registry)
+                    .descriptions
+                    .insert(id, description.record());
+                self.then(id, &then);
+            }
+        }
+        results
+    }
+
+    /// Applies the batch's simbus commands, each result into its command's
+    /// slot (a failed batch fails each of them).
+    fn apply_in_slots(
+        &mut self,
+        simbus: &[shared_types::Command],
+        slots: Vec<usize>,
+        results: &mut Results,
+    ) {
+        match self.apply(simbus) {
+            Ok(applied) => {
+                for (slot, result) in slots.into_iter().zip(applied) {
+                    results[slot] = result;
+                }
+            }
+            Err(e) => {
+                for slot in slots {
+                    results[slot] = Err(e.clone());
+                }
+            }
+        }
+    }
+
+    /// A spawned actor's `.then(...)` commands (their results are not
+    /// reported, as in CARLA).
+    fn then(&mut self, id: u32, then: &[Value]) {
+        if then.is_empty() {
+            return;
+        }
+        // One level: a spawn inside `.then(...)` is refused, so a nested
+        // chain from a client cannot recurse the gateway's stack away.
+        let batch = then
+            .iter()
+            .map(|c| match commands::batch_command(c, Some(id)) {
+                Ok(BatchCommand::Spawn { .. }) => Err(CallError::SpawnInThen),
+                other => other,
+            })
+            .collect();
+        for result in self.run_batch(batch) {
+            if let Err(e) = result {
+                debug!(peer = %self.peer, actor = id, "a .then() command failed: {e}");
+            }
+        }
+    }
+
+    fn destroy_sensor(&mut self, id: u32) -> Result<u32, CallError> {
+        let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
+        self.client()?
+            .destroy_sensor(simbus_id)
+            .map_err(CallError::simbus)?;
+        lock(&self.hub.registry).sensors.remove(&id);
+        Ok(id)
+    }
+}
+
+/// CARLA's type id of a simbus actor kind.
+fn type_id(kind: u32) -> &'static str {
+    match ActorKind::from_u32(kind) {
+        Some(ActorKind::Box) => "static.prop.box",
+        Some(ActorKind::Sphere) => "static.prop.sphere",
+        Some(ActorKind::Capsule) => "static.prop.capsule",
+        Some(ActorKind::Vehicle) => "vehicle.simbus.car",
+        _ => "static.prop.fixed",
+    }
+}
+
+/// CARLA's `BoundingBox` of actor `id`: centred, `extent` half sizes.
+fn bounding_box(id: u32, extent: [f32; 3]) -> Value {
+    let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
+    Value::Array(vec![
+        vector([0.0; 3]),
+        vector(extent),
+        vector([0.0; 3]),
+        Value::from(id),
+    ])
+}
+
+/// CARLA's `rpc::Actor`: id, parent, description, bounding box, no
+/// semantic tags, and the stream token (sensors only).
+fn actor_record(
+    id: u32,
+    parent: u32,
+    description: Value,
+    extent: [f32; 3],
+    stream: Value,
+) -> Value {
+    Value::Array(vec![
+        Value::from(id),
+        Value::from(parent),
+        description,
+        bounding_box(id, extent),
+        Value::Binary(Vec::new()),
+        stream,
+    ])
+}

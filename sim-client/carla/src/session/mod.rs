@@ -1,0 +1,258 @@
+//! One CARLA connection: its own simbus client (and, once it turns
+//! synchronous mode on, its own claim on the world's tick ownership), and
+//! what each CARLA call it makes does to the world.
+//!
+//! A [`Session`] waits in one place, for the connection's next request
+//! ([`Session::serve`]), and answers it through a table ([`call_of`]):
+//! one `on_…` method per CARLA call, grouped by concern in the modules
+//! below.
+
+mod actors;
+mod recorder;
+pub(crate) mod settings;
+mod world;
+
+use std::io::{BufReader, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::Arc;
+use std::time::Duration;
+
+use rmpv::Value;
+use sim_client::{Client, Ticker};
+use tracing::{debug, info, warn};
+
+use crate::commands;
+use crate::error::CallError;
+use crate::rpc::{self, Answer, ReadError, Request};
+use crate::stream::Hub;
+
+/// The calls answered with `Response<void>` by CARLA (their errors have
+/// another shape).
+const VOID_CALLS: &[&str] = &[
+    "load_new_episode",
+    "set_actor_simulate_physics",
+    "set_actor_collisions",
+    "copy_opendrive_to_file",
+];
+
+/// How long a call waits for the world's server to answer a (re)connection.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a client that stops reading its answers may block one.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// What answers one CARLA call: the session and the call's arguments.
+type Call = fn(&mut Session, &[Value]) -> Result<Answer, CallError>;
+
+/// The table of CARLA calls: the method answering `method`, if simbus
+/// serves it (besides the calls on one actor, [`commands::rpc_op`]).
+fn call_of(method: &str) -> Option<Call> {
+    Some(match method {
+        "version" => Session::on_version,
+        "get_episode_info" => Session::on_get_episode_info,
+        "get_sensor_token" => Session::on_get_sensor_token,
+        "get_episode_settings" => Session::on_get_episode_settings,
+        "set_episode_settings" => Session::on_set_episode_settings,
+        "tick_cue" => Session::on_tick_cue,
+        "get_map_info" => Session::on_get_map_info,
+        "get_map_data" => Session::on_get_map_data,
+        "get_available_maps" => Session::on_get_available_maps,
+        "get_weather_parameters" => Session::on_get_weather_parameters,
+        "load_new_episode" => Session::on_load_new_episode,
+        "get_required_files" | "query_lights_state" | "get_vehicle_light_states" => {
+            Session::on_empty_list
+        }
+        "get_actors_by_id" => Session::on_get_actors_by_id,
+        "get_actor_definitions" => Session::on_get_actor_definitions,
+        "get_actor_bounding_box" => Session::on_get_actor_bounding_box,
+        "spawn_actor" => Session::on_spawn_actor,
+        "spawn_actor_with_parent" => Session::on_spawn_actor_with_parent,
+        "destroy_actor" => Session::on_destroy_actor,
+        "apply_batch" => Session::on_apply_batch,
+        "start_recorder" => Session::on_start_recorder,
+        "stop_recorder" => Session::on_stop_recorder,
+        "replay_file" => Session::on_replay_file,
+        "stop_replayer" => Session::on_stop_replayer,
+        "set_replayer_time_factor" => Session::on_set_replayer_time_factor,
+        "show_recorder_file_info" => Session::on_show_recorder_file_info,
+        "show_recorder_collisions" => Session::on_show_recorder_collisions,
+        "show_recorder_actors_blocked" => Session::on_show_recorder_actors_blocked,
+        _ => return None,
+    })
+}
+
+/// One CARLA connection.
+pub(crate) struct Session {
+    world: String,
+    timeout: Duration,
+    peer: SocketAddr,
+    streaming_port: u16,
+    hub: Arc<Hub>,
+    client: Option<Client>,
+    ticker: Option<Ticker>,
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("peer", &self.peer)
+            .field("ticker", &self.ticker.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Session {
+    pub(crate) fn new(
+        world: String,
+        timeout: Duration,
+        peer: SocketAddr,
+        streaming_port: u16,
+        hub: Arc<Hub>,
+    ) -> Self {
+        Self {
+            world,
+            timeout,
+            peer,
+            streaming_port,
+            hub,
+            client: None,
+            ticker: None,
+        }
+    }
+
+    /// Serves the connection until it closes or misbehaves. The session
+    /// (and its tick ownership) ends with it.
+    pub(crate) fn serve(mut self, socket: TcpStream) {
+        let peer = self.peer;
+        let _ = socket.set_nodelay(true);
+        // A client that stops reading its answers is dropped.
+        let _ = socket.set_write_timeout(Some(WRITE_TIMEOUT));
+        let Ok(mut writer) = socket.try_clone() else {
+            return;
+        };
+        let mut reader = BufReader::new(socket);
+        info!(%peer, "CARLA client connected");
+        loop {
+            // The one wait point: the connection's next request.
+            let request = match rpc::read_request(&mut reader) {
+                Ok(request) => request,
+                Err(ReadError::Closed) => break,
+                Err(e) => {
+                    warn!(%peer, "dropping a CARLA client: {e}");
+                    break;
+                }
+            };
+            debug!(%peer, method = request.method, asynchronous = request.asynchronous, "CARLA call");
+            let answer = self.on_request(&request);
+            if writer
+                .write_all(&rpc::response(request.id, answer))
+                .is_err()
+            {
+                break;
+            }
+        }
+        info!(%peer, "CARLA client gone");
+    }
+
+    /// Answers one request.
+    pub(crate) fn on_request(&mut self, request: &Request) -> Answer {
+        let method = request.method.as_str();
+        let void = VOID_CALLS.contains(&method);
+        let answer = self.call(method, &request.args);
+        // A batch reports a dead server per command: look after every call.
+        self.forget_a_dead_server();
+        match answer {
+            Ok(answer) => answer,
+            Err(e) => {
+                let message = e.to_string();
+                debug!(peer = %self.peer, method, "refused: {message}");
+                if method == "apply_batch" {
+                    Answer::RpcError(message)
+                } else {
+                    Answer::Error { message, void }
+                }
+            }
+        }
+    }
+
+    /// Dispatches one call through the table.
+    fn call(&mut self, method: &str, args: &[Value]) -> Result<Answer, CallError> {
+        if let Some(call) = call_of(method) {
+            return call(self, args);
+        }
+        match commands::rpc_op(method, args) {
+            Some(op) => self.on_actor_op(op?, VOID_CALLS.contains(&method)),
+            None => Err(CallError::UnsupportedCall(method.to_string())),
+        }
+    }
+
+    /// This connection's name as a ticker: `carla:<address>`.
+    fn ticker_name(&self) -> String {
+        format!("carla:{}", self.peer)
+    }
+
+    /// The simbus client, connected on first use and again after the
+    /// server came back.
+    fn client(&mut self) -> Result<&mut Client, CallError> {
+        if self.client.is_none() {
+            // A dead server's world fails fast, well inside CARLA's timeout.
+            let connect = self.timeout.min(CONNECT_TIMEOUT);
+            let mut client = Client::connect(&self.world, connect).map_err(CallError::simbus)?;
+            client.set_request_timeout(self.timeout);
+            self.client = Some(client);
+        }
+        self.client.as_mut().ok_or(CallError::NoConnection)
+    }
+
+    /// Forgets the connection once its server is gone (the next call
+    /// connects again, to the server that came back on the world).
+    fn forget_a_dead_server(&mut self) {
+        let gone = self
+            .client
+            .as_ref()
+            .is_some_and(|c| !sim_client::process_alive(c.server_pid()));
+        if gone {
+            info!(peer = %self.peer, world = self.world, "the simbus server is gone; the next call connects again");
+            self.ticker = None;
+            self.client = None;
+        }
+    }
+}
+
+/// Argument `i` as an unsigned integer.
+fn arg_u64(args: &[Value], i: usize, method: &'static str) -> Result<u64, CallError> {
+    args.get(i)
+        .and_then(Value::as_u64)
+        .ok_or(CallError::Argument {
+            method,
+            index: i,
+            expected: "an integer",
+        })
+}
+
+/// Argument `i` as a string.
+fn arg_str(args: &[Value], i: usize, method: &'static str) -> Result<String, CallError> {
+    args.get(i)
+        .and_then(Value::as_str)
+        .map(str::to_string)
+        .ok_or(CallError::Argument {
+            method,
+            index: i,
+            expected: "a string",
+        })
+}
+
+/// Argument `i` as a number, whether sent as a float or an integer.
+fn arg_f64(args: &[Value], i: usize, method: &'static str) -> Result<f64, CallError> {
+    args.get(i)
+        .and_then(commands::number)
+        .ok_or(CallError::Argument {
+            method,
+            index: i,
+            expected: "a number",
+        })
+}
+
+/// Argument `i` as a boolean, `false` if absent or not one.
+fn arg_flag(args: &[Value], i: usize) -> bool {
+    args.get(i).and_then(Value::as_bool).unwrap_or(false)
+}

@@ -1,0 +1,206 @@
+//! The world's calls: version and episode, map, settings and ticks, and
+//! the stream tokens.
+
+use std::time::Duration;
+
+use rmpv::Value;
+use shared_types::WaitMode;
+use tracing::info;
+
+use super::settings::{default_other_fields, episode_settings, other_fields, parse_settings};
+use super::{arg_flag, arg_str, arg_u64, Session};
+use crate::error::CallError;
+use crate::rpc::Answer;
+use crate::sensors;
+use crate::stream::lock;
+use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
+
+/// A minimal OpenDRIVE map: one straight two-lane road. CARLA's client
+/// builds its map from it (`world.get_map()`); simbus scenes have no roads.
+const OPENDRIVE: &str = r#"<?xml version="1.0" standalone="yes"?>
+<OpenDRIVE>
+  <header revMajor="1" revMinor="4" name="" version="1" north="0" south="0" east="0" west="0"/>
+  <road name="r0" length="100.0" id="0" junction="-1">
+    <link/>
+    <planView><geometry s="0.0" x="0.0" y="0.0" hdg="0.0" length="100.0"><line/></geometry></planView>
+    <elevationProfile/>
+    <lateralProfile/>
+    <lanes>
+      <laneSection s="0.0">
+        <left><lane id="1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></left>
+        <center><lane id="0" type="none" level="false"><link/></lane></center>
+        <right><lane id="-1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>
+    </lanes>
+  </road>
+</OpenDRIVE>
+"#;
+
+/// The maps `get_available_maps` lists: simbus's scenes.
+const MAPS: [&str; 3] = ["default", "empty", "boxes:100"];
+
+impl Session {
+    pub(super) fn on_version(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(Value::from(CARLA_VERSION)))
+    }
+
+    /// The episode id and the world stream's token.
+    pub(super) fn on_get_episode_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        let episode = self.client()?.status().map_err(CallError::simbus)?.episode;
+        let episode = wire::episode_id(self.client()?.server_pid(), episode);
+        Ok(Answer::Value(Value::Array(vec![
+            Value::from(episode),
+            Value::Array(vec![Value::Binary(
+                token(WORLD_STREAM_ID, self.streaming_port).to_vec(),
+            )]),
+        ])))
+    }
+
+    /// A stream's token; a sensor's stream starts being forwarded.
+    pub(super) fn on_get_sensor_token(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let stream = arg_u64(args, 0, "get_sensor_token")?;
+        let stream = u32::try_from(stream).map_err(|_| CallError::NoStream(stream))?;
+        if stream != WORLD_STREAM_ID {
+            sensors::expect(&self.hub, &self.world, stream, self.timeout)?;
+        }
+        Ok(Answer::Value(Value::Array(vec![Value::Binary(
+            token(stream, self.streaming_port).to_vec(),
+        )])))
+    }
+
+    pub(super) fn on_get_episode_settings(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        let settings = self.client()?.get_settings().map_err(CallError::simbus)?;
+        let other = lock(&self.hub.other_settings).clone();
+        Ok(Answer::Value(episode_settings(&settings, &other)))
+    }
+
+    /// CARLA's `apply_settings`: entering synchronous mode makes this
+    /// connection the world's ticker (refused, naming the owner, if another
+    /// client ticks); leaving it gives the ownership back.
+    pub(super) fn on_set_episode_settings(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let settings = parse_settings(args.first()).ok_or(CallError::Shape {
+            method: "set_episode_settings",
+            what: "settings of the wrong shape",
+        })?;
+        if settings.synchronous_mode && self.ticker.is_none() {
+            let name = self.ticker_name();
+            let mut ticker = self
+                .client()?
+                .claim_ticker_as(&name)
+                .map_err(CallError::simbus)?;
+            info!(peer = %self.peer, "a CARLA connection is the ticker");
+            ticker.set_wait_mode(WaitMode::Hybrid);
+            self.ticker = Some(ticker);
+        }
+        let applied = match &mut self.ticker {
+            Some(ticker) => ticker.apply_settings(settings),
+            None => self.client()?.apply_settings(settings),
+        };
+        let frame = applied.map_err(CallError::simbus)?;
+        if !settings.synchronous_mode {
+            if let Some(ticker) = self.ticker.take() {
+                let _ = ticker.release();
+                info!(peer = %self.peer, "the CARLA ticker left synchronous mode");
+            }
+        }
+        if let Some(other) = other_fields(args.first()) {
+            *lock(&self.hub.other_settings) = other;
+        }
+        // The frame the settings hold from; the client waits for the one before.
+        Ok(Answer::Value(Value::from(frame.saturating_sub(1))))
+    }
+
+    pub(super) fn on_tick_cue(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        self.tick()
+    }
+
+    pub(super) fn on_get_map_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        let status = self.client()?.status().map_err(CallError::simbus)?;
+        let scene = status.scene.to_string_lossy();
+        Ok(Answer::Value(Value::Array(vec![
+            Value::from(scene),
+            Value::Array(Vec::new()),
+        ])))
+    }
+
+    pub(super) fn on_get_map_data(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(Value::from(OPENDRIVE)))
+    }
+
+    pub(super) fn on_get_available_maps(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(Value::Array(
+            MAPS.into_iter().map(Value::from).collect(),
+        )))
+    }
+
+    pub(super) fn on_get_weather_parameters(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(Value::Array(vec![Value::F32(0.0); 14])))
+    }
+
+    /// The calls simbus answers with an empty list (no files, no lights).
+    pub(super) fn on_empty_list(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Value(Value::Array(Vec::new())))
+    }
+
+    /// CARLA's `load_world`/`reload_world`: a scene by name, or the same
+    /// again (empty name).
+    pub(super) fn on_load_new_episode(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let scene = arg_str(args, 0, "load_new_episode")?;
+        let reset = arg_flag(args, 1);
+        let client = self.client()?;
+        let loaded = if scene.is_empty() {
+            client.reload_world(reset)
+        } else {
+            client.load_world(&scene, reset)
+        };
+        loaded.map_err(CallError::simbus)?;
+        if reset {
+            *lock(&self.hub.other_settings) = default_other_fields();
+        }
+        Ok(Answer::Done)
+    }
+
+    /// CARLA's `world.tick()`: the ticker steps a frame; in asynchronous
+    /// mode anyone may wait for the next one; in synchronous mode another
+    /// client's tick is refused naming the owner.
+    pub(super) fn tick(&mut self) -> Result<Answer, CallError> {
+        if let Some(ticker) = &mut self.ticker {
+            let frame = ticker.tick(self.timeout).map_err(CallError::simbus)?;
+            self.publish(frame);
+            return Ok(Answer::Value(Value::from(frame)));
+        }
+        let settings = self.client()?.get_settings().map_err(CallError::simbus)?;
+        if !settings.synchronous_mode {
+            let next = self.hub.last_frame() + 1;
+            return Ok(Answer::Value(Value::from(next)));
+        }
+        // Synchronous and not ours: take it if free, else say who has it.
+        let name = self.ticker_name();
+        let mut ticker = self
+            .client()?
+            .claim_ticker_as(&name)
+            .map_err(CallError::simbus)?;
+        ticker.set_wait_mode(WaitMode::Hybrid);
+        let frame = ticker.tick(self.timeout).map_err(CallError::simbus)?;
+        self.ticker = Some(ticker);
+        self.publish(frame);
+        Ok(Answer::Value(Value::from(frame)))
+    }
+
+    /// Sends the world state of `frame`, just stepped, to the CARLA clients
+    /// now (the pump would send it after its own wake-up).
+    fn publish(&mut self, frame: u64) {
+        let Some(client) = self.client.as_mut() else {
+            return;
+        };
+        let pid = client.server_pid();
+        // The frame is in shared memory already: older queued ones are
+        // skipped without waiting.
+        while let Ok(view) = client.wait_for_frame(Duration::from_millis(5)) {
+            if view.frame() >= frame {
+                crate::stream::publish(&self.hub, &view, pid);
+                return;
+            }
+        }
+    }
+}

@@ -1,0 +1,391 @@
+//! CARLA's streaming side: clients connect, write the 4-byte id of the
+//! stream they want, then read `[u32 length][message]` frames. The world
+//! stream carries one world state per simbus frame, pumped from a frame
+//! subscription of the gateway's own; each sensor stream is fed by a
+//! forwarder (`sensors.rs`) while someone listens.
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use rmpv::Value;
+use shared_types::SensorSpec;
+use sim_client::{Client, FrameView};
+use tracing::{debug, info, warn};
+
+use crate::convert;
+use crate::wire::{self as carla, CarlaActorState, CarlaTransform, CarlaVehicleControl};
+
+/// How long a subscriber may take to accept one message before it is
+/// dropped (a client that connects and never reads must not stall the rest).
+const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a handed-out sensor token waits for its connection.
+const PENDING_FOR: Duration = Duration::from_secs(10);
+/// Captures kept for a listener between `get_sensor_token` and its
+/// connection (the captures of the ticks in between).
+const BACKLOG: usize = 32;
+
+/// What the gateway knows about one actor of the last frame.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ActorInfo {
+    pub(crate) kind: u32,
+    /// Half extents in CARLA's axes.
+    pub(crate) extent: [f32; 3],
+    /// simbus pose and velocities (for sensors riding on the actor, and
+    /// commands that change one part).
+    pub(crate) position: [f32; 3],
+    pub(crate) rotation: [f32; 4],
+    pub(crate) linear: [f32; 3],
+    pub(crate) angular: [f32; 3],
+}
+
+/// A sensor spawned through the gateway.
+#[derive(Debug, Clone)]
+pub(crate) struct SensorEntry {
+    pub(crate) simbus_id: u64,
+    pub(crate) spec: SensorSpec,
+    /// CARLA's actor description it was spawned from.
+    pub(crate) description: Value,
+    /// The CARLA id of its parent (0: none).
+    pub(crate) parent: u32,
+}
+
+/// What CARLA clients spawned and set through the gateway: descriptions
+/// (for `actor.attributes`), sensors, vehicles' last controls.
+#[derive(Debug, Default)]
+pub(crate) struct Registry {
+    pub(crate) descriptions: HashMap<u32, Value>,
+    pub(crate) sensors: HashMap<u32, SensorEntry>,
+    pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
+}
+
+/// One stream's readers, and what waits for a reader about to connect.
+#[derive(Debug, Default)]
+struct Stream {
+    readers: Vec<TcpStream>,
+    /// Tokens handed out whose connection has not come yet.
+    pending: Vec<Instant>,
+    backlog: Vec<Vec<u8>>,
+    /// A forwarder feeds it.
+    forwarded: bool,
+}
+
+impl Stream {
+    fn expecting(&mut self) -> bool {
+        self.pending.retain(|at| at.elapsed() < PENDING_FOR);
+        !self.pending.is_empty()
+    }
+}
+
+/// The streams and who reads them, and what the gateway keeps for CARLA
+/// clients about the world.
+#[derive(Debug)]
+pub(crate) struct Hub {
+    streams: Mutex<HashMap<u32, Stream>>,
+    /// The actors of the last frame.
+    pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
+    pub(crate) registry: Mutex<Registry>,
+    /// (server pid, episode, frame) of the last world state sent.
+    sent: Mutex<Sent>,
+    sent_changed: Condvar,
+    /// The `EpisodeSettings` fields simbus does not have, as last set.
+    pub(crate) other_settings: Mutex<Vec<Value>>,
+}
+
+impl Default for Hub {
+    fn default() -> Self {
+        Self {
+            streams: Mutex::default(),
+            actors: Mutex::default(),
+            registry: Mutex::default(),
+            sent: Mutex::default(),
+            sent_changed: Condvar::default(),
+            other_settings: Mutex::new(crate::session::settings::default_other_fields()),
+        }
+    }
+}
+
+/// (server pid, episode, frame) of a world state.
+type Sent = (u32, u64, u64);
+
+/// Locks `m`, even if a thread panicked holding it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Hub {
+    /// Sends `message` to every reader of `stream`; a reader that fails is
+    /// dropped. With no reader yet but one expected, the message waits.
+    pub(crate) fn send(&self, stream: u32, message: &[u8]) {
+        let mut streams = lock(&self.streams);
+        let Some(s) = streams.get_mut(&stream) else {
+            return;
+        };
+        if s.readers.is_empty() {
+            if s.expecting() {
+                if s.backlog.len() == BACKLOG {
+                    s.backlog.remove(0);
+                }
+                s.backlog.push(message.to_vec());
+            }
+            return;
+        }
+        s.readers
+            .retain_mut(|reader| write_message(reader, message, stream));
+    }
+
+    /// The frame of the last world state sent.
+    pub(crate) fn last_frame(&self) -> u64 {
+        lock(&self.sent).2
+    }
+
+    /// Waits (at most `timeout`) until the world state of `frame` of
+    /// `episode` went out. Sensor messages follow their frame's world
+    /// state: CARLA's client may hold Python's GIL until it sees the frame
+    /// (`apply_batch_sync(..., True)`), and a sensor callback arriving first
+    /// would block the thread that must read it.
+    pub(crate) fn after_world_state(
+        &self,
+        server_pid: u32,
+        episode: u64,
+        frame: u64,
+        timeout: Duration,
+    ) {
+        let sent = lock(&self.sent);
+        let _ = self
+            .sent_changed
+            .wait_timeout_while(sent, timeout, |&mut (p, e, f)| {
+                p == server_pid && e == episode && f < frame
+            });
+    }
+
+    /// Whether a forwarder of `stream` may stop: nobody reads or is about
+    /// to. If so it is marked stopped, atomically with the check.
+    pub(crate) fn retire(&self, stream: u32) -> bool {
+        let mut streams = lock(&self.streams);
+        let Some(s) = streams.get_mut(&stream) else {
+            return true;
+        };
+        if s.readers.is_empty() && !s.expecting() {
+            s.forwarded = false;
+            s.backlog.clear();
+            return true;
+        }
+        false
+    }
+
+    /// A token for `stream` was handed out: keep its messages until the
+    /// connection comes. Returns whether a forwarder must be started.
+    pub(crate) fn expect(&self, stream: u32) -> bool {
+        let mut streams = lock(&self.streams);
+        let s = streams.entry(stream).or_default();
+        s.pending.push(Instant::now());
+        !std::mem::replace(&mut s.forwarded, true)
+    }
+
+    /// The forwarder of `stream` could not start.
+    pub(crate) fn forwarder_failed(&self, stream: u32) {
+        if let Some(s) = lock(&self.streams).get_mut(&stream) {
+            s.forwarded = false;
+            s.pending.pop();
+        }
+    }
+
+    /// Closes every reader of `stream` (the sensor is gone).
+    pub(crate) fn close(&self, stream: u32) {
+        lock(&self.streams).remove(&stream);
+    }
+
+    fn subscribe(&self, stream: u32, mut socket: TcpStream) {
+        let mut streams = lock(&self.streams);
+        let s = streams.entry(stream).or_default();
+        s.pending.pop();
+        for message in s.backlog.drain(..) {
+            if !write_message(&mut socket, &message, stream) {
+                return;
+            }
+        }
+        s.readers.push(socket);
+    }
+}
+
+fn write_message(reader: &mut TcpStream, message: &[u8], stream: u32) -> bool {
+    let length = (message.len() as u32).to_le_bytes();
+    let sent = reader
+        .write_all(&length)
+        .and_then(|()| reader.write_all(message));
+    if let Err(e) = &sent {
+        debug!(stream, "stream reader dropped: {e}");
+    }
+    sent.is_ok()
+}
+
+/// Accepts stream subscriptions until the listener fails.
+pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
+    for socket in listener.incoming() {
+        let Ok(mut socket) = socket else {
+            continue;
+        };
+        let hub = hub.clone();
+        // The id comes first; a client that never sends it holds one thread
+        // for at most the timeout.
+        std::thread::spawn(move || {
+            let _ = socket.set_read_timeout(Some(Duration::from_secs(10)));
+            let mut id = [0u8; 4];
+            if socket.read_exact(&mut id).is_err() {
+                return;
+            }
+            let stream = u32::from_le_bytes(id);
+            let _ = socket.set_nodelay(true);
+            let _ = socket.set_write_timeout(Some(WRITE_TIMEOUT));
+            debug!(stream, peer = ?socket.peer_addr().ok(), "stream subscribed");
+            hub.subscribe(stream, socket);
+        });
+    }
+}
+
+/// The world state of `frame` as CARLA's client reads it: simbus's actors
+/// (vehicles with their last control) and the gateway's sensors, placed on
+/// their parents in `actors`.
+fn world_state(
+    frame: &FrameView,
+    server_pid: u32,
+    actors: &HashMap<u32, ActorInfo>,
+    registry: &Registry,
+) -> Vec<u8> {
+    let t = frame.timestamp();
+    let mut out = Vec::with_capacity(
+        carla::SENSOR_HEADER_LEN
+            + carla::EPISODE_HEADER_LEN
+            + (actors.len() + registry.sensors.len()) * carla::ACTOR_STATE_LEN,
+    );
+    carla::sensor_header(
+        &mut out,
+        carla::WORLD_STATE_SENSOR_TYPE,
+        t.frame,
+        t.elapsed_seconds(),
+        CarlaTransform::default(),
+    );
+    carla::episode_header(
+        &mut out,
+        carla::episode_id(server_pid, frame.episode()),
+        t.platform_timestamp,
+        t.delta_seconds() as f32,
+    );
+    for actor in frame.actors() {
+        let mut state = convert::actor(actor);
+        if actor.actor_kind() == Some(shared_types::ActorKind::Vehicle) {
+            state.vehicle = Some(
+                registry
+                    .controls
+                    .get(&state.id)
+                    .copied()
+                    .unwrap_or_default(),
+            );
+        }
+        carla::actor_state(&mut out, &state);
+    }
+    for (&id, sensor) in &registry.sensors {
+        let Some(pose) = sensor_pose(sensor, actors) else {
+            continue;
+        };
+        let state = CarlaActorState {
+            id,
+            transform: convert::transform(pose.0, pose.1),
+            ..CarlaActorState::default()
+        };
+        carla::actor_state(&mut out, &state);
+    }
+    out
+}
+
+/// Where a sensor is: on its parent, or fixed in the world.
+fn sensor_pose(
+    sensor: &SensorEntry,
+    actors: &HashMap<u32, ActorInfo>,
+) -> Option<([f32; 3], [f32; 4])> {
+    let rotation = match sensor.spec.rotation {
+        [0.0, 0.0, 0.0, 0.0] => [0.0, 0.0, 0.0, 1.0],
+        q => q,
+    };
+    let offset = (sensor.spec.position, rotation);
+    if sensor.parent == 0 {
+        return Some(offset);
+    }
+    actors
+        .get(&sensor.parent)
+        .map(|parent| convert::compose((parent.position, parent.rotation), offset))
+}
+
+/// Streams every frame of `world` as a world state until the process ends;
+/// reconnects when the server comes back.
+pub(crate) fn pump(world: String, hub: Arc<Hub>) {
+    loop {
+        let mut client = match Client::connect(&world, Duration::from_secs(5)) {
+            Ok(client) => client,
+            Err(e) => {
+                debug!("world stream waits for the server: {e}");
+                std::thread::sleep(Duration::from_millis(200));
+                continue;
+            }
+        };
+        client.set_every_frame(true);
+        info!(world, "streaming the world's frames to CARLA clients");
+        loop {
+            match client.wait_for_frame(Duration::from_secs(1)) {
+                Ok(frame) => publish(&hub, &frame, client.server_pid()),
+                Err(sim_client::WaitError::Timeout { .. }) => {}
+                Err(e) => {
+                    warn!("world stream lost the server: {e}");
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// Sends the world state of `frame` (of the server `server_pid`) unless a
+/// newer one went out: the pump sends every frame, and a CARLA ticker's
+/// session sends the frame it stepped at once, saving the pump's wake-up.
+pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
+    let episode = frame.episode();
+    let mut sent = lock(&hub.sent);
+    let (p, e, f) = *sent;
+    if p == server_pid && e == episode && f >= frame.frame() {
+        return;
+    }
+    let actors: HashMap<u32, ActorInfo> = frame
+        .actors()
+        .iter()
+        .map(|a| {
+            let info = ActorInfo {
+                kind: a.kind,
+                extent: convert::vector(a.extent),
+                position: a.position,
+                rotation: a.rotation,
+                linear: a.linear_velocity,
+                angular: a.angular_velocity,
+            };
+            (convert::actor_id(a.id), info)
+        })
+        .collect();
+    let message = {
+        let mut registry = lock(&hub.registry);
+        if (p, e) != (server_pid, episode) {
+            // A new episode (or server) ended every sensor.
+            registry.sensors.clear();
+        }
+        // A sensor whose parent is gone went with it.
+        registry
+            .sensors
+            .retain(|_, s| s.parent == 0 || actors.contains_key(&s.parent));
+        world_state(frame, server_pid, &actors, &registry)
+    };
+    *lock(&hub.actors) = actors;
+    hub.send(carla::WORLD_STREAM_ID, &message);
+    *sent = (server_pid, episode, frame.frame());
+    drop(sent);
+    hub.sent_changed.notify_all();
+}

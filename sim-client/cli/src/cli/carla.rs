@@ -1,0 +1,67 @@
+//! `sim-client carla-gateway`: CARLA 0.9.16's own Python client drives
+//! the world through the `simbus-carla` crate; here its flags and what the
+//! command prints.
+
+use std::io::Write;
+use std::time::Duration;
+
+use clap::Args;
+use shared_types::WorldName;
+use simbus_carla::{Config, GatewayError};
+
+use crate::Failure;
+
+/// Serve a simbus world to CARLA's Python client (`import carla`).
+#[derive(Debug, Args)]
+pub(crate) struct GatewayArgs {
+    /// The address to listen on.
+    #[arg(long, default_value = "127.0.0.1")]
+    host: String,
+    /// The RPC port (CARLA's `carla.Client(host, port)`); 0: any free port
+    /// (and any free streaming port), printed once listening.
+    #[arg(long, default_value_t = 2000, allow_negative_numbers = true)]
+    port: u16,
+    /// The streaming port (0: any free port) [default: --port + 1; with
+    /// --port 0, any free port]. Give it to use a privileged port
+    /// (below 1024) for the streams, or with --port 65535.
+    #[arg(long, value_name = "PORT", allow_negative_numbers = true)]
+    streaming_port: Option<u16>,
+    /// Once listening, print one JSON object on stdout instead of the
+    /// sentence: {"world", "host", "port", "streaming_port"}, the ports
+    /// actually bound (so scripts can use --port 0).
+    #[arg(long)]
+    json: bool,
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Result<(), Failure> {
+    let config = Config {
+        host: args.host,
+        port: args.port,
+        streaming_port: args.streaming_port,
+        timeout,
+    };
+    let host = config.host.as_str();
+    // Ctrl-C / SIGTERM end the gateway.
+    simbus_carla::serve(world, &config, super::interrupted(), |listening| {
+        let (port, streaming_port) = (listening.port, listening.streaming_port);
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({"world": world.as_str(), "host": host,
+                    "port": port, "streaming_port": streaming_port})
+            );
+        } else {
+            println!(
+                "carla-gateway: world '{world}' served to CARLA clients on {host}:{port} (streams on port {streaming_port})"
+            );
+        }
+        let _ = std::io::stdout().flush();
+    })
+    .map_err(|e: GatewayError| {
+        if e.is_refused() {
+            Failure::Refused(e.into())
+        } else {
+            Failure::Runtime(e.into())
+        }
+    })
+}

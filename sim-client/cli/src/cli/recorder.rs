@@ -1,0 +1,491 @@
+//! `sim-client recorder …` and `sim-client replay …`: CARLA's recorder API
+//! on the command line. `info`, `collisions` and `blocked` read the file
+//! directly (no server needed); the rest ask the world's server.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::anyhow;
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use shared_types::{input, ReplayMode, ReplayState, WorldName};
+use sim_client::inspect;
+use sim_client::{Client, RecorderError, ReplayOptions};
+
+use crate::cli::words::count;
+use crate::Failure;
+
+mod print;
+
+/// Record the world into an MCAP file, or inspect a recording.
+#[derive(Debug, Args)]
+pub(crate) struct RecorderArgs {
+    #[command(subcommand)]
+    command: RecorderCommand,
+}
+
+#[derive(Debug, Subcommand)]
+enum RecorderCommand {
+    /// Start recording the world into FILE (created by the server).
+    ///
+    /// Every frame, applied command, spawn and destroy, settings change,
+    /// episode, collision and keyframe is recorded, none dropped; with
+    /// --sensors every sensor capture too.
+    Start {
+        /// The MCAP file to write.
+        file: PathBuf,
+        /// Record every sensor capture as well.
+        #[arg(long)]
+        sensors: bool,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Stop recording; prints the frames and bytes written and the path.
+    Stop {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// How the recorder and the replayer are doing.
+    Status {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Set the running replay's time factor (CARLA's set_replayer_time_factor).
+    TimeFactor {
+        /// Simulation speed relative to the recording, 0.001..=1000.
+        #[arg(allow_negative_numbers = true, value_parser = input::time_factor)]
+        factor: f64,
+    },
+    /// Stop the running replay (CARLA's stop_replayer).
+    StopReplay {
+        /// Keep the replayed world live (else the world from before comes back).
+        #[arg(long)]
+        keep_actors: bool,
+    },
+    /// What a recording holds: versions, world, scene, seed, settings,
+    /// frames, duration, actors, sensors, size and compression.
+    Info {
+        /// The recording.
+        file: String,
+        /// List every frame too.
+        #[arg(long)]
+        all: bool,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// The collisions in a recording (contacts that started), in order.
+    Collisions {
+        /// The recording.
+        file: String,
+        /// Category of one actor: a any, v vehicle, b box, s sphere, c capsule, x static.
+        #[arg(long, default_value = "a")]
+        kind1: char,
+        /// Category of the other.
+        #[arg(long, default_value = "a")]
+        kind2: char,
+        /// Print one JSON array.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Actors that moved less than --min-distance for at least --min-time:
+    /// each such actor once, with every stretch it stayed (nearly) still.
+    Blocked {
+        /// The recording.
+        file: String,
+        /// Seconds an actor must stay (nearly) still: finite, 0..=18446744073.
+        #[arg(long, default_value = "30", allow_negative_numbers = true, value_parser = input::sim_time)]
+        min_time: f64,
+        /// Metres it may move meanwhile: positive, finite.
+        #[arg(long, default_value = "0.1", allow_negative_numbers = true, value_parser = input::metres)]
+        min_distance: f64,
+        /// Print one JSON array: an object per actor with its stretches.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Replay a recording into the world.
+///
+/// In synchronous mode the replay starts with the next tick and advances
+/// one recorded frame per tick; in asynchronous mode it runs at the
+/// recording's pace times --time-factor. Every client sees ordinary frames
+/// (flagged as a replay) of a new episode. The command follows the replay
+/// to its end (a progress bar on a terminal); Ctrl-C stops it.
+#[derive(Debug, Args)]
+pub(crate) struct ReplayArgs {
+    /// The recording (an MCAP file the server can read).
+    file: PathBuf,
+    /// Seconds from the recording's start (negative: from its end).
+    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::sim_offset)]
+    start: f64,
+    /// Seconds to replay, 0..=18446744073 (0: to the end).
+    #[arg(long, default_value = "0", allow_negative_numbers = true, value_parser = input::sim_time)]
+    duration: f64,
+    /// Sensors spawned without a parent during the replay ride on this recorded actor.
+    #[arg(
+        long,
+        value_name = "ID",
+        default_value = "0",
+        allow_negative_numbers = true
+    )]
+    follow: u64,
+    /// Spawn the recorded sensors again; they capture the replayed scene.
+    #[arg(long)]
+    replay_sensors: bool,
+    /// Speed relative to the recording, 0.001..=1000 (asynchronous mode).
+    #[arg(long, default_value = "1", allow_negative_numbers = true, value_parser = input::time_factor)]
+    time_factor: f64,
+    /// exact: recorded deltas and states; interpolate: the server's own
+    /// step, states interpolated; resimulate: recorded commands on real
+    /// physics, compared frame by frame [default: exact for fixed-step
+    /// recordings, interpolate otherwise].
+    #[arg(long)]
+    mode: Option<ReplayMode>,
+    /// With resimulate: print `identical: N frames` or the first frame and
+    /// actor that differ (exit 1).
+    #[arg(long)]
+    verify: bool,
+    /// Keep the replayed world live when the replay ends.
+    #[arg(long)]
+    keep_actors: bool,
+    /// Start the replay and return at once.
+    #[arg(long)]
+    detach: bool,
+    /// Print one JSON object at the end.
+    #[arg(long)]
+    json: bool,
+}
+
+fn refused_or_runtime(e: RecorderError) -> Failure {
+    match e {
+        RecorderError::Request(e) => Failure::Runtime(e.into()),
+        e => Failure::Refused(e.into()),
+    }
+}
+
+fn connect(world: &WorldName, timeout: Duration) -> Result<Client, Failure> {
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    Ok(client)
+}
+
+fn print_json(value: &impl serde::Serialize) {
+    println!("{}", serde_json::to_string(value).unwrap_or_default());
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> Result<(), Failure> {
+    let json = matches!(
+        args.command,
+        RecorderCommand::Info { json: true, .. }
+            | RecorderCommand::Collisions { json: true, .. }
+            | RecorderCommand::Blocked { json: true, .. }
+    );
+    // With --json a script gets the error as data too (and exit 2).
+    let file_error = move |e: shared_types::recording::RecordingError| {
+        if json {
+            print_json(&serde_json::json!({"error": e.code(), "message": e.to_string()}));
+        }
+        Failure::Refused(e.into())
+    };
+    match args.command {
+        RecorderCommand::Start {
+            file,
+            sensors,
+            json,
+        } => {
+            let client = connect(world, timeout)?;
+            let path = client
+                .start_recorder(&file, sensors)
+                .map_err(refused_or_runtime)?;
+            if json {
+                print_json(
+                    &serde_json::json!({"recording": true, "path": path, "sensors": sensors}),
+                );
+            } else {
+                println!(
+                    "recording world '{world}' into {}{}",
+                    path.display(),
+                    if sensors {
+                        " (with sensor captures)"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+        RecorderCommand::Stop { json } => {
+            let client = connect(world, timeout)?;
+            let status = client.stop_recorder().map_err(refused_or_runtime)?;
+            if json {
+                print_json(&status);
+            } else {
+                println!(
+                    "recording stopped: {}, {}, {}",
+                    count(status.frames, "frame"),
+                    count(status.bytes, "byte"),
+                    status.path
+                );
+                if !status.message.is_empty() {
+                    println!("warning: {}", status.message);
+                }
+            }
+        }
+        RecorderCommand::Status { json } => {
+            let client = connect(world, timeout)?;
+            let status = client.recorder_status().map_err(refused_or_runtime)?;
+            if json {
+                print_json(&status);
+            } else {
+                print::status(&status);
+            }
+        }
+        RecorderCommand::TimeFactor { factor } => {
+            let client = connect(world, timeout)?;
+            client
+                .set_replayer_time_factor(factor)
+                .map_err(refused_or_runtime)?;
+            println!("replay time factor {factor}");
+        }
+        RecorderCommand::StopReplay { keep_actors } => {
+            let client = connect(world, timeout)?;
+            let status = client
+                .stop_replayer(keep_actors)
+                .map_err(refused_or_runtime)?;
+            println!(
+                "replay stopped after {} of {}{}",
+                status.replay.frames,
+                count(status.replay.total, "frame"),
+                if keep_actors {
+                    "; the replayed world goes on live"
+                } else {
+                    ""
+                }
+            );
+        }
+        RecorderCommand::Info { file, all, json } => {
+            let info = inspect::file_info(&file, all).map_err(file_error)?;
+            if json {
+                print_json(&info);
+            } else {
+                print::info(&info);
+            }
+        }
+        RecorderCommand::Collisions {
+            file,
+            kind1,
+            kind2,
+            json,
+        } => {
+            for kind in [kind1, kind2] {
+                if !"avbscx".contains(kind) {
+                    return Err(Failure::Refused(anyhow!(
+                        "unknown category '{kind}': use a (any), v (vehicle), b (box), s (sphere), c (capsule) or x (static)"
+                    )));
+                }
+            }
+            let list = inspect::collisions(&file, kind1, kind2).map_err(file_error)?;
+            if json {
+                print_json(&list);
+            } else {
+                print::collisions(&list);
+            }
+        }
+        RecorderCommand::Blocked {
+            file,
+            min_time,
+            min_distance,
+            json,
+        } => {
+            let list =
+                inspect::actors_blocked(&file, min_time, min_distance).map_err(|e| match e {
+                    inspect::BlockedError::File(e) => file_error(e),
+                    e => Failure::Refused(e.into()),
+                })?;
+            if json {
+                print_json(&list);
+            } else {
+                print::blocked(&list, min_time, min_distance);
+            }
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn replay(
+    world: &WorldName,
+    timeout: Duration,
+    args: ReplayArgs,
+) -> Result<(), Failure> {
+    if args.verify && args.mode != Some(ReplayMode::Resimulate) {
+        return Err(Failure::Refused(anyhow!(
+            "--verify needs --mode resimulate"
+        )));
+    }
+    let client = connect(world, timeout)?;
+    if !args.detach {
+        // A synchronous replay advances one frame per tick: following one
+        // that nobody ticks would wait for nothing. Nothing has changed yet.
+        let status = client.status()?;
+        if status.settings.synchronous_mode != 0 && status.ticker.active == 0 {
+            return Err(Failure::Runtime(anyhow!(
+                "world '{world}' is in synchronous mode and nobody ticks it: a replay there advances one recorded frame per tick; start a ticker first (`sim-client tick`), or start the replay with --detach and tick it yourself"
+            )));
+        }
+    }
+    let options = ReplayOptions {
+        start: args.start,
+        duration: args.duration,
+        follow_id: args.follow,
+        replay_sensors: args.replay_sensors,
+        time_factor: args.time_factor,
+        mode: args.mode,
+        keep_actors: args.keep_actors,
+    };
+    let started = client
+        .replay(&args.file, &options)
+        .map_err(refused_or_runtime)?;
+    // From here a replay this command follows is stopped however the
+    // command ends early (a closed stdout, an error, giving up); --detach
+    // leaves it running on purpose.
+    let mut following = Following {
+        client: &client,
+        keep_actors: args.keep_actors,
+        armed: !args.detach,
+    };
+    let synchronous = client
+        .get_settings()
+        .map(|s| s.synchronous_mode)
+        .unwrap_or(false);
+    if !args.json {
+        println!(
+            "replaying {} ({}, {}){}",
+            args.file.display(),
+            count(started.replay.total, "frame"),
+            started.replay.mode,
+            if synchronous {
+                "; synchronous mode: it advances one frame per tick"
+            } else {
+                ""
+            }
+        );
+    }
+    if args.detach {
+        // The replay as it starts; `recorder status --json` follows it.
+        if args.json {
+            print_json(&started);
+        }
+        return Ok(());
+    }
+    let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout())).then(|| {
+        let bar = ProgressBar::new(started.replay.total);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}")
+                .expect("valid template"),
+        );
+        bar
+    });
+    // Follow the replay until it ends; no progress for --timeout is an error.
+    let mut last = (started.replay.frames, Instant::now());
+    let status = loop {
+        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+            following.armed = false; // stopped here, with its answer printed
+            let status = client
+                .stop_replayer(args.keep_actors)
+                .map_err(refused_or_runtime)?;
+            if let Some(bar) = &bar {
+                bar.abandon();
+            }
+            println!(
+                "replay stopped after {}",
+                count(status.replay.frames, "frame")
+            );
+            return Ok(());
+        }
+        let status = client.recorder_status().map_err(refused_or_runtime)?;
+        if let Some(bar) = &bar {
+            bar.set_position(status.replay.frames);
+        }
+        if status.replay.replay_state() != ReplayState::Running {
+            break status;
+        }
+        if status.replay.frames != last.0 {
+            last = (status.replay.frames, Instant::now());
+        } else if last.1.elapsed() > timeout {
+            return Err(Failure::Runtime(anyhow!(
+                "the replay made no progress for {timeout:?}{}; stopped it",
+                if synchronous {
+                    " (synchronous mode: is the ticker ticking?)"
+                } else {
+                    ""
+                }
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // It ended by itself: nothing to stop.
+    following.armed = false;
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let r = &status.replay;
+    if args.json {
+        print_json(&status);
+    } else {
+        println!(
+            "replay {}: {} of {}",
+            r.state,
+            r.frames,
+            count(r.total, "frame")
+        );
+        if args.verify {
+            match r.mismatch {
+                None => println!("identical: {}", count(r.verified, "frame")),
+                Some(m) => println!(
+                    "differs: frame {} (actor {}) is not the recorded one; {} before it {} identical",
+                    m.frame,
+                    m.actor,
+                    count(r.verified, "frame"),
+                    if r.verified == 1 { "was" } else { "were" }
+                ),
+            }
+        }
+    }
+    if r.replay_state() == ReplayState::Failed {
+        return Err(Failure::Runtime(anyhow!(
+            "the replay failed: {}",
+            status.message
+        )));
+    }
+    if args.verify && (r.mismatch.is_some() || r.verified != r.total) {
+        return Err(Failure::Runtime(anyhow!(
+            "the re-simulation differs from the recording"
+        )));
+    }
+    Ok(())
+}
+
+/// A replay `replay` follows: stopped when dropped, so a command that ends
+/// early (a closed stdout, an error, no progress) gives the world back as
+/// it was before the replay (or keeps the replayed one with
+/// `--keep-actors`), as Ctrl-C does.
+struct Following<'a> {
+    client: &'a sim_client::Client,
+    keep_actors: bool,
+    /// Whether the replay still needs stopping.
+    armed: bool,
+}
+
+impl Drop for Following<'_> {
+    fn drop(&mut self) {
+        if !self.armed {
+            return;
+        }
+        if let Err(e) = self.client.stop_replayer(self.keep_actors) {
+            tracing::debug!("stopping the replay on the way out: {e}");
+        }
+    }
+}

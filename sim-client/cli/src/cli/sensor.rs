@@ -1,0 +1,445 @@
+//! `sim-client sensor spawn | list | watch`.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, Context};
+use clap::{Args, Subcommand};
+use shared_types::{input, ImuMeasurement, SensorKind, SensorSpec, WorldName};
+use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
+
+use simbus_pose::compass;
+use super::words::count;
+use crate::Failure;
+
+/// Sensors: depth camera, lidar and IMU, read in place from shared memory.
+#[derive(Debug, Args)]
+pub(crate) struct SensorArgs {
+    #[command(subcommand)]
+    command: SensorCommand,
+}
+
+#[derive(Debug, Subcommand)]
+enum SensorCommand {
+    /// Spawn a sensor and print its id.
+    Spawn(SpawnArgs),
+    /// List the world's sensors.
+    List(ListArgs),
+    /// One line per capture of a sensor.
+    Watch(WatchArgs),
+    /// Write captures to files: depth as PNG, lidar as PLY and a top-down
+    /// PNG, IMU readings as JSON.
+    Save(SaveArgs),
+    /// Remove a sensor.
+    Destroy {
+        /// The sensor id.
+        #[arg(allow_negative_numbers = true)]
+        id: u64,
+    },
+}
+
+/// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
+#[derive(Debug, Args)]
+struct SpawnArgs {
+    /// depth, lidar or imu.
+    kind: String,
+    /// Actor to ride on (default: fixed in the world). The sensor is
+    /// destroyed with it.
+    #[arg(
+        long,
+        value_name = "ID",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
+    attach: u64,
+    /// Position relative to the actor (or the world), x,y,z in metres,
+    /// each within +-100000.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        default_value = "0,2,0",
+        allow_hyphen_values = true,
+        value_parser = |s: &str| input::position(s).map(|_| s.to_owned())
+    )]
+    at: String,
+    /// Orientation relative to the actor (or the world): yaw (about Y,
+    /// positive turns X toward -Z, i.e. left), pitch (about Z, positive
+    /// looks up), roll (about X), in degrees.
+    #[arg(
+        long,
+        value_name = "YAW,PITCH,ROLL",
+        default_value = "0,0,0",
+        allow_hyphen_values = true
+    )]
+    rotation: String,
+    /// Capture period in simulation seconds, 0..=18446744073 (0: every frame).
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true, value_parser = input::sensor_tick)]
+    sensor_tick: f64,
+    /// Depth: image width and height in pixels, each 1..=8192 [default: 640,480].
+    #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = |s: &str| input::image_size(s).map(|_| s.to_owned()))]
+    size: Option<String>,
+    /// Depth: horizontal field of view in degrees, above 0 and below 180
+    /// [default: 90].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = input::field_of_view)]
+    fov: Option<f32>,
+    /// Depth: far range; lidar: range, in metres, above 0 and at most 1e6
+    /// [default: depth 100, lidar 50].
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = input::sensor_range)]
+    range: Option<f32>,
+    /// Lidar: channels (rings), 1..=256 [default: 32].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_channels)]
+    channels: Option<u32>,
+    /// Lidar: points per channel in a full turn, 1..=65536 [default: 512].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_points)]
+    points: Option<u32>,
+    /// Lidar: elevation of the top and bottom channels, degrees [default: 10,-30].
+    #[arg(long, value_name = "UPPER,LOWER", allow_hyphen_values = true)]
+    fov_range: Option<String>,
+    /// Lidar: turns per simulated second; each capture covers hz × dt of a
+    /// turn (0: a full turn every capture; at most 1e6) [default: 0].
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rotation_frequency)]
+    rotation_frequency: Option<f32>,
+    /// Print {"id": N, ...}.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Args)]
+struct ListArgs {
+    /// One JSON object per sensor.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Args)]
+struct WatchArgs {
+    /// The sensor id.
+    #[arg(allow_negative_numbers = true)]
+    id: u64,
+    /// Stop after N captures (N >= 1).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::count)]
+    captures: Option<u64>,
+    /// One JSON object per capture (frame, bytes, ...; an IMU's
+    /// accelerometer, gyroscope and compass).
+    #[arg(long)]
+    json: bool,
+    /// Join the lockstep: in synchronous mode the server waits for this
+    /// reader every frame, so it never misses a capture however slow it is.
+    #[arg(long)]
+    lockstep: bool,
+}
+
+#[derive(Debug, Args)]
+struct SaveArgs {
+    /// The sensor id.
+    #[arg(allow_negative_numbers = true)]
+    id: u64,
+    /// How many captures to save (N >= 1).
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = input::count)]
+    captures: u64,
+    /// Directory to write into (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: std::path::PathBuf,
+    /// Depth: the range the picture's grey scale spans, metres (default:
+    /// the farthest hit in the image, so a 20 m scene is not all white).
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = |s: &str| input::metres(s).map(|m| m as f32))]
+    range: Option<f32>,
+}
+
+fn failure(e: SensorError) -> Failure {
+    match e {
+        SensorError::Refused(_) | SensorError::UnknownSensor { .. } => Failure::Refused(e.into()),
+        e => Failure::Runtime(e.into()),
+    }
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
+    // A spec is checked before any server is asked.
+    let spawning = match &args.command {
+        SensorCommand::Spawn(a) => Some(spec(a)?),
+        _ => None,
+    };
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    match args.command {
+        SensorCommand::Spawn(a) => match spawning {
+            Some(spec) => spawn(&client, spec, &a),
+            None => Ok(()),
+        },
+        SensorCommand::List(a) => {
+            for s in client.list_sensors().map_err(failure)? {
+                let kind = s.spec.sensor_kind().map_or("?", |k| k.name());
+                if a.json {
+                    println!(
+                        "{}",
+                        serde_json::json!({"id": s.id, "kind": kind, "attach": s.spec.attach_to,
+                            "sensor_tick": s.spec.sensor_tick, "captures": s.captures})
+                    );
+                } else {
+                    let on = match s.spec.attach_to {
+                        0 => "in the world".to_owned(),
+                        id => format!("on actor {id}"),
+                    };
+                    let every = match s.spec.sensor_tick {
+                        0.0 => "every frame".to_owned(),
+                        t => format!("every {} s", seconds_text(t)),
+                    };
+                    println!(
+                        "sensor {:>3}  {kind:<5}  {on:<14} {every}  {}",
+                        s.id,
+                        count(s.captures, "capture")
+                    );
+                }
+            }
+            Ok(())
+        }
+        SensorCommand::Watch(a) => watch(&client, a, timeout),
+        SensorCommand::Save(a) => save(&client, a, timeout),
+        SensorCommand::Destroy { id } => {
+            client.destroy_sensor(id).map_err(failure)?;
+            println!("destroyed sensor {id}");
+            Ok(())
+        }
+    }
+}
+
+/// Refuses a flag that does not belong to `kind`.
+fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(), Failure> {
+    for (flag, present, kinds) in given {
+        if *present && !kinds.contains(&kind) {
+            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+            return Err(Failure::Refused(anyhow!(
+                "{flag} applies to {} sensors, not to {}",
+                names.join(" and "),
+                kind.name()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The spec `a` describes, checked.
+fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
+    use SensorKind::{Depth, Lidar};
+    let at = super::numbers::<3>(&a.at, "--at")?;
+    let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
+    let Some(kind) = SensorKind::from_name(&a.kind) else {
+        return Err(Failure::Refused(anyhow!(
+            "unknown sensor kind '{}': expected depth, lidar or imu",
+            a.kind
+        )));
+    };
+    only_for(
+        kind,
+        &[
+            ("--size", a.size.is_some(), &[Depth]),
+            ("--fov", a.fov.is_some(), &[Depth]),
+            ("--range", a.range.is_some(), &[Depth, Lidar]),
+            ("--channels", a.channels.is_some(), &[Lidar]),
+            ("--points", a.points.is_some(), &[Lidar]),
+            ("--fov-range", a.fov_range.is_some(), &[Lidar]),
+            (
+                "--rotation-frequency",
+                a.rotation_frequency.is_some(),
+                &[Lidar],
+            ),
+        ],
+    )?;
+    let mut spec = match kind {
+        SensorKind::Depth => {
+            let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
+            let mut spec =
+                SensorSpec::depth(at, 0, 0, a.fov.unwrap_or(90.0), a.range.unwrap_or(100.0));
+            // Kept as typed (not truncated to whole numbers), so the spec's
+            // check refuses a fractional size.
+            spec.params[0] = w;
+            spec.params[1] = h;
+            spec
+        }
+        SensorKind::Lidar => {
+            let [upper, lower] =
+                super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
+            SensorSpec::lidar(
+                at,
+                a.channels.unwrap_or(32),
+                a.points.unwrap_or(512),
+                a.range.unwrap_or(50.0),
+                upper,
+                lower,
+            )
+            .rotating(a.rotation_frequency.unwrap_or(0.0))
+        }
+        SensorKind::Imu => SensorSpec::imu(at),
+    }
+    .attached_to(a.attach)
+    .every(a.sensor_tick);
+    spec.rotation = simbus_pose::from_yaw_pitch_roll(yaw, pitch, roll);
+    spec.check()
+        .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;
+    Ok(spec)
+}
+
+fn spawn(client: &Client, spec: SensorSpec, a: &SpawnArgs) -> Result<(), Failure> {
+    let sensor = client.spawn_sensor(spec).map_err(failure)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({"id": sensor.id(), "kind": a.kind, "attach": a.attach, "sensor_tick": a.sensor_tick})
+        );
+    } else {
+        println!("spawned {} sensor {}", a.kind, sensor.id());
+    }
+    Ok(())
+}
+
+/// Seconds as people read them: 0.05, 2, 1e300 (not 301 digits).
+fn seconds_text(seconds: f64) -> String {
+    if seconds != 0.0 && !(1e-4..1e6).contains(&seconds.abs()) {
+        format!("{seconds:e}")
+    } else {
+        format!("{seconds}")
+    }
+}
+
+/// What `sensor watch --json` prints for a capture, and `sensor save`
+/// writes for an IMU's: the header, and an IMU's readings.
+fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
+    let h = capture.header();
+    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
+    let mut json = serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
+        "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
+        "bytes": capture.bytes().len(), "missed": missed,
+        "position": h.position});
+    if let (Some(imu), Some(object)) = (capture.imu(), json.as_object_mut()) {
+        object.insert("accelerometer".into(), imu.accelerometer.into());
+        object.insert("gyroscope".into(), imu.gyroscope.into());
+        object.insert("compass".into(), compass(h.rotation).into());
+    }
+    json
+}
+
+/// An IMU's readings as one readable phrase.
+fn imu_text(imu: &ImuMeasurement, rotation: [f32; 4]) -> String {
+    let [ax, ay, az] = imu.accelerometer;
+    let [gx, gy, gz] = imu.gyroscope;
+    format!(
+        "accelerometer ({ax:.3}, {ay:.3}, {az:.3}) m/s²  gyroscope ({gx:.3}, {gy:.3}, {gz:.3}) rad/s  compass {:.3} rad",
+        compass(rotation)
+    )
+}
+
+fn print_capture(capture: &Capture, missed: u64, json: bool) {
+    let h = capture.header();
+    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
+    if json {
+        println!("{}", capture_json(capture, missed));
+    } else {
+        let readings = capture
+            .imu()
+            .map(|imu| format!("  {}", imu_text(imu, h.rotation)))
+            .unwrap_or_default();
+        println!(
+            "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {}  {}{readings}",
+            h.sensor_id,
+            h.frame,
+            h.elapsed_ns as f64 / 1e9,
+            h.sequence,
+            count(capture.bytes().len() as u64, "byte"),
+            count(h.count, "value")
+        );
+    }
+}
+
+/// Every wait of `sensor watch` honours --timeout: no capture (or frame)
+/// within it is an error, and so is the sensor's end.
+fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure> {
+    let interrupted = super::interrupted();
+    let mut sensor = client.sensor(a.id).map_err(failure)?;
+    let running = || !interrupted.load(std::sync::atomic::Ordering::Relaxed);
+    let mut seen = 0;
+    if a.lockstep {
+        // Follow every frame: read its captures, then report it done.
+        let mut frames = Client::connect(client.world().as_str(), timeout)?;
+        let participant = frames.join_lockstep("sensor-watch")?;
+        while a.captures.is_none_or(|n| seen < n) && running() {
+            let Some(snapshot) = super::watch::next_frame(&mut frames, timeout)? else {
+                break;
+            };
+            while let Some(capture) = sensor.try_recv()? {
+                print_capture(&capture, sensor.missed(), a.json);
+                seen += 1;
+            }
+            participant.done(snapshot.episode(), snapshot.frame())?;
+        }
+        return Ok(());
+    }
+    while a.captures.is_none_or(|n| seen < n) && running() {
+        let Some(capture) = next_capture(&mut sensor, timeout)? else {
+            break;
+        };
+        print_capture(&capture, sensor.missed(), a.json);
+        seen += 1;
+    }
+    Ok(())
+}
+
+/// The next capture within `timeout`; `None` when interrupted.
+fn next_capture(sensor: &mut Sensor, timeout: Duration) -> Result<Option<Capture>, WaitError> {
+    super::in_slices(timeout, |slice| sensor.recv(slice))
+}
+
+fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("creating the directory {}", a.out.display()))?;
+    let mut sensor = client.sensor(a.id).map_err(failure)?;
+    let params = sensor.spec().params;
+    for _ in 0..a.captures {
+        let Some(capture) = next_capture(&mut sensor, timeout)? else {
+            break;
+        };
+        let h = *capture.header();
+        let stem = a
+            .out
+            .join(format!("sensor{}-frame{}", h.sensor_id, h.frame));
+        if let Some(depth) = capture.depth() {
+            let path = stem.with_extension("png");
+            let range = super::pictures::save_depth(
+                &path,
+                depth,
+                h.size[0] as usize,
+                h.size[1] as usize,
+                params[3],
+                a.range,
+            )
+            .with_context(|| format!("writing {}", path.display()))?;
+            println!(
+                "wrote {} (depth, white = near, legend 0..{range} m)",
+                path.display(),
+            );
+        } else if let Some(points) = capture.points() {
+            let ply = stem.with_extension("ply");
+            super::pictures::save_ply(&ply, points)
+                .with_context(|| format!("writing {}", ply.display()))?;
+            let png = stem.with_extension("png");
+            super::pictures::save_lidar_top_down(&png, points, params[2])
+                .with_context(|| format!("writing {}", png.display()))?;
+            println!(
+                "wrote {} and {} ({})",
+                ply.display(),
+                png.display(),
+                count(points.len() as u64, "point")
+            );
+        } else if let Some(imu) = capture.imu() {
+            // Nothing to draw: the readings, as `sensor watch --json` prints them.
+            let path = stem.with_extension("json");
+            let mut text = capture_json(&capture, sensor.missed()).to_string();
+            text.push('\n');
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+            println!(
+                "wrote {} (imu: {})",
+                path.display(),
+                imu_text(imu, h.rotation)
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,306 @@
+//! `sim-client tick`: be the ticker — claim ownership, enter synchronous
+//! mode with a fixed step, tick, and leave everything as it was on exit.
+
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::anyhow;
+use clap::Args;
+use shared_types::{input, WorldName, WorldSettings};
+use sim_client::{ApplySettingsError, Client, TickError, Ticker, WaitMode};
+
+use crate::Failure;
+
+/// The node name others see as the owner while this command ticks.
+const NODE_NAME: &str = "sim-client-tick";
+
+/// Options of `sim-client tick` (described on the command).
+#[derive(Debug, Args)]
+pub(crate) struct TickArgs {
+    /// Stop after N ticks (0: change nothing).
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    count: Option<u64>,
+
+    /// At most HZ ticks per wall-clock second, at most 1e6 (default: as
+    /// fast as possible).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rate)]
+    rate: Option<f64>,
+
+    /// Stop once simulation time reaches S seconds.
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = input::sim_time)]
+    until_sim_time: Option<f64>,
+
+    /// Fixed time-step in seconds, 1e-6..=3600 (default: the world's, else
+    /// 0.05; 0: variable step, with --allow-variable-step).
+    #[arg(long, value_name = "S", conflicts_with = "fps", allow_negative_numbers = true, value_parser = input::fixed_delta_seconds)]
+    delta_seconds: Option<f64>,
+
+    /// Fixed time-step as frames per simulated second: 0.000277778..=1e6
+    /// (0: variable step, with --allow-variable-step).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
+    fps: Option<f64>,
+
+    /// Before the first tick, wait (up to --timeout) until N lockstep
+    /// participants (autopilot, `watch --lockstep`, ...) have joined, so
+    /// none misses the first frame (0..=1024).
+    #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true, value_parser = input::participants)]
+    participants: u32,
+
+    /// Accept a variable step in synchronous mode (dt = the ticker's wait; not recommended).
+    #[arg(long)]
+    allow_variable_step: bool,
+
+    /// Leave the world in synchronous mode on exit, with its own step (it
+    /// then waits for the next ticker).
+    #[arg(long)]
+    leave_sync: bool,
+
+    /// How to wait for each frame: block (sleep on the frame-ready event),
+    /// spin (lowest latency, one core busy) or hybrid (poll 100 µs, then
+    /// sleep: near-spin latency in a tight loop, no CPU burnt while the
+    /// server is slow).
+    #[arg(long, value_name = "MODE", default_value = "block")]
+    wait_mode: WaitMode,
+
+    /// One JSON object per tick.
+    #[arg(long)]
+    json: bool,
+}
+
+impl TickArgs {
+    /// The fixed step to tick with; `None` is a variable step.
+    fn delta(&self, current: &WorldSettings) -> Result<Option<f64>, Failure> {
+        let delta = match (self.delta_seconds, self.fps) {
+            (Some(dt), _) => (dt != 0.0).then_some(dt),
+            (None, Some(fps)) => WorldSettings::delta_from_fps(fps)
+                .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?,
+            (None, None) => Some(current.fixed_delta_seconds.unwrap_or(0.05)),
+        };
+        if delta.is_none() && !self.allow_variable_step {
+            return Err(Failure::Refused(anyhow!(
+                "synchronous mode with a variable step makes every frame as long as the ticker's wait, \
+                 so physics is unreliable; give --delta-seconds / --fps, or pass --allow-variable-step"
+            )));
+        }
+        Ok(delta)
+    }
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
+    let interrupted = super::interrupted();
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    let current = client.get_settings()?;
+    let delta = args.delta(&current)?;
+    if args.count == Some(0) {
+        eprintln!("tick: --count 0: nothing to do; the world is unchanged");
+        return Ok(());
+    }
+    let sync = WorldSettings {
+        synchronous_mode: true,
+        fixed_delta_seconds: delta,
+        ..current
+    };
+    // Refuse bad input before anything changes, ownership included.
+    sync.validate()
+        .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
+    wait_for_participants(&client, args.participants, timeout)?;
+    let mut ticker = client.claim_ticker_as(NODE_NAME)?;
+    ticker.set_wait_mode(args.wait_mode);
+    let from = ticker
+        .apply_settings(sync)
+        .map_err(super::refused_or_runtime)?;
+    // From here on the world is given back however this run ends: a bound,
+    // Ctrl-C, an error, a closed stdout or a panic (the guard's drop).
+    let mut holding = Holding::new(ticker, sync, current, args.leave_sync);
+    match delta {
+        Some(dt) => eprintln!(
+            "tick: ticker of world '{world}'; synchronous mode, fixed step {} s, from frame {from}",
+            shared_types::input::Readable(dt)
+        ),
+        None => eprintln!(
+            "tick: warning: synchronous mode with a variable step (--allow-variable-step); physics is unreliable"
+        ),
+    }
+    for warning in sync.warnings() {
+        eprintln!("tick: warning: {warning}");
+    }
+
+    let ticks = match tick_loop(holding.ticker(), timeout, &args, interrupted) {
+        Err(revoked @ TickError::Revoked { .. }) => {
+            // Ownership is gone and the world already left synchronous
+            // mode: nothing to put back.
+            holding.revoked();
+            return Err(Failure::Runtime(revoked.into()));
+        }
+        other => other,
+    };
+    let (restore, release) = holding.give_back();
+    let ticks = ticks.map_err(anyhow::Error::from)?;
+    restore?;
+    release?;
+    eprintln!(
+        "tick: {}; released ownership, {}",
+        super::words::count(ticks, "tick"),
+        left_as(&current, args.leave_sync)
+    );
+    Ok(())
+}
+
+/// How the world is left, as the last line says it.
+fn left_as(current: &WorldSettings, leave_sync: bool) -> String {
+    if !leave_sync {
+        return "world left in asynchronous mode, with its settings as before".to_owned();
+    }
+    match current.fixed_delta_seconds {
+        Some(dt) => format!(
+            "world left in synchronous mode with its own step ({} s), waiting for the next ticker",
+            shared_types::input::Readable(dt)
+        ),
+        None => {
+            "world left in synchronous mode with its own variable step, waiting for the next ticker"
+                .to_owned()
+        }
+    }
+}
+
+/// The ticker of a run and what to put back when the run ends. Dropped
+/// without [`Holding::give_back`] (an early return, an unwind from a closed
+/// stdout, a panic) it still puts the settings back and releases.
+struct Holding {
+    ticker: Option<Ticker>,
+    /// The settings to put back: the world's own, asynchronous (or
+    /// synchronous with --leave-sync); `None` once nothing is to be put back.
+    restore: Option<WorldSettings>,
+}
+
+impl Holding {
+    /// Holds `ticker`, which applied `applied` to a world whose settings
+    /// were `before` this run.
+    fn new(
+        ticker: Ticker,
+        applied: WorldSettings,
+        before: WorldSettings,
+        leave_sync: bool,
+    ) -> Self {
+        let restore = WorldSettings {
+            synchronous_mode: leave_sync,
+            ..before
+        };
+        Self {
+            ticker: Some(ticker),
+            restore: (restore != applied).then_some(restore),
+        }
+    }
+
+    /// The ticker, to tick with.
+    fn ticker(&mut self) -> &mut Ticker {
+        self.ticker.as_mut().expect("held until given back")
+    }
+
+    /// Ownership was revoked and the world left synchronous mode: only
+    /// release is left to do.
+    fn revoked(mut self) {
+        self.restore = None;
+        if let Some(ticker) = self.ticker.take() {
+            let _ = ticker.release();
+        }
+    }
+
+    /// Puts the world's settings back, then releases ownership; both
+    /// results, so a failed restore still releases.
+    fn give_back(mut self) -> (anyhow::Result<()>, anyhow::Result<()>) {
+        let mut ticker = self.ticker.take().expect("held until given back");
+        let restore = match self.restore.take() {
+            Some(settings) => ticker
+                .apply_settings(settings)
+                .map(|_| ())
+                .map_err(|e| anyhow!(e).context("restoring the world's settings")),
+            None => Ok(()),
+        };
+        let release = ticker.release().map_err(|e| anyhow!(e));
+        (restore, release)
+    }
+}
+
+impl Drop for Holding {
+    fn drop(&mut self) {
+        if self.ticker.is_none() {
+            return;
+        }
+        let (restore, release) = Self {
+            ticker: self.ticker.take(),
+            restore: self.restore.take(),
+        }
+        .give_back();
+        for e in [restore.err(), release.err()].into_iter().flatten() {
+            eprintln!("tick: {e:#}");
+        }
+    }
+}
+
+/// Waits until at least `count` lockstep participants have joined.
+fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> Result<(), Failure> {
+    if count == 0 {
+        return Ok(());
+    }
+    let deadline = Instant::now() + timeout;
+    loop {
+        let joined = client.status()?.participants;
+        if joined >= count {
+            return Ok(());
+        }
+        if Instant::now() >= deadline {
+            return Err(Failure::Runtime(anyhow!(
+                "only {joined} of {count} lockstep participants joined within {timeout:?}"
+            )));
+        }
+        // Joins are rare and this runs once: a short poll of the status.
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
+fn tick_loop(
+    ticker: &mut Ticker,
+    timeout: Duration,
+    args: &TickArgs,
+    interrupted: &std::sync::atomic::AtomicBool,
+) -> Result<u64, TickError> {
+    // --rate was checked to give a period a clock can wait for.
+    let period = args.rate.map(|hz| Duration::from_secs_f64(1.0 / hz));
+    let until_ns = args.until_sim_time.map(shared_types::seconds_to_nanos);
+    let mut next_at = Instant::now();
+    let mut ticks = 0;
+    loop {
+        if interrupted.load(Ordering::Relaxed) || args.count.is_some_and(|n| ticks >= n) {
+            return Ok(ticks);
+        }
+        if let (Some(until), Some((_, elapsed))) = (until_ns, ticker.last_frame()) {
+            if elapsed >= until {
+                return Ok(ticks);
+            }
+        }
+        if let Some(period) = period {
+            // Sleep in slices so Ctrl-C is noticed.
+            while Instant::now() < next_at && !interrupted.load(Ordering::Relaxed) {
+                std::thread::sleep((next_at - Instant::now()).min(Duration::from_millis(100)));
+            }
+            next_at = next_at.max(Instant::now() - period) + period;
+            if interrupted.load(Ordering::Relaxed) {
+                return Ok(ticks);
+            }
+        }
+        let frame = ticker.tick(timeout)?;
+        ticks += 1;
+        let elapsed = ticker.last_frame().map_or(0, |(_, ns)| ns) as f64 / 1e9;
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({ "frame": frame, "elapsed_seconds": elapsed })
+            );
+        } else {
+            println!("tick  frame {frame:>8}  t = {elapsed:>12.6} s");
+        }
+    }
+}

@@ -1,0 +1,159 @@
+//! `sim-client watch`: one line per frame.
+
+use std::time::Duration;
+
+use clap::Args;
+use shared_types::WorldName;
+use sim_client::{Client, FrameView, WaitError, WaitMode};
+
+use crate::Failure;
+
+/// Options of `sim-client watch` (described on the command).
+#[derive(Debug, Args)]
+pub(crate) struct WatchArgs {
+    /// Stop after N frames (N >= 1).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = shared_types::input::count)]
+    frames: Option<u64>,
+
+    /// One JSON object per line.
+    #[arg(long)]
+    json: bool,
+
+    /// How to wait for each frame: block (sleep on the frame-ready event),
+    /// spin (lowest latency, one core busy) or hybrid (poll 100 µs, then sleep).
+    #[arg(long, value_name = "MODE", default_value = "block")]
+    wait_mode: WaitMode,
+
+    /// Print every frame in order in asynchronous mode too, instead of
+    /// skipping to the newest (16 frames of slack; beyond that frames are
+    /// lost and counted as missed).
+    #[arg(long)]
+    every_frame: bool,
+
+    /// Print `frame F digest D` per frame (a replayed frame: its recorded
+    /// id, so a replay's digests diff against the original run's; the digest covers the frame's
+    /// time and every actor's state, bit for bit): `diff` two runs' output.
+    /// A frame this watcher did not see is printed as a `missed` line, and
+    /// the command then exits 1: a digest list with gaps proves nothing.
+    #[arg(long)]
+    digest: bool,
+
+    /// Join the lockstep: in synchronous mode the server waits for this
+    /// watcher every frame, so it sees every frame however fast the ticker
+    /// ticks (use it with --digest). If the server drops it (it stopped
+    /// reading for longer than --lockstep-timeout) it says so and exits 1.
+    #[arg(long)]
+    lockstep: bool,
+}
+
+/// The JSON object of one frame.
+pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
+    let t = s.timestamp();
+    serde_json::json!({
+        "frame": t.frame,
+        "episode": s.episode(),
+        "elapsed_seconds": t.elapsed_seconds(),
+        "elapsed_ns": t.elapsed_ns,
+        "delta_seconds": t.delta_seconds(),
+        "delta_ns": t.delta_ns,
+        "platform_timestamp": t.platform_timestamp,
+        "actors": s.actors().len(),
+        "physics_substeps": s.header().physics_substeps,
+        "synchronous_mode": s.settings().synchronous_mode,
+        "fixed_delta_seconds": s.settings().fixed_delta_seconds,
+        "missed": s.missed(),
+        "replay": s.header().is_replay(),
+        // A replayed frame: its id and time in the recording.
+        "recorded_frame": s.header().is_replay().then_some(s.header().recorded_frame),
+        "recorded_elapsed_seconds": s.header().is_replay().then(|| {
+            shared_types::nanos_to_seconds(s.header().recorded_elapsed_ns)
+        }),
+        "digest": format!("{:016x}", s.digest()),
+    })
+}
+
+fn frame_line(s: &FrameView) -> String {
+    let t = s.timestamp();
+    let mut line = format!(
+        "frame {:>8}  t = {:>12.6} s  dt = {:.6} s  actors = {}  substeps = {}",
+        t.frame,
+        t.elapsed_seconds(),
+        t.delta_seconds(),
+        s.actors().len(),
+        s.header().physics_substeps,
+    );
+    if s.missed() > 0 {
+        line.push_str(&format!("  (missed {})", s.missed()));
+    }
+    if s.header().is_replay() {
+        line.push_str(&format!(
+            "  (replay of recorded frame {})",
+            s.header().recorded_frame
+        ));
+    }
+    line
+}
+
+/// Waits up to `timeout` for the next frame; `Ok(None)` when interrupted.
+pub(crate) fn next_frame(
+    client: &mut Client,
+    timeout: Duration,
+) -> Result<Option<FrameView>, WaitError> {
+    super::in_slices(timeout, |slice| client.wait_for_frame(slice))
+}
+
+pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
+    super::interrupted();
+    let mut client = Client::connect(world.as_str(), timeout)?;
+    client.set_request_timeout(timeout);
+    client.set_wait_mode(args.wait_mode);
+    client.set_every_frame(args.every_frame);
+    let participant = if args.lockstep {
+        Some(client.join_lockstep("watch")?)
+    } else {
+        None
+    };
+    let (mut seen, mut missed) = (0, 0);
+    while args.frames.is_none_or(|n| seen < n) {
+        let Some(snapshot) = next_frame(&mut client, timeout)? else {
+            break;
+        };
+        seen += 1;
+        missed += snapshot.missed();
+        if args.json {
+            println!("{}", frame_json(&snapshot));
+        } else if args.digest {
+            if snapshot.missed() > 0 {
+                println!(
+                    "missed {} ({}..={})",
+                    super::words::count(snapshot.missed(), "frame"),
+                    snapshot.frame() - snapshot.missed(),
+                    snapshot.frame() - 1
+                );
+            }
+            // A replayed frame goes by its recorded id, as its digest does:
+            // a replay's digests diff against the original run's.
+            println!(
+                "frame {} digest {:016x}",
+                snapshot.recorded_frame().unwrap_or(snapshot.frame()),
+                snapshot.digest()
+            );
+        } else {
+            println!("{}", frame_line(&snapshot));
+        }
+        if let Some(participant) = &participant {
+            participant.done(snapshot.episode(), snapshot.frame())?;
+        }
+        // A digest list with a gap proves nothing: stop at the first one,
+        // in every output format.
+        if args.digest && missed > 0 {
+            return Err(Failure::Runtime(anyhow::anyhow!(
+                "missed {} before frame {}, so the digests have gaps; add \
+                 --lockstep so the server waits for this watcher",
+                super::words::count(missed, "frame"),
+                snapshot.frame()
+            )));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,103 @@
+//! Frames as Foxglove's scene: every actor a `foxglove.SceneUpdate`
+//! entity in frame `world`, stamped with the frame's simulation time.
+
+use foxglove::messages::{
+    Color, CubePrimitive, CylinderPrimitive, Pose, Quaternion, SceneEntity, SpherePrimitive,
+    Timestamp, Vector3,
+};
+use shared_types::{ActorKind, ActorState, NANOS_PER_SECOND};
+use simbus_pose::compose;
+
+/// A frame's simulation time as a Foxglove timestamp.
+pub(crate) fn stamp(elapsed_ns: u64) -> Timestamp {
+    Timestamp::new(
+        u32::try_from(elapsed_ns / NANOS_PER_SECOND).unwrap_or(u32::MAX),
+        (elapsed_ns % NANOS_PER_SECOND) as u32,
+    )
+}
+
+fn vector(v: [f32; 3]) -> Vector3 {
+    Vector3 {
+        x: f64::from(v[0]),
+        y: f64::from(v[1]),
+        z: f64::from(v[2]),
+    }
+}
+
+pub(crate) fn pose(position: [f32; 3], rotation: [f32; 4]) -> Pose {
+    let [x, y, z, w] = rotation.map(f64::from);
+    Pose {
+        position: Some(vector(position)),
+        orientation: Some(Quaternion { x, y, z, w }),
+    }
+}
+
+/// No rotation (x, y, z, w).
+pub(crate) const IDENTITY: [f32; 4] = [0.0, 0.0, 0.0, 1.0];
+
+fn colour(kind: Option<ActorKind>) -> Color {
+    let (r, g, b) = match kind {
+        Some(ActorKind::Static) => (0.55, 0.55, 0.55),
+        Some(ActorKind::Box) => (0.85, 0.55, 0.25),
+        Some(ActorKind::Sphere) => (0.25, 0.55, 0.85),
+        Some(ActorKind::Capsule) => (0.35, 0.75, 0.35),
+        Some(ActorKind::Vehicle) => (0.85, 0.2, 0.2),
+        None => (1.0, 0.0, 1.0),
+    };
+    Color { r, g, b, a: 1.0 }
+}
+
+/// One actor as a scene entity: its body as primitives in the body's frame.
+pub(crate) fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
+    let kind = ActorKind::from_u32(actor.kind);
+    let [ex, ey, ez] = actor.extent;
+    let color = Some(colour(kind));
+    let mut entity = SceneEntity {
+        timestamp: Some(time),
+        frame_id: "world".into(),
+        id: actor.id.to_string(),
+        ..Default::default()
+    };
+    let body = Some(pose(actor.position, actor.rotation));
+    match kind {
+        Some(ActorKind::Sphere) => entity.spheres.push(SpherePrimitive {
+            pose: body,
+            size: Some(vector([2.0 * ex; 3])),
+            color,
+        }),
+        Some(ActorKind::Capsule) => {
+            // A capsule (radius, half height): a cylinder along the body's Y
+            // (Foxglove's run along Z: a quarter turn about X) and a sphere
+            // at each end, placed in the world through the body's pose.
+            let (radius, half) = (ex, ey);
+            let quarter = std::f32::consts::FRAC_1_SQRT_2;
+            entity.cylinders.push(CylinderPrimitive {
+                pose: Some(placed(actor, ([0.0; 3], [quarter, 0.0, 0.0, quarter]))),
+                size: Some(vector([2.0 * radius, 2.0 * radius, 2.0 * half])),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color,
+            });
+            for end in [-half, half] {
+                entity.spheres.push(SpherePrimitive {
+                    pose: Some(placed(actor, ([0.0, end, 0.0], IDENTITY))),
+                    size: Some(vector([2.0 * radius; 3])),
+                    color,
+                });
+            }
+        }
+        _ => entity.cubes.push(CubePrimitive {
+            pose: body,
+            size: Some(vector([2.0 * ex, 2.0 * ey, 2.0 * ez])),
+            color,
+        }),
+    }
+    entity
+}
+
+/// Something at `offset` (position, rotation) in the body of `actor`, in
+/// the world frame.
+pub(crate) fn placed(actor: &ActorState, offset: ([f32; 3], [f32; 4])) -> Pose {
+    let (position, rotation) = compose((actor.position, actor.rotation), offset);
+    pose(position, rotation)
+}

@@ -1,0 +1,466 @@
+//! The exporting side of a forwarded service: a request that came as a
+//! Zenoh query is sent through an ordinary simbus request port, and the
+//! server's answers go back as the query's replies.
+//!
+//! Every request is checked before it is sent (its size, its protocol
+//! version, a slice's length); a bad one is answered with a Zenoh error
+//! reply naming what is wrong, counted, and never reaches the server.
+
+use std::time::{Duration, Instant};
+
+use crate::error::{Chain, LocalError, TransportError};
+use crate::wire::{self, PayloadError};
+use iceoryx2::pending_response::PendingResponse;
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::prelude::*;
+use shared_types::{
+    BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ResponseStatus, SensorInfo,
+    SensorRequest, SensorResponseHeader, TickResponse,
+};
+use zenoh::query::Query;
+use zenoh::Wait as _;
+
+/// How long a forwarded request may wait for the server's answer.
+const ANSWER_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// A request waiting for its answer, with the query to answer.
+struct InFlight<P> {
+    pending: P,
+    query: Query,
+    since: Instant,
+}
+
+/// Why a request from another host was refused before it reached the
+/// server (the text goes back to the querier as the error reply).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum Refusal {
+    /// Its key names no forwarded service.
+    #[error("no such service")]
+    NoSuchService,
+    /// It does not name its mirror.
+    #[error("a request must name its mirror (?mirror=<zenoh id>)")]
+    NoMirror,
+    /// Its bytes are not a request of the service.
+    #[error("malformed {what}: {error}")]
+    Malformed {
+        /// What it should have been.
+        what: &'static str,
+        /// What is wrong.
+        error: PayloadError,
+    },
+    /// No lockstep port could be opened for its participant.
+    #[error("no lockstep port for this participant: {}", Chain(.0))]
+    NoLockstepPort(LocalError),
+    /// iceoryx2 could not send it.
+    #[error("cannot send the request to the server: {0:?}")]
+    NotSent(TransportError),
+}
+
+/// A request refused before it reached the server: its query and why.
+pub(super) type Refused = Box<(Query, Refusal)>;
+
+/// A [`Refused`] request.
+pub(super) fn refused(query: Query, why: Refusal) -> Refused {
+    Box::new((query, why))
+}
+
+/// A request of `what` that is not one.
+pub(super) fn malformed(query: Query, what: &'static str, error: PayloadError) -> Refused {
+    refused(query, Refusal::Malformed { what, error })
+}
+
+/// A final answer: the query, the answer's bytes, and for a tick the
+/// frame it produced (its reply waits until that frame is published).
+pub(super) struct Answer {
+    pub query: Query,
+    pub bytes: Vec<u8>,
+    pub frame: Option<u64>,
+}
+
+impl std::fmt::Debug for Answer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Answer")
+            .field("key", &self.query.key_expr().as_str())
+            .field("bytes", &self.bytes.len())
+            .field("frame", &self.frame)
+            .finish()
+    }
+}
+
+/// Replies `bytes` to `query` on its own key.
+pub(super) fn reply(query: &Query, bytes: &[u8]) {
+    // Express: sent at once, not batched with what may follow.
+    if let Err(e) = query
+        .reply(query.key_expr().clone(), bytes.to_vec())
+        .express(true)
+        .wait()
+    {
+        tracing::debug!("reply to {} not sent: {e}", query.key_expr());
+    }
+}
+
+/// Replies an error `message` to `query`.
+pub(super) fn refuse(query: &Query, message: &str) {
+    if let Err(e) = query.reply_err(message.to_owned()).wait() {
+        tracing::debug!("error reply to {} not sent: {e}", query.key_expr());
+    }
+}
+
+/// The requests of one port waiting for their answers.
+struct Flights<P>(Vec<InFlight<P>>);
+
+impl<P> Default for Flights<P> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<P> Flights<P> {
+    /// Keeps a sent request until its answer comes; a request that could
+    /// not be sent is refused.
+    fn admit<E: Into<TransportError>>(
+        &mut self,
+        sent: Result<P, E>,
+        query: Query,
+    ) -> Result<(), Refused> {
+        match sent {
+            Ok(pending) => {
+                self.0.push(InFlight {
+                    pending,
+                    query,
+                    since: Instant::now(),
+                });
+                Ok(())
+            }
+            Err(e) => Err(refused(query, Refusal::NotSent(e.into()))),
+        }
+    }
+
+    /// Whether answers are awaited.
+    fn busy(&self) -> bool {
+        !self.0.is_empty()
+    }
+
+    /// Moves the answers that finished to `answers`; requests that timed
+    /// out or lost the server are answered with an error.
+    fn drain<T, E: std::fmt::Debug>(
+        &mut self,
+        mut receive: impl FnMut(&P) -> Result<Option<T>, E>,
+        mut finish: impl FnMut(&Query, T) -> Option<(Vec<u8>, Option<u64>)>,
+        connected: impl Fn(&P) -> bool,
+        answers: &mut Vec<Answer>,
+    ) {
+        let flights = &mut self.0;
+        let mut i = 0;
+        while i < flights.len() {
+            let flight = &flights[i];
+            // Asked before receiving: a server that answers and then lets go
+            // of the request between the two calls is not taken for gone.
+            let connected = connected(&flight.pending);
+            let done = match receive(&flight.pending) {
+                Ok(Some(answer)) => finish(&flight.query, answer),
+                Ok(None) if !connected => {
+                    refuse(&flight.query, "the server of the world is gone");
+                    Some((Vec::new(), None))
+                }
+                Ok(None) if flight.since.elapsed() > ANSWER_TIMEOUT => {
+                    refuse(&flight.query, "the server did not answer in time");
+                    Some((Vec::new(), None))
+                }
+                Ok(None) => None,
+                Err(e) => {
+                    refuse(
+                        &flight.query,
+                        &format!("receiving the server's answer: {e:?}"),
+                    );
+                    Some((Vec::new(), None))
+                }
+            };
+            match done {
+                Some((bytes, frame)) => {
+                    let flight = flights.swap_remove(i);
+                    if !bytes.is_empty() {
+                        answers.push(Answer {
+                            query: flight.query,
+                            bytes,
+                            frame,
+                        });
+                    }
+                }
+                None => i += 1,
+            }
+        }
+    }
+}
+
+impl<P> std::fmt::Debug for Flights<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} in flight", self.0.len())
+    }
+}
+
+/// The iceoryx2 name of the service `name`.
+pub(crate) fn service_name(name: &str) -> Result<ServiceName, LocalError> {
+    ServiceName::new(name).map_err(|e| LocalError::transport(format!("service name {name}"), e))
+}
+
+/// A fixed-size request waiting for its answer.
+type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
+
+/// A forwarded service of fixed-size requests and answers.
+pub(super) struct FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    client: RequestClient<Bus, Req, (), Resp, ()>,
+    flights: Flights<Pending<Req, Resp>>,
+}
+
+impl<Req, Resp> FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    /// Opens a client port of the service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
+        let client = node
+            .service_builder(&service_name(name)?)
+            .request_response::<Req, Resp>()
+            .open()
+            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
+            .client_builder()
+            .create()
+            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+        Ok(Self {
+            client,
+            flights: Flights::default(),
+        })
+    }
+
+    /// Checks `bytes` as a `Req`.
+    pub(super) fn decode(bytes: &[u8]) -> Result<Req, PayloadError> {
+        wire::decode_fixed::<Req>(bytes, std::any::type_name::<Req>())
+    }
+
+    /// Sends `request`; its answer will go to `query`.
+    pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), Refused> {
+        self.flights.admit(self.client.send_copy(request), query)
+    }
+
+    /// Sends `request` without awaiting its answer.
+    pub(super) fn send_detached(&mut self, request: Req) -> Result<(), LocalError> {
+        self.client
+            .send_copy(request)
+            .map(drop)
+            .map_err(|e| LocalError::transport("sending a request to the server", e))
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        self.flights.busy()
+    }
+
+    /// Moves the final answers that came to `answers`; an interim answer
+    /// (`interim` says which) is replied at once.
+    pub(super) fn poll(
+        &mut self,
+        interim: impl Fn(&Resp) -> bool,
+        frame_of: impl Fn(&Resp) -> Option<u64>,
+        answers: &mut Vec<Answer>,
+    ) {
+        self.flights.drain(
+            |p| p.receive().map(|r| r.map(|r| *r.payload())),
+            |query, answer| {
+                if interim(&answer) {
+                    reply(query, bytemuck::bytes_of(&answer));
+                    None
+                } else {
+                    Some((bytemuck::bytes_of(&answer).to_vec(), frame_of(&answer)))
+                }
+            },
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl<Req, Resp> std::fmt::Debug for FixedRelay<Req, Resp>
+where
+    Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+    Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
+{
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FixedRelay")
+            .field("flights", &self.flights)
+            .finish()
+    }
+}
+
+/// Whether a tick answer is interim (a final one follows).
+pub(super) fn tick_interim(answer: &TickResponse) -> bool {
+    answer.status == ResponseStatus::WaitingForParticipants as u32
+}
+
+/// The frame an OK tick answer produced.
+pub(super) fn tick_frame(answer: &TickResponse) -> Option<u64> {
+    (answer.status == ResponseStatus::Ok as u32).then_some(answer.frame)
+}
+
+type BatchPort = RequestClient<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+type PendingBatch =
+    PendingResponse<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+
+/// The batch service: a header and commands, answered by a header and
+/// one result per command.
+pub(super) struct BatchRelay {
+    client: BatchPort,
+    flights: Flights<PendingBatch>,
+}
+
+/// The most commands one forwarded batch may hold.
+pub(crate) const MAX_FORWARDED_BATCH: usize = 65_536;
+
+impl BatchRelay {
+    /// Opens a client port of the batch service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
+        let client = node
+            .service_builder(&service_name(name)?)
+            .request_response::<[Command], [CommandResult]>()
+            .request_user_header::<BatchHeader>()
+            .response_user_header::<BatchResponseHeader>()
+            .open()
+            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
+            .client_builder()
+            .initial_max_slice_len(shared_types::limits::INITIAL_MAX_BATCH)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+        Ok(Self {
+            client,
+            flights: Flights::default(),
+        })
+    }
+
+    /// Checks `bytes` as a batch and sends it; its answer will go to `query`.
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), Refused> {
+        let (header, commands) =
+            match wire::decode_slice::<BatchHeader, Command>(bytes, "batch", MAX_FORWARDED_BATCH) {
+                Ok(batch) => batch,
+                Err(e) => return Err(malformed(query, "batch", e)),
+            };
+        let sent = self
+            .client
+            .loan_slice_uninit(commands.len())
+            .map_err(TransportError::from)
+            .and_then(|mut request| {
+                *request.user_header_mut() = header;
+                request
+                    .write_from_slice(&commands)
+                    .send()
+                    .map_err(TransportError::from)
+            });
+        self.flights.admit(sent, query)
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        self.flights.busy()
+    }
+
+    /// Moves the answers that came to `answers`.
+    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
+        self.flights.drain(
+            |p| {
+                p.receive().map(|r| {
+                    r.map(|r| {
+                        let mut bytes = Vec::new();
+                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                        (bytes, ())
+                    })
+                })
+            },
+            // A batch's frame may be one still to come (the next tick's):
+            // its answer is never held for it.
+            |_, (bytes, _)| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl std::fmt::Debug for BatchRelay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BatchRelay")
+            .field("flights", &self.flights)
+            .finish()
+    }
+}
+
+type SensorPort = RequestClient<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+type PendingSensors = PendingResponse<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+
+/// The sensor service: a request, answered by a header and sensor infos.
+pub(super) struct SensorRelay {
+    client: SensorPort,
+    flights: Flights<PendingSensors>,
+}
+
+impl SensorRelay {
+    /// Opens a client port of the sensor service `name`.
+    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
+        let client = node
+            .service_builder(&service_name(name)?)
+            .request_response::<SensorRequest, [SensorInfo]>()
+            .response_user_header::<SensorResponseHeader>()
+            .open()
+            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
+            .client_builder()
+            .create()
+            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+        Ok(Self {
+            client,
+            flights: Flights::default(),
+        })
+    }
+
+    /// Checks `bytes` as a sensor request and sends it.
+    pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), Refused> {
+        let request = match wire::decode_fixed::<SensorRequest>(bytes, "sensor request") {
+            Ok(request) => request,
+            Err(e) => return Err(malformed(query, "sensor request", e)),
+        };
+        self.flights.admit(self.client.send_copy(request), query)
+    }
+
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        self.flights.busy()
+    }
+
+    /// Moves the answers that came to `answers`.
+    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
+        self.flights.drain(
+            |p| {
+                p.receive().map(|r| {
+                    r.map(|r| {
+                        let mut bytes = Vec::new();
+                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                        bytes
+                    })
+                })
+            },
+            |_, bytes| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl std::fmt::Debug for SensorRelay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SensorRelay")
+            .field("flights", &self.flights)
+            .finish()
+    }
+}

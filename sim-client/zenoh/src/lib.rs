@@ -1,0 +1,145 @@
+//! The simbus Zenoh bridge (`sim-client bridge zenoh`): a world beyond one
+//! machine, over Zenoh.
+//!
+//! One bridge per host, symmetric. On the server's host, `--listen`
+//! **exports** the world: frames and sensor captures become Zenoh
+//! publications under `simbus/<world>/…`, the world's request services
+//! (control, tick, batch, lockstep, sensors, recorder) become queryables
+//! whose requests the bridge sends to the server through ordinary simbus
+//! ports. On another host, `--connect` **mirrors** the world into that
+//! host's shared memory: the bridge creates the world's services there, as
+//! a server would, publishes every frame and capture it receives and
+//! forwards every request, so unmodified local clients (`watch`, `tick`,
+//! `sensor watch`, the CARLA gateway, the Rust API) work as if the server
+//! were local. Frames cross the network once per host.
+//!
+//! The single-ticker rule holds across hosts: a remote ticker claims
+//! through its mirror; the exporting bridge holds the world's tick
+//! ownership on its behalf (the server reports the remote ticker's node and
+//! pid) and refuses every other claimant. Each bridge declares a Zenoh
+//! liveliness token; when a mirror's token goes (its link dropped or it
+//! died) the exporter releases the ownership it held for it, and when the
+//! exporter's goes, the mirror answers every request with
+//! [`shared_types::ResponseStatus::Unreachable`]. Both happen within the
+//! Zenoh lease (`--lease-ms`).
+//!
+//! The crate owns what crosses the network ([`wire`]: the Zenoh keys, the
+//! payload layouts, ROS 2's CDR clock). [`run`] runs one bridge until its
+//! stop flag is set, telling the caller what a user would want to know
+//! through [`Notice`]s; it prints nothing.
+
+mod error;
+mod export;
+mod link;
+mod mirror;
+pub mod wire;
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use shared_types::{StatusReport, WorldName, WorldSettings};
+
+pub use error::{
+    BridgeError, ExportError, FramesError, LinkError, LocalError, MirrorError, QueryError,
+    TransportError, ZenohError,
+};
+pub use link::check_endpoint;
+
+/// Which side of the link this bridge is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role<'a> {
+    /// Export the world from the server's host, listening on this Zenoh
+    /// endpoint (`tcp/0.0.0.0:7447`).
+    Export(&'a str),
+    /// Mirror the world exported at this Zenoh endpoint into this host's
+    /// shared memory.
+    Mirror(&'a str),
+}
+
+/// The JSON the exporter answers Zenoh tools' `status` and `settings`
+/// queries with (the caller's, so it is the JSON its own tools print).
+#[derive(Debug, Clone, Copy)]
+pub struct JsonViews {
+    /// A world's status report as JSON.
+    pub status: fn(&WorldName, &StatusReport) -> serde_json::Value,
+    /// A world's settings as JSON.
+    pub settings: fn(&WorldSettings) -> serde_json::Value,
+}
+
+/// How a bridge runs.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// A Zenoh configuration file (JSON5: TLS, routers, scouting...); the
+    /// endpoint is added to it. Without one: peer mode, no multicast
+    /// scouting.
+    pub zenoh_config: Option<PathBuf>,
+    /// Exporting: also publish the simulation time as ROS 2
+    /// `rosgraph_msgs/msg/Clock` in CDR on the Zenoh key
+    /// [`wire::ROS2_CLOCK_KEY`].
+    pub ros2_clock: bool,
+    /// Zenoh's lease in milliseconds: a silent link is declared dead after
+    /// this long.
+    pub lease_ms: u64,
+    /// Mirroring: how long a forwarded request may wait for its answer.
+    pub request_timeout: Duration,
+    /// Exporting: the JSON of the `status` and `settings` queries.
+    pub json: JsonViews,
+}
+
+/// What a running bridge has to say to its user.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Notice {
+    /// The exporter is up: the current frame is out.
+    Exporting {
+        /// The world.
+        world: WorldName,
+        /// The endpoint it listens on.
+        endpoint: String,
+        /// The server's pid.
+        server_pid: u32,
+        /// The frame current when it started.
+        frame: u64,
+    },
+    /// The mirror is up: local clients may connect.
+    Mirroring {
+        /// The world.
+        world: WorldName,
+        /// The exporter's endpoint.
+        endpoint: String,
+        /// The server's pid on the exporter's host.
+        server_pid: u32,
+        /// The frame current when it started.
+        frame: u64,
+    },
+    /// The mirror reaches the exporting bridge again.
+    LinkUp,
+    /// The mirror lost the exporting bridge: requests are answered
+    /// [`shared_types::ResponseStatus::Unreachable`] until it is back.
+    LinkDown,
+}
+
+/// Runs a bridge of `world` as `role` says until `stop` is set (or, when
+/// exporting, the server is gone), calling `notice` with what the user
+/// should know. `timeout` bounds connecting to the world (exporting) or
+/// waiting for the exporter (mirroring).
+pub fn run(
+    world: &WorldName,
+    timeout: Duration,
+    role: Role<'_>,
+    options: &Options,
+    stop: &AtomicBool,
+    notice: &mut dyn FnMut(Notice),
+) -> Result<(), BridgeError> {
+    let session = link::open(options, role)?;
+    match role {
+        Role::Export(endpoint) => {
+            export::run(world, timeout, endpoint, options, session, stop, notice)?;
+        }
+        Role::Mirror(endpoint) => {
+            mirror::run(world, timeout, endpoint, options, session, stop, notice)?;
+        }
+    }
+    Ok(())
+}

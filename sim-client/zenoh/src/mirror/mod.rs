@@ -1,0 +1,554 @@
+//! The mirroring bridge, on another host: the world's services created in
+//! this host's shared memory, as a server would create them; every frame
+//! and capture received from the exporting bridge published there; every
+//! local request forwarded as a Zenoh query and its replies sent back.
+//!
+//! The mirror is the local clients' server: frames carry its pid, so a
+//! local client notices when the mirror dies. While the exporter cannot be
+//! reached, every request is answered at once with
+//! [`ResponseStatus::Unreachable`]; frames missed meanwhile are reported as
+//! a gap, never invented.
+//!
+//! The mirror is a [`Mirror`] with one `on_…` method per event; its one
+//! wait point is the wake-up listener of this host's world, which local
+//! clients notify after a request and Zenoh's callbacks after queueing an
+//! event.
+
+mod answers;
+mod local;
+mod query;
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::time::{Duration, Instant};
+
+use shared_types::limits::WorldLimits;
+use shared_types::{
+    ActorState, ControlRequest, ControlResponse, FixedText, FrameHeader, RequestKind,
+    ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, WorldName,
+};
+use tracing::{info, warn};
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::SampleKind;
+use zenoh::{Session, Wait as _};
+
+use self::answers::{
+    answer_local, refuse_local, request_bytes, send_tick, sender_pid, status_answer,
+    unreachable_answer, Answered,
+};
+pub(crate) use self::local::wake_notifier_on;
+use self::local::{Active, Local, LocalServices, SensorPorts};
+use self::query::{query_once, query_until, Link};
+use crate::error::{Chain, MirrorError, QueryError};
+use crate::wire::{self, BridgeKeys, Forwarded};
+use crate::{Notice, Options};
+
+/// How long a tick's answer waits here for its frame.
+const HOLD_LIMIT: Duration = Duration::from_secs(2);
+
+/// How long the mirror sleeps at most (how soon `stop` is seen).
+const IDLE_WAIT: Duration = Duration::from_millis(50);
+
+/// How often held answers and the local ticker's life are checked.
+const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+
+/// What wakes the mirror.
+pub(super) enum Event {
+    /// A frame from the exporter.
+    Frame(Vec<u8>),
+    /// A capture from the exporter.
+    Capture(Vec<u8>),
+    /// A reply to forwarded request `id` (an error reply as its text).
+    Reply(u64, Result<Vec<u8>, QueryError>),
+    /// Forwarded request `id` will get no more replies.
+    Done(u64),
+    /// The exporter's liveliness token appeared (`true`) or went.
+    Exporter(bool),
+}
+
+/// A forwarded request: the local request and whether it was answered.
+struct InFlight {
+    local: Local,
+    answered: bool,
+}
+
+/// This host's name, as remote tickers are reported (`host/node`).
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_owned())
+        .ok()
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "mirror".to_owned())
+}
+
+/// What the exporter said first: the world's status, then its frame.
+struct Hello {
+    status: ControlResponse,
+    header: FrameHeader,
+    actors: Vec<ActorState>,
+}
+
+/// Asks the exporter at `endpoint` for the world's status and its current
+/// frame, for up to `timeout`.
+fn hello(
+    session: &Session,
+    keys: &BridgeKeys,
+    world: &WorldName,
+    endpoint: &str,
+    timeout: Duration,
+    stop: &AtomicBool,
+) -> Result<Hello, MirrorError> {
+    let zid = session.zid().to_string();
+    let request = ControlRequest::new(RequestKind::Status);
+    info!(%world, %endpoint, "asking for the world's status (waiting up to {timeout:?})");
+    let key = keys.rpc(Forwarded::Control);
+    let status = match query_until(session, &key, &zid, wire::bytes_of(&request), timeout, stop) {
+        Ok(bytes) => bytes,
+        Err(QueryError::NoAnswer) => {
+            return Err(MirrorError::NotExported {
+                world: world.clone(),
+                endpoint: endpoint.to_owned(),
+                timeout,
+            })
+        }
+        Err(e) => return Err(MirrorError::Refused(e)),
+    };
+    let status =
+        wire::decode_fixed::<ControlResponse>(&status, "status answer").map_err(|error| {
+            MirrorError::Incompatible {
+                world: world.clone(),
+                endpoint: endpoint.to_owned(),
+                error,
+            }
+        })?;
+    let first =
+        query_once(session, &keys.latest_frame(), &zid, &[], timeout).map_err(|source| {
+            MirrorError::NoFrame {
+                world: world.clone(),
+                source,
+            }
+        })?;
+    let (header, actors) = wire::decode_frame(&first).map_err(MirrorError::UnreadableFrame)?;
+    Ok(Hello {
+        status,
+        header,
+        actors,
+    })
+}
+
+/// What the mirror declared on Zenoh, undeclared when dropped.
+struct Declared {
+    _token: LivelinessToken,
+    _subscribers: [Subscriber<()>; 3],
+}
+
+/// Declares the mirror's liveliness token and its subscribers (the
+/// exporter's token, frames, captures); each event wakes the mirror.
+fn declare(
+    session: &Session,
+    keys: &BridgeKeys,
+    names: &ServiceNames,
+    events: &Sender<Event>,
+) -> Result<Declared, MirrorError> {
+    let token = session
+        .liveliness()
+        .declare_token(keys.mirror(&session.zid().to_string()))
+        .wait()
+        .map_err(MirrorError::zenoh(
+            "declaring the mirror's liveliness token",
+        ))?;
+    let (to_main, wake_names) = (events.clone(), names.clone());
+    let exporter = session
+        .liveliness()
+        .declare_subscriber(keys.exporter())
+        .history(true)
+        .callback(move |sample| {
+            let _ = to_main.send(Event::Exporter(sample.kind() == SampleKind::Put));
+            local::wake(&wake_names);
+        })
+        .wait()
+        .map_err(MirrorError::zenoh("watching the exporter's liveliness"))?;
+    let subscriber = |key: String, event: fn(Vec<u8>) -> Event| {
+        let (to_main, wake_names) = (events.clone(), names.clone());
+        session
+            .declare_subscriber(key)
+            .callback(move |sample| {
+                let _ = to_main.send(event(sample.payload().to_bytes().into_owned()));
+                local::wake(&wake_names);
+            })
+            .wait()
+            .map_err(MirrorError::zenoh("declaring a subscriber"))
+    };
+    Ok(Declared {
+        _token: token,
+        _subscribers: [
+            exporter,
+            subscriber(keys.frames(), Event::Frame)?,
+            subscriber(keys.sensors(), Event::Capture)?,
+        ],
+    })
+}
+
+/// Mirrors `world`, exported at `endpoint`, into this host's shared memory
+/// until `stop`.
+pub(crate) fn run(
+    world: &WorldName,
+    timeout: Duration,
+    endpoint: &str,
+    options: &Options,
+    session: Session,
+    stop: &AtomicBool,
+    notice: &mut dyn FnMut(Notice),
+) -> Result<(), MirrorError> {
+    let keys = BridgeKeys::new(world);
+    let names = ServiceNames::new(world);
+    let zid = session.zid().to_string();
+    let Hello {
+        status,
+        mut header,
+        actors,
+    } = hello(&session, &keys, world, endpoint, timeout, stop)?;
+    let limits = WorldLimits {
+        max_clients: status.report.max_clients.max(1) as usize,
+        max_sensor_readers: status.report.max_sensor_readers.max(1) as usize,
+    };
+    let local = LocalServices::create(&names, &limits)?;
+    header.server_pid = std::process::id();
+    local.publish_frame(&header, &actors)?;
+    let (events, incoming) = mpsc::channel::<Event>();
+    let _declared = declare(&session, &keys, &names, &events)?;
+    notice(Notice::Mirroring {
+        world: world.clone(),
+        endpoint: endpoint.to_owned(),
+        server_pid: status.report.server_pid,
+        frame: header.timestamp.frame,
+    });
+    info!(%world, zid = %zid, "mirroring");
+    let link = Link {
+        session: &session,
+        keys: &keys,
+        names: &names,
+        zid: &zid,
+        events,
+        timeout: options.request_timeout,
+    };
+    let mut mirror = Mirror::new(
+        link,
+        local,
+        limits,
+        (header.episode, header.timestamp.frame),
+    );
+    let result = mirror.serve(&incoming, stop, notice);
+    info!(dropped = mirror.dropped, "mirror ended");
+    result
+}
+
+/// The mirror: this host's side of the world, one `on_…` per event.
+struct Mirror<'a> {
+    link: Link<'a>,
+    local: LocalServices,
+    limits: WorldLimits,
+    /// This host's name, for remote tickers' node names.
+    host: String,
+    /// The last frame published here (episode, frame).
+    last: (u64, u64),
+    sensors: SensorPorts,
+    in_flight: HashMap<u64, InFlight>,
+    /// Tick answers waiting for their frame, and since when.
+    held: Vec<(Active<TickRequest, TickResponse>, TickResponse, Instant)>,
+    next_id: u64,
+    /// Whether the exporter is reachable.
+    linked: bool,
+    /// The local ticker (pid, name as forwarded), released if it dies.
+    local_ticker: Option<(u32, String)>,
+    next_liveness_check: Instant,
+    dropped: u64,
+    requests: Vec<Local>,
+}
+
+impl<'a> Mirror<'a> {
+    fn new(link: Link<'a>, local: LocalServices, limits: WorldLimits, last: (u64, u64)) -> Self {
+        Self {
+            link,
+            local,
+            limits,
+            host: host_name(),
+            last,
+            sensors: SensorPorts::default(),
+            in_flight: HashMap::new(),
+            held: Vec::new(),
+            next_id: 0,
+            linked: true,
+            local_ticker: None,
+            next_liveness_check: Instant::now(),
+            dropped: 0,
+            requests: Vec::new(),
+        }
+    }
+
+    /// Serves until `stop`, telling `notice` when the link goes and comes.
+    fn serve(
+        &mut self,
+        incoming: &Receiver<Event>,
+        stop: &AtomicBool,
+        notice: &mut dyn FnMut(Notice),
+    ) -> Result<(), MirrorError> {
+        while !stop.load(Ordering::Relaxed) {
+            // The one wait point: local clients and Zenoh's callbacks both
+            // wake the listener (see `local::wake`).
+            let event = match incoming.try_recv() {
+                Ok(event) => Some(event),
+                Err(TryRecvError::Empty) => {
+                    self.local.wait(IDLE_WAIT)?;
+                    incoming.try_recv().ok()
+                }
+                Err(TryRecvError::Disconnected) => return Ok(()),
+            };
+            match event {
+                Some(Event::Frame(bytes)) => self.on_frame(&bytes)?,
+                Some(Event::Capture(bytes)) => self.on_capture(&bytes),
+                Some(Event::Reply(id, reply)) => self.on_reply(id, reply),
+                Some(Event::Done(id)) => self.on_done(id),
+                Some(Event::Exporter(alive)) => self.on_exporter(alive, notice),
+                None => {}
+            }
+            self.on_local_requests()?;
+            if Instant::now() >= self.next_liveness_check {
+                self.next_liveness_check = Instant::now() + LIVENESS_PERIOD;
+                self.on_liveness_check();
+            }
+        }
+        Ok(())
+    }
+
+    /// A frame from the exporter, published here; the tick answers held
+    /// for it go.
+    fn on_frame(&mut self, bytes: &[u8]) -> Result<(), MirrorError> {
+        let (mut header, actors) = match wire::decode_frame(bytes) {
+            Ok(frame) => frame,
+            Err(e) => {
+                self.dropped += 1;
+                warn!(dropped = self.dropped, "dropped a frame publication: {e}");
+                return Ok(());
+            }
+        };
+        let key = (header.episode, header.timestamp.frame);
+        let last = self.last;
+        if key <= last {
+            return Ok(());
+        }
+        let sync = header.settings.synchronous_mode != 0;
+        if sync && header.episode == last.0 && key.1 > last.1 + 1 {
+            warn!(
+                from = last.1 + 1,
+                to = key.1 - 1,
+                "frames {}..={} never arrived (the link was down); they are not invented",
+                last.1 + 1,
+                key.1 - 1
+            );
+        }
+        self.last = key;
+        header.server_pid = std::process::id();
+        self.local.publish_frame(&header, &actors)?;
+        self.held.retain(|(active, answer, _)| {
+            if answer.frame > key.1 {
+                return true;
+            }
+            send_tick(active, *answer);
+            false
+        });
+        self.local.notify();
+        Ok(())
+    }
+
+    /// A capture from the exporter, published here.
+    fn on_capture(&mut self, bytes: &[u8]) {
+        match wire::decode_capture(bytes) {
+            Ok((header, payload)) => {
+                let published = self.sensors.publish(
+                    self.link.names,
+                    &self.limits,
+                    &self.local,
+                    &header,
+                    payload,
+                );
+                if let Err(e) = published {
+                    self.dropped += 1;
+                    warn!(
+                        dropped = self.dropped,
+                        sensor = header.sensor_id,
+                        "dropped a capture: {}",
+                        Chain(&e)
+                    );
+                } else {
+                    self.local.notify();
+                }
+            }
+            Err(e) => {
+                self.dropped += 1;
+                warn!(dropped = self.dropped, "dropped a capture publication: {e}");
+            }
+        }
+    }
+
+    /// The exporter's reply to forwarded request `id`, sent to its local
+    /// client (a tick's once its frame is published here).
+    fn on_reply(&mut self, id: u64, reply: Result<Vec<u8>, QueryError>) {
+        let Some(flight) = self.in_flight.get_mut(&id) else {
+            return;
+        };
+        flight.answered = true;
+        let answered = match reply {
+            Ok(bytes) => answer_local(
+                &flight.local,
+                &bytes,
+                self.link.names,
+                &self.limits,
+                &self.local,
+                &mut self.sensors,
+                &mut self.local_ticker,
+            ),
+            Err(e) => {
+                warn!("the exporter refused a request: {e}");
+                refuse_local(&flight.local, ResponseStatus::Refused);
+                Answered::Sent
+            }
+        };
+        match answered {
+            Answered::Sent => {}
+            Answered::Unreadable(why) => {
+                self.dropped += 1;
+                warn!(
+                    dropped = self.dropped,
+                    "an answer from the exporter is unreadable: {why}"
+                );
+                unreachable_answer(&flight.local);
+            }
+            Answered::AfterFrame(answer) => {
+                if let Some(InFlight {
+                    local: Local::Tick(active, _),
+                    ..
+                }) = self.in_flight.remove(&id)
+                {
+                    if answer.frame <= self.last.1 {
+                        send_tick(&active, *answer);
+                    } else {
+                        self.held.push((active, *answer, Instant::now()));
+                    }
+                }
+            }
+        }
+        self.local.notify();
+    }
+
+    /// Forwarded request `id` gets no more replies: without any, the
+    /// exporter is out of reach.
+    fn on_done(&mut self, id: u64) {
+        if let Some(flight) = self.in_flight.remove(&id) {
+            if !flight.answered {
+                unreachable_answer(&flight.local);
+                self.local.notify();
+            }
+        }
+    }
+
+    /// The exporter's liveliness token came or went.
+    fn on_exporter(&mut self, alive: bool, notice: &mut dyn FnMut(Notice)) {
+        if alive == self.linked {
+            return;
+        }
+        self.linked = alive;
+        if alive {
+            info!("the exporting bridge is reachable again");
+            notice(Notice::LinkUp);
+            return;
+        }
+        warn!("the exporting bridge is out of reach; requests are answered 'unreachable'");
+        notice(Notice::LinkDown);
+        for (_, flight) in self.in_flight.drain() {
+            if !flight.answered {
+                unreachable_answer(&flight.local);
+            }
+        }
+        for (active, _, _) in self.held.drain(..) {
+            let _ = active.send_copy(status_answer(ResponseStatus::Unreachable));
+        }
+        // The exporter releases the ownership it held for us.
+        self.local_ticker = None;
+        self.local.notify();
+    }
+
+    /// Local requests: forwarded, or answered 'unreachable' at once.
+    fn on_local_requests(&mut self) -> Result<(), MirrorError> {
+        self.local.connect_new_subscribers();
+        self.local.receive_requests(&mut self.requests)?;
+        let mut requests = std::mem::take(&mut self.requests);
+        for mut request in requests.drain(..) {
+            if let Local::Tick(active, payload) = &mut request {
+                payload.pid = sender_pid(active.header());
+                let name = format!("{}/{}", self.host, payload.node_name.to_string_lossy());
+                payload.node_name = FixedText::new(&name);
+            }
+            if !self.linked {
+                unreachable_answer(&request);
+                self.local.notify();
+                continue;
+            }
+            let (service, bytes) = request_bytes(&request);
+            let id = self.forward(service, bytes);
+            self.in_flight.insert(
+                id,
+                InFlight {
+                    local: request,
+                    answered: false,
+                },
+            );
+        }
+        self.requests = requests;
+        Ok(())
+    }
+
+    /// Forwards `bytes` to `service` under a new id, returned.
+    fn forward(&mut self, service: Forwarded, bytes: Vec<u8>) -> u64 {
+        self.next_id += 1;
+        self.link.forward(service, bytes, self.next_id);
+        self.next_id
+    }
+
+    /// A tick answer whose frame never came (a new episode, a lost
+    /// publication) goes anyway; a local ticker that died is released.
+    fn on_liveness_check(&mut self) {
+        self.held.retain(|(active, answer, since)| {
+            if since.elapsed() < HOLD_LIMIT {
+                return true;
+            }
+            warn!(
+                frame = answer.frame,
+                "the frame of a tick's answer did not arrive; answering without it"
+            );
+            send_tick(active, *answer);
+            false
+        });
+        if let Some((pid, name)) = self.local_ticker.clone() {
+            if !sim_client::process_alive(pid) {
+                info!(pid, "the local ticker died; releasing its ownership");
+                let mut release = TickRequest::new(TickRequestKind::Release, &name);
+                release.pid = pid;
+                self.forward(Forwarded::Tick, wire::bytes_of(&release).to_vec());
+                self.local_ticker = None;
+            }
+        }
+    }
+}
+
+impl std::fmt::Debug for Mirror<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Mirror")
+            .field("last", &self.last)
+            .field("linked", &self.linked)
+            .field("in_flight", &self.in_flight.len())
+            .finish()
+    }
+}

@@ -1,0 +1,475 @@
+//! What travels between hosts: the Zenoh key expressions of a world, the
+//! frame as one Zenoh payload, the request envelope of the forwarded
+//! services, and ROS 2's `rosgraph_msgs/msg/Clock` in CDR.
+//!
+//! A frame on Zenoh is the frame sample's bytes as they lie in shared
+//! memory: the [`FrameHeader`] (little-endian, `#[repr(C)]`, its layout
+//! pinned by a test and documented in docs/src/wire.md) followed by
+//! `actor_count` [`ActorState`]s. A sensor capture is its
+//! [`SensorHeader`] followed by the payload bytes. A forwarded request or
+//! answer is the service's request (or answer) bytes, a slice service's
+//! header first; every one starts with the sender's protocol version.
+
+use bytemuck::{Pod, Zeroable};
+
+use shared_types::{ActorState, FrameHeader, SensorHeader, WorldName, PROTOCOL_VERSION};
+
+/// The Zenoh key expressions of one world.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BridgeKeys {
+    prefix: String,
+}
+
+/// The services a bridge forwards, each a queryable under
+/// `simbus/<world>/rpc/<name>`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Forwarded {
+    /// [`shared_types::ControlRequest`] → [`shared_types::ControlResponse`].
+    Control,
+    /// [`shared_types::TickRequest`] → [`shared_types::TickResponse`] (possibly an interim
+    /// answer first).
+    Tick,
+    /// [`shared_types::BatchHeader`] and [`shared_types::Command`]s → a
+    /// [`shared_types::BatchResponseHeader`] and [`shared_types::CommandResult`]s.
+    Batch,
+    /// [`shared_types::LockstepRequest`] → [`shared_types::LockstepResponse`].
+    Lockstep,
+    /// [`shared_types::SensorRequest`] → a [`shared_types::SensorResponseHeader`] and
+    /// [`shared_types::SensorInfo`]s.
+    Sensors,
+    /// [`shared_types::RecorderRequest`] → [`shared_types::RecorderResponse`].
+    Recorder,
+}
+
+impl Forwarded {
+    /// Every forwarded service.
+    pub const ALL: [Forwarded; 6] = [
+        Self::Control,
+        Self::Tick,
+        Self::Batch,
+        Self::Lockstep,
+        Self::Sensors,
+        Self::Recorder,
+    ];
+
+    /// The last segment of its key.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Control => "control",
+            Self::Tick => "tick",
+            Self::Batch => "batch",
+            Self::Lockstep => "lockstep",
+            Self::Sensors => "sensors",
+            Self::Recorder => "recorder",
+        }
+    }
+}
+
+impl BridgeKeys {
+    /// The keys of `world`.
+    pub fn new(world: &WorldName) -> Self {
+        Self {
+            prefix: format!("simbus/{world}"),
+        }
+    }
+
+    /// Every key of the world (`simbus/<world>/**`).
+    pub fn all(&self) -> String {
+        format!("{}/**", self.prefix)
+    }
+
+    /// Frames, one publication each ([`encode_frame`]).
+    pub fn frames(&self) -> String {
+        format!("{}/frames", self.prefix)
+    }
+
+    /// Queryable: the last frame the exporting bridge published.
+    pub fn latest_frame(&self) -> String {
+        format!("{}/frames/latest", self.prefix)
+    }
+
+    /// Captures of sensor `id` ([`encode_capture`]).
+    pub fn sensor(&self, id: u64) -> String {
+        format!("{}/sensor/{id}", self.prefix)
+    }
+
+    /// Every sensor's captures.
+    pub fn sensors(&self) -> String {
+        format!("{}/sensor/*", self.prefix)
+    }
+
+    /// Queryable of a forwarded service.
+    pub fn rpc(&self, service: Forwarded) -> String {
+        format!("{}/rpc/{}", self.prefix, service.name())
+    }
+
+    /// Every forwarded service's queryable.
+    pub fn every_rpc(&self) -> String {
+        format!("{}/rpc/*", self.prefix)
+    }
+
+    /// Queryable: the world's status as JSON, for Zenoh tools.
+    pub fn status(&self) -> String {
+        format!("{}/status", self.prefix)
+    }
+
+    /// Queryable: the world's settings as JSON, for Zenoh tools.
+    pub fn settings(&self) -> String {
+        format!("{}/settings", self.prefix)
+    }
+
+    /// Liveliness token of the exporting bridge.
+    pub fn exporter(&self) -> String {
+        format!("{}/alive/exporter", self.prefix)
+    }
+
+    /// Liveliness token of the mirror `zid` (a Zenoh session id).
+    pub fn mirror(&self, zid: &str) -> String {
+        format!("{}/alive/mirror/{zid}", self.prefix)
+    }
+
+    /// Every mirror's liveliness token.
+    pub fn mirrors(&self) -> String {
+        format!("{}/alive/mirror/*", self.prefix)
+    }
+}
+
+/// The Zenoh key ROS 2's `/clock` has under zenoh-bridge-ros2dds.
+pub const ROS2_CLOCK_KEY: &str = "clock";
+
+/// The size of the [`FrameHeader`] at the start of a frame payload.
+pub const FRAME_HEADER_BYTES: usize = std::mem::size_of::<FrameHeader>();
+
+/// Appends the frame (`header` then `actors`) to `out` as one payload.
+pub fn encode_frame(header: &FrameHeader, actors: &[ActorState], out: &mut Vec<u8>) {
+    out.extend_from_slice(bytemuck::bytes_of(header));
+    out.extend_from_slice(bytemuck::cast_slice(actors));
+}
+
+/// Why a payload from another host is not a frame, a capture or a request.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PayloadError {
+    /// Shorter than its header.
+    #[error("{len} bytes cannot hold a {what} header of {need} bytes")]
+    TooShort {
+        /// What was expected.
+        what: &'static str,
+        /// Bytes received.
+        len: usize,
+        /// Bytes the header needs.
+        need: usize,
+    },
+    /// The sender's protocol version is not this one.
+    #[error("protocol version {peer} is not this version's {ours}")]
+    ProtocolMismatch {
+        /// The sender's.
+        peer: u32,
+        /// [`PROTOCOL_VERSION`].
+        ours: u32,
+    },
+    /// The header's element count does not match the bytes after it.
+    #[error("the {what} header announces {announced} bytes after it; {actual} arrived")]
+    WrongLength {
+        /// What was expected.
+        what: &'static str,
+        /// Bytes the header announces.
+        announced: usize,
+        /// Bytes that came.
+        actual: usize,
+    },
+}
+
+/// Reads a `T` from the start of `bytes` (any alignment).
+fn read_header<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadError> {
+    let need = std::mem::size_of::<T>();
+    bytes
+        .get(..need)
+        .map(bytemuck::pod_read_unaligned)
+        .ok_or(PayloadError::TooShort {
+            what,
+            len: bytes.len(),
+            need,
+        })
+}
+
+/// The header and the actors of a frame payload, checked: protocol version,
+/// and exactly `actor_count` actors after the header.
+pub fn decode_frame(bytes: &[u8]) -> Result<(FrameHeader, Vec<ActorState>), PayloadError> {
+    let header: FrameHeader = read_header(bytes, "frame")?;
+    if header.protocol_version != PROTOCOL_VERSION {
+        return Err(PayloadError::ProtocolMismatch {
+            peer: header.protocol_version,
+            ours: PROTOCOL_VERSION,
+        });
+    }
+    let body = &bytes[FRAME_HEADER_BYTES..];
+    let announced = (header.actor_count as usize).saturating_mul(std::mem::size_of::<ActorState>());
+    if body.len() != announced {
+        return Err(PayloadError::WrongLength {
+            what: "frame",
+            announced,
+            actual: body.len(),
+        });
+    }
+    let actors = body
+        .chunks_exact(std::mem::size_of::<ActorState>())
+        .map(bytemuck::pod_read_unaligned)
+        .collect();
+    Ok((header, actors))
+}
+
+/// Appends a capture (`header` then its payload bytes) to `out`.
+pub fn encode_capture(header: &SensorHeader, payload: &[u8], out: &mut Vec<u8>) {
+    out.extend_from_slice(bytemuck::bytes_of(header));
+    out.extend_from_slice(payload);
+}
+
+/// The header and payload bytes of a capture, checked: protocol version,
+/// and at most [`shared_types::MAX_CAPTURE_BYTES`] after the header.
+pub fn decode_capture(bytes: &[u8]) -> Result<(SensorHeader, &[u8]), PayloadError> {
+    let header: SensorHeader = read_header(bytes, "sensor capture")?;
+    if header.protocol_version != PROTOCOL_VERSION {
+        return Err(PayloadError::ProtocolMismatch {
+            peer: header.protocol_version,
+            ours: PROTOCOL_VERSION,
+        });
+    }
+    let body = &bytes[std::mem::size_of::<SensorHeader>()..];
+    if body.len() > shared_types::MAX_CAPTURE_BYTES {
+        return Err(PayloadError::WrongLength {
+            what: "sensor capture",
+            announced: shared_types::MAX_CAPTURE_BYTES,
+            actual: body.len(),
+        });
+    }
+    Ok((header, body))
+}
+
+/// A request (or answer) of a fixed-size type `T`, checked: exactly
+/// `size_of::<T>()` bytes, starting with [`PROTOCOL_VERSION`].
+pub fn decode_fixed<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadError> {
+    // The version first: another version's types may have other sizes.
+    if bytes.len() >= 4 {
+        check_version(bytes)?;
+    }
+    let value: T = read_header(bytes, what)?;
+    if bytes.len() != std::mem::size_of::<T>() {
+        return Err(PayloadError::WrongLength {
+            what,
+            announced: std::mem::size_of::<T>(),
+            actual: bytes.len(),
+        });
+    }
+    Ok(value)
+}
+
+/// A slice request (or answer): its header `H`, checked to start with
+/// [`PROTOCOL_VERSION`], and whole `T`s after it (at most `max`).
+pub fn decode_slice<H: Pod, T: Pod>(
+    bytes: &[u8],
+    what: &'static str,
+    max: usize,
+) -> Result<(H, Vec<T>), PayloadError> {
+    if bytes.len() >= 4 {
+        check_version(bytes)?;
+    }
+    let header: H = read_header(bytes, what)?;
+    let body = &bytes[std::mem::size_of::<H>()..];
+    let size = std::mem::size_of::<T>().max(1);
+    if !body.len().is_multiple_of(size) || body.len() / size > max {
+        return Err(PayloadError::WrongLength {
+            what,
+            announced: (body.len() / size).min(max) * size,
+            actual: body.len(),
+        });
+    }
+    Ok((
+        header,
+        body.chunks_exact(size)
+            .map(bytemuck::pod_read_unaligned)
+            .collect(),
+    ))
+}
+
+/// Appends a slice request (or answer) to `out`: `header`, then `items`.
+pub fn encode_slice<H: Pod, T: Pod>(header: &H, items: &[T], out: &mut Vec<u8>) {
+    out.extend_from_slice(bytemuck::bytes_of(header));
+    out.extend_from_slice(bytemuck::cast_slice(items));
+}
+
+fn check_version(bytes: &[u8]) -> Result<(), PayloadError> {
+    let peer: u32 = read_header(bytes, "request")?;
+    if peer != PROTOCOL_VERSION {
+        return Err(PayloadError::ProtocolMismatch {
+            peer,
+            ours: PROTOCOL_VERSION,
+        });
+    }
+    Ok(())
+}
+
+/// ROS 2's `rosgraph_msgs/msg/Clock` (one `builtin_interfaces/msg/Time`)
+/// for simulation time `elapsed_ns`, serialized as CDR little-endian with
+/// its encapsulation header: what a ROS 2 node with `use_sim_time` reads
+/// on `/clock`. Seconds past `i32::MAX` (68 years) saturate.
+pub fn ros2_clock_cdr(elapsed_ns: u64) -> [u8; 12] {
+    let sec = i32::try_from(elapsed_ns / shared_types::NANOS_PER_SECOND).unwrap_or(i32::MAX);
+    let nanosec = (elapsed_ns % shared_types::NANOS_PER_SECOND) as u32;
+    let mut out = [0u8; 12];
+    // CDR_LE encapsulation: representation id 0x0001, options 0.
+    out[..4].copy_from_slice(&[0x00, 0x01, 0x00, 0x00]);
+    out[4..8].copy_from_slice(&sec.to_le_bytes());
+    out[8..].copy_from_slice(&nanosec.to_le_bytes());
+    out
+}
+
+/// The bytes of a fixed-size wire value.
+pub fn bytes_of<T: Pod>(value: &T) -> &[u8] {
+    bytemuck::bytes_of(value)
+}
+
+/// A zeroed `T` (for tests and answers built from scratch).
+pub fn zeroed<T: Zeroable>() -> T {
+    T::zeroed()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::offset_of;
+
+    #[test]
+    fn the_frame_header_layout_is_the_documented_one() {
+        // The book's table (docs/src/wire.md): a Zenoh client decodes frames
+        // with these offsets.
+        assert_eq!(offset_of!(FrameHeader, protocol_version), 0);
+        assert_eq!(offset_of!(FrameHeader, actor_count), 4);
+        assert_eq!(offset_of!(FrameHeader, episode), 8);
+        assert_eq!(offset_of!(FrameHeader, timestamp), 16);
+        assert_eq!(offset_of!(shared_types::Timestamp, frame), 0);
+        assert_eq!(offset_of!(shared_types::Timestamp, elapsed_ns), 8);
+        assert_eq!(offset_of!(shared_types::Timestamp, delta_ns), 16);
+        assert_eq!(offset_of!(shared_types::Timestamp, platform_timestamp), 24);
+        assert_eq!(offset_of!(FrameHeader, settings), 48);
+        let after_settings = 48 + std::mem::size_of::<shared_types::WireSettings>();
+        assert_eq!(offset_of!(FrameHeader, physics_substeps), after_settings);
+        assert_eq!(offset_of!(FrameHeader, flags), after_settings + 4);
+        assert_eq!(offset_of!(FrameHeader, first_actor_id), after_settings + 8);
+        assert_eq!(offset_of!(FrameHeader, server_pid), after_settings + 16);
+        assert_eq!(offset_of!(FrameHeader, recorded_frame), after_settings + 24);
+        assert_eq!(
+            offset_of!(FrameHeader, recorded_elapsed_ns),
+            after_settings + 32
+        );
+        assert_eq!(FRAME_HEADER_BYTES, after_settings + 40);
+        assert_eq!((after_settings, FRAME_HEADER_BYTES), (72, 112));
+        let settings = offset_of!(FrameHeader, settings);
+        assert_eq!(
+            settings + offset_of!(shared_types::WireSettings, fixed_delta_seconds),
+            48
+        );
+        assert_eq!(
+            settings + offset_of!(shared_types::WireSettings, max_substep_delta_time),
+            56
+        );
+        assert_eq!(
+            settings + offset_of!(shared_types::WireSettings, max_substeps),
+            64
+        );
+        assert_eq!(
+            settings + offset_of!(shared_types::WireSettings, synchronous_mode),
+            68
+        );
+        assert_eq!(
+            settings + offset_of!(shared_types::WireSettings, substepping),
+            69
+        );
+        assert_eq!(std::mem::size_of::<ActorState>(), 96);
+        assert_eq!(std::mem::size_of::<SensorHeader>(), 104);
+        assert_eq!(
+            [
+                offset_of!(ActorState, kind),
+                offset_of!(ActorState, flags),
+                offset_of!(ActorState, position),
+                offset_of!(ActorState, rotation),
+                offset_of!(ActorState, linear_velocity),
+                offset_of!(ActorState, angular_velocity),
+                offset_of!(ActorState, acceleration),
+                offset_of!(ActorState, extent),
+            ],
+            [8, 12, 16, 28, 44, 56, 68, 80]
+        );
+    }
+
+    #[test]
+    fn a_frame_survives_the_trip_and_a_bad_one_is_named() {
+        let header = FrameHeader {
+            protocol_version: PROTOCOL_VERSION,
+            actor_count: 2,
+            ..FrameHeader::default()
+        };
+        let actors = [ActorState {
+            id: 7,
+            ..ActorState::default()
+        }; 2];
+        let mut bytes = vec![0xAA]; // unaligned on purpose
+        encode_frame(&header, &actors, &mut bytes);
+        let (h, a) = decode_frame(&bytes[1..]).unwrap();
+        assert_eq!((h, a.as_slice()), (header, &actors[..]));
+        assert!(matches!(
+            decode_frame(&bytes[1..bytes.len() - 1]),
+            Err(PayloadError::WrongLength { .. })
+        ));
+        assert!(matches!(
+            decode_frame(&bytes[1..20]),
+            Err(PayloadError::TooShort { .. })
+        ));
+        let mut old = bytes[1..].to_vec();
+        old[0] = 1;
+        assert_eq!(
+            decode_frame(&old).unwrap_err(),
+            PayloadError::ProtocolMismatch {
+                peer: 1,
+                ours: PROTOCOL_VERSION
+            }
+        );
+        let mut huge = bytes[1..].to_vec();
+        huge[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(decode_frame(&huge).is_err());
+    }
+
+    #[test]
+    fn the_clock_is_cdr_of_seconds_and_nanoseconds() {
+        assert_eq!(
+            ros2_clock_cdr(3_250_000_001),
+            [0, 1, 0, 0, 3, 0, 0, 0, 0x81, 0xB2, 0xE6, 0x0E] // 250_000_001 = 0x0EE6B281
+        );
+        assert_eq!(&ros2_clock_cdr(u64::MAX)[4..8], &i32::MAX.to_le_bytes());
+    }
+
+    #[test]
+    fn slices_are_bounded_and_versioned() {
+        let header = shared_types::BatchHeader::zeroed();
+        let mut bytes = Vec::new();
+        encode_slice(&header, &[shared_types::Command::zeroed(); 3], &mut bytes);
+        // A zeroed header carries version 0: refused.
+        assert!(matches!(
+            decode_slice::<shared_types::BatchHeader, shared_types::Command>(&bytes, "batch", 10),
+            Err(PayloadError::ProtocolMismatch { peer: 0, .. })
+        ));
+        bytes[..4].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+        let (_, commands) =
+            decode_slice::<shared_types::BatchHeader, shared_types::Command>(&bytes, "batch", 10)
+                .unwrap();
+        assert_eq!(commands.len(), 3);
+        assert!(
+            decode_slice::<shared_types::BatchHeader, shared_types::Command>(&bytes, "batch", 2)
+                .is_err()
+        );
+        bytes.push(0);
+        assert!(
+            decode_slice::<shared_types::BatchHeader, shared_types::Command>(&bytes, "batch", 10)
+                .is_err()
+        );
+    }
+}

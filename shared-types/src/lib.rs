@@ -78,7 +78,7 @@ pub use settings::{
 };
 pub use tick::{TickRequest, TickRequestKind, TickResponse, TickerInfo};
 pub use wait_mode::WaitMode;
-pub use wire::UnknownWireValue;
+pub use wire::{Response, UnknownWireValue};
 
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a

@@ -157,3 +157,34 @@ mod tests {
         assert_eq!(ResponseStatus::from_u32(14), None);
     }
 }
+
+/// An answer of a request service: the server's protocol version and a
+/// [`crate::ResponseStatus`]. Every request service's answer (or answer
+/// header) implements it, so a client checks all of them the same way.
+pub trait Response {
+    /// The server's [`crate::PROTOCOL_VERSION`].
+    fn protocol_version(&self) -> u32;
+    /// A [`crate::ResponseStatus`] as `u32`.
+    fn status(&self) -> u32;
+}
+
+macro_rules! responses {
+    ($($t:ty),*) => {$(
+        impl Response for $t {
+            fn protocol_version(&self) -> u32 {
+                self.protocol_version
+            }
+            fn status(&self) -> u32 {
+                self.status
+            }
+        }
+    )*};
+}
+responses!(
+    crate::ControlResponse,
+    crate::TickResponse,
+    crate::LockstepResponse,
+    crate::BatchResponseHeader,
+    crate::SensorResponseHeader,
+    crate::RecorderResponse
+);

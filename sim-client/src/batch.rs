@@ -10,7 +10,7 @@ use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
 };
 
-use crate::rpc::{await_slice_response, check_protocol, Wait};
+use crate::rpc::{await_slice_response, check_answer, Wait};
 use crate::{Client, RequestError};
 
 pub(crate) type BatchClient =
@@ -124,7 +124,7 @@ impl Client {
             self.server_pid,
             Wait::Backoff,
         )?;
-        check_protocol(header.protocol_version, header.status)
+        check_answer(&header, self.world.as_str())
     }
 
     fn send_batch(&self, commands: &[Command], tick: bool) -> Result<PendingBatch, RequestError> {
@@ -179,7 +179,7 @@ impl Client {
             self.server_pid,
             wait,
         )?;
-        check_protocol(header.protocol_version, header.status)?;
+        check_answer(&header, self.world.as_str())?;
         let response = BatchResponse {
             frame: header.frame,
             results,

@@ -13,7 +13,7 @@ use shared_types::{
 use tracing::{debug, info};
 
 use crate::open::{open_with_retry, wake_notifier, OpenFailure};
-use crate::rpc::{check_protocol, Pending, RequestPort, Wait};
+use crate::rpc::{check_answer, Pending, RequestPort, Wait};
 use crate::RequestError;
 
 type PendingDone = Pending<LockstepRequest, LockstepResponse>;
@@ -161,7 +161,7 @@ impl Participant {
         let response = *answer.payload();
         drop(answer);
         *last = None;
-        check_protocol(response.protocol_version, response.status)?;
+        check_answer(&response, self.world.as_str())?;
         if response.status == ResponseStatus::NotParticipant as u32 {
             return Err(RequestError::NotParticipant {
                 world: self.world.to_string(),

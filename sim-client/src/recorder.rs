@@ -18,7 +18,7 @@ use shared_types::{
     ReplayState, ResponseStatus,
 };
 
-use crate::rpc::{await_response, check_protocol, Wait};
+use crate::rpc::{await_response, check_answer, Wait};
 use crate::{Client, RequestError};
 
 /// The longest a replay request waits for the server to read its recording
@@ -228,7 +228,7 @@ impl Client {
             self.server_pid,
             Wait::Backoff,
         )?;
-        check_protocol(answer.protocol_version, answer.status)?;
+        check_answer(&answer, self.world.as_str())?;
         match ResponseStatus::from_u32(answer.status) {
             Some(ResponseStatus::Ok) => Ok(RecorderStatus::from(&answer)),
             Some(ResponseStatus::Refused) => Err(RecorderError::Refused {

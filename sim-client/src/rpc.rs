@@ -10,43 +10,12 @@ use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
-use shared_types::{
-    BatchResponseHeader, ControlResponse, LockstepResponse, ResponseStatus, SensorResponseHeader,
-    TickResponse, PROTOCOL_VERSION,
-};
+use shared_types::{Response, ResponseStatus, PROTOCOL_VERSION};
 use tracing::debug;
 
 pub(crate) use crate::wait::Wait;
 use crate::wait::{self, Stop};
 use crate::RequestError;
-
-/// An answer that carries the server's protocol version and a status.
-pub(crate) trait Answer {
-    /// The server's [`PROTOCOL_VERSION`].
-    fn version(&self) -> u32;
-    /// A [`ResponseStatus`] as `u32`.
-    fn status(&self) -> u32;
-}
-
-macro_rules! answers {
-    ($($t:ty),*) => {$(
-        impl Answer for $t {
-            fn version(&self) -> u32 {
-                self.protocol_version
-            }
-            fn status(&self) -> u32 {
-                self.status
-            }
-        }
-    )*};
-}
-answers!(
-    ControlResponse,
-    TickResponse,
-    LockstepResponse,
-    BatchResponseHeader,
-    SensorResponseHeader
-);
 
 /// A pending answer on a [`RequestPort`].
 pub(crate) type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
@@ -55,7 +24,7 @@ pub(crate) type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
 pub(crate) struct RequestPort<Req, Resp>
 where
     Req: Debug + ZeroCopySend + Copy,
-    Resp: Debug + ZeroCopySend + Copy + Answer,
+    Resp: Debug + ZeroCopySend + Copy + Response,
 {
     client: RequestClient<Bus, Req, (), Resp, ()>,
     wake: Notifier<Bus>,
@@ -66,7 +35,7 @@ where
 impl<Req, Resp> RequestPort<Req, Resp>
 where
     Req: Debug + ZeroCopySend + Copy,
-    Resp: Debug + ZeroCopySend + Copy + Answer,
+    Resp: Debug + ZeroCopySend + Copy + Response,
 {
     /// Requests on `client`, waking the server of `world` (pid
     /// `server_pid`, 0 if unknown) with `wake`.
@@ -111,12 +80,7 @@ where
         wait: Wait<'_>,
     ) -> Result<Resp, RequestError> {
         let answer = await_response(pending, timeout, &self.world, self.server_pid, wait)?;
-        check_protocol(answer.version(), answer.status())?;
-        if answer.status() == ResponseStatus::Unreachable as u32 {
-            return Err(RequestError::Unreachable {
-                world: self.world.clone(),
-            });
-        }
+        check_answer(&answer, &self.world)?;
         Ok(answer)
     }
 
@@ -130,6 +94,19 @@ where
         let pending = self.send(request)?;
         self.answer(&pending, timeout, wait)
     }
+}
+
+/// Refuses an answer from a server of another protocol version, one that
+/// refused ours, or a mirror's "the world is unreachable" (its link to the
+/// world's host is down): every request service's answer goes through it.
+pub(crate) fn check_answer(answer: &impl Response, world: &str) -> Result<(), RequestError> {
+    check_protocol(answer.protocol_version(), answer.status())?;
+    if answer.status() == ResponseStatus::Unreachable as u32 + 1000 {
+        return Err(RequestError::Unreachable {
+            world: world.to_owned(),
+        });
+    }
+    Ok(())
 }
 
 /// Refuses an answer from a server of another protocol version, or one that

@@ -19,7 +19,7 @@ use shared_types::{
 };
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
-use crate::rpc::{await_slice_response, check_protocol};
+use crate::rpc::{await_slice_response, check_answer};
 use crate::wait::{self, Stop, Wait};
 use crate::{Client, RequestError, WaitError, WaitMode};
 
@@ -463,7 +463,7 @@ impl Client {
             self.server_pid,
             Wait::Backoff,
         )?;
-        check_protocol(header.protocol_version, header.status)?;
+        check_answer(&header, self.world.as_str())?;
         match ResponseStatus::from_u32(header.status) {
             Some(ResponseStatus::Ok) => {}
             Some(ResponseStatus::Refused) => {

@@ -4,8 +4,7 @@
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
-use iceoryx2::prelude::*;
-use shared_types::limits::{WorldLimits, INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT};
+use shared_types::limits::WorldLimits;
 use shared_types::Bus;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
@@ -14,7 +13,7 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use crate::clock::Clock;
-use crate::ports::{sender_pid, service_name, Transport};
+use crate::ports::{sender_pid, Transport};
 use crate::world::World;
 use crate::ServerError;
 
@@ -44,25 +43,12 @@ impl Batches {
     /// Opens the batch service. A batch is never dropped: a sender that
     /// outruns the server waits.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
-        let port = transport
-            .node
-            .service_builder(&service_name(&transport.names.batch)?)
-            .request_response::<[Command], [CommandResult]>()
-            .request_user_header::<BatchHeader>()
-            .response_user_header::<BatchResponseHeader>()
-            .max_servers(1)
-            .max_clients(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
-            .max_response_buffer_size(1)
-            .enable_safe_overflow_for_requests(false)
-            .enable_fire_and_forget_requests(true)
-            .open_or_create()
-            .map_err(|e| ServerError::transport("batch service", e))?
-            .server_builder()
-            .initial_max_slice_len(INITIAL_MAX_BATCH)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
+        let spec = &transport.services.batch;
+        let service = spec
+            .open_or_create(&transport.node, limits)
+            .map_err(|e| ServerError::transport("batch service", e))?;
+        let port = spec
+            .server(&service)
             .map_err(|e| ServerError::transport("batch server", e))?;
         Ok(Self { port })
     }

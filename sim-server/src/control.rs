@@ -14,7 +14,7 @@ use shared_types::{
 };
 use tracing::{debug, info, warn};
 
-use crate::ports::{service_name, Transport};
+use crate::ports::Transport;
 use crate::{Scene, ServerError};
 
 /// Below this, waits are plain sleeps (event timeouts are this coarse).
@@ -38,17 +38,10 @@ impl Control {
         limits: &WorldLimits,
     ) -> Result<Self, ServerError> {
         use iceoryx2::service::port_factory::server::ServerCreateError;
-        let names = &transport.names;
-        let port = transport
-            .node
-            .service_builder(&service_name(&names.control)?)
-            .request_response::<ControlRequest, ControlResponse>()
-            .max_servers(1)
-            .max_clients(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(2)
-            .max_response_buffer_size(2)
-            .open_or_create()
+        let (node, services) = (&transport.node, &transport.services);
+        let port = services
+            .control
+            .open_or_create(node, limits)
             .map_err(|e| ServerError::transport("control service", e))?
             .server_builder()
             .create()
@@ -58,14 +51,9 @@ impl Control {
                 },
                 e => ServerError::transport("control server", e),
             })?;
-        let wake = transport
-            .node
-            .service_builder(&service_name(&names.control_wake)?)
-            .event()
-            .max_listeners(limits.event_listeners())
-            .max_notifiers(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .open_or_create()
+        let wake = services
+            .control_wake
+            .open_or_create(node, limits)
             .map_err(|e| ServerError::transport("control wake-up service", e))?
             .listener_builder()
             .create()

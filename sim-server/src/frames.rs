@@ -4,15 +4,12 @@
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::update_connections::UpdateConnections;
-use iceoryx2::prelude::*;
-use shared_types::limits::{
-    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
-};
+use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::Bus;
 use shared_types::{ActorState, FrameHeader};
 use tracing::debug;
 
-use crate::ports::{service_name, Transport};
+use crate::ports::Transport;
 use crate::world::World;
 use crate::ServerError;
 
@@ -31,35 +28,18 @@ impl Frames {
         initial_actors: usize,
         limits: &WorldLimits,
     ) -> Result<Self, ServerError> {
-        let names = &transport.names;
-        let publisher = transport
-            .node
-            .service_builder(&service_name(&names.frames)?)
-            .publish_subscribe::<[ActorState]>()
-            .user_header::<FrameHeader>()
-            .max_publishers(1)
-            .max_subscribers(limits.max_clients)
-            .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
-            .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
-            .history_size(1)
-            .enable_safe_overflow(true)
-            .max_nodes(limits.nodes())
-            .open_or_create()
-            .map_err(|e| ServerError::transport("frames service", e))?
-            .publisher_builder()
-            .initial_max_slice_len(initial_actors.max(INITIAL_MAX_ACTORS))
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .max_loaned_samples(2)
-            .create()
+        let (node, services) = (&transport.node, &transport.services);
+        let frames = services
+            .frames
+            .open_or_create(node, limits)
+            .map_err(|e| ServerError::transport("frames service", e))?;
+        let publisher = services
+            .frames
+            .publisher(&frames, initial_actors.max(INITIAL_MAX_ACTORS))
             .map_err(|e| ServerError::transport("frames publisher", e))?;
-        let ready = transport
-            .node
-            .service_builder(&service_name(&names.frame_ready)?)
-            .event()
-            .max_listeners(limits.event_listeners())
-            .max_notifiers(4)
-            .max_nodes(limits.nodes())
-            .open_or_create()
+        let ready = services
+            .frame_ready
+            .open_or_create(node, limits)
             .map_err(|e| ServerError::transport("frame-ready service", e))?
             .notifier_builder()
             .create()

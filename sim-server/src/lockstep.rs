@@ -17,7 +17,7 @@ use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
 use crate::liveness::LiveProcesses;
-use crate::ports::{sender_pid, service_name, Transport};
+use crate::ports::{sender_pid, Transport};
 use crate::ServerError;
 
 /// A tick held up by a participant this long is told which one, and how
@@ -42,16 +42,9 @@ impl Lockstep {
     /// Opens the lockstep service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
-            .node
-            .service_builder(&service_name(&transport.names.lockstep)?)
-            .request_response::<LockstepRequest, LockstepResponse>()
-            .max_servers(1)
-            .max_clients(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(4)
-            .max_response_buffer_size(2)
-            .enable_fire_and_forget_requests(true)
-            .open_or_create()
+            .services
+            .lockstep
+            .open_or_create(&transport.node, limits)
             .map_err(|e| ServerError::transport("lockstep service", e))?
             .server_builder()
             .create()

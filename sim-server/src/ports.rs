@@ -1,21 +1,22 @@
 //! What every domain needs to open its iceoryx2 ports: the server's node
 //! (created once, after removing what dead processes left behind) and the
-//! world's service names. Each domain opens its own ports.
+//! world's service descriptions. Each domain opens its own ports.
 
 use iceoryx2::prelude::*;
+use shared_types::transport::spec::WorldServices;
 use shared_types::Bus;
 use shared_types::{ServiceNames, WorldName};
 use tracing::{info, warn};
 
 use crate::ServerError;
 
-/// The server's node and the names of its world's services.
+/// The server's node and the descriptions of its world's services.
 #[derive(Debug)]
 pub(crate) struct Transport {
     /// The server's iceoryx2 node (named `sim-server`).
     pub node: Node<Bus>,
-    /// The world's service names.
-    pub names: ServiceNames,
+    /// The world's services, each described once.
+    pub services: WorldServices,
 }
 
 impl Transport {
@@ -48,16 +49,11 @@ impl Transport {
                 "could not remove the resources of some dead processes (permissions?)"
             );
         }
-        Ok(Self {
-            node,
-            names: ServiceNames::new(world),
-        })
+        let names = ServiceNames::new(world);
+        let services =
+            WorldServices::new(&names).map_err(|e| ServerError::transport("service name", e))?;
+        Ok(Self { node, services })
     }
-}
-
-/// `name` as an iceoryx2 service name.
-pub(crate) fn service_name(name: &str) -> Result<ServiceName, ServerError> {
-    ServiceName::new(name).map_err(|e| ServerError::transport("service name", e))
 }
 
 /// The process that sent a request, as iceoryx2's port recorded it in the

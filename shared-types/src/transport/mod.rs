@@ -15,6 +15,7 @@
 #![allow(unsafe_code)]
 
 pub mod futex;
+pub mod spec;
 
 use core::fmt::Debug;
 

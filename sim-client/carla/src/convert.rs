@@ -3,8 +3,8 @@
 //! pitch/yaw/roll in Unreal's convention) and back.
 
 use shared_types::ActorState;
-use simbus_pose::rotate;
 pub(crate) use simbus_pose::{compass, compose};
+use simbus_pose::{from_axes, rotate};
 
 use crate::wire::{CarlaActorState, CarlaTransform};
 
@@ -46,46 +46,8 @@ pub(crate) fn quaternion(pitch_yaw_roll: V3) -> [f32; 4] {
     let forward = [cp * cy, cp * sy, sp];
     let right = [sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, -sr * cp];
     let up = [-(cr * sp * cy + sr * sy), cy * sr - cr * sp * sy, cr * cp];
-    // simbus body axes X (forward), Y (up), Z (right) in simbus world axes
-    // are the columns of the rotation matrix.
-    let (x, y, z) = (vector(forward), vector(up), vector(right));
-    let m = |row: usize, col: usize| [x, y, z][col][row];
-    let trace = m(0, 0) + m(1, 1) + m(2, 2);
-    let q = if trace > 0.0 {
-        let s = (trace + 1.0).sqrt() * 2.0;
-        [
-            (m(2, 1) - m(1, 2)) / s,
-            (m(0, 2) - m(2, 0)) / s,
-            (m(1, 0) - m(0, 1)) / s,
-            0.25 * s,
-        ]
-    } else if m(0, 0) > m(1, 1) && m(0, 0) > m(2, 2) {
-        let s = (1.0 + m(0, 0) - m(1, 1) - m(2, 2)).sqrt() * 2.0;
-        [
-            0.25 * s,
-            (m(0, 1) + m(1, 0)) / s,
-            (m(0, 2) + m(2, 0)) / s,
-            (m(2, 1) - m(1, 2)) / s,
-        ]
-    } else if m(1, 1) > m(2, 2) {
-        let s = (1.0 + m(1, 1) - m(0, 0) - m(2, 2)).sqrt() * 2.0;
-        [
-            (m(0, 1) + m(1, 0)) / s,
-            0.25 * s,
-            (m(1, 2) + m(2, 1)) / s,
-            (m(0, 2) - m(2, 0)) / s,
-        ]
-    } else {
-        let s = (1.0 + m(2, 2) - m(0, 0) - m(1, 1)).sqrt() * 2.0;
-        [
-            (m(0, 2) + m(2, 0)) / s,
-            (m(1, 2) + m(2, 1)) / s,
-            0.25 * s,
-            (m(1, 0) - m(0, 1)) / s,
-        ]
-    };
-    let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
-    q.map(|c| c / norm)
+    // simbus body axes X (forward), Y (up), Z (right) in simbus world axes.
+    from_axes(vector(forward), vector(up), vector(right))
 }
 
 /// A CARLA transform as a simbus pose.

@@ -42,6 +42,15 @@ pub fn compose(parent: (V3, Q), offset: (V3, Q)) -> (V3, Q) {
     (moved.into(), multiply(parent.1, offset.1))
 }
 
+/// The orientation whose body axes X, Y and Z point along `x`, `y` and
+/// `z` (world axes; unit and orthogonal, as a rotation matrix's columns).
+pub fn from_axes(x: V3, y: V3, z: V3) -> Q {
+    let basis = [Vector3::from(x), Vector3::from(y), Vector3::from(z)];
+    let q = UnitQuaternion::from_basis_unchecked(&basis);
+    // Axes computed in f32 are only nearly orthonormal: renormalized.
+    wire(UnitQuaternion::new_normalize(q.into_inner()))
+}
+
 /// The orientation of yaw about Y, then pitch about Z, then roll about X
 /// (degrees; yaw outermost), as the sensor commands spell it.
 pub fn from_yaw_pitch_roll(yaw: f32, pitch: f32, roll: f32) -> Q {
@@ -103,5 +112,14 @@ mod tests {
             from_yaw_pitch_roll(0.0, 0.0, 10.0),
         );
         assert!(close(&q, &steps));
+    }
+
+    #[test]
+    fn axes_give_the_orientation_that_turns_the_body_onto_them() {
+        // Forward along -Z, up along Y, right along X: a quarter turn left.
+        let q = from_axes([0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]);
+        assert!(close(&q, &from_yaw_pitch_roll(90.0, 0.0, 0.0)));
+        let identity = from_axes([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        assert!(close(&identity, &[0.0, 0.0, 0.0, 1.0]));
     }
 }

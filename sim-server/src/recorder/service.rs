@@ -18,7 +18,7 @@ use shared_types::{
 use tracing::{debug, warn};
 
 use super::Refused;
-use crate::ports::{service_name, Transport};
+use crate::ports::Transport;
 use crate::replayer::ReplayRequest;
 use crate::ServerError;
 
@@ -67,15 +67,9 @@ impl RecorderPort {
     /// Opens the recorder service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
-            .node
-            .service_builder(&service_name(&transport.names.recorder)?)
-            .request_response::<RecorderRequest, RecorderResponse>()
-            .max_servers(1)
-            .max_clients(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(2)
-            .max_response_buffer_size(2)
-            .open_or_create()
+            .services
+            .recorder
+            .open_or_create(&transport.node, limits)
             .map_err(|e| ServerError::transport("recorder service", e))?
             .server_builder()
             .create()

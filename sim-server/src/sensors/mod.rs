@@ -34,7 +34,7 @@ use std::mem::MaybeUninit;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
-use shared_types::limits::{WorldLimits, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::limits::WorldLimits;
 use shared_types::recording::RecordedSensor;
 use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
@@ -44,7 +44,7 @@ use shared_types::{
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
-use crate::ports::{service_name, Transport};
+use crate::ports::Transport;
 use crate::recorder::SensorNote;
 use crate::world::World;
 use crate::ServerError;
@@ -80,37 +80,26 @@ pub(crate) struct Sensors {
     port: SensorServer,
     list: Vec<Sensor>,
     next_id: u64,
-    /// Readers each sensor admits (`--max-sensor-readers`).
-    max_readers: usize,
+    /// The world's limits (each sensor admits `--max-sensor-readers`).
+    limits: WorldLimits,
     /// Spawns and ends since the recorder last took them.
     journal: Vec<SensorNote>,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
-    node: &Node<Bus>,
-    name: &str,
+    transport: &Transport,
+    id: u64,
     elements: usize,
-    max_readers: usize,
+    limits: &WorldLimits,
 ) -> Result<Port<T>, ServerError> {
-    let name =
-        ServiceName::new(name).map_err(|e| ServerError::transport("sensor service name", e))?;
-    node.service_builder(&name)
-        .publish_subscribe::<[T]>()
-        .user_header::<SensorHeader>()
-        .max_publishers(1)
-        .max_subscribers(max_readers)
-        .subscriber_max_buffer_size(SENSOR_SUBSCRIBER_BUFFER)
-        .subscriber_max_borrowed_samples(2)
-        .history_size(0)
-        .enable_safe_overflow(true)
-        .max_nodes(max_readers + 16)
-        .payload_alignment(Alignment::new(16).expect("16 is a power of two"))
-        .open_or_create()
-        .map_err(|e| ServerError::transport("sensor service", e))?
-        .publisher_builder()
-        .initial_max_slice_len(elements)
-        .max_loaned_samples(1)
-        .create()
+    let spec = transport
+        .services
+        .sensor::<T>(id)
+        .map_err(|e| ServerError::transport("sensor service name", e))?;
+    let service = spec
+        .open_or_create(&transport.node, limits)
+        .map_err(|e| ServerError::transport("sensor service", e))?;
+    spec.publisher(&service, elements)
         .map_err(|e| ServerError::transport("sensor publisher", e))
 }
 
@@ -119,7 +108,7 @@ impl std::fmt::Debug for Sensors {
         f.debug_struct("Sensors")
             .field("sensors", &self.list.len())
             .field("next_id", &self.next_id)
-            .field("max_readers", &self.max_readers)
+            .field("max_readers", &self.limits.max_sensor_readers)
             .finish()
     }
 }
@@ -128,28 +117,18 @@ impl Sensors {
     /// Opens the sensor service; no sensors yet, each will admit
     /// `limits.max_sensor_readers` readers.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
-        let port = transport
-            .node
-            .service_builder(&service_name(&transport.names.sensors)?)
-            .request_response::<SensorRequest, [SensorInfo]>()
-            .response_user_header::<SensorResponseHeader>()
-            .max_servers(1)
-            .max_clients(limits.max_clients)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(2)
-            .max_response_buffer_size(1)
-            .open_or_create()
-            .map_err(|e| ServerError::transport("sensor service", e))?
-            .server_builder()
-            .initial_max_slice_len(16)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
+        let spec = &transport.services.sensors;
+        let service = spec
+            .open_or_create(&transport.node, limits)
+            .map_err(|e| ServerError::transport("sensor service", e))?;
+        let port = spec
+            .server(&service)
             .map_err(|e| ServerError::transport("sensor server", e))?;
         Ok(Self {
             port,
             list: Vec::new(),
             next_id: 0,
-            max_readers: limits.max_sensor_readers,
+            limits: *limits,
             journal: Vec::new(),
         })
     }
@@ -234,17 +213,11 @@ impl Sensors {
             return Err(SensorRefusal::UnknownActor);
         }
         let id = self.next_id + 1;
-        let node = &transport.node;
-        let name = transport.names.sensor(id);
-        let elements = spec.elements();
+        let (elements, limits) = (spec.elements(), &self.limits);
         let port = match kind {
-            SensorKind::Depth => {
-                open_port(node, &name, elements, self.max_readers).map(SensorPort::Depth)
-            }
-            SensorKind::Lidar => {
-                open_port(node, &name, elements, self.max_readers).map(SensorPort::Lidar)
-            }
-            SensorKind::Imu => open_port(node, &name, 1, self.max_readers).map(SensorPort::Imu),
+            SensorKind::Depth => open_port(transport, id, elements, limits).map(SensorPort::Depth),
+            SensorKind::Lidar => open_port(transport, id, elements, limits).map(SensorPort::Lidar),
+            SensorKind::Imu => open_port(transport, id, 1, limits).map(SensorPort::Imu),
         };
         let port = match port {
             Ok(port) => port,

@@ -22,7 +22,7 @@ pub(crate) use ownership::{Owner, TickOwnership};
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
 use crate::liveness::LiveProcesses;
-use crate::ports::{sender_pid, service_name, Transport};
+use crate::ports::{sender_pid, Transport};
 use crate::state::{Refusal, Runtime};
 use crate::ServerError;
 
@@ -60,17 +60,9 @@ impl Ticker {
     /// Opens the tick service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
         let port = transport
-            .node
-            .service_builder(&service_name(&transport.names.tick)?)
-            .request_response::<TickRequest, TickResponse>()
-            .max_servers(1)
-            // Two: a new ticker connects while a dead one's port waits for
-            // cleanup (ownership, not the port count, admits one ticker).
-            .max_clients(2)
-            .max_nodes(limits.nodes())
-            .max_active_requests_per_client(4)
-            .max_response_buffer_size(4)
-            .open_or_create()
+            .services
+            .tick
+            .open_or_create(&transport.node, limits)
             .map_err(|e| ServerError::transport("tick service", e))?
             .server_builder()
             .create()

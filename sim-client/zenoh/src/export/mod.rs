@@ -13,6 +13,7 @@
 //! client no event for an answer, and the server notifies none except
 //! for frames (which a tick's answer follows, and which wake it at once).
 
+mod declare;
 mod frames;
 mod relay;
 mod ticker;
@@ -31,13 +32,11 @@ use shared_types::{
     TickResponse, WorldName, WorldSettings,
 };
 use sim_client::Client;
-use tracing::{info, warn};
-use zenoh::liveliness::LivelinessToken;
-use zenoh::pubsub::Subscriber;
-use zenoh::query::{Query, Queryable};
-use zenoh::sample::SampleKind;
-use zenoh::{Session, Wait as _};
+use tracing::info;
+use zenoh::query::Query;
+use zenoh::Session;
 
+use self::declare::{declare, mirror_of, Dropped};
 use self::frames::{follow_sensors, Follow, FrameForwarder, Shared};
 use self::relay::{Answer, BatchRelay, FixedRelay, Refusal, Refused, SensorRelay};
 use self::ticker::{LockstepRelay, RemoteTickers, TickRelay};
@@ -46,7 +45,7 @@ use crate::wire::{self, BridgeKeys, Forwarded};
 use crate::{JsonViews, Notice, Options};
 
 /// What wakes the exporter.
-enum Event {
+pub(super) enum Event {
     /// A query on one of the world's keys.
     Query(Query),
     /// A mirror's liveliness token appeared (`true`) or went.
@@ -55,115 +54,6 @@ enum Event {
     Forwarded,
     /// The frame thread ended: stopped, or the server is gone (why).
     FramesEnded(Option<FramesError>),
-}
-
-/// Malformed or refused inputs, counted and logged.
-#[derive(Debug, Default)]
-struct Dropped {
-    count: u64,
-    last_warning: Option<Instant>,
-    unwarned: u64,
-}
-
-impl Dropped {
-    fn note(&mut self, query: &Query, why: &Refusal) {
-        self.count += 1;
-        let why = why.to_string();
-        relay::refuse(query, &why);
-        // At most one warning a second, with the count since the last.
-        self.unwarned += 1;
-        if self
-            .last_warning
-            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
-        {
-            warn!(
-                key = %query.key_expr(),
-                dropped = self.unwarned,
-                total = self.count,
-                "dropped a request from another host: {why}"
-            );
-            self.last_warning = Some(Instant::now());
-            self.unwarned = 0;
-        }
-    }
-}
-
-/// The mirror's Zenoh id a query names in its `mirror` parameter.
-fn mirror_of(query: &Query) -> Option<String> {
-    query
-        .parameters()
-        .get("mirror")
-        .filter(|m| !m.is_empty() && m.len() <= 64)
-        .map(str::to_owned)
-}
-
-/// What the exporter declared on Zenoh, undeclared when dropped.
-struct Declared {
-    _token: LivelinessToken,
-    _mirrors: Subscriber<()>,
-    _queryables: [Queryable<()>; 4],
-}
-
-/// Declares the exporter's liveliness token, its watch on the mirrors'
-/// tokens and its queryables; events go to `events`.
-fn declare(
-    session: &Session,
-    keys: &BridgeKeys,
-    events: &Sender<Event>,
-    shared: &Arc<Shared>,
-) -> Result<Declared, ExportError> {
-    let token = session
-        .liveliness()
-        .declare_token(keys.exporter())
-        .wait()
-        .map_err(ExportError::zenoh(
-            "declaring the exporter's liveliness token",
-        ))?;
-    let to_main = events.clone();
-    let mirrors = session
-        .liveliness()
-        .declare_subscriber(keys.mirrors())
-        .history(true)
-        .callback(move |sample| {
-            let zid = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
-            let alive = sample.kind() == SampleKind::Put;
-            let _ = to_main.send(Event::Mirror(zid.to_owned(), alive));
-        })
-        .wait()
-        .map_err(ExportError::zenoh("watching the mirrors' liveliness"))?;
-    let queryable = |key: String| {
-        let to_main = events.clone();
-        session
-            .declare_queryable(key)
-            .callback(move |query| {
-                let _ = to_main.send(Event::Query(query));
-            })
-            .wait()
-            .map_err(ExportError::zenoh("declaring a queryable"))
-    };
-    let shared = shared.clone();
-    let latest = session
-        .declare_queryable(keys.latest_frame())
-        .callback(move |query| {
-            let bytes = shared.latest.lock().map(|b| b.clone()).unwrap_or_default();
-            if bytes.is_empty() {
-                relay::refuse(&query, "no frame published yet");
-            } else {
-                relay::reply(&query, &bytes);
-            }
-        })
-        .wait()
-        .map_err(ExportError::zenoh("declaring a queryable"))?;
-    Ok(Declared {
-        _token: token,
-        _mirrors: mirrors,
-        _queryables: [
-            queryable(keys.every_rpc())?,
-            queryable(keys.status())?,
-            queryable(keys.settings())?,
-            latest,
-        ],
-    })
 }
 
 /// Sets its flag when dropped (also when unwinding), so the frame thread

@@ -1,0 +1,528 @@
+//! One description of every service of a world: its name, payload types,
+//! limits, history, overflow and buffer sizes. The server's domains, the
+//! client library and the Zenoh mirror create and open each service from
+//! its description, so no builder setting is written twice.
+//!
+//! A description ([`RequestSpec`], [`PubSubSpec`], [`EventSpec`]) holds the
+//! limits as [`Limit`]s, resolved against the server's [`WorldLimits`] when
+//! the service is created; opening needs no limits (a client does not know
+//! the server's flags) and checks the payload types.
+
+use core::fmt::Debug;
+use core::marker::PhantomData;
+
+use iceoryx2::node::Node;
+use iceoryx2::prelude::{Alignment, AllocationStrategy, IceoryxSend, ServiceName};
+use iceoryx2::service::service_name::ServiceNameError;
+use iceoryx2::service::builder::event::{EventCreateError, EventOpenError, EventOpenOrCreateError};
+use iceoryx2::service::builder::publish_subscribe::{
+    Builder as PubSubBuilder, PublishSubscribeCreateError, PublishSubscribeOpenError,
+    PublishSubscribeOpenOrCreateError,
+};
+use iceoryx2::service::builder::request_response::{
+    Builder as RequestBuilder, RequestResponseCreateError, RequestResponseOpenError,
+    RequestResponseOpenOrCreateError,
+};
+use iceoryx2::service::port_factory::{event, publish_subscribe, request_response};
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+use crate::limits::{
+    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_BATCH,
+    MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,
+};
+use crate::{
+    ActorState, BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest,
+    ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, RecorderRequest,
+    RecorderResponse, SensorHeader, SensorInfo, SensorRequest, SensorResponseHeader, ServiceNames,
+    TickRequest, TickResponse,
+};
+
+/// A limit of a service, resolved against the server's [`WorldLimits`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Limit {
+    /// `--max-clients`.
+    Clients,
+    /// Listeners of an event: [`WorldLimits::event_listeners`].
+    EventListeners,
+    /// Nodes that may open a world service: [`WorldLimits::nodes`].
+    Nodes,
+    /// `--max-sensor-readers`.
+    SensorReaders,
+    /// Nodes that may open a sensor's service: its readers and 16 more.
+    SensorNodes,
+    /// This many, whatever the flags.
+    Fixed(usize),
+}
+
+impl Limit {
+    /// The number this limit stands for under `limits`.
+    pub fn of(self, limits: &WorldLimits) -> usize {
+        match self {
+            Self::Clients => limits.max_clients,
+            Self::EventListeners => limits.event_listeners(),
+            Self::Nodes => limits.nodes(),
+            Self::SensorReaders => limits.max_sensor_readers,
+            Self::SensorNodes => limits.max_sensor_readers + 16,
+            Self::Fixed(n) => n,
+        }
+    }
+}
+
+/// A request-response service: one server, `clients` clients.
+pub struct RequestSpec<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> {
+    /// The service's name.
+    pub name: ServiceName,
+    /// Client ports admitted.
+    pub clients: Limit,
+    /// Requests one client may have in flight.
+    pub active_requests: usize,
+    /// Responses buffered per request.
+    pub response_buffer: usize,
+    /// Whether a client may drop a request's answer unread.
+    pub fire_and_forget: bool,
+    /// Whether a new request displaces the oldest unread one (`false`: the
+    /// sender waits).
+    pub safe_overflow_for_requests: bool,
+    /// Elements reserved in the first sample of a slice payload (it grows
+    /// as needed).
+    pub initial_slice_len: usize,
+    types: PhantomData<fn(&Req, &Resp) -> (ReqHeader, RespHeader)>,
+}
+
+impl<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> Debug
+    for RequestSpec<Req, ReqHeader, Resp, RespHeader>
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("RequestSpec")
+            .field("name", &self.name.as_str())
+            .field("clients", &self.clients)
+            .field("active_requests", &self.active_requests)
+            .field("response_buffer", &self.response_buffer)
+            .field("fire_and_forget", &self.fire_and_forget)
+            .field(
+                "safe_overflow_for_requests",
+                &self.safe_overflow_for_requests,
+            )
+            .finish()
+    }
+}
+
+impl<Req, ReqHeader, Resp, RespHeader> RequestSpec<Req, ReqHeader, Resp, RespHeader>
+where
+    Req: Debug + IceoryxSend + ?Sized + 'static,
+    ReqHeader: Debug + ZeroCopySend + 'static,
+    Resp: Debug + IceoryxSend + ?Sized + 'static,
+    RespHeader: Debug + ZeroCopySend + 'static,
+{
+    fn new(
+        name: &str,
+        clients: Limit,
+        active_requests: usize,
+        response_buffer: usize,
+    ) -> Result<Self, ServiceNameError> {
+        Ok(Self {
+            name: ServiceName::new(name)?,
+            clients,
+            active_requests,
+            response_buffer,
+            fire_and_forget: true,
+            safe_overflow_for_requests: true,
+            initial_slice_len: 1,
+            types: PhantomData,
+        })
+    }
+
+    /// The builder with the service's types (what opening checks).
+    fn typed(&self, node: &Node<Bus>) -> RequestBuilder<Req, ReqHeader, Resp, RespHeader, Bus> {
+        node.service_builder(&self.name)
+            .request_response::<Req, Resp>()
+            .request_user_header::<ReqHeader>()
+            .response_user_header::<RespHeader>()
+    }
+
+    /// The builder with every setting, limits resolved under `limits`.
+    fn configured(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> RequestBuilder<Req, ReqHeader, Resp, RespHeader, Bus> {
+        self.typed(node)
+            .max_servers(1)
+            .max_clients(self.clients.of(limits))
+            .max_nodes(Limit::Nodes.of(limits))
+            .max_active_requests_per_client(self.active_requests)
+            .max_response_buffer_size(self.response_buffer)
+            .enable_safe_overflow_for_requests(self.safe_overflow_for_requests)
+            .enable_fire_and_forget_requests(self.fire_and_forget)
+    }
+}
+
+/// The port factory of a request service.
+pub type RequestFactory<Req, ReqHeader, Resp, RespHeader> =
+    request_response::PortFactory<Bus, Req, ReqHeader, Resp, RespHeader>;
+
+macro_rules! request_shape {
+    ([$($p:tt)*], $req:ty, $resp:ty) => {
+        impl<$($p)*, ReqHeader, RespHeader> RequestSpec<$req, ReqHeader, $resp, RespHeader>
+        where
+            ReqHeader: Debug + ZeroCopySend + 'static,
+            RespHeader: Debug + ZeroCopySend + 'static,
+        {
+            /// Creates the service (fails if it exists), configured under `limits`.
+            pub fn create(
+                &self,
+                node: &Node<Bus>,
+                limits: &WorldLimits,
+            ) -> Result<RequestFactory<$req, ReqHeader, $resp, RespHeader>, RequestResponseCreateError> {
+                self.configured(node, limits).create()
+            }
+
+            /// Opens the service, or creates it configured under `limits`.
+            pub fn open_or_create(
+                &self,
+                node: &Node<Bus>,
+                limits: &WorldLimits,
+            ) -> Result<RequestFactory<$req, ReqHeader, $resp, RespHeader>, RequestResponseOpenOrCreateError> {
+                self.configured(node, limits).open_or_create()
+            }
+
+            /// Opens the existing service (a client's side).
+            pub fn open(
+                &self,
+                node: &Node<Bus>,
+            ) -> Result<RequestFactory<$req, ReqHeader, $resp, RespHeader>, RequestResponseOpenError> {
+                self.typed(node).open()
+            }
+        }
+    };
+}
+request_shape!([Req: Debug + ZeroCopySend + 'static, Resp: Debug + ZeroCopySend + 'static], Req, Resp);
+request_shape!([Req: Debug + ZeroCopySend + 'static, Resp: Debug + ZeroCopySend + 'static], Req, [Resp]);
+request_shape!([Req: Debug + ZeroCopySend + 'static, Resp: Debug + ZeroCopySend + 'static], [Req], [Resp]);
+
+impl<Req, ReqHeader, Resp, RespHeader> RequestSpec<Req, ReqHeader, [Resp], RespHeader>
+where
+    Req: Debug + IceoryxSend + ?Sized + 'static,
+    ReqHeader: Debug + ZeroCopySend + 'static,
+    Resp: Debug + ZeroCopySend + 'static,
+    RespHeader: Debug + ZeroCopySend + 'static,
+{
+    /// The server port of a slice answer, its memory growing as needed.
+    pub fn server(
+        &self,
+        factory: &RequestFactory<Req, ReqHeader, [Resp], RespHeader>,
+    ) -> Result<
+        iceoryx2::port::server::Server<Bus, Req, ReqHeader, [Resp], RespHeader>,
+        iceoryx2::service::port_factory::server::ServerCreateError,
+    > {
+        factory
+            .server_builder()
+            .initial_max_slice_len(self.initial_slice_len)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+    }
+}
+
+impl<Req, ReqHeader, Resp, RespHeader> RequestSpec<[Req], ReqHeader, Resp, RespHeader>
+where
+    Req: Debug + ZeroCopySend + 'static,
+    ReqHeader: Debug + ZeroCopySend + 'static,
+    Resp: Debug + IceoryxSend + ?Sized + 'static,
+    RespHeader: Debug + ZeroCopySend + 'static,
+{
+    /// The client port of a slice request, its memory growing as needed.
+    pub fn client(
+        &self,
+        factory: &RequestFactory<[Req], ReqHeader, Resp, RespHeader>,
+    ) -> Result<
+        iceoryx2::port::client::Client<Bus, [Req], ReqHeader, Resp, RespHeader>,
+        iceoryx2::service::port_factory::client::ClientCreateError,
+    > {
+        factory
+            .client_builder()
+            .initial_max_slice_len(self.initial_slice_len)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+    }
+}
+
+/// A publish-subscribe service of a slice of `T` with a `Header`: one
+/// publisher.
+pub struct PubSubSpec<T, Header> {
+    /// The service's name.
+    pub name: ServiceName,
+    /// Subscriber ports admitted.
+    pub subscribers: Limit,
+    /// Nodes that may open the service.
+    pub nodes: Limit,
+    /// Samples a subscriber may have queued.
+    pub subscriber_buffer: usize,
+    /// Samples a subscriber may hold at once.
+    pub subscriber_borrowed: usize,
+    /// Samples a new subscriber gets at once (the latest ones).
+    pub history: usize,
+    /// Whether a full subscriber queue drops its oldest sample (the
+    /// publisher never waits).
+    pub safe_overflow: bool,
+    /// The payload's alignment, if above its type's.
+    pub alignment: Option<usize>,
+    /// Samples the publisher may loan at once.
+    pub loaned_samples: usize,
+    types: PhantomData<fn(&T) -> Header>,
+}
+
+impl<T, Header> Debug for PubSubSpec<T, Header> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("PubSubSpec")
+            .field("name", &self.name.as_str())
+            .field("subscribers", &self.subscribers)
+            .field("history", &self.history)
+            .field("safe_overflow", &self.safe_overflow)
+            .finish()
+    }
+}
+
+/// The port factory of a publish-subscribe service of a slice.
+pub type PubSubFactory<T, Header> = publish_subscribe::PortFactory<Bus, [T], Header>;
+
+impl<T, Header> PubSubSpec<T, Header>
+where
+    T: Debug + ZeroCopySend + 'static,
+    Header: Debug + ZeroCopySend + 'static,
+{
+    fn typed(&self, node: &Node<Bus>) -> PubSubBuilder<[T], Header, Bus> {
+        let builder = node
+            .service_builder(&self.name)
+            .publish_subscribe::<[T]>()
+            .user_header::<Header>();
+        match self.alignment.and_then(|a| Alignment::new(a)) {
+            Some(alignment) => builder.payload_alignment(alignment),
+            None => builder,
+        }
+    }
+
+    fn configured(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> PubSubBuilder<[T], Header, Bus> {
+        self.typed(node)
+            .max_publishers(1)
+            .max_subscribers(self.subscribers.of(limits))
+            .subscriber_max_buffer_size(self.subscriber_buffer)
+            .subscriber_max_borrowed_samples(self.subscriber_borrowed)
+            .history_size(self.history)
+            .enable_safe_overflow(self.safe_overflow)
+            .max_nodes(self.nodes.of(limits))
+    }
+
+    /// Creates the service (fails if it exists), configured under `limits`.
+    pub fn create(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> Result<PubSubFactory<T, Header>, PublishSubscribeCreateError> {
+        self.configured(node, limits).create()
+    }
+
+    /// Opens the service, or creates it configured under `limits`.
+    pub fn open_or_create(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> Result<PubSubFactory<T, Header>, PublishSubscribeOpenOrCreateError> {
+        self.configured(node, limits).open_or_create()
+    }
+
+    /// Opens the existing service (a reader's side).
+    pub fn open(
+        &self,
+        node: &Node<Bus>,
+    ) -> Result<PubSubFactory<T, Header>, PublishSubscribeOpenError> {
+        self.typed(node).open()
+    }
+
+    /// The publisher, with `initial_len` elements reserved in its first
+    /// sample (it grows as needed).
+    pub fn publisher(
+        &self,
+        factory: &PubSubFactory<T, Header>,
+        initial_len: usize,
+    ) -> Result<
+        iceoryx2::port::publisher::Publisher<Bus, [T], Header>,
+        iceoryx2::port::publisher::PublisherCreateError,
+    > {
+        factory
+            .publisher_builder()
+            .initial_max_slice_len(initial_len.max(1))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(self.loaned_samples)
+            .create()
+    }
+
+    /// A subscriber that may queue the service's whole buffer.
+    pub fn subscriber(
+        &self,
+        factory: &PubSubFactory<T, Header>,
+    ) -> Result<
+        iceoryx2::port::subscriber::Subscriber<Bus, [T], Header>,
+        iceoryx2::port::subscriber::SubscriberCreateError,
+    > {
+        factory
+            .subscriber_builder()
+            .buffer_size(self.subscriber_buffer)
+            .create()
+    }
+}
+
+/// An event service.
+#[derive(Debug, Clone)]
+pub struct EventSpec {
+    /// The service's name.
+    pub name: ServiceName,
+    /// Listener ports admitted.
+    pub listeners: Limit,
+    /// Notifier ports admitted.
+    pub notifiers: Limit,
+}
+
+impl EventSpec {
+    fn configured(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> iceoryx2::service::builder::event::Builder<Bus> {
+        node.service_builder(&self.name)
+            .event()
+            .max_listeners(self.listeners.of(limits))
+            .max_notifiers(self.notifiers.of(limits))
+            .max_nodes(Limit::Nodes.of(limits))
+    }
+
+    /// Creates the service (fails if it exists), configured under `limits`.
+    pub fn create(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> Result<event::PortFactory<Bus>, EventCreateError> {
+        self.configured(node, limits).create()
+    }
+
+    /// Opens the service, or creates it configured under `limits`.
+    pub fn open_or_create(
+        &self,
+        node: &Node<Bus>,
+        limits: &WorldLimits,
+    ) -> Result<event::PortFactory<Bus>, EventOpenOrCreateError> {
+        self.configured(node, limits).open_or_create()
+    }
+
+    /// Opens the existing service.
+    pub fn open(&self, node: &Node<Bus>) -> Result<event::PortFactory<Bus>, EventOpenError> {
+        node.service_builder(&self.name).event().open()
+    }
+}
+
+/// The frames: one sample per frame, the current one kept for every new
+/// subscriber.
+pub type FramesSpec = PubSubSpec<ActorState, FrameHeader>;
+/// A sensor's captures.
+pub type SensorSpec<T> = PubSubSpec<T, SensorHeader>;
+/// The control service.
+pub type ControlSpec = RequestSpec<ControlRequest, (), ControlResponse, ()>;
+/// The tick service.
+pub type TickSpec = RequestSpec<TickRequest, (), TickResponse, ()>;
+/// The batch service.
+pub type BatchSpec = RequestSpec<[Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+/// The lockstep service.
+pub type LockstepSpec = RequestSpec<LockstepRequest, (), LockstepResponse, ()>;
+/// The sensor service (spawn, destroy, list).
+pub type SensorsSpec = RequestSpec<SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+/// The recorder service (recorder and replayer).
+pub type RecorderSpec = RequestSpec<RecorderRequest, (), RecorderResponse, ()>;
+
+/// Every service of one world, described once.
+#[derive(Debug)]
+pub struct WorldServices {
+    /// Frames ([`ServiceNames::frames`]).
+    pub frames: FramesSpec,
+    /// Notified after every frame ([`ServiceNames::frame_ready`]).
+    pub frame_ready: EventSpec,
+    /// Control requests ([`ServiceNames::control`]).
+    pub control: ControlSpec,
+    /// Notified by clients after a request ([`ServiceNames::control_wake`]).
+    pub control_wake: EventSpec,
+    /// Ticks ([`ServiceNames::tick`]).
+    pub tick: TickSpec,
+    /// Command batches ([`ServiceNames::batch`]).
+    pub batch: BatchSpec,
+    /// Lockstep participants ([`ServiceNames::lockstep`]).
+    pub lockstep: LockstepSpec,
+    /// Sensor requests ([`ServiceNames::sensors`]).
+    pub sensors: SensorsSpec,
+    /// Recorder requests ([`ServiceNames::recorder`]).
+    pub recorder: RecorderSpec,
+    names: ServiceNames,
+}
+
+impl WorldServices {
+    /// The services of the world named by `names`.
+    pub fn new(names: &ServiceNames) -> Result<Self, ServiceNameError> {
+        let frames = PubSubSpec {
+            name: ServiceName::new(&names.frames)?,
+            subscribers: Limit::Clients,
+            nodes: Limit::Nodes,
+            subscriber_buffer: FRAME_SUBSCRIBER_BUFFER,
+            subscriber_borrowed: FRAME_SUBSCRIBER_BORROWED,
+            history: 1,
+            safe_overflow: true,
+            alignment: None,
+            loaned_samples: 2,
+            types: PhantomData,
+        };
+        let event = |name: &str, notifiers| -> Result<EventSpec, ServiceNameError> {
+            Ok(EventSpec {
+                name: ServiceName::new(name)?,
+                listeners: Limit::EventListeners,
+                notifiers,
+            })
+        };
+        let mut batch = RequestSpec::new(&names.batch, Limit::Clients, MAX_BATCHES_IN_FLIGHT, 1)?;
+        // A batch is never dropped: a sender that outruns the server waits.
+        batch.safe_overflow_for_requests = false;
+        batch.initial_slice_len = INITIAL_MAX_BATCH;
+        let mut sensors = RequestSpec::new(&names.sensors, Limit::Clients, 2, 1)?;
+        sensors.initial_slice_len = 16;
+        Ok(Self {
+            frames,
+            frame_ready: event(&names.frame_ready, Limit::Fixed(4))?,
+            control: RequestSpec::new(&names.control, Limit::Clients, 2, 2)?,
+            control_wake: event(&names.control_wake, Limit::Clients)?,
+            // Two tick clients: a new ticker connects while a dead one's
+            // port waits for cleanup (ownership, not the port count, admits
+            // one ticker).
+            tick: RequestSpec::new(&names.tick, Limit::Fixed(2), 4, 4)?,
+            batch,
+            lockstep: RequestSpec::new(&names.lockstep, Limit::Clients, 4, 2)?,
+            sensors,
+            recorder: RequestSpec::new(&names.recorder, Limit::Clients, 2, 2)?,
+            names: names.clone(),
+        })
+    }
+
+    /// The captures of sensor `id`, a slice of `T` (its kind's element).
+    pub fn sensor<T>(&self, id: u64) -> Result<SensorSpec<T>, ServiceNameError> {
+        Ok(PubSubSpec {
+            name: ServiceName::new(&self.names.sensor(id))?,
+            subscribers: Limit::SensorReaders,
+            nodes: Limit::SensorNodes,
+            subscriber_buffer: SENSOR_SUBSCRIBER_BUFFER,
+            subscriber_borrowed: 2,
+            history: 0,
+            safe_overflow: true,
+            alignment: Some(16),
+            loaned_samples: 1,
+            types: PhantomData,
+        })
+    }
+}

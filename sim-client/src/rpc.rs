@@ -101,7 +101,7 @@ where
 /// world's host is down): every request service's answer goes through it.
 pub(crate) fn check_answer(answer: &impl Response, world: &str) -> Result<(), RequestError> {
     check_protocol(answer.protocol_version(), answer.status())?;
-    if answer.status() == ResponseStatus::Unreachable as u32 + 1000 {
+    if answer.status() == ResponseStatus::Unreachable as u32 {
         return Err(RequestError::Unreachable {
             world: world.to_owned(),
         });

@@ -13,7 +13,6 @@ use core::marker::PhantomData;
 
 use iceoryx2::node::Node;
 use iceoryx2::prelude::{Alignment, AllocationStrategy, IceoryxSend, ServiceName};
-use iceoryx2::service::service_name::ServiceNameError;
 use iceoryx2::service::builder::event::{EventCreateError, EventOpenError, EventOpenOrCreateError};
 use iceoryx2::service::builder::publish_subscribe::{
     Builder as PubSubBuilder, PublishSubscribeCreateError, PublishSubscribeOpenError,
@@ -24,6 +23,7 @@ use iceoryx2::service::builder::request_response::{
     RequestResponseOpenOrCreateError,
 };
 use iceoryx2::service::port_factory::{event, publish_subscribe, request_response};
+use iceoryx2::service::service_name::ServiceNameError;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 use crate::limits::{
@@ -68,6 +68,10 @@ impl Limit {
     }
 }
 
+/// The payload types a description stands for (it holds none).
+type Types<Req, ReqHeader, Resp, RespHeader> =
+    PhantomData<fn(&Req, &Resp) -> (ReqHeader, RespHeader)>;
+
 /// A request-response service: one server, `clients` clients.
 pub struct RequestSpec<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> {
     /// The service's name.
@@ -86,7 +90,7 @@ pub struct RequestSpec<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> {
     /// Elements reserved in the first sample of a slice payload (it grows
     /// as needed).
     pub initial_slice_len: usize,
-    types: PhantomData<fn(&Req, &Resp) -> (ReqHeader, RespHeader)>,
+    types: Types<Req, ReqHeader, Resp, RespHeader>,
 }
 
 impl<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> Debug
@@ -295,7 +299,7 @@ where
             .service_builder(&self.name)
             .publish_subscribe::<[T]>()
             .user_header::<Header>();
-        match self.alignment.and_then(|a| Alignment::new(a)) {
+        match self.alignment.and_then(Alignment::new) {
             Some(alignment) => builder.payload_alignment(alignment),
             None => builder,
         }

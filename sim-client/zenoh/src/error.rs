@@ -162,6 +162,18 @@ impl LocalError {
     }
 }
 
+/// A Zenoh operation that failed: what was being done, and Zenoh's error
+/// as its source.
+#[derive(Debug, thiserror::Error)]
+#[error("{what}")]
+pub struct ZenohFailure {
+    /// What was being done.
+    pub what: &'static str,
+    /// Zenoh's error.
+    #[source]
+    pub source: ZenohError,
+}
+
 /// Why the exporter's frame thread stopped forwarding.
 #[derive(Debug, thiserror::Error)]
 pub enum FramesError {
@@ -172,14 +184,8 @@ pub enum FramesError {
     #[error(transparent)]
     Wait(#[from] sim_client::WaitError),
     /// Zenoh failed.
-    #[error("{what}")]
-    Zenoh {
-        /// What was being done.
-        what: &'static str,
-        /// Zenoh's error.
-        #[source]
-        source: ZenohError,
-    },
+    #[error(transparent)]
+    Zenoh(ZenohFailure),
 }
 
 /// Why the exporting bridge could not start or stopped.
@@ -195,14 +201,8 @@ pub enum ExportError {
     #[error(transparent)]
     Local(#[from] LocalError),
     /// Zenoh failed.
-    #[error("{what}")]
-    Zenoh {
-        /// What was being done.
-        what: &'static str,
-        /// Zenoh's error.
-        #[source]
-        source: ZenohError,
-    },
+    #[error(transparent)]
+    Zenoh(ZenohFailure),
     /// The frame thread could not be started.
     #[error("starting the frame thread")]
     Thread(#[source] std::io::Error),
@@ -272,14 +272,8 @@ pub enum MirrorError {
     #[error(transparent)]
     Local(#[from] LocalError),
     /// Zenoh failed.
-    #[error("{what}")]
-    Zenoh {
-        /// What was being done.
-        what: &'static str,
-        /// Zenoh's error.
-        #[source]
-        source: ZenohError,
-    },
+    #[error(transparent)]
+    Zenoh(ZenohFailure),
 }
 
 /// Why a bridge could not start or stopped.
@@ -309,7 +303,12 @@ macro_rules! zenoh_from {
         impl $t {
             /// A Zenoh failure while doing `what`.
             pub(crate) fn zenoh(what: &'static str) -> impl Fn(zenoh::Error) -> Self {
-                move |e| Self::Zenoh { what, source: ZenohError(e) }
+                move |e| {
+                    Self::Zenoh(ZenohFailure {
+                        what,
+                        source: ZenohError(e),
+                    })
+                }
             }
         }
     )*};

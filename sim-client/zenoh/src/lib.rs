@@ -42,9 +42,22 @@ use shared_types::{StatusReport, WorldName, WorldSettings};
 
 pub use error::{
     BridgeError, ExportError, FramesError, LinkError, LocalError, MirrorError, QueryError,
-    TransportError, ZenohError,
+    TransportError, ZenohError, ZenohFailure,
 };
 pub use link::check_endpoint;
+
+/// What one side of a bridge runs with: the world, how long a request
+/// may wait, the Zenoh endpoint, the options, the open session, the stop
+/// flag and where [`Notice`]s go.
+pub(crate) struct Side<'a> {
+    world: &'a WorldName,
+    timeout: Duration,
+    endpoint: &'a str,
+    options: &'a Options,
+    session: zenoh::Session,
+    stop: &'a AtomicBool,
+    notice: &'a mut dyn FnMut(Notice),
+}
 
 /// Which side of the link this bridge is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -133,13 +146,19 @@ pub fn run(
     notice: &mut dyn FnMut(Notice),
 ) -> Result<(), BridgeError> {
     let session = link::open(options, role)?;
+    let (Role::Export(endpoint) | Role::Mirror(endpoint)) = role;
+    let side = Side {
+        world,
+        timeout,
+        endpoint,
+        options,
+        session,
+        stop,
+        notice,
+    };
     match role {
-        Role::Export(endpoint) => {
-            export::run(world, timeout, endpoint, options, session, stop, notice)?;
-        }
-        Role::Mirror(endpoint) => {
-            mirror::run(world, timeout, endpoint, options, session, stop, notice)?;
-        }
+        Role::Export(_) => export::run(side)?,
+        Role::Mirror(_) => mirror::run(side)?,
     }
     Ok(())
 }

@@ -220,36 +220,35 @@ impl Session {
 
 /// Argument `i` as an unsigned integer.
 fn arg_u64(args: &[Value], i: usize, method: &'static str) -> Result<u64, CallError> {
-    args.get(i)
-        .and_then(Value::as_u64)
-        .ok_or(CallError::Argument {
-            method,
-            index: i,
-            expected: "an integer",
-        })
+    arg(args, i, method, "an integer", Value::as_u64)
 }
 
 /// Argument `i` as a string.
 fn arg_str(args: &[Value], i: usize, method: &'static str) -> Result<String, CallError> {
-    args.get(i)
-        .and_then(Value::as_str)
-        .map(str::to_string)
-        .ok_or(CallError::Argument {
-            method,
-            index: i,
-            expected: "a string",
-        })
+    arg(args, i, method, "a string", |v| {
+        v.as_str().map(str::to_string)
+    })
 }
 
 /// Argument `i` as a number, whether sent as a float or an integer.
 fn arg_f64(args: &[Value], i: usize, method: &'static str) -> Result<f64, CallError> {
-    args.get(i)
-        .and_then(commands::number)
-        .ok_or(CallError::Argument {
-            method,
-            index: i,
-            expected: "a number",
-        })
+    arg(args, i, method, "a number", commands::number)
+}
+
+/// Argument `i` as `read` takes it, or the error naming what was
+/// `expected` there.
+fn arg<T>(
+    args: &[Value],
+    i: usize,
+    method: &'static str,
+    expected: &'static str,
+    read: impl FnOnce(&Value) -> Option<T>,
+) -> Result<T, CallError> {
+    args.get(i).and_then(read).ok_or(CallError::Argument {
+        method,
+        index: i,
+        expected,
+    })
 }
 
 /// Argument `i` as a boolean, `false` if absent or not one.

@@ -187,6 +187,24 @@ fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
+/// A table after a blank line: the count of its `noun`s, its `heading`,
+/// and a line for each of `items` as `row` writes it.
+fn table<T>(
+    out: &mut String,
+    noun: &str,
+    items: &[T],
+    heading: std::fmt::Arguments<'_>,
+    row: impl Fn(&T) -> String,
+) {
+    use std::fmt::Write;
+    let _ = writeln!(out);
+    let _ = writeln!(out, "{}", super::words::count(items.len() as u64, noun));
+    let _ = writeln!(out, "{heading}");
+    for item in items {
+        let _ = writeln!(out, "{}", row(item));
+    }
+}
+
 /// The screen as lines for people.
 fn render(screen: &Screen) -> String {
     use std::fmt::Write;
@@ -228,54 +246,45 @@ fn render(screen: &Screen) -> String {
         mib(screen.shared_memory.bytes),
         mib(screen.shared_memory.resident_bytes)
     );
-    let _ = writeln!(out);
-    let _ = writeln!(
-        out,
-        "{}",
-        super::words::count(screen.clients.len() as u64, "client")
+    table(
+        &mut out,
+        "client",
+        &screen.clients,
+        format_args!("{:<8} {:<12} {:<40} services", "pid", "process", "nodes"),
+        |holder| {
+            format!(
+                "{:<8} {:<12} {:<40} {}",
+                holder.pid,
+                holder.process,
+                holder.nodes.join(" "),
+                holder.services.join(" ")
+            )
+        },
     );
-    let _ = writeln!(
-        out,
-        "{:<8} {:<12} {:<40} services",
-        "pid", "process", "nodes"
+    table(
+        &mut out,
+        "sensor",
+        &screen.sensors,
+        format_args!(
+            "{:<6} {:<7} {:>9} {:>10} {:>10}  readers",
+            "id", "kind", "attached", "captures", "per s"
+        ),
+        |s| {
+            format!(
+                "{:<6} {:<7} {:>9} {:>10} {:>10.1}  {}",
+                s.id,
+                s.kind,
+                s.attached_to,
+                s.captures,
+                s.captures_per_second,
+                if s.readers.is_empty() {
+                    "-".to_owned()
+                } else {
+                    s.readers.join(", ")
+                }
+            )
+        },
     );
-    for holder in &screen.clients {
-        let _ = writeln!(
-            out,
-            "{:<8} {:<12} {:<40} {}",
-            holder.pid,
-            holder.process,
-            holder.nodes.join(" "),
-            holder.services.join(" ")
-        );
-    }
-    let _ = writeln!(out);
-    let _ = writeln!(
-        out,
-        "{}",
-        super::words::count(screen.sensors.len() as u64, "sensor")
-    );
-    let _ = writeln!(
-        out,
-        "{:<6} {:<7} {:>9} {:>10} {:>10}  readers",
-        "id", "kind", "attached", "captures", "per s"
-    );
-    for s in &screen.sensors {
-        let _ = writeln!(
-            out,
-            "{:<6} {:<7} {:>9} {:>10} {:>10.1}  {}",
-            s.id,
-            s.kind,
-            s.attached_to,
-            s.captures,
-            s.captures_per_second,
-            if s.readers.is_empty() {
-                "-".to_owned()
-            } else {
-                s.readers.join(", ")
-            }
-        );
-    }
     out
 }
 

@@ -29,12 +29,11 @@ use std::time::{Duration, Instant};
 use iceoryx2::port::notifier::Notifier;
 use shared_types::{
     Bus, ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames,
-    TickResponse, WorldName, WorldSettings,
+    TickResponse, WorldSettings,
 };
 use sim_client::Client;
 use tracing::info;
 use zenoh::query::Query;
-use zenoh::Session;
 
 use self::declare::{declare, mirror_of, Dropped};
 use self::frames::{follow_sensors, Follow, FrameForwarder, Shared};
@@ -42,7 +41,7 @@ use self::relay::{Answer, BatchRelay, FixedRelay, Refusal, Refused, SensorRelay}
 use self::ticker::{LockstepRelay, RemoteTickers, TickRelay};
 use crate::error::{ExportError, FramesError, LocalError};
 use crate::wire::{self, BridgeKeys, Forwarded};
-use crate::{JsonViews, Notice, Options};
+use crate::{JsonViews, Notice, Side};
 
 /// What wakes the exporter.
 pub(super) enum Event {
@@ -67,43 +66,35 @@ impl Drop for SetOnDrop<'_> {
 }
 
 /// Exports `world` on `session` until `stop` or the server is gone.
-pub(crate) fn run(
-    world: &WorldName,
-    timeout: Duration,
-    endpoint: &str,
-    options: &Options,
-    session: Session,
-    stop: &AtomicBool,
-    notice: &mut dyn FnMut(Notice),
-) -> Result<(), ExportError> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
-    client.set_request_timeout(timeout);
+pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
+    let mut client = Client::connect(side.world.as_str(), side.timeout)?;
+    client.set_request_timeout(side.timeout);
     let status = client.status()?;
-    let keys = BridgeKeys::new(world);
+    let keys = BridgeKeys::new(side.world);
     let (events, incoming) = mpsc::channel::<Event>();
     let shared = Arc::new(Shared::default());
-    let _declared = declare(&session, &keys, &events, &shared)?;
+    let _declared = declare(&side.session, &keys, &events, &shared)?;
     let (follow, followed) = mpsc::channel::<Follow>();
     let done = AtomicBool::new(false);
     std::thread::scope(|scope| {
         let _stop_frames = SetOnDrop(&done);
-        let (session, keys, forwarded, done) = (&session, &keys, shared.clone(), &done);
+        let (session, keys, forwarded, done) = (&side.session, &keys, shared.clone(), &done);
         let to_main = events.clone();
         std::thread::Builder::new()
             .name("frames".into())
             .spawn_scoped(scope, move || {
                 let ended = FrameForwarder::new(
-                    world,
-                    timeout,
+                    side.world,
+                    side.timeout,
                     session,
                     keys,
-                    options.ros2_clock,
+                    side.options.ros2_clock,
                     forwarded,
                 )
                 .and_then(|forwarder| {
                     forwarder.run(
                         &followed,
-                        || frames::either(stop, done),
+                        || frames::either(side.stop, done),
                         || {
                             let _ = to_main.send(Event::Forwarded);
                         },
@@ -112,16 +103,22 @@ pub(crate) fn run(
                 let _ = to_main.send(Event::FramesEnded(ended.err()));
             })
             .map_err(ExportError::Thread)?;
-        let mut exporter = Exporter::open(client, timeout, options.json, shared.clone(), follow)?;
-        exporter.await_first_frame(&incoming, timeout)?;
-        notice(Notice::Exporting {
-            world: world.clone(),
-            endpoint: endpoint.to_owned(),
+        let mut exporter = Exporter::open(
+            client,
+            side.timeout,
+            side.options.json,
+            shared.clone(),
+            follow,
+        )?;
+        exporter.await_first_frame(&incoming, side.timeout)?;
+        (side.notice)(Notice::Exporting {
+            world: side.world.clone(),
+            endpoint: side.endpoint.to_owned(),
             server_pid: status.server_pid,
             frame: status.frame,
         });
-        info!(%world, zid = %session.zid(), "exporting");
-        let result = exporter.serve(&incoming, stop);
+        info!(world = %side.world, zid = %session.zid(), "exporting");
+        let result = exporter.serve(&incoming, side.stop);
         exporter.finish();
         result
     })

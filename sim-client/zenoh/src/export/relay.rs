@@ -193,6 +193,34 @@ impl<P> Flights<P> {
     }
 }
 
+impl<Req, ReqH, T, H> Flights<PendingResponse<Bus, Req, ReqH, [T], H>>
+where
+    Req: std::fmt::Debug + IceoryxSend + ?Sized,
+    ReqH: std::fmt::Debug + ZeroCopySend,
+    T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+    H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+{
+    /// Moves the answers of a header and a slice that came to `answers`,
+    /// each as the header's bytes and then the items'; none is held for
+    /// a frame.
+    fn drain_slices(&mut self, answers: &mut Vec<Answer>) {
+        self.drain(
+            |p| {
+                p.receive().map(|r| {
+                    r.map(|r| {
+                        let mut bytes = Vec::new();
+                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                        bytes
+                    })
+                })
+            },
+            |_, bytes| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
 impl<P> std::fmt::Debug for Flights<P> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} in flight", self.0.len())
@@ -370,22 +398,9 @@ impl BatchRelay {
 
     /// Moves the answers that came to `answers`.
     pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        self.flights.drain(
-            |p| {
-                p.receive().map(|r| {
-                    r.map(|r| {
-                        let mut bytes = Vec::new();
-                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
-                        (bytes, ())
-                    })
-                })
-            },
-            // A batch's frame may be one still to come (the next tick's):
-            // its answer is never held for it.
-            |_, (bytes, _)| Some((bytes, None)),
-            |p| p.is_connected(),
-            answers,
-        );
+        // A batch's frame may be one still to come (the next tick's):
+        // its answer is never held for it.
+        self.flights.drain_slices(answers);
     }
 }
 
@@ -440,20 +455,7 @@ impl SensorRelay {
 
     /// Moves the answers that came to `answers`.
     pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        self.flights.drain(
-            |p| {
-                p.receive().map(|r| {
-                    r.map(|r| {
-                        let mut bytes = Vec::new();
-                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
-                        bytes
-                    })
-                })
-            },
-            |_, bytes| Some((bytes, None)),
-            |p| p.is_connected(),
-            answers,
-        );
+        self.flights.drain_slices(answers);
     }
 }
 

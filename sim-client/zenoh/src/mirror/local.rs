@@ -13,10 +13,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
-use shared_types::limits::{
-    WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_ACTORS,
-    INITIAL_MAX_BATCH, MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,
-};
+use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest,
     ControlResponse, FrameHeader, ImuMeasurement, LidarPoint, LockstepRequest, LockstepResponse,
@@ -94,128 +92,45 @@ fn node(name: &str) -> Result<Node<Bus>, LocalError> {
         .map_err(|e| LocalError::transport("iceoryx2 node", e))
 }
 
-/// A fixed-size request service's server, configured as the server's.
-fn fixed<Req, Resp>(
-    node: &Node<Bus>,
-    service: &str,
-    limits: &WorldLimits,
-    max_clients: usize,
-    (active, buffer): (usize, usize),
-    fire_and_forget: bool,
-) -> Result<FixedServer<Req, Resp>, LocalError>
-where
-    Req: std::fmt::Debug + ZeroCopySend + Copy + 'static,
-    Resp: std::fmt::Debug + ZeroCopySend + Copy + 'static,
-{
-    node.service_builder(&name(service)?)
-        .request_response::<Req, Resp>()
-        .max_servers(1)
-        .max_clients(max_clients)
-        .max_nodes(limits.nodes())
-        .max_active_requests_per_client(active)
-        .max_response_buffer_size(buffer)
-        .enable_fire_and_forget_requests(fire_and_forget)
-        .create()
-        .map_err(create_failed)?
-        .server_builder()
-        .create()
-        .map_err(create_failed)
-}
+/// The world's services here, each created from its one description
+/// ([`WorldServices`]), as the server creates them.
+type Ports = (
+    FramePublisher,
+    Notifier<Bus>,
+    Listener<Bus>,
+    BatchServer,
+    SensorServer,
+);
 
-/// The frame publisher, the frame-ready notifier and the wake-up listener
-/// of the world here, configured as the server's.
-fn frame_ports(
+fn world_ports(
     node: &Node<Bus>,
-    names: &ServiceNames,
+    specs: &WorldServices,
     limits: &WorldLimits,
-) -> Result<(FramePublisher, Notifier<Bus>, Listener<Bus>), LocalError> {
-    let frames = node
-        .service_builder(&name(&names.frames)?)
-        .publish_subscribe::<[ActorState]>()
-        .user_header::<FrameHeader>()
-        .max_publishers(1)
-        .max_subscribers(limits.max_clients)
-        .subscriber_max_buffer_size(FRAME_SUBSCRIBER_BUFFER)
-        .subscriber_max_borrowed_samples(FRAME_SUBSCRIBER_BORROWED)
-        .history_size(1)
-        .enable_safe_overflow(true)
-        .max_nodes(limits.nodes())
-        .create()
-        .map_err(create_failed)?
-        .publisher_builder()
-        .initial_max_slice_len(INITIAL_MAX_ACTORS)
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .max_loaned_samples(2)
-        .create()
+) -> Result<Ports, LocalError> {
+    let frames = specs.frames.create(node, limits).map_err(create_failed)?;
+    let frames = specs
+        .frames
+        .publisher(&frames, INITIAL_MAX_ACTORS)
         .map_err(create_failed)?;
-    let ready = node
-        .service_builder(&name(&names.frame_ready)?)
-        .event()
-        .max_listeners(limits.event_listeners())
-        .max_notifiers(4)
-        .max_nodes(limits.nodes())
-        .open_or_create()
+    let ready = specs
+        .frame_ready
+        .open_or_create(node, limits)
         .map_err(create_failed)?
         .notifier_builder()
         .create()
         .map_err(create_failed)?;
-    let wake = node
-        .service_builder(&name(&names.control_wake)?)
-        .event()
-        .max_listeners(limits.event_listeners())
-        .max_notifiers(limits.max_clients)
-        .max_nodes(limits.nodes())
-        .open_or_create()
+    let wake = specs
+        .control_wake
+        .open_or_create(node, limits)
         .map_err(create_failed)?
         .listener_builder()
         .create()
         .map_err(create_failed)?;
-    Ok((frames, ready, wake))
-}
-
-/// The batch and sensor servers of the world here, configured as the
-/// server's.
-fn slice_servers(
-    node: &Node<Bus>,
-    names: &ServiceNames,
-    limits: &WorldLimits,
-) -> Result<(BatchServer, SensorServer), LocalError> {
-    let batch = node
-        .service_builder(&name(&names.batch)?)
-        .request_response::<[Command], [CommandResult]>()
-        .request_user_header::<BatchHeader>()
-        .response_user_header::<BatchResponseHeader>()
-        .max_servers(1)
-        .max_clients(limits.max_clients)
-        .max_nodes(limits.nodes())
-        .max_active_requests_per_client(MAX_BATCHES_IN_FLIGHT)
-        .max_response_buffer_size(1)
-        .enable_safe_overflow_for_requests(false)
-        .enable_fire_and_forget_requests(true)
-        .create()
-        .map_err(create_failed)?
-        .server_builder()
-        .initial_max_slice_len(INITIAL_MAX_BATCH)
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .create()
-        .map_err(create_failed)?;
-    let sensors = node
-        .service_builder(&name(&names.sensors)?)
-        .request_response::<SensorRequest, [SensorInfo]>()
-        .response_user_header::<SensorResponseHeader>()
-        .max_servers(1)
-        .max_clients(limits.max_clients)
-        .max_nodes(limits.nodes())
-        .max_active_requests_per_client(2)
-        .max_response_buffer_size(1)
-        .create()
-        .map_err(create_failed)?
-        .server_builder()
-        .initial_max_slice_len(16)
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .create()
-        .map_err(create_failed)?;
-    Ok((batch, sensors))
+    let batch = specs.batch.create(node, limits).map_err(create_failed)?;
+    let batch = specs.batch.server(&batch).map_err(create_failed)?;
+    let sensors = specs.sensors.create(node, limits).map_err(create_failed)?;
+    let sensors = specs.sensors.server(&sensors).map_err(create_failed)?;
+    Ok((frames, ready, wake, batch, sensors))
 }
 
 impl LocalServices {
@@ -225,33 +140,22 @@ impl LocalServices {
         shared_types::environment::prepare()?;
         let node = node("zenoh-mirror")?;
         node.try_cleanup_dead_nodes();
-        let (frames, ready, wake) = frame_ports(&node, names, limits)?;
-        let control = fixed(
-            &node,
-            &names.control,
-            limits,
-            limits.max_clients,
-            (2, 2),
-            false,
-        )?;
-        let tick = fixed(&node, &names.tick, limits, 2, (4, 4), false)?;
-        let lockstep = fixed(
-            &node,
-            &names.lockstep,
-            limits,
-            limits.max_clients,
-            (4, 2),
-            true,
-        )?;
-        let recorder = fixed(
-            &node,
-            &names.recorder,
-            limits,
-            limits.max_clients,
-            (2, 2),
-            false,
-        )?;
-        let (batch, sensors) = slice_servers(&node, names, limits)?;
+        let specs = WorldServices::new(names).map_err(create_failed)?;
+        let (frames, ready, wake, batch, sensors) = world_ports(&node, &specs, limits)?;
+        macro_rules! server {
+            ($spec:expr) => {
+                $spec
+                    .create(&node, limits)
+                    .map_err(create_failed)?
+                    .server_builder()
+                    .create()
+                    .map_err(create_failed)?
+            };
+        }
+        let control = server!(specs.control);
+        let tick = server!(specs.tick);
+        let lockstep = server!(specs.lockstep);
+        let recorder = server!(specs.recorder);
         Ok(Self {
             node,
             frames,
@@ -366,29 +270,16 @@ impl std::fmt::Debug for SensorPorts {
 
 fn sensor_publisher<T: std::fmt::Debug + ZeroCopySend + 'static>(
     node: &Node<Bus>,
-    service: &str,
+    names: &ServiceNames,
+    id: u64,
     elements: usize,
-    max_readers: usize,
+    limits: &WorldLimits,
 ) -> Result<Publisher<Bus, [T], SensorHeader>, LocalError> {
-    node.service_builder(&name(service)?)
-        .publish_subscribe::<[T]>()
-        .user_header::<SensorHeader>()
-        .max_publishers(1)
-        .max_subscribers(max_readers)
-        .subscriber_max_buffer_size(SENSOR_SUBSCRIBER_BUFFER)
-        .subscriber_max_borrowed_samples(2)
-        .history_size(0)
-        .enable_safe_overflow(true)
-        .max_nodes(max_readers + 16)
-        .payload_alignment(Alignment::new(16).expect("16 is a power of two"))
-        .open_or_create()
-        .map_err(sensor_failed)?
-        .publisher_builder()
-        .initial_max_slice_len(elements.max(1))
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .max_loaned_samples(1)
-        .create()
-        .map_err(sensor_failed)
+    let spec = WorldServices::new(names)
+        .and_then(|specs| specs.sensor::<T>(id))
+        .map_err(sensor_failed)?;
+    let service = spec.open_or_create(node, limits).map_err(sensor_failed)?;
+    spec.publisher(&service, elements).map_err(sensor_failed)
 }
 
 fn publish<T: bytemuck::Pod + std::fmt::Debug + ZeroCopySend>(
@@ -429,16 +320,16 @@ impl SensorPorts {
         if self.ports.contains_key(&id) {
             return Ok(());
         }
-        let (node, service, readers) = (&local.node, names.sensor(id), limits.max_sensor_readers);
+        let node = &local.node;
         let port = match SensorKind::from_u32(kind) {
             Some(SensorKind::Depth) => {
-                SensorPort::Depth(sensor_publisher(node, &service, elements, readers)?)
+                SensorPort::Depth(sensor_publisher(node, names, id, elements, limits)?)
             }
             Some(SensorKind::Lidar) => {
-                SensorPort::Lidar(sensor_publisher(node, &service, elements, readers)?)
+                SensorPort::Lidar(sensor_publisher(node, names, id, elements, limits)?)
             }
             Some(SensorKind::Imu) => {
-                SensorPort::Imu(sensor_publisher(node, &service, elements, readers)?)
+                SensorPort::Imu(sensor_publisher(node, names, id, elements, limits)?)
             }
             None => return Err(LocalError::UnknownSensorKind(kind)),
         };

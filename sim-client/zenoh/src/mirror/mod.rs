@@ -43,7 +43,7 @@ use self::local::{Active, Local, LocalServices, SensorPorts};
 use self::query::{query_once, query_until, Link};
 use crate::error::{Chain, MirrorError, QueryError};
 use crate::wire::{self, BridgeKeys, Forwarded};
-use crate::{Notice, Options};
+use crate::{Notice, Side};
 
 /// How long a tick's answer waits here for its frame.
 const HOLD_LIMIT: Duration = Duration::from_secs(2);
@@ -193,23 +193,22 @@ fn declare(
 
 /// Mirrors `world`, exported at `endpoint`, into this host's shared memory
 /// until `stop`.
-pub(crate) fn run(
-    world: &WorldName,
-    timeout: Duration,
-    endpoint: &str,
-    options: &Options,
-    session: Session,
-    stop: &AtomicBool,
-    notice: &mut dyn FnMut(Notice),
-) -> Result<(), MirrorError> {
-    let keys = BridgeKeys::new(world);
-    let names = ServiceNames::new(world);
-    let zid = session.zid().to_string();
+pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
+    let keys = BridgeKeys::new(side.world);
+    let names = ServiceNames::new(side.world);
+    let zid = side.session.zid().to_string();
     let Hello {
         status,
         mut header,
         actors,
-    } = hello(&session, &keys, world, endpoint, timeout, stop)?;
+    } = hello(
+        &side.session,
+        &keys,
+        side.world,
+        side.endpoint,
+        side.timeout,
+        side.stop,
+    )?;
     let limits = WorldLimits {
         max_clients: status.report.max_clients.max(1) as usize,
         max_sensor_readers: status.report.max_sensor_readers.max(1) as usize,
@@ -218,21 +217,21 @@ pub(crate) fn run(
     header.server_pid = std::process::id();
     local.publish_frame(&header, &actors)?;
     let (events, incoming) = mpsc::channel::<Event>();
-    let _declared = declare(&session, &keys, &names, &events)?;
-    notice(Notice::Mirroring {
-        world: world.clone(),
-        endpoint: endpoint.to_owned(),
+    let _declared = declare(&side.session, &keys, &names, &events)?;
+    (side.notice)(Notice::Mirroring {
+        world: side.world.clone(),
+        endpoint: side.endpoint.to_owned(),
         server_pid: status.report.server_pid,
         frame: header.timestamp.frame,
     });
-    info!(%world, zid = %zid, "mirroring");
+    info!(world = %side.world, zid = %zid, "mirroring");
     let link = Link {
-        session: &session,
+        session: &side.session,
         keys: &keys,
         names: &names,
         zid: &zid,
         events,
-        timeout: options.request_timeout,
+        timeout: side.options.request_timeout,
     };
     let mut mirror = Mirror::new(
         link,
@@ -240,7 +239,7 @@ pub(crate) fn run(
         limits,
         (header.episode, header.timestamp.frame),
     );
-    let result = mirror.serve(&incoming, stop, notice);
+    let result = mirror.serve(&incoming, side.stop, side.notice);
     info!(dropped = mirror.dropped, "mirror ended");
     result
 }

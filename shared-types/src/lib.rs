@@ -47,6 +47,7 @@ pub use recorder::{
     ReplayState,
 };
 mod sensor;
+mod sensor_params;
 mod settings;
 mod settings_wire;
 pub use settings_wire::{WireSettings, WireSettingsError};
@@ -71,6 +72,7 @@ pub use sensor::{
     MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
     MAX_SENSOR_TICK_SECONDS,
 };
+pub use sensor_params::{DepthCamera, Imu, Lidar, SensorParams};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
     LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_DELTA_SECONDS,

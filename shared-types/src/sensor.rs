@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::PROTOCOL_VERSION;
+use crate::{DepthCamera, Imu, Lidar, SensorParams, PROTOCOL_VERSION};
 
 /// The largest capture a sensor may publish (its shared memory holds a few
 /// dozen of them).
@@ -70,9 +70,13 @@ pub struct SensorSpec {
     pub rotation: [f32; 4],
     /// Capture period in simulation seconds (0: every frame).
     pub sensor_tick: f64,
-    /// Depth: width, height, horizontal field of view (degrees), far range.
-    /// Lidar: channels, points per channel, range, upper fov, lower fov
-    /// (degrees), rotation frequency (Hz; 0 = a full turn every capture).
+    /// The kind's parameters in their wire form; read and write them through
+    /// their typed views ([`SensorSpec::sensor_params`],
+    /// [`SensorSpec::depth_camera`], [`SensorSpec::lidar_params`],
+    /// [`SensorSpec::set_params`]). Depth: width, height, horizontal field of
+    /// view (degrees), far range. Lidar: channels, points per channel,
+    /// range, upper fov, lower fov (degrees), rotation frequency (Hz; 0 = a
+    /// full turn every capture).
     pub params: [f32; 8],
 }
 
@@ -123,32 +127,16 @@ pub enum SensorSpecError {
 }
 
 impl SensorSpec {
-    fn new(kind: SensorKind, position: [f32; 3], params: [f32; 8]) -> Self {
-        Self {
-            kind: kind as u32,
-            position,
-            params,
-            ..Self::default()
-        }
-    }
-
     /// A depth camera of `width` × `height` pixels, horizontal field of view
     /// `fov_degrees`, reading `far` metres where nothing is hit.
     pub fn depth(position: [f32; 3], width: u32, height: u32, fov_degrees: f32, far: f32) -> Self {
-        Self::new(
-            SensorKind::Depth,
-            position,
-            [
-                width as f32,
-                height as f32,
-                fov_degrees,
-                far,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-            ],
-        )
+        let camera = DepthCamera {
+            width,
+            height,
+            fov: fov_degrees,
+            range: far,
+        };
+        Self::with_params(position, camera)
     }
 
     /// A lidar with `channels` × `points_per_channel` rays per full turn,
@@ -161,32 +149,33 @@ impl SensorSpec {
         upper_fov: f32,
         lower_fov: f32,
     ) -> Self {
-        Self::new(
-            SensorKind::Lidar,
-            position,
-            [
-                channels as f32,
-                points_per_channel as f32,
-                range,
-                upper_fov,
-                lower_fov,
-                0.0,
-                0.0,
-                0.0,
-            ],
-        )
+        let lidar = Lidar {
+            channels,
+            points: points_per_channel,
+            range,
+            upper_fov,
+            lower_fov,
+            rotation_hz: 0.0,
+        };
+        Self::with_params(position, lidar)
     }
 
     /// A lidar spinning at `hz`: each capture covers `hz × Δt` of a turn
-    /// (CARLA's partial scans); 0 takes a full turn every capture.
+    /// (CARLA's partial scans); 0 takes a full turn every capture. Other
+    /// kinds are returned unchanged.
     pub fn rotating(mut self, hz: f32) -> Self {
-        self.params[5] = hz;
+        if let Some(lidar) = self.lidar_params() {
+            self.set_params(Lidar {
+                rotation_hz: hz,
+                ..lidar
+            });
+        }
         self
     }
 
     /// An IMU.
     pub fn imu(position: [f32; 3]) -> Self {
-        Self::new(SensorKind::Imu, position, [0.0; 8])
+        Self::with_params(position, Imu)
     }
 
     /// Attached to actor `id`.
@@ -208,10 +197,9 @@ impl SensorSpec {
 
     /// How many payload elements one capture holds (pixels, lidar slots, 1).
     pub fn elements(&self) -> usize {
-        let p = self.params;
-        match self.sensor_kind() {
-            Some(SensorKind::Depth) => p[0] as usize * p[1] as usize,
-            Some(SensorKind::Lidar) => p[0] as usize * p[1] as usize,
+        match self.sensor_params() {
+            Some(SensorParams::Depth(d)) => d.width as usize * d.height as usize,
+            Some(SensorParams::Lidar(l)) => l.channels as usize * l.points as usize,
             _ => 1,
         }
     }
@@ -248,35 +236,43 @@ impl SensorSpec {
         {
             return Err(SensorSpecError::SensorTick);
         }
+        // The two sizes come first in the wire form of both kinds that have
+        // sizes; they must be whole numbers, which the typed view (`u32`)
+        // cannot tell, so they are checked as sent.
+        let [first, second, ..] = p;
         let whole = |v: f32, max: u32| v >= 1.0 && v <= max as f32 && v.fract() == 0.0;
-        match self.sensor_kind() {
-            Some(SensorKind::Depth) => {
-                if !(whole(p[0], MAX_IMAGE_SIDE) && whole(p[1], MAX_IMAGE_SIDE))
+        match self.sensor_params() {
+            Some(SensorParams::Depth(d)) => {
+                if !(whole(first, MAX_IMAGE_SIDE) && whole(second, MAX_IMAGE_SIDE))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
                     return Err(SensorSpecError::DepthSize);
                 }
-                if !(p[2] > 0.0 && p[2] < 180.0) {
+                if !(d.fov > 0.0 && d.fov < 180.0) {
                     return Err(SensorSpecError::DepthFieldOfView);
                 }
-                if p[3] <= 0.0 {
+                if d.range <= 0.0 {
                     return Err(SensorSpecError::DepthRange);
                 }
             }
-            Some(SensorKind::Lidar) => {
-                if !(whole(p[0], MAX_LIDAR_CHANNELS) && whole(p[1], MAX_LIDAR_POINTS))
+            Some(SensorParams::Lidar(l)) => {
+                if !(whole(first, MAX_LIDAR_CHANNELS) && whole(second, MAX_LIDAR_POINTS))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
                     return Err(SensorSpecError::LidarSize);
                 }
-                if p[2] <= 0.0 || p[3] < p[4] || p[3].abs() > 90.0 || p[4].abs() > 90.0 {
+                if l.range <= 0.0
+                    || l.upper_fov < l.lower_fov
+                    || l.upper_fov.abs() > 90.0
+                    || l.lower_fov.abs() > 90.0
+                {
                     return Err(SensorSpecError::LidarRange);
                 }
-                if p[5] < 0.0 {
+                if l.rotation_hz < 0.0 {
                     return Err(SensorSpecError::LidarRotation);
                 }
             }
-            Some(SensorKind::Imu) => {}
+            Some(SensorParams::Imu(_)) => {}
             None => return Err(SensorSpecError::UnknownKind),
         }
         Ok(())

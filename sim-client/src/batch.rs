@@ -3,26 +3,21 @@
 use shared_types::Bus;
 use std::time::Duration;
 
-use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
-use shared_types::limits::{INITIAL_MAX_BATCH, MAX_CLIENTS_FLAG};
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
+    ServiceNames,
 };
 
-use crate::rpc::{await_slice_response, check_answer, Wait};
+use crate::rpc::{client_error, Pending, RequestPort, Wait};
 use crate::{Client, RequestError};
 
+/// The batch service's request port.
 pub(crate) type BatchClient =
-    RequestClient<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+    RequestPort<[Command], [CommandResult], BatchHeader, BatchResponseHeader>;
 
-type PendingBatch = iceoryx2::pending_response::PendingResponse<
-    Bus,
-    [Command],
-    BatchHeader,
-    [CommandResult],
-    BatchResponseHeader,
->;
+type PendingBatch = Pending<[Command], [CommandResult], BatchHeader, BatchResponseHeader>;
 
 /// The answer to [`Client::apply_batch_sync`].
 #[derive(Debug, Clone, PartialEq)]
@@ -84,29 +79,31 @@ pub enum CommandError {
     Batch(#[from] BatchError),
 }
 
-pub(crate) fn open_batch_client(node: &Node<Bus>, name: &str) -> Result<BatchClient, RequestError> {
-    use iceoryx2::service::port_factory::client::ClientCreateError;
-    let name = ServiceName::new(name).map_err(|e| RequestError::transport("service name", e))?;
-    let service = node
-        .service_builder(&name)
-        .request_response::<[Command], [CommandResult]>()
-        .request_user_header::<BatchHeader>()
-        .response_user_header::<BatchResponseHeader>()
-        .open()
+/// Opens a batch port on `node` to `world`, whose services `names` names
+/// (its server `server_pid`); it wakes the server through its client.
+pub(crate) fn open_batch_client(
+    node: &Node<Bus>,
+    names: &ServiceNames,
+    world: &str,
+    server_pid: u32,
+) -> Result<BatchClient, RequestError> {
+    let specs =
+        WorldServices::new(names).map_err(|e| RequestError::transport("service name", e))?;
+    let service = specs
+        .batch
+        .open(node)
         .map_err(|e| RequestError::transport("batch service", e))?;
-    service
-        .client_builder()
-        .initial_max_slice_len(INITIAL_MAX_BATCH)
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .create()
-        .map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
-                what: "clients sending command batches",
-                max: service.static_config().max_clients(),
-                flag: MAX_CLIENTS_FLAG,
-            },
-            e => RequestError::transport("batch client", e),
-        })
+    let client = specs.batch.client(&service).map_err(|e| {
+        let max = service.static_config().max_clients();
+        client_error(e, max, "clients sending command batches", "batch client")
+    })?;
+    Ok(RequestPort::new(
+        client,
+        None,
+        "batch send",
+        world,
+        server_pid,
+    ))
 }
 
 impl Client {
@@ -116,37 +113,18 @@ impl Client {
         port: &BatchClient,
         timeout: Duration,
     ) -> Result<(), RequestError> {
-        let pending = self.send_batch_on(port, &[], false)?;
-        let (header, _) = await_slice_response(
-            &pending,
+        port.request_waking(
+            (BatchHeader::new(false), &[][..]),
+            self,
             timeout,
-            self.world.as_str(),
-            self.server_pid,
             Wait::Backoff,
-        )?;
-        check_answer(&header, self.world.as_str())
+        )
+        .map(drop)
     }
 
     fn send_batch(&self, commands: &[Command], tick: bool) -> Result<PendingBatch, RequestError> {
-        self.send_batch_on(self.batch()?, commands, tick)
-    }
-
-    fn send_batch_on(
-        &self,
-        port: &BatchClient,
-        commands: &[Command],
-        tick: bool,
-    ) -> Result<PendingBatch, RequestError> {
-        let mut request = port
-            .loan_slice_uninit(commands.len())
-            .map_err(|e| RequestError::transport("batch loan", e))?;
-        *request.user_header_mut() = BatchHeader::new(tick);
-        let pending = request
-            .write_from_slice(commands)
-            .send()
-            .map_err(|e| RequestError::transport("batch send", e))?;
-        self.wake_server()?;
-        Ok(pending)
+        self.batch()?
+            .send_waking((BatchHeader::new(tick), commands), self)
     }
 
     /// Sends `commands` to be applied, in order, at the next frame boundary,
@@ -171,18 +149,12 @@ impl Client {
         } else {
             Wait::Backoff
         };
-        // The response is a slice: read it in place and copy the results out.
-        let (header, results) = await_slice_response(
-            &pending,
-            self.request_timeout,
-            self.world.as_str(),
-            self.server_pid,
-            wait,
-        )?;
-        check_answer(&header, self.world.as_str())?;
+        // The response is a slice: read in place, the results copied out.
+        let answer = self.batch()?.answer(&pending, self.request_timeout, wait)?;
+        let header = answer.header;
         let response = BatchResponse {
             frame: header.frame,
-            results,
+            results: answer.items,
         };
         match ResponseStatus::from_u32(header.status) {
             Some(ResponseStatus::Ok) => Ok(response),

@@ -2,29 +2,25 @@
 
 use shared_types::Bus;
 use std::cell::OnceCell;
-use std::collections::{BTreeMap, BTreeSet};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use shared_types::limits::MAX_CLIENTS_FLAG;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
-    StatusReport, WorldName, WorldSettings, PROTOCOL_VERSION,
+    WorldName, WorldSettings, PROTOCOL_VERSION,
 };
-use tracing::{debug, warn};
+use tracing::debug;
 
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::FrameStream;
-use crate::open::{open_with_retry, wake_notifier, OpenFailure};
-use crate::rpc::{RequestPort, Wait};
+use crate::open::{wake_notifier, OpenFailure};
+use crate::rpc::{client_error, open_service, RequestPort, Wait};
 use crate::FrameView;
 use crate::WaitMode;
 use crate::{
-    ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, TickError, Ticker,
-    WaitError, WorldSnapshot,
+    ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, Status, TickError,
+    Ticker, WaitError, WorldSnapshot,
 };
 
 /// The control port, with the notifier that wakes the server after a request.
@@ -35,29 +31,6 @@ const BATCH_HANDSHAKE_ATTEMPT: Duration = Duration::from_millis(100);
 
 /// How long a control request waits for its answer unless told otherwise.
 pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
-
-/// The id of a callback registered with [`Client::on_tick`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct CallbackId(u64);
-
-type TickCallback = Box<dyn FnMut(&WorldSnapshot) + Send>;
-
-/// The thread that calls `on_tick` callbacks, with its own subscription.
-struct TickDispatcher {
-    /// Registrations travel to the thread, which owns the callbacks: no
-    /// lock is held while a user callback runs.
-    changes: mpsc::Sender<Registration>,
-    registered: BTreeSet<CallbackId>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-    next_id: u64,
-}
-
-/// A change to the dispatcher's callbacks.
-enum Registration {
-    Add(CallbackId, TickCallback),
-    Remove(CallbackId),
-}
 
 /// A connection to one simbus world: its settings, its status and its frames.
 ///
@@ -89,9 +62,34 @@ enum Registration {
 /// # Ok(())
 /// # }
 /// ```
+///
+/// [`Client::builder`] sets the options before connecting.
+///
+/// # Threads
+///
+/// A `Client` is neither [`Send`] nor [`Sync`]: its iceoryx2 ports belong to
+/// the thread that opened them, and its request ports open on first use
+/// behind [`std::cell::OnceCell`]s. Connect one client in each thread that
+/// needs one (connecting is cheap), as the CARLA gateway does, one per
+/// connection. [`Client::on_tick`] callbacks run on a thread of their own
+/// with their own subscription.
+///
+/// ```compile_fail
+/// fn to_another_thread<T: Send>(_: T) {}
+/// # fn f(client: sim_client::Client) {
+/// to_another_thread(client); // its ports belong to this thread
+/// # }
+/// ```
+///
+/// ```compile_fail
+/// fn shared<T: Sync>(_: &T) {}
+/// # fn f(client: sim_client::Client) {
+/// shared(&client); // `OnceCell` is not `Sync`
+/// # }
+/// ```
 pub struct Client {
     pub(crate) world: WorldName,
-    node: Node<Bus>,
+    pub(crate) node: Node<Bus>,
     /// Opened on the first request: a client that only watches frames
     /// holds a frame subscription and a listener, nothing else.
     control: OnceCell<ControlPort>,
@@ -106,7 +104,7 @@ pub struct Client {
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
     pub(crate) request_timeout: Duration,
-    dispatcher: Option<TickDispatcher>,
+    pub(crate) dispatcher: Option<crate::on_tick::TickDispatcher>,
 }
 
 /// This executable's name, as the server's logs and a revoked ticker see it.
@@ -132,7 +130,7 @@ fn default_ticker_name() -> String {
     }
 }
 
-fn client_node() -> Result<Node<Bus>, ConnectError> {
+pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
     shared_types::environment::prepare().map_err(ConnectError::SharedDirectory)?;
     let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
     NodeBuilder::new()
@@ -194,49 +192,29 @@ impl Client {
     /// The control port, opened on first use.
     pub(crate) fn control(&self) -> Result<&ControlPort, RequestError> {
         use iceoryx2::service::builder::request_response::RequestResponseOpenError;
-        use iceoryx2::service::port_factory::client::ClientCreateError;
         if let Some(port) = self.control.get() {
             return Ok(port);
         }
         let deadline = Instant::now() + self.request_timeout;
-        let name = ServiceName::new(&self.names.control)
+        let specs = WorldServices::new(&self.names)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let service = open_with_retry(
-            deadline,
-            || {
-                self.node
-                    .service_builder(&name)
-                    .request_response::<ControlRequest, ControlResponse>()
-                    .open()
-            },
-            |e| {
-                matches!(
-                    e,
-                    RequestResponseOpenError::DoesNotExist
-                        | RequestResponseOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| match e {
-            RequestResponseOpenError::IncompatibleRequestOrResponseType => {
-                RequestError::ProtocolMismatch {
-                    client: PROTOCOL_VERSION,
-                    server: None,
+        let service = open_service(deadline, || specs.control.open(&self.node))
+            .map_err(|e| match e {
+                RequestResponseOpenError::IncompatibleRequestOrResponseType => {
+                    RequestError::ProtocolMismatch {
+                        client: PROTOCOL_VERSION,
+                        server: None,
+                    }
                 }
-            }
-            e => RequestError::transport("control service", e),
-        })?
-        .ok_or_else(|| RequestError::ServerGone {
-            world: self.world.to_string(),
-            pid: self.server_pid,
-        })?;
-        let client = service.client_builder().create().map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
-                what: "clients sending requests",
-                max: service.static_config().max_clients(),
-                flag: MAX_CLIENTS_FLAG,
-            },
-            e => RequestError::transport("control client", e),
+                e => RequestError::transport("control service", e),
+            })?
+            .ok_or_else(|| RequestError::ServerGone {
+                world: self.world.to_string(),
+                pid: self.server_pid,
+            })?;
+        let client = service.client_builder().create().map_err(|e| {
+            let max = service.static_config().max_clients();
+            client_error(e, max, "clients sending requests", "control client")
         })?;
         let wake = wake_notifier(&self.node, &self.names, deadline)
             .map_err(OpenFailure::into_request)?
@@ -244,9 +222,10 @@ impl Client {
                 world: self.world.to_string(),
                 pid: self.server_pid,
             })?;
+        let (world, pid) = (self.world.as_str(), self.server_pid);
         Ok(self
             .control
-            .get_or_init(|| RequestPort::new(client, wake, self.world.as_str(), self.server_pid)))
+            .get_or_init(|| RequestPort::new(client, Some(wake), "request send", world, pid)))
     }
 
     /// Wakes the server after a request was sent on any port.
@@ -283,11 +262,11 @@ impl Client {
         self.request_timeout = timeout;
     }
 
-    /// The world's status: current frame, settings, scene, actors.
-    pub fn status(&self) -> Result<StatusReport, RequestError> {
-        Ok(self
-            .request(ControlRequest::new(RequestKind::Status))?
-            .report)
+    /// The world's status: current frame, settings, scene, actors, ticker
+    /// and lockstep participants.
+    pub fn status(&self) -> Result<Status, RequestError> {
+        let response = self.request(ControlRequest::new(RequestKind::Status))?;
+        Ok(Status::from(&response.report))
     }
 
     /// The settings in force for the next frame.
@@ -326,11 +305,7 @@ impl Client {
 
     /// Loads `scene` (`default`, `empty`, `boxes:N`) as a new episode that
     /// starts at frame 0; settings are kept unless `reset_settings`.
-    pub fn load_world(
-        &self,
-        scene: &str,
-        reset_settings: bool,
-    ) -> Result<StatusReport, LoadWorldError> {
+    pub fn load_world(&self, scene: &str, reset_settings: bool) -> Result<Status, LoadWorldError> {
         if let Err(reason) = scene.parse::<shared_types::scene::SceneName>() {
             return Err(LoadWorldError::UnknownScene {
                 scene: scene.to_owned(),
@@ -347,14 +322,14 @@ impl Client {
     /// actors get new ids, never reused within the server's life) as
     /// a new episode that starts at frame 0; settings are kept unless
     /// `reset_settings`.
-    pub fn reload_world(&self, reset_settings: bool) -> Result<StatusReport, LoadWorldError> {
+    pub fn reload_world(&self, reset_settings: bool) -> Result<Status, LoadWorldError> {
         self.load(ControlRequest::load_world(None, reset_settings), "")
     }
 
-    fn load(&self, request: ControlRequest, scene: &str) -> Result<StatusReport, LoadWorldError> {
+    fn load(&self, request: ControlRequest, scene: &str) -> Result<Status, LoadWorldError> {
         let response = self.request(request)?;
         match ResponseStatus::from_u32(response.status) {
-            Some(ResponseStatus::Ok) => Ok(response.report),
+            Some(ResponseStatus::Ok) => Ok(Status::from(&response.report)),
             Some(ResponseStatus::UnknownScene) => Err(LoadWorldError::UnknownScene {
                 scene: scene.to_owned(),
                 reason: scene
@@ -392,116 +367,6 @@ impl Client {
     pub fn wait_for_frame(&mut self, timeout: Duration) -> Result<FrameView, WaitError> {
         self.frames
             .next(timeout, self.world.as_str(), Some(self.server_pid))
-    }
-
-    /// Calls `callback` with every new frame, on a background thread with its
-    /// own subscription, until [`Client::remove_on_tick`] or the client drops.
-    pub fn on_tick(
-        &mut self,
-        callback: impl FnMut(&WorldSnapshot) + Send + 'static,
-    ) -> Result<CallbackId, ConnectError> {
-        let dispatcher = match &mut self.dispatcher {
-            Some(dispatcher) => dispatcher,
-            slot => slot.insert(Self::start_dispatcher(&self.world)?),
-        };
-        dispatcher.next_id += 1;
-        let id = CallbackId(dispatcher.next_id);
-        dispatcher
-            .changes
-            .send(Registration::Add(id, Box::new(callback)))
-            .map_err(|_| ConnectError::transport("on_tick thread", "the thread has stopped"))?;
-        dispatcher.registered.insert(id);
-        Ok(id)
-    }
-
-    /// Removes a callback; `false` if `id` was not registered.
-    pub fn remove_on_tick(&mut self, id: CallbackId) -> bool {
-        let Some(dispatcher) = &mut self.dispatcher else {
-            return false;
-        };
-        if !dispatcher.registered.remove(&id) {
-            return false;
-        }
-        // If the thread has stopped, nothing calls the callback any more.
-        let _ = dispatcher.changes.send(Registration::Remove(id));
-        true
-    }
-
-    fn start_dispatcher(world: &WorldName) -> Result<TickDispatcher, ConnectError> {
-        let (changes, incoming) = mpsc::channel::<Registration>();
-        let stop = Arc::new(AtomicBool::new(false));
-        let world = world.clone();
-        let (ready_tx, ready_rx) = mpsc::channel();
-        let thread = {
-            let stop = stop.clone();
-            std::thread::Builder::new()
-                .name("simbus-on-tick".into())
-                .spawn(move || {
-                    let opened = client_node().and_then(|node| {
-                        let deadline = Instant::now() + DEFAULT_REQUEST_TIMEOUT;
-                        let names = ServiceNames::new(&world);
-                        let stream = FrameStream::open(&node, &names, world.as_str(), deadline)?;
-                        Ok((node, stream))
-                    });
-                    let (_node, mut stream) = match opened {
-                        Ok((node, Some(stream))) => {
-                            let _ = ready_tx.send(Ok(()));
-                            (node, stream)
-                        }
-                        Ok((_, None)) => {
-                            let _ = ready_tx.send(Err(ConnectError::NoServer {
-                                world: world.to_string(),
-                                timeout: DEFAULT_REQUEST_TIMEOUT,
-                            }));
-                            return;
-                        }
-                        Err(e) => {
-                            let _ = ready_tx.send(Err(e));
-                            return;
-                        }
-                    };
-                    let mut callbacks: BTreeMap<CallbackId, TickCallback> = BTreeMap::new();
-                    while !stop.load(Ordering::Relaxed) {
-                        match stream.next(Duration::from_millis(100), world.as_str(), None) {
-                            Ok(view) => {
-                                let snapshot = view.to_snapshot();
-                                drop(view);
-                                // Whatever was registered before this frame
-                                // arrived sees it.
-                                for change in incoming.try_iter() {
-                                    match change {
-                                        Registration::Add(id, callback) => {
-                                            callbacks.insert(id, callback);
-                                        }
-                                        Registration::Remove(id) => {
-                                            callbacks.remove(&id);
-                                        }
-                                    }
-                                }
-                                for callback in callbacks.values_mut() {
-                                    callback(&snapshot);
-                                }
-                            }
-                            Err(WaitError::Timeout { .. }) => {}
-                            Err(e) => {
-                                warn!("on_tick dispatcher stopped: {e}");
-                                return;
-                            }
-                        }
-                    }
-                })
-                .map_err(|e| ConnectError::transport("on_tick thread", e))?
-        };
-        ready_rx
-            .recv()
-            .map_err(|e| ConnectError::transport("on_tick thread start", e))??;
-        Ok(TickDispatcher {
-            changes,
-            registered: BTreeSet::new(),
-            stop,
-            thread: Some(thread),
-            next_id: 0,
-        })
     }
 
     fn request(&self, request: ControlRequest) -> Result<ControlResponse, RequestError> {
@@ -564,7 +429,8 @@ impl Client {
         if let Some(batch) = self.batch.get() {
             return Ok(batch);
         }
-        let batch = open_batch_client(&self.node, &self.names.batch)?;
+        let (world, pid) = (self.world.as_str(), self.server_pid);
+        let batch = open_batch_client(&self.node, &self.names, world, pid)?;
         let batch = self.batch.get_or_init(|| batch);
         // A request sent before the server has connected to a new port may
         // go unanswered: an empty batch, retried until answered, makes sure
@@ -578,21 +444,11 @@ impl Client {
             }
         }
     }
-
-    /// The iceoryx2 node of this client (for tools that open more ports).
-    pub fn node(&self) -> &Node<Bus> {
-        &self.node
-    }
 }
 
 impl Drop for Client {
     fn drop(&mut self) {
-        if let Some(mut dispatcher) = self.dispatcher.take() {
-            dispatcher.stop.store(true, Ordering::Relaxed);
-            if let Some(thread) = dispatcher.thread.take() {
-                let _ = thread.join();
-            }
-        }
+        crate::on_tick::stop(self.dispatcher.take());
     }
 }
 

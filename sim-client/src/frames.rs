@@ -10,7 +10,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
-use shared_types::limits::{FRAME_SUBSCRIBER_BUFFER, MAX_CLIENTS_FLAG};
+use shared_types::limits::MAX_CLIENTS_FLAG;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 
 use crate::open::{frame_ready_listener, open_with_retry};
@@ -46,16 +47,11 @@ impl FrameStream {
         deadline: Instant,
     ) -> Result<Option<Self>, ConnectError> {
         use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError;
-        let frames_name = ServiceName::new(&names.frames)
-            .map_err(|e| ConnectError::transport("service name", e))?;
+        let specs =
+            WorldServices::new(names).map_err(|e| ConnectError::transport("service name", e))?;
         let frames = open_with_retry(
             deadline,
-            || {
-                node.service_builder(&frames_name)
-                    .publish_subscribe::<[ActorState]>()
-                    .user_header::<FrameHeader>()
-                    .open()
-            },
+            || specs.frames.open(node),
             |e| {
                 matches!(
                     e,
@@ -75,19 +71,15 @@ impl FrameStream {
         let Some(frames) = frames else {
             return Ok(None);
         };
-        let subscriber = frames
-            .subscriber_builder()
-            .buffer_size(FRAME_SUBSCRIBER_BUFFER)
-            .create()
-            .map_err(|e| match e {
-                SubscriberCreateError::ExceedsMaxSupportedSubscribers => ConnectError::Full {
-                    world: world.to_owned(),
-                    what: "frame subscribers",
-                    max: frames.static_config().max_subscribers(),
-                    flag: MAX_CLIENTS_FLAG,
-                },
-                e => ConnectError::transport("frames subscriber", e),
-            })?;
+        let subscriber = specs.frames.subscriber(&frames).map_err(|e| match e {
+            SubscriberCreateError::ExceedsMaxSupportedSubscribers => ConnectError::Full {
+                world: world.to_owned(),
+                what: "frame subscribers",
+                max: frames.static_config().max_subscribers(),
+                flag: MAX_CLIENTS_FLAG,
+            },
+            e => ConnectError::transport("frames subscriber", e),
+        })?;
         let Some(ready) =
             frame_ready_listener(node, names, deadline).map_err(|e| e.into_connect(world))?
         else {

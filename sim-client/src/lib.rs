@@ -31,34 +31,52 @@
 #![warn(missing_docs)]
 
 mod batch;
+mod builder;
 mod client;
 mod error;
 mod frames;
 pub mod inspect;
 mod lockstep;
+mod on_tick;
 mod open;
 mod recorder;
 mod rpc;
 mod sensor;
 mod snapshot;
+mod status;
 mod ticker;
 mod wait;
 
 pub use batch::{BatchError, BatchResponse, CommandError};
-pub use client::{CallbackId, Client, DEFAULT_REQUEST_TIMEOUT};
+pub use builder::{ClientBuilder, DEFAULT_CONNECT_TIMEOUT};
+pub use client::{Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, TransportError,
     WaitError,
 };
 pub use lockstep::Participant;
+pub use on_tick::CallbackId;
 pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
+pub use status::{ParticipantStatus, Status, TickerStatus};
 pub use ticker::Ticker;
 pub use wait::process_alive;
+
+/// What most programs use: `use sim_client::prelude::*;`.
+pub mod prelude {
+    pub use crate::{
+        ApplySettingsError, BatchError, Capture, Client, ClientBuilder, ConnectError, FrameView,
+        LoadWorldError, Participant, RecorderError, RequestError, Sensor, SensorError, Status,
+        TickError, Ticker, WaitError, WaitMode, WorldSnapshot,
+    };
+    pub use shared_types::{
+        DepthCamera, Imu, Lidar, SensorKind, SensorParams, SensorSpec, WorldName, WorldSettings,
+    };
+}
 
 /// The README's Rust examples, compiled as doctests so they stay true.
 #[cfg(doctest)]

@@ -7,13 +7,14 @@ use std::time::{Duration, Instant};
 use std::cell::RefCell;
 
 use iceoryx2::prelude::*;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
 };
 use tracing::{debug, info};
 
-use crate::open::{open_with_retry, wake_notifier, OpenFailure};
-use crate::rpc::{check_answer, Pending, RequestPort, Wait};
+use crate::open::{wake_notifier, OpenFailure};
+use crate::rpc::{client_error, open_service, Pending, RequestPort, Wait};
 use crate::RequestError;
 
 type PendingDone = Pending<LockstepRequest, LockstepResponse>;
@@ -37,6 +38,18 @@ type PendingDone = Pending<LockstepRequest, LockstepResponse>;
 /// }
 /// # }
 /// ```
+///
+/// # Threads
+///
+/// Neither [`Send`] nor [`Sync`]: its iceoryx2 ports belong to the thread
+/// that opened them. A thread that needs one joins there, from a client of its own.
+///
+/// ```compile_fail
+/// fn to_another_thread<T: Send>(_: T) {}
+/// # fn f(handle: sim_client::Participant) {
+/// to_another_thread(handle); // its ports belong to this thread
+/// # }
+/// ```
 pub struct Participant {
     world: WorldName,
     port: RequestPort<LockstepRequest, LockstepResponse>,
@@ -57,7 +70,6 @@ impl Participant {
         name: &str,
         timeout: Duration,
     ) -> Result<Self, RequestError> {
-        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
         let names = ServiceNames::new(world);
         // Named after the participant, so node lists (`top`) say who it is.
         let mut builder = NodeBuilder::new();
@@ -69,48 +81,25 @@ impl Participant {
             .create::<Bus>()
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
-        let service_name =
-            |n: &str| ServiceName::new(n).map_err(|e| RequestError::transport("service name", e));
+        let specs =
+            WorldServices::new(&names).map_err(|e| RequestError::transport("service name", e))?;
         let missing = || RequestError::Timeout {
             world: world.to_string(),
             timeout,
         };
-        let lockstep_name = service_name(&names.lockstep)?;
-        let port = open_with_retry(
-            deadline,
-            || {
-                node.service_builder(&lockstep_name)
-                    .request_response::<LockstepRequest, LockstepResponse>()
-                    .open()
-            },
-            |e| {
-                matches!(
-                    e,
-                    RequestResponseOpenError::DoesNotExist
-                        | RequestResponseOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| RequestError::transport("lockstep service", e))?
-        .ok_or_else(missing)?;
-        let max = port.static_config().max_clients();
-        let port = port.client_builder().create().map_err(|e| {
-            use iceoryx2::service::port_factory::client::ClientCreateError;
-            match e {
-                ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
-                    what: "lockstep participants",
-                    max,
-                    flag: shared_types::limits::MAX_CLIENTS_FLAG,
-                },
-                e => RequestError::transport("lockstep client", e),
-            }
+        let service = open_service(deadline, || specs.lockstep.open(&node))
+            .map_err(|e| RequestError::transport("lockstep service", e))?
+            .ok_or_else(missing)?;
+        let port = service.client_builder().create().map_err(|e| {
+            let max = service.static_config().max_clients();
+            client_error(e, max, "lockstep participants", "lockstep client")
         })?;
         let wake = wake_notifier(&node, &names, deadline)
             .map_err(OpenFailure::into_request)?
             .ok_or_else(missing)?;
         let mut participant = Self {
             world: world.clone(),
-            port: RequestPort::new(port, wake, world.as_str(), server_pid),
+            port: RequestPort::new(port, Some(wake), "request send", world.as_str(), server_pid),
             name: name.to_owned(),
             server_pid,
             joined: (0, 0),
@@ -152,16 +141,13 @@ impl Participant {
         let Some(pending) = last.as_ref() else {
             return Ok(());
         };
-        let answer = pending
-            .receive()
-            .map_err(|e| RequestError::transport("lockstep receive", e))?;
-        let Some(answer) = answer else {
+        let answer = self.port.try_answer(pending);
+        if !matches!(answer, Ok(None)) {
+            *last = None; // answered (or failed): nothing more comes
+        }
+        let Some(response) = answer? else {
             return Ok(()); // not answered yet
         };
-        let response = *answer.payload();
-        drop(answer);
-        *last = None;
-        check_answer(&response, self.world.as_str())?;
         if response.status == ResponseStatus::NotParticipant as u32 {
             return Err(RequestError::NotParticipant {
                 world: self.world.to_string(),

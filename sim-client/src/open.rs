@@ -10,6 +10,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::event::EventOpenError;
 use iceoryx2::service::port_factory::event::PortFactory as EventService;
 use shared_types::limits::MAX_CLIENTS_FLAG;
+use shared_types::transport::spec::{EventSpec, WorldServices};
 use shared_types::ServiceNames;
 
 use crate::error::TransportError;
@@ -94,7 +95,7 @@ pub(crate) fn wake_notifier(
     deadline: Instant,
 ) -> Result<Option<Notifier<Bus>>, OpenFailure> {
     use iceoryx2::port::notifier::NotifierCreateError;
-    let Some(service) = open_event(node, &names.control_wake, deadline)? else {
+    let Some(service) = open_event(node, |s| &s.control_wake, names, deadline)? else {
         return Ok(None);
     };
     let max = service.static_config().max_notifiers();
@@ -119,7 +120,7 @@ pub(crate) fn frame_ready_listener(
     deadline: Instant,
 ) -> Result<Option<Listener<Bus>>, OpenFailure> {
     use iceoryx2::port::listener::ListenerCreateError;
-    let Some(service) = open_event(node, &names.frame_ready, deadline)? else {
+    let Some(service) = open_event(node, |s| &s.frame_ready, names, deadline)? else {
         return Ok(None);
     };
     let max = service.static_config().max_listeners();
@@ -136,16 +137,19 @@ pub(crate) fn frame_ready_listener(
         })
 }
 
-/// Opens the event service `name`, waiting until `deadline` for it to appear.
+/// Opens the event service `spec` picks from the world's services (named
+/// by `names`), waiting until `deadline` for it to appear.
 fn open_event(
     node: &Node<Bus>,
-    name: &str,
+    spec: impl Fn(&WorldServices) -> &EventSpec,
+    names: &ServiceNames,
     deadline: Instant,
 ) -> Result<Option<EventService<Bus>>, OpenFailure> {
-    let service_name = ServiceName::new(name).map_err(|e| OpenFailure::new("service name", e))?;
+    let specs = WorldServices::new(names).map_err(|e| OpenFailure::new("service name", e))?;
+    let spec = spec(&specs);
     open_with_retry(
         deadline,
-        || node.service_builder(&service_name).event().open(),
+        || spec.open(node),
         |e| {
             matches!(
                 e,

@@ -5,28 +5,26 @@
 //! Reading a recording without a server (CARLA's `show_recorder_*`) is in
 //! [`crate::inspect`].
 
-use shared_types::Bus;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
 use serde::Serialize;
-use shared_types::limits::MAX_CLIENTS_FLAG;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
     ReplayState, ResponseStatus,
 };
 
-use crate::rpc::{await_response, check_answer, Wait};
+use crate::rpc::{client_error, RequestPort, Wait};
 use crate::{Client, RequestError};
 
 /// The longest a replay request waits for the server to read its recording
 /// through (a few GiB take seconds).
 pub const REPLAY_READ_TIMEOUT: Duration = Duration::from_secs(600);
 
-/// The recorder service's client port.
-pub(crate) type RecorderClient = RequestClient<Bus, RecorderRequest, (), RecorderResponse, ()>;
+/// The recorder service's request port.
+pub(crate) type RecorderClient = RequestPort<RecorderRequest, RecorderResponse>;
 
 /// Why a recorder request failed.
 #[derive(Debug, thiserror::Error)]
@@ -184,26 +182,31 @@ fn path_text(path: &Path) -> Result<PathText, RecorderError> {
 impl Client {
     /// The recorder port, opened on first use and kept.
     fn recorder_port(&self) -> Result<&RecorderClient, RequestError> {
-        use iceoryx2::service::port_factory::client::ClientCreateError;
         if let Some(port) = self.recorder_port.get() {
             return Ok(port);
         }
-        let name = ServiceName::new(&self.names.recorder)
+        let specs = WorldServices::new(&self.names)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let service = self
-            .node()
-            .service_builder(&name)
-            .request_response::<RecorderRequest, RecorderResponse>()
-            .open()
+        let service = specs
+            .recorder
+            .open(&self.node)
             .map_err(|e| RequestError::transport("recorder service", e))?;
-        let port = service.client_builder().create().map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
-                what: "clients sending recorder requests",
-                max: service.static_config().max_clients(),
-                flag: MAX_CLIENTS_FLAG,
-            },
-            e => RequestError::transport("recorder client", e),
+        let client = service.client_builder().create().map_err(|e| {
+            let max = service.static_config().max_clients();
+            client_error(
+                e,
+                max,
+                "clients sending recorder requests",
+                "recorder client",
+            )
         })?;
+        let port = RequestPort::new(
+            client,
+            None,
+            "recorder send",
+            self.world.as_str(),
+            self.server_pid,
+        );
         Ok(self.recorder_port.get_or_init(|| port))
     }
 
@@ -216,19 +219,9 @@ impl Client {
         request: RecorderRequest,
         timeout: Duration,
     ) -> Result<RecorderStatus, RecorderError> {
-        let pending = self
+        let answer = self
             .recorder_port()?
-            .send_copy(request)
-            .map_err(|e| RequestError::transport("recorder send", e))?;
-        self.wake_server()?;
-        let answer = await_response(
-            &pending,
-            timeout,
-            self.world.as_str(),
-            self.server_pid,
-            Wait::Backoff,
-        )?;
-        check_answer(&answer, self.world.as_str())?;
+            .request_waking(request, self, timeout, Wait::Backoff)?;
         match ResponseStatus::from_u32(answer.status) {
             Some(ResponseStatus::Ok) => Ok(RecorderStatus::from(&answer)),
             Some(ResponseStatus::Refused) => Err(RecorderError::Refused {

@@ -11,7 +11,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
-use shared_types::limits::{MAX_CLIENTS_FLAG, MAX_SENSOR_READERS_FLAG, SENSOR_SUBSCRIBER_BUFFER};
+use shared_types::limits::MAX_SENSOR_READERS_FLAG;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
@@ -19,15 +20,15 @@ use shared_types::{
 };
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
-use crate::rpc::{await_slice_response, check_answer};
+use crate::rpc::{client_error, RequestPort};
 use crate::wait::{self, Stop, Wait};
 use crate::{Client, RequestError, WaitError, WaitMode};
 
 type Sub<T> = Subscriber<Bus, [T], SensorHeader>;
 
-/// The client port of the world's sensor service (spawn, list, destroy).
+/// The request port of the world's sensor service (spawn, list, destroy).
 pub(crate) type SensorRequestClient =
-    iceoryx2::port::client::Client<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
+    RequestPort<SensorRequest, [SensorInfo], (), SensorResponseHeader>;
 
 enum Port {
     Depth(Sub<f32>),
@@ -121,6 +122,18 @@ pub enum SensorError {
 /// a reader that must never miss one joins the lockstep, so the server
 /// waits for it. Slower readers lose the oldest captures (4 are kept),
 /// counted by [`Sensor::missed`].
+///
+/// # Threads
+///
+/// Neither [`Send`] nor [`Sync`]: its iceoryx2 ports belong to the thread
+/// that opened them. A thread that needs one subscribes there ([`Client::sensor`]), from a client of its own.
+///
+/// ```compile_fail
+/// fn to_another_thread<T: Send>(_: T) {}
+/// # fn f(handle: sim_client::Sensor) {
+/// to_another_thread(handle); // its ports belong to this thread
+/// # }
+/// ```
 pub struct Sensor {
     info: SensorInfo,
     reader: Reader,
@@ -201,43 +214,38 @@ impl Sensor {
             .create::<Bus>()
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
-        let name = ServiceName::new(&names.sensor(info.id))
-            .map_err(|e| RequestError::transport("service name", e))?;
+        let specs =
+            WorldServices::new(&names).map_err(|e| RequestError::transport("service name", e))?;
         fn subscribe<T: std::fmt::Debug + ZeroCopySend + 'static>(
             node: &Node<Bus>,
-            name: &ServiceName,
+            specs: &WorldServices,
+            id: u64,
             deadline: Instant,
         ) -> Result<Sub<T>, RequestError> {
             use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError as E;
+            let spec = specs
+                .sensor::<T>(id)
+                .map_err(|e| RequestError::transport("service name", e))?;
             let service = open_with_retry(
                 deadline,
-                || {
-                    node.service_builder(name)
-                        .publish_subscribe::<[T]>()
-                        .user_header::<SensorHeader>()
-                        .open()
-                },
+                || spec.open(node),
                 |e| matches!(e, E::DoesNotExist | E::HangsInCreation),
             )
             .map_err(|e| RequestError::transport("sensor service", e))?
             .ok_or(RequestError::transport("sensor service", "does not exist"))?;
-            service
-                .subscriber_builder()
-                .buffer_size(SENSOR_SUBSCRIBER_BUFFER)
-                .create()
-                .map_err(|e| match e {
-                    SubscriberCreateError::ExceedsMaxSupportedSubscribers => RequestError::Full {
-                        what: "readers of this sensor",
-                        max: service.static_config().max_subscribers(),
-                        flag: MAX_SENSOR_READERS_FLAG,
-                    },
-                    e => RequestError::transport("sensor subscriber", e),
-                })
+            spec.subscriber(&service).map_err(|e| match e {
+                SubscriberCreateError::ExceedsMaxSupportedSubscribers => RequestError::Full {
+                    what: "readers of this sensor",
+                    max: service.static_config().max_subscribers(),
+                    flag: MAX_SENSOR_READERS_FLAG,
+                },
+                e => RequestError::transport("sensor subscriber", e),
+            })
         }
         let port = match info.spec.sensor_kind() {
-            Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &name, deadline)?),
-            Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &name, deadline)?),
-            Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &name, deadline)?),
+            Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &specs, info.id, deadline)?),
             None => {
                 return Err(RequestError::UnknownAnswer {
                     status: ResponseStatus::Ok as u32,
@@ -426,44 +434,37 @@ impl Drop for Listening {
 impl Client {
     /// The sensor-request port, opened on first use and kept.
     fn sensor_port(&self) -> Result<&SensorRequestClient, RequestError> {
-        use iceoryx2::service::port_factory::client::ClientCreateError;
         if let Some(port) = self.sensor_port.get() {
             return Ok(port);
         }
-        let name = ServiceName::new(&self.names.sensors)
+        let specs = WorldServices::new(&self.names)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let service = self
-            .node()
-            .service_builder(&name)
-            .request_response::<SensorRequest, [SensorInfo]>()
-            .response_user_header::<SensorResponseHeader>()
-            .open()
+        let service = specs
+            .sensors
+            .open(&self.node)
             .map_err(|e| RequestError::transport("sensor service", e))?;
-        let port = service.client_builder().create().map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => RequestError::Full {
-                what: "clients sending sensor requests",
-                max: service.static_config().max_clients(),
-                flag: MAX_CLIENTS_FLAG,
-            },
-            e => RequestError::transport("sensor client", e),
+        let client = service.client_builder().create().map_err(|e| {
+            let max = service.static_config().max_clients();
+            client_error(e, max, "clients sending sensor requests", "sensor client")
         })?;
+        let port = RequestPort::new(
+            client,
+            None,
+            "sensor send",
+            self.world.as_str(),
+            self.server_pid,
+        );
         Ok(self.sensor_port.get_or_init(|| port))
     }
 
     fn sensor_request(&self, request: SensorRequest) -> Result<Vec<SensorInfo>, SensorError> {
-        let pending = self
-            .sensor_port()?
-            .send_copy(request)
-            .map_err(|e| RequestError::transport("sensor send", e))?;
-        self.wake_server()?;
-        let (header, infos) = await_slice_response(
-            &pending,
+        let answer = self.sensor_port()?.request_waking(
+            request,
+            self,
             self.request_timeout,
-            self.world.as_str(),
-            self.server_pid,
             Wait::Backoff,
         )?;
-        check_answer(&header, self.world.as_str())?;
+        let header = answer.header;
         match ResponseStatus::from_u32(header.status) {
             Some(ResponseStatus::Ok) => {}
             Some(ResponseStatus::Refused) => {
@@ -480,7 +481,7 @@ impl Client {
                 .into())
             }
         }
-        Ok(infos)
+        Ok(answer.items)
     }
 
     /// Builds a sensor from `spec` and subscribes to it.

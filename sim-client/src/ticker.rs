@@ -5,14 +5,15 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
+use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
     WorldName, WorldSettings,
 };
 use tracing::{debug, info, warn};
 
-use crate::open::{frame_ready_listener, open_with_retry, wake_notifier};
-use crate::rpc::{RequestPort, Wait};
+use crate::open::{frame_ready_listener, wake_notifier};
+use crate::rpc::{open_service, RequestPort, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
 /// How much longer than the server's lockstep timeout a held-up tick
@@ -60,6 +61,18 @@ const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 /// # Ok(())
 /// # }
 /// ```
+///
+/// # Threads
+///
+/// Neither [`Send`] nor [`Sync`]: its iceoryx2 ports belong to the thread
+/// that opened them. A thread that needs one claims it there, from a client of its own.
+///
+/// ```compile_fail
+/// fn to_another_thread<T: Send>(_: T) {}
+/// # fn f(handle: sim_client::Ticker) {
+/// to_another_thread(handle); // its ports belong to this thread
+/// # }
+/// ```
 pub struct Ticker {
     world: WorldName,
     port: RequestPort<TickRequest, TickResponse>,
@@ -90,7 +103,6 @@ impl Ticker {
         request_timeout: Duration,
         owner: impl Fn() -> Option<TickerInfo>,
     ) -> Result<Self, TickError> {
-        use iceoryx2::service::builder::request_response::RequestResponseOpenError;
         use iceoryx2::service::port_factory::client::ClientCreateError;
 
         let names = ServiceNames::new(world);
@@ -100,8 +112,8 @@ impl Ticker {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Bus>()
             .map_err(|e| TickError::transport("node", e))?;
-        let service_name =
-            |n: &str| ServiceName::new(n).map_err(|e| TickError::transport("service name", e));
+        let specs =
+            WorldServices::new(&names).map_err(|e| TickError::transport("service name", e))?;
         let deadline = Instant::now() + request_timeout;
         let timeout = || {
             TickError::Request(RequestError::Timeout {
@@ -109,33 +121,18 @@ impl Ticker {
                 timeout: request_timeout,
             })
         };
-        let tick_name = service_name(&names.tick)?;
-        let port = open_with_retry(
-            deadline,
-            || {
-                node.service_builder(&tick_name)
-                    .request_response::<TickRequest, TickResponse>()
-                    .open()
-            },
-            |e| {
-                matches!(
-                    e,
-                    RequestResponseOpenError::DoesNotExist
-                        | RequestResponseOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| TickError::transport("tick service", e))?
-        .ok_or_else(timeout)?
-        .client_builder()
-        .create()
-        .map_err(|e| match e {
-            ClientCreateError::ExceedsMaxSupportedClients => TickError::NotTicker {
-                world: world.to_string(),
-                owner: owner(),
-            },
-            e => TickError::transport("tick client", e),
-        })?;
+        let port = open_service(deadline, || specs.tick.open(&node))
+            .map_err(|e| TickError::transport("tick service", e))?
+            .ok_or_else(timeout)?
+            .client_builder()
+            .create()
+            .map_err(|e| match e {
+                ClientCreateError::ExceedsMaxSupportedClients => TickError::NotTicker {
+                    world: world.to_string(),
+                    owner: owner(),
+                },
+                e => TickError::transport("tick client", e),
+            })?;
         let wake = wake_notifier(&node, &names, deadline)
             .map_err(|e| TickError::Request(e.into_request()))?
             .ok_or_else(timeout)?;
@@ -144,7 +141,7 @@ impl Ticker {
             .ok_or_else(timeout)?;
         let mut ticker = Self {
             world: world.clone(),
-            port: RequestPort::new(port, wake, world.as_str(), server_pid),
+            port: RequestPort::new(port, Some(wake), "request send", world.as_str(), server_pid),
             ready,
             server_pid,
             node_name: node_name.to_owned(),

@@ -273,6 +273,15 @@ impl Finished {
         assert_eq!(self.status.code(), Some(code), "{self}");
         self
     }
+
+    /// The first stdout line starting with `prefix`; panics showing the
+    /// whole run if there is none.
+    pub fn line_starting(&self, prefix: &str) -> &str {
+        self.stdout
+            .iter()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("no stdout line starts with {prefix:?}:\n{self}"))
+    }
 }
 
 impl std::fmt::Display for Finished {
@@ -392,15 +401,25 @@ impl TestWorld {
         status(&self.name)
     }
 
-    /// `(synchronous_mode, fixed_delta_seconds, ticker)` from the world's
-    /// status: what a change of its time settings touches.
-    pub fn time_settings(&self) -> (serde_json::Value, serde_json::Value, serde_json::Value) {
+    /// Asserts the world's time settings, what a change of them touches:
+    /// synchronous or not, its fixed step (`None`: a variable step), and
+    /// nobody ticking it; `context` leads the message shown if not.
+    pub fn assert_time_settings(&self, sync: bool, step: Option<f64>, context: &str) {
         let status = self.status();
-        (
+        let want = (
+            serde_json::Value::from(sync),
+            step.map_or(serde_json::Value::Null, serde_json::Value::from),
+            serde_json::Value::Null,
+        );
+        let got = (
             status["synchronous_mode"].clone(),
             status["fixed_delta_seconds"].clone(),
             status["ticker"].clone(),
-        )
+        );
+        assert_eq!(
+            got, want,
+            "{context}(synchronous_mode, fixed_delta_seconds, ticker) of {status}"
+        );
     }
 }
 

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use sim_client::{Client, RequestError, WaitError, WaitMode};
+use sim_client::{Client, RequestError, Status, WaitError, WaitMode};
 use simbus_tests::{server, unique_world, TestWorld};
 
 #[test]
@@ -82,5 +82,47 @@ fn a_server_that_dies_ends_the_wait_with_a_clear_error() {
     match client.status() {
         Err(RequestError::ServerGone { pid, .. }) => assert_eq!(pid, server.pid()),
         other => panic!("expected ServerGone, got {other:?}"),
+    }
+}
+
+/// `Client` is not `Send`: a program with several threads connects one
+/// client in each, as the CARLA gateway does per connection. Each thread's
+/// client reads frames, asks for the status and applies settings on its
+/// own ports, all at once, built with `Client::builder`.
+#[test]
+fn a_client_per_thread_each_with_its_own_ports() {
+    let world = TestWorld::start(
+        "per-thread",
+        &["--fixed-delta-seconds", "0.01", "--realtime"],
+    );
+    let name = world.name().to_owned();
+    let threads: Vec<_> = (0..4)
+        .map(|i| {
+            let name = name.clone();
+            std::thread::spawn(move || {
+                let mut client = Client::builder(name.as_str())
+                    .timeout(Duration::from_secs(20))
+                    .request_timeout(Duration::from_secs(10))
+                    .wait_mode(if i % 2 == 0 {
+                        WaitMode::Block
+                    } else {
+                        WaitMode::Spin
+                    })
+                    .connect()
+                    .unwrap_or_else(|e| panic!("thread {i}: {e}"));
+                let first = client.wait_for_tick(Duration::from_secs(10)).unwrap();
+                let next = client.wait_for_tick(Duration::from_secs(10)).unwrap();
+                assert!(next.frame() > first.frame(), "thread {i}");
+                let status: Status = client.status().unwrap();
+                assert!(status.frame >= first.frame(), "thread {i}");
+                assert_eq!(status.settings.fixed_delta_seconds, Some(0.01));
+                let settings = client.get_settings().unwrap();
+                client.apply_settings(settings).unwrap();
+                status.server_pid
+            })
+        })
+        .collect();
+    for thread in threads {
+        assert_eq!(thread.join().expect("a client thread"), world.server.pid());
     }
 }

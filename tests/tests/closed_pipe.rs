@@ -187,9 +187,7 @@ fn every_printing_command_ends_quietly_when_its_stdout_is_closed() {
     let demo = closed_after(&unique_world("pipe-demo"), &["demo", "--frames", "5"], 0);
     assert_eq!(demo.problem(), None);
     // Nothing was left ticking the world, nor in synchronous mode.
-    let (sync, _, ticker) = world.time_settings();
-    assert_eq!(sync, false, "{}", world.status());
-    assert!(ticker.is_null(), "{}", world.status());
+    world.assert_time_settings(false, Some(0.02), "");
 }
 
 #[test]
@@ -234,10 +232,7 @@ fn a_ticker_whose_stdout_closes_gives_the_world_back() {
             );
         }
         // Asynchronous again, the world's own step, nobody ticking.
-        let (sync, step, ticker) = world.time_settings();
-        assert_eq!(sync, false, "after {args:?}: {}", world.status());
-        assert_eq!(step, 0.02, "after {args:?}: {}", world.status());
-        assert!(ticker.is_null(), "after {args:?}: {}", world.status());
+        world.assert_time_settings(false, Some(0.02), &format!("after {args:?}: "));
     }
     // A plain ticker then takes the world's own step, as on a fresh world.
     let ticked = world.cli(&["tick", "--count", "2", "--json"]);

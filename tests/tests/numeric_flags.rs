@@ -572,11 +572,7 @@ fn scene_position_and_fps_refusals_state_the_rule_and_status_reads_readably() {
     let world = simbus_tests::TestWorld::start("numeric-status", &["--fps", "30"]);
     let out = world.cli(&["status"]);
     out.assert_success();
-    let step = out
-        .stdout
-        .iter()
-        .find(|l| l.starts_with("step"))
-        .unwrap_or_else(|| panic!("a step line: {out}"));
+    let step = out.line_starting("step");
     assert!(step.contains("fixed 0.0333333 s (30 FPS)"), "{step}");
     let out = world.cli(&["config", "--inspect"]);
     out.assert_success();

@@ -32,7 +32,9 @@ fn readme_fenced(marker: &str, language: &str) -> String {
 fn doc_fenced(doc: &str, marker: &str, language: &str) -> String {
     let path = format!("{}/../{doc}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let after = &text[text.find(marker).unwrap_or_else(|| panic!("{marker} in {doc}"))..];
+    let after = &text[text
+        .find(marker)
+        .unwrap_or_else(|| panic!("{marker} in {doc}"))..];
     let fence = format!("```{language}\n");
     let start = after
         .find(&fence)

@@ -278,12 +278,7 @@ fn files_are_described_as_what_they_are() {
     ticker.tick(T).unwrap();
     let out = world.cli(&["recorder", "info", text(&live)]);
     out.assert_success();
-    assert!(
-        out.stdout
-            .iter()
-            .any(|l| l.starts_with("closed       no: still being recorded")),
-        "{out}"
-    );
+    out.line_starting("closed       no: still being recorded");
     assert!(!out.stderr.contains("damaged"), "{out}");
     let info = one_json(&world.cli(&["recorder", "info", text(&live), "--json"]));
     assert_eq!(info["truncated"], true);
@@ -303,11 +298,7 @@ fn files_are_described_as_what_they_are() {
     assert_eq!(sum, info["frames"].as_u64().unwrap());
     let out = world.cli(&["recorder", "info", text(&live)]);
     out.assert_success();
-    let frames_line = out
-        .stdout
-        .iter()
-        .find(|l| l.starts_with("frames "))
-        .unwrap();
+    let frames_line = out.line_starting("frames ");
     assert!(
         frames_line.contains(&format!("{} frames in 2 episodes", info["frames"])),
         "{out}"
@@ -366,12 +357,7 @@ fn counts_read_as_words_and_a_detached_json_replay_prints_its_object() {
     );
     let out = world.cli(&["recorder", "info", text(&path)]);
     out.assert_success();
-    assert!(
-        out.stdout
-            .iter()
-            .any(|l| l.starts_with("frames       1 frame (frame ")),
-        "{out}"
-    );
+    out.line_starting("frames       1 frame (frame ");
 
     let out = world.cli(&["replay", text(&path), "--detach", "--json"]);
     let started = one_json(&out);

@@ -18,15 +18,7 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
         "--leave-sync",
     ]);
     ticked.assert_success();
-    let (sync, step, ticker) = world.time_settings();
-    assert_eq!(sync, true, "{}", world.status());
-    assert_eq!(
-        step,
-        0.02,
-        "the world's own step is back: {}",
-        world.status()
-    );
-    assert!(ticker.is_null(), "{}", world.status());
+    world.assert_time_settings(true, Some(0.02), "the world's own step is back: ");
     assert_eq!(
         ticked.stderr.lines().last(),
         Some(
@@ -41,10 +33,7 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
-    let (sync, step, ticker) = world.time_settings();
-    assert_eq!(sync, false, "{}", world.status());
-    assert_eq!(step, 0.02, "{}", world.status());
-    assert!(ticker.is_null(), "{}", world.status());
+    world.assert_time_settings(false, Some(0.02), "");
 }
 
 #[test]
@@ -52,9 +41,7 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
     let world = TestWorld::start("tick-variable", &[]);
     let ticked = world.cli(&["tick", "--count", "2", "--leave-sync"]);
     ticked.assert_success();
-    let (sync, step, _) = world.time_settings();
-    assert_eq!(sync, true, "{}", world.status());
-    assert!(step.is_null(), "variable again: {}", world.status());
+    world.assert_time_settings(true, None, "variable again: ");
     assert_eq!(
         ticked.stderr.lines().last(),
         Some(
@@ -68,9 +55,7 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.05 s"), "{ticked}");
-    let (sync, step, _) = world.time_settings();
-    assert_eq!(sync, false, "{}", world.status());
-    assert!(step.is_null(), "{}", world.status());
+    world.assert_time_settings(false, None, "");
 }
 
 #[test]
@@ -87,10 +72,7 @@ fn tick_says_it_left_the_world_asynchronous_with_its_settings_as_before() {
         ),
         "{ticked}"
     );
-    let (sync, step, ticker) = world.time_settings();
-    assert_eq!(sync, false, "{}", world.status());
-    assert_eq!(step, 0.02, "{}", world.status());
-    assert!(ticker.is_null(), "{}", world.status());
+    world.assert_time_settings(false, Some(0.02), "");
 }
 
 #[test]
@@ -119,9 +101,6 @@ fn a_ticker_stopped_by_a_signal_gives_the_world_back() {
             ),
             "{name}: {ended}"
         );
-        let (sync, step, ticker) = world.time_settings();
-        assert_eq!(sync, false, "{name}: {}", world.status());
-        assert_eq!(step, 0.02, "{name}: {}", world.status());
-        assert!(ticker.is_null(), "{name}: {}", world.status());
+        world.assert_time_settings(false, Some(0.02), &format!("{name}: "));
     }
 }

@@ -81,6 +81,28 @@ pub struct RecordingReader {
     bytes: u64,
 }
 
+impl RecordingHeader {
+    /// The header of a recording not yet read: every number zero, every
+    /// name empty, the default settings.
+    pub(crate) fn unread() -> Self {
+        Self {
+            recording_version: 0,
+            simbus_version: String::new(),
+            protocol_version: 0,
+            world: String::new(),
+            scene: String::new(),
+            seed: 0,
+            settings: WorldSettings::default().into(),
+            start_frame: 0,
+            start_elapsed_ns: 0,
+            episode: 0,
+            start_platform_timestamp: 0.0,
+            sensors: false,
+            keyframe_seconds: 0.0,
+        }
+    }
+}
+
 impl std::fmt::Debug for RecordingReader {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RecordingReader")
@@ -125,21 +147,7 @@ impl RecordingReader {
             path: path.to_string(),
             messages: mcap::io::MessageReader::new_with_options(BufReader::new(file), options),
             channels: HashMap::new(),
-            header: RecordingHeader {
-                recording_version: 0,
-                simbus_version: String::new(),
-                protocol_version: 0,
-                world: String::new(),
-                scene: String::new(),
-                seed: 0,
-                settings: WorldSettings::default().into(),
-                start_frame: 0,
-                start_elapsed_ns: 0,
-                episode: 0,
-                start_platform_timestamp: 0.0,
-                sensors: false,
-                keyframe_seconds: 0.0,
-            },
+            header: RecordingHeader::unread(),
             truncated: false,
             last_log_ns: 0,
             closed: ends_with_magic(path),

@@ -272,6 +272,12 @@ pub struct PubSubSpec<T, Header> {
     pub alignment: Option<usize>,
     /// Samples the publisher may loan at once.
     pub loaned_samples: usize,
+    /// Whether the publisher's samples grow (doubling) past their initial
+    /// length: frames do (actors are spawned); a sensor's captures have
+    /// one size for its life, and a fixed segment outlives the publisher
+    /// long enough for its readers to take its last sample (the end of
+    /// stream, sent just before the sensor's port goes).
+    pub growable: bool,
     types: PhantomData<fn(&T) -> Header>,
 }
 
@@ -356,12 +362,17 @@ where
         iceoryx2::port::publisher::Publisher<Bus, [T], Header>,
         iceoryx2::port::publisher::PublisherCreateError,
     > {
-        factory
+        let builder = factory
             .publisher_builder()
             .initial_max_slice_len(initial_len.max(1))
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .max_loaned_samples(self.loaned_samples)
-            .create()
+            .max_loaned_samples(self.loaned_samples);
+        if self.growable {
+            builder
+                .allocation_strategy(AllocationStrategy::PowerOfTwo)
+                .create()
+        } else {
+            builder.create()
+        }
     }
 
     /// A subscriber that may queue the service's whole buffer.
@@ -482,6 +493,7 @@ impl WorldServices {
             safe_overflow: true,
             alignment: None,
             loaned_samples: 2,
+            growable: true,
             types: PhantomData,
         };
         let event = |name: &str, notifiers| -> Result<EventSpec, ServiceNameError> {
@@ -526,6 +538,7 @@ impl WorldServices {
             safe_overflow: true,
             alignment: Some(16),
             loaned_samples: 1,
+            growable: false,
             types: PhantomData,
         })
     }

@@ -454,9 +454,10 @@ mod tests {
         let Spawn::Sensor(spec) = d.spawn(&CarlaTransform::default()).unwrap() else {
             panic!("not a sensor");
         };
-        assert_eq!(spec.params[0], 16.0);
-        assert_eq!(spec.params[1], 500.0);
-        assert_eq!(spec.params[5], 20.0);
+        let lidar = spec.lidar_params().expect("a lidar");
+        assert_eq!(lidar.channels, 16);
+        assert_eq!(lidar.points, 500);
+        assert_eq!(lidar.rotation_hz, 20.0);
     }
 
     #[test]

@@ -146,7 +146,7 @@ fn depth(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> 
     let depth = capture.depth()?;
     let [w, hgt] = capture.header().size;
     out.reserve(carla::IMAGE_HEADER_LEN + depth.len() * 4);
-    carla::image_header(out, w, hgt, spec.params[2]);
+    carla::image_header(out, w, hgt, spec.depth_camera()?.fov);
     for &d in depth {
         out.extend_from_slice(&carla::depth_pixel(d));
     }
@@ -158,7 +158,8 @@ fn depth(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> 
 fn lidar(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
     let points = capture.points()?;
     let [channels, ..] = capture.header().size;
-    let [_, _, _, upper, lower, ..] = spec.params;
+    let lidar_params = spec.lidar_params()?;
+    let (upper, lower) = (lidar_params.upper_fov, lidar_params.lower_fov);
     let channel_of = |p: &shared_types::LidarPoint| {
         if channels <= 1 {
             return 0;

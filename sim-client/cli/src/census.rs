@@ -32,7 +32,11 @@ pub(crate) struct Holder {
 pub(crate) fn holders(client: &Client) -> Result<Vec<Holder>, String> {
     let prefix = format!("{}/", ServiceNames::new(client.world()).prefix());
     let mut by_pid: BTreeMap<u32, (Vec<String>, Vec<String>)> = BTreeMap::new();
-    Bus::list(client.node().config(), |service| {
+    // The configuration every node of this process uses: loaded by
+    // `environment::prepare` when the client connected.
+    shared_types::environment::prepare()
+        .map_err(|e| format!("listing the services of world '{}': {e}", client.world()))?;
+    Bus::list(iceoryx2::config::Config::global_config(), |service| {
         let name = service.static_details.name().to_string();
         if let (Some(short), Some(dynamic)) =
             (name.strip_prefix(&prefix), service.dynamic_details.as_ref())

@@ -38,7 +38,8 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use shared_types::{StatusReport, WorldName, WorldSettings};
+use shared_types::{WorldName, WorldSettings};
+use sim_client::Status;
 
 pub use error::{
     BridgeError, ExportError, FramesError, LinkError, LocalError, MirrorError, QueryError,
@@ -74,8 +75,8 @@ pub enum Role<'a> {
 /// queries with (the caller's, so it is the JSON its own tools print).
 #[derive(Debug, Clone, Copy)]
 pub struct JsonViews {
-    /// A world's status report as JSON.
-    pub status: fn(&WorldName, &StatusReport) -> serde_json::Value,
+    /// A world's status as JSON.
+    pub status: fn(&WorldName, &Status) -> serde_json::Value,
     /// A world's settings as JSON.
     pub settings: fn(&WorldSettings) -> serde_json::Value,
 }

@@ -6,7 +6,7 @@ use std::ops::RangeInclusive;
 
 use rapier3d::prelude::{Pose, Vector};
 use rayon::prelude::*;
-use shared_types::SensorSpec;
+use shared_types::{DepthCamera, SensorSpec};
 
 use super::culling::{self, Target, View};
 use crate::world::World;
@@ -22,12 +22,11 @@ struct Intrinsics {
 }
 
 impl Intrinsics {
-    fn of(spec: &SensorSpec) -> Self {
-        let [w, h, fov, ..] = spec.params;
+    fn of(camera: &DepthCamera) -> Self {
         Self {
-            width: w as usize,
-            height: h as usize,
-            focal: (w / 2.0) / (fov.to_radians() / 2.0).tan(),
+            width: camera.width as usize,
+            height: camera.height as usize,
+            focal: (camera.width as f32 / 2.0) / (camera.fov.to_radians() / 2.0).tan(),
         }
     }
 
@@ -79,8 +78,11 @@ pub(super) fn depth_into(
     pose: Pose,
     slots: &mut [MaybeUninit<f32>],
 ) {
-    let camera = Intrinsics::of(spec);
-    let far = spec.params[3];
+    let Some(params) = spec.depth_camera() else {
+        return;
+    };
+    let camera = Intrinsics::of(&params);
+    let far = params.range;
     if camera.width == 0 || camera.height == 0 {
         return;
     }
@@ -124,8 +126,9 @@ mod tests {
 
     /// The image rapier's query pipeline gives, one ray at a time.
     fn pipeline_image(world: &World, spec: &SensorSpec, pose: Pose) -> Vec<f32> {
-        let camera = Intrinsics::of(spec);
-        let far = spec.params[3];
+        let params = spec.depth_camera().expect("a depth camera");
+        let camera = Intrinsics::of(&params);
+        let far = params.range;
         let exclude = world.body_of(spec.attach_to);
         let mut image = Vec::new();
         for v in 0..camera.height {
@@ -156,7 +159,7 @@ mod tests {
             depth_into(&world, &spec, pose, &mut slots);
             // SAFETY: every slot started initialised.
             let image: Vec<f32> = slots.iter().map(|s| unsafe { s.assume_init() }).collect();
-            let far = spec.params[3];
+            let far = spec.depth_camera().expect("a depth camera").range;
             let hits = expected.iter().filter(|&&d| d < far).count();
             assert!(
                 hits > 0 && hits < expected.len(),

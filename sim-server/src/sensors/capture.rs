@@ -46,8 +46,9 @@ pub(super) struct Sweep {
 /// A lidar spinning at `rotation_frequency` Hz covers `frequency × Δt` of a
 /// turn per capture (CARLA's partial scans); 0 Hz is a full turn every capture.
 pub(super) fn lidar_sweep(spec: &SensorSpec, start: usize, since_last_ns: u64) -> Sweep {
-    let per_channel = spec.params[1] as usize;
-    let frequency = f64::from(spec.params[5]);
+    let lidar = spec.lidar_params();
+    let per_channel = lidar.map_or(0, |l| l.points as usize);
+    let frequency = lidar.map_or(0.0, |l| f64::from(l.rotation_hz));
     let columns = if frequency > 0.0 {
         let turns = frequency * since_last_ns as f64 * 1e-9;
         ((turns * per_channel as f64).round() as usize).clamp(1, per_channel)
@@ -76,8 +77,11 @@ pub(super) struct LidarRays {
 impl LidarRays {
     /// The directions of `spec` (channels × points per channel).
     pub(super) fn new(spec: &SensorSpec) -> Self {
-        let [channels, per_channel, _, upper, lower, ..] = spec.params;
-        let (channels, per_channel) = (channels as usize, per_channel as usize);
+        let Some(lidar) = spec.lidar_params() else {
+            return Self::default();
+        };
+        let (upper, lower) = (lidar.upper_fov, lidar.lower_fov);
+        let (channels, per_channel) = (lidar.channels as usize, lidar.points as usize);
         let azimuths: Vec<(f32, f32)> = (0..per_channel)
             .map(|i| (std::f32::consts::TAU * i as f32 / per_channel as f32).sin_cos())
             .collect();
@@ -118,7 +122,7 @@ pub(super) fn lidar_into(
     sweep: Sweep,
     slots: &mut [MaybeUninit<LidarPoint>],
 ) -> usize {
-    let range = spec.params[2];
+    let range = spec.lidar_params().map_or(0.0, |l| l.range);
     let per_channel = sweep.per_channel;
     let exclude = world.body_of(spec.attach_to);
     let columns = sweep.columns.min(per_channel);
@@ -244,8 +248,9 @@ mod tests {
         start: usize,
         columns: usize,
     ) {
-        let [channels, per_channel, range, ..] = spec.params;
-        let (channels, per_channel) = (channels as usize, per_channel as usize);
+        let lidar = spec.lidar_params().expect("a lidar");
+        let range = lidar.range;
+        let (channels, per_channel) = (lidar.channels as usize, lidar.points as usize);
         let mut rays = LidarRays::new(&spec);
         let pose = sensor_pose(world, &spec).expect("a pose");
         let exclude = world.body_of(spec.attach_to);

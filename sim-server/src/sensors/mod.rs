@@ -366,8 +366,7 @@ impl Sensors {
             header.sequence = sensor.captures;
             header.position = pose.translation.to_array();
             header.rotation = pose.rotation.to_array();
-            let p = sensor.spec.params;
-            header.size = [p[0] as u32, p[1] as u32];
+            header.size = sensor.spec.sensor_params().map_or([0, 0], |p| p.size());
             let published = match &sensor.port {
                 // SAFETY: depth_into writes one value per pixel, and the
                 // slice holds exactly width x height elements.

@@ -121,13 +121,8 @@ fn recording_in_progress(path: &str, frames: u64, chunk_bytes: u64) -> mcap::Wri
         world: "w".into(),
         scene: "default".into(),
         seed: 1,
-        settings: WorldSettings::default().into(),
-        start_frame: 0,
-        start_elapsed_ns: 0,
-        episode: 0,
-        start_platform_timestamp: 0.0,
-        sensors: false,
         keyframe_seconds: DEFAULT_KEYFRAME_SECONDS,
+        ..RecordingHeader::unread()
     };
     let schema = mcap.add_schema(HEADER_SCHEMA, "jsonschema", b"{}").unwrap();
     let header_channel = mcap

@@ -116,9 +116,8 @@ impl Session {
 
     pub(super) fn on_get_map_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         let status = self.client()?.status().map_err(CallError::simbus)?;
-        let scene = status.scene.to_string_lossy();
         Ok(Answer::Value(Value::Array(vec![
-            Value::from(scene),
+            Value::from(status.scene),
             Value::Array(Vec::new()),
         ])))
     }

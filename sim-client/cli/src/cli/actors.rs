@@ -134,15 +134,12 @@ pub(crate) fn destroy(
     Ok(())
 }
 
-fn loaded(
-    result: Result<shared_types::StatusReport, LoadWorldError>,
-    json: bool,
-) -> Result<(), Failure> {
+fn loaded(result: Result<sim_client::Status, LoadWorldError>, json: bool) -> Result<(), Failure> {
     match result {
         Ok(report) if json => {
             println!(
                 "{}",
-                serde_json::json!({"scene": report.scene.to_string_lossy(), "episode": report.episode,
+                serde_json::json!({"scene": report.scene, "episode": report.episode,
                     "frame": report.frame, "actors": report.actor_count})
             );
             Ok(())
@@ -150,7 +147,7 @@ fn loaded(
         Ok(report) => {
             println!(
                 "loaded {} as episode {} ({}), frame {}",
-                report.scene.to_string_lossy(),
+                report.scene,
                 report.episode,
                 super::words::count(report.actor_count, "actor"),
                 report.frame

@@ -126,17 +126,18 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
                 .map_err(super::refused_or_runtime)?;
         }
         let left_first = args.no_sync && current.synchronous_mode && settings != only_leaving;
-        effective_frame = Some(client.apply_settings(settings).map_err(|e| {
-            let failure = super::refused_or_runtime(e);
-            if !left_first {
-                return failure;
-            }
-            // Two requests: the first one (leaving synchronous mode) holds.
-            let (Failure::Refused(e) | Failure::Runtime(e)) = failure;
-            Failure::Runtime(e.context(
-                "the world left synchronous mode, but the other changes were not applied",
-            ))
-        })?);
+        effective_frame =
+            Some(client.apply_settings(settings).map_err(|e| {
+                let failure = super::refused_or_runtime(e);
+                if !left_first {
+                    return failure;
+                }
+                // Two requests: the first one (leaving synchronous mode) holds.
+                let (Failure::Refused(e) | Failure::Runtime(e)) = failure;
+                Failure::Runtime(e.context(
+                    "the world left synchronous mode, but the other changes were not applied",
+                ))
+            })?);
     }
     if args.json {
         let mut json = super::settings_json(&settings);

@@ -330,7 +330,7 @@ pub(crate) fn replay(
         // A synchronous replay advances one frame per tick: following one
         // that nobody ticks would wait for nothing. Nothing has changed yet.
         let status = client.status()?;
-        if status.settings.synchronous_mode != 0 && status.ticker.active == 0 {
+        if status.settings.synchronous_mode && status.ticker.is_none() {
             return Err(Failure::Runtime(anyhow!(
                 "world '{world}' is in synchronous mode and nobody ticks it: a replay there advances one recorded frame per tick; start a ticker first (`sim-client tick`), or start the replay with --detach and tick it yourself"
             )));

@@ -4,12 +4,14 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
-use shared_types::{input, ImuMeasurement, SensorKind, SensorSpec, WorldName};
+use shared_types::{
+    input, DepthCamera, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError, WorldName,
+};
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
 
-use simbus_pose::compass;
 use super::words::count;
 use crate::Failure;
+use simbus_pose::compass;
 
 /// Sensors: depth camera, lidar and IMU, read in place from shared memory.
 #[derive(Debug, Args)]
@@ -244,16 +246,22 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             ),
         ],
     )?;
+    // The depth size as typed: the spec holds it as whole pixels, so a
+    // fractional size is refused from this (see `check_depth_size`).
+    let mut typed_size = None;
     let mut spec = match kind {
         SensorKind::Depth => {
             let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
-            let mut spec =
-                SensorSpec::depth(at, 0, 0, a.fov.unwrap_or(90.0), a.range.unwrap_or(100.0));
-            // Kept as typed (not truncated to whole numbers), so the spec's
-            // check refuses a fractional size.
-            spec.params[0] = w;
-            spec.params[1] = h;
-            spec
+            typed_size = Some([w, h]);
+            SensorSpec::with_params(
+                at,
+                DepthCamera {
+                    width: w as u32,
+                    height: h as u32,
+                    fov: a.fov.unwrap_or(90.0),
+                    range: a.range.unwrap_or(100.0),
+                },
+            )
         }
         SensorKind::Lidar => {
             let [upper, lower] =
@@ -273,9 +281,30 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     .attached_to(a.attach)
     .every(a.sensor_tick);
     spec.rotation = simbus_pose::from_yaw_pitch_roll(yaw, pitch, roll);
-    spec.check()
+    check_depth_size(&spec, typed_size)
         .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;
     Ok(spec)
+}
+
+/// [`SensorSpec::check`], with a depth camera's size as typed (`size`):
+/// a size that is not finite, or not a whole number, is refused as the
+/// check refuses it, in the check's order.
+fn check_depth_size(spec: &SensorSpec, size: Option<[f32; 2]>) -> Result<(), SensorSpecError> {
+    let Some(size) = size else {
+        return spec.check();
+    };
+    if size.iter().any(|v| !v.is_finite()) {
+        return Err(SensorSpecError::NotFinite);
+    }
+    match spec.check() {
+        Err(
+            e @ (SensorSpecError::NotFinite
+            | SensorSpecError::Position
+            | SensorSpecError::SensorTick),
+        ) => Err(e),
+        _ if size.iter().any(|v| v.fract() != 0.0) => Err(SensorSpecError::DepthSize),
+        checked => checked,
+    }
 }
 
 fn spawn(client: &Client, spec: SensorSpec, a: &SpawnArgs) -> Result<(), Failure> {
@@ -391,7 +420,9 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("creating the directory {}", a.out.display()))?;
     let mut sensor = client.sensor(a.id).map_err(failure)?;
-    let params = sensor.spec().params;
+    let spec = sensor.spec();
+    let depth_range = spec.depth_camera().map_or(0.0, |d| d.range);
+    let lidar_range = spec.lidar_params().map_or(0.0, |l| l.range);
     for _ in 0..a.captures {
         let Some(capture) = next_capture(&mut sensor, timeout)? else {
             break;
@@ -407,7 +438,7 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
                 depth,
                 h.size[0] as usize,
                 h.size[1] as usize,
-                params[3],
+                depth_range,
                 a.range,
             )
             .with_context(|| format!("writing {}", path.display()))?;
@@ -420,7 +451,7 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
             super::pictures::save_ply(&ply, points)
                 .with_context(|| format!("writing {}", ply.display()))?;
             let png = stem.with_extension("png");
-            super::pictures::save_lidar_top_down(&png, points, params[2])
+            super::pictures::save_lidar_top_down(&png, points, lidar_range)
                 .with_context(|| format!("writing {}", png.display()))?;
             println!(
                 "wrote {} and {} ({})",

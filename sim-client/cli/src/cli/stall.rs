@@ -24,7 +24,7 @@ pub(crate) fn no_frames(
         Err(e) => anyhow!(
             "no frame of world '{world}' for {waited} s{last}, and its server does not answer ({e}): is it stopped or hung?"
         ),
-        Ok(status) if status.settings.synchronous_mode != 0 && status.ticker.active == 0 => {
+        Ok(status) if status.settings.synchronous_mode && status.ticker.is_none() => {
             anyhow!(
                 "no frame of world '{world}' for {waited} s{last}: it is in synchronous mode and nobody ticks it (start a ticker: `sim-client tick`)"
             )

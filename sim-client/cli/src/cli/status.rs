@@ -3,8 +3,8 @@
 use std::time::Duration;
 
 use clap::Args;
-use shared_types::{StatusReport, Timestamp, WorldName, WorldSettings};
-use sim_client::Client;
+use shared_types::{Timestamp, WorldName};
+use sim_client::{Client, Status};
 
 use crate::Failure;
 
@@ -20,7 +20,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     let mut client = Client::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let report = client.status()?;
-    let settings = WorldSettings::from(report.settings);
+    let settings = report.settings;
     let elapsed = Timestamp {
         elapsed_ns: report.elapsed_ns,
         ..Default::default()
@@ -34,7 +34,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     println!("world     {world} (server pid {})", report.server_pid);
     println!(
         "scene     {} ({})",
-        report.scene.to_string_lossy(),
+        report.scene,
         super::words::count(report.actor_count, "actor")
     );
     println!(
@@ -44,7 +44,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     for (name, value) in super::settings_lines(&settings) {
         println!("{name:<9} {value}");
     }
-    println!("ticker    {}", report.ticker);
+    match &report.ticker {
+        Some(ticker) => println!("ticker    {ticker}"),
+        None => println!("ticker    none"),
+    }
     println!(
         "lockstep  {}",
         super::words::count(report.participants, "participant")
@@ -56,8 +59,8 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
 }
 
 /// The world's status as `status --json` prints it.
-pub(crate) fn status_json(world: &WorldName, report: &StatusReport) -> serde_json::Value {
-    let mut json = super::settings_json(&WorldSettings::from(report.settings));
+pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Value {
+    let mut json = super::settings_json(&report.settings);
     let elapsed = Timestamp {
         elapsed_ns: report.elapsed_ns,
         ..Default::default()
@@ -68,13 +71,13 @@ pub(crate) fn status_json(world: &WorldName, report: &StatusReport) -> serde_jso
         "frame": report.frame,
         "elapsed_seconds": elapsed,
         "episode": report.episode,
-        "scene": report.scene.to_string_lossy(),
+        "scene": report.scene,
         "actors": report.actor_count,
         "server_pid": report.server_pid,
         "participants": report.participants,
         "seed": report.seed,
-        "ticker": report.ticker.active().map(|t| serde_json::json!({
-            "node": t.node_name.to_string_lossy(),
+        "ticker": report.ticker.as_ref().map(|t| serde_json::json!({
+            "node": t.node_name,
             "pid": t.pid,
             "since_frame": t.since_frame,
         })),

@@ -11,7 +11,7 @@ use crate::census::{self, Holder, SharedMemory};
 use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
-use shared_types::{SensorKind, StatusReport, Timestamp, WorldName, WorldSettings};
+use shared_types::{SensorKind, Timestamp, WorldName, WorldSettings};
 use sim_client::Client;
 
 use crate::Failure;
@@ -107,7 +107,7 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
     let (first, first_sensors, started) =
         (client.status()?, client.list_sensors()?, Instant::now());
     std::thread::sleep(interval);
-    let report: StatusReport = client.status()?;
+    let report: sim_client::Status = client.status()?;
     let wall = started.elapsed().as_secs_f64();
     let sensors_now = client.list_sensors()?;
     let clients = census::holders(client).map_err(anyhow::Error::msg)?;
@@ -145,11 +145,11 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
             readers: holding(&format!("sensor/{}", info.id)),
         })
         .collect();
-    let settings = WorldSettings::from(report.settings);
+    let settings = report.settings;
     Ok(Screen {
         world: client.world().to_string(),
         server_pid: report.server_pid,
-        scene: report.scene.to_string_lossy(),
+        scene: report.scene.clone(),
         episode: report.episode,
         frame: report.frame,
         elapsed_seconds: seconds(report.elapsed_ns),
@@ -157,19 +157,18 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
         settings: super::settings_json(&settings),
         frames_per_second: frames / wall,
         real_time_factor: simulated / wall,
-        ticker: report.ticker.active().map(|t| {
-            serde_json::json!({"node": t.node_name.to_string_lossy(), "pid": t.pid, "since_frame": t.since_frame})
+        ticker: report.ticker.as_ref().map(|t| {
+            serde_json::json!({"node": t.node_name, "pid": t.pid, "since_frame": t.since_frame})
         }),
         participant_count: report.participants,
         participants: report
             .lockstep
             .iter()
-            .take(report.participants as usize)
             .map(|p| ParticipantLine {
-                name: p.name.to_string_lossy(),
+                name: p.name.clone(),
                 pid: p.pid,
                 done_frame: p.done_frame,
-                done_after_us: p.done_after().map(|d| d.as_secs_f64() * 1e6),
+                done_after_us: p.done_after.map(|d| d.as_secs_f64() * 1e6),
             })
             .collect(),
         clients: clients
@@ -179,7 +178,10 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
         sensors,
         shared_memory,
         world_settings: settings,
-        ticker_line: report.ticker.to_string(),
+        ticker_line: report
+            .ticker
+            .as_ref()
+            .map_or_else(|| "none".to_owned(), ToString::to_string),
     })
 }
 

@@ -26,10 +26,11 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use iceoryx2::node::Node;
 use iceoryx2::port::notifier::Notifier;
 use shared_types::{
     Bus, ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames,
-    TickResponse, WorldSettings,
+    TickResponse,
 };
 use sim_client::Client;
 use tracing::info;
@@ -143,6 +144,9 @@ struct Exporter {
     lockstep: HashMap<(String, u32), LockstepRelay>,
     /// Wakes an idle (paced or waiting) server after a request.
     wake: Notifier<Bus>,
+    /// The node of the relay ports (named as a client's, as `top` shows
+    /// them); last, so the ports drop first.
+    node: Node<Bus>,
     tickers: RemoteTickers,
     mirrors: BTreeSet<String>,
     /// Sensors the frame thread forwards, and how to ask it for more.
@@ -173,14 +177,15 @@ impl Exporter {
         follow: Sender<Follow>,
     ) -> Result<Self, LocalError> {
         let names = ServiceNames::new(client.world());
-        let node = client.node();
+        let node = crate::mirror::node("sim-client")?;
         Ok(Self {
-            control: FixedRelay::open(node, &names.control)?,
-            tick: FixedRelay::open(node, &names.tick)?,
-            recorder: FixedRelay::open(node, &names.recorder)?,
-            batch: BatchRelay::open(node, &names.batch)?,
-            sensors: SensorRelay::open(node, &names.sensors)?,
-            wake: crate::mirror::wake_notifier_on(node, &names)?,
+            control: FixedRelay::open(&node, &names.control)?,
+            tick: FixedRelay::open(&node, &names.tick)?,
+            recorder: FixedRelay::open(&node, &names.recorder)?,
+            batch: BatchRelay::open(&node, &names.batch)?,
+            sensors: SensorRelay::open(&node, &names.sensors)?,
+            wake: crate::mirror::wake_notifier_on(&node, &names)?,
+            node,
             lockstep: HashMap::new(),
             keys: BridgeKeys::new(client.world()),
             names,
@@ -364,8 +369,7 @@ impl Exporter {
         match self.lockstep.entry((mirror, pid)) {
             std::collections::hash_map::Entry::Occupied(e) => Ok(e.into_mut()),
             std::collections::hash_map::Entry::Vacant(e) => {
-                FixedRelay::open(self.client.node(), &self.names.lockstep)
-                    .map(|port| e.insert(port))
+                FixedRelay::open(&self.node, &self.names.lockstep).map(|port| e.insert(port))
             }
         }
     }
@@ -441,7 +445,7 @@ impl Exporter {
     fn answer_json(&self, query: &Query, settings_only: bool) {
         let text = match self.client.status() {
             Ok(status) if settings_only => {
-                serde_json::to_string(&(self.json.settings)(&WorldSettings::from(status.settings)))
+                serde_json::to_string(&(self.json.settings)(&status.settings))
             }
             Ok(status) => serde_json::to_string(&(self.json.status)(self.client.world(), &status)),
             Err(e) => {

@@ -193,34 +193,6 @@ impl<P> Flights<P> {
     }
 }
 
-impl<Req, ReqH, T, H> Flights<PendingResponse<Bus, Req, ReqH, [T], H>>
-where
-    Req: std::fmt::Debug + IceoryxSend + ?Sized,
-    ReqH: std::fmt::Debug + ZeroCopySend,
-    T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
-    H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
-{
-    /// Moves the answers of a header and a slice that came to `answers`,
-    /// each as the header's bytes and then the items'; none is held for
-    /// a frame.
-    fn drain_slices(&mut self, answers: &mut Vec<Answer>) {
-        self.drain(
-            |p| {
-                p.receive().map(|r| {
-                    r.map(|r| {
-                        let mut bytes = Vec::new();
-                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
-                        bytes
-                    })
-                })
-            },
-            |_, bytes| Some((bytes, None)),
-            |p| p.is_connected(),
-            answers,
-        );
-    }
-}
-
 impl<P> std::fmt::Debug for Flights<P> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} in flight", self.0.len())
@@ -335,16 +307,69 @@ pub(super) fn tick_frame(answer: &TickResponse) -> Option<u64> {
     (answer.status == ResponseStatus::Ok as u32).then_some(answer.frame)
 }
 
-type BatchPort = RequestClient<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
-type PendingBatch =
-    PendingResponse<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
+/// A forwarded service answered by a header and a slice of `T`: its
+/// client port and the requests waiting for their answers.
+pub(super) struct SliceRelay<Req, ReqH, T, H>
+where
+    Req: std::fmt::Debug + IceoryxSend + ?Sized,
+    ReqH: std::fmt::Debug + ZeroCopySend,
+    T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+    H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+{
+    client: RequestClient<Bus, Req, ReqH, [T], H>,
+    flights: Flights<PendingResponse<Bus, Req, ReqH, [T], H>>,
+}
+
+impl<Req, ReqH, T, H> SliceRelay<Req, ReqH, T, H>
+where
+    Req: std::fmt::Debug + IceoryxSend + ?Sized,
+    ReqH: std::fmt::Debug + ZeroCopySend,
+    T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+    H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+{
+    /// Whether answers are awaited.
+    pub(super) fn busy(&self) -> bool {
+        self.flights.busy()
+    }
+
+    /// Moves the answers that came to `answers`, each as its header's
+    /// bytes and then its items'. None is held for a frame (a batch's
+    /// frame may be one still to come, the next tick's).
+    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
+        self.flights.drain(
+            |p| {
+                p.receive().map(|r| {
+                    r.map(|r| {
+                        let mut bytes = Vec::new();
+                        wire::encode_slice(r.user_header(), r.payload(), &mut bytes);
+                        bytes
+                    })
+                })
+            },
+            |_, bytes| Some((bytes, None)),
+            |p| p.is_connected(),
+            answers,
+        );
+    }
+}
+
+impl<Req, ReqH, T, H> std::fmt::Debug for SliceRelay<Req, ReqH, T, H>
+where
+    Req: std::fmt::Debug + IceoryxSend + ?Sized,
+    ReqH: std::fmt::Debug + ZeroCopySend,
+    T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+    H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
+{
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SliceRelay")
+            .field("flights", &self.flights)
+            .finish()
+    }
+}
 
 /// The batch service: a header and commands, answered by a header and
 /// one result per command.
-pub(super) struct BatchRelay {
-    client: BatchPort,
-    flights: Flights<PendingBatch>,
-}
+pub(super) type BatchRelay = SliceRelay<[Command], BatchHeader, CommandResult, BatchResponseHeader>;
 
 /// The most commands one forwarded batch may hold.
 pub(crate) const MAX_FORWARDED_BATCH: usize = 65_536;
@@ -390,36 +415,10 @@ impl BatchRelay {
             });
         self.flights.admit(sent, query)
     }
-
-    /// Whether answers are awaited.
-    pub(super) fn busy(&self) -> bool {
-        self.flights.busy()
-    }
-
-    /// Moves the answers that came to `answers`.
-    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        // A batch's frame may be one still to come (the next tick's):
-        // its answer is never held for it.
-        self.flights.drain_slices(answers);
-    }
 }
-
-impl std::fmt::Debug for BatchRelay {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("BatchRelay")
-            .field("flights", &self.flights)
-            .finish()
-    }
-}
-
-type SensorPort = RequestClient<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
-type PendingSensors = PendingResponse<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 
 /// The sensor service: a request, answered by a header and sensor infos.
-pub(super) struct SensorRelay {
-    client: SensorPort,
-    flights: Flights<PendingSensors>,
-}
+pub(super) type SensorRelay = SliceRelay<SensorRequest, (), SensorInfo, SensorResponseHeader>;
 
 impl SensorRelay {
     /// Opens a client port of the sensor service `name`.
@@ -446,23 +445,5 @@ impl SensorRelay {
             Err(e) => return Err(malformed(query, "sensor request", e)),
         };
         self.flights.admit(self.client.send_copy(request), query)
-    }
-
-    /// Whether answers are awaited.
-    pub(super) fn busy(&self) -> bool {
-        self.flights.busy()
-    }
-
-    /// Moves the answers that came to `answers`.
-    pub(super) fn poll(&mut self, answers: &mut Vec<Answer>) {
-        self.flights.drain_slices(answers);
-    }
-}
-
-impl std::fmt::Debug for SensorRelay {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SensorRelay")
-            .field("flights", &self.flights)
-            .finish()
     }
 }

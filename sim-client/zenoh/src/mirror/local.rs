@@ -84,7 +84,7 @@ fn sensor_failed(e: impl Into<crate::TransportError>) -> LocalError {
 }
 
 /// A node of this process, named `name`.
-fn node(name: &str) -> Result<Node<Bus>, LocalError> {
+pub(crate) fn node(name: &str) -> Result<Node<Bus>, LocalError> {
     NodeBuilder::new()
         .name(&NodeName::new(name).map_err(|e| LocalError::transport("iceoryx2 node name", e))?)
         .signal_handling_mode(SignalHandlingMode::Disabled)

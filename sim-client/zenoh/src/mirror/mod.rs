@@ -38,7 +38,7 @@ use self::answers::{
     answer_local, refuse_local, request_bytes, send_tick, sender_pid, status_answer,
     unreachable_answer, Answered,
 };
-pub(crate) use self::local::wake_notifier_on;
+pub(crate) use self::local::{node, wake_notifier_on};
 use self::local::{Active, Local, LocalServices, SensorPorts};
 use self::query::{query_once, query_until, Link};
 use crate::error::{Chain, MirrorError, QueryError};

@@ -1,0 +1,238 @@
+//! Typed views of a [`SensorSpec`]'s parameters.
+//!
+//! On the wire a sensor's parameters are the eight `f32` of
+//! [`SensorSpec::params`], whose meaning depends on its kind; code reads and
+//! writes them through these views, never by index.
+//!
+//! ```
+//! use shared_types::{DepthCamera, SensorSpec};
+//!
+//! let camera = DepthCamera { width: 64, height: 48, fov: 90.0, range: 50.0 };
+//! let spec = SensorSpec::with_params([0.0, 1.0, 0.0], camera);
+//! assert_eq!(spec.depth_camera(), Some(camera));
+//! assert_eq!(spec.lidar_params(), None);
+//! ```
+
+use crate::{SensorKind, SensorSpec};
+
+/// A ray-cast depth camera's parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthCamera {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Horizontal field of view, degrees.
+    pub fov: f32,
+    /// Far range in metres: what a pixel reads where nothing is hit.
+    pub range: f32,
+}
+
+/// A ray-cast lidar's parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lidar {
+    /// Vertical channels (lasers).
+    pub channels: u32,
+    /// Points per channel in one full turn.
+    pub points: u32,
+    /// Range in metres.
+    pub range: f32,
+    /// Upper field of view, degrees (0 = horizontal).
+    pub upper_fov: f32,
+    /// Lower field of view, degrees.
+    pub lower_fov: f32,
+    /// Rotation frequency in Hz; 0 takes a full turn every capture.
+    pub rotation_hz: f32,
+}
+
+/// An inertial measurement unit: it has no parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Imu;
+
+/// A sensor's kind with its parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SensorParams {
+    /// A depth camera.
+    Depth(DepthCamera),
+    /// A lidar.
+    Lidar(Lidar),
+    /// An IMU.
+    Imu(Imu),
+}
+
+impl SensorParams {
+    /// The kind these parameters are for.
+    pub fn kind(&self) -> SensorKind {
+        match self {
+            Self::Depth(_) => SensorKind::Depth,
+            Self::Lidar(_) => SensorKind::Lidar,
+            Self::Imu(_) => SensorKind::Imu,
+        }
+    }
+
+    /// The capture's size as [`crate::SensorHeader::size`] states it: a
+    /// depth camera's width and height, a lidar's channels and points per
+    /// channel; zeros for an IMU.
+    pub fn size(&self) -> [u32; 2] {
+        match self {
+            Self::Depth(d) => [d.width, d.height],
+            Self::Lidar(l) => [l.channels, l.points],
+            Self::Imu(_) => [0, 0],
+        }
+    }
+
+    /// The wire form: the eight `f32` of [`SensorSpec::params`].
+    pub fn to_wire(&self) -> [f32; 8] {
+        match *self {
+            Self::Depth(d) => [
+                d.width as f32,
+                d.height as f32,
+                d.fov,
+                d.range,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            ],
+            Self::Lidar(l) => [
+                l.channels as f32,
+                l.points as f32,
+                l.range,
+                l.upper_fov,
+                l.lower_fov,
+                l.rotation_hz,
+                0.0,
+                0.0,
+            ],
+            Self::Imu(Imu) => [0.0; 8],
+        }
+    }
+
+    /// Reads the wire form of a sensor of `kind`. Sizes that are not whole
+    /// numbers in `u32`'s range read truncated and saturated
+    /// ([`SensorSpec::check`] refuses them).
+    pub fn from_wire(kind: SensorKind, p: [f32; 8]) -> Self {
+        match kind {
+            SensorKind::Depth => Self::Depth(DepthCamera {
+                width: p[0] as u32,
+                height: p[1] as u32,
+                fov: p[2],
+                range: p[3],
+            }),
+            SensorKind::Lidar => Self::Lidar(Lidar {
+                channels: p[0] as u32,
+                points: p[1] as u32,
+                range: p[2],
+                upper_fov: p[3],
+                lower_fov: p[4],
+                rotation_hz: p[5],
+            }),
+            SensorKind::Imu => Self::Imu(Imu),
+        }
+    }
+}
+
+impl From<DepthCamera> for SensorParams {
+    fn from(value: DepthCamera) -> Self {
+        Self::Depth(value)
+    }
+}
+
+impl From<Lidar> for SensorParams {
+    fn from(value: Lidar) -> Self {
+        Self::Lidar(value)
+    }
+}
+
+impl From<Imu> for SensorParams {
+    fn from(value: Imu) -> Self {
+        Self::Imu(value)
+    }
+}
+
+impl SensorSpec {
+    /// A sensor at `position` (relative to its parent) with `params`, which
+    /// also give its kind.
+    pub fn with_params(position: [f32; 3], params: impl Into<SensorParams>) -> Self {
+        let mut spec = Self {
+            position,
+            ..Self::default()
+        };
+        spec.set_params(params);
+        spec
+    }
+
+    /// Replaces the kind and parameters with `params`.
+    pub fn set_params(&mut self, params: impl Into<SensorParams>) {
+        let params = params.into();
+        self.kind = params.kind() as u32;
+        self.params = params.to_wire();
+    }
+
+    /// The kind and its parameters; `None` for an unknown kind.
+    pub fn sensor_params(&self) -> Option<SensorParams> {
+        self.sensor_kind()
+            .map(|kind| SensorParams::from_wire(kind, self.params))
+    }
+
+    /// The depth camera's parameters, if this is a depth camera.
+    pub fn depth_camera(&self) -> Option<DepthCamera> {
+        match self.sensor_params()? {
+            SensorParams::Depth(camera) => Some(camera),
+            _ => None,
+        }
+    }
+
+    /// The lidar's parameters, if this is a lidar.
+    pub fn lidar_params(&self) -> Option<Lidar> {
+        match self.sensor_params()? {
+            SensorParams::Lidar(lidar) => Some(lidar),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn views_keep_the_wire_layout() {
+        let depth = SensorSpec::depth([0.0; 3], 64, 48, 90.0, 50.0);
+        assert_eq!(depth.params, [64.0, 48.0, 90.0, 50.0, 0.0, 0.0, 0.0, 0.0]);
+        let camera = depth.depth_camera().expect("a depth camera");
+        assert_eq!((camera.width, camera.height), (64, 48));
+        assert_eq!((camera.fov, camera.range), (90.0, 50.0));
+        assert_eq!(SensorSpec::with_params([0.0; 3], camera), depth);
+
+        let lidar = SensorSpec::lidar([0.0; 3], 16, 500, 40.0, 10.0, -30.0).rotating(20.0);
+        assert_eq!(
+            lidar.params,
+            [16.0, 500.0, 40.0, 10.0, -30.0, 20.0, 0.0, 0.0]
+        );
+        let view = lidar.lidar_params().expect("a lidar");
+        assert_eq!(
+            (view.channels, view.points, view.rotation_hz),
+            (16, 500, 20.0)
+        );
+        assert_eq!((view.upper_fov, view.lower_fov), (10.0, -30.0));
+        assert_eq!(SensorSpec::with_params([0.0; 3], view), lidar);
+        assert_eq!(lidar.depth_camera(), None);
+
+        let imu = SensorSpec::imu([1.0, 2.0, 3.0]);
+        assert_eq!(imu.sensor_params(), Some(SensorParams::Imu(Imu)));
+        assert_eq!(SensorSpec::with_params([1.0, 2.0, 3.0], Imu), imu);
+        let unknown = SensorSpec { kind: 99, ..imu };
+        assert_eq!(unknown.sensor_params(), None);
+    }
+
+    #[test]
+    fn sizes_out_of_range_read_saturated() {
+        let mut spec = SensorSpec::depth([0.0; 3], 1, 1, 90.0, 1.0);
+        spec.params[0] = 1e30;
+        spec.params[1] = -5.0;
+        let camera = spec.depth_camera().expect("a depth camera");
+        assert_eq!((camera.width, camera.height), (u32::MAX, 0));
+        assert!(spec.check().is_err());
+    }
+}

@@ -14,7 +14,8 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use shared_types::ReplayMode;
-use sim_client::{inspect, Client, ReplayOptions};
+use sim_client::{Client, ReplayOptions};
+use simbus_recording::inspect;
 
 use crate::support::{load_average, BenchServer};
 

@@ -40,11 +40,10 @@ pub mod input;
 mod lockstep;
 mod names;
 mod recorder;
-pub mod recording;
 pub mod scene;
 pub use recorder::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
-    ReplayState,
+    ReplayState, DEFAULT_KEYFRAME_SECONDS, MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS,
 };
 mod sensor;
 mod sensor_params;

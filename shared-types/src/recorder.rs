@@ -8,6 +8,14 @@ use iceoryx2::prelude::ZeroCopySend;
 use crate::wire::wire_enum;
 use crate::PROTOCOL_VERSION;
 
+/// Default simulation time between two keyframes of a recording.
+pub const DEFAULT_KEYFRAME_SECONDS: f64 = 10.0;
+/// The shortest simulation time between two keyframes a server accepts.
+pub const MIN_KEYFRAME_SECONDS: f64 = 1e-3;
+/// The longest simulation time between two keyframes a server accepts
+/// (one keyframe, at the start, for any run shorter than ~31 years).
+pub const MAX_KEYFRAME_SECONDS: f64 = 1e9;
+
 wire_enum! {
     /// What a [`RecorderRequest`] asks for.
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -35,7 +35,6 @@ mod builder;
 mod client;
 mod error;
 mod frames;
-pub mod inspect;
 mod lockstep;
 mod on_tick;
 mod open;

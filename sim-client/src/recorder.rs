@@ -3,7 +3,8 @@
 //! `stop_replayer`, all answered with a [`RecorderStatus`].
 //!
 //! Reading a recording without a server (CARLA's `show_recorder_*`) is in
-//! [`crate::inspect`].
+//! the `simbus-recording` crate's `inspect` module, which keeps MCAP out of
+//! this library.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

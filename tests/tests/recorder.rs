@@ -8,9 +8,9 @@
 use std::path::Path;
 use std::time::Duration;
 
-use shared_types::recording::{Entry, RecordingReader};
 use shared_types::{Command, ReplayMode};
 use sim_client::{Client, ReplayOptions, Ticker, WorldSnapshot};
+use simbus_recording::{Entry, RecordingReader};
 use simbus_tests::{replayed_frames, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
@@ -153,7 +153,7 @@ fn a_recorded_run_replays_exactly_and_resimulates_bit_identically() {
 /// Copies `from` to `to` with the first impulse command made stronger;
 /// returns the frame it applies before.
 fn rewrite_one_command(from: &Path, to: &Path) -> u64 {
-    use shared_types::recording::{RecordedCommand, COMMANDS_TOPIC};
+    use simbus_recording::{RecordedCommand, COMMANDS_TOPIC};
     let bytes = std::fs::read(from).unwrap();
     let out = std::io::BufWriter::new(std::fs::File::create(to).unwrap());
     let mut writer = mcap::WriteOptions::new()

@@ -9,10 +9,10 @@
 use std::path::Path;
 use std::time::Duration;
 
-use shared_types::recording::FRAME_SCHEMA;
 use shared_types::RecorderRefusal;
-use sim_client::inspect;
 use sim_client::{Client, RecorderError, ReplayOptions, Ticker};
+use simbus_recording::inspect;
+use simbus_recording::FRAME_SCHEMA;
 use simbus_tests::{Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);

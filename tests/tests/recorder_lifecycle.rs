@@ -7,9 +7,10 @@
 
 use std::time::Duration;
 
-use shared_types::recording::{Entry, RecordingReader};
 use shared_types::{ReplayMode, SensorSpec};
-use sim_client::{inspect, Client, ReplayOptions, Ticker};
+use sim_client::{Client, ReplayOptions, Ticker};
+use simbus_recording::inspect;
+use simbus_recording::{Entry, RecordingReader};
 use simbus_tests::{replayed_frames, send_signal, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);

@@ -11,9 +11,10 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use shared_types::recording::{FRAME_SCHEMA, LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA};
 use shared_types::ReplayMode;
-use sim_client::{inspect, ReplayOptions};
+use sim_client::ReplayOptions;
+use simbus_recording::inspect;
+use simbus_recording::{FRAME_SCHEMA, LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA};
 use simbus_tests::{
     replayed_frames, send_signal, sync_world, wait_for_participants, Scratch, TestWorld,
 };

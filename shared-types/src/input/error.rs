@@ -256,7 +256,7 @@ mod tests {
 
     use super::super::*;
     use super::*;
-    use crate::recording::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
+    use crate::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
 
     fn message<T: fmt::Debug>(result: Result<T, InputError>) -> String {
         result.unwrap_err().to_string()

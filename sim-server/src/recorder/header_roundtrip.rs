@@ -6,7 +6,7 @@
 use std::sync::mpsc::sync_channel;
 
 use proptest::prelude::*;
-use shared_types::recording::{
+use simbus_recording::{
     Entry, RecordedEvent, RecordedSettings, RecordingHeader, RecordingReader, RECORDING_VERSION,
 };
 

@@ -25,10 +25,10 @@ pub(crate) use service::{RecorderCall, RecorderPort};
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
-use shared_types::recording::{
+use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
+use simbus_recording::{
     RecordedCollision, RecordedCommand, RecordedEvent, RecordedSensor, RecordingHeader,
 };
-use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
 use tracing::{info, warn};
 
 use crate::world::World;

@@ -9,8 +9,8 @@ use std::sync::mpsc::Receiver;
 
 use mcap::records::MessageHeader;
 use serde_json::json;
-use shared_types::recording::*;
 use shared_types::{ActorState, FrameHeader, SensorHeader};
+use simbus_recording::*;
 use tracing::{info, warn};
 
 use super::create::{create_file, describe, StartError};
@@ -129,13 +129,13 @@ fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
     let commands = wire(
         &mut mcap,
         COMMAND_SCHEMA,
-        "#[repr(C)] simbus::RecordedCommand/1: frame u64, episode u64, simbus::Command, simbus::CommandResult; see shared-types/src/recording",
+        "#[repr(C)] simbus::RecordedCommand/1: frame u64, episode u64, simbus::Command, simbus::CommandResult; see shared-types/recording/src/lib.rs",
         COMMANDS_TOPIC,
     )?;
     let collisions = wire(
         &mut mcap,
         COLLISION_SCHEMA,
-        "#[repr(C)] simbus::RecordedCollision/1 (48 bytes); see shared-types/src/recording",
+        "#[repr(C)] simbus::RecordedCollision/1 (48 bytes); see shared-types/recording/src/lib.rs",
         COLLISIONS_TOPIC,
     )?;
     let sensors = wire(

@@ -4,8 +4,8 @@
 
 use std::collections::VecDeque;
 
-use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
 use shared_types::{ActorState, FrameHeader, ReplayMode, SensorSpec};
+use simbus_recording::{Entry, RecordedEvent, RecordingReader};
 
 use super::selection::Selection;
 use super::{episode_of, episode_world, recorded_plan, restore, ReplayError};

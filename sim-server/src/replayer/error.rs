@@ -1,6 +1,6 @@
 //! Why a recording cannot be replayed, or a replay cannot go on.
 
-use shared_types::recording::RecordingError;
+use simbus_recording::RecordingError;
 
 use crate::recorder::KeyframeError;
 use crate::world::Inconsistency;

@@ -15,8 +15,8 @@ mod selection;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use shared_types::recording::{Entry, RecordedEvent, RecordingReader};
 use shared_types::{ActorState, FrameHeader, ReplayMode, ReplayState, WorldSettings};
+use simbus_recording::{Entry, RecordedEvent, RecordingReader};
 use tracing::{info, warn};
 
 use crate::clock::{Clock, SubstepPlan};

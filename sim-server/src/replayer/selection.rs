@@ -4,8 +4,8 @@
 
 use std::collections::HashSet;
 
-use shared_types::recording::{Entry, RecordingReader};
 use shared_types::NANOS_PER_SECOND;
+use simbus_recording::{Entry, RecordingReader};
 
 use super::ReplayError;
 use crate::recorder::Refused;

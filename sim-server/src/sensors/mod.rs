@@ -35,12 +35,12 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
-use shared_types::recording::RecordedSensor;
 use shared_types::{
     seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
     SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
     SensorSpec, PROTOCOL_VERSION,
 };
+use simbus_recording::RecordedSensor;
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;

@@ -113,7 +113,7 @@ struct Timers {
 /// Refuses a keyframe interval a recording could not use (NaN, infinite,
 /// zero or absurd): the library checks what the CLI's parser checks.
 fn check_keyframe_seconds(seconds: Option<f64>) -> Result<(), ServerError> {
-    use shared_types::recording::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
+    use simbus_recording::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
     match seconds {
         Some(s) if !(MIN_KEYFRAME_SECONDS..=MAX_KEYFRAME_SECONDS).contains(&s) => {
             Err(ServerError::KeyframeSeconds {

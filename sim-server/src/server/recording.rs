@@ -4,12 +4,12 @@
 
 use std::time::Instant;
 
-use shared_types::recording::{
-    RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
-};
 use shared_types::{
     FrameHeader, PathText, RecorderKind, RecorderResponse, ReplayMode, ResponseStatus, SensorEnd,
     PROTOCOL_VERSION,
+};
+use simbus_recording::{
+    RecordedEvent, RecordingHeader, DEFAULT_KEYFRAME_SECONDS, RECORDING_VERSION,
 };
 use tracing::{info, warn};
 

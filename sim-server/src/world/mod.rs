@@ -6,8 +6,8 @@ use std::sync::Mutex;
 
 use rapier3d::prelude::*;
 use serde::{Deserialize, Serialize};
-use shared_types::recording::RecordedCollision;
 use shared_types::{ActorKind, ActorState};
+use simbus_recording::RecordedCollision;
 
 use crate::clock::SubstepPlan;
 use crate::scene::Placement;

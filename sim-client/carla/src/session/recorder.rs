@@ -79,7 +79,8 @@ impl Session {
     ) -> Result<Answer, CallError> {
         let name = arg_str(args, 0, "show_recorder_file_info")?;
         let all = arg_flag(args, 1);
-        let info = sim_client::inspect::file_info(&name, all).map_err(CallError::recording)?;
+        let info =
+            simbus_recording::inspect::file_info(&name, all).map_err(CallError::recording)?;
         json(&info)
     }
 
@@ -94,7 +95,7 @@ impl Session {
                 .and_then(|c| char::from_u32(c as u32))
                 .unwrap_or('a')
         };
-        let list = sim_client::inspect::collisions(&name, kind(1), kind(2))
+        let list = simbus_recording::inspect::collisions(&name, kind(1), kind(2))
             .map_err(CallError::recording)?;
         json(&list)
     }
@@ -106,7 +107,7 @@ impl Session {
         const METHOD: &str = "show_recorder_actors_blocked";
         let name = arg_str(args, 0, METHOD)?;
         let (min_time, min_distance) = (arg_f64(args, 1, METHOD)?, arg_f64(args, 2, METHOD)?);
-        let list = sim_client::inspect::actors_blocked(&name, min_time, min_distance)
+        let list = simbus_recording::inspect::actors_blocked(&name, min_time, min_distance)
             .map_err(CallError::recording)?;
         json(&list)
     }

@@ -9,8 +9,8 @@ use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use shared_types::{input, ReplayMode, ReplayState, WorldName};
-use sim_client::inspect;
 use sim_client::{Client, RecorderError, ReplayOptions};
+use simbus_recording::inspect;
 
 use crate::cli::words::count;
 use crate::Failure;
@@ -185,7 +185,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
             | RecorderCommand::Blocked { json: true, .. }
     );
     // With --json a script gets the error as data too (and exit 2).
-    let file_error = move |e: shared_types::recording::RecordingError| {
+    let file_error = move |e: simbus_recording::RecordingError| {
         if json {
             print_json(&serde_json::json!({"error": e.code(), "message": e.to_string()}));
         }

@@ -1,8 +1,8 @@
 //! What `recorder status`, `info`, `collisions` and `blocked` print as
 //! text (their `--json` is the data itself).
 
-use sim_client::inspect;
 use sim_client::RecorderStatus;
+use simbus_recording::inspect;
 
 use crate::cli::words::count;
 

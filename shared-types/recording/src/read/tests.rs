@@ -117,7 +117,7 @@ fn recording_in_progress(path: &str, frames: u64, chunk_bytes: u64) -> mcap::Wri
     let header = RecordingHeader {
         recording_version: RECORDING_VERSION,
         simbus_version: "test".into(),
-        protocol_version: crate::PROTOCOL_VERSION,
+        protocol_version: shared_types::PROTOCOL_VERSION,
         world: "w".into(),
         scene: "default".into(),
         seed: 1,

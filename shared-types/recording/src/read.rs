@@ -9,7 +9,7 @@ use std::sync::Arc;
 use mcap::sans_io::linear_reader::LinearReaderOptions;
 
 use super::*;
-use crate::{ActorState, FrameHeader, SensorHeader};
+use shared_types::{ActorState, FrameHeader, SensorHeader};
 
 /// The longest record the reader accepts (a chunk, decompressed): bounds
 /// what a damaged length field can make it allocate.

@@ -3,19 +3,18 @@
 //! as data (serialize them for JSON) instead of preformatted text.
 //!
 //! ```no_run
-//! let info = sim_client::inspect::file_info("run.mcap", false)?;
+//! let info = simbus_recording::inspect::file_info("run.mcap", false)?;
 //! println!("{} frames, {:.1} s", info.frames, info.duration_seconds);
-//! # Ok::<(), shared_types::recording::RecordingError>(())
+//! # Ok::<(), simbus_recording::RecordingError>(())
 //! ```
 
 use std::collections::BTreeMap;
 
 use serde::Serialize;
 use shared_types::input::Exact;
-use shared_types::recording::{
-    Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader,
-};
 use shared_types::{ActorKind, CommandKind, CommandStatus, NANOS_PER_SECOND};
+
+use crate::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};
 
 /// What a recording holds (`recorder info`).
 #[derive(Debug, Clone, PartialEq, Serialize)]

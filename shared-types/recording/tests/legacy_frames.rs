@@ -5,11 +5,11 @@
 use std::io::BufWriter;
 
 use mcap::records::MessageHeader;
-use shared_types::recording::{
+use shared_types::{ActorState, FrameHeader, WorldSettings, PROTOCOL_VERSION};
+use simbus_recording::{
     Entry, RecordingHeader, RecordingReader, FRAMES_TOPIC, HEADER_SCHEMA, HEADER_TOPIC,
     LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA, PROFILE, RECORDING_VERSION, WIRE_ENCODING,
 };
-use shared_types::{ActorState, FrameHeader, WorldSettings, PROTOCOL_VERSION};
 
 #[test]
 fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {

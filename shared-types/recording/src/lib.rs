@@ -1,3 +1,7 @@
+//! simbus recordings: the file format (an MCAP file) and [`inspect`], which
+//! answers questions about a recording without a server. Kept out of
+//! `shared-types` so the client library does not build MCAP and zstd.
+//!
 //! The recording file: an MCAP file whose channels, schemas and message
 //! layouts are defined here, so the server that writes it, the server that
 //! replays it and the client that inspects it agree on every byte.
@@ -27,6 +31,7 @@
 //! does not know and refuses a known schema of a newer version than its own,
 //! naming it ([`RecordingError::FutureSchema`]).
 
+pub mod inspect;
 mod json_f64;
 mod read;
 
@@ -35,7 +40,7 @@ pub use read::{Entry, RecordingReader};
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use crate::{Command, CommandResult, SensorSpec, WireSettings, WorldSettings};
+use shared_types::{Command, CommandResult, SensorSpec, WireSettings, WorldSettings};
 
 /// The version of the recording format as a whole (the header's layout and
 /// the set of channels a replay needs).
@@ -102,13 +107,9 @@ pub const SCHEMAS: [&str; 9] = [
     SCENE_SCHEMA,
 ];
 
-/// Default simulation time between two keyframes.
-pub const DEFAULT_KEYFRAME_SECONDS: f64 = 10.0;
-/// The shortest simulation time between two keyframes a server accepts.
-pub const MIN_KEYFRAME_SECONDS: f64 = 1e-3;
-/// The longest simulation time between two keyframes a server accepts
-/// (one keyframe, at the start, for any run shorter than ~31 years).
-pub const MAX_KEYFRAME_SECONDS: f64 = 1e9;
+/// The keyframe interval's default and bounds (defined with the recorder
+/// service, whose `--keyframe-seconds` input they check).
+pub use shared_types::{DEFAULT_KEYFRAME_SECONDS, MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
 
 /// The first message of a recording (also written as MCAP metadata `simbus`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -117,7 +118,7 @@ pub struct RecordingHeader {
     pub recording_version: u32,
     /// The simbus version that wrote it (`CARGO_PKG_VERSION`).
     pub simbus_version: String,
-    /// [`crate::PROTOCOL_VERSION`] of the writer.
+    /// [`shared_types::PROTOCOL_VERSION`] of the writer.
     pub protocol_version: u32,
     /// The world name.
     pub world: String,
@@ -219,9 +220,9 @@ pub struct RecordedCollision {
     pub actor_b: u64,
     /// The contact's total normal impulse at the end of the step, N·s.
     pub impulse: f32,
-    /// [`crate::ActorKind`] of `actor_a` as `u32`.
+    /// [`shared_types::ActorKind`] of `actor_a` as `u32`.
     pub kind_a: u32,
-    /// [`crate::ActorKind`] of `actor_b` as `u32`.
+    /// [`shared_types::ActorKind`] of `actor_b` as `u32`.
     pub kind_b: u32,
     /// Zero.
     pub reserved: u32,

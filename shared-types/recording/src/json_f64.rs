@@ -63,7 +63,7 @@ pub(super) mod option {
     use super::*;
 
     /// Writes `None` as `null`, a value as [`super::serialize`] does.
-    pub(in crate::recording) fn serialize<S: Serializer>(
+    pub(crate) fn serialize<S: Serializer>(
         value: &Option<f64>,
         serializer: S,
     ) -> Result<S::Ok, S::Error> {
@@ -75,7 +75,7 @@ pub(super) mod option {
     }
 
     /// Reads `null` as `None`, anything else as [`super::deserialize`] does.
-    pub(in crate::recording) fn deserialize<'de, D: Deserializer<'de>>(
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
         deserializer: D,
     ) -> Result<Option<f64>, D::Error> {
         match Option::<Repr>::deserialize(deserializer)? {
@@ -87,14 +87,14 @@ pub(super) mod option {
 
 #[cfg(test)]
 mod tests {
-    use crate::recording::{RecordingHeader, RECORDING_VERSION};
-    use crate::WorldSettings;
+    use crate::{RecordingHeader, RECORDING_VERSION};
+    use shared_types::WorldSettings;
 
     fn header(keyframe_seconds: f64, fixed: Option<f64>) -> RecordingHeader {
         RecordingHeader {
             recording_version: RECORDING_VERSION,
             simbus_version: "0".into(),
-            protocol_version: crate::PROTOCOL_VERSION,
+            protocol_version: shared_types::PROTOCOL_VERSION,
             world: "w".into(),
             scene: "default".into(),
             seed: 0,

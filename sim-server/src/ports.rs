@@ -56,14 +56,4 @@ impl Transport {
     }
 }
 
-/// The process that sent a request, as iceoryx2's port recorded it in the
-/// request's header (the sending node's id carries its creator's pid), not
-/// as the request's payload claims: a client cannot name another process.
-pub(crate) fn sender_pid(
-    header: &iceoryx2::service::header::request_response::RequestHeader,
-) -> u32 {
-    header
-        .node_id()
-        .pid::<Bus>()
-        .map_or(0, |pid| u32::try_from(pid.value()).unwrap_or(0))
-}
+pub(crate) use shared_types::transport::sender_pid;

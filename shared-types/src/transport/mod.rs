@@ -60,3 +60,15 @@ impl iceoryx2::service::Service for Bus {
 }
 
 impl iceoryx2::service::internal::ServiceInternal<Bus> for Bus {}
+
+/// The process that sent a request, as iceoryx2's port recorded it in the
+/// request's header (the sending node's id carries its creator's pid), not
+/// as the request's payload claims: a client cannot name another process.
+/// 0 when the transport cannot say.
+pub fn sender_pid(header: &iceoryx2::service::header::request_response::RequestHeader) -> u32 {
+    use iceoryx2::prelude::*;
+    header
+        .node_id()
+        .pid::<Bus>()
+        .map_or(0, |pid| u32::try_from(pid.value()).unwrap_or(0))
+}

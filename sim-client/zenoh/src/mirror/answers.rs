@@ -4,9 +4,8 @@
 
 use crate::error::Chain;
 use crate::wire::{self, Forwarded, PayloadError};
-use iceoryx2::prelude::*;
 use shared_types::{
-    BatchResponseHeader, Bus, CommandResult, ControlResponse, LockstepResponse, RecorderResponse,
+    BatchResponseHeader, CommandResult, ControlResponse, LockstepResponse, RecorderResponse,
     ResponseStatus, SensorInfo, SensorResponseHeader, ServiceNames, TickRequest, TickRequestKind,
     TickResponse, PROTOCOL_VERSION,
 };
@@ -15,16 +14,6 @@ use tracing::warn;
 use shared_types::limits::WorldLimits;
 
 use super::local::{Active, Local, LocalServices, SensorPorts};
-
-/// The pid of the process that sent a local request.
-pub(super) fn sender_pid(
-    header: &iceoryx2::service::header::request_response::RequestHeader,
-) -> u32 {
-    header
-        .node_id()
-        .pid::<Bus>()
-        .map_or(0, |pid| u32::try_from(pid.value()).unwrap_or(0))
-}
 
 /// An answer with `status` for a request whose answer type is `T` (every
 /// answer starts with the protocol version and a status).
@@ -200,3 +189,5 @@ fn answer_tick(
     }
     sent(active.send_copy(answer).map(drop))
 }
+
+pub(super) use shared_types::transport::sender_pid;

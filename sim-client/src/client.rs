@@ -440,6 +440,13 @@ impl Client {
             match self.round_trip_empty_batch(batch, BATCH_HANDSHAKE_ATTEMPT) {
                 Ok(()) => return Ok(batch),
                 Err(RequestError::Timeout { .. }) if Instant::now() < deadline => continue,
+                // The whole wait, not the last attempt's, is what timed out.
+                Err(RequestError::Timeout { world, .. }) => {
+                    return Err(RequestError::Timeout {
+                        world,
+                        timeout: self.request_timeout,
+                    })
+                }
                 Err(e) => return Err(e),
             }
         }

@@ -42,15 +42,8 @@ pub(crate) struct CarlaArgs {
 }
 
 pub(crate) fn run(args: CarlaArgs) -> anyhow::Result<()> {
-    let exe = std::env::current_exe()?;
-    let bin = exe.parent().context("the benchmark's directory")?;
-    let sim_client = bin.join("sim-client");
-    if !sim_client.exists() {
-        bail!(
-            "{} is missing: build it with `cargo build --release` first",
-            sim_client.display()
-        );
-    }
+    let sim_client = crate::support::sibling("sim-client")?;
+    let bin = sim_client.parent().context("the benchmark's directory")?;
     let python = match args.python.clone() {
         Some(python) => python,
         None => venv(bin)?,

@@ -26,9 +26,6 @@ mod futex;
 mod plot;
 mod recorder;
 mod sensors;
-/// The `sim-server` command line: the very file the server binary compiles.
-#[path = "../../sim-server/src/cli.rs"]
-mod server_cli;
 mod stats;
 mod substeps;
 mod support;
@@ -87,9 +84,6 @@ enum Command {
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
     Peer(tick::PeerArgs),
-    /// Runs a server (used by the benchmarks to start one in its own process).
-    #[command(hide = true)]
-    Serve(server_cli::ServerArgs),
 }
 
 fn main() -> ExitCode {
@@ -108,7 +102,6 @@ fn main() -> ExitCode {
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => tick::peer(a),
-        Command::Serve(a) => return server_cli::main(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

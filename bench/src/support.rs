@@ -26,7 +26,23 @@ pub(crate) fn sync_ticker(client: &Client, dt: f64) -> anyhow::Result<Ticker> {
     Ok(ticker)
 }
 
-/// A server child process (this binary's hidden `serve`), stopped on drop.
+/// A binary of the workspace built beside this one (`target/<profile>/`),
+/// or an error saying how to build it.
+pub(crate) fn sibling(name: &str) -> anyhow::Result<std::path::PathBuf> {
+    let exe = std::env::current_exe()?;
+    let path = exe
+        .parent()
+        .context("the benchmark's directory")?
+        .join(name);
+    anyhow::ensure!(
+        path.exists(),
+        "{} is missing: build it with `cargo build --release` first",
+        path.display()
+    );
+    Ok(path)
+}
+
+/// A `sim-server` child process (the real binary), stopped on drop.
 pub(crate) struct BenchServer {
     pub world: String,
     _guard: ChildGuard,
@@ -38,11 +54,10 @@ impl BenchServer {
         self._guard.id()
     }
 
-    /// Starts `serve --world <unique> <args>` and waits until it answers.
+    /// Starts `sim-server --world <unique> <args>` and waits until it answers.
     pub(crate) fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
         let world = format!("bench-{tag}-{}", std::process::id());
-        let child = Command::new(std::env::current_exe()?)
-            .arg("serve")
+        let child = Command::new(sibling("sim-server")?)
             .args(["--world", &world])
             .args(args)
             .env("RUST_LOG", "error")

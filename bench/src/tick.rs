@@ -20,9 +20,10 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::Service;
-use shared_types::{Bus, FrameHeader, WorldSettings};
+use shared_types::{FrameHeader, WorldSettings};
 use sim_client::{Client, WaitMode};
 use simbus_process::ChildGuard;
+use simbus_transport::Bus;
 
 use crate::stats::{header, Latencies};
 use crate::support::{machine_state, BackgroundLoad, BenchServer};

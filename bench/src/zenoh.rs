@@ -6,7 +6,7 @@
 //! link; ticks per second a mirror sustains with 1000 actors; and how long
 //! after the link drops the server releases a remote ticker's ownership.
 //!
-//! Every process runs the real binaries (`simbus-bench serve` as the
+//! Every process runs the real binaries (`sim-server` as the
 //! server, `sim-client bridge zenoh` as the bridges, `simbus-bench
 //! zenoh-peer` as the measuring client), each in its host's iceoryx2 root.
 
@@ -124,16 +124,9 @@ impl Setup {
             "tcp/{address}:{}",
             17_000 + (std::process::id() % 1000) * 20 + n
         );
-        let mut args = vec![
-            "serve",
-            "--world",
-            &world,
-            "--sync",
-            "--delta-seconds",
-            "0.01",
-        ];
+        let mut args = vec!["--world", &world, "--sync", "--delta-seconds", "0.01"];
         args.extend_from_slice(server_args);
-        let server = server_host.spawn("simbus-bench", &args);
+        let server = server_host.spawn("sim-server", &args);
         let bridge = |host: &Host, flag: &str| {
             host.spawn(
                 "sim-client",
@@ -198,16 +191,12 @@ struct Figures {
 
 pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     // The binaries live next to this one (target/<profile>).
-    let dir = std::env::current_exe()?
+    crate::support::sibling("sim-server")?;
+    let dir = crate::support::sibling("sim-client")?
         .parent()
         .context("the bench's directory")?
         .to_path_buf();
     std::env::set_var("SIMBUS_BIN_DIR", &dir);
-    anyhow::ensure!(
-        dir.join("sim-client").exists(),
-        "{} not found: `cargo build --release` first",
-        dir.join("sim-client").display()
-    );
     let state = machine_state(Duration::from_secs(2));
     let ticks = args.ticks.to_string();
     let captures = args.captures.to_string();

@@ -34,11 +34,11 @@ mod wire;
 
 mod command;
 mod control;
-pub mod environment;
 mod frame;
-pub mod input;
 mod lockstep;
 mod names;
+mod number;
+pub use number::{Exact, Readable};
 mod recorder;
 pub mod scene;
 pub use recorder::{
@@ -51,8 +51,6 @@ mod settings;
 mod settings_wire;
 pub use settings_wire::{WireSettings, WireSettingsError};
 mod tick;
-pub mod transport;
-pub use transport::Bus;
 mod wait_mode;
 
 pub use command::{

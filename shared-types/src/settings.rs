@@ -143,7 +143,7 @@ impl fmt::Display for SettingsField {
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum SettingsError {
     /// A value is NaN or infinite.
-    #[error("{field} = {} is not a finite number", crate::input::Exact(*value))]
+    #[error("{field} = {} is not a finite number", crate::Exact(*value))]
     NotFinite {
         /// The setting.
         field: SettingsField,
@@ -151,7 +151,7 @@ pub enum SettingsError {
         value: f64,
     },
     /// A value is negative.
-    #[error("{field} = {} is negative; {}", crate::input::Exact(*value), field.sign_rule())]
+    #[error("{field} = {} is negative; {}", crate::Exact(*value), field.sign_rule())]
     Negative {
         /// The setting.
         field: SettingsField,
@@ -161,8 +161,8 @@ pub enum SettingsError {
     /// A time is shorter than [`MIN_DELTA_SECONDS`].
     #[error(
         "{field} = {} s is shorter than the minimum of {} s",
-        crate::input::Exact(*value),
-        crate::input::Exact(*min)
+        crate::Exact(*value),
+        crate::Exact(*min)
     )]
     TooSmall {
         /// The setting.
@@ -175,8 +175,8 @@ pub enum SettingsError {
     /// A time is longer than [`MAX_DELTA_SECONDS`].
     #[error(
         "{field} = {} s is longer than the maximum of {} s",
-        crate::input::Exact(*value),
-        crate::input::Exact(*max)
+        crate::Exact(*value),
+        crate::Exact(*max)
     )]
     TooLarge {
         /// The setting.

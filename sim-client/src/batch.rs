@@ -1,14 +1,14 @@
 //! Commands in batches: fire and forget, or with one result per command.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
     ServiceNames,
 };
+use simbus_transport::spec::WorldServices;
 
 use crate::rpc::{client_error, Pending, RequestPort, Wait};
 use crate::{Client, RequestError};

@@ -1,15 +1,15 @@
 //! [`Client`]: a connection to one simbus world.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::cell::OnceCell;
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
     WorldName, WorldSettings, PROTOCOL_VERSION,
 };
+use simbus_transport::spec::WorldServices;
 use tracing::debug;
 
 use crate::batch::{open_batch_client, BatchClient};
@@ -131,7 +131,7 @@ fn default_ticker_name() -> String {
 }
 
 pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
-    shared_types::environment::prepare().map_err(ConnectError::SharedDirectory)?;
+    simbus_transport::environment::prepare().map_err(ConnectError::SharedDirectory)?;
     let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
     NodeBuilder::new()
         .name(&name)

@@ -30,7 +30,7 @@ pub enum ConnectError {
     /// iceoryx2 cannot be used as configured: its configuration file does
     /// not load, or its shared directory belongs to another user.
     #[error(transparent)]
-    SharedDirectory(#[from] shared_types::environment::EnvironmentError),
+    SharedDirectory(#[from] simbus_transport::environment::EnvironmentError),
     /// The server speaks another protocol version.
     #[error("world '{world}' runs a server with another protocol version ({detail}); this client speaks version {client}")]
     ProtocolMismatch {

@@ -2,7 +2,7 @@
 //! missed count in asynchronous mode, blocking on the frame-ready event or
 //! spinning.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -11,8 +11,8 @@ use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use shared_types::limits::MAX_CLIENTS_FLAG;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
+use simbus_transport::spec::WorldServices;
 
 use crate::open::{frame_ready_listener, open_with_retry};
 use crate::snapshot::FrameView;

@@ -1,16 +1,16 @@
 //! [`Participant`]: a client the server waits for, frame by frame, in
 //! synchronous mode.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use std::cell::RefCell;
 
 use iceoryx2::prelude::*;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
 };
+use simbus_transport::spec::WorldServices;
 use tracing::{debug, info};
 
 use crate::open::{wake_notifier, OpenFailure};

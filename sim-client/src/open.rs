@@ -1,7 +1,7 @@
 //! Opening a world's services from a client, waiting while the server is
 //! still creating them.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -10,8 +10,8 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::event::EventOpenError;
 use iceoryx2::service::port_factory::event::PortFactory as EventService;
 use shared_types::limits::MAX_CLIENTS_FLAG;
-use shared_types::transport::spec::{EventSpec, WorldServices};
 use shared_types::ServiceNames;
+use simbus_transport::spec::{EventSpec, WorldServices};
 
 use crate::error::TransportError;
 use crate::{ConnectError, RequestError};

@@ -11,11 +11,11 @@ use std::time::Duration;
 
 use iceoryx2::prelude::*;
 use serde::Serialize;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
     ReplayState, ResponseStatus,
 };
+use simbus_transport::spec::WorldServices;
 
 use crate::rpc::{client_error, RequestPort, Wait};
 use crate::{Client, RequestError};

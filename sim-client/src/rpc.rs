@@ -4,7 +4,7 @@
 //! through the client's one wait loop) and checks it (protocol version,
 //! a mirror's "unreachable").
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
 

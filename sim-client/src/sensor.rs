@@ -1,7 +1,7 @@
 //! [`Sensor`]: a subscription to one sensor's captures, read in place in
 //! shared memory.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
@@ -12,12 +12,12 @@ use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use shared_types::limits::MAX_SENSOR_READERS_FLAG;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
     SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
     SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
+use simbus_transport::spec::WorldServices;
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
 use crate::rpc::{client_error, RequestPort};

@@ -3,8 +3,8 @@
 //! copy (CARLA's `WorldSnapshot`, what `wait_for_tick` returns).
 
 use iceoryx2::sample::Sample;
-use shared_types::Bus;
 use shared_types::{ActorState, FrameHeader, Timestamp, WorldSettings};
+use simbus_transport::Bus;
 
 /// One frame read in place in shared memory: the header and the actors are
 /// borrowed from the sample, not copied. The sample returns to the server's

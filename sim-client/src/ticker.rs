@@ -1,15 +1,15 @@
 //! [`Ticker`]: tick ownership of a world, and the ticks themselves.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
     WorldName, WorldSettings,
 };
+use simbus_transport::spec::WorldServices;
 use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, wake_notifier};

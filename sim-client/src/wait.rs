@@ -3,7 +3,7 @@
 //! block on an event, back off, or spin, until the deadline — and end early
 //! when the server process is gone.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};

@@ -5,11 +5,11 @@
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
-use shared_types::Bus;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
     PROTOCOL_VERSION,
 };
+use simbus_transport::Bus;
 use tracing::{debug, warn};
 
 use crate::clock::Clock;

@@ -1,6 +1,5 @@
 //! The `sim-server` command line: the binary's, not the library's (which
-//! knows no clap and no anyhow). The benchmark's hidden `serve` compiles
-//! this same file, so that it runs a server with exactly these options.
+//! knows no clap and no anyhow). The benchmarks start this binary itself.
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -11,7 +10,8 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use shared_types::limits::{self, WorldLimits};
-use shared_types::{input, WaitMode, WorldName, WorldSettings};
+use shared_types::{WaitMode, WorldName, WorldSettings};
+use simbus_input as input;
 use tracing_subscriber::EnvFilter;
 
 use sim_server::{OnTickerLoss, Scene, Server, ServerConfig, ServerError};

@@ -2,7 +2,7 @@
 //! reload) and the wake-up event clients notify after any request — the
 //! one place the server loop sleeps.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};

@@ -5,8 +5,8 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::update_connections::UpdateConnections;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
-use shared_types::Bus;
 use shared_types::{ActorState, FrameHeader};
+use simbus_transport::Bus;
 use tracing::debug;
 
 use crate::ports::Transport;

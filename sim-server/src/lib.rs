@@ -92,7 +92,7 @@ pub enum ServerError {
     /// iceoryx2 cannot be used as configured (its configuration file, or a
     /// shared directory another user owns).
     #[error(transparent)]
-    SharedDirectory(shared_types::environment::EnvironmentError),
+    SharedDirectory(simbus_transport::environment::EnvironmentError),
     /// The start settings were refused.
     #[error("invalid settings: {0}")]
     Settings(SettingsError),

@@ -4,7 +4,7 @@
 
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
-use shared_types::Bus;
+use simbus_transport::Bus;
 
 /// The process ids of every live iceoryx2 node, or `None` when the node
 /// list cannot be read (then nobody is declared dead).

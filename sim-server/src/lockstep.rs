@@ -2,7 +2,7 @@
 //! in synchronous mode (CARLA's Traffic Manager, kept in step by the bus),
 //! their service, and what happens to one that dies or hangs.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use bytemuck::Zeroable;

@@ -3,9 +3,9 @@
 //! world's service descriptions. Each domain opens its own ports.
 
 use iceoryx2::prelude::*;
-use shared_types::transport::spec::WorldServices;
-use shared_types::Bus;
 use shared_types::{ServiceNames, WorldName};
+use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 use tracing::{info, warn};
 
 use crate::ServerError;
@@ -23,7 +23,7 @@ impl Transport {
     /// Creates the server's node for `world`, removing what dead processes
     /// left behind (a crashed predecessor's services included).
     pub(crate) fn open(world: &WorldName) -> Result<Self, ServerError> {
-        shared_types::environment::prepare().map_err(ServerError::SharedDirectory)?;
+        simbus_transport::environment::prepare().map_err(ServerError::SharedDirectory)?;
         let node_name =
             NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
         // Count the dead first so the log says it happened.
@@ -56,4 +56,4 @@ impl Transport {
     }
 }
 
-pub(crate) use shared_types::transport::sender_pid;
+pub(crate) use simbus_transport::sender_pid;

@@ -8,9 +8,10 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::request_response::PortFactory;
 use shared_types::{
-    BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest, ControlResponse,
+    BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest, ControlResponse,
     ServiceNames, WorldName,
 };
+use simbus_transport::Bus;
 
 /// How long a raw request waits for its answer.
 const ANSWER: Duration = Duration::from_secs(10);

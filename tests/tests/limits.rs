@@ -4,7 +4,7 @@
 //! it; a watcher holds only a frame subscription and a listener, so it uses
 //! none of the ports that commands, sensors and the lockstep need.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;

@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use shared_types::input::Exact;
+use shared_types::Exact;
 use shared_types::{ActorKind, CommandKind, CommandStatus, NANOS_PER_SECOND};
 
 use crate::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};

@@ -7,7 +7,8 @@ use std::collections::BTreeMap;
 use iceoryx2::node::{NodeState, NodeView};
 use iceoryx2::service::Service as _;
 use serde::Serialize;
-use shared_types::{Bus, ServiceNames};
+use shared_types::ServiceNames;
+use simbus_transport::Bus;
 
 use sim_client::Client;
 
@@ -34,7 +35,7 @@ pub(crate) fn holders(client: &Client) -> Result<Vec<Holder>, String> {
     let mut by_pid: BTreeMap<u32, (Vec<String>, Vec<String>)> = BTreeMap::new();
     // The configuration every node of this process uses: loaded by
     // `environment::prepare` when the client connected.
-    shared_types::environment::prepare()
+    simbus_transport::environment::prepare()
         .map_err(|e| format!("listing the services of world '{}': {e}", client.world()))?;
     Bus::list(iceoryx2::config::Config::global_config(), |service| {
         let name = service.static_details.name().to_string();

@@ -4,7 +4,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use shared_types::{input, WorldName};
+use shared_types::WorldName;
+use simbus_input as input;
 use tracing_subscriber::EnvFilter;
 
 #[macro_use]

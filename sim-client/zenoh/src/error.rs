@@ -124,7 +124,7 @@ impl LinkError {
 pub enum LocalError {
     /// simbus's environment (its iceoryx2 configuration) is unusable.
     #[error(transparent)]
-    Environment(#[from] shared_types::environment::EnvironmentError),
+    Environment(#[from] simbus_transport::environment::EnvironmentError),
     /// A service of the world could not be created here.
     #[error("creating a service of the world here (is a server or another mirror of it running on this host?)")]
     Create(#[source] TransportError),

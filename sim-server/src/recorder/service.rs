@@ -6,7 +6,7 @@
 //! and its world built (off the frame loop, by the replayer); meanwhile
 //! the world goes on, and the request waits here for its answer.
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;

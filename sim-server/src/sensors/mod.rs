@@ -28,7 +28,7 @@ fn default_world_in_motion() -> (World, u64) {
     (world, vehicle)
 }
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::mem::MaybeUninit;
 
 use iceoryx2::port::publisher::Publisher;

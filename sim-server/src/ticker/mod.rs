@@ -4,7 +4,7 @@
 
 mod ownership;
 
-use shared_types::Bus;
+use simbus_transport::Bus;
 use std::collections::VecDeque;
 use std::time::Duration;
 

@@ -51,7 +51,7 @@ pub(crate) struct ReloadArgs {
 #[derive(Debug, Args)]
 pub(crate) struct LoadArgs {
     /// default, empty or boxes:N (N in 1..=100000).
-    #[arg(value_parser = shared_types::input::scene)]
+    #[arg(value_parser = simbus_input::scene)]
     scene: String,
     /// Also reset the settings to the defaults (async, variable step).
     #[arg(long)]

@@ -20,11 +20,11 @@ pub(crate) struct AutopilotArgs {
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     seed: u64,
     /// New controls every N frames (N >= 1).
-    #[arg(long, value_name = "N", default_value_t = 50, allow_negative_numbers = true, value_parser = shared_types::input::count)]
+    #[arg(long, value_name = "N", default_value_t = 50, allow_negative_numbers = true, value_parser = simbus_input::count)]
     every: u64,
     /// Stop after N frames, N >= 1 (default: until Ctrl-C or the server
     /// goes away).
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = shared_types::input::count)]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = simbus_input::count)]
     frames: Option<u64>,
 }
 

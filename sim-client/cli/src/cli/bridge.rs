@@ -63,7 +63,7 @@ pub(crate) struct ZenohArgs {
     #[arg(long, value_name = "MS", default_value_t = 1000, allow_negative_numbers = true, value_parser = clap::value_parser!(u64).range(100..=60_000))]
     lease_ms: u64,
     /// Mirroring: how long a forwarded request may wait for its answer.
-    #[arg(long, value_name = "S", default_value = "60", allow_negative_numbers = true, value_parser = shared_types::input::timeout)]
+    #[arg(long, value_name = "S", default_value = "60", allow_negative_numbers = true, value_parser = simbus_input::timeout)]
     request_timeout: Duration,
 }
 

@@ -4,8 +4,9 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::Args;
-use shared_types::{input, WorldName, WorldSettings};
+use shared_types::{WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client};
+use simbus_input as input;
 
 use crate::Failure;
 

@@ -9,8 +9,9 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use shared_types::{input, ActorKind, ActorState, Command as SimCommand, WorldName};
+use shared_types::{ActorKind, ActorState, Command as SimCommand, WorldName};
 use sim_client::{Client, WorldSnapshot};
+use simbus_input as input;
 use simbus_process::ChildGuard;
 
 use super::words::count;

@@ -19,7 +19,7 @@ pub(crate) struct FoxgloveArgs {
     #[arg(long, default_value_t = 8765, allow_negative_numbers = true)]
     port: u16,
     /// Most frames sent per wall second, at most 1e6 (0: every frame).
-    #[arg(long, value_name = "HZ", default_value_t = 30.0, allow_negative_numbers = true, value_parser = shared_types::input::rate_limit)]
+    #[arg(long, value_name = "HZ", default_value_t = 30.0, allow_negative_numbers = true, value_parser = simbus_input::rate_limit)]
     max_hz: f64,
 }
 

@@ -65,8 +65,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use anyhow::anyhow;
-use shared_types::input::Readable;
 use shared_types::WorldSettings;
+use simbus_input::Readable;
 
 use crate::Failure;
 

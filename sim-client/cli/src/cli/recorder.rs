@@ -8,8 +8,9 @@ use std::time::{Duration, Instant};
 use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use shared_types::{input, ReplayMode, ReplayState, WorldName};
+use shared_types::{ReplayMode, ReplayState, WorldName};
 use sim_client::{Client, RecorderError, ReplayOptions};
+use simbus_input as input;
 use simbus_recording::inspect;
 
 use crate::cli::words::count;

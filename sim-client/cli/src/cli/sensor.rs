@@ -5,9 +5,10 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
 use shared_types::{
-    input, DepthCamera, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError, WorldName,
+    DepthCamera, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError, WorldName,
 };
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
+use simbus_input as input;
 
 use super::words::count;
 use crate::Failure;

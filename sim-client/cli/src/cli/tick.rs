@@ -6,8 +6,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::Args;
-use shared_types::{input, WorldName, WorldSettings};
+use shared_types::{WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client, TickError, Ticker, WaitMode};
+use simbus_input as input;
 
 use crate::Failure;
 
@@ -116,7 +117,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     match delta {
         Some(dt) => eprintln!(
             "tick: ticker of world '{world}'; synchronous mode, fixed step {} s, from frame {from}",
-            shared_types::input::Readable(dt)
+            simbus_input::Readable(dt)
         ),
         None => eprintln!(
             "tick: warning: synchronous mode with a variable step (--allow-variable-step); physics is unreliable"
@@ -155,7 +156,7 @@ fn left_as(current: &WorldSettings, leave_sync: bool) -> String {
     match current.fixed_delta_seconds {
         Some(dt) => format!(
             "world left in synchronous mode with its own step ({} s), waiting for the next ticker",
-            shared_types::input::Readable(dt)
+            simbus_input::Readable(dt)
         ),
         None => {
             "world left in synchronous mode with its own variable step, waiting for the next ticker"

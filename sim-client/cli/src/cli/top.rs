@@ -21,7 +21,7 @@ use crate::Failure;
 pub(crate) struct TopArgs {
     /// Seconds between refreshes, 0.05..=3600 (rates are measured over
     /// this interval).
-    #[arg(long, value_name = "S", default_value_t = 1.0, allow_negative_numbers = true, value_parser = shared_types::input::refresh_interval)]
+    #[arg(long, value_name = "S", default_value_t = 1.0, allow_negative_numbers = true, value_parser = simbus_input::refresh_interval)]
     interval: f64,
     /// Measure one interval, print once and exit.
     #[arg(long)]

@@ -12,7 +12,7 @@ use crate::Failure;
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
     /// Stop after N frames (N >= 1).
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = shared_types::input::count)]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = simbus_input::count)]
     frames: Option<u64>,
 
     /// One JSON object per line.

@@ -29,10 +29,10 @@ use std::time::{Duration, Instant};
 use iceoryx2::node::Node;
 use iceoryx2::port::notifier::Notifier;
 use shared_types::{
-    Bus, ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames,
-    TickResponse,
+    ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames, TickResponse,
 };
 use sim_client::Client;
+use simbus_transport::Bus;
 use tracing::info;
 use zenoh::query::Query;
 

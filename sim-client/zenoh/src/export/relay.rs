@@ -14,9 +14,10 @@ use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
 use iceoryx2::prelude::*;
 use shared_types::{
-    BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ResponseStatus, SensorInfo,
+    BatchHeader, BatchResponseHeader, Command, CommandResult, ResponseStatus, SensorInfo,
     SensorRequest, SensorResponseHeader, TickResponse,
 };
+use simbus_transport::Bus;
 use zenoh::query::Query;
 use zenoh::Wait as _;
 

@@ -190,4 +190,4 @@ fn answer_tick(
     sent(active.send_copy(answer).map(drop))
 }
 
-pub(super) use shared_types::transport::sender_pid;
+pub(super) use simbus_transport::sender_pid;

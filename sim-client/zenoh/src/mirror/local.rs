@@ -14,13 +14,14 @@ use iceoryx2::port::server::Server;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
-use shared_types::transport::spec::WorldServices;
 use shared_types::{
-    ActorState, BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest,
+    ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
     ControlResponse, FrameHeader, ImuMeasurement, LidarPoint, LockstepRequest, LockstepResponse,
     RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind, SensorRequest,
     SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
+use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 
 /// A fixed-size request waiting for its answer.
 pub(super) type Active<Req, Resp> = ActiveRequest<Bus, Req, (), Resp, ()>;
@@ -137,7 +138,7 @@ impl LocalServices {
     /// Creates the world's services here. Fails if a server or another
     /// mirror of the world runs on this host.
     pub(super) fn create(names: &ServiceNames, limits: &WorldLimits) -> Result<Self, LocalError> {
-        shared_types::environment::prepare()?;
+        simbus_transport::environment::prepare()?;
         let node = node("zenoh-mirror")?;
         node.try_cleanup_dead_nodes();
         let specs = WorldServices::new(names).map_err(create_failed)?;

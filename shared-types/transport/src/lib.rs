@@ -1,4 +1,11 @@
-//! The iceoryx2 service type every simbus port is built on.
+//! # simbus transport
+//!
+//! How simbus's wire types travel: the iceoryx2 service type every simbus
+//! port is built on ([`Bus`]), the one description of every service of a
+//! world ([`spec`]), and the machine-wide iceoryx2 setup a process needs
+//! before it creates a node ([`environment`]).
+//!
+//! ## The service type
 //!
 //! iceoryx2's own `ipc::Service` wakes a blocked listener through a Unix
 //! datagram socket: a `sendto` on one side and a `recvfrom` on the other per
@@ -12,8 +19,10 @@
 //! Every simbus process must use this type: a port of another service type
 //! does not find simbus's services.
 
-#![allow(unsafe_code)]
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs)]
 
+pub mod environment;
 pub mod futex;
 pub mod spec;
 

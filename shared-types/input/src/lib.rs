@@ -9,7 +9,7 @@
 //! its range once, in the constants below or in the limits it cites.
 //!
 //! ```
-//! use shared_types::input::{timeout, max_substeps, fps, InputError, Readable};
+//! use simbus_input::{timeout, max_substeps, fps, InputError, Readable};
 //!
 //! assert_eq!(timeout("2.5").unwrap().as_millis(), 2500);
 //! assert!(timeout("1e20").unwrap_err().to_string().contains("at most"));
@@ -20,23 +20,22 @@
 //! assert_eq!(Readable(1.0 / 30.0).to_string(), "0.0333333");
 //! ```
 
-use std::fmt;
 use std::ops::RangeInclusive;
 use std::time::Duration;
 
-use crate::limits::{
+use shared_types::limits::{
     MAX_ACTOR_POSITION, MAX_MAX_CLIENTS, MAX_MAX_SENSOR_READERS, MAX_WAIT_SECONDS,
 };
-use crate::{
+use shared_types::{
     WorldSettings, MAX_DELTA_SECONDS, MAX_KEYFRAME_SECONDS, MAX_SENSOR_TICK_SECONDS,
     MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS, MIN_KEYFRAME_SECONDS,
 };
 
 mod error;
-/// The sensor limits a spec's check enforces, re-exported where the flags
-/// that set them are parsed (one definition, in [`crate::SensorSpec`]'s module).
-pub use crate::{MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS};
 pub use error::InputError;
+/// The sensor limits a spec's check enforces, re-exported where the flags
+/// that set them are parsed (one definition, in [`shared_types::SensorSpec`]'s module).
+pub use shared_types::{Exact, Readable, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS};
 
 /// The highest rate any flag accepts (`--rate`, `--max-fps`, `--max-hz`,
 /// `--rotation-frequency`): one per microsecond, the shortest step the
@@ -56,58 +55,6 @@ pub const MAX_DISTANCE_METRES: f64 = 1e6;
 pub const MIN_REFRESH_SECONDS: f64 = 0.05;
 /// The longest `top --interval`, seconds.
 pub const MAX_REFRESH_SECONDS: f64 = 3600.0;
-
-/// A number as people read it back: at most six significant digits,
-/// trailing zeros dropped, in exponent form below 1e-4 and from 1e6 on
-/// (`0.0333333`, `0.05`, `3600`, `1e300`), never 300 digits.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Readable(pub f64);
-
-impl fmt::Display for Readable {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let x = self.0;
-        if !x.is_finite() || x == 0.0 {
-            return write!(f, "{x}");
-        }
-        let magnitude = x.abs();
-        if (1e-4..1e6).contains(&magnitude) {
-            let decimals = (5 - magnitude.log10().floor() as i32).max(0) as usize;
-            let text = format!("{x:.decimals$}");
-            let text = if text.contains('.') {
-                text.trim_end_matches('0').trim_end_matches('.')
-            } else {
-                &text
-            };
-            f.write_str(text)
-        } else {
-            let text = format!("{x:.5e}");
-            match text.split_once('e') {
-                Some((mantissa, exponent)) if mantissa.contains('.') => {
-                    let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
-                    write!(f, "{mantissa}e{exponent}")
-                }
-                _ => f.write_str(&text),
-            }
-        }
-    }
-}
-
-/// A number exactly as it is (the shortest text that reads back as the
-/// same `f64`), in exponent form below 1e-4 and from 1e6 on: for errors,
-/// where a rounded value could hide why it was refused.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Exact(pub f64);
-
-impl fmt::Display for Exact {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let x = self.0;
-        if x.is_finite() && x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
-            write!(f, "{x:e}")
-        } else {
-            write!(f, "{x}")
-        }
-    }
-}
 
 fn number(text: &str) -> Result<f64, InputError> {
     text.trim()
@@ -305,7 +252,7 @@ pub fn micros(text: &str) -> Result<Duration, InputError> {
 /// ranges).
 ///
 /// ```
-/// use shared_types::input::{metres, InputError};
+/// use simbus_input::{metres, InputError};
 ///
 /// assert_eq!(metres("0.1"), Ok(0.1));
 /// let refused = metres("NaN").unwrap_err();
@@ -459,7 +406,7 @@ pub fn position(text: &str) -> Result<[f32; 3], InputError> {
 /// A scene name (`default`, `empty` or `boxes:N`, N in
 /// `1..=`[`crate::scene::MAX_SCENE_BOXES`]), checked as the server reads it.
 pub fn scene(text: &str) -> Result<String, InputError> {
-    let name = text.parse::<crate::scene::SceneName>()?;
+    let name = text.parse::<shared_types::scene::SceneName>()?;
     Ok(name.to_string())
 }
 
@@ -563,19 +510,13 @@ mod tests {
     }
 
     #[test]
-    fn numbers_read_back_readably() {
-        assert_eq!(Readable(1.0 / 30.0).to_string(), "0.0333333");
-        assert_eq!(Readable(0.05).to_string(), "0.05");
-        assert_eq!(Readable(3600.0).to_string(), "3600");
-        assert_eq!(Readable(1e300).to_string(), "1e300");
-        assert_eq!(Readable(1e-6).to_string(), "1e-6");
-        assert_eq!(Readable(1.0 / 3600.0).to_string(), "0.000277778");
-        assert_eq!(Readable(0.0).to_string(), "0");
-        assert_eq!(Readable(f64::NAN).to_string(), "NaN");
-        assert_eq!(Exact(1e300).to_string(), "1e300");
-        assert_eq!(
-            Exact(0.03333333333333333).to_string(),
-            "0.03333333333333333"
-        );
+    fn sensor_flags_accept_exactly_what_a_spec_accepts() {
+        let side = format!("{MAX_IMAGE_SIDE}");
+        assert_eq!(image_size(&format!("{side},1")), Ok([MAX_IMAGE_SIDE, 1]));
+        assert!(image_size(&format!("{},1", MAX_IMAGE_SIDE + 1)).is_err());
+        let channels = format!("{}", MAX_LIDAR_CHANNELS + 1);
+        assert!(lidar_channels(&channels).is_err());
+        let points = format!("{}", MAX_LIDAR_POINTS + 1);
+        assert!(lidar_points(&points).is_err());
     }
 }

@@ -4,11 +4,12 @@
 
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
-use shared_types::transport::spec::{Limit, WorldServices};
-use shared_types::{Bus, ImuMeasurement, LidarPoint, ServiceNames, WorldName};
+use shared_types::{ImuMeasurement, LidarPoint, ServiceNames, WorldName};
+use simbus_transport::spec::{Limit, WorldServices};
+use simbus_transport::Bus;
 
 fn node(name: &str) -> Node<Bus> {
-    shared_types::environment::prepare().expect("iceoryx2 environment");
+    simbus_transport::environment::prepare().expect("iceoryx2 environment");
     NodeBuilder::new()
         .name(&NodeName::new(name).unwrap())
         .signal_handling_mode(SignalHandlingMode::Disabled)

@@ -26,12 +26,13 @@ use iceoryx2::service::port_factory::{event, publish_subscribe, request_response
 use iceoryx2::service::service_name::ServiceNameError;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
-use crate::limits::{
+use crate::Bus;
+use shared_types::limits::{
     WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_BATCH,
     MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,
 };
-use crate::{
-    ActorState, BatchHeader, BatchResponseHeader, Bus, Command, CommandResult, ControlRequest,
+use shared_types::{
+    ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
     ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, RecorderRequest,
     RecorderResponse, SensorHeader, SensorInfo, SensorRequest, SensorResponseHeader, ServiceNames,
     TickRequest, TickResponse,

@@ -2,9 +2,9 @@
 
 use std::fmt;
 
-use crate::limits::{MAX_ACTOR_POSITION, MAX_WAIT_SECONDS};
-use crate::scene::SceneNameError;
-use crate::{SettingsError, MAX_DELTA_SECONDS, MAX_IMAGE_SIDE, MIN_DELTA_SECONDS};
+use shared_types::limits::{MAX_ACTOR_POSITION, MAX_WAIT_SECONDS};
+use shared_types::scene::SceneNameError;
+use shared_types::{SettingsError, MAX_DELTA_SECONDS, MAX_IMAGE_SIDE, MIN_DELTA_SECONDS};
 
 use super::{Exact, Readable, MAX_DISTANCE_METRES, MAX_RATE_HZ};
 
@@ -256,7 +256,7 @@ mod tests {
 
     use super::super::*;
     use super::*;
-    use crate::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
+    use shared_types::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
 
     fn message<T: fmt::Debug>(result: Result<T, InputError>) -> String {
         result.unwrap_err().to_string()

@@ -8,8 +8,8 @@ use shared_types::{Command, WorldSettings};
 use sim_client::Client;
 
 use crate::stats::{header, Latencies};
+use crate::support::spawn_peer;
 use crate::support::BenchServer;
-use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
 pub(crate) struct CommandsArgs {

@@ -7,8 +7,8 @@ use clap::Args;
 use sim_client::{Client, TickError};
 
 use crate::stats::Latencies;
+use crate::support::spawn_peer;
 use crate::support::BenchServer;
-use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
 pub(crate) struct FailoverArgs {

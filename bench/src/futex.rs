@@ -11,7 +11,7 @@ use simbus_process::ChildGuard;
 
 use crate::stats::Latencies;
 
-use crate::tick::spawn_peer;
+use crate::support::spawn_peer;
 
 /// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
 struct SharedWords {

@@ -23,6 +23,7 @@ mod failover;
 mod fanout;
 mod frames;
 mod futex;
+mod peer;
 mod plot;
 mod recorder;
 mod sensors;
@@ -83,7 +84,7 @@ enum Command {
     FanoutPeer(fanout::FanoutPeerArgs),
     /// The other end of a baseline (used by the benchmarks).
     #[command(hide = true)]
-    Peer(tick::PeerArgs),
+    Peer(peer::PeerArgs),
 }
 
 fn main() -> ExitCode {
@@ -101,7 +102,7 @@ fn main() -> ExitCode {
         Command::Zenoh(a) => zenoh::run(a),
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
-        Command::Peer(a) => tick::peer(a),
+        Command::Peer(a) => peer::peer(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

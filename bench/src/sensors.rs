@@ -11,8 +11,8 @@ use shared_types::SensorSpec;
 use sim_client::Client;
 
 use crate::stats::{header, Latencies};
+use crate::support::spawn_peer;
 use crate::support::{now_ns, sync_ticker, BenchServer};
-use crate::tick::spawn_peer;
 
 #[derive(Debug, Args)]
 pub(crate) struct SensorsArgs {

@@ -1,5 +1,6 @@
 //! Starting a server in its own process for a benchmark.
 
+use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -151,4 +152,20 @@ pub(crate) fn burn() -> anyhow::Result<()> {
     loop {
         x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
     }
+}
+
+/// Starts this binary's hidden `peer --kind KIND --name NAME` and reads
+/// its first line (its port, or "ready").
+pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, String)> {
+    let mut child = Command::new(std::env::current_exe()?)
+        .args(["peer", "--kind", kind, "--name", name])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting the benchmark peer")?;
+    let stdout = child.stdout.take().context("peer stdout")?;
+    let guard = ChildGuard::new(child, Duration::from_secs(2));
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line)?;
+    Ok((guard, line.trim().to_owned()))
 }

@@ -7,12 +7,10 @@
 //! (c) the same exchange (an 8-byte tick, a frame header back) over TCP
 //!     loopback, the transport CARLA uses.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
 use clap::Args;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -26,7 +24,7 @@ use simbus_process::ChildGuard;
 use simbus_transport::Bus;
 
 use crate::stats::{header, Latencies};
-use crate::support::{machine_state, BackgroundLoad, BenchServer};
+use crate::support::{machine_state, spawn_peer, BackgroundLoad, BenchServer};
 
 #[derive(Debug, Args)]
 pub(crate) struct TickArgs {
@@ -49,17 +47,6 @@ pub(crate) struct TickArgs {
     /// into this PNG.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<std::path::PathBuf>,
-}
-
-/// The other end of the raw ping-pong and TCP baselines.
-#[derive(Debug, Args)]
-pub(crate) struct PeerArgs {
-    /// `iceoryx-spin`, `iceoryx-block` or `tcp`.
-    #[arg(long)]
-    kind: String,
-    /// Service prefix for the iceoryx2 kinds.
-    #[arg(long, default_value = "bench")]
-    name: String,
 }
 
 const WARMUP_FRACTION: u64 = 10;
@@ -157,67 +144,39 @@ impl<S: Service> RawPorts<S> {
     }
 }
 
-/// The hidden `peer` command: echoes (or ticks) until it is stopped.
-pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
-    match args.kind.as_str() {
-        "participant" => crate::commands::participant(&args.name),
-        "tcp-blob" => crate::sensors::tcp_blob_peer(),
-        "futex" => crate::futex::peer(&args.name),
-        "burn" => crate::support::burn(),
-        "ticker" => {
-            let client = Client::connect(&args.name, Duration::from_secs(10))?;
-            let mut ticker = client.claim_ticker_as("bench-ticker")?;
-            ticker.apply_settings(WorldSettings {
-                synchronous_mode: true,
-                fixed_delta_seconds: Some(0.01),
-                ..client.get_settings()?
-            })?;
-            println!("ready");
-            loop {
-                ticker.tick(Duration::from_secs(10))?;
-                std::thread::sleep(Duration::from_millis(1));
-            }
-        }
-        "tcp" => {
-            let listener = TcpListener::bind("127.0.0.1:0")?;
-            println!("{}", listener.local_addr()?.port());
-            let (mut stream, _) = listener.accept()?;
-            stream.set_nodelay(true)?;
-            let frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
-            let mut tick = [0u8; 8];
-            while stream.read_exact(&mut tick).is_ok() {
-                stream.write_all(&frame)?;
-            }
-            Ok(())
-        }
-        "iceoryx-bus-block" => raw_echo(raw_ports::<Bus>(&args.name, "pong", "ping")?, true),
-        kind => {
-            let ports = raw_ports::<ipc::Service>(&args.name, "pong", "ping")?;
-            raw_echo(ports, kind == "iceoryx-block")
-        }
+/// The TCP baseline's other end: a frame header back for every 8-byte tick.
+pub(crate) fn tcp_echo() -> anyhow::Result<()> {
+    let listener = TcpListener::bind("127.0.0.1:0")?;
+    println!("{}", listener.local_addr()?.port());
+    let (mut stream, _) = listener.accept()?;
+    stream.set_nodelay(true)?;
+    let frame = vec![0u8; std::mem::size_of::<FrameHeader>()];
+    let mut tick = [0u8; 8];
+    while stream.read_exact(&mut tick).is_ok() {
+        stream.write_all(&frame)?;
+    }
+    Ok(())
+}
+
+/// The raw iceoryx2 baselines' other end (`iceoryx-spin`, `iceoryx-block`,
+/// `iceoryx-bus-block`): echoes every value until stopped.
+pub(crate) fn raw_peer(kind: &str, name: &str) -> anyhow::Result<()> {
+    match kind {
+        "iceoryx-bus-block" => raw_echo(raw_ports::<Bus>(name, "pong", "ping")?, true),
+        kind => raw_echo(
+            raw_ports::<ipc::Service>(name, "pong", "ping")?,
+            kind == "iceoryx-block",
+        ),
     }
 }
 
+/// Echoes every value back until the other end stops.
 fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool) -> anyhow::Result<()> {
     println!("ready");
     loop {
         let value = ports.receive(block)?;
         ports.send(value, block)?;
     }
-}
-
-pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, String)> {
-    let mut child = Command::new(std::env::current_exe()?)
-        .args(["peer", "--kind", kind, "--name", name])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .spawn()
-        .context("starting the benchmark peer")?;
-    let stdout = child.stdout.take().context("peer stdout")?;
-    let guard = ChildGuard::new(child, Duration::from_secs(2));
-    let mut line = String::new();
-    BufReader::new(stdout).read_line(&mut line)?;
-    Ok((guard, line.trim().to_owned()))
 }
 
 /// One exchange of the benchmark: its round trip, and the processes that

@@ -1,6 +1,5 @@
 //! Commands in batches: fire and forget, or with one result per command.
 
-use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
@@ -9,6 +8,7 @@ use shared_types::{
     ServiceNames,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 
 use crate::rpc::{client_error, Pending, RequestPort, Wait};
 use crate::{Client, RequestError};

@@ -1,6 +1,5 @@
 //! [`Client`]: a connection to one simbus world.
 
-use simbus_transport::Bus;
 use std::cell::OnceCell;
 use std::time::{Duration, Instant};
 
@@ -10,10 +9,12 @@ use shared_types::{
     WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 use tracing::debug;
 
 use crate::batch::{open_batch_client, BatchClient};
 use crate::frames::FrameStream;
+use crate::on_tick::{CallbackId, TickDispatcher};
 use crate::open::{wake_notifier, OpenFailure};
 use crate::rpc::{client_error, open_service, RequestPort, Wait};
 use crate::FrameView;
@@ -104,7 +105,7 @@ pub struct Client {
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
     pub(crate) request_timeout: Duration,
-    pub(crate) dispatcher: Option<crate::on_tick::TickDispatcher>,
+    pub(crate) dispatcher: Option<TickDispatcher>,
 }
 
 /// This executable's name, as the server's logs and a revoked ticker see it.
@@ -130,16 +131,6 @@ fn default_ticker_name() -> String {
     }
 }
 
-pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
-    simbus_transport::environment::prepare().map_err(ConnectError::SharedDirectory)?;
-    let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
-    NodeBuilder::new()
-        .name(&name)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .map_err(|e| ConnectError::transport("node", e))
-}
-
 impl Client {
     /// Connects to the server of `world`, waiting up to `timeout` for it to
     /// appear and publish its current frame, which carries the protocol
@@ -151,7 +142,7 @@ impl Client {
         let world = WorldName::new(world)?;
         let deadline = Instant::now() + timeout;
         let names = ServiceNames::new(&world);
-        let node = client_node()?;
+        let node = crate::open::client_node()?;
         let mut frames =
             FrameStream::open(&node, &names, world.as_str(), deadline)?.ok_or_else(|| {
                 ConnectError::NoServer {
@@ -455,7 +446,9 @@ impl Client {
 
 impl Drop for Client {
     fn drop(&mut self) {
-        crate::on_tick::stop(self.dispatcher.take());
+        if let Some(dispatcher) = self.dispatcher.take() {
+            dispatcher.stop();
+        }
     }
 }
 
@@ -470,5 +463,27 @@ impl std::fmt::Debug for Client {
             .field("sensor_port_open", &self.sensor_port.get().is_some())
             .field("last_frame", &self.frames.last_frame())
             .finish_non_exhaustive()
+    }
+}
+
+impl Client {
+    /// Calls `callback` with every new frame, on a background thread with its
+    /// own subscription, until [`Client::remove_on_tick`] or the client drops.
+    pub fn on_tick(
+        &mut self,
+        callback: impl FnMut(&WorldSnapshot) + Send + 'static,
+    ) -> Result<CallbackId, ConnectError> {
+        let dispatcher = match &mut self.dispatcher {
+            Some(dispatcher) => dispatcher,
+            slot => slot.insert(TickDispatcher::start(&self.world, DEFAULT_REQUEST_TIMEOUT)?),
+        };
+        dispatcher.add(Box::new(callback))
+    }
+
+    /// Removes a callback; `false` if `id` was not registered.
+    pub fn remove_on_tick(&mut self, id: CallbackId) -> bool {
+        self.dispatcher
+            .as_mut()
+            .is_some_and(|dispatcher| dispatcher.remove(id))
     }
 }

@@ -2,7 +2,6 @@
 //! missed count in asynchronous mode, blocking on the frame-ready event or
 //! spinning.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -13,6 +12,7 @@ use iceoryx2::sample::Sample;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::{ActorState, FrameHeader, ServiceNames, PROTOCOL_VERSION};
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 
 use crate::open::{frame_ready_listener, open_with_retry};
 use crate::snapshot::FrameView;

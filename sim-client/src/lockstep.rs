@@ -1,7 +1,6 @@
 //! [`Participant`]: a client the server waits for, frame by frame, in
 //! synchronous mode.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use std::cell::RefCell;
@@ -11,6 +10,7 @@ use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 use tracing::{debug, info};
 
 use crate::open::{wake_notifier, OpenFailure};

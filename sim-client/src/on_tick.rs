@@ -1,4 +1,4 @@
-//! [`Client::on_tick`]: callbacks called with every new frame, on a thread
+//! [`crate::Client::on_tick`]: callbacks called with every new frame, on a thread
 //! of their own with its own subscription.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -10,15 +10,15 @@ use std::time::{Duration, Instant};
 use shared_types::{ServiceNames, WorldName};
 use tracing::warn;
 
-use crate::client::{client_node, DEFAULT_REQUEST_TIMEOUT};
 use crate::frames::FrameStream;
-use crate::{Client, ConnectError, WaitError, WorldSnapshot};
+use crate::open::client_node;
+use crate::{ConnectError, WaitError, WorldSnapshot};
 
-/// The id of a callback registered with [`Client::on_tick`].
+/// The id of a callback registered with [`crate::Client::on_tick`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct CallbackId(u64);
 
-type TickCallback = Box<dyn FnMut(&WorldSnapshot) + Send>;
+pub(crate) type TickCallback = Box<dyn FnMut(&WorldSnapshot) + Send>;
 
 /// The thread that calls `on_tick` callbacks, with its own subscription.
 pub(crate) struct TickDispatcher {
@@ -37,52 +37,44 @@ enum Registration {
     Remove(CallbackId),
 }
 
-impl Client {
-    /// Calls `callback` with every new frame, on a background thread with its
-    /// own subscription, until [`Client::remove_on_tick`] or the client drops.
-    pub fn on_tick(
-        &mut self,
-        callback: impl FnMut(&WorldSnapshot) + Send + 'static,
-    ) -> Result<CallbackId, ConnectError> {
-        let dispatcher = match &mut self.dispatcher {
-            Some(dispatcher) => dispatcher,
-            slot => slot.insert(start_dispatcher(&self.world)?),
-        };
-        dispatcher.next_id += 1;
-        let id = CallbackId(dispatcher.next_id);
-        dispatcher
-            .changes
-            .send(Registration::Add(id, Box::new(callback)))
+impl TickDispatcher {
+    /// Starts the thread, which opens its own subscription to `world`
+    /// within `timeout`.
+    pub(crate) fn start(world: &WorldName, timeout: Duration) -> Result<Self, ConnectError> {
+        start_dispatcher(world, timeout)
+    }
+
+    /// Registers `callback`, called with every frame from the next one on.
+    pub(crate) fn add(&mut self, callback: TickCallback) -> Result<CallbackId, ConnectError> {
+        self.next_id += 1;
+        let id = CallbackId(self.next_id);
+        self.changes
+            .send(Registration::Add(id, callback))
             .map_err(|_| ConnectError::transport("on_tick thread", "the thread has stopped"))?;
-        dispatcher.registered.insert(id);
+        self.registered.insert(id);
         Ok(id)
     }
 
     /// Removes a callback; `false` if `id` was not registered.
-    pub fn remove_on_tick(&mut self, id: CallbackId) -> bool {
-        let Some(dispatcher) = &mut self.dispatcher else {
-            return false;
-        };
-        if !dispatcher.registered.remove(&id) {
+    pub(crate) fn remove(&mut self, id: CallbackId) -> bool {
+        if !self.registered.remove(&id) {
             return false;
         }
         // If the thread has stopped, nothing calls the callback any more.
-        let _ = dispatcher.changes.send(Registration::Remove(id));
+        let _ = self.changes.send(Registration::Remove(id));
         true
     }
-}
 
-/// Stops the dispatcher's thread, if one runs, and waits for it.
-pub(crate) fn stop(dispatcher: Option<TickDispatcher>) {
-    if let Some(mut dispatcher) = dispatcher {
-        dispatcher.stop.store(true, Ordering::Relaxed);
-        if let Some(thread) = dispatcher.thread.take() {
+    /// Stops the dispatcher's thread and waits for it.
+    pub(crate) fn stop(mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
     }
 }
 
-fn start_dispatcher(world: &WorldName) -> Result<TickDispatcher, ConnectError> {
+fn start_dispatcher(world: &WorldName, timeout: Duration) -> Result<TickDispatcher, ConnectError> {
     let (changes, incoming) = mpsc::channel::<Registration>();
     let stop = Arc::new(AtomicBool::new(false));
     let world = world.clone();
@@ -93,7 +85,7 @@ fn start_dispatcher(world: &WorldName) -> Result<TickDispatcher, ConnectError> {
             .name("simbus-on-tick".into())
             .spawn(move || {
                 let opened = client_node().and_then(|node| {
-                    let deadline = Instant::now() + DEFAULT_REQUEST_TIMEOUT;
+                    let deadline = Instant::now() + timeout;
                     let names = ServiceNames::new(&world);
                     let stream = FrameStream::open(&node, &names, world.as_str(), deadline)?;
                     Ok((node, stream))
@@ -106,7 +98,7 @@ fn start_dispatcher(world: &WorldName) -> Result<TickDispatcher, ConnectError> {
                     Ok((_, None)) => {
                         let _ = ready_tx.send(Err(ConnectError::NoServer {
                             world: world.to_string(),
-                            timeout: DEFAULT_REQUEST_TIMEOUT,
+                            timeout,
                         }));
                         return;
                     }

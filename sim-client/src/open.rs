@@ -1,7 +1,6 @@
 //! Opening a world's services from a client, waiting while the server is
 //! still creating them.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -12,6 +11,7 @@ use iceoryx2::service::port_factory::event::PortFactory as EventService;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::ServiceNames;
 use simbus_transport::spec::{EventSpec, WorldServices};
+use simbus_transport::Bus;
 
 use crate::error::TransportError;
 use crate::{ConnectError, RequestError};
@@ -164,4 +164,16 @@ fn open_event(
         ),
         e => OpenFailure::new("event service", e),
     })
+}
+
+/// A node for this process's client ports, after the iceoryx2 environment
+/// checks.
+pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
+    simbus_transport::environment::prepare().map_err(ConnectError::SharedDirectory)?;
+    let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
+    NodeBuilder::new()
+        .name(&name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Bus>()
+        .map_err(|e| ConnectError::transport("node", e))
 }

@@ -4,7 +4,6 @@
 //! through the client's one wait loop) and checks it (protocol version,
 //! a mirror's "unreachable").
 
-use simbus_transport::Bus;
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
 
@@ -20,6 +19,7 @@ use shared_types::{
     BatchResponseHeader, CommandResult, ControlResponse, LockstepResponse, RecorderResponse,
     Response, ResponseStatus, SensorInfo, SensorResponseHeader, TickResponse, PROTOCOL_VERSION,
 };
+use simbus_transport::Bus;
 use tracing::debug;
 
 use crate::open::open_with_retry;

@@ -1,7 +1,6 @@
 //! [`Sensor`]: a subscription to one sensor's captures, read in place in
 //! shared memory.
 
-use simbus_transport::Bus;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
@@ -18,6 +17,7 @@ use shared_types::{
     SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
 use crate::rpc::{client_error, RequestPort};

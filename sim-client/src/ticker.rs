@@ -1,6 +1,5 @@
 //! [`Ticker`]: tick ownership of a world, and the ticks themselves.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -10,6 +9,7 @@ use shared_types::{
     WorldName, WorldSettings,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, wake_notifier};

@@ -3,12 +3,12 @@
 //! block on an event, back off, or spin, until the deadline — and end early
 //! when the server process is gone.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 
 use crate::WaitMode;
+use simbus_transport::Bus;
 
 /// Whether the process `pid` still runs (a zombie does not): how a client
 /// notices that its server died. Linux reads `/proc`; elsewhere every

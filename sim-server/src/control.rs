@@ -2,7 +2,6 @@
 //! reload) and the wake-up event clients notify after any request — the
 //! one place the server loop sleeps.
 
-use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -12,6 +11,7 @@ use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, WorldName,
     WorldSettings, PROTOCOL_VERSION,
 };
+use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::ports::Transport;

@@ -2,7 +2,6 @@
 //! in synchronous mode (CARLA's Traffic Manager, kept in step by the bus),
 //! their service, and what happens to one that dies or hangs.
 
-use simbus_transport::Bus;
 use std::time::{Duration, Instant};
 
 use bytemuck::Zeroable;
@@ -13,6 +12,7 @@ use shared_types::{
     FixedText, LockstepKind, LockstepRequest, LockstepResponse, ParticipantStatus, ResponseStatus,
     PROTOCOL_VERSION, REPORTED_PARTICIPANTS,
 };
+use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;

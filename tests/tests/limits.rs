@@ -4,7 +4,6 @@
 //! it; a watcher holds only a frame subscription and a listener, so it uses
 //! none of the ports that commands, sensors and the lockstep need.
 
-use simbus_transport::Bus;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
@@ -15,6 +14,7 @@ use shared_types::{
 use sim_client::{Client, ConnectError, RequestError, SensorError};
 use simbus_tests::raw::{batch_service, control_service, service_name, service_names};
 use simbus_tests::{client, Proc, TestWorld};
+use simbus_transport::Bus;
 
 const T: Duration = Duration::from_secs(60);
 

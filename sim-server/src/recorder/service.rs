@@ -6,8 +6,6 @@
 //! and its world built (off the frame loop, by the replayer); meanwhile
 //! the world goes on, and the request waits here for its answer.
 
-use simbus_transport::Bus;
-
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
@@ -15,6 +13,7 @@ use shared_types::{
     PathText, RecorderKind, RecorderRequest, RecorderResponse, ReplayMode, ResponseStatus,
     PROTOCOL_VERSION,
 };
+use simbus_transport::Bus;
 use tracing::{debug, warn};
 
 use super::Refused;

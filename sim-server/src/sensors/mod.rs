@@ -28,7 +28,6 @@ fn default_world_in_motion() -> (World, u64) {
     (world, vehicle)
 }
 
-use simbus_transport::Bus;
 use std::mem::MaybeUninit;
 
 use iceoryx2::port::publisher::Publisher;
@@ -41,6 +40,7 @@ use shared_types::{
     SensorSpec, PROTOCOL_VERSION,
 };
 use simbus_recording::RecordedSensor;
+use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;

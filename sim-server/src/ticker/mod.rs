@@ -4,7 +4,6 @@
 
 mod ownership;
 
-use simbus_transport::Bus;
 use std::collections::VecDeque;
 use std::time::Duration;
 
@@ -15,6 +14,7 @@ use shared_types::{
     CommandResult, FixedText, ResponseStatus, TickRequest, TickRequestKind, TickResponse,
     TickerInfo, WorldSettings, PROTOCOL_VERSION,
 };
+use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 pub(crate) use ownership::{Owner, TickOwnership};

@@ -1,0 +1,45 @@
+//! The hidden `peer` command: the other end of every baseline and the
+//! helper processes of the benchmarks, each in its own process.
+
+use std::time::Duration;
+
+use clap::Args;
+use shared_types::WorldSettings;
+use sim_client::Client;
+
+/// The other end of the raw ping-pong and TCP baselines.
+#[derive(Debug, Args)]
+pub(crate) struct PeerArgs {
+    /// `iceoryx-spin`, `iceoryx-block` or `tcp`.
+    #[arg(long)]
+    kind: String,
+    /// Service prefix for the iceoryx2 kinds.
+    #[arg(long, default_value = "bench")]
+    name: String,
+}
+
+/// The hidden `peer` command: echoes (or ticks) until it is stopped.
+pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
+    match args.kind.as_str() {
+        "participant" => crate::commands::participant(&args.name),
+        "tcp-blob" => crate::sensors::tcp_blob_peer(),
+        "futex" => crate::futex::peer(&args.name),
+        "burn" => crate::support::burn(),
+        "ticker" => {
+            let client = Client::connect(&args.name, Duration::from_secs(10))?;
+            let mut ticker = client.claim_ticker_as("bench-ticker")?;
+            ticker.apply_settings(WorldSettings {
+                synchronous_mode: true,
+                fixed_delta_seconds: Some(0.01),
+                ..client.get_settings()?
+            })?;
+            println!("ready");
+            loop {
+                ticker.tick(Duration::from_secs(10))?;
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        "tcp" => crate::tick::tcp_echo(),
+        kind => crate::tick::raw_peer(kind, &args.name),
+    }
+}

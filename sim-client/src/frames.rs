@@ -184,44 +184,163 @@ impl Poller<'_> {
     /// sees every frame once. Otherwise, in asynchronous mode, the queue is
     /// drained and only the newest frame is returned, with the number of
     /// frames skipped in [`WorldSnapshot::missed`].
+    ///
+    /// The last frame handed out is the only reference for that count: a
+    /// frame taken off the queue but not handed out (the receive after it
+    /// failed) waits in the stash for the next call, so no frame between
+    /// two handed-out ones goes uncounted.
     fn next(&mut self) -> Result<Option<FrameView>, WaitError> {
-        let previous = *self.last;
-        let mut newest = None;
-        while let Some(sample) = match self.stash.take() {
-            Some(sample) => Some(sample),
-            None => self
-                .subscriber
-                .receive()
-                .map_err(|e| WaitError::transport("frame receive", e))?,
-        } {
+        let mut newest: Option<(FrameSample, (u64, u64))> = None;
+        loop {
+            let sample = match self.stash.take() {
+                Some(sample) => sample,
+                None => match self.subscriber.receive() {
+                    Ok(Some(sample)) => sample,
+                    Ok(None) => break,
+                    Err(e) => {
+                        *self.stash = newest.map(|(sample, _)| sample);
+                        return Err(WaitError::transport("frame receive", e));
+                    }
+                },
+            };
             let header = *sample.user_header();
             if header.protocol_version != PROTOCOL_VERSION {
+                *self.stash = newest.map(|(sample, _)| sample);
                 return Err(WaitError::ProtocolMismatch {
                     got: header.protocol_version,
                     client: PROTOCOL_VERSION,
                 });
             }
             let key = (header.episode, header.timestamp.frame);
-            if self.last.is_some_and(|last| key <= last) {
+            let seen = newest.as_ref().map(|(_, key)| *key).or(*self.last);
+            if seen.is_some_and(|seen| key <= seen) {
                 continue; // already seen (history replay on connect)
             }
-            *self.last = Some(key);
             let in_order = self.every_frame || header.settings.synchronous_mode != 0;
-            newest = Some(sample);
+            // A skipped sample is released here; the newest is handed out in place.
+            newest = Some((sample, key));
             if in_order {
                 break; // one at a time
             }
         }
-        // The newest sample is handed out in place; skipped ones were just released.
-        Ok(newest.map(|sample| {
-            let header = *sample.user_header();
-            let missed = match previous {
-                Some((episode, frame)) if episode == header.episode => {
-                    header.timestamp.frame.saturating_sub(frame + 1)
-                }
-                _ => 0,
-            };
+        Ok(newest.map(|(sample, key)| {
+            let missed = missed_between(*self.last, key);
+            *self.last = Some(key);
             FrameView::new(sample, missed)
         }))
+    }
+}
+
+/// Frames never handed out between the last one handed out (`previous`,
+/// as (episode, frame)) and `next`: 0 before a client's first frame and
+/// at the first frame of a new episode, whose ids start again.
+fn missed_between(previous: Option<(u64, u64)>, next: (u64, u64)) -> u64 {
+    match previous {
+        Some((episode, frame)) if episode == next.0 => {
+            next.1.saturating_sub(frame.saturating_add(1))
+        }
+        _ => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use iceoryx2::port::publisher::Publisher;
+    use iceoryx2::port::update_connections::UpdateConnections;
+    use shared_types::limits::WorldLimits;
+    use shared_types::WorldName;
+
+    const T: Duration = Duration::from_secs(5);
+
+    #[test]
+    fn a_gap_after_the_first_frame_is_counted() {
+        // The first frame (0, from history), then frame 2: frame 1 missed.
+        assert_eq!(missed_between(None, (1, 0)), 0);
+        assert_eq!(missed_between(Some((1, 0)), (1, 2)), 1);
+        assert_eq!(missed_between(Some((1, 0)), (1, 1)), 0);
+        // A new episode starts its ids again.
+        assert_eq!(missed_between(Some((1, 40)), (2, 0)), 0);
+        // A hostile frame id does not overflow.
+        assert_eq!(missed_between(Some((1, u64::MAX)), (1, u64::MAX)), 0);
+    }
+
+    fn node(name: &str) -> Node<Bus> {
+        simbus_transport::environment::prepare().expect("iceoryx2 environment");
+        NodeBuilder::new()
+            .name(&NodeName::new(name).unwrap())
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Bus>()
+            .expect("node")
+    }
+
+    /// Publishes asynchronous-mode frame `frame` of episode 1, no actors.
+    fn publish(publisher: &Publisher<Bus, [ActorState], FrameHeader>, frame: u64) {
+        let mut sample = publisher.loan_slice_uninit(0).unwrap();
+        *sample.user_header_mut() = FrameHeader {
+            protocol_version: PROTOCOL_VERSION,
+            episode: 1,
+            timestamp: shared_types::Timestamp {
+                frame,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        sample
+            .write_from_fn(|_| ActorState::default())
+            .send()
+            .unwrap();
+    }
+
+    /// A receive that fails after a frame was taken off the queue (here:
+    /// the reader holds every sample it may borrow) loses that frame no
+    /// more: the next frame handed out counts it as missed.
+    #[test]
+    fn a_frame_taken_before_a_failed_receive_is_not_lost_from_the_count() {
+        let world = WorldName::new(&format!("frames-gap-{}", std::process::id())).unwrap();
+        let names = ServiceNames::new(&world);
+        let specs = WorldServices::new(&names).unwrap();
+        let server = node("frames-server");
+        let limits = WorldLimits::default();
+        let frames = specs.frames.create(&server, &limits).unwrap();
+        let publisher = specs.frames.publisher(&frames, 1).unwrap();
+        let _ready = specs.frame_ready.create(&server, &limits).unwrap();
+        publish(&publisher, 0);
+
+        let client = node("frames-client");
+        let deadline = Instant::now() + T;
+        let mut stream = FrameStream::open(&client, &names, world.as_str(), deadline)
+            .unwrap()
+            .expect("the world's services exist");
+        publisher.update_connections().unwrap(); // delivers frame 0 (history)
+        assert_eq!(
+            stream
+                .first_header(deadline)
+                .unwrap()
+                .unwrap()
+                .timestamp
+                .frame,
+            0
+        );
+
+        // Frames 0, 1 and 2 handed out and held: one sample left to borrow.
+        let mut held = vec![stream.next(T, world.as_str(), None).unwrap()];
+        for frame in 1..=2 {
+            publish(&publisher, frame);
+            held.push(stream.next(T, world.as_str(), None).unwrap());
+        }
+        assert_eq!(
+            held.iter()
+                .map(|v| (v.frame(), v.missed()))
+                .collect::<Vec<_>>(),
+            [(0, 0), (1, 0), (2, 0)]
+        );
+        // Frame 3 takes the last borrow; receiving frame 4 then fails.
+        publish(&publisher, 3);
+        publish(&publisher, 4);
+        assert!(stream.next(T, world.as_str(), None).is_err());
+        drop(held);
+        let next = stream.next(T, world.as_str(), None).unwrap();
+        assert_eq!((next.frame(), next.missed()), (4, 1), "frame 3 counted");
     }
 }

@@ -119,6 +119,9 @@ pub struct WorldSnapshot {
     pub actors: Vec<ActorState>,
     /// Frames published between the previous snapshot this client received
     /// and this one that it never saw (always 0 for a reader that keeps up).
+    /// From a client's first snapshot on, each next one is the frame after
+    /// it or says how many frames lay between; a new episode's ids start
+    /// again, so its first snapshot counts from there.
     pub missed: u64,
 }
 

@@ -56,6 +56,9 @@ pub enum GatewayError {
         #[source]
         source: std::io::Error,
     },
+    /// The RPC listener and the stop could not be waited on.
+    #[error("waiting for CARLA clients")]
+    Wait(#[source] std::io::Error),
 }
 
 impl GatewayError {

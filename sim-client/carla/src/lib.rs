@@ -19,11 +19,11 @@ mod error;
 mod rpc;
 mod sensors;
 mod session;
+mod stop;
 mod stream;
 pub mod wire;
 
 use std::net::TcpListener;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -32,13 +32,13 @@ use tracing::{info, warn};
 
 pub use error::GatewayError;
 use session::Session;
+pub use stop::Stop;
+use stop::Woken;
 use stream::Hub;
 
 /// The stack of a connection's thread: room for a batch's `.then(...)` and
 /// the simbus client's calls, whatever the build.
 const SESSION_STACK: usize = 8 << 20;
-/// How often [`serve`] reads its stop flag.
-const STOP_CHECK: Duration = Duration::from_millis(100);
 
 /// Where to serve CARLA clients, and how long to wait for the world.
 #[derive(Debug, Clone)]
@@ -82,14 +82,15 @@ pub fn streaming_port(port: u16, explicit: Option<u16>) -> Result<u16, GatewayEr
     }
 }
 
-/// Serves `world` to CARLA clients until `stop` is set; `on_listening` is
-/// told the ports bound once both listeners are. The listeners' and
-/// connections' threads end with the process (the server sees the
-/// gateway's tick ownership and ports go with it).
+/// Serves `world` to CARLA clients until `stop` is given; `on_listening`
+/// is told the ports bound once both listeners are. The calling thread
+/// accepts the CARLA connections, waking only for a connection or the
+/// stop. The streams' and connections' threads end with the process (the
+/// server sees the gateway's tick ownership and ports go with it).
 pub fn serve(
     world: &WorldName,
     config: &Config,
-    stop: &AtomicBool,
+    stop: &Stop,
     on_listening: impl FnOnce(&Listening),
 ) -> Result<(), GatewayError> {
     let streaming_port = streaming_port(config.port, config.streaming_port)?;
@@ -116,6 +117,8 @@ pub fn serve(
         port: address("RPC", &rpc)?,
         streaming_port: address("streaming", &streams)?,
     };
+    // Accepted without blocking once `stop::wait` said one waits.
+    rpc.set_nonblocking(true).map_err(GatewayError::Wait)?;
     let hub = Arc::new(Hub::default());
     {
         let hub = hub.clone();
@@ -126,35 +129,58 @@ pub fn serve(
         std::thread::spawn(move || stream::pump(world, hub));
     }
     on_listening(&listening);
-    let (world, timeout) = (world.to_string(), config.timeout);
-    std::thread::spawn(move || accept(rpc, world, timeout, listening.streaming_port, hub));
-    while !stop.load(Ordering::Relaxed) {
-        std::thread::sleep(STOP_CHECK);
+    let sessions = Sessions {
+        world: world.to_string(),
+        timeout: config.timeout,
+        streaming_port: listening.streaming_port,
+        hub,
+    };
+    // The one wait point: a connection, or the stop.
+    while stop::wait(&rpc, stop).map_err(GatewayError::Wait)? == Woken::Connection {
+        sessions.accept(&rpc);
     }
     info!("carla-gateway stopped");
     Ok(())
 }
 
-/// Accepts CARLA connections, each served on its own thread.
-fn accept(rpc: TcpListener, world: String, timeout: Duration, streaming_port: u16, hub: Arc<Hub>) {
-    for socket in rpc.incoming() {
-        let socket = match socket {
-            Ok(socket) => socket,
-            Err(e) => {
-                warn!("accepting a CARLA client: {e}");
+/// What every CARLA connection's session is started with.
+#[derive(Debug)]
+struct Sessions {
+    world: String,
+    timeout: Duration,
+    streaming_port: u16,
+    hub: Arc<Hub>,
+}
+
+impl Sessions {
+    /// Accepts the connections waiting on `rpc` (non-blocking), each
+    /// served on its own thread.
+    fn accept(&self, rpc: &TcpListener) {
+        loop {
+            let (socket, peer) = match rpc.accept() {
+                Ok(accepted) => accepted,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
+                Err(e) => {
+                    warn!("accepting a CARLA client: {e}");
+                    return;
+                }
+            };
+            // Some systems hand the listener's non-blocking mode on.
+            if let Err(e) = socket.set_nonblocking(false) {
+                warn!(%peer, "dropping a CARLA client: {e}");
                 continue;
             }
-        };
-        let Ok(peer) = socket.peer_addr() else {
-            continue;
-        };
-        let (world, hub) = (world.clone(), hub.clone());
-        let spawned = std::thread::Builder::new()
-            .name("carla-session".into())
-            .stack_size(SESSION_STACK)
-            .spawn(move || Session::new(world, timeout, peer, streaming_port, hub).serve(socket));
-        if let Err(e) = spawned {
-            warn!("no thread for a CARLA client: {e}");
+            let (world, hub) = (self.world.clone(), self.hub.clone());
+            let (timeout, streaming_port) = (self.timeout, self.streaming_port);
+            let spawned = std::thread::Builder::new()
+                .name("carla-session".into())
+                .stack_size(SESSION_STACK)
+                .spawn(move || {
+                    Session::new(world, timeout, peer, streaming_port, hub).serve(socket)
+                });
+            if let Err(e) = spawned {
+                warn!("no thread for a CARLA client: {e}");
+            }
         }
     }
 }

@@ -17,6 +17,16 @@ use crate::error::{CallError, Source};
 use crate::stream::{lock, Hub};
 use crate::wire::{self as carla, SENSOR_ID_BASE};
 
+/// A forwarder's wait for a capture while no token is pending: none in
+/// effect (it ends with a capture, the sensor, the server or its
+/// listeners, never by the clock); finite only because a wait's deadline
+/// is an `Instant`.
+const NO_DEADLINE: Duration = Duration::from_secs(24 * 60 * 60);
+/// The longest a capture waits for its frame's world state to go out
+/// first (see [`Hub::after_world_state`]); past it, it goes anyway (the
+/// world stream lags, or lost its server).
+const WORLD_STATE_FIRST: Duration = Duration::from_millis(200);
+
 /// The CARLA actor id (and stream id) of simbus sensor `id`.
 pub(crate) fn carla_id(simbus_id: u64) -> Option<u32> {
     u32::try_from(simbus_id)
@@ -95,10 +105,13 @@ fn forward(
     let _ = ready.send(Ok(()));
     info!(sensor = simbus_id, "forwarding a sensor to CARLA listeners");
     loop {
-        match sensor.recv(Duration::from_millis(500)) {
+        // The one wait point: a capture, the sensor's or the server's end,
+        // or a handed-out token giving up on its connection.
+        let patience = hub.patience(stream).unwrap_or(NO_DEADLINE);
+        match sensor.recv(patience) {
             Ok(capture) => {
                 let h = capture.header();
-                hub.after_world_state(server_pid, h.episode, h.frame, Duration::from_millis(200));
+                hub.after_world_state(server_pid, h.episode, h.frame, WORLD_STATE_FIRST);
                 if let Some(message) = message(&capture, &spec) {
                     hub.send(stream, &message);
                 }

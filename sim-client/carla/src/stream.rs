@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use rmpv::Value;
 use shared_types::SensorSpec;
-use sim_client::{Client, FrameView};
+use sim_client::{Client, ConnectError, FrameView};
 use tracing::{debug, info, warn};
 
 use crate::convert;
@@ -26,6 +26,13 @@ const PENDING_FOR: Duration = Duration::from_secs(10);
 /// Captures kept for a listener between `get_sensor_token` and its
 /// connection (the captures of the ticks in between).
 const BACKLOG: usize = 32;
+/// How long the world stream's connection waits for the world's server.
+const SERVER_WAIT: Duration = Duration::from_secs(5);
+/// How long the world stream waits before it connects again after a
+/// connection refused at once (the world full of clients, a server of
+/// another protocol version, a broken shared directory): nothing
+/// announces that this changed, so this is a retry delay, not a wait.
+const RETRY_AFTER: Duration = Duration::from_millis(200);
 
 /// What the gateway knows about one actor of the last frame.
 #[derive(Debug, Clone, Copy, Default)]
@@ -159,6 +166,21 @@ impl Hub {
             .wait_timeout_while(sent, timeout, |&mut (p, e, f)| {
                 p == server_pid && e == episode && f < frame
             });
+    }
+
+    /// How long a forwarder of `stream` may wait for a capture before it
+    /// must look again whether anyone still listens: until the earliest
+    /// handed-out token gives up on its connection. `None` while no token
+    /// is pending: then only the forwarder's own failed write (or the
+    /// sensor's end) can leave the stream without readers.
+    pub(crate) fn patience(&self, stream: u32) -> Option<Duration> {
+        let mut streams = lock(&self.streams);
+        let s = streams.get_mut(&stream)?;
+        s.expecting();
+        s.pending
+            .iter()
+            .map(|at| PENDING_FOR.saturating_sub(at.elapsed()))
+            .min()
     }
 
     /// Whether a forwarder of `stream` may stop: nobody reads or is about
@@ -323,11 +345,13 @@ fn sensor_pose(
 /// reconnects when the server comes back.
 pub(crate) fn pump(world: String, hub: Arc<Hub>) {
     loop {
-        let mut client = match Client::connect(&world, Duration::from_secs(5)) {
+        let mut client = match Client::connect(&world, SERVER_WAIT) {
             Ok(client) => client,
             Err(e) => {
                 debug!("world stream waits for the server: {e}");
-                std::thread::sleep(Duration::from_millis(200));
+                if !waited_for_the_server(&e) {
+                    std::thread::sleep(RETRY_AFTER);
+                }
                 continue;
             }
         };
@@ -344,6 +368,16 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
             }
         }
     }
+}
+
+/// Whether a failed connection waited its whole [`SERVER_WAIT`] for the
+/// world's server (none came, or it did not answer): then it is tried
+/// again at once, the connection being the wait.
+fn waited_for_the_server(e: &ConnectError) -> bool {
+    matches!(
+        e,
+        ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. }
+    )
 }
 
 /// Sends the world state of `frame` (of the server `server_pid`) unless a

@@ -15,6 +15,11 @@ use crate::sensors;
 use crate::stream::lock;
 use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
 
+/// The longest [`Session::publish`] waits for the frame its tick stepped
+/// (already in shared memory when the tick returns, so in practice no
+/// wait); past it the world stream's pump sends that frame instead.
+const STEPPED_FRAME: Duration = Duration::from_millis(5);
+
 /// A minimal OpenDRIVE map: one straight two-lane road. CARLA's client
 /// builds its map from it (`world.get_map()`); simbus scenes have no roads.
 const OPENDRIVE: &str = r#"<?xml version="1.0" standalone="yes"?>
@@ -195,7 +200,7 @@ impl Session {
         let pid = client.server_pid();
         // The frame is in shared memory already: older queued ones are
         // skipped without waiting.
-        while let Ok(view) = client.wait_for_frame(Duration::from_millis(5)) {
+        while let Ok(view) = client.wait_for_frame(STEPPED_FRAME) {
             if view.frame() >= frame {
                 crate::stream::publish(&self.hub, &view, pid);
                 return;

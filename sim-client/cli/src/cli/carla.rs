@@ -3,11 +3,12 @@
 //! command prints.
 
 use std::io::Write;
+use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
 use shared_types::WorldName;
-use simbus_carla::{Config, GatewayError};
+use simbus_carla::{Config, GatewayError, Stop};
 
 use crate::Failure;
 
@@ -41,8 +42,13 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         timeout,
     };
     let host = config.host.as_str();
-    // Ctrl-C / SIGTERM end the gateway.
-    simbus_carla::serve(world, &config, super::interrupted(), |listening| {
+    // Ctrl-C / SIGTERM end the gateway: they wake it, it never polls.
+    let stop = Stop::new()
+        .map_err(|e| Failure::Runtime(anyhow::Error::new(e).context("the gateway's stop")))?;
+    let stop = Arc::new(stop);
+    let waker = stop.clone();
+    super::on_interrupt(move || waker.stop());
+    simbus_carla::serve(world, &config, &stop, |listening| {
         let (port, streaming_port) = (listening.port, listening.streaming_port);
         if args.json {
             println!(

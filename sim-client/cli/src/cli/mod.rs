@@ -70,17 +70,47 @@ use simbus_input::Readable;
 
 use crate::Failure;
 
+/// What Ctrl-C / SIGTERM call besides setting [`interrupted`].
+type Wake = Box<dyn Fn() + Send>;
+
+/// The [`Wake`]s given to [`on_interrupt`].
+fn wakes() -> &'static std::sync::Mutex<Vec<Wake>> {
+    static WAKES: OnceLock<std::sync::Mutex<Vec<Wake>>> = OnceLock::new();
+    WAKES.get_or_init(Default::default)
+}
+
 /// Set by Ctrl-C / SIGTERM; commands stop at their next check.
 pub(crate) fn interrupted() -> &'static AtomicBool {
     static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
     FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
         let handler_flag = flag.clone();
-        if let Err(e) = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed)) {
+        let handler = move || {
+            handler_flag.store(true, Ordering::Relaxed);
+            let wakes = wakes().lock().unwrap_or_else(|e| e.into_inner());
+            wakes.iter().for_each(|wake| wake());
+        };
+        if let Err(e) = ctrlc::set_handler(handler) {
             tracing::warn!("could not install the Ctrl-C handler: {e}");
         }
         flag
     })
+}
+
+/// Calls `wake` on Ctrl-C / SIGTERM (at once if one came already): for a
+/// command that blocks on an event of its own instead of reading
+/// [`interrupted`].
+pub(crate) fn on_interrupt(wake: impl Fn() + Send + Sync + 'static) {
+    let flag = interrupted();
+    let wake = Arc::new(wake);
+    let registered = wake.clone();
+    wakes()
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(Box::new(move || registered()));
+    if flag.load(Ordering::Relaxed) {
+        wake();
+    }
 }
 
 /// Waits up to `timeout` with `wait` called in slices of at most 200 ms,

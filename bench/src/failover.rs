@@ -1,5 +1,6 @@
 //! `failover`: how long after a ticker is SIGKILLed the server notices, and
-//! how long until a new ticker holds ownership.
+//! how long until a new ticker holds ownership: one that claims after the
+//! kill, and a standby ticker queued before it.
 
 use std::time::{Duration, Instant};
 
@@ -9,6 +10,7 @@ use sim_client::{Client, TickError};
 use crate::stats::Latencies;
 use crate::support::spawn_peer;
 use crate::support::BenchServer;
+use simbus_process::ChildGuard;
 
 #[derive(Debug, Args)]
 pub(crate) struct FailoverArgs {
@@ -20,14 +22,43 @@ pub(crate) struct FailoverArgs {
     json: bool,
 }
 
-/// Starts a ticker process, waits until it ticks, SIGKILLs it, and returns
-/// the instant of the kill.
-fn kill_a_ticker(world: &str) -> anyhow::Result<Instant> {
-    let (mut ticker, ready) = spawn_peer("ticker", world)?;
+/// Starts a ticker process and waits until it ticks.
+fn start_a_ticker(world: &str) -> anyhow::Result<ChildGuard> {
+    let (ticker, ready) = spawn_peer("ticker", world)?;
     anyhow::ensure!(ready == "ready", "the ticker did not start: {ready}");
+    Ok(ticker)
+}
+
+/// Lets `ticker` tick a while, SIGKILLs it, and returns the instant of the kill.
+fn kill(mut ticker: ChildGuard) -> anyhow::Result<Instant> {
     std::thread::sleep(Duration::from_millis(20));
     ticker.kill()?;
     Ok(Instant::now())
+}
+
+/// Starts a ticker process, waits until it ticks, SIGKILLs it, and returns
+/// the instant of the kill.
+fn kill_a_ticker(world: &str) -> anyhow::Result<Instant> {
+    kill(start_a_ticker(world)?)
+}
+
+/// A standby ticker, its ports open and its claim queued before the kill:
+/// when [`sim_client::StandbyTicker::wait`] returns the ticker.
+fn standby_takes_over(client: &Client, world: &str, trials: u64) -> anyhow::Result<Latencies> {
+    let mut taken = Latencies::new();
+    for _ in 0..trials {
+        let owner = start_a_ticker(world)?;
+        let standby = client.standby_ticker()?;
+        anyhow::ensure!(
+            standby.owner().is_some(),
+            "the standby was not queued behind the ticker"
+        );
+        let killed = kill(owner)?;
+        let ticker = standby.wait(Duration::from_secs(10))?;
+        taken.record(killed.elapsed().as_nanos() as u64);
+        ticker.release()?;
+    }
+    Ok(taken)
 }
 
 pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
@@ -69,6 +100,9 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
         ticker.release()?;
     }
 
+    // (3) The same with a standby ticker waiting.
+    let standby = standby_takes_over(&client, &server.world, args.trials)?;
+
     // The reference: claiming a free world (the new ticker's own setup:
     // its node, ports and the claim round trip).
     let mut free_claim = Latencies::new();
@@ -86,6 +120,7 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
                 "trials": args.trials,
                 "server_notices_dead_ticker": noticed.json(),
                 "new_ticker_claims": replaced.json(),
+                "standby_ticker_takes_over": standby.json(),
                 "claim_of_a_free_world": free_claim.json(),
             })
         );
@@ -98,6 +133,7 @@ pub(crate) fn run(args: FailoverArgs) -> anyhow::Result<()> {
     println!("{:<28} {:>10} {:>10}", "after the kill", "p50 ms", "max ms");
     println!("{}", noticed.row_ms("server notices (status)"));
     println!("{}", replaced.row_ms("a new ticker holds it"));
+    println!("{}", standby.row_ms("a standby holds it"));
     println!("{}", free_claim.row_ms("(claim of a free world)"));
     Ok(())
 }

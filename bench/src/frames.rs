@@ -1,4 +1,5 @@
-//! `frames`: server throughput and snapshot delivery latency.
+//! `frames`: server throughput, snapshot delivery latency, and the bus as the
+//! world grows (the scaling rows, in `scaling.rs`).
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
@@ -19,6 +20,16 @@ pub(crate) struct FramesArgs {
     /// Print one JSON object instead of tables.
     #[arg(long)]
     json: bool,
+    /// Scaling rows: `boxes:N` worlds timed against rapier's own step
+    /// (N boxes and the ground: N + 1 actors).
+    #[arg(long, value_delimiter = ',', default_value = "9,99,999,9999")]
+    scale_boxes: Vec<u32>,
+    /// Scaling rows: frames timed per world (0.01 s each: falling, then resting).
+    #[arg(long, default_value_t = 300)]
+    scale_frames: usize,
+    /// Scaling rows: frames the reader process reads in place per world.
+    #[arg(long, default_value_t = 200)]
+    scale_reads: u64,
 }
 
 /// Frames per second of an unpaced async fixed-step server (0.01 s) with no
@@ -93,6 +104,8 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
     // The floor under the same conditions: a round trip every millisecond.
     let floor = crate::futex::floor(args.samples, Duration::from_millis(1))?;
     let hop = floor.quantile_us(0.5) / 2.0;
+    let load = crate::support::load_average();
+    let scaling = crate::scaling::rows(&args.scale_boxes, args.scale_frames, args.scale_reads)?;
 
     if args.json {
         let fps_json: Vec<_> = fps
@@ -108,6 +121,8 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
                 "wait_for_tick": {"block": block.json(), "spin": spin.json()},
                 "futex_round_trip_every_ms": floor.json(),
                 "block_over_futex_hop_p50": block.quantile_us(0.5) / hop,
+                "scaling": crate::scaling::json(&scaling),
+                "load_average": load,
             })
         );
         return Ok(());
@@ -137,5 +152,8 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
         block.quantile_us(0.5) / spin.quantile_us(0.5).max(0.001),
         block.quantile_us(0.5) / hop
     );
+    println!();
+    crate::scaling::print(&scaling, args.scale_frames);
+    println!("load average before the scaling rows: {load}");
     Ok(())
 }

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p simbus-bench -- tick [--iterations N] [--json]
-//! cargo run --release -p simbus-bench -- frames [--samples N] [--json]
+//! cargo run --release -p simbus-bench -- frames [--samples N] [--scale-boxes N,..] [--json]
 //! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
 //! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
 //! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
@@ -17,6 +17,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod breakdown;
 mod carla;
 mod commands;
 mod failover;
@@ -26,6 +27,7 @@ mod futex;
 mod peer;
 mod plot;
 mod recorder;
+mod scaling;
 mod sensors;
 mod stats;
 mod substeps;
@@ -45,8 +47,9 @@ struct Args {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Server frames per second (empty, boxes:1000) and wait_for_tick
-    /// latency, blocking and spinning.
+    /// Server frames per second (empty, boxes:1000), wait_for_tick
+    /// latency, blocking and spinning, and the bus's cost over rapier's step
+    /// as the world grows (10 to 10 000 actors).
     Frames(frames::FramesArgs),
     /// Tick round trip: raw iceoryx2 ping-pong (the floor), simbus spin and
     /// blocking, and the same exchange over TCP loopback.

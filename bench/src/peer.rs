@@ -16,6 +16,9 @@ pub(crate) struct PeerArgs {
     /// Service prefix for the iceoryx2 kinds.
     #[arg(long, default_value = "bench")]
     name: String,
+    /// Frames the `frame-reader` reads before it reports.
+    #[arg(long, default_value_t = 200)]
+    samples: u64,
 }
 
 /// The hidden `peer` command: echoes (or ticks) until it is stopped.
@@ -25,6 +28,7 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
         "tcp-blob" => crate::sensors::tcp_blob_peer(),
         "futex" => crate::futex::peer(&args.name),
         "burn" => crate::support::burn(),
+        "frame-reader" => crate::scaling::reader(&args.name, args.samples),
         "ticker" => {
             let client = Client::connect(&args.name, Duration::from_secs(10))?;
             let mut ticker = client.claim_ticker_as("bench-ticker")?;

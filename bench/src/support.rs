@@ -57,10 +57,20 @@ impl BenchServer {
 
     /// Starts `sim-server --world <unique> <args>` and waits until it answers.
     pub(crate) fn start(tag: &str, args: &[&str]) -> anyhow::Result<Self> {
+        Self::start_with_env(tag, args, &[])
+    }
+
+    /// [`BenchServer::start`] with `env` added to the server's environment.
+    pub(crate) fn start_with_env(
+        tag: &str,
+        args: &[&str],
+        env: &[(&str, &std::ffi::OsStr)],
+    ) -> anyhow::Result<Self> {
         let world = format!("bench-{tag}-{}", std::process::id());
         let child = Command::new(sibling("sim-server")?)
             .args(["--world", &world])
             .args(args)
+            .envs(env.iter().copied())
             .env("RUST_LOG", "error")
             .stdin(Stdio::null())
             .stdout(Stdio::null())
@@ -73,6 +83,110 @@ impl BenchServer {
             _guard: guard,
         })
     }
+
+    /// Stops the server (SIGTERM) and waits until it has exited.
+    pub(crate) fn stop(mut self) -> anyhow::Result<()> {
+        let status = self._guard.stop()?;
+        anyhow::ensure!(status.success(), "the benchmark server ended with {status}");
+        Ok(())
+    }
+}
+
+/// Where a benchmark's processes run: all on one CPU, the benchmark and
+/// its peers on two different CPUs, or wherever the scheduler puts them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Placement {
+    /// Every process on CPU 0.
+    Same,
+    /// The measuring process on CPU 0, its peers (the server) on CPU 1.
+    Split,
+    /// No pinning.
+    Unpinned,
+}
+
+impl Placement {
+    /// The placements `all` stands for, in the order they are measured.
+    pub(crate) const ALL: [Placement; 3] = [Placement::Same, Placement::Split, Placement::Unpinned];
+
+    /// The placement's name in tables.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Placement::Same => "same CPU",
+            Placement::Split => "two CPUs",
+            Placement::Unpinned => "unpinned",
+        }
+    }
+
+    /// Pins this process (every thread) and `peers` (every thread of
+    /// each) as the placement says; unpinned undoes earlier pinning.
+    pub(crate) fn apply(self, peers: &[u32]) -> anyhow::Result<()> {
+        let all: Vec<usize> = (0..cpu_count()).collect();
+        let (mine, theirs) = match self {
+            Placement::Same => (vec![0], vec![0]),
+            Placement::Split => {
+                anyhow::ensure!(all.len() >= 2, "--placement split needs two CPUs");
+                (vec![0], vec![1])
+            }
+            Placement::Unpinned => (all.clone(), all),
+        };
+        pin(std::process::id(), &mine)?;
+        for &peer in peers {
+            pin(peer, &theirs)?;
+        }
+        Ok(())
+    }
+}
+
+/// CPUs this machine has online (not what this process may use: the
+/// placement changes that).
+fn cpu_count() -> usize {
+    // SAFETY: sysconf reads a value and has no preconditions.
+    let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
+    usize::try_from(online).unwrap_or(1).max(1)
+}
+
+/// Sets the CPU affinity of every thread of process `pid`.
+fn pin(pid: u32, cpus: &[usize]) -> anyhow::Result<()> {
+    // SAFETY: cpu_set_t is plain data; zeroed is the empty set.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    for &cpu in cpus {
+        // SAFETY: `set` is a valid cpu_set_t and `cpu` is below CPU_SETSIZE.
+        unsafe { libc::CPU_SET(cpu, &mut set) };
+    }
+    for task in std::fs::read_dir(format!("/proc/{pid}/task"))? {
+        let Some(tid) = task?
+            .file_name()
+            .to_str()
+            .and_then(|t| t.parse::<i32>().ok())
+        else {
+            continue;
+        };
+        // SAFETY: `set` outlives the call; the size is its own.
+        let rc = unsafe { libc::sched_setaffinity(tid, std::mem::size_of_val(&set), &set) };
+        anyhow::ensure!(
+            rc == 0,
+            "pinning thread {tid} of {pid}: {}",
+            std::io::Error::last_os_error()
+        );
+    }
+    Ok(())
+}
+
+/// Voluntary context switches (sleeps) of every thread of `pid` so far.
+pub(crate) fn sleeps(pid: u32) -> u64 {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return 0;
+    };
+    tasks
+        .filter_map(|t| t.ok())
+        .filter_map(|t| std::fs::read_to_string(t.path().join("status")).ok())
+        .filter_map(|status| {
+            status
+                .lines()
+                .find_map(|l| l.strip_prefix("voluntary_ctxt_switches:"))
+                .and_then(|v| v.trim().parse::<u64>().ok())
+        })
+        .sum()
 }
 
 /// The three load averages, as `/proc/loadavg` gives them.

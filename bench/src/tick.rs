@@ -24,7 +24,7 @@ use simbus_process::ChildGuard;
 use simbus_transport::Bus;
 
 use crate::stats::{header, Latencies};
-use crate::support::{machine_state, spawn_peer, BackgroundLoad, BenchServer};
+use crate::support::{machine_state, spawn_peer, BackgroundLoad, BenchServer, Placement};
 
 #[derive(Debug, Args)]
 pub(crate) struct TickArgs {
@@ -47,6 +47,18 @@ pub(crate) struct TickArgs {
     /// into this PNG.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<std::path::PathBuf>,
+    /// Instead of the table: the median time of each stage of a simbus
+    /// round trip (client sends, server wakes, takes the tick, steps,
+    /// publishes, answers, notifies; client wakes, holds the frame), per
+    /// wait mode, with sleeps, system calls and CPU migrations per round
+    /// trip.
+    #[arg(long, conflicts_with = "hops")]
+    breakdown: bool,
+    /// Where the processes run: `same` (all on CPU 0), `split` (this
+    /// process on CPU 0, its peers and the server on CPU 1) or `unpinned`.
+    /// Without it: each placement in turn, each against its own floor.
+    #[arg(long, value_enum)]
+    placement: Option<Placement>,
 }
 
 const WARMUP_FRACTION: u64 = 10;
@@ -383,6 +395,29 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     if let Some(mode) = args.hops {
         return hops(mode, n, &machine);
     }
+    let placements = args.placement.map_or(Placement::ALL.to_vec(), |p| vec![p]);
+    let mut json = Vec::new();
+    for placement in placements {
+        json.push(if args.breakdown {
+            let rows = crate::breakdown::measure(n, placement)?;
+            crate::breakdown::print(placement, &rows, n, &machine, args.json)
+        } else {
+            table(&args, placement, &machine)?
+        });
+    }
+    if args.json {
+        println!("{}", serde_json::Value::Array(json));
+    }
+    Ok(())
+}
+
+/// Every row of the table under `placement`: printed, or returned as JSON.
+fn table(
+    args: &TickArgs,
+    placement: Placement,
+    machine: &str,
+) -> anyhow::Result<serde_json::Value> {
+    let n = args.iterations;
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
@@ -401,7 +436,10 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         )?,
         tcp_row()?,
     ];
+    let peers: Vec<u32> = rows.iter().flat_map(|r| r.peers.iter().copied()).collect();
+    placement.apply(&peers)?;
     interleave(&mut rows, n)?;
+    Placement::Unpinned.apply(&[])?;
     let rows: Vec<(&str, Latencies)> = rows.into_iter().map(|r| (r.name, r.latencies)).collect();
     if let Some(path) = &args.plot {
         let series: Vec<(&str, &Latencies)> = rows.iter().map(|(n, l)| (*n, l)).collect();
@@ -448,12 +486,12 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
         }
         json.insert("iterations".into(), n.into());
         json.insert("machine".into(), machine.into());
-        println!("{}", serde_json::Value::Object(json));
-        return Ok(());
+        json.insert("placement".into(), placement.name().into());
+        return Ok(serde_json::Value::Object(json));
     }
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
     println!("rows interleaved: {ROUNDS} rounds, each row's peers running only during its slice");
-    println!("machine: {machine}");
+    println!("machine: {machine}; placement: {}", placement.name());
     println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
     println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");
     println!("futex: two processes sleeping in futex(2) on a shared page (the blocking floor)");
@@ -465,5 +503,6 @@ pub(crate) fn run(args: TickArgs) -> anyhow::Result<()> {
     for (name, ratio) in ratios {
         println!("{name:<32} {ratio:>6.2}x at p50");
     }
-    Ok(())
+    println!();
+    Ok(serde_json::Value::Null)
 }

@@ -24,6 +24,14 @@ wire_enum! {
         /// Apply settings; unlike the control service this may enter
         /// synchronous mode.
         ApplySettings = 4,
+        /// Become the ticker as soon as nobody holds the world: granted at
+        /// once when the world is free, otherwise queued (first come, first
+        /// served) behind the owner. A queued request is answered twice:
+        /// at once with [`ResponseStatus::NotTicker`] naming the owner (an
+        /// interim answer), then with [`ResponseStatus::Ok`] at the moment
+        /// the owner releases, dies or is revoked. A `Release` from the
+        /// same port withdraws it.
+        Standby = 5,
     }
 }
 

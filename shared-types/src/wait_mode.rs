@@ -16,9 +16,11 @@ pub enum WaitMode {
     /// busy while waiting.
     Spin,
     /// Poll for a short window (100 µs for clients; the server's
-    /// `--hybrid-window-us` after each frame), then sleep on the event: an
-    /// answer that comes quickly (a tick in a tight loop) costs no kernel
-    /// wake-up, and a long wait burns no CPU. The default for the server.
+    /// `--hybrid-window-us` after each frame), yielding the CPU between
+    /// polls, then sleep on the event: an answer that comes quickly (a tick
+    /// in a tight loop) costs no kernel wake-up, a long wait burns no CPU,
+    /// and a peer on the same CPU runs while this side polls. The default
+    /// for the server.
     Hybrid,
 }
 

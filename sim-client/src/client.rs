@@ -17,6 +17,7 @@ use crate::frames::FrameStream;
 use crate::on_tick::{CallbackId, TickDispatcher};
 use crate::open::{wake_notifier, OpenFailure};
 use crate::rpc::{client_error, open_service, RequestPort, Wait};
+use crate::standby::StandbyTicker;
 use crate::FrameView;
 use crate::WaitMode;
 use crate::{
@@ -406,6 +407,27 @@ impl Client {
                     owner
                 })
             },
+        )
+    }
+
+    /// A standby ticker: opens a ticker's node and ports now and queues a
+    /// claim that the server grants the moment the world has no ticker
+    /// (the owner released, died or was revoked); first come, first
+    /// served. Returns once the server answered (granted or queued);
+    /// [`StandbyTicker::wait`] then returns the [`Ticker`]. Fails with
+    /// [`TickError::StandbyFull`] when the tick service admits no more ports.
+    pub fn standby_ticker(&self) -> Result<StandbyTicker, TickError> {
+        self.standby_ticker_as(&default_ticker_name())
+    }
+
+    /// [`Client::standby_ticker`] with the node name others see once it
+    /// owns the world.
+    pub fn standby_ticker_as(&self, node_name: &str) -> Result<StandbyTicker, TickError> {
+        StandbyTicker::open(
+            &self.world,
+            self.server_pid,
+            node_name,
+            self.request_timeout,
         )
     }
 

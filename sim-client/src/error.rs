@@ -279,6 +279,25 @@ pub enum TickError {
         /// How long the tick waited.
         waited: Duration,
     },
+    /// A standby ticker waited `waited` and the world still had a ticker.
+    #[error("world '{world}' still has a ticker after {waited:?} on standby: {}", owner.as_ref().map_or_else(|| "unknown".to_owned(), |o| o.to_string()))]
+    StandbyTimedOut {
+        /// The world.
+        world: String,
+        /// How long the standby waited.
+        waited: Duration,
+        /// The ticker it waited behind, as the server last named it.
+        owner: Option<Box<TickerInfo>>,
+    },
+    /// The tick service admits no more ports: the ticker, a dead ticker's
+    /// port until the server removes it, and the standbys already waiting.
+    #[error("world '{world}' admits {max} tick ports (the ticker, a dead ticker's port until it is removed, and standby tickers); too many standby tickers wait")]
+    StandbyFull {
+        /// The world.
+        world: String,
+        /// The tick ports the world admits.
+        max: usize,
+    },
     /// The request failed (timeout, server gone, protocol).
     #[error(transparent)]
     Request(#[from] RequestError),

@@ -42,6 +42,7 @@ mod recorder;
 mod rpc;
 mod sensor;
 mod snapshot;
+mod standby;
 mod status;
 mod ticker;
 mod wait;
@@ -61,6 +62,7 @@ pub use recorder::{
 pub use sensor::{Capture, Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
+pub use standby::{StandbyTicker, TakeOver};
 pub use status::{ParticipantStatus, Status, TickerStatus};
 pub use ticker::Ticker;
 pub use wait::process_alive;

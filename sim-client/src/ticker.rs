@@ -9,11 +9,12 @@ use shared_types::{
     WorldName, WorldSettings,
 };
 use simbus_transport::spec::WorldServices;
+use simbus_transport::stamps::{self, Stage};
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, wake_notifier};
-use crate::rpc::{open_service, RequestPort, Wait};
+use crate::rpc::{open_service, Pending, RequestPort, Wait};
 use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
 
 /// How much longer than the server's lockstep timeout a held-up tick
@@ -103,6 +104,28 @@ impl Ticker {
         request_timeout: Duration,
         owner: impl Fn() -> Option<TickerInfo>,
     ) -> Result<Self, TickError> {
+        let full = |_| TickError::NotTicker {
+            world: world.to_string(),
+            owner: owner(),
+        };
+        let mut ticker = Self::open(world, server_pid, node_name, request_timeout, full)?;
+        let response = ticker.send(TickRequestKind::Claim, None, request_timeout)?;
+        ticker.granted(response)?;
+        Ok(ticker)
+    }
+
+    /// Opens the ports of a ticker of `world` (its node, tick port, wake-up
+    /// notifier and frame-ready listener) without claiming: `full` is the
+    /// error when the tick service admits no more ports (given how many it
+    /// admits). Dropped, it
+    /// releases (harmless when it never owned the world).
+    pub(crate) fn open(
+        world: &WorldName,
+        server_pid: u32,
+        node_name: &str,
+        request_timeout: Duration,
+        full: impl FnOnce(usize) -> TickError,
+    ) -> Result<Self, TickError> {
         use iceoryx2::service::port_factory::client::ClientCreateError;
 
         let names = ServiceNames::new(world);
@@ -121,25 +144,21 @@ impl Ticker {
                 timeout: request_timeout,
             })
         };
-        let port = open_service(deadline, || specs.tick.open(&node))
+        let service = open_service(deadline, || specs.tick.open(&node))
             .map_err(|e| TickError::transport("tick service", e))?
-            .ok_or_else(timeout)?
-            .client_builder()
-            .create()
-            .map_err(|e| match e {
-                ClientCreateError::ExceedsMaxSupportedClients => TickError::NotTicker {
-                    world: world.to_string(),
-                    owner: owner(),
-                },
-                e => TickError::transport("tick client", e),
-            })?;
+            .ok_or_else(timeout)?;
+        let max = service.static_config().max_clients();
+        let port = service.client_builder().create().map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => full(max),
+            e => TickError::transport("tick client", e),
+        })?;
         let wake = wake_notifier(&node, &names, deadline)
             .map_err(|e| TickError::Request(e.into_request()))?
             .ok_or_else(timeout)?;
         let ready = frame_ready_listener(&node, &names, deadline)
             .map_err(|e| TickError::Request(e.into_request()))?
             .ok_or_else(timeout)?;
-        let mut ticker = Self {
+        Ok(Self {
             world: world.clone(),
             port: RequestPort::new(port, Some(wake), "request send", world.as_str(), server_pid),
             ready,
@@ -151,12 +170,32 @@ impl Ticker {
             last: None,
             released: false,
             _node: node,
-        };
-        let response = ticker.send(TickRequestKind::Claim, None, request_timeout)?;
-        let response = ticker.expect_ok(response)?;
-        ticker.last = Some((response.frame, response.elapsed_ns));
-        info!(world = %ticker.world, frame = response.frame, "claimed tick ownership");
-        Ok(ticker)
+        })
+    }
+
+    /// Takes the answer to a claim: this ticker owns the world if it says so.
+    pub(crate) fn granted(&mut self, response: TickResponse) -> Result<(), TickError> {
+        let response = self.expect_ok(response)?;
+        self.last = Some((response.frame, response.elapsed_ns));
+        info!(world = %self.world, frame = response.frame, "claimed tick ownership");
+        Ok(())
+    }
+
+    /// Sends a standby claim (granted when the world is free); the answers
+    /// come on the returned pending response.
+    pub(crate) fn send_standby(&self) -> Result<Pending<TickRequest, TickResponse>, RequestError> {
+        self.port
+            .send(TickRequest::new(TickRequestKind::Standby, &self.node_name))
+    }
+
+    /// The next answer to a standby claim, waiting up to `timeout` on the
+    /// frame-ready event (which the server rings after answering).
+    pub(crate) fn standby_answer(
+        &self,
+        pending: &Pending<TickRequest, TickResponse>,
+        timeout: Duration,
+    ) -> Result<TickResponse, RequestError> {
+        self.port.answer(pending, timeout, Wait::Event(&self.ready))
     }
 
     /// How [`Ticker::tick`] waits for its frame: blocking (default) or spinning.
@@ -185,6 +224,7 @@ impl Ticker {
     /// waits that long too, whatever `timeout` says, so the two never race.
     pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
         let started = Instant::now();
+        let sent = stamps::began();
         let pending = self.port.send(self.tick_request)?;
         let mut deadline = started + timeout;
         let mut waiting_for = None;
@@ -226,6 +266,8 @@ impl Ticker {
                 continue;
             }
             let response = self.expect_ok(response)?;
+            stamps::stamp_at(Stage::ClientSend, response.frame, sent);
+            stamps::stamp_wake(Stage::ClientWake, response.frame);
             self.last = Some((response.frame, response.elapsed_ns));
             return Ok(response.frame);
         }

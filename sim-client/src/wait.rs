@@ -101,13 +101,19 @@ pub(crate) fn until<T, E>(
         let polling = now - start < HYBRID_SPIN;
         match wait {
             Wait::Spin => std::hint::spin_loop(),
-            Wait::Hybrid(_) | Wait::Backoff if polling => std::hint::spin_loop(),
+            // Hybrid polls yielding the CPU: on a CPU it shares with the
+            // server, a spin would keep the server from answering for the
+            // whole window.
+            Wait::Hybrid(_) if polling => std::thread::yield_now(),
+            Wait::Backoff if polling => std::hint::spin_loop(),
             Wait::Backoff => {
                 std::thread::sleep(backoff.min(remaining));
                 backoff = (backoff * 2).min(Duration::from_millis(1));
             }
             Wait::Event(listener) | Wait::Hybrid(listener) => {
-                match listener.timed_wait(|_| {}, remaining) {
+                let waited = listener.timed_wait(|_| {}, remaining);
+                simbus_transport::stamps::woke();
+                match waited {
                     Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
                     Err(e) => return Err(Stop::Event(e)),
                 }

@@ -272,6 +272,9 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
         keyframe_seconds: Some(args.keyframe_seconds),
         limits,
     };
+    // `SIMBUS_STAMPS=FILE`: the tick path's stamps, written on exit
+    // (`simbus-bench tick --breakdown` reads them).
+    let stamps_file = simbus_transport::stamps::enable_from_env();
     let mut server = Server::start(config).map_err(|e| match e {
         ServerError::Settings(e) => RunError::Refused(e.into()),
         e => RunError::Failed(e.into()),
@@ -279,6 +282,12 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
     let summary = server
         .run(&shutdown)
         .map_err(|e| RunError::Failed(e.into()))?;
+    if let Some(path) = stamps_file {
+        let stamps = simbus_transport::stamps::take();
+        simbus_transport::stamps::write(&path, &stamps)
+            .with_context(|| format!("writing the stamps to {}", path.display()))
+            .map_err(RunError::Failed)?;
+    }
     if args.json {
         println!(
             "{}",

@@ -27,6 +27,8 @@ type ControlServer = RequestServer<Bus, ControlRequest, (), ControlResponse, ()>
 pub(crate) struct Control {
     port: ControlServer,
     wake: Listener<Bus>,
+    /// Whether a client announced a request since [`Control::take_announced`].
+    announced: bool,
 }
 
 impl Control {
@@ -58,7 +60,11 @@ impl Control {
             .listener_builder()
             .create()
             .map_err(|e| ServerError::transport("control wake-up listener", e))?;
-        Ok(Self { port, wake })
+        Ok(Self {
+            port,
+            wake,
+            announced: false,
+        })
     }
 
     /// Sleeps up to `timeout`, waking early when a client sends any request.
@@ -66,7 +72,7 @@ impl Control {
     /// The event listener's timeout is rounded up to the kernel's tick (a
     /// few milliseconds), so the last stretch before a due frame is a plain,
     /// precise sleep.
-    pub(crate) fn idle(&self, timeout: Duration) -> Result<(), ServerError> {
+    pub(crate) fn idle(&mut self, timeout: Duration) -> Result<(), ServerError> {
         if timeout <= COARSE_WAIT {
             std::thread::sleep(timeout);
             return Ok(());
@@ -77,12 +83,29 @@ impl Control {
     /// Sleeps until a client announces a request, or about `timeout` passed
     /// (as coarse as the event's timeouts: for waits that need no precise
     /// end, such as a synchronous world waiting for its tick).
-    pub(crate) fn wait_for_request(&self, timeout: Duration) -> Result<(), ServerError> {
-        match self.wake.timed_wait(|_| {}, timeout) {
+    pub(crate) fn wait_for_request(&mut self, timeout: Duration) -> Result<(), ServerError> {
+        let announced = &mut self.announced;
+        let waited = self.wake.timed_wait(|_| *announced = true, timeout);
+        simbus_transport::stamps::woke();
+        match waited {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
             Err(e) => Err(ServerError::transport("control wake-up wait", e)),
         }
+    }
+
+    /// Whether a client announced a request (every client notifies the
+    /// wake-up event after sending one) since the last call: taken before
+    /// the domains answer, so the loop rings the frame-ready event after
+    /// answering what was announced, and a client waiting for an answer on
+    /// that event (the Zenoh exporter) wakes. Costs no system call.
+    pub(crate) fn take_announced(&mut self) -> Result<bool, ServerError> {
+        let announced = &mut self.announced;
+        match self.wake.try_wait(|_| *announced = true) {
+            Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+            Err(e) => return Err(ServerError::transport("control wake-up wait", e)),
+        }
+        Ok(std::mem::take(&mut self.announced))
     }
 
     /// Answers every pending control request: each is decoded into the

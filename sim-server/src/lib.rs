@@ -24,6 +24,7 @@
 //! - `sensors`: depth camera, lidar and IMU, written straight into shared memory.
 //! - `ports`, `liveness`: the node the domains open their ports on, and
 //!   which client processes still live.
+//! - [`timing`]: per-frame timings a benchmark may ask for (off by default).
 //!
 //! The `sim-server` command line is the binary's (`src/cli.rs`), not the
 //! library's.
@@ -70,6 +71,7 @@ pub(crate) mod sensors;
 pub(crate) mod server;
 pub(crate) mod state;
 pub(crate) mod ticker;
+pub mod timing;
 pub(crate) mod vehicles;
 pub mod world;
 
@@ -77,6 +79,7 @@ pub use config::ServerConfig;
 pub use scene::{Scene, SceneError};
 pub use server::{RunSummary, Server};
 pub use ticker::OnTickerLoss;
+pub use timing::{FrameTime, FrameTimings};
 
 use shared_types::SettingsError;
 

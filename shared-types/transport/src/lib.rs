@@ -25,6 +25,7 @@
 pub mod environment;
 pub mod futex;
 pub mod spec;
+pub mod stamps;
 
 use core::fmt::Debug;
 

@@ -402,6 +402,9 @@ pub struct EventSpec {
     pub notifiers: Limit,
 }
 
+/// The largest event id a simbus event carries: 0, the only one rung.
+pub const EVENT_ID_MAX_VALUE: usize = 0;
+
 impl EventSpec {
     fn configured(
         &self,
@@ -410,6 +413,10 @@ impl EventSpec {
     ) -> iceoryx2::service::builder::event::Builder<Bus> {
         node.service_builder(&self.name)
             .event()
+            // One event id (every notifier rings id 0): a listener's wait
+            // or check drains one counter, not iceoryx2's default 256 (which
+            // cost ~2 µs on every wait and every doorbell look).
+            .event_id_max_value(EVENT_ID_MAX_VALUE)
             .max_listeners(self.listeners.of(limits))
             .max_notifiers(self.notifiers.of(limits))
             .max_nodes(Limit::Nodes.of(limits))
@@ -515,10 +522,10 @@ impl WorldServices {
             frame_ready: event(&names.frame_ready, Limit::Fixed(4))?,
             control: RequestSpec::new(&names.control, Limit::Clients, 2, 2)?,
             control_wake: event(&names.control_wake, Limit::Clients)?,
-            // Two tick clients: a new ticker connects while a dead one's
-            // port waits for cleanup (ownership, not the port count, admits
-            // one ticker).
-            tick: RequestSpec::new(&names.tick, Limit::Fixed(2), 4, 4)?,
+            // Four tick clients: the ticker, a dead ticker's port waiting
+            // for cleanup (a new ticker connects meanwhile) and two standby
+            // tickers (ownership, not the port count, admits one ticker).
+            tick: RequestSpec::new(&names.tick, Limit::Fixed(4), 4, 4)?,
             batch,
             lockstep: RequestSpec::new(&names.lockstep, Limit::Clients, 4, 2)?,
             sensors,

@@ -93,7 +93,9 @@ enum Command {
     /// run, --rate paces it; without a bound it ticks until Ctrl-C. However
     /// it ends (a bound, Ctrl-C, SIGTERM, an error, a closed stdout, a
     /// panic) the world gets its own step back and returns to asynchronous
-    /// mode (unless --leave-sync), and ownership is released.
+    /// mode (unless --leave-sync), and ownership is released. With
+    /// --standby it waits, ports open and claim queued, until the world has
+    /// no ticker, then takes over from the next frame.
     Tick(cli::tick::TickArgs),
     /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
     Spawn(cli::actors::SpawnArgs),

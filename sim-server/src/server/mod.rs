@@ -2,6 +2,8 @@
 //! a fixed order, then steps a frame when it is due (asynchronous mode) or
 //! ticked and every lockstep participant is done (synchronous mode), and
 //! otherwise sleeps in one place, the control domain's wake-up event.
+//! After answering what clients announced on that event, it rings the
+//! frame-ready event, so a client may wait for an answer as for a frame.
 //!
 //! Within a frame boundary the order is: control (settings, status,
 //! load/reload), recorder (record, replay), batches, lockstep, sensors,
@@ -11,16 +13,16 @@
 
 mod answers;
 mod recording;
+mod turn;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use shared_types::{
-    FixedText, FrameHeader, SensorEnd, Timestamp, WaitMode, WorldSettings, PROTOCOL_VERSION,
-};
+use shared_types::{FrameHeader, SensorEnd, Timestamp, WorldSettings, PROTOCOL_VERSION};
+use simbus_transport::stamps::{self, Stage};
 use tracing::{debug_span, info, warn};
 
-use crate::batches::{BatchEffect, Batches};
+use crate::batches::Batches;
 use crate::clock::{platform_timestamp, Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
@@ -32,6 +34,7 @@ use crate::replayer::Replayer;
 use crate::sensors::Sensors;
 use crate::state::Runtime;
 use crate::ticker::Ticker;
+use crate::timing::FrameTimings;
 use crate::world::World;
 use crate::{Scene, ServerConfig, ServerError};
 
@@ -68,6 +71,10 @@ const CONNECTION_PERIOD: Duration = Duration::from_millis(10);
 const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 /// How soon after a ticker's death its port is cleaned up.
 const SOON: Duration = Duration::from_millis(20);
+/// The longest a polling server goes without every domain looking for
+/// requests no client announced (a port that sends without ringing the
+/// wake-up event, as raw iceoryx2 clients may).
+const FULL_PASS_PERIOD: Duration = Duration::from_millis(1);
 /// The least time between two pidfd probes of the watched processes.
 const PROBE_SPACING: Duration = Duration::from_millis(1);
 
@@ -99,11 +106,15 @@ struct Domains {
     timers: Timers,
     /// Fast death notice of the ticker and the lockstep participants.
     pidwatch: PidWatch,
+    /// Per-frame timings, only when a benchmark asked ([`Server::time_frames`]).
+    timings: Option<FrameTimings>,
 }
 
 /// When the periodic chores last ran.
 #[derive(Debug)]
 struct Timers {
+    /// The last turn every domain looked for requests.
+    full_pass: Instant,
     cleanup: Instant,
     liveness: Instant,
     connections: Instant,
@@ -161,12 +172,14 @@ impl Server {
             recorder: Recorder::default(),
             replayer: Replayer::default(),
             timers: Timers {
+                full_pass: now,
                 cleanup: now,
                 liveness: now,
                 connections: now,
                 probe: now,
             },
             pidwatch: PidWatch::default(),
+            timings: None,
             config,
         };
         let mut domains = domains;
@@ -186,114 +199,41 @@ impl Server {
         })
     }
 
+    /// From now on, times each computed frame, up to `capacity` frames (the
+    /// room is reserved now): rapier's own step and the whole frame. For
+    /// benchmarks; a server never asked reads no clock for it.
+    pub fn time_frames(&mut self, capacity: usize) {
+        self.domains.timings = Some(FrameTimings::new(capacity));
+    }
+
+    /// The frames timed since [`Server::time_frames`], if it was called.
+    pub fn frame_timings(&self) -> Option<&FrameTimings> {
+        self.domains.timings.as_ref()
+    }
+
     /// Runs until `shutdown` is set or `max_frames` frames were computed.
     pub fn run(&mut self, shutdown: &AtomicBool) -> Result<RunSummary, ServerError> {
         let started = Instant::now();
         let first_frame = self.domains.runtime.frames_computed;
         while !shutdown.load(Ordering::Relaxed) {
-            let d = &mut self.domains;
+            let d = &self.domains;
             if d.config
                 .max_frames
                 .is_some_and(|max| d.runtime.frames_computed - first_frame >= max)
             {
                 break;
             }
-            // Every domain answers what arrived, in this order.
-            self.control.handle(|call| d.answer_control(call))?;
-            if let Some(response) = d.replay_prepared() {
-                self.recorder.answer_replay(response);
-            }
-            self.recorder
-                .handle(|call, client_pid| d.answer_recorder(call, client_pid))?;
-            let episode = d.runtime.episode;
-            if d.replayer.is_running() {
-                d.batches.refuse_while_replaying(&d.clock)?;
-            } else {
-                let (frame, ticker_pid) = (d.clock.frame(), d.ticker.owner_pid());
-                let (recorder, ticker) = (&mut d.recorder, &mut d.ticker);
-                let applied = d
-                    .batches
-                    .handle(&mut d.world, ticker_pid, &d.clock, |effect| match effect {
-                        BatchEffect::Applied(command, result) => {
-                            recorder.command(frame + 1, episode, command, result)
-                        }
-                        BatchEffect::Tick(request, results) => ticker.queue_batch(request, results),
-                    })?;
-                if applied {
-                    d.sensors.end_orphans(&d.world, frame, episode);
-                }
-            }
-            d.lockstep.handle(episode, &d.clock)?;
-            let follow = d.replayer.follow_id();
-            d.sensors
-                .handle(&d.transport, &d.world, &d.clock, episode, follow)?;
-            d.recorder.sensor_notes(d.sensors.take_journal());
-            d.ticker.handle(&mut d.runtime, &d.clock)?;
-            d.housekeeping();
+            let answered = self.answer_requests()?;
+            let d = &mut self.domains;
             let now = Instant::now();
             if !d.ticker.has_pending() {
                 // No tick waits: nothing is held up (any more).
                 d.lockstep.stepped();
             }
             if d.runtime.settings.synchronous_mode {
-                // Synchronous: one frame per tick, nothing without one, and
-                // not before every lockstep participant is done.
-                let ticked = d.ticker.has_pending();
-                if ticked && d.lockstep.all_done(d.clock.frame()) {
-                    d.ticker.drop_abandoned();
-                    if d.ticker.has_pending() {
-                        d.lockstep.stepped();
-                        d.step_frame(now, 1)?;
-                    }
-                    continue;
-                }
-                if ticked {
-                    let timeout = d.config.lockstep_timeout;
-                    if let Some(late) = d.lockstep.held_up(now, timeout, d.clock.frame()) {
-                        let frame = d.clock.frame();
-                        let name = FixedText::new(&late.name);
-                        let participant = Ticker::named(late.pid, name, frame);
-                        d.ticker.tell_held_up(participant, timeout, &d.clock);
-                    }
-                }
-                let polling = match d.config.wait_mode {
-                    WaitMode::Spin => true,
-                    WaitMode::Hybrid => d.clock.last_frame_at().elapsed() < d.config.hybrid_window,
-                    WaitMode::Block => false,
-                };
-                if polling {
-                    std::hint::spin_loop();
-                } else {
-                    self.control.wait_for_request(d.idle_limit(MAX_IDLE_WAIT))?;
-                }
-                continue;
-            }
-            let due = match d.replayer.next_frame_at(now) {
-                Some(at) => Some(at),
-                None => d
-                    .runtime
-                    .pacer
-                    .next_frame_at(&d.clock, &d.runtime.settings, now),
-            };
-            match due {
-                Some(at) if at > now => {
-                    let until = at - now;
-                    let limit = d.idle_limit(until);
-                    if limit < until {
-                        // Woken by requests; probes its watch on the way.
-                        self.control.wait_for_request(limit)?;
-                    } else {
-                        self.control.idle(until)?;
-                    }
-                }
-                // Asynchronous: a tick just waits for the next frame.
-                _ => {
-                    if d.ticker.has_pending() {
-                        d.ticker.drop_abandoned();
-                    }
-                    let ticks = d.ticker.pending_count();
-                    d.step_frame(now, ticks)?;
-                }
+                self.synchronous_turn(now, answered)?;
+            } else {
+                self.asynchronous_turn(now, answered)?;
             }
         }
         let d = &mut self.domains;
@@ -336,13 +276,21 @@ impl Domains {
         if self.replayer.is_running() {
             return self.replay_frame(now, ticks);
         }
+        let started = self.timings.as_ref().map(|_| Instant::now());
         let delta_ns = self.clock.next_delta_ns(&self.runtime.settings, now);
         let plan = SubstepPlan::new(delta_ns, &self.runtime.settings);
         let frame = self.clock.frame() + 1;
         let _span = debug_span!("frame", frame, delta_ns, substeps = plan.count).entered();
         self.runtime.warn_if_unreliable(frame, delta_ns, &plan, now);
+        stamps::stamp(Stage::StepBegin, frame);
+        let mut physics = Duration::ZERO;
+        let timed = started.map(|_| &mut physics);
         self.world
-            .step_with_collisions(&plan, self.recorder.collisions());
+            .step_timed(&plan, self.recorder.collisions(), timed);
+        if let (Some(timings), Some(started)) = (&mut self.timings, started) {
+            timings.record(started, physics);
+        }
+        stamps::stamp(Stage::StepEnd, frame);
         self.clock.advance(delta_ns, now);
         self.runtime.frames_computed += 1;
         // Sensors first: whoever sees the frame's snapshot (or hears the
@@ -360,8 +308,12 @@ impl Domains {
             0
         };
         self.publish(plan.count, flags)?;
+        stamps::stamp(Stage::Published, frame);
         self.ticker.answer_stepped(ticks, &self.clock);
-        self.frames.notify()
+        stamps::stamp(Stage::Answered, frame);
+        self.frames.notify()?;
+        stamps::stamp(Stage::Notified, frame);
+        Ok(())
     }
 
     /// Publishes the current frame (and records it while recording).
@@ -454,6 +406,9 @@ impl Domains {
     fn idle_limit(&self, wanted: Duration) -> Duration {
         let limit = if self.pidwatch.is_idle() {
             MAX_IDLE_WAIT
+        } else if self.ticker.has_standby() {
+            // A standby waits for the ticker's death: notice it sooner.
+            PROBE_SPACING
         } else {
             PidWatch::PROBE_PERIOD
         };
@@ -464,8 +419,9 @@ impl Domains {
     /// the ticker or a participant exited (their pidfds)? If so, and every
     /// 100 ms anyway: do they live (one node list for all)? Once a second
     /// (sooner after a ticker died): remove what dead clients left in the
-    /// services.
-    fn housekeeping(&mut self) {
+    /// services. Returns whether waiting ticks were answered (their ticker
+    /// died).
+    fn housekeeping(&mut self) -> bool {
         if self.timers.connections.elapsed() >= CONNECTION_PERIOD {
             self.timers.connections = Instant::now();
             self.frames.connect_new_subscribers();
@@ -474,6 +430,7 @@ impl Domains {
         // millisecond (the loop may spin), a node-list sweep when one
         // exited, and every 100 ms anyway.
         let mut exited = false;
+        let mut answered = false;
         if self.timers.probe.elapsed() >= PROBE_SPACING {
             self.timers.probe = Instant::now();
             let watched = self
@@ -495,6 +452,7 @@ impl Domains {
                 self.config.on_ticker_loss,
                 &self.clock,
             );
+            answered = dropped;
             if dropped {
                 // Free the dead ticker's port soon, not before the requests
                 // already waiting (a new ticker's claim) are answered.
@@ -503,11 +461,11 @@ impl Domains {
             }
             self.lockstep.drop_dead(&sweep, self.clock.frame());
         }
-        if self.timers.cleanup.elapsed() < CLEANUP_PERIOD {
-            return;
+        if self.timers.cleanup.elapsed() >= CLEANUP_PERIOD {
+            self.timers.cleanup = Instant::now();
+            self.remove_dead_clients();
         }
-        self.timers.cleanup = Instant::now();
-        self.remove_dead_clients();
+        answered
     }
 
     /// Removes what dead client processes left in shared memory and in

@@ -3,21 +3,25 @@
 //! waiting for their frame, and what happens when the ticker dies.
 
 mod ownership;
+mod standby;
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
 use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::identifiers::UniqueClientId;
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     CommandResult, FixedText, ResponseStatus, TickRequest, TickRequestKind, TickResponse,
     TickerInfo, WorldSettings, PROTOCOL_VERSION,
 };
+use simbus_transport::stamps::{self, Stage};
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 pub(crate) use ownership::{Owner, TickOwnership};
+use standby::Standbys;
 
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
@@ -54,6 +58,8 @@ pub(crate) struct Ticker {
     port: TickServer,
     ownership: TickOwnership,
     pending: VecDeque<PendingStep>,
+    /// Claims waiting for the world to be free.
+    standbys: Standbys,
 }
 
 impl Ticker {
@@ -71,6 +77,7 @@ impl Ticker {
             port,
             ownership: TickOwnership::default(),
             pending: VecDeque::new(),
+            standbys: Standbys::default(),
         })
     }
 
@@ -104,6 +111,11 @@ impl Ticker {
         }
     }
 
+    /// Whether a standby ticker waits for the world.
+    pub(crate) fn has_standby(&self) -> bool {
+        !self.standbys.is_empty()
+    }
+
     /// How many steps wait for a frame.
     pub(crate) fn pending_count(&self) -> usize {
         self.pending.len()
@@ -135,90 +147,132 @@ impl Ticker {
             .receive()
             .map_err(|e| ServerError::transport("tick receive", e))?
         {
-            let payload = *request.payload();
-            let origin = request.origin();
-            // The requesting port's process, as iceoryx2 recorded it; the
-            // payload's pid is the client's own word and is not trusted.
-            let pid = sender_pid(request.header());
-            let kind = TickRequestKind::from_u32(payload.kind);
-            let response = if payload.protocol_version != PROTOCOL_VERSION {
-                self.response(ResponseStatus::ProtocolMismatch, clock)
-            } else if let (Some(by), Some(TickRequestKind::Tick | TickRequestKind::ApplySettings)) =
-                (self.ownership.revoked_by(origin), kind)
-            {
-                TickResponse {
-                    revoked_by: by,
-                    ..self.response(ResponseStatus::Revoked, clock)
+            if let Some((request, response)) = self.answer(request, runtime, clock) {
+                if let Err(e) = request.send_copy(response) {
+                    debug!("tick response not delivered (ticker gone?): {e:?}");
                 }
-            } else {
-                match kind {
-                    Some(TickRequestKind::Claim) => {
-                        let on_behalf = payload.flags & TickRequest::ON_BEHALF != 0;
-                        let candidate = Owner {
-                            client: origin,
-                            pid,
-                            reported_pid: if on_behalf { payload.pid } else { pid },
-                            node_name: payload.node_name.to_string_lossy(),
-                            since_frame: clock.frame(),
-                        };
-                        let sweep = LiveProcesses::now();
-                        match self.ownership.claim(candidate, |pid| sweep.alive(pid)) {
-                            Ok(owner) => {
-                                info!(
-                                    pid = owner.pid,
-                                    node = %owner.node_name,
-                                    frame = owner.since_frame,
-                                    "ticker claimed ownership"
-                                );
-                                self.response(ResponseStatus::Ok, clock)
-                            }
-                            Err(current) => {
-                                info!(pid, owner_pid = current.pid, "refused a second ticker");
-                                self.response(ResponseStatus::NotTicker, clock)
-                            }
-                        }
-                    }
-                    Some(TickRequestKind::Release) => {
-                        if self.ownership.release(origin) {
-                            info!(pid, frame = clock.frame(), "ticker released ownership");
-                            self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
-                            self.response(ResponseStatus::Ok, clock)
-                        } else {
-                            self.response(ResponseStatus::NotTicker, clock)
-                        }
-                    }
-                    Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
-                        self.pending.push_back(PendingStep::Tick(request));
-                        continue;
-                    }
-                    Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
-                        let settings = WorldSettings::from(payload.settings);
-                        match runtime.change_settings(settings, true, pid, clock.frame() + 1) {
-                            Ok(effective_frame) => TickResponse {
-                                effective_frame,
-                                ..self.response(ResponseStatus::Ok, clock)
-                            },
-                            Err(Refusal::Invalid(error)) => self
-                                .response(ResponseStatus::InvalidSettings, clock)
-                                .with_settings_error(&error),
-                            Err(Refusal::Status(status)) => self.response(status, clock),
-                        }
-                    }
-                    Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
-                        warn!(
-                            pid,
-                            "refused a request from a client that is not the ticker"
-                        );
-                        self.response(ResponseStatus::NotTicker, clock)
-                    }
-                    None => self.response(ResponseStatus::UnknownRequest, clock),
-                }
-            };
-            if let Err(e) = request.send_copy(response) {
-                debug!("tick response not delivered (ticker gone?): {e:?}");
             }
         }
         Ok(())
+    }
+
+    /// The answer to one request, or None when the request waits: a tick
+    /// for its frame, a standby for the world to be free.
+    fn answer(
+        &mut self,
+        request: PendingTick,
+        runtime: &mut Runtime,
+        clock: &Clock,
+    ) -> Option<(PendingTick, TickResponse)> {
+        let payload = *request.payload();
+        let origin = request.origin();
+        // The requesting port's process, as iceoryx2 recorded it; the
+        // payload's pid is the client's own word and is not trusted.
+        let pid = sender_pid(request.header());
+        let kind = TickRequestKind::from_u32(payload.kind);
+        if payload.protocol_version != PROTOCOL_VERSION {
+            return Some((
+                request,
+                self.response(ResponseStatus::ProtocolMismatch, clock),
+            ));
+        }
+        if let (Some(by), Some(TickRequestKind::Tick | TickRequestKind::ApplySettings)) =
+            (self.ownership.revoked_by(origin), kind)
+        {
+            let response = TickResponse {
+                revoked_by: by,
+                ..self.response(ResponseStatus::Revoked, clock)
+            };
+            return Some((request, response));
+        }
+        let response = match kind {
+            Some(TickRequestKind::Claim) => self.claim(&payload, origin, pid, clock),
+            Some(TickRequestKind::Release) => self.release(origin, pid, clock),
+            Some(TickRequestKind::Tick) if self.ownership.is_owner(origin) => {
+                let frame = clock.frame() + 1 + self.pending.len() as u64;
+                stamps::stamp_wake(Stage::ServerWake, frame);
+                stamps::stamp(Stage::ServerTick, frame);
+                self.pending.push_back(PendingStep::Tick(request));
+                return None;
+            }
+            Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
+                let settings = WorldSettings::from(payload.settings);
+                match runtime.change_settings(settings, true, pid, clock.frame() + 1) {
+                    Ok(effective_frame) => TickResponse {
+                        effective_frame,
+                        ..self.response(ResponseStatus::Ok, clock)
+                    },
+                    Err(Refusal::Invalid(error)) => self
+                        .response(ResponseStatus::InvalidSettings, clock)
+                        .with_settings_error(&error),
+                    Err(Refusal::Status(status)) => self.response(status, clock),
+                }
+            }
+            Some(TickRequestKind::Tick | TickRequestKind::ApplySettings) => {
+                warn!(
+                    pid,
+                    "refused a request from a client that is not the ticker"
+                );
+                self.response(ResponseStatus::NotTicker, clock)
+            }
+            Some(TickRequestKind::Standby) => {
+                let candidate = Self::candidate(&payload, origin, pid, clock);
+                match self.standby(candidate, clock) {
+                    Ok(granted) => granted,
+                    Err(candidate) => {
+                        self.queue_standby(request, candidate, clock);
+                        return None;
+                    }
+                }
+            }
+            None => self.response(ResponseStatus::UnknownRequest, clock),
+        };
+        Some((request, response))
+    }
+
+    /// A claim: granted if the world has no living ticker.
+    fn claim(
+        &mut self,
+        payload: &TickRequest,
+        origin: UniqueClientId,
+        pid: u32,
+        clock: &Clock,
+    ) -> TickResponse {
+        let candidate = Self::candidate(payload, origin, pid, clock);
+        let sweep = LiveProcesses::now();
+        match self.ownership.claim(candidate, |pid| sweep.alive(pid)) {
+            Ok(owner) => {
+                info!(
+                    pid = owner.pid,
+                    node = %owner.node_name,
+                    frame = owner.since_frame,
+                    "ticker claimed ownership"
+                );
+                self.response(ResponseStatus::Ok, clock)
+            }
+            Err(current) => {
+                info!(pid, owner_pid = current.pid, "refused a second ticker");
+                self.response(ResponseStatus::NotTicker, clock)
+            }
+        }
+    }
+
+    /// A release: by the ticker (the world goes to the first standby), or
+    /// by a standby that stops waiting.
+    fn release(&mut self, origin: UniqueClientId, pid: u32, clock: &Clock) -> TickResponse {
+        let withdrawn = self.standbys.withdraw(origin);
+        if self.ownership.release(origin) {
+            info!(pid, frame = clock.frame(), "ticker released ownership");
+            self.drop_pending(ResponseStatus::NotTicker, TickerInfo::none(), clock);
+            let response = self.response(ResponseStatus::Ok, clock);
+            self.grant_standby(&LiveProcesses::now(), clock);
+            response
+        } else if withdrawn {
+            debug!(pid, "a standby ticker stopped waiting");
+            self.response(ResponseStatus::Ok, clock)
+        } else {
+            self.response(ResponseStatus::NotTicker, clock)
+        }
     }
 
     /// Answers the first `count` waiting steps with the frame just published.
@@ -280,6 +334,9 @@ impl Ticker {
             );
         }
         self.drop_pending(ResponseStatus::Revoked, by, clock);
+        if !self.standbys.is_empty() {
+            self.grant_standby(&LiveProcesses::now(), clock);
+        }
     }
 
     /// Tells the waiting tick which lockstep participant holds it up and how
@@ -336,7 +393,86 @@ impl Ticker {
             ),
             (false, _) => info!(pid = lost.pid, node = %lost.node_name, frame, "ticker died"),
         }
+        // A standby takes over at once: its answer goes out now, and the
+        // frame-ready event the loop rings after a drop wakes it.
+        self.grant_standby(sweep, clock);
         true
+    }
+
+    /// The owner a claim (or standby claim) of `payload` from the port
+    /// `origin` of process `pid` would make.
+    fn candidate(payload: &TickRequest, origin: UniqueClientId, pid: u32, clock: &Clock) -> Owner {
+        let on_behalf = payload.flags & TickRequest::ON_BEHALF != 0;
+        Owner {
+            client: origin,
+            pid,
+            reported_pid: if on_behalf { payload.pid } else { pid },
+            node_name: payload.node_name.to_string_lossy(),
+            since_frame: clock.frame(),
+        }
+    }
+
+    /// A standby claim: granted now (the answer) when no other standby
+    /// waits and nobody live holds the world; otherwise `candidate` back,
+    /// to be queued.
+    fn standby(&mut self, candidate: Owner, clock: &Clock) -> Result<TickResponse, Owner> {
+        if !self.standbys.is_empty() {
+            return Err(candidate);
+        }
+        let sweep = LiveProcesses::now();
+        let claimed = self.ownership.claim(candidate.clone(), |p| sweep.alive(p));
+        match claimed {
+            Ok(owner) => {
+                let (pid, node) = (owner.pid, &owner.node_name);
+                info!(pid, %node, frame = owner.since_frame, "standby claimed a free world");
+                Ok(self.response(ResponseStatus::Ok, clock))
+            }
+            Err(_) => Err(candidate),
+        }
+    }
+
+    /// Queues a standby claim behind the owner (and the standbys before
+    /// it), telling it at once who owns the world (an interim answer).
+    fn queue_standby(&mut self, request: PendingTick, candidate: Owner, clock: &Clock) {
+        let (pid, node) = (candidate.pid, &candidate.node_name);
+        let owner_pid = self.ownership.info().pid;
+        info!(pid, %node, owner_pid, "standby ticker waits for the world");
+        if let Err(e) = request.send_copy(self.response(ResponseStatus::NotTicker, clock)) {
+            debug!("interim standby answer not delivered: {e:?}");
+        }
+        self.standbys.push(request, candidate);
+    }
+
+    /// Nobody holds the world: makes the oldest live standby the owner and
+    /// answers its claim (the moment it learns it ticks). Returns whether
+    /// one took over.
+    fn grant_standby(&mut self, sweep: &LiveProcesses, clock: &Clock) -> bool {
+        while self.ownership.owner().is_none() {
+            let Some(waiting) = self.standbys.next_alive(|pid| sweep.alive(pid)) else {
+                return false;
+            };
+            let candidate = Owner {
+                since_frame: clock.frame(),
+                ..waiting.candidate
+            };
+            let client = candidate.client;
+            let Some(owner) = self.ownership.grant(candidate) else {
+                return false;
+            };
+            let granted = self.response(ResponseStatus::Ok, clock);
+            match waiting.request.send_copy(granted) {
+                Ok(_) => {
+                    let (pid, node) = (owner.pid, &owner.node_name);
+                    info!(pid, %node, frame = owner.since_frame, "standby ticker took over");
+                    return true;
+                }
+                Err(e) => {
+                    debug!("standby not told it took over (gone?): {e:?}");
+                    self.ownership.release(client);
+                }
+            }
+        }
+        false
     }
 
     /// The client info of a process `pid` named `name`, as a ticker answer

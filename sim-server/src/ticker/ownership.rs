@@ -61,6 +61,16 @@ impl TickOwnership {
         }
     }
 
+    /// Makes `candidate` (a standby taking over) the owner of a world
+    /// nobody holds; `None` if someone does. Unlike [`Self::claim`], a
+    /// revoked ticker is still told who revoked it.
+    pub(crate) fn grant(&mut self, candidate: Owner) -> Option<Owner> {
+        if self.owner.is_some() {
+            return None;
+        }
+        Some(self.owner.insert(candidate).clone())
+    }
+
     /// Ends the ownership of `client`; `false` if it was not the owner. A
     /// revoked ticker's release is accepted (and forgets the revocation).
     pub(crate) fn release(&mut self, client: UniqueClientId) -> bool {

@@ -3,6 +3,7 @@
 //! are in [`crate::vehicles`].
 
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use rapier3d::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -132,19 +133,35 @@ impl World {
     pub fn step_with_collisions(
         &mut self,
         plan: &SubstepPlan,
+        collisions: Option<&mut Vec<RecordedCollision>>,
+    ) {
+        self.step_timed(plan, collisions, None);
+    }
+
+    /// [`World::step_with_collisions`], adding the time spent inside
+    /// rapier's pipeline step (nothing else) to `physics` when it is given;
+    /// without it no clock is read.
+    pub(crate) fn step_timed(
+        &mut self,
+        plan: &SubstepPlan,
         mut collisions: Option<&mut Vec<RecordedCollision>>,
+        mut physics: Option<&mut Duration>,
     ) {
         self.physics.integration_parameters.dt = plan.substep_seconds;
         let started = ContactStarts::default();
         for _ in 0..plan.count {
             self.vehicles
                 .update(&mut self.physics, plan.substep_seconds);
-            match collisions.as_deref_mut() {
-                Some(out) => {
-                    self.physics.step_with_events(&(), &started);
-                    self.collect_collisions(&started, out);
-                }
+            let clock = physics.is_some().then(Instant::now);
+            match collisions {
+                Some(_) => self.physics.step_with_events(&(), &started),
                 None => self.physics.step(),
+            }
+            if let (Some(total), Some(clock)) = (physics.as_deref_mut(), clock) {
+                *total += clock.elapsed();
+            }
+            if let Some(out) = collisions.as_deref_mut() {
+                self.collect_collisions(&started, out);
             }
         }
         for handle in self.pushed.drain(..) {

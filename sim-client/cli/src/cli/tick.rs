@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::anyhow;
 use clap::Args;
 use shared_types::{WorldName, WorldSettings};
-use sim_client::{ApplySettingsError, Client, TickError, Ticker, WaitMode};
+use sim_client::{ApplySettingsError, Client, TakeOver, TickError, Ticker, WaitMode};
 use simbus_input as input;
 
 use crate::Failure;
@@ -66,6 +66,18 @@ pub(crate) struct TickArgs {
     /// One JSON object per tick.
     #[arg(long)]
     json: bool,
+
+    /// Stand by while another client ticks: open the ticker's ports now,
+    /// queue a claim, and take over the moment the world has no ticker (it
+    /// exits, dies or is revoked), then tick as without --standby. Several
+    /// standbys are served first come, first served.
+    #[arg(long)]
+    standby: bool,
+
+    /// With --standby: give up after S seconds on standby (exit 1, naming
+    /// the ticker waited for). Default: wait until Ctrl-C.
+    #[arg(long, value_name = "S", requires = "standby", allow_negative_numbers = true, value_parser = input::timeout)]
+    standby_timeout: Option<Duration>,
 }
 
 impl TickArgs {
@@ -106,7 +118,23 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     sync.validate()
         .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
     wait_for_participants(&client, args.participants, timeout)?;
-    let mut ticker = client.claim_ticker_as(NODE_NAME)?;
+    let (mut ticker, current, sync, delta) = if args.standby {
+        let Some(ticker) = stand_by(&client, world, &args, interrupted)? else {
+            eprintln!("tick: interrupted on standby; the world is unchanged");
+            return Ok(());
+        };
+        // The settings as the previous ticker left them.
+        let current = client.get_settings()?;
+        let delta = args.delta(&current)?;
+        let sync = WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: delta,
+            ..current
+        };
+        (ticker, current, sync, delta)
+    } else {
+        (client.claim_ticker_as(NODE_NAME)?, current, sync, delta)
+    };
     ticker.set_wait_mode(args.wait_mode);
     let from = ticker
         .apply_settings(sync)
@@ -236,6 +264,48 @@ impl Drop for Holding {
         .give_back();
         for e in [restore.err(), release.err()].into_iter().flatten() {
             eprintln!("tick: {e:#}");
+        }
+    }
+}
+
+/// Stands by until the world has no ticker, then returns the ticker;
+/// `None` on Ctrl-C.
+fn stand_by(
+    client: &Client,
+    world: &WorldName,
+    args: &TickArgs,
+    interrupted: &std::sync::atomic::AtomicBool,
+) -> Result<Option<Ticker>, Failure> {
+    let mut standby = client.standby_ticker_as(NODE_NAME)?;
+    if let Some(owner) = standby.owner() {
+        eprintln!("tick: standby for world '{world}': waiting for the ticker {owner} to go");
+    }
+    let deadline = args.standby_timeout.map(|t| Instant::now() + t);
+    loop {
+        if interrupted.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let left = deadline.map_or(Duration::MAX, |d| {
+            d.saturating_duration_since(Instant::now())
+        });
+        if left.is_zero() {
+            return Err(Failure::Runtime(
+                TickError::StandbyTimedOut {
+                    world: world.to_string(),
+                    waited: args.standby_timeout.unwrap_or_default(),
+                    owner: standby.owner().map(Box::new),
+                }
+                .into(),
+            ));
+        }
+        // In slices, so Ctrl-C is noticed.
+        match standby.wait_for(left.min(Duration::from_millis(200)))? {
+            TakeOver::Ticker(ticker) => {
+                let frame = ticker.last_frame().map_or(0, |(frame, _)| frame);
+                eprintln!("tick: standby took over world '{world}' at frame {frame}");
+                return Ok(Some(ticker));
+            }
+            TakeOver::Waiting(waiting) => standby = waiting,
         }
     }
 }

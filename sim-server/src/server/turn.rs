@@ -1,0 +1,154 @@
+//! One turn of the server's loop: every domain answers what arrived, then
+//! a frame is stepped when it is due (or ticked), or the loop polls or
+//! sleeps as the wait mode says.
+
+use std::time::Instant;
+
+use shared_types::{FixedText, WaitMode};
+
+use super::{Server, FULL_PASS_PERIOD, MAX_IDLE_WAIT};
+use crate::batches::BatchEffect;
+use crate::ticker::Ticker;
+use crate::ServerError;
+
+impl Server {
+    /// Every domain answers what arrived, in this order. Returns whether a
+    /// client announced a request or an answer went out late: the
+    /// frame-ready event then rings before the loop waits (a frame stepped
+    /// now rings it anyway), so clients waiting on it for an answer (the
+    /// Zenoh exporter) wake, and a tick's round trip costs one ring.
+    ///
+    /// A client rings the wake-up event after each request it sends (the
+    /// doorbell): while nothing rang, a polling server looks at one word
+    /// instead of every domain's ports, and at all of them every
+    /// [`FULL_PASS_PERIOD`] anyway.
+    pub(super) fn answer_requests(&mut self) -> Result<bool, ServerError> {
+        let d = &mut self.domains;
+        let mut answered = self.control.take_announced()?;
+        if !answered && d.timers.full_pass.elapsed() < FULL_PASS_PERIOD {
+            return Ok(false);
+        }
+        d.timers.full_pass = Instant::now();
+        self.control.handle(|call| d.answer_control(call))?;
+        if let Some(response) = d.replay_prepared() {
+            self.recorder.answer_replay(response);
+            answered = true;
+        }
+        self.recorder
+            .handle(|call, client_pid| d.answer_recorder(call, client_pid))?;
+        let episode = d.runtime.episode;
+        if d.replayer.is_running() {
+            d.batches.refuse_while_replaying(&d.clock)?;
+        } else {
+            let (frame, ticker_pid) = (d.clock.frame(), d.ticker.owner_pid());
+            let (recorder, ticker) = (&mut d.recorder, &mut d.ticker);
+            let applied = d
+                .batches
+                .handle(&mut d.world, ticker_pid, &d.clock, |effect| match effect {
+                    BatchEffect::Applied(command, result) => {
+                        recorder.command(frame + 1, episode, command, result)
+                    }
+                    BatchEffect::Tick(request, results) => ticker.queue_batch(request, results),
+                })?;
+            if applied {
+                d.sensors.end_orphans(&d.world, frame, episode);
+            }
+        }
+        d.lockstep.handle(episode, &d.clock)?;
+        let follow = d.replayer.follow_id();
+        d.sensors
+            .handle(&d.transport, &d.world, &d.clock, episode, follow)?;
+        d.recorder.sensor_notes(d.sensors.take_journal());
+        d.ticker.handle(&mut d.runtime, &d.clock)?;
+        Ok(answered | d.housekeeping())
+    }
+
+    /// Synchronous: one frame per tick, nothing without one, and not before
+    /// every lockstep participant is done; otherwise poll or sleep as the
+    /// wait mode says.
+    pub(super) fn synchronous_turn(
+        &mut self,
+        now: Instant,
+        mut answered: bool,
+    ) -> Result<(), ServerError> {
+        let d = &mut self.domains;
+        let ticked = d.ticker.has_pending();
+        if ticked && d.lockstep.all_done(d.clock.frame()) {
+            d.ticker.drop_abandoned();
+            if d.ticker.has_pending() {
+                d.lockstep.stepped();
+                return d.step_frame(now, 1);
+            }
+            // The ticks were abandoned (their ticker is gone).
+            return if answered { d.frames.notify() } else { Ok(()) };
+        }
+        if ticked {
+            let timeout = d.config.lockstep_timeout;
+            if let Some(late) = d.lockstep.held_up(now, timeout, d.clock.frame()) {
+                let frame = d.clock.frame();
+                let name = FixedText::new(&late.name);
+                let participant = Ticker::named(late.pid, name, frame);
+                d.ticker.tell_held_up(participant, timeout, &d.clock);
+                answered = true;
+            }
+        }
+        if answered {
+            d.frames.notify()?;
+        }
+        let polling = match d.config.wait_mode {
+            WaitMode::Spin => true,
+            WaitMode::Hybrid => d.clock.last_frame_at().elapsed() < d.config.hybrid_window,
+            WaitMode::Block => false,
+        };
+        if polling && d.config.wait_mode == WaitMode::Hybrid {
+            // Polls without keeping the ticker from running: on a CPU it
+            // shares with the ticker, a spin would hold the tick back for
+            // the whole window.
+            std::thread::yield_now();
+        } else if polling {
+            std::hint::spin_loop();
+        } else {
+            self.control.wait_for_request(d.idle_limit(MAX_IDLE_WAIT))?;
+        }
+        Ok(())
+    }
+
+    /// Asynchronous: a frame when one is due (a tick just waits for it);
+    /// until then, sleep, woken by requests.
+    pub(super) fn asynchronous_turn(
+        &mut self,
+        now: Instant,
+        answered: bool,
+    ) -> Result<(), ServerError> {
+        let d = &mut self.domains;
+        let due = match d.replayer.next_frame_at(now) {
+            Some(at) => Some(at),
+            None => d
+                .runtime
+                .pacer
+                .next_frame_at(&d.clock, &d.runtime.settings, now),
+        };
+        match due {
+            Some(at) if at > now => {
+                if answered {
+                    d.frames.notify()?;
+                }
+                let until = at - now;
+                let limit = d.idle_limit(until);
+                if limit < until {
+                    // Woken by requests; probes its watch on the way.
+                    self.control.wait_for_request(limit)
+                } else {
+                    self.control.idle(until)
+                }
+            }
+            _ => {
+                if d.ticker.has_pending() {
+                    d.ticker.drop_abandoned();
+                }
+                let ticks = d.ticker.pending_count();
+                d.step_frame(now, ticks)
+            }
+        }
+    }
+}

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use clap::Args;
 use shared_types::SensorSpec;
-use sim_client::Client;
+use sim_client::{Client, Ticker};
 use simbus_process::ChildGuard;
 
 use crate::stats::{header, Latencies};
@@ -100,16 +100,28 @@ fn free_port() -> anyhow::Result<u16> {
     Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
+/// The CARLA side: `script` run with the venv's `python` against the
+/// gateway on `port`.
+#[derive(Debug, Clone, Copy)]
+struct CarlaSide<'a> {
+    python: &'a Path,
+    script: &'a Path,
+    port: u16,
+}
+
 /// Runs the CARLA side in `mode` and returns its JSON answer; `started`
 /// runs while it works (with a channel that yields its output lines).
 fn carla_side(
-    python: &Path,
-    script: &Path,
+    carla: CarlaSide<'_>,
     mode: &str,
-    port: u16,
     n: usize,
     started: impl FnOnce(&mpsc::Receiver<String>) -> anyhow::Result<()>,
 ) -> anyhow::Result<serde_json::Value> {
+    let CarlaSide {
+        python,
+        script,
+        port,
+    } = carla;
     let mut child = Command::new(python)
         .arg(script)
         .args([mode, &port.to_string(), &n.to_string()])
@@ -177,6 +189,20 @@ fn start_gateway(
     Ok(guard)
 }
 
+/// What one run measured.
+struct Measured {
+    /// /proc/loadavg before the run.
+    load: String,
+    native_tick: Latencies,
+    carla_tick: Latencies,
+    /// CARLA's bare version RPC: the floor under its tick.
+    carla_rpc: Latencies,
+    native_wait: Latencies,
+    carla_wait: Latencies,
+    native_fps: f64,
+    carla_fps: f64,
+}
+
 fn measure(
     args: &CarlaArgs,
     sim_client: &Path,
@@ -187,11 +213,42 @@ fn measure(
     let server = BenchServer::start("carla", &["--scene", "empty"])?;
     let (port, streams) = (free_port()?, free_port()?);
     let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
+    let carla = CarlaSide {
+        python,
+        script,
+        port,
+    };
     let timeout = Duration::from_secs(30);
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
-
-    // Tick round trip: native, then the CARLA client.
+    let (native_tick, carla_tick, carla_rpc) = tick_round_trips(args, &client, carla, timeout)?;
     let mut ticker = sync_ticker(&client, 0.01)?;
+    let (native_wait, carla_wait) =
+        wait_for_tick(args, &server.world, &mut ticker, carla, timeout)?;
+    let (native_fps, carla_fps) = depth_fps(args, &client, ticker, carla, timeout)?;
+    report(
+        args,
+        &Measured {
+            load,
+            native_tick,
+            carla_tick,
+            carla_rpc,
+            native_wait,
+            carla_wait,
+            native_fps,
+            carla_fps,
+        },
+    );
+    Ok(())
+}
+
+/// Tick round trip: native, then the CARLA client (and its bare RPC).
+fn tick_round_trips(
+    args: &CarlaArgs,
+    client: &Client,
+    carla: CarlaSide<'_>,
+    timeout: Duration,
+) -> anyhow::Result<(Latencies, Latencies, Latencies)> {
+    let mut ticker = sync_ticker(client, 0.01)?;
     let mut native_tick = Latencies::new();
     for i in 0..args.ticks + args.ticks / 10 {
         let start = Instant::now();
@@ -201,14 +258,22 @@ fn measure(
         }
     }
     ticker.release()?;
-    let answer = carla_side(python, script, "tick", port, args.ticks, |_| Ok(()))?;
+    let answer = carla_side(carla, "tick", args.ticks, |_| Ok(()))?;
     let carla_tick = latencies(&answer, "ns")?;
     let carla_rpc = latencies(&answer, "floor_ns")?;
+    Ok((native_tick, carla_tick, carla_rpc))
+}
 
-    // wait_for_tick: a native ticker steps every 2 ms; a native waiter and
-    // the CARLA client measure publish -> returned for the same frames.
-    let mut ticker = sync_ticker(&client, 0.01)?;
-    let world = server.world.clone();
+/// wait_for_tick: `ticker` steps every 2 ms; a native waiter and the CARLA
+/// client measure publish -> returned for the same frames.
+fn wait_for_tick(
+    args: &CarlaArgs,
+    world: &str,
+    ticker: &mut Ticker,
+    carla: CarlaSide<'_>,
+    timeout: Duration,
+) -> anyhow::Result<(Latencies, Latencies)> {
+    let world = world.to_owned();
     let samples = args.ticks;
     let native_waiter = std::thread::spawn(move || -> anyhow::Result<Latencies> {
         let mut client = Client::connect(&world, Duration::from_secs(10))?;
@@ -221,7 +286,7 @@ fn measure(
         }
         Ok(l)
     });
-    let carla_wait = carla_side(python, script, "wait", port, args.ticks, |lines| {
+    let carla_wait = carla_side(carla, "wait", args.ticks, |lines| {
         // Tick until the client saw a frame and said so, then on.
         loop {
             ticker.tick(timeout)?;
@@ -240,8 +305,18 @@ fn measure(
     let native_wait = native_waiter
         .join()
         .map_err(|_| anyhow::anyhow!("the native waiter panicked"))??;
+    Ok((native_wait, carla_wait))
+}
 
-    // Depth 640x480 through camera.listen vs a native subscriber.
+/// Depth 640x480 frames per second: a native subscriber ticking with
+/// `ticker` (released after), then camera.listen on the CARLA client.
+fn depth_fps(
+    args: &CarlaArgs,
+    client: &Client,
+    mut ticker: Ticker,
+    carla: CarlaSide<'_>,
+    timeout: Duration,
+) -> anyhow::Result<(f64, f64)> {
     let mut sensor =
         client.spawn_sensor(SensorSpec::depth([0.0, 2.0, 0.0], 640, 480, 90.0, 1000.0))?;
     for _ in 0..5 {
@@ -260,10 +335,24 @@ fn measure(
     let native_fps = args.frames as f64 / start.elapsed().as_secs_f64();
     client.destroy_sensor(sensor.id())?;
     ticker.release()?;
-    let carla_fps = carla_side(python, script, "depth", port, args.frames, |_| Ok(()))?["fps"]
+    let carla_fps = carla_side(carla, "depth", args.frames, |_| Ok(()))?["fps"]
         .as_f64()
         .context("no fps")?;
+    Ok((native_fps, carla_fps))
+}
 
+/// Prints the table (or, with --json, one object).
+fn report(args: &CarlaArgs, m: &Measured) {
+    let Measured {
+        load,
+        native_tick,
+        carla_tick,
+        carla_rpc,
+        native_wait,
+        carla_wait,
+        native_fps,
+        carla_fps,
+    } = m;
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     if args.json {
         println!(
@@ -271,16 +360,16 @@ fn measure(
             serde_json::json!({
                 "load_before": load.trim(),
                 "tick_round_trip": {"native": native_tick.json(), "carla": carla_tick.json(),
-                    "carla_over_native_p50": p50(&carla_tick) / p50(&native_tick),
+                    "carla_over_native_p50": p50(carla_tick) / p50(native_tick),
                     "carla_version_rpc": carla_rpc.json(),
-                    "carla_over_version_rpc_p50": p50(&carla_tick) / p50(&carla_rpc)},
+                    "carla_over_version_rpc_p50": p50(carla_tick) / p50(carla_rpc)},
                 "wait_for_tick": {"native": native_wait.json(), "carla": carla_wait.json(),
-                    "carla_over_native_p50": p50(&carla_wait) / p50(&native_wait)},
+                    "carla_over_native_p50": p50(carla_wait) / p50(native_wait)},
                 "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
                     "native_over_carla": native_fps / carla_fps},
             })
         );
-        return Ok(());
+        return;
     }
     println!(
         "CARLA 0.9.16's Python client through the gateway vs the native client, one run (load average before: {})",
@@ -294,13 +383,12 @@ fn measure(
     println!("{}", carla_wait.row("wait_for_tick, CARLA"));
     println!(
         "CARLA/native p50: tick {:.1}x, wait_for_tick {:.1}x; CARLA tick / CARLA's bare RPC: {:.2}x",
-        p50(&carla_tick) / p50(&native_tick),
-        p50(&carla_wait) / p50(&native_wait),
-        p50(&carla_tick) / p50(&carla_rpc)
+        p50(carla_tick) / p50(native_tick),
+        p50(carla_wait) / p50(native_wait),
+        p50(carla_tick) / p50(carla_rpc)
     );
     println!(
         "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",
         native_fps / carla_fps
     );
-    Ok(())
 }

@@ -65,7 +65,32 @@ fn tick_round_trips(world: &str, n: u64) -> anyhow::Result<Latencies> {
 }
 
 pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
-    // Batches: 1000 velocity commands on the 1000 boxes of boxes:1000.
+    let (batch, singles) = batches(&args)?;
+
+    // Lockstep: tick round trip without and with one participant.
+    let plain = BenchServer::start("lockstep-none", &["--scene", "empty"])?;
+    let without = tick_round_trips(&plain.world, args.ticks)?;
+    drop(plain);
+    let joined = BenchServer::start("lockstep-one", &["--scene", "empty"])?;
+    let (_participant, ready) = spawn_peer("participant", &joined.world)?;
+    anyhow::ensure!(ready == "ready", "the participant did not start: {ready}");
+    let with = tick_round_trips(&joined.world, args.ticks)?;
+    let floor = crate::futex::floor(args.ticks, Duration::ZERO)?;
+    report(
+        &args,
+        [&batch, &singles],
+        Lockstep {
+            without: &without,
+            with: &with,
+            floor: &floor,
+        },
+    );
+    Ok(())
+}
+
+/// Batches: 1000 velocity commands on the 1000 boxes of boxes:1000, as
+/// one batch and as 1000 single-command batches.
+fn batches(args: &CommandsArgs) -> anyhow::Result<(Latencies, Latencies)> {
     let server = BenchServer::start(
         "commands",
         &[
@@ -101,17 +126,24 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     }
     drop(client);
     drop(server);
+    Ok((batch, singles))
+}
 
-    // Lockstep: tick round trip without and with one participant.
-    let plain = BenchServer::start("lockstep-none", &["--scene", "empty"])?;
-    let without = tick_round_trips(&plain.world, args.ticks)?;
-    drop(plain);
-    let joined = BenchServer::start("lockstep-one", &["--scene", "empty"])?;
-    let (_participant, ready) = spawn_peer("participant", &joined.world)?;
-    anyhow::ensure!(ready == "ready", "the participant did not start: {ready}");
-    let with = tick_round_trips(&joined.world, args.ticks)?;
-    let floor = crate::futex::floor(args.ticks, Duration::ZERO)?;
+/// The lockstep rows: the tick round trip without and with one
+/// participant, and a futex round trip for scale.
+struct Lockstep<'a> {
+    without: &'a Latencies,
+    with: &'a Latencies,
+    floor: &'a Latencies,
+}
 
+/// Prints the tables (or, with --json, one object).
+fn report(args: &CommandsArgs, [batch, singles]: [&Latencies; 2], lockstep: Lockstep<'_>) {
+    let Lockstep {
+        without,
+        with,
+        floor,
+    } = lockstep;
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     if args.json {
         println!(
@@ -119,14 +151,14 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
             serde_json::json!({
                 "batch_of_1000": batch.json(),
                 "1000_single_commands": singles.json(),
-                "singles_over_batch_p50": p50(&singles) / p50(&batch),
+                "singles_over_batch_p50": p50(singles) / p50(batch),
                 "tick_without_participant": without.json(),
                 "tick_with_one_participant": with.json(),
-                "participant_cost_p50_us": p50(&with) - p50(&without),
+                "participant_cost_p50_us": p50(with) - p50(without),
                 "futex_round_trip": floor.json(),
             })
         );
-        return Ok(());
+        return;
     }
     println!("commands: 1000 set_target_velocity on boxes:1000, apply_batch_sync round trip");
     println!("{}", header("how"));
@@ -134,8 +166,8 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     println!("{}", singles.row("1000 single-command batches"));
     println!(
         "per command in a batch: {:.2} µs; 1000 singles / one batch at p50: {:.0}x",
-        p50(&batch) / 1000.0,
-        p50(&singles) / p50(&batch)
+        p50(batch) / 1000.0,
+        p50(singles) / p50(batch)
     );
     println!();
     println!(
@@ -147,9 +179,8 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     println!("{}", floor.row("(a futex round trip)"));
     println!(
         "one participant adds {:.1} µs at p50 ({:.2}x), {:.2} futex round trips",
-        p50(&with) - p50(&without),
-        p50(&with) / p50(&without),
-        (p50(&with) - p50(&without)) / p50(&floor)
+        p50(with) - p50(without),
+        p50(with) / p50(without),
+        (p50(with) - p50(without)) / p50(floor)
     );
-    Ok(())
 }

@@ -277,6 +277,10 @@ pub(crate) fn row(
     Ok((latencies, lost))
 }
 
+/// One row: the stream, the wait mode, the subscribers, the last
+/// subscriber's latencies and the samples lost.
+type Row = (&'static str, &'static str, usize, Latencies, u64);
+
 pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
     let machine = machine_state(Duration::from_millis(500));
     let most = args.subscribers.iter().copied().max().unwrap_or(1);
@@ -297,6 +301,23 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
     let sensor = client.spawn_sensor(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 100.0))?;
     let sensor_id = sensor.id();
     drop(sensor);
+    let rows = measure_rows(&args, &server.world, &mut ticker, sensor_id)?;
+    ticker.release()?;
+    if let Some(path) = &args.plot {
+        plot_rows(path, &rows)?;
+    }
+    report(&args, &machine, &rows);
+    Ok(())
+}
+
+/// Every row: frames and the 8 MiB depth sensor `sensor_id`, each wait
+/// mode, each number of subscribers.
+fn measure_rows(
+    args: &FanoutArgs,
+    world: &str,
+    ticker: &mut sim_client::Ticker,
+    sensor_id: u64,
+) -> anyhow::Result<Vec<Row>> {
     let mut rows = Vec::new();
     for stream in ["frames", "8 MiB depth"] {
         for mode in ["spin", "ports", "block"] {
@@ -309,29 +330,34 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
                 // Room for every subscriber to be woken and run on 2 cores.
                 let pace = Duration::from_micros(1000 + 100 * n as u64);
                 let id = if stream == "frames" { 0 } else { sensor_id };
-                let (latencies, lost) =
-                    row(&server.world, &mut ticker, n, mode, id, args.samples, pace)?;
+                let (latencies, lost) = row(world, ticker, n, mode, id, args.samples, pace)?;
                 rows.push((stream, mode, n, latencies, lost));
             }
         }
     }
-    ticker.release()?;
-    if let Some(path) = &args.plot {
-        let names: Vec<String> = rows
-            .iter()
-            .map(|(stream, mode, n, ..)| format!("{stream}, {mode}, {n}"))
-            .collect();
-        let series: Vec<(&str, &Latencies)> = names
-            .iter()
-            .zip(&rows)
-            .map(|(name, (.., l, _))| (name.as_str(), l))
-            .collect();
-        crate::plot::percentiles(
-            path,
-            "Fan-out: the last subscriber's latency (stream, mode, subscribers)",
-            &series,
-        )?;
-    }
+    Ok(rows)
+}
+
+/// The last subscriber's latency distributions, one per row, into `path`.
+fn plot_rows(path: &std::path::Path, rows: &[Row]) -> anyhow::Result<()> {
+    let names: Vec<String> = rows
+        .iter()
+        .map(|(stream, mode, n, ..)| format!("{stream}, {mode}, {n}"))
+        .collect();
+    let series: Vec<(&str, &Latencies)> = names
+        .iter()
+        .zip(rows)
+        .map(|(name, (.., l, _))| (name.as_str(), l))
+        .collect();
+    crate::plot::percentiles(
+        path,
+        "Fan-out: the last subscriber's latency (stream, mode, subscribers)",
+        &series,
+    )
+}
+
+/// Prints the table (or, with --json, one object).
+fn report(args: &FanoutArgs, machine: &str, rows: &[Row]) {
     if args.json {
         let json: Vec<_> = rows
             .iter()
@@ -343,7 +369,7 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({"machine": machine, "rows": json, "samples": args.samples})
         );
-        return Ok(());
+        return;
     }
     println!(
         "fan-out: publish -> the LAST of N subscriber processes holds the sample ({} frames per row, paced ticks)",
@@ -354,7 +380,7 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
         "{:<12} {:<6} {:>5} {:>10} {:>10} {:>10} {:>6}",
         "stream", "wait", "subs", "p50 µs", "p99 µs", "p999 µs", "lost"
     );
-    for (stream, mode, n, l, lost) in &rows {
+    for (stream, mode, n, l, lost) in rows {
         println!(
             "{stream:<12} {mode:<6} {n:>5} {:>10.1} {:>10.1} {:>10.1} {lost:>6}",
             l.quantile_us(0.5),
@@ -362,5 +388,4 @@ pub(crate) fn run(args: FanoutArgs) -> anyhow::Result<()> {
             l.quantile_us(0.999)
         );
     }
-    Ok(())
 }

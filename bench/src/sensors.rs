@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use shared_types::SensorSpec;
-use sim_client::Client;
+use sim_client::{Client, Ticker};
 
 use crate::stats::{header, Latencies};
 use crate::support::spawn_peer;
@@ -74,10 +74,30 @@ fn tcp_latency(bytes: usize, samples: u64) -> anyhow::Result<Latencies> {
     Ok(latencies)
 }
 
+/// One delivery row: the size's label, its bytes, and the latencies over
+/// simbus and over TCP.
+type DeliveryRow = (&'static str, usize, Latencies, Latencies);
+
 pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
-    // Delivery latency: capture published -> header and data readable, in
-    // a reader process spinning on the sensor itself (not behind a tick
-    // round trip), the ticker asleep between paced ticks.
+    let rows = delivery_rows(&args)?;
+
+    // Frame time on the default scene with and without the sensors.
+    let server = BenchServer::start("sensor-frames", &["--scene", "default"])?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let frames = frame_times(&args, &client, &mut ticker)?;
+
+    if let Some(path) = &args.plot {
+        plot_delivery(path, &rows)?;
+    }
+    report(&args, &rows, &frames);
+    Ok(())
+}
+
+/// Delivery latency: capture published -> header and data readable, in
+/// a reader process spinning on the sensor itself (not behind a tick
+/// round trip), the ticker asleep between paced ticks; and over TCP.
+fn delivery_rows(args: &SensorsArgs) -> anyhow::Result<Vec<DeliveryRow>> {
     let server = BenchServer::start("sensors", &["--scene", "empty"])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
@@ -102,11 +122,16 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     ticker.release()?;
     drop(client);
     drop(server);
+    Ok(rows)
+}
 
-    // Frame time on the default scene with and without the sensors.
-    let server = BenchServer::start("sensor-frames", &["--scene", "default"])?;
-    let client = Client::connect(&server.world, Duration::from_secs(10))?;
-    let mut ticker = sync_ticker(&client, 0.01)?;
+/// The tick round trip with no sensors, then with a depth camera, then
+/// with a lidar too.
+fn frame_times(
+    args: &SensorsArgs,
+    client: &Client,
+    ticker: &mut Ticker,
+) -> anyhow::Result<Vec<(&'static str, Latencies)>> {
     let timeout = Duration::from_secs(30);
     let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
         let mut latencies = Latencies::new();
@@ -130,25 +155,31 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     ))?;
     frames.push(frame_time("+ lidar 64x1024")?);
     drop((depth, lidar));
+    Ok(frames)
+}
 
-    if let Some(path) = &args.plot {
-        let names: Vec<(String, String)> = rows
-            .iter()
-            .map(|(label, ..)| (format!("simbus {label}"), format!("TCP {label}")))
-            .collect();
-        let series: Vec<(&str, &Latencies)> = names
-            .iter()
-            .zip(&rows)
-            .flat_map(|((simbus_name, tcp_name), (_, _, simbus, tcp))| {
-                [(simbus_name.as_str(), simbus), (tcp_name.as_str(), tcp)]
-            })
-            .collect();
-        crate::plot::percentiles(
-            path,
-            "Sensor delivery: capture sent -> reader holds it",
-            &series,
-        )?;
-    }
+/// The delivery distributions, simbus and TCP per size, into `path`.
+fn plot_delivery(path: &std::path::Path, rows: &[DeliveryRow]) -> anyhow::Result<()> {
+    let names: Vec<(String, String)> = rows
+        .iter()
+        .map(|(label, ..)| (format!("simbus {label}"), format!("TCP {label}")))
+        .collect();
+    let series: Vec<(&str, &Latencies)> = names
+        .iter()
+        .zip(rows)
+        .flat_map(|((simbus_name, tcp_name), (_, _, simbus, tcp))| {
+            [(simbus_name.as_str(), simbus), (tcp_name.as_str(), tcp)]
+        })
+        .collect();
+    crate::plot::percentiles(
+        path,
+        "Sensor delivery: capture sent -> reader holds it",
+        &series,
+    )
+}
+
+/// Prints the tables (or, with --json, one object).
+fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Latencies)]) {
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     // Wall time per ray: what each sensor added to the frame, over its rays.
     let per_ray =
@@ -171,7 +202,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
             serde_json::json!({"delivery": delivery, "frame_time": frame_json,
                 "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns}})
         );
-        return Ok(());
+        return;
     }
     println!(
         "sensor delivery: capture sent -> a reader process spinning on the sensor holds it, first and last element read ({} captures each)",
@@ -181,7 +212,7 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
         "{:<8} {:>14} {:>14} {:>14} {:>14} {:>10}",
         "size", "simbus p50 µs", "simbus p99 µs", "TCP p50 µs", "TCP p99 µs", "TCP/simbus"
     );
-    for (label, _, simbus, tcp) in &rows {
+    for (label, _, simbus, tcp) in rows {
         println!(
             "{label:<8} {:>14.1} {:>14.1} {:>14.1} {:>14.1} {:>9.1}x",
             p50(simbus),
@@ -194,9 +225,8 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     println!();
     println!("server frame time on the default scene (sync tick round trip, release build)");
     println!("{}", header("sensors"));
-    for (label, latencies) in &frames {
+    for (label, latencies) in frames {
         println!("{}", latencies.row(label));
     }
     println!("wall time per ray at p50 (2 cores): depth {depth_ns:.1} ns, lidar {lidar_ns:.1} ns");
-    Ok(())
 }

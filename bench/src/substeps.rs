@@ -155,6 +155,9 @@ pub(crate) fn acceleration_deviation(run: &[Sample], reference: &[Sample], frame
 const FRAME_STEPS: [f64; 5] = [0.01, 0.02, 0.04, 0.05, 0.1];
 const PHYSICS_STEPS: [f64; 3] = [0.01, 0.02, 0.04];
 
+/// A run: its steps and what it sampled each frame.
+type Run = (Steps, Vec<Sample>);
+
 pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -163,7 +166,7 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
         physics: 0.01,
     };
     let reference = simulate(reference_steps, args.seconds)?;
-    let by_frame: Vec<(Steps, Vec<Sample>)> = FRAME_STEPS
+    let by_frame: Vec<Run> = FRAME_STEPS
         .iter()
         .map(|&frame| {
             let steps = Steps {
@@ -173,7 +176,7 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
             Ok((steps, simulate(steps, args.seconds)?))
         })
         .collect::<anyhow::Result<_>>()?;
-    let by_physics: Vec<(Steps, Vec<Sample>)> = PHYSICS_STEPS
+    let by_physics: Vec<Run> = PHYSICS_STEPS
         .iter()
         .map(|&physics| {
             let steps = Steps {
@@ -183,48 +186,7 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
             Ok((steps, simulate(steps, args.seconds)?))
         })
         .collect::<anyhow::Result<_>>()?;
-
-    let curves = |runs: &[(Steps, Vec<Sample>)], value: fn(&Sample) -> f64| -> Vec<Series> {
-        runs.iter()
-            .map(|(steps, samples)| Series {
-                name: steps.name(),
-                points: samples.iter().map(|s| (s.t, value(s))).collect(),
-            })
-            .collect()
-    };
-    let pictures = [
-        (
-            "velocity_fixed_physics_step",
-            "Speed over time, physics step 0.01 s, frame step varied",
-            ("time, s", "speed, m/s"),
-            curves(&by_frame, |s| s.speed),
-        ),
-        (
-            "velocity_fixed_frame_step",
-            "Speed over time, frame step 0.04 s, physics step varied",
-            ("time, s", "speed, m/s"),
-            curves(&by_physics, |s| s.speed),
-        ),
-        (
-            "vertical_acceleration",
-            "Vertical (CARLA z) acceleration, frame step 0.04 s, physics step varied",
-            ("time, s", "acceleration, m/s²"),
-            curves(&by_physics, |s| s.vertical_acceleration),
-        ),
-    ];
-    let mut written = Vec::new();
-    for (stem, title, labels, series) in &pictures {
-        let png = args.out.join(format!("{stem}.png"));
-        let csv = args.out.join(format!("{stem}.csv"));
-        plot::lines(&png, title, *labels, series)?;
-        plot::csv(
-            &csv,
-            ("t_seconds", labels.1.split(',').next().unwrap_or("value")),
-            series,
-        )?;
-        written.push(png);
-        written.push(csv);
-    }
+    let written = draw(&args.out, &by_frame, &by_physics)?;
 
     // Deviation of every curve from the finest run.
     let rows: Vec<(Steps, f64, f64)> = by_frame
@@ -238,6 +200,64 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
             )
         })
         .collect();
+    report(&args, &rows, &written);
+    Ok(())
+}
+
+/// Draws the three pictures (PNG, and the CSV behind each) into `out`;
+/// returns the files written.
+fn draw(
+    out: &std::path::Path,
+    by_frame: &[Run],
+    by_physics: &[Run],
+) -> anyhow::Result<Vec<PathBuf>> {
+    let curves = |runs: &[Run], value: fn(&Sample) -> f64| -> Vec<Series> {
+        runs.iter()
+            .map(|(steps, samples)| Series {
+                name: steps.name(),
+                points: samples.iter().map(|s| (s.t, value(s))).collect(),
+            })
+            .collect()
+    };
+    let pictures = [
+        (
+            "velocity_fixed_physics_step",
+            "Speed over time, physics step 0.01 s, frame step varied",
+            ("time, s", "speed, m/s"),
+            curves(by_frame, |s| s.speed),
+        ),
+        (
+            "velocity_fixed_frame_step",
+            "Speed over time, frame step 0.04 s, physics step varied",
+            ("time, s", "speed, m/s"),
+            curves(by_physics, |s| s.speed),
+        ),
+        (
+            "vertical_acceleration",
+            "Vertical (CARLA z) acceleration, frame step 0.04 s, physics step varied",
+            ("time, s", "acceleration, m/s²"),
+            curves(by_physics, |s| s.vertical_acceleration),
+        ),
+    ];
+    let mut written = Vec::new();
+    for (stem, title, labels, series) in &pictures {
+        let png = out.join(format!("{stem}.png"));
+        let csv = out.join(format!("{stem}.csv"));
+        plot::lines(&png, title, *labels, series)?;
+        plot::csv(
+            &csv,
+            ("t_seconds", labels.1.split(',').next().unwrap_or("value")),
+            series,
+        )?;
+        written.push(png);
+        written.push(csv);
+    }
+    Ok(written)
+}
+
+/// Prints the deviation table and the files written (or, with --json,
+/// one object).
+fn report(args: &SubstepsArgs, rows: &[(Steps, f64, f64)], written: &[PathBuf]) {
     if args.json {
         let rows: Vec<_> = rows
             .iter()
@@ -252,7 +272,7 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
                 "seconds": args.seconds, "deviations": rows,
                 "files": written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})
         );
-        return Ok(());
+        return;
     }
     println!(
         "substepping: ray-cast vehicle, full throttle {THROTTLE_ON}-{THROTTLE_OFF} s, {} s per run; deviation from frame 0.01 s / physics 0.01 s",
@@ -262,7 +282,7 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
         "{:<10} {:>10} {:>20} {:>28}",
         "frame s", "physics s", "max speed dev m/s", "max vertical accel dev m/s²"
     );
-    for (steps, speed, acceleration) in &rows {
+    for (steps, speed, acceleration) in rows {
         println!(
             "{:<10} {:>10} {speed:>20.4} {acceleration:>28.3}",
             steps.frame, steps.physics
@@ -271,7 +291,6 @@ pub(crate) fn run(args: SubstepsArgs) -> anyhow::Result<()> {
     for path in written {
         println!("wrote {}", path.display());
     }
-    Ok(())
 }
 
 #[cfg(test)]

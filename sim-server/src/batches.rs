@@ -91,60 +91,10 @@ impl Batches {
                 continue;
             }
             if tick {
-                // The answer waits for the frame: keep the results until then.
-                let results: Vec<CommandResult> = request
-                    .payload()
-                    .iter()
-                    .map(|c| {
-                        let result = world.apply(c);
-                        effect(BatchEffect::Applied(c, &result));
-                        result
-                    })
-                    .collect();
-                debug!(
-                    pid = sender,
-                    commands = results.len(),
-                    "ticking batch applied"
-                );
-                applied = true;
-                effect(BatchEffect::Tick(request, results));
-                continue;
+                apply_ticking(request, world, sender, &mut effect);
+            } else {
+                apply_answered(&request, world, sender, next_frame, &mut effect);
             }
-            // Each result is written straight into the loaned answer.
-            let commands = request.payload();
-            let mut failed = 0;
-            match request.loan_slice_uninit(commands.len()) {
-                Ok(mut response) => {
-                    *response.user_header_mut() = BatchResponseHeader {
-                        protocol_version: PROTOCOL_VERSION,
-                        status: ResponseStatus::Ok as u32,
-                        frame: next_frame,
-                    };
-                    let response = response.write_from_fn(|i| {
-                        let result = world.apply(&commands[i]);
-                        effect(BatchEffect::Applied(&commands[i], &result));
-                        failed += usize::from(result.status != CommandStatus::Ok as u32);
-                        result
-                    });
-                    if let Err(e) = response.send() {
-                        // Fire-and-forget batches have nobody waiting.
-                        debug!("batch response not delivered: {e:?}");
-                    }
-                }
-                Err(e) => {
-                    debug!("batch response not loaned: {e:?}");
-                    for command in commands {
-                        let result = world.apply(command);
-                        effect(BatchEffect::Applied(command, &result));
-                    }
-                }
-            }
-            debug!(
-                pid = sender,
-                commands = commands.len(),
-                failed,
-                "batch applied"
-            );
             applied = true;
         }
         Ok(applied)
@@ -168,6 +118,77 @@ impl Batches {
         }
         Ok(())
     }
+}
+
+/// Applies a ticking batch; its answer waits for the frame, so the results
+/// are kept and the batch goes to the ticker (`effect`).
+fn apply_ticking(
+    request: PendingBatch,
+    world: &mut World,
+    sender: u32,
+    effect: &mut impl FnMut(BatchEffect<'_>),
+) {
+    let results: Vec<CommandResult> = request
+        .payload()
+        .iter()
+        .map(|c| {
+            let result = world.apply(c);
+            effect(BatchEffect::Applied(c, &result));
+            result
+        })
+        .collect();
+    debug!(
+        pid = sender,
+        commands = results.len(),
+        "ticking batch applied"
+    );
+    effect(BatchEffect::Tick(request, results));
+}
+
+/// Applies a batch and answers it at once, each result written straight
+/// into the loaned answer (applied all the same when no answer can be
+/// loaned).
+fn apply_answered(
+    request: &PendingBatch,
+    world: &mut World,
+    sender: u32,
+    next_frame: u64,
+    effect: &mut impl FnMut(BatchEffect<'_>),
+) {
+    let commands = request.payload();
+    let mut failed = 0;
+    match request.loan_slice_uninit(commands.len()) {
+        Ok(mut response) => {
+            *response.user_header_mut() = BatchResponseHeader {
+                protocol_version: PROTOCOL_VERSION,
+                status: ResponseStatus::Ok as u32,
+                frame: next_frame,
+            };
+            let response = response.write_from_fn(|i| {
+                let result = world.apply(&commands[i]);
+                effect(BatchEffect::Applied(&commands[i], &result));
+                failed += usize::from(result.status != CommandStatus::Ok as u32);
+                result
+            });
+            if let Err(e) = response.send() {
+                // Fire-and-forget batches have nobody waiting.
+                debug!("batch response not delivered: {e:?}");
+            }
+        }
+        Err(e) => {
+            debug!("batch response not loaned: {e:?}");
+            for command in commands {
+                let result = world.apply(command);
+                effect(BatchEffect::Applied(command, &result));
+            }
+        }
+    }
+    debug!(
+        pid = sender,
+        commands = commands.len(),
+        failed,
+        "batch applied"
+    );
 }
 
 /// Answers a batch with `status`, the frame it concerns and its results.

@@ -12,9 +12,13 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 use shared_types::Exact;
-use shared_types::{ActorKind, CommandKind, CommandStatus, NANOS_PER_SECOND};
+use shared_types::{
+    ActorKind, ActorState, CommandKind, CommandStatus, FrameHeader, NANOS_PER_SECOND,
+};
 
-use crate::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};
+use crate::{
+    Entry, RecordedCommand, RecordedEvent, RecordingError, RecordingHeader, RecordingReader,
+};
 
 /// What a recording holds (`recorder info`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -184,31 +188,7 @@ fn entries(path: &str, mut each: impl FnMut(&Entry)) -> Result<RecordingReader, 
 
 /// CARLA's `show_recorder_file_info(name, show_all)`.
 pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError> {
-    let mut info = FileInfo {
-        path: path.to_string(),
-        header: RecordingReader::open(path)?.header().clone(),
-        frames: 0,
-        first_frame: 0,
-        last_frame: 0,
-        episode_list: Vec::new(),
-        duration_seconds: 0.0,
-        episodes: 0,
-        commands: 0,
-        actors_spawned: 0,
-        actors_destroyed: 0,
-        max_actors: 0,
-        sensors: 0,
-        captures: 0,
-        collisions: 0,
-        keyframes: 0,
-        settings_changes: 0,
-        bytes: 0,
-        raw_bytes: 0,
-        compression_ratio: 0.0,
-        truncated: false,
-        stopped: None,
-        frame_list: Vec::new(),
-    };
+    let mut info = FileInfo::empty(path, RecordingReader::open(path)?.header().clone());
     let mut last_log = 0;
     let reader = entries(path, |entry| match entry {
         Entry::Frame {
@@ -216,49 +196,10 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
             header,
             actors,
         } => {
-            let t = &header.timestamp;
-            if info.frames == 0 {
-                info.first_frame = t.frame;
-            }
-            info.frames += 1;
-            info.last_frame = t.frame;
-            match info.episode_list.last_mut() {
-                Some(e) if e.episode == header.episode => {
-                    e.frames += 1;
-                    e.last_frame = t.frame;
-                }
-                _ => info.episode_list.push(EpisodeFrames {
-                    episode: header.episode,
-                    frames: 1,
-                    first_frame: t.frame,
-                    last_frame: t.frame,
-                }),
-            }
             last_log = *log_ns;
-            info.max_actors = info.max_actors.max(actors.len() as u64);
-            info.raw_bytes +=
-                (std::mem::size_of_val(header) + std::mem::size_of_val(&actors[..])) as u64;
-            if show_all {
-                info.frame_list.push(FrameLine {
-                    frame: t.frame,
-                    episode: header.episode,
-                    elapsed_seconds: t.elapsed_seconds(),
-                    delta_seconds: t.delta_seconds(),
-                    substeps: header.physics_substeps,
-                    actors: header.actor_count,
-                });
-            }
+            info.count_frame(header, actors, show_all);
         }
-        Entry::Command(c) => {
-            info.commands += 1;
-            info.raw_bytes += std::mem::size_of_val(c) as u64;
-            let ok = c.result.status == CommandStatus::Ok as u32;
-            match CommandKind::from_u32(c.command.kind) {
-                Some(kind) if ok && kind.spawns() => info.actors_spawned += 1,
-                Some(CommandKind::Destroy) if ok => info.actors_destroyed += 1,
-                _ => {}
-            }
-        }
+        Entry::Command(c) => info.count_command(c),
         Entry::Event(RecordedEvent::Episode { .. }) => info.episodes += 1,
         Entry::Event(RecordedEvent::Settings { .. }) => info.settings_changes += 1,
         Entry::Event(RecordedEvent::Stopped { reason, .. }) => info.stopped = Some(reason.clone()),
@@ -280,6 +221,83 @@ pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError>
         0.0
     };
     Ok(info)
+}
+
+impl FileInfo {
+    /// Nothing counted yet.
+    fn empty(path: &str, header: RecordingHeader) -> Self {
+        FileInfo {
+            path: path.to_string(),
+            header,
+            frames: 0,
+            first_frame: 0,
+            last_frame: 0,
+            episode_list: Vec::new(),
+            duration_seconds: 0.0,
+            episodes: 0,
+            commands: 0,
+            actors_spawned: 0,
+            actors_destroyed: 0,
+            max_actors: 0,
+            sensors: 0,
+            captures: 0,
+            collisions: 0,
+            keyframes: 0,
+            settings_changes: 0,
+            bytes: 0,
+            raw_bytes: 0,
+            compression_ratio: 0.0,
+            truncated: false,
+            stopped: None,
+            frame_list: Vec::new(),
+        }
+    }
+
+    /// Counts a frame (its episode, its actors and bytes; listed with `show_all`).
+    fn count_frame(&mut self, header: &FrameHeader, actors: &[ActorState], show_all: bool) {
+        let t = &header.timestamp;
+        if self.frames == 0 {
+            self.first_frame = t.frame;
+        }
+        self.frames += 1;
+        self.last_frame = t.frame;
+        match self.episode_list.last_mut() {
+            Some(e) if e.episode == header.episode => {
+                e.frames += 1;
+                e.last_frame = t.frame;
+            }
+            _ => self.episode_list.push(EpisodeFrames {
+                episode: header.episode,
+                frames: 1,
+                first_frame: t.frame,
+                last_frame: t.frame,
+            }),
+        }
+        self.max_actors = self.max_actors.max(actors.len() as u64);
+        self.raw_bytes += (std::mem::size_of_val(header) + std::mem::size_of_val(actors)) as u64;
+        if show_all {
+            self.frame_list.push(FrameLine {
+                frame: t.frame,
+                episode: header.episode,
+                elapsed_seconds: t.elapsed_seconds(),
+                delta_seconds: t.delta_seconds(),
+                substeps: header.physics_substeps,
+                actors: header.actor_count,
+            });
+        }
+    }
+
+    /// Counts an applied command (and the actors it spawned or destroyed).
+    fn count_command(&mut self, c: &RecordedCommand) {
+        self.commands += 1;
+        self.raw_bytes += std::mem::size_of_val(c) as u64;
+        let ok = c.result.status == CommandStatus::Ok as u32;
+        match CommandKind::from_u32(c.command.kind) {
+            Some(kind) if ok && kind.spawns() => self.actors_spawned += 1,
+            Some(CommandKind::Destroy) if ok => self.actors_destroyed += 1,
+            _ => {}
+        }
+    }
 }
 
 /// Whether `kind` matches CARLA-style category `filter`: `a` any, `v`

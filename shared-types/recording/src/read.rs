@@ -275,73 +275,97 @@ impl RecordingReader {
                 Ok(channel) => channel,
                 Err(e) => return Some(Err(e)),
             };
-            let data = &message.data[..];
-            let malformed = |reason: &str| {
-                Some(Err(RecordingError::Malformed {
-                    path: self.path.clone(),
-                    topic: message.channel.topic.clone(),
-                    reason: reason.to_string(),
-                }))
-            };
-            let entry = match channel {
-                Channel::Skipped | Channel::Header => continue,
-                Channel::Frames | Channel::LegacyFrames => {
-                    let split = if channel == Channel::Frames {
-                        split_pod::<FrameHeader>(data)
-                    } else {
-                        split_legacy_header(data)
-                    };
-                    let Some((header, rest)) = split else {
-                        return malformed("shorter than a frame header");
-                    };
-                    let actors: Option<Vec<ActorState>> = pods(rest);
-                    let Some(actors) = actors.filter(|a| a.len() == header.actor_count as usize)
-                    else {
-                        return malformed("actor count does not match the bytes");
-                    };
-                    if message.log_time < self.last_log_ns {
-                        return malformed("a frame's time goes back");
-                    }
-                    if !actors.iter().all(finite) {
-                        return malformed("an actor's state is not finite");
-                    }
-                    self.last_log_ns = message.log_time;
-                    Entry::Frame {
-                        log_ns: message.log_time,
-                        header,
-                        actors,
-                    }
+            match self.decode(channel, &message) {
+                Ok(None) => {}
+                Ok(Some(entry)) => return Some(Ok(entry)),
+                Err(e) => return Some(Err(e)),
+            }
+        }
+    }
+
+    /// `message`'s entry (`None` for a message not read as one).
+    fn decode(
+        &mut self,
+        channel: Channel,
+        message: &mcap::Message<'_>,
+    ) -> Result<Option<Entry>, RecordingError> {
+        let data = &message.data[..];
+        let malformed = |reason: &str| Err(self.malformed(message, reason));
+        let entry = match channel {
+            Channel::Skipped | Channel::Header => return Ok(None),
+            Channel::Frames | Channel::LegacyFrames => self.decode_frame(channel, message)?,
+            Channel::Commands => match exact_pod(data) {
+                Some(command) => Entry::Command(command),
+                None => return malformed("not one recorded command"),
+            },
+            Channel::Collisions => match exact_pod(data) {
+                Some(collision) => Entry::Collision(collision),
+                None => return malformed("not one recorded collision"),
+            },
+            Channel::Sensors => match exact_pod(data) {
+                Some(sensor) => Entry::Sensor(sensor),
+                None => return malformed("not one recorded sensor"),
+            },
+            Channel::Events => match serde_json::from_slice(data) {
+                Ok(event) => Entry::Event(event),
+                Err(e) => return malformed(&e.to_string()),
+            },
+            Channel::Capture => {
+                let Some((header, rest)) = split_pod::<SensorHeader>(data) else {
+                    return malformed("shorter than a capture header");
+                };
+                Entry::Capture {
+                    header,
+                    data: rest.to_vec(),
                 }
-                Channel::Commands => match exact_pod(data) {
-                    Some(command) => Entry::Command(command),
-                    None => return malformed("not one recorded command"),
-                },
-                Channel::Collisions => match exact_pod(data) {
-                    Some(collision) => Entry::Collision(collision),
-                    None => return malformed("not one recorded collision"),
-                },
-                Channel::Sensors => match exact_pod(data) {
-                    Some(sensor) => Entry::Sensor(sensor),
-                    None => return malformed("not one recorded sensor"),
-                },
-                Channel::Events => match serde_json::from_slice(data) {
-                    Ok(event) => Entry::Event(event),
-                    Err(e) => return malformed(&e.to_string()),
-                },
-                Channel::Capture => {
-                    let Some((header, rest)) = split_pod::<SensorHeader>(data) else {
-                        return malformed("shorter than a capture header");
-                    };
-                    Entry::Capture {
-                        header,
-                        data: rest.to_vec(),
-                    }
-                }
-                Channel::Keyframes => Entry::Keyframe {
-                    data: data.to_vec(),
-                },
-            };
-            return Some(Ok(entry));
+            }
+            Channel::Keyframes => Entry::Keyframe {
+                data: data.to_vec(),
+            },
+        };
+        Ok(Some(entry))
+    }
+
+    /// A frame (of the current or the legacy layout), checked: its actors
+    /// as many as it says and finite, its time not going back.
+    fn decode_frame(
+        &mut self,
+        channel: Channel,
+        message: &mcap::Message<'_>,
+    ) -> Result<Entry, RecordingError> {
+        let data = &message.data[..];
+        let split = if channel == Channel::Frames {
+            split_pod::<FrameHeader>(data)
+        } else {
+            split_legacy_header(data)
+        };
+        let Some((header, rest)) = split else {
+            return Err(self.malformed(message, "shorter than a frame header"));
+        };
+        let actors: Option<Vec<ActorState>> = pods(rest);
+        let Some(actors) = actors.filter(|a| a.len() == header.actor_count as usize) else {
+            return Err(self.malformed(message, "actor count does not match the bytes"));
+        };
+        if message.log_time < self.last_log_ns {
+            return Err(self.malformed(message, "a frame's time goes back"));
+        }
+        if !actors.iter().all(finite) {
+            return Err(self.malformed(message, "an actor's state is not finite"));
+        }
+        self.last_log_ns = message.log_time;
+        Ok(Entry::Frame {
+            log_ns: message.log_time,
+            header,
+            actors,
+        })
+    }
+
+    /// A message that is not what its channel holds.
+    fn malformed(&self, message: &mcap::Message<'_>, reason: &str) -> RecordingError {
+        RecordingError::Malformed {
+            path: self.path.clone(),
+            topic: message.channel.topic.clone(),
+            reason: reason.to_string(),
         }
     }
 }

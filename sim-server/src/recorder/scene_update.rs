@@ -20,70 +20,7 @@ pub(super) fn scene_update(
         nsec: (log_ns % 1_000_000_000) as u32,
     };
     let frame = header.timestamp.frame;
-    let entities = actors.iter().map(|a| {
-        let [x, y, z] = a.position;
-        let [qx, qy, qz, qw] = a.rotation;
-        let [ex, ey, ez] = a.extent;
-        let pose = Pose {
-            position: Xyz { x, y: -z, z: y },
-            orientation: Quaternion {
-                x: qx,
-                y: -qz,
-                z: qy,
-                w: qw,
-            },
-        };
-        let kind = ActorKind::from_u32(a.kind);
-        let color = match kind {
-            Some(ActorKind::Static) => Color {
-                r: 0.5,
-                g: 0.5,
-                b: 0.5,
-                a: 1.0,
-            },
-            Some(ActorKind::Vehicle) => Color {
-                r: 0.9,
-                g: 0.2,
-                b: 0.2,
-                a: 1.0,
-            },
-            _ => Color {
-                r: 0.2,
-                g: 0.5,
-                b: 0.9,
-                a: 1.0,
-            },
-        };
-        let size = |x: f32, y: f32, z: f32| Xyz {
-            x: 2.0 * x,
-            y: 2.0 * z,
-            z: 2.0 * y,
-        };
-        let primitive = |size| Primitive { pose, size, color };
-        let (cubes, spheres, cylinders) = match kind {
-            Some(ActorKind::Sphere) => (None, Some(primitive(size(ex, ex, ex))), None),
-            Some(ActorKind::Capsule) => (None, None, Some(primitive(size(ex, ey + ex, ex)))),
-            _ => (Some(primitive(size(ex, ey, ez))), None, None),
-        };
-        Entity {
-            timestamp: stamp,
-            frame_id: "simbus",
-            id: a.id,
-            metadata: (
-                KeyValue {
-                    key: "kind",
-                    value: Text(kind.map_or("unknown", |k| k.name())),
-                },
-                KeyValue {
-                    key: "frame",
-                    value: Text(frame),
-                },
-            ),
-            cubes,
-            spheres,
-            cylinders,
-        }
-    });
+    let entities = actors.iter().map(|a| entity(a, stamp, frame));
     let update = SceneUpdate {
         deletions: [Deletion {
             timestamp: stamp,
@@ -94,6 +31,81 @@ pub(super) fn scene_update(
     };
     // Serializing plain numbers and strings into a Vec cannot fail.
     let _ = serde_json::to_writer(out, &update);
+}
+
+/// One actor's entity, drawn as its kind's primitive in its kind's colour.
+fn entity(a: &ActorState, stamp: Time, frame: u64) -> Entity {
+    let [ex, ey, ez] = a.extent;
+    let (pose, kind) = (pose(a), ActorKind::from_u32(a.kind));
+    let color = color(kind);
+    let size = |x: f32, y: f32, z: f32| Xyz {
+        x: 2.0 * x,
+        y: 2.0 * z,
+        z: 2.0 * y,
+    };
+    let primitive = |size| Primitive { pose, size, color };
+    let (cubes, spheres, cylinders) = match kind {
+        Some(ActorKind::Sphere) => (None, Some(primitive(size(ex, ex, ex))), None),
+        Some(ActorKind::Capsule) => (None, None, Some(primitive(size(ex, ey + ex, ex)))),
+        _ => (Some(primitive(size(ex, ey, ez))), None, None),
+    };
+    Entity {
+        timestamp: stamp,
+        frame_id: "simbus",
+        id: a.id,
+        metadata: (
+            KeyValue {
+                key: "kind",
+                value: Text(kind.map_or("unknown", |k| k.name())),
+            },
+            KeyValue {
+                key: "frame",
+                value: Text(frame),
+            },
+        ),
+        cubes,
+        spheres,
+        cylinders,
+    }
+}
+
+/// An actor's pose in Foxglove's frame (Z up).
+fn pose(a: &ActorState) -> Pose {
+    let [x, y, z] = a.position;
+    let [qx, qy, qz, qw] = a.rotation;
+    Pose {
+        position: Xyz { x, y: -z, z: y },
+        orientation: Quaternion {
+            x: qx,
+            y: -qz,
+            z: qy,
+            w: qw,
+        },
+    }
+}
+
+/// Grey statics, red vehicles, blue the rest.
+fn color(kind: Option<ActorKind>) -> Color {
+    match kind {
+        Some(ActorKind::Static) => Color {
+            r: 0.5,
+            g: 0.5,
+            b: 0.5,
+            a: 1.0,
+        },
+        Some(ActorKind::Vehicle) => Color {
+            r: 0.9,
+            g: 0.2,
+            b: 0.2,
+            a: 1.0,
+        },
+        _ => Color {
+            r: 0.2,
+            g: 0.5,
+            b: 0.9,
+            a: 1.0,
+        },
+    }
 }
 
 #[derive(Serialize, Clone, Copy)]

@@ -66,7 +66,7 @@ pub(crate) struct Written {
 
 /// The open file and its channel ids.
 struct Writer {
-    mcap: mcap::Writer<BufWriter<File>>,
+    mcap: McapFile,
     frames: u16,
     commands: u16,
     events: u16,
@@ -81,6 +81,7 @@ struct Writer {
 }
 
 type McapResult<T> = Result<T, mcap::McapError>;
+type McapFile = mcap::Writer<BufWriter<File>>;
 
 /// Creates `path` and writes the header; the file is ready for [`run`].
 /// A path that cannot be created is refused with the file system's reason.
@@ -110,42 +111,92 @@ fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
         name: "simbus".to_string(),
         metadata,
     })?;
-    let json_schema = |mcap: &mut mcap::Writer<_>, name: &str, schema: serde_json::Value| {
-        mcap.add_schema(name, "jsonschema", schema.to_string().as_bytes())
-    };
-    let header_schema = json_schema(&mut mcap, HEADER_SCHEMA, json!({"type": "object"}))?;
-    let header_channel =
-        mcap.add_channel(header_schema, HEADER_TOPIC, "json", &Default::default())?;
-    let wire = |mcap: &mut mcap::Writer<_>, schema: &str, layout: &str, topic: &str| {
-        let id = mcap.add_schema(schema, WIRE_ENCODING, layout.as_bytes())?;
-        mcap.add_channel(id, topic, WIRE_ENCODING, &Default::default())
-    };
-    let frames = wire(
-        &mut mcap,
+    let channels = add_channels(&mut mcap)?;
+    mcap.write_to_known_channel(
+        &MessageHeader {
+            channel_id: channels.header,
+            sequence: 0,
+            log_time: 0,
+            publish_time: header.start_elapsed_ns,
+        },
+        &header_json,
+    )?;
+    // The header in a chunk of its own, on disk now: a recording still
+    // being written reads as one (its header, then every complete chunk),
+    // not as an empty or damaged file.
+    mcap.flush()?;
+    Ok(WriterHandle(Writer {
+        mcap,
+        frames: channels.frames,
+        commands: channels.commands,
+        events: channels.events,
+        collisions: channels.collisions,
+        sensors: channels.sensors,
+        keyframes: channels.keyframes,
+        scene: channels.scene,
+        capture_schema: channels.capture_schema,
+        captures: HashMap::new(),
+        written: Written::default(),
+        scratch: Vec::new(),
+    }))
+}
+
+/// The ids of a recording's channels (and of the schema its sensors'
+/// channels share).
+struct Channels {
+    header: u16,
+    frames: u16,
+    commands: u16,
+    collisions: u16,
+    sensors: u16,
+    events: u16,
+    keyframes: u16,
+    scene: u16,
+    capture_schema: u16,
+}
+
+/// A schema in JSON Schema named `name`.
+fn json_schema(mcap: &mut McapFile, name: &str, schema: serde_json::Value) -> McapResult<u16> {
+    mcap.add_schema(name, "jsonschema", schema.to_string().as_bytes())
+}
+
+/// A channel on `topic` of `#[repr(C)]` records laid out as `layout` says.
+fn wire_channel(mcap: &mut McapFile, schema: &str, layout: &str, topic: &str) -> McapResult<u16> {
+    let id = mcap.add_schema(schema, WIRE_ENCODING, layout.as_bytes())?;
+    mcap.add_channel(id, topic, WIRE_ENCODING, &Default::default())
+}
+
+/// Adds every channel of a recording (and the captures' schema), in the
+/// order their ids are given out.
+fn add_channels(mcap: &mut McapFile) -> McapResult<Channels> {
+    let header_schema = json_schema(mcap, HEADER_SCHEMA, json!({"type": "object"}))?;
+    let header = mcap.add_channel(header_schema, HEADER_TOPIC, "json", &Default::default())?;
+    let frames = wire_channel(
+        mcap,
         FRAME_SCHEMA,
         "#[repr(C)] simbus::FrameHeader/3 (112 bytes, little-endian) followed by actor_count simbus::ActorState/1 (96 bytes each); see shared-types/src/frame.rs",
         FRAMES_TOPIC,
     )?;
-    let commands = wire(
-        &mut mcap,
+    let commands = wire_channel(
+        mcap,
         COMMAND_SCHEMA,
         "#[repr(C)] simbus::RecordedCommand/1: frame u64, episode u64, simbus::Command, simbus::CommandResult; see shared-types/recording/src/lib.rs",
         COMMANDS_TOPIC,
     )?;
-    let collisions = wire(
-        &mut mcap,
+    let collisions = wire_channel(
+        mcap,
         COLLISION_SCHEMA,
         "#[repr(C)] simbus::RecordedCollision/1 (48 bytes); see shared-types/recording/src/lib.rs",
         COLLISIONS_TOPIC,
     )?;
-    let sensors = wire(
-        &mut mcap,
+    let sensors = wire_channel(
+        mcap,
         SENSOR_SPAWN_SCHEMA,
         "#[repr(C)] simbus::RecordedSensor/1: frame u64, id u64, simbus::SensorSpec",
         SENSORS_TOPIC,
     )?;
     let event_schema = json_schema(
-        &mut mcap,
+        mcap,
         EVENT_SCHEMA,
         json!({"type": "object", "required": ["event"]}),
     )?;
@@ -161,40 +212,24 @@ fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
         "msgpack",
         &Default::default(),
     )?;
-    let scene_schema = json_schema(&mut mcap, SCENE_SCHEMA, scene_update_schema())?;
+    let scene_schema = json_schema(mcap, SCENE_SCHEMA, scene_update_schema())?;
     let scene = mcap.add_channel(scene_schema, SCENE_TOPIC, "json", &Default::default())?;
     let capture_schema = mcap.add_schema(
         CAPTURE_SCHEMA,
         WIRE_ENCODING,
         b"#[repr(C)] simbus::SensorHeader/2 followed by the capture's elements (f32 depth, simbus::LidarPoint/1 or simbus::ImuMeasurement/1)",
     )?;
-    mcap.write_to_known_channel(
-        &MessageHeader {
-            channel_id: header_channel,
-            sequence: 0,
-            log_time: 0,
-            publish_time: header.start_elapsed_ns,
-        },
-        &header_json,
-    )?;
-    // The header in a chunk of its own, on disk now: a recording still
-    // being written reads as one (its header, then every complete chunk),
-    // not as an empty or damaged file.
-    mcap.flush()?;
-    Ok(WriterHandle(Writer {
-        mcap,
+    Ok(Channels {
+        header,
         frames,
         commands,
-        events,
         collisions,
         sensors,
+        events,
         keyframes,
         scene,
         capture_schema,
-        captures: HashMap::new(),
-        written: Written::default(),
-        scratch: Vec::new(),
-    }))
+    })
 }
 
 /// A created recording, to be moved to its thread.
@@ -317,21 +352,7 @@ impl Writer {
                 log_ns,
                 header,
                 actors,
-            } => {
-                let mut bytes = std::mem::take(&mut self.scratch);
-                bytes.clear();
-                bytes.extend_from_slice(bytemuck::bytes_of(&header));
-                bytes.extend_from_slice(bytemuck::cast_slice(&actors));
-                let t = &header.timestamp;
-                self.message(self.frames, t.frame, log_ns, t.elapsed_ns, &bytes)?;
-                self.scratch = bytes;
-                let mut scene = std::mem::take(&mut self.scratch);
-                scene.clear();
-                scene_update(&mut scene, &header, &actors, log_ns);
-                self.message(self.scene, t.frame, log_ns, t.elapsed_ns, &scene)?;
-                self.scratch = scene;
-                self.written.frames += 1;
-            }
+            } => self.write_frame(log_ns, &header, &actors)?,
             Item::Command { log_ns, command } => {
                 self.message(
                     self.commands,
@@ -367,28 +388,7 @@ impl Writer {
                 log_ns,
                 header,
                 data,
-            } => {
-                let channel = match self.captures.get(&header.sensor_id) {
-                    Some(id) => *id,
-                    None => {
-                        let topic = format!("{SENSOR_TOPIC_PREFIX}{}", header.sensor_id);
-                        let id = self.mcap.add_channel(
-                            self.capture_schema,
-                            &topic,
-                            WIRE_ENCODING,
-                            &Default::default(),
-                        )?;
-                        self.captures.insert(header.sensor_id, id);
-                        id
-                    }
-                };
-                let mut bytes = std::mem::take(&mut self.scratch);
-                bytes.clear();
-                bytes.extend_from_slice(bytemuck::bytes_of(&header));
-                bytes.extend_from_slice(&data);
-                self.message(channel, header.frame, log_ns, header.elapsed_ns, &bytes)?;
-                self.scratch = bytes;
-            }
+            } => self.write_capture(log_ns, &header, &data)?,
             Item::Keyframe {
                 log_ns,
                 frame,
@@ -397,6 +397,55 @@ impl Writer {
                 self.message(self.keyframes, frame, log_ns, log_ns, &data)?;
             }
         }
+        Ok(())
+    }
+
+    /// A frame, on the frames channel (its header and actors as on the
+    /// wire) and on the scene channel (for Foxglove).
+    fn write_frame(
+        &mut self,
+        log_ns: u64,
+        header: &FrameHeader,
+        actors: &[ActorState],
+    ) -> McapResult<()> {
+        let mut bytes = std::mem::take(&mut self.scratch);
+        bytes.clear();
+        bytes.extend_from_slice(bytemuck::bytes_of(header));
+        bytes.extend_from_slice(bytemuck::cast_slice(actors));
+        let t = &header.timestamp;
+        self.message(self.frames, t.frame, log_ns, t.elapsed_ns, &bytes)?;
+        self.scratch = bytes;
+        let mut scene = std::mem::take(&mut self.scratch);
+        scene.clear();
+        scene_update(&mut scene, header, actors, log_ns);
+        self.message(self.scene, t.frame, log_ns, t.elapsed_ns, &scene)?;
+        self.scratch = scene;
+        self.written.frames += 1;
+        Ok(())
+    }
+
+    /// A capture, on its sensor's channel (added with the sensor's first).
+    fn write_capture(&mut self, log_ns: u64, header: &SensorHeader, data: &[u8]) -> McapResult<()> {
+        let channel = match self.captures.get(&header.sensor_id) {
+            Some(id) => *id,
+            None => {
+                let topic = format!("{SENSOR_TOPIC_PREFIX}{}", header.sensor_id);
+                let id = self.mcap.add_channel(
+                    self.capture_schema,
+                    &topic,
+                    WIRE_ENCODING,
+                    &Default::default(),
+                )?;
+                self.captures.insert(header.sensor_id, id);
+                id
+            }
+        };
+        let mut bytes = std::mem::take(&mut self.scratch);
+        bytes.clear();
+        bytes.extend_from_slice(bytemuck::bytes_of(header));
+        bytes.extend_from_slice(data);
+        self.message(channel, header.frame, log_ns, header.elapsed_ns, &bytes)?;
+        self.scratch = bytes;
         Ok(())
     }
 }

@@ -63,6 +63,62 @@ pub(crate) struct Cursor {
     pub(crate) passed: u64,
 }
 
+/// A recording read up to its chosen keyframe.
+struct AtKeyframe {
+    /// The keyframe's world and clock.
+    world: World,
+    clock: Clock,
+    /// The scene the keyframe names.
+    scene: String,
+    /// The recorded sensors alive at the keyframe.
+    alive: Vec<(u64, SensorSpec)>,
+    /// The frame before the keyframe (its own: the world holds it).
+    last_frame: Option<Recorded>,
+}
+
+/// Reads `reader` up to keyframe number `keyframe` and restores it.
+fn seek_keyframe(reader: &mut RecordingReader, keyframe: u64) -> Result<AtKeyframe, ReplayError> {
+    let mut keyframes = 0;
+    let mut alive: Vec<(u64, SensorSpec)> = Vec::new();
+    let mut last_frame: Option<Recorded> = None;
+    loop {
+        match reader.next() {
+            None => return Err(ReplayError::NoKeyframe),
+            Some(Err(e)) => return Err(e.into()),
+            Some(Ok(Entry::Frame {
+                log_ns,
+                header,
+                actors,
+            })) => {
+                last_frame = Some(Recorded {
+                    log_ns,
+                    header,
+                    actors,
+                    applied: true,
+                })
+            }
+            Some(Ok(Entry::Sensor(sensor))) => alive.push((sensor.id, sensor.spec)),
+            Some(Ok(Entry::Event(RecordedEvent::SensorEnded { id, .. }))) => {
+                alive.retain(|(alive, _)| *alive != id)
+            }
+            Some(Ok(Entry::Keyframe { data, .. })) => {
+                if keyframes == keyframe {
+                    let (world, clock, scene) = restore(&data).map_err(ReplayError::Keyframe)?;
+                    return Ok(AtKeyframe {
+                        world,
+                        clock,
+                        scene,
+                        alive,
+                        last_frame,
+                    });
+                }
+                keyframes += 1;
+            }
+            Some(Ok(_)) => {}
+        }
+    }
+}
+
 impl Cursor {
     /// Restores `selection`'s keyframe from `reader` and rolls forward to
     /// its first frame; returns the cursor and the world, clock and scene
@@ -72,38 +128,13 @@ impl Cursor {
         selection: &Selection,
         mode: ReplayMode,
     ) -> Result<(Self, World, Clock, Scene), ReplayError> {
-        let mut keyframes = 0;
-        let mut alive: Vec<(u64, SensorSpec)> = Vec::new();
-        let mut last_frame: Option<Recorded> = None;
-        let (mut world, mut clock, scene) = loop {
-            match reader.next() {
-                None => return Err(ReplayError::NoKeyframe),
-                Some(Err(e)) => return Err(e.into()),
-                Some(Ok(Entry::Frame {
-                    log_ns,
-                    header,
-                    actors,
-                })) => {
-                    last_frame = Some(Recorded {
-                        log_ns,
-                        header,
-                        actors,
-                        applied: true,
-                    })
-                }
-                Some(Ok(Entry::Sensor(sensor))) => alive.push((sensor.id, sensor.spec)),
-                Some(Ok(Entry::Event(RecordedEvent::SensorEnded { id, .. }))) => {
-                    alive.retain(|(alive, _)| *alive != id)
-                }
-                Some(Ok(Entry::Keyframe { data, .. })) => {
-                    if keyframes == selection.keyframe {
-                        break restore(&data).map_err(ReplayError::Keyframe)?;
-                    }
-                    keyframes += 1;
-                }
-                Some(Ok(_)) => {}
-            }
-        };
+        let AtKeyframe {
+            mut world,
+            clock,
+            scene,
+            alive,
+            last_frame,
+        } = seek_keyframe(&mut reader, selection.keyframe)?;
         let scene: Scene = scene.parse().map_err(ReplayError::KeyframeScene)?;
         let mut cursor = Self {
             reader,
@@ -118,36 +149,53 @@ impl Cursor {
             sensor_changes: Vec::new(),
             passed: 0,
         };
-        // The index of the last frame the world holds.
-        let mut index = selection.keyframe_index;
-        if index == selection.first_index {
+        if selection.keyframe_index == selection.first_index {
             cursor.first = last_frame;
         }
-        // Roll forward (not published) to just before the first replayed frame.
-        while index + 1 < selection.first_index && cursor.first.is_none() {
-            cursor.fill()?;
-            let Some(frame) = cursor.take(&mut world)? else {
+        let clock = cursor.roll_forward(&mut world, clock, selection, mode)?;
+        cursor.sensors_alive_at_start(alive);
+        cursor.passed = 0;
+        Ok((cursor, world, clock, scene))
+    }
+
+    /// Rolls the world (not published) forward from the keyframe to just
+    /// before the first replayed frame; returns the clock there.
+    fn roll_forward(
+        &mut self,
+        world: &mut World,
+        mut clock: Clock,
+        selection: &Selection,
+        mode: ReplayMode,
+    ) -> Result<Clock, ReplayError> {
+        // The index of the last frame the world holds.
+        let mut index = selection.keyframe_index;
+        while index + 1 < selection.first_index && self.first.is_none() {
+            self.fill()?;
+            let Some(frame) = self.take(world)? else {
                 return Err(ReplayError::EndedBeforeStart);
             };
             if mode == ReplayMode::Resimulate {
-                step(&mut world, &frame)?;
+                step(world, &frame)?;
             }
             clock = Clock::at_timestamp(&frame.header.timestamp, std::time::Instant::now());
             index += 1;
         }
-        // The sensors alive at the first replayed frame appear with it.
-        for change in std::mem::take(&mut cursor.sensor_changes) {
+        Ok(clock)
+    }
+
+    /// The sensors alive at the first replayed frame (`alive` at the
+    /// keyframe, and what changed while rolling forward) appear with it.
+    fn sensors_alive_at_start(&mut self, mut alive: Vec<(u64, SensorSpec)>) {
+        for change in std::mem::take(&mut self.sensor_changes) {
             match change {
                 SensorChange::Spawned(id, spec) => alive.push((id, spec)),
                 SensorChange::Ended(id) => alive.retain(|(alive, _)| *alive != id),
             }
         }
-        cursor.sensor_changes = alive
+        self.sensor_changes = alive
             .into_iter()
             .map(|(id, spec)| SensorChange::Spawned(id, spec))
             .collect();
-        cursor.passed = 0;
-        Ok((cursor, world, clock, scene))
     }
 
     /// Reads until the buffer ends with a frame (or the file ends).

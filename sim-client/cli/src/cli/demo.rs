@@ -211,14 +211,47 @@ pub(crate) fn run(
         )));
     }
     let interrupted = super::interrupted();
-    let binary = server_binary(args.server)?;
+    let binary = server_binary(args.server.clone())?;
     let world = world.map_or_else(
         || format!("demo-{}", std::process::id()),
         |w| w.as_str().to_owned(),
     );
-    let mut command = Command::new(&binary);
+    let (mut server, mut said) = start_server(&binary, &world, &args)?;
+    let mut client = connect(&world, &mut server, &mut said, timeout)?;
+    // Every frame in order (not the newest), so no summary line is
+    // skipped with the frame it belongs to.
+    client.set_every_frame(true);
+    println!(
+        "demo: started sim-server (pid {}) on world '{world}', scene {}, fixed step {} s at wall-clock speed",
+        server.id(),
+        args.scene,
+        args.delta_seconds
+    );
+    let (seen, missed) = watch(&mut client, &args, timeout)?;
+    drop(client);
+    let status = server.stop()?;
+    let how = if interrupted.load(std::sync::atomic::Ordering::Relaxed) {
+        "interrupted"
+    } else {
+        "finished"
+    };
+    println!(
+        "demo {how}: watched {} ({missed} missed); server stopped ({status})",
+        count(seen, "frame")
+    );
+    Ok(())
+}
+
+/// Starts the demo's sim-server on `world` (dying with this process), its
+/// stderr copied to ours by the returned thread.
+fn start_server(
+    binary: &std::path::Path,
+    world: &str,
+    args: &DemoArgs,
+) -> Result<(ChildGuard, Option<JoinHandle<bool>>), Failure> {
+    let mut command = Command::new(binary);
     command
-        .args(["--world", &world, "--scene", &args.scene, "--realtime"])
+        .args(["--world", world, "--scene", &args.scene, "--realtime"])
         .args(["--delta-seconds", &args.delta_seconds.to_string()])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
@@ -230,19 +263,14 @@ pub(crate) fn run(
     let mut child = command
         .spawn()
         .with_context(|| format!("starting {}", binary.display()))?;
-    let mut said = child.stderr.take().map(forward_stderr);
-    let mut server = ChildGuard::new(child, Duration::from_secs(3));
-    let mut client = connect(&world, &mut server, &mut said, timeout)?;
-    // Every frame in order (not the newest), so no summary line is
-    // skipped with the frame it belongs to.
-    client.set_every_frame(true);
-    println!(
-        "demo: started sim-server (pid {}) on world '{world}', scene {}, fixed step {} s at wall-clock speed",
-        server.id(),
-        args.scene,
-        args.delta_seconds
-    );
+    let said = child.stderr.take().map(forward_stderr);
+    Ok((ChildGuard::new(child, Duration::from_secs(3)), said))
+}
 
+/// Watches up to `--frames` frames (a progress bar on a terminal), drives
+/// the cars on the first and prints a summary line about every half
+/// second of simulated time; returns the frames seen and missed.
+fn watch(client: &mut Client, args: &DemoArgs, timeout: Duration) -> Result<(u64, u64), Failure> {
     let bar = std::io::IsTerminal::is_terminal(&std::io::stdout()).then(|| {
         let bar = ProgressBar::new(args.frames);
         bar.set_style(
@@ -258,7 +286,7 @@ pub(crate) fn run(
     let frames_per_line = ((0.5 / args.delta_seconds).round() as u64).max(1);
     let (mut seen, mut missed) = (0, 0);
     while seen < args.frames {
-        let snapshot = match super::watch::next_frame(&mut client, timeout) {
+        let snapshot = match super::watch::next_frame(client, timeout) {
             Ok(Some(view)) => view.to_snapshot(),
             Ok(None) => break,
             Err(e) => return Err(anyhow!(e).into()),
@@ -273,7 +301,7 @@ pub(crate) fn run(
             ));
         }
         if seen == 1 {
-            drive_cars(&client, &snapshot)?;
+            drive_cars(client, &snapshot)?;
         }
         if seen == 1 || snapshot.frame() % frames_per_line == 0 {
             say(summary(&snapshot));
@@ -282,16 +310,5 @@ pub(crate) fn run(
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    drop(client);
-    let status = server.stop()?;
-    let how = if interrupted.load(std::sync::atomic::Ordering::Relaxed) {
-        "interrupted"
-    } else {
-        "finished"
-    };
-    println!(
-        "demo {how}: watched {} ({missed} missed); server stopped ({status})",
-        count(seen, "frame")
-    );
-    Ok(())
+    Ok((seen, missed))
 }

@@ -9,7 +9,7 @@ use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use shared_types::{ReplayMode, ReplayState, WorldName};
-use sim_client::{Client, RecorderError, ReplayOptions};
+use sim_client::{Client, RecorderError, RecorderStatus, ReplayOptions};
 use simbus_input as input;
 use simbus_recording::inspect;
 
@@ -179,139 +179,171 @@ fn print_json(value: &impl serde::Serialize) {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> Result<(), Failure> {
-    let json = matches!(
-        args.command,
-        RecorderCommand::Info { json: true, .. }
-            | RecorderCommand::Collisions { json: true, .. }
-            | RecorderCommand::Blocked { json: true, .. }
-    );
-    // With --json a script gets the error as data too (and exit 2).
-    let file_error = move |e: simbus_recording::RecordingError| {
-        if json {
-            print_json(&serde_json::json!({"error": e.code(), "message": e.to_string()}));
-        }
-        Failure::Refused(e.into())
-    };
     match args.command {
         RecorderCommand::Start {
             file,
             sensors,
             json,
-        } => {
-            let client = connect(world, timeout)?;
-            let path = client
-                .start_recorder(&file, sensors)
-                .map_err(refused_or_runtime)?;
-            if json {
-                print_json(
-                    &serde_json::json!({"recording": true, "path": path, "sensors": sensors}),
-                );
-            } else {
-                println!(
-                    "recording world '{world}' into {}{}",
-                    path.display(),
-                    if sensors {
-                        " (with sensor captures)"
-                    } else {
-                        ""
-                    }
-                );
-            }
-        }
-        RecorderCommand::Stop { json } => {
-            let client = connect(world, timeout)?;
-            let status = client.stop_recorder().map_err(refused_or_runtime)?;
-            if json {
-                print_json(&status);
-            } else {
-                println!(
-                    "recording stopped: {}, {}, {}",
-                    count(status.frames, "frame"),
-                    count(status.bytes, "byte"),
-                    status.path
-                );
-                if !status.message.is_empty() {
-                    println!("warning: {}", status.message);
-                }
-            }
-        }
-        RecorderCommand::Status { json } => {
-            let client = connect(world, timeout)?;
-            let status = client.recorder_status().map_err(refused_or_runtime)?;
-            if json {
-                print_json(&status);
-            } else {
-                print::status(&status);
-            }
-        }
-        RecorderCommand::TimeFactor { factor } => {
-            let client = connect(world, timeout)?;
-            client
-                .set_replayer_time_factor(factor)
-                .map_err(refused_or_runtime)?;
-            println!("replay time factor {factor}");
-        }
-        RecorderCommand::StopReplay { keep_actors } => {
-            let client = connect(world, timeout)?;
-            let status = client
-                .stop_replayer(keep_actors)
-                .map_err(refused_or_runtime)?;
-            println!(
-                "replay stopped after {} of {}{}",
-                status.replay.frames,
-                count(status.replay.total, "frame"),
-                if keep_actors {
-                    "; the replayed world goes on live"
-                } else {
-                    ""
-                }
-            );
-        }
-        RecorderCommand::Info { file, all, json } => {
-            let info = inspect::file_info(&file, all).map_err(file_error)?;
-            if json {
-                print_json(&info);
-            } else {
-                print::info(&info);
-            }
-        }
+        } => start(world, timeout, &file, sensors, json),
+        RecorderCommand::Stop { json } => stop(world, timeout, json),
+        RecorderCommand::Status { json } => status(world, timeout, json),
+        RecorderCommand::TimeFactor { factor } => time_factor(world, timeout, factor),
+        RecorderCommand::StopReplay { keep_actors } => stop_replay(world, timeout, keep_actors),
+        RecorderCommand::Info { file, all, json } => info(&file, all, json),
         RecorderCommand::Collisions {
             file,
             kind1,
             kind2,
             json,
-        } => {
-            for kind in [kind1, kind2] {
-                if !"avbscx".contains(kind) {
-                    return Err(Failure::Refused(anyhow!(
-                        "unknown category '{kind}': use a (any), v (vehicle), b (box), s (sphere), c (capsule) or x (static)"
-                    )));
-                }
-            }
-            let list = inspect::collisions(&file, kind1, kind2).map_err(file_error)?;
-            if json {
-                print_json(&list);
-            } else {
-                print::collisions(&list);
-            }
-        }
+        } => collisions(&file, kind1, kind2, json),
         RecorderCommand::Blocked {
             file,
             min_time,
             min_distance,
             json,
-        } => {
-            let list =
-                inspect::actors_blocked(&file, min_time, min_distance).map_err(|e| match e {
-                    inspect::BlockedError::File(e) => file_error(e),
-                    e => Failure::Refused(e.into()),
-                })?;
-            if json {
-                print_json(&list);
+        } => blocked(&file, min_time, min_distance, json),
+    }
+}
+
+/// `recorder start`: the server creates FILE and records into it.
+fn start(
+    world: &WorldName,
+    timeout: Duration,
+    file: &std::path::Path,
+    sensors: bool,
+    json: bool,
+) -> Result<(), Failure> {
+    let client = connect(world, timeout)?;
+    let path = client
+        .start_recorder(file, sensors)
+        .map_err(refused_or_runtime)?;
+    if json {
+        print_json(&serde_json::json!({"recording": true, "path": path, "sensors": sensors}));
+    } else {
+        println!(
+            "recording world '{world}' into {}{}",
+            path.display(),
+            if sensors {
+                " (with sensor captures)"
             } else {
-                print::blocked(&list, min_time, min_distance);
+                ""
             }
+        );
+    }
+    Ok(())
+}
+
+/// `recorder stop`: what was written, and where.
+fn stop(world: &WorldName, timeout: Duration, json: bool) -> Result<(), Failure> {
+    let client = connect(world, timeout)?;
+    let status = client.stop_recorder().map_err(refused_or_runtime)?;
+    if json {
+        print_json(&status);
+    } else {
+        println!(
+            "recording stopped: {}, {}, {}",
+            count(status.frames, "frame"),
+            count(status.bytes, "byte"),
+            status.path
+        );
+        if !status.message.is_empty() {
+            println!("warning: {}", status.message);
         }
+    }
+    Ok(())
+}
+
+/// `recorder status`: the recorder and the replayer.
+fn status(world: &WorldName, timeout: Duration, json: bool) -> Result<(), Failure> {
+    let client = connect(world, timeout)?;
+    let status = client.recorder_status().map_err(refused_or_runtime)?;
+    if json {
+        print_json(&status);
+    } else {
+        print::status(&status);
+    }
+    Ok(())
+}
+
+/// `recorder time-factor`: the running replay's speed.
+fn time_factor(world: &WorldName, timeout: Duration, factor: f64) -> Result<(), Failure> {
+    let client = connect(world, timeout)?;
+    client
+        .set_replayer_time_factor(factor)
+        .map_err(refused_or_runtime)?;
+    println!("replay time factor {factor}");
+    Ok(())
+}
+
+/// `recorder stop-replay`: how far the replay got.
+fn stop_replay(world: &WorldName, timeout: Duration, keep_actors: bool) -> Result<(), Failure> {
+    let client = connect(world, timeout)?;
+    let status = client
+        .stop_replayer(keep_actors)
+        .map_err(refused_or_runtime)?;
+    println!(
+        "replay stopped after {} of {}{}",
+        status.replay.frames,
+        count(status.replay.total, "frame"),
+        if keep_actors {
+            "; the replayed world goes on live"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
+
+/// A recording that cannot be read is refused; with --json a script gets
+/// the error as data too (and exit 2).
+fn file_error(json: bool) -> impl Fn(simbus_recording::RecordingError) -> Failure {
+    move |e| {
+        if json {
+            print_json(&serde_json::json!({"error": e.code(), "message": e.to_string()}));
+        }
+        Failure::Refused(e.into())
+    }
+}
+
+/// `recorder info`: what the file holds.
+fn info(file: &str, all: bool, json: bool) -> Result<(), Failure> {
+    let info = inspect::file_info(file, all).map_err(file_error(json))?;
+    if json {
+        print_json(&info);
+    } else {
+        print::info(&info);
+    }
+    Ok(())
+}
+
+/// `recorder collisions`: the contacts that started between two categories.
+fn collisions(file: &str, kind1: char, kind2: char, json: bool) -> Result<(), Failure> {
+    for kind in [kind1, kind2] {
+        if !"avbscx".contains(kind) {
+            return Err(Failure::Refused(anyhow!(
+                "unknown category '{kind}': use a (any), v (vehicle), b (box), s (sphere), c (capsule) or x (static)"
+            )));
+        }
+    }
+    let list = inspect::collisions(file, kind1, kind2).map_err(file_error(json))?;
+    if json {
+        print_json(&list);
+    } else {
+        print::collisions(&list);
+    }
+    Ok(())
+}
+
+/// `recorder blocked`: the actors that stayed (nearly) still.
+fn blocked(file: &str, min_time: f64, min_distance: f64, json: bool) -> Result<(), Failure> {
+    let list = inspect::actors_blocked(file, min_time, min_distance).map_err(|e| match e {
+        inspect::BlockedError::File(e) => file_error(json)(e),
+        e => Failure::Refused(e.into()),
+    })?;
+    if json {
+        print_json(&list);
+    } else {
+        print::blocked(&list, min_time, min_distance);
     }
     Ok(())
 }
@@ -328,26 +360,10 @@ pub(crate) fn replay(
     }
     let client = connect(world, timeout)?;
     if !args.detach {
-        // A synchronous replay advances one frame per tick: following one
-        // that nobody ticks would wait for nothing. Nothing has changed yet.
-        let status = client.status()?;
-        if status.settings.synchronous_mode && status.ticker.is_none() {
-            return Err(Failure::Runtime(anyhow!(
-                "world '{world}' is in synchronous mode and nobody ticks it: a replay there advances one recorded frame per tick; start a ticker first (`sim-client tick`), or start the replay with --detach and tick it yourself"
-            )));
-        }
+        refuse_unticked(world, &client)?;
     }
-    let options = ReplayOptions {
-        start: args.start,
-        duration: args.duration,
-        follow_id: args.follow,
-        replay_sensors: args.replay_sensors,
-        time_factor: args.time_factor,
-        mode: args.mode,
-        keep_actors: args.keep_actors,
-    };
     let started = client
-        .replay(&args.file, &options)
+        .replay(&args.file, &replay_options(&args))
         .map_err(refused_or_runtime)?;
     // From here a replay this command follows is stopped however the
     // command ends early (a closed stdout, an error, giving up); --detach
@@ -381,37 +397,92 @@ pub(crate) fn replay(
         }
         return Ok(());
     }
-    let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout())).then(|| {
-        let bar = ProgressBar::new(started.replay.total);
-        bar.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}")
-                .expect("valid template"),
-        );
-        bar
-    });
-    // Follow the replay until it ends; no progress for --timeout is an error.
-    let mut last = (started.replay.frames, Instant::now());
-    let status = loop {
+    let bar = (!args.json && std::io::IsTerminal::is_terminal(&std::io::stdout()))
+        .then(|| progress_bar(started.replay.total));
+    let Some(status) = follow(
+        &mut following,
+        &args,
+        timeout,
+        synchronous,
+        started.replay.frames,
+        bar.as_ref(),
+    )?
+    else {
+        return Ok(());
+    };
+    // It ended by itself: nothing to stop.
+    following.armed = false;
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    replay_ended(&args, &status)
+}
+
+/// A synchronous replay advances one frame per tick: following one that
+/// nobody ticks would wait for nothing. Nothing has changed yet.
+fn refuse_unticked(world: &WorldName, client: &Client) -> Result<(), Failure> {
+    let status = client.status()?;
+    if status.settings.synchronous_mode && status.ticker.is_none() {
+        return Err(Failure::Runtime(anyhow!(
+            "world '{world}' is in synchronous mode and nobody ticks it: a replay there advances one recorded frame per tick; start a ticker first (`sim-client tick`), or start the replay with --detach and tick it yourself"
+        )));
+    }
+    Ok(())
+}
+
+fn replay_options(args: &ReplayArgs) -> ReplayOptions {
+    ReplayOptions {
+        start: args.start,
+        duration: args.duration,
+        follow_id: args.follow,
+        replay_sensors: args.replay_sensors,
+        time_factor: args.time_factor,
+        mode: args.mode,
+        keep_actors: args.keep_actors,
+    }
+}
+
+fn progress_bar(total: u64) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}").expect("valid template"),
+    );
+    bar
+}
+
+/// Follows the replay until it ends (its last status) or Ctrl-C stops it
+/// (`None`, its answer printed); no progress for `timeout` is an error.
+fn follow(
+    following: &mut Following<'_>,
+    args: &ReplayArgs,
+    timeout: Duration,
+    synchronous: bool,
+    frames: u64,
+    bar: Option<&ProgressBar>,
+) -> Result<Option<RecorderStatus>, Failure> {
+    let client = following.client;
+    let mut last = (frames, Instant::now());
+    loop {
         if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
             following.armed = false; // stopped here, with its answer printed
             let status = client
                 .stop_replayer(args.keep_actors)
                 .map_err(refused_or_runtime)?;
-            if let Some(bar) = &bar {
+            if let Some(bar) = bar {
                 bar.abandon();
             }
             println!(
                 "replay stopped after {}",
                 count(status.replay.frames, "frame")
             );
-            return Ok(());
+            return Ok(None);
         }
         let status = client.recorder_status().map_err(refused_or_runtime)?;
-        if let Some(bar) = &bar {
+        if let Some(bar) = bar {
             bar.set_position(status.replay.frames);
         }
         if status.replay.replay_state() != ReplayState::Running {
-            break status;
+            return Ok(Some(status));
         }
         if status.replay.frames != last.0 {
             last = (status.replay.frames, Instant::now());
@@ -426,15 +497,15 @@ pub(crate) fn replay(
             )));
         }
         std::thread::sleep(Duration::from_millis(20));
-    };
-    // It ended by itself: nothing to stop.
-    following.armed = false;
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
     }
+}
+
+/// Prints how the replay ended (and, with --verify, how it compared); a
+/// failed replay or a re-simulation that differs is an error.
+fn replay_ended(args: &ReplayArgs, status: &RecorderStatus) -> Result<(), Failure> {
     let r = &status.replay;
     if args.json {
-        print_json(&status);
+        print_json(status);
     } else {
         println!(
             "replay {}: {} of {}",

@@ -11,7 +11,7 @@ use crate::census::{self, Holder, SharedMemory};
 use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
-use shared_types::{SensorKind, Timestamp, WorldName, WorldSettings};
+use shared_types::{SensorInfo, SensorKind, Timestamp, WorldName, WorldSettings};
 use sim_client::Client;
 
 use crate::Failure;
@@ -123,28 +123,13 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
     } else {
         (0.0, 0.0)
     };
-    let holding = |service: &str| -> Vec<String> {
-        clients
-            .iter()
-            .filter(|h| h.pid != report.server_pid && h.services.iter().any(|s| s == service))
-            .map(label)
-            .collect()
-    };
-    let before: BTreeMap<u64, u64> = first_sensors.iter().map(|s| (s.id, s.captures)).collect();
-    let sensors = sensors_now
-        .iter()
-        .map(|info| SensorLine {
-            id: info.id,
-            kind: SensorKind::from_u32(info.spec.kind)
-                .map_or_else(|| "unknown".to_owned(), |k| format!("{k:?}").to_lowercase()),
-            attached_to: info.spec.attach_to,
-            captures: info.captures,
-            captures_per_second: before
-                .get(&info.id)
-                .map_or(0.0, |&c| info.captures.saturating_sub(c) as f64 / wall),
-            readers: holding(&format!("sensor/{}", info.id)),
-        })
-        .collect();
+    let sensors = sensor_lines(
+        &first_sensors,
+        &sensors_now,
+        wall,
+        &clients,
+        report.server_pid,
+    );
     let settings = report.settings;
     Ok(Screen {
         world: client.world().to_string(),
@@ -161,16 +146,7 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
             serde_json::json!({"node": t.node_name, "pid": t.pid, "since_frame": t.since_frame})
         }),
         participant_count: report.participants,
-        participants: report
-            .lockstep
-            .iter()
-            .map(|p| ParticipantLine {
-                name: p.name.clone(),
-                pid: p.pid,
-                done_frame: p.done_frame,
-                done_after_us: p.done_after.map(|d| d.as_secs_f64() * 1e6),
-            })
-            .collect(),
+        participants: participant_lines(&report),
         clients: clients
             .into_iter()
             .filter(|h| h.pid != report.server_pid)
@@ -183,6 +159,52 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
             .as_ref()
             .map_or_else(|| "none".to_owned(), ToString::to_string),
     })
+}
+
+/// Each sensor's line: its capture rate over the `wall` seconds between
+/// `before` and `now`, and the clients (not the server) reading it.
+fn sensor_lines(
+    before: &[SensorInfo],
+    now: &[SensorInfo],
+    wall: f64,
+    clients: &[Holder],
+    server_pid: u32,
+) -> Vec<SensorLine> {
+    let holding = |service: &str| -> Vec<String> {
+        clients
+            .iter()
+            .filter(|h| h.pid != server_pid && h.services.iter().any(|s| s == service))
+            .map(label)
+            .collect()
+    };
+    let before: BTreeMap<u64, u64> = before.iter().map(|s| (s.id, s.captures)).collect();
+    now.iter()
+        .map(|info| SensorLine {
+            id: info.id,
+            kind: SensorKind::from_u32(info.spec.kind)
+                .map_or_else(|| "unknown".to_owned(), |k| format!("{k:?}").to_lowercase()),
+            attached_to: info.spec.attach_to,
+            captures: info.captures,
+            captures_per_second: before
+                .get(&info.id)
+                .map_or(0.0, |&c| info.captures.saturating_sub(c) as f64 / wall),
+            readers: holding(&format!("sensor/{}", info.id)),
+        })
+        .collect()
+}
+
+/// Each lockstep participant the server describes.
+fn participant_lines(report: &sim_client::Status) -> Vec<ParticipantLine> {
+    report
+        .lockstep
+        .iter()
+        .map(|p| ParticipantLine {
+            name: p.name.clone(),
+            pid: p.pid,
+            done_frame: p.done_frame,
+            done_after_us: p.done_after.map(|d| d.as_secs_f64() * 1e6),
+        })
+        .collect()
 }
 
 fn mib(bytes: u64) -> f64 {
@@ -248,8 +270,14 @@ fn render(screen: &Screen) -> String {
         mib(screen.shared_memory.bytes),
         mib(screen.shared_memory.resident_bytes)
     );
+    tables(&mut out, screen);
+    out
+}
+
+/// The screen's tables: the clients, and the sensors with their readers.
+fn tables(out: &mut String, screen: &Screen) {
     table(
-        &mut out,
+        out,
         "client",
         &screen.clients,
         format_args!("{:<8} {:<12} {:<40} services", "pid", "process", "nodes"),
@@ -264,7 +292,7 @@ fn render(screen: &Screen) -> String {
         },
     );
     table(
-        &mut out,
+        out,
         "sensor",
         &screen.sensors,
         format_args!(
@@ -287,7 +315,6 @@ fn render(screen: &Screen) -> String {
             )
         },
     );
-    out
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: TopArgs) -> Result<(), Failure> {

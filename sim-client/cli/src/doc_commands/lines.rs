@@ -134,43 +134,15 @@ pub(crate) fn commands_in(doc: &str, text: &str, program: &str) -> Vec<DocComman
                 continue;
             }
         } else {
-            if let Some(rest) = trimmed.strip_prefix("```") {
-                let ticks = 3 + rest.chars().take_while(|c| *c == '`').count();
-                let info = &trimmed[ticks..];
-                let language = info
-                    .split(|c: char| c == ',' || c.is_whitespace())
-                    .next()
-                    .unwrap_or("");
-                fence = Some(("`".repeat(ticks), language.to_owned()));
-                continue;
-            }
-            for span in inline_code(line) {
-                found.extend(
-                    simple_commands(span, program)
-                        .into_iter()
-                        // `sim-client …`: what follows the ellipsis is left out.
-                        .map(|argv| {
-                            argv.into_iter()
-                                .take_while(|w| w != "…" && w != "...")
-                                .collect()
-                        })
-                        .map(|argv| DocCommand {
-                            place: format!("{doc}:{number}"),
-                            argv,
-                            fragment: true,
-                        }),
-                );
+            fence = fence_opening(trimmed);
+            if fence.is_none() {
+                found.extend(inline_commands(doc, number, line, program));
             }
             continue;
         }
         let language = fence.as_ref().map(|(_, l)| l.as_str()).unwrap_or("");
-        let shell = match language {
-            "sh" | "bash" | "shell" | "console" | "zsh" => line.to_owned(),
-            "text" => match trimmed.strip_prefix("$ ") {
-                Some(command) => command.to_owned(),
-                None => continue,
-            },
-            _ => continue,
+        let Some(shell) = shell_line(language, line) else {
+            continue;
         };
         if let Some(end) = &heredoc {
             if shell.trim() == end {
@@ -199,6 +171,55 @@ pub(crate) fn commands_in(doc: &str, text: &str, program: &str) -> Vec<DocComman
         );
     }
     found
+}
+
+/// The fence (its backticks) and the language a line opening a fenced
+/// code block names; `None` for any other line.
+fn fence_opening(trimmed: &str) -> Option<(String, String)> {
+    let rest = trimmed.strip_prefix("```")?;
+    let ticks = 3 + rest.chars().take_while(|c| *c == '`').count();
+    let info = &trimmed[ticks..];
+    let language = info
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .next()
+        .unwrap_or("");
+    Some(("`".repeat(ticks), language.to_owned()))
+}
+
+/// The command fragments in the inline code spans of line `number` of prose.
+fn inline_commands(doc: &str, number: usize, line: &str, program: &str) -> Vec<DocCommand> {
+    let mut found = Vec::new();
+    for span in inline_code(line) {
+        found.extend(
+            simple_commands(span, program)
+                .into_iter()
+                // `sim-client …`: what follows the ellipsis is left out.
+                .map(|argv| {
+                    argv.into_iter()
+                        .take_while(|w| w != "…" && w != "...")
+                        .collect()
+                })
+                .map(|argv| DocCommand {
+                    place: format!("{doc}:{number}"),
+                    argv,
+                    fragment: true,
+                }),
+        );
+    }
+    found
+}
+
+/// The shell a line of a code block in `language` runs, if any: every line
+/// of a shell block, the `$ ` lines of a text block.
+fn shell_line(language: &str, line: &str) -> Option<String> {
+    match language {
+        "sh" | "bash" | "shell" | "console" | "zsh" => Some(line.to_owned()),
+        "text" => line
+            .trim_start()
+            .strip_prefix("$ ")
+            .map(|command| command.to_owned()),
+        _ => None,
+    }
 }
 
 /// The inline code spans of one line of prose.

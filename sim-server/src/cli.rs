@@ -79,8 +79,10 @@ pub(crate) struct ServerArgs {
 
     /// Synchronous mode: how to wait for the next tick — block (sleep on
     /// the wake-up event), spin (poll: lowest latency, one core busy) or
-    /// hybrid (poll for --hybrid-window-us after each frame, then sleep).
-    /// The same words as clients' wait modes.
+    /// hybrid (poll for --hybrid-window-us after each frame, yielding the
+    /// CPU between polls, then sleep). The same words as clients' wait
+    /// modes. SIMBUS_STAMPS=FILE keeps the tick path's stamps and writes
+    /// them to FILE on exit (`simbus-bench tick --breakdown` reads them).
     #[arg(long, value_name = "MODE", default_value = "hybrid")]
     pub(crate) wait_mode: WaitMode,
 

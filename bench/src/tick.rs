@@ -418,6 +418,35 @@ fn table(
     machine: &str,
 ) -> anyhow::Result<serde_json::Value> {
     let n = args.iterations;
+    let rows = measure_rows(n, placement)?;
+    if let Some(path) = &args.plot {
+        let series: Vec<(&str, &Latencies)> = rows.iter().map(|(n, l)| (*n, l)).collect();
+        crate::plot::percentiles(
+            path,
+            &format!("Tick round trip, {n} per row, rows interleaved"),
+            &series,
+        )?;
+    }
+    let ratios = ratios(&rows);
+    if args.json {
+        let mut json = serde_json::Map::new();
+        for (name, latencies) in &rows {
+            json.insert((*name).into(), latencies.json());
+        }
+        for (name, ratio) in ratios {
+            json.insert(name.into(), ratio.into());
+        }
+        json.insert("iterations".into(), n.into());
+        json.insert("machine".into(), machine.into());
+        json.insert("placement".into(), placement.name().into());
+        return Ok(serde_json::Value::Object(json));
+    }
+    report(n, placement, machine, &rows, &ratios);
+    Ok(serde_json::Value::Null)
+}
+
+/// Every row, pinned as `placement` says, `n` round trips each, interleaved.
+fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static str, Latencies)>> {
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
@@ -440,20 +469,17 @@ fn table(
     placement.apply(&peers)?;
     interleave(&mut rows, n)?;
     Placement::Unpinned.apply(&[])?;
-    let rows: Vec<(&str, Latencies)> = rows.into_iter().map(|r| (r.name, r.latencies)).collect();
-    if let Some(path) = &args.plot {
-        let series: Vec<(&str, &Latencies)> = rows.iter().map(|(n, l)| (*n, l)).collect();
-        crate::plot::percentiles(
-            path,
-            &format!("Tick round trip, {n} per row, rows interleaved"),
-            &series,
-        )?;
-    }
-    let p50 = |prefix: &str| {
+    Ok(rows.into_iter().map(|r| (r.name, r.latencies)).collect())
+}
+
+/// The ratios the goals are stated in (p50 unless named).
+fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
+    let at = |prefix: &str, q: f64| {
         rows.iter()
             .find(|(name, _)| name.starts_with(prefix))
-            .map_or(f64::NAN, |(_, l)| l.quantile_us(0.5))
+            .map_or(f64::NAN, |(_, l)| l.quantile_us(q))
     };
+    let p50 = |prefix: &str| at(prefix, 0.5);
     let (raw_spin, raw_block, raw_futex) = (
         p50("(a) raw iceoryx2, spin"),
         p50("(a) raw iceoryx2, block"),
@@ -465,7 +491,7 @@ fn table(
         p50("(b) simbus, hybrid"),
         p50("(b) simbus, block"),
     );
-    let ratios = [
+    vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
         ("b/a simbus block / raw block", block / raw_block),
         ("b/f simbus block / futex floor", block / floor),
@@ -475,34 +501,34 @@ fn table(
         ("c/b TCP / simbus all spin", tcp / spin),
         ("c/b TCP / simbus hybrid", tcp / hybrid),
         ("c/b TCP / simbus block", tcp / block),
-    ];
-    if args.json {
-        let mut json = serde_json::Map::new();
-        for (name, latencies) in &rows {
-            json.insert((*name).into(), latencies.json());
-        }
-        for (name, ratio) in ratios {
-            json.insert(name.into(), ratio.into());
-        }
-        json.insert("iterations".into(), n.into());
-        json.insert("machine".into(), machine.into());
-        json.insert("placement".into(), placement.name().into());
-        return Ok(serde_json::Value::Object(json));
-    }
+        (
+            "b/c hybrid p99 / TCP p99",
+            at("(b) simbus, hybrid", 0.99) / at("(c)", 0.99),
+        ),
+    ]
+}
+
+/// Prints the table and its ratios.
+fn report(
+    n: u64,
+    placement: Placement,
+    machine: &str,
+    rows: &[(&str, Latencies)],
+    ratios: &[(&str, f64)],
+) {
     println!("tick round trip: tick sent -> that frame's snapshot received ({n} round trips each, empty scene)");
     println!("rows interleaved: {ROUNDS} rounds, each row's peers running only during its slice");
     println!("machine: {machine}; placement: {}", placement.name());
-    println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, then sleep;");
+    println!("all spin: server and clients --wait-mode spin; hybrid (the server's default): both poll 100 µs, yielding, then sleep;");
     println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");
     println!("futex: two processes sleeping in futex(2) on a shared page (the blocking floor)");
     println!("{}", header("exchange"));
-    for (name, latencies) in &rows {
+    for (name, latencies) in rows {
         println!("{}", latencies.row(name));
     }
     println!();
     for (name, ratio) in ratios {
-        println!("{name:<32} {ratio:>6.2}x at p50");
+        println!("{name:<32} {ratio:>6.2}x");
     }
     println!();
-    Ok(serde_json::Value::Null)
 }

@@ -67,7 +67,8 @@ const MAX_IDLE_WAIT: Duration = Duration::from_millis(50);
 /// How often new subscribers are connected while no frame is sent.
 const CONNECTION_PERIOD: Duration = Duration::from_millis(10);
 /// How often the server checks that the ticker and the lockstep
-/// participants still live (one node list for all of them).
+/// participants still live (one node list for all of them) while one of
+/// them has no pidfd to tell.
 const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 /// How soon after a ticker's death its port is cleaned up.
 const SOON: Duration = Duration::from_millis(20);
@@ -417,7 +418,8 @@ impl Domains {
 
     /// Every 10 ms: connect new subscribers. Every millisecond at most: has
     /// the ticker or a participant exited (their pidfds)? If so, and every
-    /// 100 ms anyway: do they live (one node list for all)? Once a second
+    /// 100 ms for one without a pidfd: do they live (one node list for
+    /// all)? Once a second
     /// (sooner after a ticker died): remove what dead clients left in the
     /// services. Returns whether waiting ticks were answered (their ticker
     /// died).
@@ -428,7 +430,7 @@ impl Domains {
         }
         // The processes the world waits on: a pidfd probe at most every
         // millisecond (the loop may spin), a node-list sweep when one
-        // exited, and every 100 ms anyway.
+        // exited, and every 100 ms while one has no pidfd.
         let mut exited = false;
         let mut answered = false;
         if self.timers.probe.elapsed() >= PROBE_SPACING {
@@ -441,8 +443,11 @@ impl Domains {
             self.pidwatch.watch(watched);
             exited = !self.pidwatch.exited().is_empty();
         }
-        if (self.ticker.owner_pid().is_some() || !self.lockstep.is_empty())
-            && (exited || self.timers.liveness.elapsed() >= LIVENESS_PERIOD)
+        // The periodic sweep only covers what the pidfds do not: a
+        // process without one, or one that exited but is still listed.
+        let periodic =
+            !self.pidwatch.covers_all() && self.timers.liveness.elapsed() >= LIVENESS_PERIOD;
+        if (self.ticker.owner_pid().is_some() || !self.lockstep.is_empty()) && (exited || periodic)
         {
             self.timers.liveness = Instant::now();
             let sweep = LiveProcesses::now();

@@ -35,6 +35,10 @@ pub(crate) struct ZenohArgs {
     /// Skip the veth rows (they need root for `ip netns`).
     #[arg(long)]
     no_veth: bool,
+    /// Only the tick round trips and Zenoh's own (no captures, rates or
+    /// ownership release).
+    #[arg(long)]
+    ticks_only: bool,
     /// One JSON object instead of tables.
     #[arg(long)]
     json: bool,
@@ -255,6 +259,10 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
         zenoh_floor(args.ticks)?,
         Latencies::new(),
     ));
+    if args.ticks_only {
+        report(&args, &state, &figures);
+        return Ok(());
+    }
     for (name, setup) in setups.iter().skip(1) {
         for (label, size) in [("1 MiB", ["512", "512"]), ("8 MiB", ["2048", "1024"])] {
             let json = setup.mirror_host.measure(

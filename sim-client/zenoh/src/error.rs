@@ -183,6 +183,9 @@ pub enum FramesError {
     /// Waiting for a frame failed (the server is gone).
     #[error(transparent)]
     Wait(#[from] sim_client::WaitError),
+    /// The world's frame-ready event could not be listened to.
+    #[error(transparent)]
+    Local(#[from] LocalError),
     /// Zenoh failed.
     #[error(transparent)]
     Zenoh(ZenohFailure),

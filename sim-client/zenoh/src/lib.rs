@@ -32,6 +32,7 @@ mod error;
 mod export;
 mod link;
 mod mirror;
+mod ports;
 pub mod wire;
 
 use std::path::PathBuf;

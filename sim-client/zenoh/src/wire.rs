@@ -137,8 +137,21 @@ impl BridgeKeys {
 /// The Zenoh key ROS 2's `/clock` has under zenoh-bridge-ros2dds.
 pub const ROS2_CLOCK_KEY: &str = "clock";
 
+/// The most commands one forwarded batch (and its answer) may hold.
+pub const MAX_FORWARDED_BATCH: usize = 65_536;
+
 /// The size of the [`FrameHeader`] at the start of a frame payload.
 pub const FRAME_HEADER_BYTES: usize = std::mem::size_of::<FrameHeader>();
+
+/// The bytes of a frame payload of `actors` actors.
+pub fn frame_len(actors: usize) -> usize {
+    FRAME_HEADER_BYTES + actors * std::mem::size_of::<ActorState>()
+}
+
+/// The bytes of a capture payload of `payload` bytes.
+pub fn capture_len(payload: usize) -> usize {
+    std::mem::size_of::<SensorHeader>() + payload
+}
 
 /// Appends the frame (`header` then `actors`) to `out` as one payload.
 pub fn encode_frame(header: &FrameHeader, actors: &[ActorState], out: &mut Vec<u8>) {
@@ -195,27 +208,85 @@ fn read_header<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadErr
 /// The header and the actors of a frame payload, checked: protocol version,
 /// and exactly `actor_count` actors after the header.
 pub fn decode_frame(bytes: &[u8]) -> Result<(FrameHeader, Vec<ActorState>), PayloadError> {
-    let header: FrameHeader = read_header(bytes, "frame")?;
+    let mut reader = Slices::new([bytes]);
+    let header = frame_header(&mut reader, bytes.len())?;
+    let actors = (0..header.actor_count)
+        .map_while(|_| reader.read::<ActorState>())
+        .collect();
+    Ok((header, actors))
+}
+
+/// The header of a frame payload of `len` bytes, read from `reader` and
+/// checked: protocol version, and exactly `actor_count` actors after it.
+/// The actors follow in `reader` (the mirror reads them straight into
+/// its loaned sample).
+pub fn frame_header<'a>(
+    reader: &mut Slices<'a, impl Iterator<Item = &'a [u8]>>,
+    len: usize,
+) -> Result<FrameHeader, PayloadError> {
+    let header: FrameHeader = reader.read().ok_or(PayloadError::TooShort {
+        what: "frame",
+        len,
+        need: FRAME_HEADER_BYTES,
+    })?;
     if header.protocol_version != PROTOCOL_VERSION {
         return Err(PayloadError::ProtocolMismatch {
             peer: header.protocol_version,
             ours: PROTOCOL_VERSION,
         });
     }
-    let body = &bytes[FRAME_HEADER_BYTES..];
+    let body = len.saturating_sub(FRAME_HEADER_BYTES);
     let announced = (header.actor_count as usize).saturating_mul(std::mem::size_of::<ActorState>());
-    if body.len() != announced {
+    if body != announced {
         return Err(PayloadError::WrongLength {
             what: "frame",
             announced,
-            actual: body.len(),
+            actual: body,
         });
     }
-    let actors = body
-        .chunks_exact(std::mem::size_of::<ActorState>())
-        .map(bytemuck::pod_read_unaligned)
-        .collect();
-    Ok((header, actors))
+    Ok(header)
+}
+
+/// `Pod` values read one after another from a payload that may lie in
+/// several slices (a Zenoh payload as it arrived, not assembled): nothing
+/// is copied but the values read.
+#[derive(Debug)]
+pub struct Slices<'a, I> {
+    rest: I,
+    current: &'a [u8],
+}
+
+impl<'a, I: Iterator<Item = &'a [u8]>> Slices<'a, I> {
+    /// A reader of `slices`, in order.
+    pub fn new(slices: impl IntoIterator<IntoIter = I>) -> Self {
+        Self {
+            rest: slices.into_iter(),
+            current: &[],
+        }
+    }
+
+    /// The next `T`, or `None` if fewer bytes are left.
+    pub fn read<T: Pod>(&mut self) -> Option<T> {
+        let size = std::mem::size_of::<T>();
+        if let Some((bytes, rest)) = self.current.split_at_checked(size) {
+            self.current = rest;
+            return Some(bytemuck::pod_read_unaligned(bytes));
+        }
+        // Across slices.
+        let mut value = T::zeroed();
+        let mut out = bytemuck::bytes_of_mut(&mut value);
+        while !out.is_empty() {
+            if self.current.is_empty() {
+                self.current = self.rest.next()?;
+                continue;
+            }
+            let n = out.len().min(self.current.len());
+            out[..n].copy_from_slice(&self.current[..n]);
+            out = &mut out[n..];
+            self.current = &self.current[n..];
+        }
+        Some(value)
+    }
 }
 
 /// Appends a capture (`header` then its payload bytes) to `out`.
@@ -436,6 +507,46 @@ mod tests {
         let mut huge = bytes[1..].to_vec();
         huge[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
         assert!(decode_frame(&huge).is_err());
+    }
+
+    #[test]
+    fn a_frame_in_pieces_reads_as_the_whole() {
+        // A Zenoh payload may arrive in several slices; the mirror reads
+        // the frame from them as they are.
+        let header = FrameHeader {
+            protocol_version: PROTOCOL_VERSION,
+            actor_count: 3,
+            ..FrameHeader::default()
+        };
+        let actors: Vec<ActorState> = (1..=3)
+            .map(|id| ActorState {
+                id,
+                ..ActorState::default()
+            })
+            .collect();
+        let mut bytes = Vec::new();
+        encode_frame(&header, &actors, &mut bytes);
+        assert_eq!(bytes.len(), frame_len(actors.len()));
+        for cuts in [vec![1], vec![50, 111, 112, 113], vec![200, 201, 300]] {
+            let mut pieces = Vec::new();
+            let mut from = 0;
+            for cut in cuts.into_iter().chain([bytes.len()]) {
+                pieces.push(&bytes[from..cut]);
+                from = cut;
+            }
+            let mut reader = Slices::new(pieces.iter().copied());
+            let read = frame_header(&mut reader, bytes.len()).unwrap();
+            let read_actors: Vec<ActorState> = (0..read.actor_count)
+                .map(|_| reader.read().unwrap())
+                .collect();
+            assert_eq!((read, read_actors), (header, actors.clone()));
+            assert!(reader.read::<u8>().is_none(), "nothing after the frame");
+        }
+        let mut short = Slices::new([&bytes[..40], &bytes[40..100]]);
+        assert!(matches!(
+            frame_header(&mut short, 100),
+            Err(PayloadError::TooShort { .. })
+        ));
     }
 
     #[test]

@@ -1,63 +1,23 @@
 //! The exporter's face on Zenoh: what it declares (its liveliness token,
-//! its watch on the mirrors' tokens, its queryables), and how it refuses
-//! a query.
+//! its watch on the mirrors' tokens, its queryables) and where each
+//! query goes: a tick to the frame thread, the rest to the main thread.
 
 use std::sync::mpsc::Sender;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
-use tracing::warn;
+use shared_types::ServiceNames;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
-use zenoh::query::{Query, Queryable};
+use zenoh::query::Queryable;
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait as _};
 
-use super::frames::Shared;
-use super::relay::{self, Refusal};
-use super::Event;
+use super::events::Event;
+use super::frames::{Order, Shared};
+use super::relay;
 use crate::error::ExportError;
-use crate::wire::BridgeKeys;
-
-/// Malformed or refused inputs, counted and logged.
-#[derive(Debug, Default)]
-pub(super) struct Dropped {
-    pub count: u64,
-    last_warning: Option<Instant>,
-    unwarned: u64,
-}
-
-impl Dropped {
-    pub(super) fn note(&mut self, query: &Query, why: &Refusal) {
-        self.count += 1;
-        let why = why.to_string();
-        relay::refuse(query, &why);
-        // At most one warning a second, with the count since the last.
-        self.unwarned += 1;
-        if self
-            .last_warning
-            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
-        {
-            warn!(
-                key = %query.key_expr(),
-                dropped = self.unwarned,
-                total = self.count,
-                "dropped a request from another host: {why}"
-            );
-            self.last_warning = Some(Instant::now());
-            self.unwarned = 0;
-        }
-    }
-}
-
-/// The mirror's Zenoh id a query names in its `mirror` parameter.
-pub(super) fn mirror_of(query: &Query) -> Option<String> {
-    query
-        .parameters()
-        .get("mirror")
-        .filter(|m| !m.is_empty() && m.len() <= 64)
-        .map(str::to_owned)
-}
+use crate::ports::{self, Bell};
+use crate::wire::{BridgeKeys, Forwarded};
 
 /// What the exporter declared on Zenoh, undeclared when dropped.
 pub(super) struct Declared {
@@ -66,21 +26,31 @@ pub(super) struct Declared {
     _queryables: [Queryable<()>; 4],
 }
 
-/// Declares the exporter's liveliness token, its watch on the mirrors'
-/// tokens and its queryables; events go to `events`.
+/// Where the exporter's Zenoh callbacks send what comes: the main
+/// thread's events, the frame thread's orders (rung as the frame-ready
+/// event of the world `names` names), what the frame thread shares.
+pub(super) struct Routes<'a> {
+    pub events: &'a Sender<Event>,
+    pub orders: &'a Sender<Order>,
+    pub names: &'a ServiceNames,
+    pub shared: &'a Arc<Shared>,
+}
+
+/// Declares the exporter's watch on the mirrors' tokens, its queryables
+/// and then its liveliness token. A tick query goes straight to the frame
+/// thread, which forwards the tick and replies its answer; every other
+/// event to the main thread.
 pub(super) fn declare(
     session: &Session,
     keys: &BridgeKeys,
-    events: &Sender<Event>,
-    shared: &Arc<Shared>,
+    routes: Routes<'_>,
 ) -> Result<Declared, ExportError> {
-    let token = session
-        .liveliness()
-        .declare_token(keys.exporter())
-        .wait()
-        .map_err(ExportError::zenoh(
-            "declaring the exporter's liveliness token",
-        ))?;
+    let Routes {
+        events,
+        orders,
+        names,
+        shared,
+    } = routes;
     let to_main = events.clone();
     let mirrors = session
         .liveliness()
@@ -103,6 +73,20 @@ pub(super) fn declare(
             .wait()
             .map_err(ExportError::zenoh("declaring a queryable"))
     };
+    let (to_main, to_frames, names) = (events.clone(), orders.clone(), names.clone());
+    let tick_key = keys.rpc(Forwarded::Tick);
+    let rpc = session
+        .declare_queryable(keys.every_rpc())
+        .callback(move |query| {
+            if query.key_expr().as_str() != tick_key {
+                let _ = to_main.send(Event::Query(query));
+            } else if to_frames.send(Order::Tick(query)).is_ok() {
+                // The frame thread sleeps on the frame-ready event.
+                ports::ring(&names, Bell::FrameReady);
+            }
+        })
+        .wait()
+        .map_err(ExportError::zenoh("declaring a queryable"))?;
     let shared = shared.clone();
     let latest = session
         .declare_queryable(keys.latest_frame())
@@ -111,19 +95,28 @@ pub(super) fn declare(
             if bytes.is_empty() {
                 relay::refuse(&query, "no frame published yet");
             } else {
-                relay::reply(&query, &bytes);
+                relay::reply(&query, bytes);
             }
         })
         .wait()
         .map_err(ExportError::zenoh("declaring a queryable"))?;
+    let queryables = [
+        rpc,
+        queryable(keys.status())?,
+        queryable(keys.settings())?,
+        latest,
+    ];
+    // Last: a mirror that sees the token finds the queryables declared.
+    let token = session
+        .liveliness()
+        .declare_token(keys.exporter())
+        .wait()
+        .map_err(ExportError::zenoh(
+            "declaring the exporter's liveliness token",
+        ))?;
     Ok(Declared {
         _token: token,
         _mirrors: mirrors,
-        _queryables: [
-            queryable(keys.every_rpc())?,
-            queryable(keys.status())?,
-            queryable(keys.settings())?,
-            latest,
-        ],
+        _queryables: queryables,
     })
 }

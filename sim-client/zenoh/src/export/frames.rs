@@ -2,27 +2,57 @@
 //! time on `clock`), each after the captures of its frame, as the server
 //! publishes them, so a remote reader that sees frame N finds its
 //! captures; and the sensors it follows, which the main thread names.
+//! It also forwards the tick service ([`Ticks`]): a remote tick is sent
+//! to the server from here and its answer replied from here right after
+//! its frame, no other thread in between. It waits on the world's
+//! frame-ready event, which the server rings after every frame and after
+//! answering requests, and which the Zenoh callback of a tick query rings
+//! too; it tells the main thread of a ring only while the main thread
+//! awaits answers.
 
 use std::collections::{BTreeSet, HashMap};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use shared_types::WorldName;
+use iceoryx2::node::Node;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use shared_types::{ServiceNames, WorldName};
 use sim_client::{Capture, Client, FrameView, WaitError};
+use simbus_transport::Bus;
 use tracing::{info, warn};
+use zenoh::bytes::ZBytes;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
+use zenoh::query::Query;
 use zenoh::{Session, Wait as _};
 
-use crate::error::FramesError;
+use super::events::Event;
+use super::ticker::Ticks;
+use crate::error::{FramesError, LocalError};
+use crate::ports;
 use crate::wire::{self, BridgeKeys};
+
+/// How soon the frame thread notices that the server died (or that it is
+/// to stop) while the server rings nothing.
+const LIVENESS: Duration = Duration::from_millis(100);
 
 /// A sensor the frame thread is to forward, and whom to tell once it reads.
 pub(super) struct Follow {
     id: u64,
     reading: Sender<()>,
+}
+
+/// What the frame thread is asked to do, besides forwarding frames.
+pub(super) enum Order {
+    /// Forward a sensor's captures.
+    Follow(Follow),
+    /// A remote tick request (the Zenoh callback that sends it rings the
+    /// frame-ready event).
+    Tick(Query),
+    /// A mirror is gone: release the ownership held for its ticker.
+    MirrorLeft(String),
 }
 
 /// One forwarded sensor: its reader and its publisher.
@@ -31,28 +61,40 @@ struct Forwarding {
     publisher: Publisher<'static>,
 }
 
-/// What the frame thread shares with the main thread.
+/// What the frame thread shares with the main thread and Zenoh's
+/// callbacks.
 #[derive(Debug, Default)]
 pub(super) struct Shared {
-    /// The last frame published, as sent (for the `frames/latest` query).
-    pub latest: Mutex<Vec<u8>>,
-    /// The number of the last frame published.
-    pub forwarded: AtomicU64,
+    /// The last frame published, as sent (for the `frames/latest` query):
+    /// the very payload handed to Zenoh, shared, not a copy.
+    pub latest: Mutex<ZBytes>,
+    /// Requests the main thread sent and awaits answers to: while none,
+    /// a ring is not worth waking it for. Raised before a request is sent.
+    pub awaiting: AtomicUsize,
 }
 
 /// The frame thread: publishes every frame on Zenoh (and its time on
 /// `clock`), each after the captures of its frame, as the server
 /// publishes them, so a remote reader that sees frame N finds its
-/// captures. Its one wait point is the wait for the next frame.
+/// captures. Its one wait point is the frame-ready event.
 pub(super) struct FrameForwarder<'a> {
     client: Client,
+    /// Rung by the server after every frame and after answering requests;
+    /// on its own node, declared before it so it goes first.
+    ready: Listener<Bus>,
+    /// The tick service's port, on the same node.
+    ticks: Ticks,
+    _node: Node<Bus>,
     session: &'a Session,
     keys: &'a BridgeKeys,
     frames: Publisher<'static>,
     clock: Option<Publisher<'static>>,
     sensors: HashMap<u64, Forwarding>,
     shared: Arc<Shared>,
-    bytes: Vec<u8>,
+    /// The number of the last frame published.
+    forwarded: u64,
+    /// Whether the main thread heard of the first frame.
+    told_first: bool,
 }
 
 /// A publisher that sends each message at once, in order, none batched.
@@ -76,6 +118,16 @@ impl<'a> FrameForwarder<'a> {
         shared: Arc<Shared>,
     ) -> Result<Self, FramesError> {
         let client = Client::connect(world.as_str(), timeout)?;
+        let node = ports::node("sim-client")?;
+        let specs = ports::specs(&ServiceNames::new(world))?;
+        let ticks = Ticks::open(&node, &specs)?;
+        let ready = specs
+            .frame_ready
+            .open(&node)
+            .map_err(|e| LocalError::transport("frame-ready event", e))?
+            .listener_builder()
+            .create()
+            .map_err(|e| LocalError::transport("frame-ready listener", e))?;
         let frames = express(session, keys.frames())?;
         let clock = if ros2_clock {
             Some(express(session, wire::ROS2_CLOCK_KEY.to_owned())?)
@@ -84,38 +136,105 @@ impl<'a> FrameForwarder<'a> {
         };
         Ok(Self {
             client,
+            ready,
+            ticks,
+            _node: node,
             session,
             keys,
             frames,
             clock,
             sensors: HashMap::new(),
             shared,
-            bytes: Vec::new(),
+            forwarded: 0,
+            told_first: false,
         })
     }
 
-    /// Forwards frames until `stopping` says so or the server is gone;
-    /// `forwarded_one` is told of each frame out.
+    /// Forwards frames and ticks until `stopping` says so or the server
+    /// is gone, then releases the ownership held for a remote ticker;
+    /// `tell` hears of the first frame ([`Event::Forwarded`]) and then of
+    /// every ring while the main thread awaits answers.
     pub(super) fn run(
         mut self,
-        follow: &Receiver<Follow>,
+        orders: &Receiver<Order>,
         stopping: impl Fn() -> bool,
-        forwarded_one: impl Fn(),
+        tell: impl Fn(Event),
     ) -> Result<(), FramesError> {
+        let result = self.serve(orders, stopping, tell);
+        self.ticks.finish();
+        result
+    }
+
+    fn serve(
+        &mut self,
+        orders: &Receiver<Order>,
+        stopping: impl Fn() -> bool,
+        tell: impl Fn(Event),
+    ) -> Result<(), FramesError> {
+        // The current frame is there without a ring.
+        let mut rang = true;
         while !stopping() {
-            while let Ok(request) = follow.try_recv() {
-                self.on_follow(request)?;
+            while let Ok(order) = orders.try_recv() {
+                match order {
+                    Order::Follow(request) => self.on_follow(request)?,
+                    Order::Tick(query) => self.ticks.on_query(query, self.forwarded),
+                    Order::MirrorLeft(zid) => self.ticks.mirror_left(&zid),
+                }
             }
-            match self.client.wait_for_frame(Duration::from_millis(100)) {
+            if rang {
+                let forwarded = self.on_ring()?;
+                // The tick's answer right after its frame, from here.
+                self.ticks.on_ring(self.forwarded);
+                if !self.told_first && forwarded {
+                    self.told_first = true;
+                    tell(Event::Forwarded);
+                } else if self.shared.awaiting.load(Ordering::SeqCst) > 0 {
+                    tell(Event::Answered);
+                }
+            } else {
+                self.check_server()?;
+            }
+            rang = self.wait()?;
+        }
+        Ok(())
+    }
+
+    /// The one wait point: whether the server rang within [`LIVENESS`].
+    fn wait(&self) -> Result<bool, FramesError> {
+        let mut rang = false;
+        match self.ready.timed_wait(|_| rang = true, LIVENESS) {
+            Ok(n) => Ok(rang || n > 0),
+            Err(ListenerWaitError::InterruptSignal) => Ok(rang),
+            Err(e) => Err(LocalError::transport("frame-ready wait", e).into()),
+        }
+    }
+
+    /// Publishes every frame queued; whether there was one.
+    fn on_ring(&mut self) -> Result<bool, FramesError> {
+        let mut forwarded = false;
+        loop {
+            match self.client.wait_for_frame(Duration::ZERO) {
                 Ok(frame) => {
                     self.on_frame(frame)?;
-                    forwarded_one();
+                    forwarded = true;
                 }
-                Err(WaitError::Timeout { .. }) => {}
+                Err(WaitError::Timeout { .. }) => return Ok(forwarded),
                 Err(e) => return Err(e.into()),
             }
         }
-        Ok(())
+    }
+
+    /// The server rang nothing for a while: is it still there?
+    fn check_server(&self) -> Result<(), FramesError> {
+        let pid = self.client.server_pid();
+        if pid == 0 || sim_client::process_alive(pid) {
+            return Ok(());
+        }
+        Err(WaitError::ServerGone {
+            world: self.client.world().to_string(),
+            pid,
+        }
+        .into())
     }
 
     /// Starts forwarding sensor `id`'s captures.
@@ -134,11 +253,10 @@ impl<'a> FrameForwarder<'a> {
     /// Publishes the frame's captures, then the frame and its time.
     fn on_frame(&mut self, frame: FrameView) -> Result<(), FramesError> {
         // The frame's captures first (the server published them before it).
-        let bytes = &mut self.bytes;
         self.sensors.retain(|id, forwarding| loop {
             match forwarding.sensor.try_recv() {
                 Ok(Some(capture)) => {
-                    if !forward_capture(*id, capture, &forwarding.publisher, bytes) {
+                    if !forward_capture(*id, capture, &forwarding.publisher) {
                         return false;
                     }
                 }
@@ -149,12 +267,16 @@ impl<'a> FrameForwarder<'a> {
                 }
             }
         });
-        self.bytes.clear();
-        wire::encode_frame(frame.header(), frame.actors(), &mut self.bytes);
+        // The one copy out of shared memory: into the buffer Zenoh sends
+        // and `frames/latest` keeps (a new one each frame, as both hold
+        // the last).
+        let mut bytes = Vec::with_capacity(wire::frame_len(frame.actors().len()));
+        wire::encode_frame(frame.header(), frame.actors(), &mut bytes);
         let (number, elapsed_ns) = (frame.frame(), frame.timestamp().elapsed_ns);
         drop(frame);
+        let bytes = ZBytes::from(bytes);
         self.frames
-            .put(self.bytes.as_slice())
+            .put(bytes.clone())
             .wait()
             .map_err(FramesError::zenoh("publishing a frame"))?;
         if let Some(clock) = &self.clock {
@@ -164,26 +286,22 @@ impl<'a> FrameForwarder<'a> {
                 .map_err(FramesError::zenoh("publishing the clock"))?;
         }
         if let Ok(mut latest) = self.shared.latest.lock() {
-            latest.clone_from(&self.bytes);
+            *latest = bytes;
         }
-        self.shared.forwarded.store(number, Ordering::Release);
+        self.forwarded = number;
         Ok(())
     }
 }
 
 /// Publishes a capture of sensor `id`; `false` once it was the sensor's
 /// last.
-fn forward_capture(
-    id: u64,
-    capture: Capture,
-    publisher: &Publisher<'_>,
-    bytes: &mut Vec<u8>,
-) -> bool {
-    bytes.clear();
-    wire::encode_capture(capture.header(), capture.bytes(), bytes);
+fn forward_capture(id: u64, capture: Capture, publisher: &Publisher<'_>) -> bool {
+    // The one copy out of shared memory, into the buffer Zenoh sends.
+    let mut bytes = Vec::with_capacity(wire::capture_len(capture.bytes().len()));
+    wire::encode_capture(capture.header(), capture.bytes(), &mut bytes);
     let ended = capture.header().end().is_some();
     drop(capture);
-    if let Err(e) = publisher.put(bytes.as_slice()).wait() {
+    if let Err(e) = publisher.put(bytes).wait() {
         warn!(sensor = id, "capture not published: {e}");
     }
     !ended
@@ -200,7 +318,7 @@ pub(super) fn follow_sensors(
     client: &Client,
     timeout: Duration,
     following: &mut BTreeSet<u64>,
-    follow: &Sender<Follow>,
+    follow: &Sender<Order>,
 ) {
     let Ok(list) = client.list_sensors() else {
         return;
@@ -210,7 +328,7 @@ pub(super) fn follow_sensors(
     for id in listed {
         if following.insert(id) {
             let (reading, read) = mpsc::channel();
-            if follow.send(Follow { id, reading }).is_ok() {
+            if follow.send(Order::Follow(Follow { id, reading })).is_ok() {
                 let _ = read.recv_timeout(timeout);
             }
         }

@@ -3,22 +3,24 @@
 //! queryables through ordinary simbus ports, tick ownership held for a
 //! remote ticker and released when its mirror goes.
 //!
-//! Threads: one forwards frames (and `/clock`) and the captures of every
-//! sensor (`frames.rs`); it owns its simbus ports. The main thread, an
-//! [`Exporter`], owns the request ports; its one wait point is one
-//! channel, fed by Zenoh's callbacks and by the frame thread (a tick's
-//! answer goes back only once its frame is out). While answers are
-//! awaited it also looks at the request ports, after 20 µs at first and
-//! then at most every millisecond: iceoryx2's request-response gives a
-//! client no event for an answer, and the server notifies none except
-//! for frames (which a tick's answer follows, and which wake it at once).
+//! Threads: one forwards frames (and `/clock`), the captures of every
+//! sensor and the tick service (`frames.rs`); it owns its simbus ports
+//! and waits on the world's frame-ready event, which the server rings
+//! after every frame and after answering the requests clients announced,
+//! and which Zenoh's callback rings after handing it a tick query. A
+//! tick's answer is replied by that thread right after its frame: the
+//! mirrored tick's path has no other thread of the exporter in it. The
+//! main thread, an [`Exporter`], owns the other request ports; its one
+//! wait point is one channel, fed by Zenoh's callbacks and by the frame
+//! thread, which tells it of a ring while it awaits answers. The
+//! channel's only timed wait is the deadline of the next look at the
+//! server's sensors.
 
 mod declare;
+mod events;
 mod frames;
 mod relay;
 mod ticker;
-
-pub(crate) use self::relay::{service_name, MAX_FORWARDED_BATCH};
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -29,32 +31,30 @@ use std::time::{Duration, Instant};
 use iceoryx2::node::Node;
 use iceoryx2::port::notifier::Notifier;
 use shared_types::{
-    ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames, TickResponse,
+    ControlRequest, ControlResponse, RecorderRequest, RecorderResponse, ServiceNames,
 };
 use sim_client::Client;
+use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 use tracing::info;
 use zenoh::query::Query;
 
-use self::declare::{declare, mirror_of, Dropped};
-use self::frames::{follow_sensors, Follow, FrameForwarder, Shared};
-use self::relay::{Answer, BatchRelay, FixedRelay, Refusal, Refused, SensorRelay};
-use self::ticker::{LockstepRelay, RemoteTickers, TickRelay};
-use crate::error::{ExportError, FramesError, LocalError};
-use crate::wire::{self, BridgeKeys, Forwarded};
+use self::declare::{declare, Routes};
+use self::events::Event;
+use self::frames::{follow_sensors, FrameForwarder, Order, Shared};
+use self::relay::{
+    mirror_of, Answer, BatchRelay, Dropped, FixedRelay, Refusal, Refused, SensorRelay,
+};
+use self::ticker::LockstepRelay;
+use crate::error::{ExportError, LocalError};
+use crate::ports;
+use crate::wire::{BridgeKeys, Forwarded};
 use crate::{JsonViews, Notice, Side};
 
-/// What wakes the exporter.
-pub(super) enum Event {
-    /// A query on one of the world's keys.
-    Query(Query),
-    /// A mirror's liveliness token appeared (`true`) or went.
-    Mirror(String, bool),
-    /// The frame thread published a frame.
-    Forwarded,
-    /// The frame thread ended: stopped, or the server is gone (why).
-    FramesEnded(Option<FramesError>),
-}
+/// How often the server's sensors are looked at, for sensors spawned by
+/// clients on its host (those spawned from other hosts are followed as
+/// their answer goes back).
+const SENSOR_SCAN_PERIOD: Duration = Duration::from_secs(1);
 
 /// Sets its flag when dropped (also when unwinding), so the frame thread
 /// stops before its scope is left.
@@ -74,8 +74,15 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
     let keys = BridgeKeys::new(side.world);
     let (events, incoming) = mpsc::channel::<Event>();
     let shared = Arc::new(Shared::default());
-    let _declared = declare(&side.session, &keys, &events, &shared)?;
-    let (follow, followed) = mpsc::channel::<Follow>();
+    let (orders, ordered) = mpsc::channel::<Order>();
+    let names = ServiceNames::new(side.world);
+    let routes = Routes {
+        events: &events,
+        orders: &orders,
+        names: &names,
+        shared: &shared,
+    };
+    let _declared = declare(&side.session, &keys, routes)?;
     let done = AtomicBool::new(false);
     std::thread::scope(|scope| {
         let _stop_frames = SetOnDrop(&done);
@@ -94,10 +101,10 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
                 )
                 .and_then(|forwarder| {
                     forwarder.run(
-                        &followed,
+                        &ordered,
                         || frames::either(side.stop, done),
-                        || {
-                            let _ = to_main.send(Event::Forwarded);
+                        |event| {
+                            let _ = to_main.send(event);
                         },
                     )
                 });
@@ -109,7 +116,7 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
             side.timeout,
             side.options.json,
             shared.clone(),
-            follow,
+            orders,
         )?;
         exporter.await_first_frame(&incoming, side.timeout)?;
         (side.notice)(Notice::Exporting {
@@ -130,12 +137,11 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
 struct Exporter {
     client: Client,
     timeout: Duration,
-    names: ServiceNames,
+    specs: WorldServices,
     keys: BridgeKeys,
     json: JsonViews,
     shared: Arc<Shared>,
     control: FixedRelay<ControlRequest, ControlResponse>,
-    tick: TickRelay,
     recorder: FixedRelay<RecorderRequest, RecorderResponse>,
     batch: BatchRelay,
     sensors: SensorRelay,
@@ -147,25 +153,16 @@ struct Exporter {
     /// The node of the relay ports (named as a client's, as `top` shows
     /// them); last, so the ports drop first.
     node: Node<Bus>,
-    tickers: RemoteTickers,
     mirrors: BTreeSet<String>,
-    /// Sensors the frame thread forwards, and how to ask it for more.
+    /// Sensors the frame thread forwards; how to ask it for more, and to
+    /// forward a tick or release a lost mirror's ownership.
     following: BTreeSet<u64>,
-    follow: Sender<Follow>,
+    orders: Sender<Order>,
     next_sensor_scan: Instant,
-    /// Final answers, replied once their frame is out.
-    held: Vec<Answer>,
+    /// Answers taken from the ports, replied at once.
+    answers: Vec<Answer>,
     dropped: Dropped,
-    /// How long to wait before looking at the request ports again.
-    idle: Duration,
 }
-
-/// The first look at the request ports after an event.
-const FIRST_LOOK: Duration = Duration::from_micros(20);
-/// The longest wait between looks while answers are awaited.
-const LAST_LOOK: Duration = Duration::from_millis(1);
-/// The longest wait while nothing is awaited (how soon `stop` is seen).
-const IDLE_WAIT: Duration = Duration::from_millis(100);
 
 impl Exporter {
     /// Opens the request ports of the world `client` is connected to.
@@ -174,33 +171,30 @@ impl Exporter {
         timeout: Duration,
         json: JsonViews,
         shared: Arc<Shared>,
-        follow: Sender<Follow>,
+        orders: Sender<Order>,
     ) -> Result<Self, LocalError> {
-        let names = ServiceNames::new(client.world());
-        let node = crate::mirror::node("sim-client")?;
+        let specs = ports::specs(&ServiceNames::new(client.world()))?;
+        let node = ports::node("sim-client")?;
         Ok(Self {
-            control: FixedRelay::open(&node, &names.control)?,
-            tick: FixedRelay::open(&node, &names.tick)?,
-            recorder: FixedRelay::open(&node, &names.recorder)?,
-            batch: BatchRelay::open(&node, &names.batch)?,
-            sensors: SensorRelay::open(&node, &names.sensors)?,
-            wake: crate::mirror::wake_notifier_on(&node, &names)?,
+            control: FixedRelay::open(&node, &specs.control)?,
+            recorder: FixedRelay::open(&node, &specs.recorder)?,
+            batch: BatchRelay::open(&node, &specs.batch)?,
+            sensors: SensorRelay::open(&node, &specs.sensors)?,
+            wake: ports::wake_notifier_on(&node, &specs)?,
             node,
             lockstep: HashMap::new(),
             keys: BridgeKeys::new(client.world()),
-            names,
+            specs,
             client,
             timeout,
             json,
             shared,
-            tickers: RemoteTickers::default(),
             mirrors: BTreeSet::new(),
             following: BTreeSet::new(),
-            follow,
+            orders,
             next_sensor_scan: Instant::now(),
-            held: Vec::new(),
+            answers: Vec::new(),
             dropped: Dropped::default(),
-            idle: FIRST_LOOK,
         })
     }
 
@@ -230,43 +224,26 @@ impl Exporter {
         result
     }
 
-    /// Serves until `stop`, or the frame thread ends (the server is gone).
+    /// Serves until `stop`, or the frame thread ends (the server is gone,
+    /// or it saw `stop`).
     fn serve(&mut self, incoming: &Receiver<Event>, stop: &AtomicBool) -> Result<(), ExportError> {
         while !stop.load(Ordering::Relaxed) {
             if Instant::now() >= self.next_sensor_scan {
-                self.next_sensor_scan = Instant::now() + Duration::from_secs(1);
-                self.follow_sensors();
+                self.on_sensor_scan();
             }
-            // The one wait point.
-            match incoming.recv_timeout(self.wait()) {
+            // The one wait point: an event, or the next sensor scan's deadline.
+            let left = self
+                .next_sensor_scan
+                .saturating_duration_since(Instant::now());
+            match incoming.recv_timeout(left) {
                 Ok(Event::FramesEnded(None)) => return Ok(()),
                 Ok(Event::FramesEnded(Some(e))) => return Err(ExportError::FramesEnded(e)),
-                Ok(event) => {
-                    self.idle = FIRST_LOOK;
-                    self.on_event(event);
-                }
-                Err(RecvTimeoutError::Timeout) => self.idle = (self.idle * 2).min(LAST_LOOK),
+                Ok(event) => self.on_event(event),
+                Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return Ok(()),
             }
-            self.on_answers();
         }
         Ok(())
-    }
-
-    /// How long the next wait may be: short while answers are awaited.
-    fn wait(&self) -> Duration {
-        let busy = self.tick.busy()
-            || self.control.busy()
-            || self.recorder.busy()
-            || self.batch.busy()
-            || self.sensors.busy()
-            || self.lockstep.values().any(FixedRelay::busy)
-            || !self.held.is_empty();
-        if busy {
-            self.idle
-        } else {
-            IDLE_WAIT
-        }
     }
 
     fn on_event(&mut self, event: Event) {
@@ -277,8 +254,17 @@ impl Exporter {
                 self.mirrors.insert(zid);
             }
             Event::Mirror(zid, false) => self.on_mirror_left(&zid),
-            Event::Forwarded | Event::FramesEnded(_) => {}
+            Event::Forwarded | Event::Answered => self.on_answers(),
+            Event::FramesEnded(_) => {}
         }
+    }
+
+    /// The periodic look at the server's sensors; requests that waited past
+    /// their timeout are refused on the way.
+    fn on_sensor_scan(&mut self) {
+        self.next_sensor_scan = Instant::now() + SENSOR_SCAN_PERIOD;
+        self.follow_sensors();
+        self.on_answers();
     }
 
     /// A query: a request forwarded to the server, or status JSON.
@@ -303,6 +289,9 @@ impl Exporter {
             .payload()
             .map(|p| p.to_bytes().into_owned())
             .unwrap_or_default();
+        // Raised before the request goes, so the ring after its answer
+        // reaches this thread.
+        self.shared.awaiting.fetch_add(1, Ordering::SeqCst);
         match self.forward(service, mirror, &bytes, query) {
             // An idle (paced or waiting) server answers at once.
             Ok(()) => {
@@ -315,6 +304,9 @@ impl Exporter {
                 self.dropped.note(&query, &why);
             }
         }
+        self.shared
+            .awaiting
+            .store(self.in_flight(), Ordering::SeqCst);
     }
 
     /// Sends a request from `mirror` to the server's `service`.
@@ -347,16 +339,12 @@ impl Exporter {
                 },
                 Err(e) => Err(relay::malformed(query, "lockstep request", e)),
             },
-            Forwarded::Tick => match TickRelay::decode(bytes) {
-                Ok(request) => self.tickers.forward(
-                    request,
-                    mirror,
-                    query,
-                    &mut self.tick,
-                    &self.shared.forwarded,
-                ),
-                Err(e) => Err(relay::malformed(query, "tick request", e)),
-            },
+            // Zenoh's callback hands ticks to the frame thread; one that
+            // came here anyway goes there (seen at its next wake-up).
+            Forwarded::Tick => {
+                let _ = self.orders.send(Order::Tick(query));
+                Ok(())
+            }
         }
     }
 
@@ -369,7 +357,7 @@ impl Exporter {
         match self.lockstep.entry((mirror, pid)) {
             std::collections::hash_map::Entry::Occupied(e) => Ok(e.into_mut()),
             std::collections::hash_map::Entry::Vacant(e) => {
-                FixedRelay::open(&self.node, &self.names.lockstep).map(|port| e.insert(port))
+                FixedRelay::open(&self.node, &self.specs.lockstep).map(|port| e.insert(port))
             }
         }
     }
@@ -379,7 +367,7 @@ impl Exporter {
     fn on_mirror_left(&mut self, zid: &str) {
         info!(mirror = %zid, "a mirror left (its link dropped or it stopped)");
         self.mirrors.remove(zid);
-        self.tickers.mirror_left(zid, &mut self.tick);
+        let _ = self.orders.send(Order::MirrorLeft(zid.to_owned()));
         let gone: Vec<_> = self
             .lockstep
             .keys()
@@ -393,42 +381,40 @@ impl Exporter {
         }
     }
 
-    /// Takes the server's answers that came and replies each whose frame
-    /// is out.
+    /// The server rang: takes the answers that came and replies them.
     fn on_answers(&mut self) {
-        let mut ticks = Vec::new();
-        self.tick
-            .poll(relay::tick_interim, relay::tick_frame, &mut ticks);
-        for answer in ticks {
-            // The server's word on who ticks now decides the remote owner.
-            if let Ok(response) = wire::decode_fixed::<TickResponse>(&answer.bytes, "tick answer") {
-                self.tickers.answered(&response);
-            }
-            self.held.push(answer);
-        }
-        self.control.poll(|_| false, |_| None, &mut self.held);
-        self.recorder.poll(|_| false, |_| None, &mut self.held);
-        self.batch.poll(&mut self.held);
-        let before = self.held.len();
-        self.sensors.poll(&mut self.held);
-        if self.held.len() > before {
+        self.control.poll(|_| false, |_| None, &mut self.answers);
+        self.recorder.poll(|_| false, |_| None, &mut self.answers);
+        self.batch.poll(&mut self.answers);
+        let before = self.answers.len();
+        self.sensors.poll(&mut self.answers);
+        if self.answers.len() > before {
             // A sensor may have been spawned: its captures are forwarded
             // from before the answer goes, so none is missed.
             self.follow_sensors();
         }
         for port in self.lockstep.values_mut() {
-            port.poll(|_| false, |_| None, &mut self.held);
+            port.poll(|_| false, |_| None, &mut self.answers);
         }
-        // A tick's answer goes once its frame is on Zenoh, so a remote
-        // reader that sees the answer finds the frame.
-        let out = self.shared.forwarded.load(Ordering::Acquire);
-        self.held.retain(|answer| {
-            if answer.frame.is_some_and(|frame| frame > out) {
-                return true;
-            }
-            relay::reply(&answer.query, &answer.bytes);
-            false
-        });
+        for answer in self.answers.drain(..) {
+            relay::reply(&answer.query, answer.bytes);
+        }
+        self.shared
+            .awaiting
+            .store(self.in_flight(), Ordering::SeqCst);
+    }
+
+    /// Requests sent and not yet answered.
+    fn in_flight(&self) -> usize {
+        self.control.in_flight()
+            + self.recorder.in_flight()
+            + self.batch.in_flight()
+            + self.sensors.in_flight()
+            + self
+                .lockstep
+                .values()
+                .map(FixedRelay::in_flight)
+                .sum::<usize>()
     }
 
     /// Has the frame thread forward every sensor not yet forwarded.
@@ -437,7 +423,7 @@ impl Exporter {
             &self.client,
             self.timeout,
             &mut self.following,
-            &self.follow,
+            &self.orders,
         );
     }
 
@@ -459,9 +445,9 @@ impl Exporter {
         }
     }
 
-    /// The export ends: the ownership held for a remote ticker goes back.
+    /// The export ends (the frame thread gives back the ownership held
+    /// for a remote ticker).
     fn finish(&mut self) {
-        self.tickers.release(&mut self.tick);
         info!(dropped = self.dropped.count, "export ended");
     }
 }
@@ -471,7 +457,7 @@ impl std::fmt::Debug for Exporter {
         f.debug_struct("Exporter")
             .field("world", self.client.world())
             .field("mirrors", &self.mirrors)
-            .field("held", &self.held.len())
+            .field("in_flight", &self.in_flight())
             .finish()
     }
 }

@@ -17,7 +17,10 @@ use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, ResponseStatus, SensorInfo,
     SensorRequest, SensorResponseHeader, TickResponse,
 };
+use simbus_transport::spec::{BatchSpec, RequestSpec, SensorsSpec};
 use simbus_transport::Bus;
+use tracing::warn;
+use zenoh::bytes::ZBytes;
 use zenoh::query::Query;
 use zenoh::Wait as _;
 
@@ -88,11 +91,12 @@ impl std::fmt::Debug for Answer {
     }
 }
 
-/// Replies `bytes` to `query` on its own key.
-pub(super) fn reply(query: &Query, bytes: &[u8]) {
+/// Replies `payload` to `query` on its own key (a `Vec` or a `ZBytes`
+/// is sent as it is, a slice copied once).
+pub(super) fn reply(query: &Query, payload: impl Into<ZBytes>) {
     // Express: sent at once, not batched with what may follow.
     if let Err(e) = query
-        .reply(query.key_expr().clone(), bytes.to_vec())
+        .reply(query.key_expr().clone(), payload)
         .express(true)
         .wait()
     {
@@ -105,6 +109,46 @@ pub(super) fn refuse(query: &Query, message: &str) {
     if let Err(e) = query.reply_err(message.to_owned()).wait() {
         tracing::debug!("error reply to {} not sent: {e}", query.key_expr());
     }
+}
+
+/// Malformed or refused inputs, counted and logged.
+#[derive(Debug, Default)]
+pub(super) struct Dropped {
+    pub count: u64,
+    last_warning: Option<Instant>,
+    unwarned: u64,
+}
+
+impl Dropped {
+    pub(super) fn note(&mut self, query: &Query, why: &Refusal) {
+        self.count += 1;
+        let why = why.to_string();
+        refuse(query, &why);
+        // At most one warning a second, with the count since the last.
+        self.unwarned += 1;
+        if self
+            .last_warning
+            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
+        {
+            warn!(
+                key = %query.key_expr(),
+                dropped = self.unwarned,
+                total = self.count,
+                "dropped a request from another host: {why}"
+            );
+            self.last_warning = Some(Instant::now());
+            self.unwarned = 0;
+        }
+    }
+}
+
+/// The mirror's Zenoh id a query names in its `mirror` parameter.
+pub(super) fn mirror_of(query: &Query) -> Option<String> {
+    query
+        .parameters()
+        .get("mirror")
+        .filter(|m| !m.is_empty() && m.len() <= 64)
+        .map(str::to_owned)
 }
 
 /// The requests of one port waiting for their answers.
@@ -135,11 +179,6 @@ impl<P> Flights<P> {
             }
             Err(e) => Err(refused(query, Refusal::NotSent(e.into()))),
         }
-    }
-
-    /// Whether answers are awaited.
-    fn busy(&self) -> bool {
-        !self.0.is_empty()
     }
 
     /// Moves the answers that finished to `answers`; requests that timed
@@ -200,9 +239,14 @@ impl<P> std::fmt::Debug for Flights<P> {
     }
 }
 
-/// The iceoryx2 name of the service `name`.
-pub(crate) fn service_name(name: &str) -> Result<ServiceName, LocalError> {
-    ServiceName::new(name).map_err(|e| LocalError::transport(format!("service name {name}"), e))
+/// The service `name` could not be opened.
+fn opening(name: &str, e: impl Into<TransportError>) -> LocalError {
+    LocalError::transport(format!("service {name}"), e)
+}
+
+/// No client port of the service `name` could be created.
+fn client_of(name: &str, e: impl Into<TransportError>) -> LocalError {
+    LocalError::transport(format!("client of {name}"), e)
 }
 
 /// A fixed-size request waiting for its answer.
@@ -223,16 +267,17 @@ where
     Req: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
     Resp: std::fmt::Debug + ZeroCopySend + Copy + bytemuck::Pod,
 {
-    /// Opens a client port of the service `name`.
-    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
-        let client = node
-            .service_builder(&service_name(name)?)
-            .request_response::<Req, Resp>()
-            .open()
-            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
+    /// Opens a client port of the service `spec` describes.
+    pub(super) fn open(
+        node: &Node<Bus>,
+        spec: &RequestSpec<Req, (), Resp, ()>,
+    ) -> Result<Self, LocalError> {
+        let client = spec
+            .open(node)
+            .map_err(|e| opening(spec.name.as_str(), e))?
             .client_builder()
             .create()
-            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+            .map_err(|e| client_of(spec.name.as_str(), e))?;
         Ok(Self {
             client,
             flights: Flights::default(),
@@ -249,17 +294,17 @@ where
         self.flights.admit(self.client.send_copy(request), query)
     }
 
+    /// Requests sent and not yet answered.
+    pub(super) fn in_flight(&self) -> usize {
+        self.flights.0.len()
+    }
+
     /// Sends `request` without awaiting its answer.
     pub(super) fn send_detached(&mut self, request: Req) -> Result<(), LocalError> {
         self.client
             .send_copy(request)
             .map(drop)
             .map_err(|e| LocalError::transport("sending a request to the server", e))
-    }
-
-    /// Whether answers are awaited.
-    pub(super) fn busy(&self) -> bool {
-        self.flights.busy()
     }
 
     /// Moves the final answers that came to `answers`; an interim answer
@@ -328,9 +373,9 @@ where
     T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
     H: std::fmt::Debug + ZeroCopySend + bytemuck::Pod,
 {
-    /// Whether answers are awaited.
-    pub(super) fn busy(&self) -> bool {
-        self.flights.busy()
+    /// Requests sent and not yet answered.
+    pub(super) fn in_flight(&self) -> usize {
+        self.flights.0.len()
     }
 
     /// Moves the answers that came to `answers`, each as its header's
@@ -372,24 +417,12 @@ where
 /// one result per command.
 pub(super) type BatchRelay = SliceRelay<[Command], BatchHeader, CommandResult, BatchResponseHeader>;
 
-/// The most commands one forwarded batch may hold.
-pub(crate) const MAX_FORWARDED_BATCH: usize = 65_536;
-
 impl BatchRelay {
-    /// Opens a client port of the batch service `name`.
-    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
-        let client = node
-            .service_builder(&service_name(name)?)
-            .request_response::<[Command], [CommandResult]>()
-            .request_user_header::<BatchHeader>()
-            .response_user_header::<BatchResponseHeader>()
-            .open()
-            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
-            .client_builder()
-            .initial_max_slice_len(shared_types::limits::INITIAL_MAX_BATCH)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
-            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+    /// Opens a client port of the batch service.
+    pub(super) fn open(node: &Node<Bus>, spec: &BatchSpec) -> Result<Self, LocalError> {
+        let name = spec.name.as_str();
+        let factory = spec.open(node).map_err(|e| opening(name, e))?;
+        let client = spec.client(&factory).map_err(|e| client_of(name, e))?;
         Ok(Self {
             client,
             flights: Flights::default(),
@@ -398,11 +431,14 @@ impl BatchRelay {
 
     /// Checks `bytes` as a batch and sends it; its answer will go to `query`.
     pub(super) fn forward(&mut self, bytes: &[u8], query: Query) -> Result<(), Refused> {
-        let (header, commands) =
-            match wire::decode_slice::<BatchHeader, Command>(bytes, "batch", MAX_FORWARDED_BATCH) {
-                Ok(batch) => batch,
-                Err(e) => return Err(malformed(query, "batch", e)),
-            };
+        let (header, commands) = match wire::decode_slice::<BatchHeader, Command>(
+            bytes,
+            "batch",
+            wire::MAX_FORWARDED_BATCH,
+        ) {
+            Ok(batch) => batch,
+            Err(e) => return Err(malformed(query, "batch", e)),
+        };
         let sent = self
             .client
             .loan_slice_uninit(commands.len())
@@ -422,17 +458,15 @@ impl BatchRelay {
 pub(super) type SensorRelay = SliceRelay<SensorRequest, (), SensorInfo, SensorResponseHeader>;
 
 impl SensorRelay {
-    /// Opens a client port of the sensor service `name`.
-    pub(super) fn open(node: &Node<Bus>, name: &str) -> Result<Self, LocalError> {
-        let client = node
-            .service_builder(&service_name(name)?)
-            .request_response::<SensorRequest, [SensorInfo]>()
-            .response_user_header::<SensorResponseHeader>()
-            .open()
-            .map_err(|e| LocalError::transport(format!("service {name}"), e))?
+    /// Opens a client port of the sensor service.
+    pub(super) fn open(node: &Node<Bus>, spec: &SensorsSpec) -> Result<Self, LocalError> {
+        let name = spec.name.as_str();
+        let client = spec
+            .open(node)
+            .map_err(|e| opening(name, e))?
             .client_builder()
             .create()
-            .map_err(|e| LocalError::transport(format!("client of {name}"), e))?;
+            .map_err(|e| client_of(name, e))?;
         Ok(Self {
             client,
             flights: Flights::default(),

@@ -129,7 +129,7 @@ pub(super) fn answer_local(
         Local::Batch(a) => wire::decode_slice::<BatchResponseHeader, CommandResult>(
             bytes,
             "batch answer",
-            crate::export::MAX_FORWARDED_BATCH,
+            wire::MAX_FORWARDED_BATCH,
         )
         .map(|(header, results)| {
             sent(

@@ -63,8 +63,8 @@ pub(super) struct LocalServices {
     wake: Listener<Bus>,
 }
 
-use crate::error::{Chain, LocalError};
-use crate::export::service_name as name;
+use crate::error::LocalError;
+use crate::ports::{self, node, specs, Bell};
 
 /// A service of the world that could not be created here.
 fn create_failed(e: impl Into<crate::TransportError>) -> LocalError {
@@ -82,15 +82,6 @@ fn receive_failed(e: impl Into<crate::TransportError>) -> LocalError {
 /// A sensor's service that could not be created here.
 fn sensor_failed(e: impl Into<crate::TransportError>) -> LocalError {
     LocalError::CreateSensor(e.into())
-}
-
-/// A node of this process, named `name`.
-pub(crate) fn node(name: &str) -> Result<Node<Bus>, LocalError> {
-    NodeBuilder::new()
-        .name(&NodeName::new(name).map_err(|e| LocalError::transport("iceoryx2 node name", e))?)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .map_err(|e| LocalError::transport("iceoryx2 node", e))
 }
 
 /// The world's services here, each created from its one description
@@ -141,7 +132,7 @@ impl LocalServices {
         simbus_transport::environment::prepare()?;
         let node = node("zenoh-mirror")?;
         node.try_cleanup_dead_nodes();
-        let specs = WorldServices::new(names).map_err(create_failed)?;
+        let specs = specs(names)?;
         let (frames, ready, wake, batch, sensors) = world_ports(&node, &specs, limits)?;
         macro_rules! server {
             ($spec:expr) => {
@@ -193,6 +184,25 @@ impl LocalServices {
         *sample.user_header_mut() = *header;
         sample
             .write_from_slice(actors)
+            .send()
+            .map_err(|e| LocalError::transport("frame send", e))?;
+        Ok(())
+    }
+
+    /// Publishes a frame whose actors `actor` gives, one by one, straight
+    /// into the loaned sample (kept as the one new subscribers get first).
+    pub(super) fn publish_frame_with(
+        &self,
+        header: &FrameHeader,
+        actor: impl FnMut(usize) -> ActorState,
+    ) -> Result<(), LocalError> {
+        let mut sample = self
+            .frames
+            .loan_slice_uninit(header.actor_count as usize)
+            .map_err(|e| LocalError::transport("frame loan", e))?;
+        *sample.user_header_mut() = *header;
+        sample
+            .write_from_fn(actor)
             .send()
             .map_err(|e| LocalError::transport("frame send", e))?;
         Ok(())
@@ -364,46 +374,6 @@ impl SensorPorts {
 
 /// Wakes the mirror's main thread (blocked in [`LocalServices::wait`])
 /// from any thread: Zenoh's callbacks call it after queueing an event.
-/// iceoryx2 ports stay on the thread that made them, so each calling thread
-/// opens its own notifier once.
 pub(super) fn wake(names: &ServiceNames) {
-    thread_local! {
-        static NOTIFIER: std::cell::RefCell<Option<(Node<Bus>, Notifier<Bus>)>> =
-            const { std::cell::RefCell::new(None) };
-    }
-    NOTIFIER.with(|cell| {
-        let mut cell = cell.borrow_mut();
-        if cell.is_none() {
-            match wake_notifier(names) {
-                Ok(ports) => *cell = Some(ports),
-                Err(e) => tracing::warn!("cannot wake the mirror from this thread: {}", Chain(&e)),
-            }
-        }
-        if let Some((_, notifier)) = cell.as_ref() {
-            if let Err(e) = notifier.notify() {
-                tracing::debug!("wake-up not delivered: {e:?}");
-            }
-        }
-    });
-}
-
-fn wake_notifier(names: &ServiceNames) -> Result<(Node<Bus>, Notifier<Bus>), LocalError> {
-    let node = node("zenoh-mirror-wake")?;
-    let notifier = wake_notifier_on(&node, names)?;
-    Ok((node, notifier))
-}
-
-/// A notifier of the world's wake-up event (what clients notify after a
-/// request) on `node`.
-pub(crate) fn wake_notifier_on(
-    node: &Node<Bus>,
-    names: &ServiceNames,
-) -> Result<Notifier<Bus>, LocalError> {
-    node.service_builder(&name(&names.control_wake)?)
-        .event()
-        .open()
-        .map_err(|e| LocalError::transport("wake-up event", e))?
-        .notifier_builder()
-        .create()
-        .map_err(|e| LocalError::transport("wake-up notifier", e))
+    ports::ring(names, Bell::Wake);
 }

@@ -15,6 +15,7 @@
 //! event.
 
 mod answers;
+mod events;
 mod local;
 mod query;
 
@@ -29,6 +30,7 @@ use shared_types::{
     ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, WorldName,
 };
 use tracing::{info, warn};
+use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::SampleKind;
@@ -38,7 +40,7 @@ use self::answers::{
     answer_local, refuse_local, request_bytes, send_tick, sender_pid, status_answer,
     unreachable_answer, Answered,
 };
-pub(crate) use self::local::{node, wake_notifier_on};
+use self::events::Event;
 use self::local::{Active, Local, LocalServices, SensorPorts};
 use self::query::{query_once, query_until, Link};
 use crate::error::{Chain, MirrorError, QueryError};
@@ -48,25 +50,9 @@ use crate::{Notice, Side};
 /// How long a tick's answer waits here for its frame.
 const HOLD_LIMIT: Duration = Duration::from_secs(2);
 
-/// How long the mirror sleeps at most (how soon `stop` is seen).
-const IDLE_WAIT: Duration = Duration::from_millis(50);
-
-/// How often held answers and the local ticker's life are checked.
+/// How often held answers and the local ticker's life are checked (and
+/// how soon `stop` is seen): the mirror's one deadline.
 const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
-
-/// What wakes the mirror.
-pub(super) enum Event {
-    /// A frame from the exporter.
-    Frame(Vec<u8>),
-    /// A capture from the exporter.
-    Capture(Vec<u8>),
-    /// A reply to forwarded request `id` (an error reply as its text).
-    Reply(u64, Result<Vec<u8>, QueryError>),
-    /// Forwarded request `id` will get no more replies.
-    Done(u64),
-    /// The exporter's liveliness token appeared (`true`) or went.
-    Exporter(bool),
-}
 
 /// A forwarded request: the local request and whether it was answered.
 struct InFlight {
@@ -103,8 +89,7 @@ fn hello(
     let zid = session.zid().to_string();
     let request = ControlRequest::new(RequestKind::Status);
     info!(%world, %endpoint, "asking for the world's status (waiting up to {timeout:?})");
-    let key = keys.rpc(Forwarded::Control);
-    let status = match query_until(session, &key, &zid, wire::bytes_of(&request), timeout, stop) {
+    let status = match query_until(session, keys, &zid, wire::bytes_of(&request), timeout, stop) {
         Ok(bytes) => bytes,
         Err(QueryError::NoAnswer) => {
             return Err(MirrorError::NotExported {
@@ -170,12 +155,12 @@ fn declare(
         })
         .wait()
         .map_err(MirrorError::zenoh("watching the exporter's liveliness"))?;
-    let subscriber = |key: String, event: fn(Vec<u8>) -> Event| {
+    let subscriber = |key: String, event: fn(ZBytes) -> Event| {
         let (to_main, wake_names) = (events.clone(), names.clone());
         session
             .declare_subscriber(key)
             .callback(move |sample| {
-                let _ = to_main.send(event(sample.payload().to_bytes().into_owned()));
+                let _ = to_main.send(event(sample.payload().clone()));
                 local::wake(&wake_names);
             })
             .wait()
@@ -295,38 +280,39 @@ impl<'a> Mirror<'a> {
         notice: &mut dyn FnMut(Notice),
     ) -> Result<(), MirrorError> {
         while !stop.load(Ordering::Relaxed) {
-            // The one wait point: local clients and Zenoh's callbacks both
-            // wake the listener (see `local::wake`).
-            let event = match incoming.try_recv() {
-                Ok(event) => Some(event),
-                Err(TryRecvError::Empty) => {
-                    self.local.wait(IDLE_WAIT)?;
-                    incoming.try_recv().ok()
+            loop {
+                match incoming.try_recv() {
+                    Ok(Event::Frame(bytes)) => self.on_frame(&bytes)?,
+                    Ok(Event::Capture(bytes)) => self.on_capture(&bytes.to_bytes()),
+                    Ok(Event::Reply(id, reply)) => self.on_reply(id, reply),
+                    Ok(Event::Done(id)) => self.on_done(id),
+                    Ok(Event::Exporter(alive)) => self.on_exporter(alive, notice),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => return Ok(()),
                 }
-                Err(TryRecvError::Disconnected) => return Ok(()),
-            };
-            match event {
-                Some(Event::Frame(bytes)) => self.on_frame(&bytes)?,
-                Some(Event::Capture(bytes)) => self.on_capture(&bytes),
-                Some(Event::Reply(id, reply)) => self.on_reply(id, reply),
-                Some(Event::Done(id)) => self.on_done(id),
-                Some(Event::Exporter(alive)) => self.on_exporter(alive, notice),
-                None => {}
             }
             self.on_local_requests()?;
             if Instant::now() >= self.next_liveness_check {
                 self.next_liveness_check = Instant::now() + LIVENESS_PERIOD;
                 self.on_liveness_check();
             }
+            // The one wait point: local clients and Zenoh's callbacks (after
+            // queueing an event) ring the wake-up listener (see
+            // `local::wake`); a ring that came meanwhile ends it at once.
+            let left = self
+                .next_liveness_check
+                .saturating_duration_since(Instant::now());
+            self.local.wait(left)?;
         }
         Ok(())
     }
 
-    /// A frame from the exporter, published here; the tick answers held
-    /// for it go.
-    fn on_frame(&mut self, bytes: &[u8]) -> Result<(), MirrorError> {
-        let (mut header, actors) = match wire::decode_frame(bytes) {
-            Ok(frame) => frame,
+    /// A frame from the exporter, read straight from Zenoh's payload into
+    /// a loaned sample and published here; the tick answers held for it go.
+    fn on_frame(&mut self, payload: &ZBytes) -> Result<(), MirrorError> {
+        let mut reader = wire::Slices::new(payload.slices());
+        let mut header = match wire::frame_header(&mut reader, payload.len()) {
+            Ok(header) => header,
             Err(e) => {
                 self.dropped += 1;
                 warn!(dropped = self.dropped, "dropped a frame publication: {e}");
@@ -350,7 +336,9 @@ impl<'a> Mirror<'a> {
         }
         self.last = key;
         header.server_pid = std::process::id();
-        self.local.publish_frame(&header, &actors)?;
+        self.local.publish_frame_with(&header, |_| {
+            reader.read().unwrap_or_else(bytemuck::Zeroable::zeroed)
+        })?;
         self.held.retain(|(active, answer, _)| {
             if answer.frame > key.1 {
                 return true;
@@ -394,15 +382,15 @@ impl<'a> Mirror<'a> {
 
     /// The exporter's reply to forwarded request `id`, sent to its local
     /// client (a tick's once its frame is published here).
-    fn on_reply(&mut self, id: u64, reply: Result<Vec<u8>, QueryError>) {
+    fn on_reply(&mut self, id: u64, reply: Result<ZBytes, QueryError>) {
         let Some(flight) = self.in_flight.get_mut(&id) else {
             return;
         };
         flight.answered = true;
         let answered = match reply {
-            Ok(bytes) => answer_local(
+            Ok(payload) => answer_local(
                 &flight.local,
-                &bytes,
+                &payload.to_bytes(),
                 self.link.names,
                 &self.limits,
                 &self.local,

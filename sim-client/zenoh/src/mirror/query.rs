@@ -8,13 +8,20 @@ use std::time::{Duration, Instant};
 
 use shared_types::ServiceNames;
 use tracing::warn;
-use zenoh::query::Reply;
+use zenoh::bytes::ZBytes;
+use zenoh::query::{ConsolidationMode, Reply};
+use zenoh::sample::{Locality, SampleKind};
 use zenoh::{Session, Wait as _};
 
+use super::events::Event;
 use super::local;
-use super::Event;
 use crate::error::{QueryError, ZenohError};
 use crate::wire::{BridgeKeys, Forwarded};
+
+/// How soon a wait for the exporter's token notices `stop` (and how long a
+/// query that found no route while the token is there waits to be asked
+/// again).
+const STOP_CHECK: Duration = Duration::from_millis(100);
 
 /// The way to the exporter for forwarded requests.
 pub(super) struct Link<'a> {
@@ -28,10 +35,11 @@ pub(super) struct Link<'a> {
     pub timeout: Duration,
 }
 
-/// A reply's bytes, or the text of an error reply.
-fn reply_bytes(reply: &Reply) -> Result<Vec<u8>, QueryError> {
+/// A reply's payload (as received, not copied), or the text of an error
+/// reply.
+fn reply_payload(reply: &Reply) -> Result<ZBytes, QueryError> {
     match reply.result() {
-        Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+        Ok(sample) => Ok(sample.payload().clone()),
         Err(e) => Err(QueryError::Refused(
             String::from_utf8_lossy(&e.payload().to_bytes()).into_owned(),
         )),
@@ -40,18 +48,27 @@ fn reply_bytes(reply: &Reply) -> Result<Vec<u8>, QueryError> {
 
 impl Link<'_> {
     /// Sends `bytes` to the exporter's `service` as a query; its replies
-    /// come back as [`Event::Reply`] and its end as [`Event::Done`], each
-    /// waking the mirror.
+    /// come back as [`Event::Reply`], each as it arrives (no consolidation:
+    /// an interim tick answer is not held back until the last), and its
+    /// end as [`Event::Done`]; a reply wakes the mirror, the end only when
+    /// no reply came (the exporter is out of reach).
     pub(super) fn forward(&self, service: Forwarded, bytes: Vec<u8>, id: u64) {
         /// Sends [`Event::Done`] when Zenoh drops the callback (no more replies).
-        struct Finished(u64, Sender<Event>, ServiceNames);
+        struct Finished(u64, Sender<Event>, ServiceNames, AtomicBool);
         impl Drop for Finished {
             fn drop(&mut self) {
                 let _ = self.1.send(Event::Done(self.0));
-                local::wake(&self.2);
+                if !self.3.load(Ordering::Relaxed) {
+                    local::wake(&self.2);
+                }
             }
         }
-        let finished = Finished(id, self.events.clone(), self.names.clone());
+        let finished = Finished(
+            id,
+            self.events.clone(),
+            self.names.clone(),
+            AtomicBool::new(false),
+        );
         let (to_main, wake_names) = (self.events.clone(), self.names.clone());
         let selector = format!("{}?mirror={}", self.keys.rpc(service), self.zid);
         let sent = self
@@ -60,9 +77,11 @@ impl Link<'_> {
             .payload(bytes)
             .timeout(self.timeout)
             .express(true)
+            .consolidation(ConsolidationMode::None)
+            .allowed_destination(Locality::Remote)
             .callback(move |reply| {
-                let _ = &finished;
-                let _ = to_main.send(Event::Reply(id, reply_bytes(&reply)));
+                finished.3.store(true, Ordering::Relaxed);
+                let _ = to_main.send(Event::Reply(id, reply_payload(&reply)));
                 local::wake(&wake_names);
             })
             .wait();
@@ -72,29 +91,46 @@ impl Link<'_> {
     }
 }
 
-/// [`query_once`] asked again until something answers, `timeout` is over
-/// or `stop` is set: while the link is still being made (the exporter not
-/// up yet, or Zenoh retrying the connection), a query finds no route and
-/// ends at once, which is not "nothing answered within `timeout`".
+/// [`query_once`] asked of the exporter once its liveliness token is
+/// seen, until something answers, `timeout` is over or `stop` is set:
+/// while the link is still being made (the exporter not up yet, or Zenoh
+/// retrying the connection), a query finds no route and ends at once,
+/// which is not "nothing answered within `timeout`". The exporter declares
+/// its token after its queryables, so the token's coming is the event to
+/// wait for.
 pub(super) fn query_until(
     session: &Session,
-    key: &str,
+    keys: &BridgeKeys,
     zid: &str,
     payload: &[u8],
     timeout: Duration,
     stop: &AtomicBool,
 ) -> Result<Vec<u8>, QueryError> {
     let deadline = Instant::now() + timeout;
+    let tokens = session
+        .liveliness()
+        .declare_subscriber(keys.exporter())
+        .history(true)
+        .wait()
+        .map_err(|e| QueryError::Zenoh(e.into()))?;
+    let key = keys.rpc(Forwarded::Control);
+    let mut alive = false;
     loop {
         let left = deadline.saturating_duration_since(Instant::now());
-        match query_once(session, key, zid, payload, left) {
-            Err(QueryError::NoAnswer)
-                if Instant::now() < deadline && !stop.load(Ordering::Relaxed) =>
-            {
-                // The next try after Zenoh's own connection retry (250 ms).
-                std::thread::sleep(left.min(Duration::from_millis(100)));
+        if left.is_zero() || stop.load(Ordering::Relaxed) {
+            return Err(QueryError::NoAnswer);
+        }
+        if alive {
+            match query_once(session, &key, zid, payload, left) {
+                Err(QueryError::NoAnswer) => {}
+                other => return other,
             }
-            other => return other,
+        }
+        // The one wait: the token's next word, or how soon `stop` is seen.
+        match tokens.recv_timeout(left.min(STOP_CHECK)) {
+            Ok(Some(sample)) => alive = sample.kind() == SampleKind::Put,
+            Ok(None) => {}
+            Err(e) => return Err(QueryError::Zenoh(e.into())),
         }
     }
 }
@@ -114,7 +150,7 @@ pub(super) fn query_once(
         .wait()
         .map_err(|e| QueryError::Zenoh(e.into()))?;
     match replies.recv() {
-        Ok(reply) => reply_bytes(&reply),
+        Ok(reply) => reply_payload(&reply).map(|p| p.to_bytes().into_owned()),
         Err(_) => Err(QueryError::NoAnswer),
     }
 }

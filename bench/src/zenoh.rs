@@ -202,15 +202,12 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
         .to_path_buf();
     std::env::set_var("SIMBUS_BIN_DIR", &dir);
     let state = machine_state(Duration::from_secs(2));
-    let ticks = args.ticks.to_string();
-    let captures = args.captures.to_string();
     let mut figures = Figures {
         rows: Vec::new(),
         captures: Vec::new(),
         rates: Vec::new(),
         release: None,
     };
-
     let (root_a, root_b) = (PrivateRoot::new("bza"), PrivateRoot::new("bzb"));
     let (a, b) = (Host::of_root(&root_a, None), Host::of_root(&root_b, None));
     let hosts = if args.no_veth {
@@ -218,27 +215,92 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     } else {
         Some(TwoHosts::new("bzv"))
     };
-    let mut setups: Vec<(&str, Setup)> = vec![
+    let setups = start_setups("", (&a, &b), hosts.as_ref(), &[])?;
+    tick_rows(&args, &setups, &mut figures)?;
+    if args.ticks_only {
+        report(&args, &state, &figures);
+        return Ok(());
+    }
+    capture_rows(&args, &setups, &mut figures)?;
+    drop(setups);
+    // 1000 actors: ticks per second a ticker sustains here and through mirrors.
+    let rate_setups = start_setups("r", (&a, &b), hosts.as_ref(), &["--scene", "boxes:1000"])?;
+    for (name, setup) in &rate_setups {
+        let json = setup
+            .mirror_host
+            .measure(&setup.world, &["--mode", "rate", "--count", "500"])?;
+        figures.rates.push((
+            name.to_string(),
+            json["ticks_per_second"].as_f64().unwrap_or(0.0),
+        ));
+    }
+    drop(rate_setups);
+    if let Some(hosts) = &hosts {
+        figures.release = Some(release_bound(hosts, args.release_trials)?);
+    }
+    report(&args, &state, &figures);
+    Ok(())
+}
+
+/// A server with its measuring client here, through a mirror on loopback,
+/// and through a mirror across the veth pair (when there is one); `tag`
+/// keeps their worlds apart from another set's.
+fn start_setups(
+    tag: &str,
+    (a, b): (&Host, &Host),
+    hosts: Option<&TwoHosts>,
+    server_args: &[&str],
+) -> anyhow::Result<Vec<(&'static str, Setup)>> {
+    let mut setups = vec![
         (
             "local (shared memory)",
-            Setup::start("local", a.clone(), None, "127.0.0.1", &[])?,
+            Setup::start(
+                &format!("{tag}local"),
+                a.clone(),
+                None,
+                "127.0.0.1",
+                server_args,
+            )?,
         ),
         (
             "mirror, loopback",
-            Setup::start("loop", a.clone(), Some(b.clone()), "127.0.0.1", &[])?,
+            Setup::start(
+                &format!("{tag}loop"),
+                a.clone(),
+                Some(b.clone()),
+                "127.0.0.1",
+                server_args,
+            )?,
         ),
     ];
-    if let Some(hosts) = &hosts {
+    if let Some(hosts) = hosts {
         let (va, vb) = (
             Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
             Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
         );
         setups.push((
             "mirror, veth",
-            Setup::start("veth", va, Some(vb), hosts.a.address(), &[])?,
+            Setup::start(
+                &format!("{tag}veth"),
+                va,
+                Some(vb),
+                hosts.a.address(),
+                server_args,
+            )?,
         ));
     }
-    for (name, setup) in &setups {
+    Ok(setups)
+}
+
+/// The tick round trip (and frame latency) of every setup, then TCP's and
+/// Zenoh's own round trips.
+fn tick_rows(
+    args: &ZenohArgs,
+    setups: &[(&str, Setup)],
+    figures: &mut Figures,
+) -> anyhow::Result<()> {
+    let ticks = args.ticks.to_string();
+    for (name, setup) in setups {
         let json = setup
             .mirror_host
             .measure(&setup.world, &["--mode", "tick", "--count", &ticks])?;
@@ -259,10 +321,16 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
         zenoh_floor(args.ticks)?,
         Latencies::new(),
     ));
-    if args.ticks_only {
-        report(&args, &state, &figures);
-        return Ok(());
-    }
+    Ok(())
+}
+
+/// 1 MiB and 8 MiB depth captures through each mirror.
+fn capture_rows(
+    args: &ZenohArgs,
+    setups: &[(&str, Setup)],
+    figures: &mut Figures,
+) -> anyhow::Result<()> {
+    let captures = args.captures.to_string();
     for (name, setup) in setups.iter().skip(1) {
         for (label, size) in [("1 MiB", ["512", "512"]), ("8 MiB", ["2048", "1024"])] {
             let json = setup.mirror_host.measure(
@@ -276,60 +344,6 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
                 .push((format!("{label}, {name}"), latencies(&json, "capture")));
         }
     }
-    drop(setups);
-    // 1000 actors: ticks per second a ticker sustains here and through mirrors.
-    let mut rate_setups = vec![
-        (
-            "local",
-            Setup::start(
-                "rl",
-                a.clone(),
-                None,
-                "127.0.0.1",
-                &["--scene", "boxes:1000"],
-            )?,
-        ),
-        (
-            "mirror, loopback",
-            Setup::start(
-                "rm",
-                a.clone(),
-                Some(b.clone()),
-                "127.0.0.1",
-                &["--scene", "boxes:1000"],
-            )?,
-        ),
-    ];
-    if let Some(hosts) = &hosts {
-        let (va, vb) = (
-            Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
-            Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
-        );
-        rate_setups.push((
-            "mirror, veth",
-            Setup::start(
-                "rv",
-                va,
-                Some(vb),
-                hosts.a.address(),
-                &["--scene", "boxes:1000"],
-            )?,
-        ));
-    }
-    for (name, setup) in &rate_setups {
-        let json = setup
-            .mirror_host
-            .measure(&setup.world, &["--mode", "rate", "--count", "500"])?;
-        figures.rates.push((
-            name.to_string(),
-            json["ticks_per_second"].as_f64().unwrap_or(0.0),
-        ));
-    }
-    drop(rate_setups);
-    if let Some(hosts) = &hosts {
-        figures.release = Some(release_bound(hosts, args.release_trials)?);
-    }
-    report(&args, &state, &figures);
     Ok(())
 }
 

@@ -268,11 +268,15 @@ def test_a_mirror_refuses_an_exporter_of_another_protocol_version(request):
         query.reply(query.key_expr, struct.pack("<II", 99, 0) + bytes(64))
 
     queryable = s.declare_queryable(f"simbus/{world}/rpc/control", answer)
+    # As an exporter does: its liveliness token after its queryables (the
+    # mirror asks once it sees the token).
+    token = s.liveliness().declare_token(f"simbus/{world}/alive/exporter")
     try:
         mirror = sim_client(world, "bridge", "zenoh", "--connect", endpoint)
         assert mirror.returncode == 1, mirror.stderr
         assert f"protocol version 99 is not this version's {PROTOCOL_VERSION}" in mirror.stderr, mirror.stderr
         assert asked == [f"simbus/{world}/rpc/control"]
     finally:
+        token.undeclare()
         queryable.undeclare()
         s.close()

@@ -12,11 +12,10 @@ use std::collections::BTreeMap;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use shared_types::WorldSettings;
-use sim_client::{Client, WaitMode};
+use sim_client::WaitMode;
 use simbus_transport::stamps::{self, Stage, Stamp};
 
-use crate::support::{sleeps, BenchServer, Placement};
+use crate::support::{sleeps, ticking_client, BenchServer, Placement};
 
 /// The spans between consecutive stages, each named by where its time goes.
 const SPANS: [(Stage, Stage, &str); 9] = [
@@ -112,16 +111,7 @@ fn one_mode(mode: WaitMode, n: u64, placement: Placement) -> anyhow::Result<Brea
         &[(stamps::SIMBUS_STAMPS, file.as_os_str())],
     )?;
     placement.apply(&[server.pid()])?;
-    let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
-    client.set_wait_mode(mode);
-    let mut ticker = client.claim_ticker()?;
-    ticker.set_wait_mode(mode);
-    ticker.apply_settings(WorldSettings {
-        synchronous_mode: true,
-        fixed_delta_seconds: Some(0.01),
-        ..client.get_settings()?
-    })?;
-    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    let (mut client, mut ticker) = ticking_client(&server.world, mode)?;
     let timeout = Duration::from_secs(10);
     for _ in 0..(n / 10).max(100) {
         ticker.tick(timeout)?;

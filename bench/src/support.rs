@@ -6,7 +6,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use shared_types::WorldSettings;
-use sim_client::{Client, Ticker};
+use sim_client::{Client, Ticker, WaitMode};
 use simbus_process::ChildGuard;
 
 /// Wall-clock nanoseconds (what `platform_timestamp` is measured in).
@@ -25,6 +25,19 @@ pub(crate) fn sync_ticker(client: &Client, dt: f64) -> anyhow::Result<Ticker> {
         ..client.get_settings()?
     })?;
     Ok(ticker)
+}
+
+/// A client of `world` and its ticker, both waiting as `mode` says, the
+/// world in synchronous mode with a 0.01 s step and the frames from before
+/// drained.
+pub(crate) fn ticking_client(world: &str, mode: WaitMode) -> anyhow::Result<(Client, Ticker)> {
+    let mut client = Client::connect(world, Duration::from_secs(10))?;
+    client.set_wait_mode(mode);
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    ticker.set_wait_mode(mode);
+    // Drain the frames published before synchronous mode began.
+    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    Ok((client, ticker))
 }
 
 /// A binary of the workspace built beside this one (`target/<profile>/`),

@@ -18,8 +18,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::Service;
-use shared_types::{FrameHeader, WorldSettings};
-use sim_client::{Client, WaitMode};
+use shared_types::FrameHeader;
+use sim_client::WaitMode;
 use simbus_process::ChildGuard;
 use simbus_transport::Bus;
 
@@ -280,17 +280,7 @@ fn simbus_row(name: &'static str, server: &[&str], mode: WaitMode) -> anyhow::Re
     let mut server_args = vec!["--scene", "empty", "--fixed-delta-seconds", "0.01"];
     server_args.extend_from_slice(server);
     let server = BenchServer::start(&format!("tick-{mode:?}"), &server_args)?;
-    let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
-    client.set_wait_mode(mode);
-    let mut ticker = client.claim_ticker()?;
-    ticker.set_wait_mode(mode);
-    ticker.apply_settings(WorldSettings {
-        synchronous_mode: true,
-        fixed_delta_seconds: Some(0.01),
-        ..client.get_settings()?
-    })?;
-    // Drain the frames published before synchronous mode began.
-    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    let (mut client, mut ticker) = crate::support::ticking_client(&server.world, mode)?;
     let timeout = Duration::from_secs(10);
     Ok(Row {
         name,
@@ -326,11 +316,7 @@ fn hops(mode: WaitMode, n: u64, machine: &str) -> anyhow::Result<()> {
             name,
         ],
     )?;
-    let mut client = Client::connect(&server.world, Duration::from_secs(10))?;
-    client.set_wait_mode(mode);
-    let mut ticker = crate::support::sync_ticker(&client, 0.01)?;
-    ticker.set_wait_mode(mode);
-    while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
+    let (mut client, mut ticker) = crate::support::ticking_client(&server.world, mode)?;
     let timeout = Duration::from_secs(10);
     let (mut to_server, mut to_client, mut whole) =
         (Latencies::new(), Latencies::new(), Latencies::new());

@@ -86,7 +86,42 @@ pub struct TwoHosts {
     pub b: Host,
 }
 
+/// A world served on host `a`, exported over the veth and mirrored on `b`.
+#[derive(Debug)]
+pub struct Mirrored {
+    /// `sim-server` on `a`.
+    pub server: Proc,
+    /// `sim-client bridge zenoh --listen` on `a`, exporting.
+    pub exporter: Proc,
+    /// `sim-client bridge zenoh --connect` on `b`, mirroring.
+    pub mirror: Proc,
+}
+
 impl TwoHosts {
+    /// Serves `world` on `a` (`sim-server --world W <server_args>`), exports
+    /// it on `a`'s address (port 7447) and mirrors it on `b` (with
+    /// `mirror_args` added), once both say so.
+    pub fn mirrored(&self, world: &str, server_args: &[&str], mirror_args: &[&str]) -> Mirrored {
+        const READY: std::time::Duration = std::time::Duration::from_secs(30);
+        let endpoint = format!("tcp/{}:7447", self.a.address());
+        let mut args = vec!["--world", world];
+        args.extend_from_slice(server_args);
+        let server = self.a.spawn("sim-server", &args);
+        let exporter = self
+            .a
+            .client(world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
+        exporter.wait_line("exporting world", READY);
+        let mut args = vec!["bridge", "zenoh", "--connect", &endpoint];
+        args.extend_from_slice(mirror_args);
+        let mirror = self.b.client(world, "20", &args);
+        mirror.wait_line("mirroring world", READY);
+        Mirrored {
+            server,
+            exporter,
+            mirror,
+        }
+    }
+
     /// Creates both namespaces, the veth pair between them and their roots.
     pub fn new(tag: &str) -> Self {
         static COUNTER: AtomicU32 = AtomicU32::new(0);

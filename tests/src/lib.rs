@@ -18,7 +18,7 @@ mod hosts;
 mod python;
 pub mod raw;
 mod root;
-pub use hosts::{Host, TwoHosts};
+pub use hosts::{Host, Mirrored, TwoHosts};
 pub use python::{python, python_requirements};
 pub use root::PrivateRoot;
 
@@ -394,6 +394,19 @@ impl TestWorld {
         let mut all = vec!["--world", self.name.as_str()];
         all.extend_from_slice(args);
         Proc::spawn("sim-client", &all)
+    }
+
+    /// `sim-client carla-gateway --port 0 --json <args>` on this world, and
+    /// the JSON line it prints once it listens (its ports, host, world).
+    pub fn spawn_gateway(&self, args: &[&str]) -> (Proc, serde_json::Value) {
+        let mut all = vec!["carla-gateway", "--port", "0", "--json"];
+        all.extend_from_slice(args);
+        let gateway = self.spawn_cli(&all);
+        let line = gateway
+            .line(Duration::from_secs(30))
+            .unwrap_or_else(|| panic!("the gateway said nothing; stderr:\n{}", gateway.stderr()));
+        let json = serde_json::from_str(&line).unwrap_or_else(|e| panic!("not JSON ({e}): {line}"));
+        (gateway, json)
     }
 
     /// `status --json` of this world.

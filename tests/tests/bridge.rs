@@ -50,19 +50,7 @@ fn status_ticker(hosts: &TwoHosts, world: &str) -> Option<(String, u64)> {
 fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     let hosts = TwoHosts::new("zb");
     let world = unique_world("zb");
-    let endpoint = format!("tcp/{}:7447", hosts.a.address());
-    let _server = hosts.a.spawn(
-        "sim-server",
-        &["--world", &world, "--sync", "--delta-seconds", "0.05"],
-    );
-    let exporter = hosts
-        .a
-        .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
-    exporter.wait_line("exporting world", LONG);
-    let mirror = hosts
-        .b
-        .client(&world, "20", &["bridge", "zenoh", "--connect", &endpoint]);
-    mirror.wait_line("mirroring world", LONG);
+    let bridge = hosts.mirrored(&world, &["--sync", "--delta-seconds", "0.05"], &[]);
 
     // A watcher on each host, then 500 ticks from the second host.
     let watch = ["watch", "--digest", "--frames", "501"];
@@ -209,7 +197,7 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
 
     // The link comes back: a new ticker there continues from the next frame.
     hosts.b.set_link(true);
-    mirror.wait_line("link up", LONG);
+    bridge.mirror.wait_line("link up", LONG);
     let next = hosts
         .b
         .client(&world, "20", &["tick", "--count", "1", "--json"])

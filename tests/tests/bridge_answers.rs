@@ -21,19 +21,7 @@ const LONG: Duration = Duration::from_secs(30);
 fn batch_sensor_and_recorder_calls_through_a_mirror_are_answered_while_no_frame_comes() {
     let hosts = TwoHosts::new("za");
     let world = unique_world("za");
-    let endpoint = format!("tcp/{}:7447", hosts.a.address());
-    let _server = hosts.a.spawn(
-        "sim-server",
-        &["--world", &world, "--sync", "--delta-seconds", "0.05"],
-    );
-    let exporter = hosts
-        .a
-        .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
-    exporter.wait_line("exporting world", LONG);
-    let mirror = hosts
-        .b
-        .client(&world, "20", &["bridge", "zenoh", "--connect", &endpoint]);
-    mirror.wait_line("mirroring world", LONG);
+    let _bridge = hosts.mirrored(&world, &["--sync", "--delta-seconds", "0.05"], &[]);
 
     // This process becomes a client on the mirror's host.
     for (key, value) in hosts.b.root.env() {

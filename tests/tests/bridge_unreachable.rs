@@ -27,25 +27,7 @@ fn unreachable(e: &RequestError, world: &str) {
 fn batch_sensor_and_recorder_calls_on_a_mirror_whose_link_is_down_are_unreachable() {
     let hosts = TwoHosts::new("zu");
     let world = unique_world("zu");
-    let endpoint = format!("tcp/{}:7447", hosts.a.address());
-    let _server = hosts.a.spawn("sim-server", &["--world", &world]);
-    let exporter = hosts
-        .a
-        .client(&world, "20", &["bridge", "zenoh", "--listen", &endpoint]);
-    exporter.wait_line("exporting world", LONG);
-    let mirror = hosts.b.client(
-        &world,
-        "20",
-        &[
-            "bridge",
-            "zenoh",
-            "--connect",
-            &endpoint,
-            "--lease-ms",
-            "1000",
-        ],
-    );
-    mirror.wait_line("mirroring world", LONG);
+    let bridge = hosts.mirrored(&world, &[], &["--lease-ms", "1000"]);
 
     // This process becomes a client on the mirror's host.
     for (key, value) in hosts.b.root.env() {
@@ -57,7 +39,7 @@ fn batch_sensor_and_recorder_calls_on_a_mirror_whose_link_is_down_are_unreachabl
         .expect("a batch through the live link");
 
     hosts.b.set_link(false);
-    mirror.wait_line("link down", LONG);
+    bridge.mirror.wait_line("link down", LONG);
 
     match client.apply_batch_sync(&[], false) {
         Err(sim_client::BatchError::Request(e)) => unreachable(&e, &world),

@@ -27,12 +27,8 @@ fn assert_listening(port: u64, streaming_port: u64) {
 #[test]
 fn port_0_listens_on_two_free_ports_and_says_which() {
     let world = TestWorld::start("gw-port0", &["--scene", "empty"]);
-    let gateway = world.spawn_cli(&["carla-gateway", "--port", "0", "--json"]);
-    let line = gateway
-        .line(T)
-        .unwrap_or_else(|| panic!("the gateway said nothing; stderr:\n{}", gateway.stderr()));
-    let json: serde_json::Value =
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("not JSON ({e}): {line}"));
+    let (_gateway, json) = world.spawn_gateway(&[]);
+    let line = json.to_string();
     assert_eq!(json["world"].as_str(), Some(world.name()), "{line}");
     assert_eq!(json["host"].as_str(), Some("127.0.0.1"), "{line}");
     assert_listening(

@@ -13,17 +13,12 @@ const T: Duration = Duration::from_secs(30);
 
 /// A gateway of `world` on free ports, and its RPC and streaming ports.
 fn gateway(world: &TestWorld) -> (Proc, u16, u16) {
-    let gateway = world.spawn_cli(&["carla-gateway", "--port", "0", "--json"]);
-    let line = gateway
-        .line(T)
-        .unwrap_or_else(|| panic!("the gateway said nothing; stderr:\n{}", gateway.stderr()));
-    let json: serde_json::Value =
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("not JSON ({e}): {line}"));
+    let (gateway, json) = world.spawn_gateway(&[]);
     let port = |key: &str| {
         json[key]
             .as_u64()
             .and_then(|p| u16::try_from(p).ok())
-            .unwrap_or_else(|| panic!("no {key}: {line}"))
+            .unwrap_or_else(|| panic!("no {key}: {json}"))
     };
     let (rpc, streams) = (port("port"), port("streaming_port"));
     (gateway, rpc, streams)

@@ -292,18 +292,8 @@ impl Exporter {
         // Raised before the request goes, so the ring after its answer
         // reaches this thread.
         self.shared.awaiting.fetch_add(1, Ordering::SeqCst);
-        match self.forward(service, mirror, &bytes, query) {
-            // An idle (paced or waiting) server answers at once.
-            Ok(()) => {
-                if let Err(e) = self.wake.notify() {
-                    tracing::debug!("wake-up not delivered: {e:?}");
-                }
-            }
-            Err(refused) => {
-                let (query, why) = *refused;
-                self.dropped.note(&query, &why);
-            }
-        }
+        let sent = self.forward(service, mirror, &bytes, query);
+        self.dropped.settle(sent, &self.wake);
         self.shared
             .awaiting
             .store(self.in_flight(), Ordering::SeqCst);

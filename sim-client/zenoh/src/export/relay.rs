@@ -12,6 +12,7 @@ use crate::error::{Chain, LocalError, TransportError};
 use crate::wire::{self, PayloadError};
 use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, ResponseStatus, SensorInfo,
@@ -120,6 +121,22 @@ pub(super) struct Dropped {
 }
 
 impl Dropped {
+    /// After forwarding a request: rings the server's wake-up event if it
+    /// went (an idle server answers at once), else counts and refuses it.
+    pub(super) fn settle(&mut self, sent: Result<(), Refused>, wake: &Notifier<Bus>) {
+        match sent {
+            Ok(()) => {
+                if let Err(e) = wake.notify() {
+                    tracing::debug!("wake-up not delivered: {e:?}");
+                }
+            }
+            Err(refused) => {
+                let (query, why) = *refused;
+                self.note(&query, &why);
+            }
+        }
+    }
+
     pub(super) fn note(&mut self, query: &Query, why: &Refusal) {
         self.count += 1;
         let why = why.to_string();

@@ -176,17 +176,7 @@ impl Ticks {
                 .forward(request, mirror, query, &mut self.port, forwarded),
             Err(e) => Err(relay::malformed(query, "tick request", e)),
         };
-        match sent {
-            Ok(()) => {
-                if let Err(e) = self.wake.notify() {
-                    tracing::debug!("wake-up not delivered: {e:?}");
-                }
-            }
-            Err(refused) => {
-                let (query, why) = *refused;
-                self.dropped.note(&query, &why);
-            }
-        }
+        self.dropped.settle(sent, &self.wake);
     }
 
     /// The server rang and every frame up to `forwarded` is on Zenoh:

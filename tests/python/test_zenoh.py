@@ -187,11 +187,14 @@ def test_garbage_wrong_versions_and_a_tick_flood_change_nothing(request, tmp_pat
             return any(text in line for line in mirror_log)
 
         deadline = time.time() + 30
-        while not (logged("dropped a frame publication") and logged("dropped a capture publication")):
+        while not (logged("dropped a frame publication") and logged("dropped a capture publication")
+                   and logged("dropped tick answers")):
             assert time.time() < deadline, "".join(mirror_log)
             s.put(f"simbus/{world}/frames", b"garbage")
             s.put(f"simbus/{world}/frames", struct.pack("<II", PROTOCOL_VERSION, 1000) + bytes(FRAME_HEADER - 8))
             s.put(f"simbus/{world}/sensor/7", b"\x00" * 3)
+            s.put(f"simbus/{world}/tick/answer", b"\x05garbage")
+            s.put(f"simbus/{world}/tick/ask", b"garbage")
             with said:
                 said.wait(timeout=0.2)
 

@@ -6,7 +6,8 @@
 //! publications under `simbus/<world>/…`, the world's request services
 //! (control, tick, batch, lockstep, sensors, recorder) become queryables
 //! whose requests the bridge sends to the server through ordinary simbus
-//! ports. On another host, `--connect` **mirrors** the world into that
+//! ports (a mirror's ticks go as publications, their answers attached to
+//! the frames they produced). On another host, `--connect` **mirrors** the world into that
 //! host's shared memory: the bridge creates the world's services there, as
 //! a server would, publishes every frame and capture it receives and
 //! forwards every request, so unmodified local clients (`watch`, `tick`,
@@ -33,6 +34,7 @@ mod export;
 mod link;
 mod mirror;
 mod ports;
+mod tagged;
 pub mod wire;
 
 use std::path::PathBuf;

@@ -103,6 +103,17 @@ impl BridgeKeys {
         format!("{}/rpc/{}", self.prefix, service.name())
     }
 
+    /// Publications: a mirror's tick requests, tagged with the mirror and
+    /// the request id.
+    pub fn tick_asks(&self) -> String {
+        format!("{}/tick/ask", self.prefix)
+    }
+
+    /// Publications: the exporter's answers to them.
+    pub fn tick_answers(&self) -> String {
+        format!("{}/tick/answer", self.prefix)
+    }
+
     /// Every forwarded service's queryable.
     pub fn every_rpc(&self) -> String {
         format!("{}/rpc/*", self.prefix)

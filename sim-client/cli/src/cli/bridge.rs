@@ -25,7 +25,8 @@ enum Protocol {
     ///
     /// Export: frames on `simbus/<world>/frames` (the frame header then the
     /// actors, as in shared memory: see the README), captures on
-    /// `simbus/<world>/sensor/<id>`, requests on `simbus/<world>/rpc/*`,
+    /// `simbus/<world>/sensor/<id>`, requests on `simbus/<world>/rpc/*`
+    /// (a mirror's ticks on `simbus/<world>/tick/ask|answer`),
     /// status and settings as JSON on `simbus/<world>/status|settings`, and
     /// with --ros2-clock the simulation time as ROS 2 `rosgraph_msgs/Clock`
     /// (CDR) on `clock`.

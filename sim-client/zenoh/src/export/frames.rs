@@ -29,7 +29,7 @@ use zenoh::query::Query;
 use zenoh::{Session, Wait as _};
 
 use super::events::Event;
-use super::ticker::Ticks;
+use super::ticks::Ticks;
 use crate::error::{FramesError, LocalError};
 use crate::ports;
 use crate::wire::{self, BridgeKeys};
@@ -51,6 +51,8 @@ pub(super) enum Order {
     /// A remote tick request (the Zenoh callback that sends it rings the
     /// frame-ready event).
     Tick(Query),
+    /// A mirror's tick publication (rung likewise).
+    TickPut(ZBytes),
     /// A mirror is gone: release the ownership held for its ticker.
     MirrorLeft(String),
 }
@@ -120,7 +122,7 @@ impl<'a> FrameForwarder<'a> {
         let client = Client::connect(world.as_str(), timeout)?;
         let node = ports::node("sim-client")?;
         let specs = ports::specs(&ServiceNames::new(world))?;
-        let ticks = Ticks::open(&node, &specs)?;
+        let ticks = Ticks::open(&node, &specs, express(session, keys.tick_answers())?)?;
         let ready = specs
             .frame_ready
             .open(&node)
@@ -178,13 +180,16 @@ impl<'a> FrameForwarder<'a> {
                 match order {
                     Order::Follow(request) => self.on_follow(request)?,
                     Order::Tick(query) => self.ticks.on_query(query, self.forwarded),
+                    Order::TickPut(bytes) => self.ticks.on_put(&bytes, self.forwarded),
                     Order::MirrorLeft(zid) => self.ticks.mirror_left(&zid),
                 }
             }
             if rang {
+                // The tick answers first: each rides on its frame.
+                self.ticks.take();
                 let forwarded = self.on_ring()?;
-                // The tick's answer right after its frame, from here.
-                self.ticks.on_ring(self.forwarded);
+                // The tick's reply right after its frame, from here.
+                self.ticks.reply_due(self.forwarded);
                 if !self.told_first && forwarded {
                     self.told_first = true;
                     tell(Event::Forwarded);
@@ -277,6 +282,7 @@ impl<'a> FrameForwarder<'a> {
         let bytes = ZBytes::from(bytes);
         self.frames
             .put(bytes.clone())
+            .attachment(self.ticks.attachment(number))
             .wait()
             .map_err(FramesError::zenoh("publishing a frame"))?;
         if let Some(clock) = &self.clock {

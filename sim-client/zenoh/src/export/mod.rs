@@ -7,9 +7,10 @@
 //! sensor and the tick service (`frames.rs`); it owns its simbus ports
 //! and waits on the world's frame-ready event, which the server rings
 //! after every frame and after answering the requests clients announced,
-//! and which Zenoh's callback rings after handing it a tick query. A
-//! tick's answer is replied by that thread right after its frame: the
-//! mirrored tick's path has no other thread of the exporter in it. The
+//! and which Zenoh's callback rings after handing it a tick (`ticks.rs`).
+//! A tick's answer goes from that thread attached to its frame's
+//! publication: the mirrored tick's path has no other thread of the
+//! exporter in it. The
 //! main thread, an [`Exporter`], owns the other request ports; its one
 //! wait point is one channel, fed by Zenoh's callbacks and by the frame
 //! thread, which tells it of a ring while it awaits answers. The
@@ -21,6 +22,7 @@ mod events;
 mod frames;
 mod relay;
 mod ticker;
+mod ticks;
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -26,7 +26,7 @@ use zenoh::query::Query;
 use zenoh::Wait as _;
 
 /// How long a forwarded request may wait for the server's answer.
-const ANSWER_TIMEOUT: Duration = Duration::from_secs(120);
+pub(super) const ANSWER_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// A request waiting for its answer, with the query to answer.
 struct InFlight<P> {
@@ -138,9 +138,15 @@ impl Dropped {
     }
 
     pub(super) fn note(&mut self, query: &Query, why: &Refusal) {
-        self.count += 1;
         let why = why.to_string();
         refuse(query, &why);
+        self.warn(query.key_expr().as_str(), &why);
+    }
+
+    /// Counts a refused input that came on `key`, warning at most once a
+    /// second.
+    pub(super) fn warn(&mut self, key: &str, why: &str) {
+        self.count += 1;
         // At most one warning a second, with the count since the last.
         self.unwarned += 1;
         if self
@@ -148,7 +154,7 @@ impl Dropped {
             .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
         {
             warn!(
-                key = %query.key_expr(),
+                key,
                 dropped = self.unwarned,
                 total = self.count,
                 "dropped a request from another host: {why}"
@@ -267,7 +273,7 @@ fn client_of(name: &str, e: impl Into<TransportError>) -> LocalError {
 }
 
 /// A fixed-size request waiting for its answer.
-type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
+pub(super) type Pending<Req, Resp> = PendingResponse<Bus, Req, (), Resp, ()>;
 
 /// A forwarded service of fixed-size requests and answers.
 pub(super) struct FixedRelay<Req, Resp>
@@ -309,6 +315,14 @@ where
     /// Sends `request`; its answer will go to `query`.
     pub(super) fn send(&mut self, request: Req, query: Query) -> Result<(), Refused> {
         self.flights.admit(self.client.send_copy(request), query)
+    }
+
+    /// Sends `request`; its answer is for the caller to poll.
+    pub(super) fn send_pending(
+        &mut self,
+        request: Req,
+    ) -> Result<Pending<Req, Resp>, TransportError> {
+        self.client.send_copy(request).map_err(Into::into)
     }
 
     /// Requests sent and not yet answered.

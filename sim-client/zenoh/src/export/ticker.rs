@@ -1,25 +1,19 @@
 //! The single-ticker rule among remote tickers: the exporter holds the
 //! world's tick ownership on behalf of one remote ticker (by mirror and
 //! pid), refuses every other remote claimant naming it, and releases it
-//! when that ticker's mirror goes. The tick service is forwarded by the
-//! exporter's frame thread ([`Ticks`]): it sends a remote tick to the
-//! server, publishes the frame the server rings for, and replies the
-//! tick's answer right after it, with no hand-off to another thread.
+//! when that ticker's mirror goes. The tick service itself is forwarded
+//! by the exporter's frame thread (`ticks.rs`).
 
-use iceoryx2::node::Node;
-use iceoryx2::port::notifier::Notifier;
 use shared_types::{
     FixedText, LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, TickRequest,
     TickRequestKind, TickResponse, TickerInfo,
 };
-use simbus_transport::spec::WorldServices;
-use simbus_transport::Bus;
 use tracing::{info, warn};
 use zenoh::query::Query;
 
-use super::relay::{self, mirror_of, Answer, Dropped, FixedRelay, Refusal, Refused};
-use crate::error::{Chain, LocalError};
-use crate::{ports, wire};
+use super::relay::{self, FixedRelay, Refused};
+use crate::error::Chain;
+use crate::wire;
 
 /// The tick service's relay.
 pub(super) type TickRelay = FixedRelay<TickRequest, TickResponse>;
@@ -46,18 +40,36 @@ pub(super) struct RemoteTickers {
 }
 
 impl RemoteTickers {
-    /// Forwards a remote ticker's request on `port`, keeping the
-    /// single-ticker rule among remote tickers: only the remote owner (by
-    /// mirror and pid) may tick, set, or release; a claim by anyone else
-    /// while it holds is refused naming it.
+    /// Forwards a remote ticker's request on `port`, or replies the
+    /// refusal [`Self::admit`] gives.
     pub(super) fn forward(
         &mut self,
-        mut request: TickRequest,
+        request: TickRequest,
         mirror: String,
         query: Query,
         port: &mut TickRelay,
         forwarded: u64,
     ) -> Result<(), Refused> {
+        match self.admit(request, mirror, forwarded) {
+            Ok(request) => port.send(request, query),
+            Err(refusal) => {
+                relay::reply(&query, wire::bytes_of(&*refusal));
+                Ok(())
+            }
+        }
+    }
+
+    /// A remote ticker's request as it is to be sent to the server, keeping
+    /// the single-ticker rule among remote tickers: only the remote owner
+    /// (by mirror and pid) may tick, set, or release; a claim by anyone
+    /// else while it holds is refused naming it (the answer to send back).
+    /// `forwarded` is the last frame on Zenoh.
+    pub(super) fn admit(
+        &mut self,
+        mut request: TickRequest,
+        mirror: String,
+        forwarded: u64,
+    ) -> Result<TickRequest, Box<TickResponse>> {
         let kind = TickRequestKind::from_u32(request.kind);
         let me = RemoteTicker {
             mirror,
@@ -71,9 +83,12 @@ impl RemoteTickers {
                 since_frame: 0,
                 node_name: FixedText::new(&current.node_name),
             };
-            let answer = TickResponse::new(ResponseStatus::NotTicker, forwarded, 0, info);
-            relay::reply(&query, wire::bytes_of(&answer));
-            return Ok(());
+            return Err(Box::new(TickResponse::new(
+                ResponseStatus::NotTicker,
+                forwarded,
+                0,
+                info,
+            )));
         }
         request.flags |= TickRequest::ON_BEHALF;
         if kind == Some(TickRequestKind::Claim) && !self.claimants.contains(&me) {
@@ -83,7 +98,7 @@ impl RemoteTickers {
             }
             self.claimants.push(me);
         }
-        port.send(request, query)
+        Ok(request)
     }
 
     /// The server's word on who ticks now, in a tick answer, decides the
@@ -127,100 +142,6 @@ impl RemoteTickers {
                 Chain(&e)
             );
         }
-    }
-}
-
-/// The tick service as the frame thread forwards it: remote tickers'
-/// requests, the server's answers, and the ownership held for a remote
-/// ticker.
-pub(super) struct Ticks {
-    port: TickRelay,
-    tickers: RemoteTickers,
-    /// Wakes an idle (paced or waiting) server after a request.
-    wake: Notifier<Bus>,
-    /// Final answers whose frame is not on Zenoh yet.
-    held: Vec<Answer>,
-    /// Answers taken from the port, reused (the tick path allocates
-    /// nothing once warm).
-    taken: Vec<Answer>,
-    dropped: Dropped,
-}
-
-impl Ticks {
-    /// Opens a client port of the tick service on `node`.
-    pub(super) fn open(node: &Node<Bus>, specs: &WorldServices) -> Result<Self, LocalError> {
-        Ok(Self {
-            port: FixedRelay::open(node, &specs.tick)?,
-            tickers: RemoteTickers::default(),
-            wake: ports::wake_notifier_on(node, specs)?,
-            held: Vec::new(),
-            taken: Vec::new(),
-            dropped: Dropped::default(),
-        })
-    }
-
-    /// A remote tick request: sent to the server (which is woken), or
-    /// refused naming why. `forwarded` is the last frame on Zenoh.
-    pub(super) fn on_query(&mut self, query: Query, forwarded: u64) {
-        let Some(mirror) = mirror_of(&query) else {
-            self.dropped.note(&query, &Refusal::NoMirror);
-            return;
-        };
-        let request = match query.payload().map(|p| p.to_bytes()) {
-            Some(bytes) => TickRelay::decode(&bytes),
-            None => TickRelay::decode(&[]),
-        };
-        let sent = match request {
-            Ok(request) => self
-                .tickers
-                .forward(request, mirror, query, &mut self.port, forwarded),
-            Err(e) => Err(relay::malformed(query, "tick request", e)),
-        };
-        self.dropped.settle(sent, &self.wake);
-    }
-
-    /// The server rang and every frame up to `forwarded` is on Zenoh:
-    /// replies the answers that came whose frame is out (an interim one
-    /// at once).
-    pub(super) fn on_ring(&mut self, forwarded: u64) {
-        self.port
-            .poll(relay::tick_interim, relay::tick_frame, &mut self.taken);
-        for answer in self.taken.drain(..) {
-            // The server's word on who ticks now decides the remote owner.
-            if let Ok(response) = wire::decode_fixed::<TickResponse>(&answer.bytes, "tick answer") {
-                self.tickers.answered(&response);
-            }
-            self.held.push(answer);
-        }
-        // A tick's answer goes once its frame is on Zenoh, so a remote
-        // reader that sees the answer finds the frame.
-        for answer in self.held.extract_if(.., |answer| {
-            answer.frame.is_none_or(|frame| frame <= forwarded)
-        }) {
-            relay::reply(&answer.query, answer.bytes);
-        }
-    }
-
-    /// Mirror `zid` is gone: the ownership held for its ticker is released.
-    pub(super) fn mirror_left(&mut self, zid: &str) {
-        self.tickers.mirror_left(zid, &mut self.port);
-    }
-
-    /// The export ends: the ownership held for a remote ticker goes back.
-    pub(super) fn finish(&mut self) {
-        self.tickers.release(&mut self.port);
-        if self.dropped.count > 0 {
-            info!(dropped = self.dropped.count, "tick requests refused");
-        }
-    }
-}
-
-impl std::fmt::Debug for Ticks {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Ticks")
-            .field("tickers", &self.tickers)
-            .field("held", &self.held.len())
-            .finish()
     }
 }
 

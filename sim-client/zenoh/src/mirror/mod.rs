@@ -1,7 +1,8 @@
 //! The mirroring bridge, on another host: the world's services created in
 //! this host's shared memory, as a server would create them; every frame
 //! and capture received from the exporting bridge published there; every
-//! local request forwarded as a Zenoh query and its replies sent back.
+//! local request forwarded as a Zenoh query and its replies sent back (a
+//! tick as a publication, its answer coming with its frame).
 //!
 //! The mirror is the local clients' server: frames carry its pid, so a
 //! local client notices when the mirror dies. While the exporter cannot be
@@ -26,14 +27,14 @@ use std::time::{Duration, Instant};
 
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    ActorState, ControlRequest, ControlResponse, FixedText, FrameHeader, RequestKind,
-    ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, WorldName,
+    FixedText, ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse,
 };
 use tracing::{info, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
-use zenoh::sample::SampleKind;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::{Locality, Sample, SampleKind};
 use zenoh::{Session, Wait as _};
 
 use self::answers::{
@@ -42,8 +43,9 @@ use self::answers::{
 };
 use self::events::Event;
 use self::local::{Active, Local, LocalServices, SensorPorts};
-use self::query::{query_once, query_until, Link};
+use self::query::{hello, Hello, Link};
 use crate::error::{Chain, MirrorError, QueryError};
+use crate::tagged;
 use crate::wire::{self, BridgeKeys, Forwarded};
 use crate::{Notice, Side};
 
@@ -58,6 +60,9 @@ const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 struct InFlight {
     local: Local,
     answered: bool,
+    /// For a tick sent as a publication, when: it ends unanswered after
+    /// the link's timeout (a query's end is Zenoh's).
+    put_at: Option<Instant>,
 }
 
 /// This host's name, as remote tickers are reported (`host/node`).
@@ -69,64 +74,10 @@ fn host_name() -> String {
         .unwrap_or_else(|| "mirror".to_owned())
 }
 
-/// What the exporter said first: the world's status, then its frame.
-struct Hello {
-    status: ControlResponse,
-    header: FrameHeader,
-    actors: Vec<ActorState>,
-}
-
-/// Asks the exporter at `endpoint` for the world's status and its current
-/// frame, for up to `timeout`.
-fn hello(
-    session: &Session,
-    keys: &BridgeKeys,
-    world: &WorldName,
-    endpoint: &str,
-    timeout: Duration,
-    stop: &AtomicBool,
-) -> Result<Hello, MirrorError> {
-    let zid = session.zid().to_string();
-    let request = ControlRequest::new(RequestKind::Status);
-    info!(%world, %endpoint, "asking for the world's status (waiting up to {timeout:?})");
-    let status = match query_until(session, keys, &zid, wire::bytes_of(&request), timeout, stop) {
-        Ok(bytes) => bytes,
-        Err(QueryError::NoAnswer) => {
-            return Err(MirrorError::NotExported {
-                world: world.clone(),
-                endpoint: endpoint.to_owned(),
-                timeout,
-            })
-        }
-        Err(e) => return Err(MirrorError::Refused(e)),
-    };
-    let status =
-        wire::decode_fixed::<ControlResponse>(&status, "status answer").map_err(|error| {
-            MirrorError::Incompatible {
-                world: world.clone(),
-                endpoint: endpoint.to_owned(),
-                error,
-            }
-        })?;
-    let first =
-        query_once(session, &keys.latest_frame(), &zid, &[], timeout).map_err(|source| {
-            MirrorError::NoFrame {
-                world: world.clone(),
-                source,
-            }
-        })?;
-    let (header, actors) = wire::decode_frame(&first).map_err(MirrorError::UnreadableFrame)?;
-    Ok(Hello {
-        status,
-        header,
-        actors,
-    })
-}
-
 /// What the mirror declared on Zenoh, undeclared when dropped.
 struct Declared {
     _token: LivelinessToken,
-    _subscribers: [Subscriber<()>; 3],
+    _subscribers: [Subscriber<()>; 4],
 }
 
 /// Declares the mirror's liveliness token and its subscribers (the
@@ -155,12 +106,12 @@ fn declare(
         })
         .wait()
         .map_err(MirrorError::zenoh("watching the exporter's liveliness"))?;
-    let subscriber = |key: String, event: fn(ZBytes) -> Event| {
+    let subscriber = |key: String, event: fn(&Sample) -> Event| {
         let (to_main, wake_names) = (events.clone(), names.clone());
         session
             .declare_subscriber(key)
             .callback(move |sample| {
-                let _ = to_main.send(event(sample.payload().clone()));
+                let _ = to_main.send(event(&sample));
                 local::wake(&wake_names);
             })
             .wait()
@@ -170,8 +121,13 @@ fn declare(
         _token: token,
         _subscribers: [
             exporter,
-            subscriber(keys.frames(), Event::Frame)?,
-            subscriber(keys.sensors(), Event::Capture)?,
+            subscriber(keys.frames(), |s| {
+                Event::Frame(s.payload().clone(), s.attachment().cloned())
+            })?,
+            subscriber(keys.sensors(), |s| Event::Capture(s.payload().clone()))?,
+            subscriber(keys.tick_answers(), |s| {
+                Event::TickAnswers(s.payload().clone())
+            })?,
         ],
     })
 }
@@ -210,6 +166,14 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
         frame: header.timestamp.frame,
     });
     info!(world = %side.world, zid = %zid, "mirroring");
+    let asks = side
+        .session
+        .declare_publisher(keys.tick_asks())
+        .congestion_control(CongestionControl::Block)
+        .express(true)
+        .allowed_destination(Locality::Remote)
+        .wait()
+        .map_err(MirrorError::zenoh("declaring a publisher"))?;
     let link = Link {
         session: &side.session,
         keys: &keys,
@@ -217,6 +181,7 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
         zid: &zid,
         events,
         timeout: side.options.request_timeout,
+        asks,
     };
     let mut mirror = Mirror::new(
         link,
@@ -282,8 +247,14 @@ impl<'a> Mirror<'a> {
         while !stop.load(Ordering::Relaxed) {
             loop {
                 match incoming.try_recv() {
-                    Ok(Event::Frame(bytes)) => self.on_frame(&bytes)?,
+                    Ok(Event::Frame(bytes, attached)) => {
+                        self.on_frame(&bytes)?;
+                        if let Some(attached) = attached {
+                            self.on_tick_answers(&attached.to_bytes());
+                        }
+                    }
                     Ok(Event::Capture(bytes)) => self.on_capture(&bytes.to_bytes()),
+                    Ok(Event::TickAnswers(bytes)) => self.on_tick_answers(&bytes.to_bytes()),
                     Ok(Event::Reply(id, reply)) => self.on_reply(id, reply),
                     Ok(Event::Done(id)) => self.on_done(id),
                     Ok(Event::Exporter(alive)) => self.on_exporter(alive, notice),
@@ -348,6 +319,33 @@ impl<'a> Mirror<'a> {
         });
         self.local.notify();
         Ok(())
+    }
+
+    /// Tick answers from the exporter (published, or attached to a frame
+    /// just published here): each of this mirror's in-flight requests
+    /// named is answered as a reply would be; a final answer ends it (a
+    /// query's own reply, which may follow, then finds nothing in flight).
+    fn on_tick_answers(&mut self, bytes: &[u8]) {
+        let entries = match tagged::decode::<TickResponse>(bytes, "tick answers") {
+            Ok(entries) => entries,
+            Err(e) => {
+                self.dropped += 1;
+                warn!(dropped = self.dropped, "dropped tick answers: {e}");
+                return;
+            }
+        };
+        let zid = self.link.zid.as_bytes();
+        for entry in entries.iter().filter(|e| e.mirror == zid) {
+            if !self.in_flight.contains_key(&entry.id) {
+                continue;
+            }
+            let interim = entry.value.status == ResponseStatus::WaitingForParticipants as u32;
+            let bytes = wire::bytes_of(&entry.value).to_vec();
+            self.on_reply(entry.id, Ok(ZBytes::from(bytes)));
+            if !interim {
+                self.in_flight.remove(&entry.id);
+            }
+        }
     }
 
     /// A capture from the exporter, published here.
@@ -483,13 +481,28 @@ impl<'a> Mirror<'a> {
                 self.local.notify();
                 continue;
             }
-            let (service, bytes) = request_bytes(&request);
-            let id = self.forward(service, bytes);
+            let put_at = match &request {
+                // A tick goes as a publication, its answer comes as one
+                // (or with its frame): no Zenoh query on the tick's path.
+                Local::Tick(_, payload)
+                    if TickRequestKind::from_u32(payload.kind) == Some(TickRequestKind::Tick) =>
+                {
+                    self.next_id += 1;
+                    self.link.ask_tick(payload, self.next_id);
+                    Some(Instant::now())
+                }
+                _ => {
+                    let (service, bytes) = request_bytes(&request);
+                    self.forward(service, bytes);
+                    None
+                }
+            };
             self.in_flight.insert(
-                id,
+                self.next_id,
                 InFlight {
                     local: request,
                     answered: false,
+                    put_at,
                 },
             );
         }
@@ -507,6 +520,16 @@ impl<'a> Mirror<'a> {
     /// A tick answer whose frame never came (a new episode, a lost
     /// publication) goes anyway; a local ticker that died is released.
     fn on_liveness_check(&mut self) {
+        let timeout = self.link.timeout;
+        let late = |_: &u64, flight: &mut InFlight| {
+            flight.put_at.is_some_and(|at| at.elapsed() >= timeout)
+        };
+        for (_, flight) in self.in_flight.extract_if(late) {
+            if !flight.answered {
+                unreachable_answer(&flight.local);
+                self.local.notify();
+            }
+        }
         self.held.retain(|(active, answer, since)| {
             if since.elapsed() < HOLD_LIMIT {
                 return true;

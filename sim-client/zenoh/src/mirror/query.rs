@@ -6,17 +6,23 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
 use std::time::{Duration, Instant};
 
-use shared_types::ServiceNames;
+use shared_types::{
+    ActorState, ControlRequest, ControlResponse, FrameHeader, RequestKind, ServiceNames,
+    TickRequest, WorldName,
+};
+use tracing::info;
 use tracing::warn;
 use zenoh::bytes::ZBytes;
+use zenoh::pubsub::Publisher;
 use zenoh::query::{ConsolidationMode, Reply};
 use zenoh::sample::{Locality, SampleKind};
 use zenoh::{Session, Wait as _};
 
 use super::events::Event;
 use super::local;
-use crate::error::{QueryError, ZenohError};
-use crate::wire::{BridgeKeys, Forwarded};
+use crate::error::{MirrorError, QueryError, ZenohError};
+use crate::tagged;
+use crate::wire::{self, BridgeKeys, Forwarded};
 
 /// How soon a wait for the exporter's token notices `stop` (and how long a
 /// query that found no route while the token is there waits to be asked
@@ -33,6 +39,8 @@ pub(super) struct Link<'a> {
     pub events: Sender<Event>,
     /// How long a forwarded request may wait for its answer.
     pub timeout: Duration,
+    /// Publishes tick requests on `tick/ask`.
+    pub asks: Publisher<'static>,
 }
 
 /// A reply's payload (as received, not copied), or the text of an error
@@ -47,6 +55,16 @@ fn reply_payload(reply: &Reply) -> Result<ZBytes, QueryError> {
 }
 
 impl Link<'_> {
+    /// Publishes tick request `id` to the exporter; its answers come as
+    /// publications (or attached to its frame), named by `id`.
+    pub(super) fn ask_tick(&self, request: &TickRequest, id: u64) {
+        let mut bytes = Vec::new();
+        tagged::encode(self.zid, id, request, &mut bytes);
+        if let Err(e) = self.asks.put(bytes).wait() {
+            warn!("cannot forward a tick: {}", ZenohError::from(e));
+        }
+    }
+
     /// Sends `bytes` to the exporter's `service` as a query; its replies
     /// come back as [`Event::Reply`], each as it arrives (no consolidation:
     /// an interim tick answer is not held back until the last), and its
@@ -70,7 +88,8 @@ impl Link<'_> {
             AtomicBool::new(false),
         );
         let (to_main, wake_names) = (self.events.clone(), self.names.clone());
-        let selector = format!("{}?mirror={}", self.keys.rpc(service), self.zid);
+        // The id comes back with a tick's answer attached to its frame.
+        let selector = format!("{}?mirror={};id={id}", self.keys.rpc(service), self.zid);
         let sent = self
             .session
             .get(selector)
@@ -153,4 +172,58 @@ pub(super) fn query_once(
         Ok(reply) => reply_payload(&reply).map(|p| p.to_bytes().into_owned()),
         Err(_) => Err(QueryError::NoAnswer),
     }
+}
+
+/// What the exporter said first: the world's status, then its frame.
+pub(super) struct Hello {
+    pub status: ControlResponse,
+    pub header: FrameHeader,
+    pub actors: Vec<ActorState>,
+}
+
+/// Asks the exporter at `endpoint` for the world's status and its current
+/// frame, for up to `timeout`.
+pub(super) fn hello(
+    session: &Session,
+    keys: &BridgeKeys,
+    world: &WorldName,
+    endpoint: &str,
+    timeout: Duration,
+    stop: &AtomicBool,
+) -> Result<Hello, MirrorError> {
+    let zid = session.zid().to_string();
+    let request = ControlRequest::new(RequestKind::Status);
+    info!(%world, %endpoint, "asking for the world's status (waiting up to {timeout:?})");
+    let status = match query_until(session, keys, &zid, wire::bytes_of(&request), timeout, stop) {
+        Ok(bytes) => bytes,
+        Err(QueryError::NoAnswer) => {
+            return Err(MirrorError::NotExported {
+                world: world.clone(),
+                endpoint: endpoint.to_owned(),
+                timeout,
+            })
+        }
+        Err(e) => return Err(MirrorError::Refused(e)),
+    };
+    let status =
+        wire::decode_fixed::<ControlResponse>(&status, "status answer").map_err(|error| {
+            MirrorError::Incompatible {
+                world: world.clone(),
+                endpoint: endpoint.to_owned(),
+                error,
+            }
+        })?;
+    let first =
+        query_once(session, &keys.latest_frame(), &zid, &[], timeout).map_err(|source| {
+            MirrorError::NoFrame {
+                world: world.clone(),
+                source,
+            }
+        })?;
+    let (header, actors) = wire::decode_frame(&first).map_err(MirrorError::UnreadableFrame)?;
+    Ok(Hello {
+        status,
+        header,
+        actors,
+    })
 }

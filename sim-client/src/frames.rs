@@ -267,11 +267,7 @@ mod tests {
 
     fn node(name: &str) -> Node<Bus> {
         simbus_transport::environment::prepare().expect("iceoryx2 environment");
-        NodeBuilder::new()
-            .name(&NodeName::new(name).unwrap())
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
-            .expect("node")
+        simbus_transport::node(name).expect("node")
     }
 
     /// Publishes asynchronous-mode frame `frame` of episode 1, no actors.

@@ -71,14 +71,10 @@ impl Participant {
         timeout: Duration,
     ) -> Result<Self, RequestError> {
         let names = ServiceNames::new(world);
-        // Named after the participant, so node lists (`top`) say who it is.
-        let mut builder = NodeBuilder::new();
-        if let Ok(node_name) = NodeName::new(&format!("lockstep:{name}")) {
-            builder = builder.name(&node_name);
-        }
-        let node = builder
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
+        // Named after the participant, so node lists (`top`) say who it is
+        // (plain "lockstep" for a name iceoryx2 cannot take).
+        let node = simbus_transport::node(&format!("lockstep:{name}"))
+            .or_else(|_| simbus_transport::node("lockstep"))
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
         let specs =

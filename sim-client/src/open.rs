@@ -170,10 +170,5 @@ fn open_event(
 /// checks.
 pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
     simbus_transport::environment::prepare().map_err(ConnectError::SharedDirectory)?;
-    let name = NodeName::new("sim-client").map_err(|e| ConnectError::transport("node name", e))?;
-    NodeBuilder::new()
-        .name(&name)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .map_err(|e| ConnectError::transport("node", e))
+    simbus_transport::node("sim-client").map_err(|e| ConnectError::transport("node", e))
 }

@@ -206,12 +206,7 @@ impl Sensor {
         info: SensorInfo,
     ) -> Result<Self, RequestError> {
         let names = ServiceNames::new(world);
-        let node_name = NodeName::new(&format!("sensor-{}-reader", info.id))
-            .map_err(|e| RequestError::transport("node name", e))?;
-        let node = NodeBuilder::new()
-            .name(&node_name)
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
+        let node = simbus_transport::node(&format!("sensor-{}-reader", info.id))
             .map_err(|e| RequestError::transport("node", e))?;
         let deadline = Instant::now() + timeout;
         let specs =

@@ -129,12 +129,8 @@ impl Ticker {
         use iceoryx2::service::port_factory::client::ClientCreateError;
 
         let names = ServiceNames::new(world);
-        let name = NodeName::new(node_name).map_err(|e| TickError::transport("node name", e))?;
-        let node = NodeBuilder::new()
-            .name(&name)
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
-            .map_err(|e| TickError::transport("node", e))?;
+        let node =
+            simbus_transport::node(node_name).map_err(|e| TickError::transport("node", e))?;
         let specs =
             WorldServices::new(&names).map_err(|e| TickError::transport("service name", e))?;
         let deadline = Instant::now() + request_timeout;

@@ -24,8 +24,6 @@ impl Transport {
     /// left behind (a crashed predecessor's services included).
     pub(crate) fn open(world: &WorldName) -> Result<Self, ServerError> {
         simbus_transport::environment::prepare().map_err(ServerError::SharedDirectory)?;
-        let node_name =
-            NodeName::new("sim-server").map_err(|e| ServerError::transport("node name", e))?;
         // Count the dead first so the log says it happened.
         let mut dead = 0u32;
         let _ = Node::<Bus>::list(Config::global_config(), |state| {
@@ -37,11 +35,8 @@ impl Transport {
         if dead > 0 {
             info!("removing resources left by {dead} dead process(es)");
         }
-        let node = NodeBuilder::new()
-            .name(&node_name)
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
-            .map_err(|e| ServerError::transport("node", e))?;
+        let node =
+            simbus_transport::node("sim-server").map_err(|e| ServerError::transport("node", e))?;
         let cleanup = node.try_cleanup_dead_nodes();
         if cleanup.failed_cleanups > 0 {
             warn!(

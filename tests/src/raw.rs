@@ -76,10 +76,7 @@ impl RawPorts {
     /// Opens the ports on `world`'s services.
     pub fn open(world: &str) -> Self {
         let names = service_names(world);
-        let node = NodeBuilder::new()
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<Bus>()
-            .expect("node");
+        let node = simbus_transport::node("raw-ports").expect("node");
         let control = control_service(&node, &names)
             .client_builder()
             .create()

@@ -71,6 +71,39 @@ impl iceoryx2::service::Service for Bus {
 
 impl iceoryx2::service::internal::ServiceInternal<Bus> for Bus {}
 
+/// Why [`node`] could not make a node.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// The name is not a valid iceoryx2 node name.
+    #[error("{name:?} is not a valid node name: {source:?}")]
+    Name {
+        /// The name given.
+        name: String,
+        /// Why iceoryx2 refused it.
+        source: iceoryx2::prelude::SemanticStringError,
+    },
+    /// iceoryx2 could not create the node.
+    #[error("cannot create an iceoryx2 node: {0:?}")]
+    Create(#[source] iceoryx2::node::NodeCreationFailure),
+}
+
+/// A node of this process for simbus's ports, named `name` (what
+/// `iox2 node list` and `sim-client top` show), with iceoryx2's signal
+/// handling off: simbus processes handle their own signals. Every simbus
+/// process makes its nodes here.
+pub fn node(name: &str) -> Result<iceoryx2::node::Node<Bus>, NodeError> {
+    use iceoryx2::prelude::*;
+    let node_name = NodeName::new(name).map_err(|source| NodeError::Name {
+        name: name.to_owned(),
+        source,
+    })?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Bus>()
+        .map_err(NodeError::Create)
+}
+
 /// The process that sent a request, as iceoryx2's port recorded it in the
 /// request's header (the sending node's id carries its creator's pid), not
 /// as the request's payload claims: a client cannot name another process.

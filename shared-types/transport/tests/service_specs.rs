@@ -10,11 +10,7 @@ use simbus_transport::Bus;
 
 fn node(name: &str) -> Node<Bus> {
     simbus_transport::environment::prepare().expect("iceoryx2 environment");
-    NodeBuilder::new()
-        .name(&NodeName::new(name).unwrap())
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .expect("node")
+    simbus_transport::node(name).expect("node")
 }
 
 macro_rules! round_trip {

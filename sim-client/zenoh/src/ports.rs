@@ -3,9 +3,8 @@
 //! builder setting is written) and a notifier of the world's wake-up event.
 //! It imports neither side.
 
-use iceoryx2::node::{Node, NodeBuilder};
+use iceoryx2::node::Node;
 use iceoryx2::port::notifier::Notifier;
-use iceoryx2::prelude::{NodeName, SignalHandlingMode};
 use shared_types::ServiceNames;
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -14,11 +13,7 @@ use crate::error::LocalError;
 
 /// A node of this process, named `name`.
 pub(crate) fn node(name: &str) -> Result<Node<Bus>, LocalError> {
-    NodeBuilder::new()
-        .name(&NodeName::new(name).map_err(|e| LocalError::transport("iceoryx2 node name", e))?)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Bus>()
-        .map_err(|e| LocalError::transport("iceoryx2 node", e))
+    simbus_transport::node(name).map_err(|e| LocalError::transport("iceoryx2 node", e))
 }
 
 /// The descriptions of the services of the world named by `names`.

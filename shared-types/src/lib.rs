@@ -62,7 +62,7 @@ pub use control::{
 };
 pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
-pub use names::{ServiceNames, WorldName, WorldNameError};
+pub use names::{Doorbell, ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError,

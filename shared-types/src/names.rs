@@ -2,6 +2,8 @@
 
 use std::fmt;
 
+use crate::wire::wire_enum;
+
 /// The name of one simulated world. Every service of a world is prefixed with
 /// it, so two servers (or two test runs) on one machine never meet.
 ///
@@ -111,6 +113,41 @@ pub struct ServiceNames {
     /// (recorder and replayer).
     pub recorder: String,
     prefix: String,
+}
+
+wire_enum! {
+    /// The event id a client rings on [`ServiceNames::control_wake`] after
+    /// sending a request: which service holds it. A server woken by
+    /// [`Doorbell::Tick`] takes the tick without looking at the other
+    /// services' ports; [`Doorbell::Any`] (what a notifier that rings no id
+    /// sends) makes it look at all of them.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    pub enum Doorbell {
+        /// Some service (or unknown): every service is looked at.
+        Any = 0,
+        /// [`ServiceNames::control`].
+        Control = 1,
+        /// [`ServiceNames::tick`].
+        Tick = 2,
+        /// [`ServiceNames::batch`].
+        Batch = 3,
+        /// [`ServiceNames::lockstep`].
+        Lockstep = 4,
+        /// [`ServiceNames::sensors`].
+        Sensors = 5,
+        /// [`ServiceNames::recorder`].
+        Recorder = 6,
+    }
+}
+
+impl Doorbell {
+    /// The largest event id rung: the wake-up event's `event_id_max_value`.
+    pub const MAX_ID: usize = Doorbell::Recorder as usize;
+
+    /// The event id this doorbell rings.
+    pub fn event_id(self) -> usize {
+        self as usize
+    }
 }
 
 impl ServiceNames {

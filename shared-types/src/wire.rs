@@ -130,6 +130,7 @@ mod tests {
     #[test]
     fn every_wire_enum_round_trips_and_refuses_unknown_values() {
         round_trips("RequestKind", &RequestKind::ALL);
+        round_trips("Doorbell", &Doorbell::ALL);
         round_trips("ResponseStatus", &ResponseStatus::ALL);
         round_trips("TickRequestKind", &TickRequestKind::ALL);
         round_trips("LockstepKind", &LockstepKind::ALL);

@@ -100,6 +100,7 @@ pub(crate) fn open_batch_client(
     Ok(RequestPort::new(
         client,
         None,
+        specs.batch.doorbell,
         "batch send",
         world,
         server_pid,

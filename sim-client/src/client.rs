@@ -215,14 +215,16 @@ impl Client {
                 pid: self.server_pid,
             })?;
         let (world, pid) = (self.world.as_str(), self.server_pid);
-        Ok(self
-            .control
-            .get_or_init(|| RequestPort::new(client, Some(wake), "request send", world, pid)))
+        let doorbell = specs.control.doorbell;
+        Ok(self.control.get_or_init(|| {
+            RequestPort::new(client, Some(wake), doorbell, "request send", world, pid)
+        }))
     }
 
-    /// Wakes the server after a request was sent on any port.
-    pub(crate) fn wake_server(&self) -> Result<(), RequestError> {
-        self.control()?.wake();
+    /// Rings `doorbell` on the server's wake-up event after a request was
+    /// sent on any port.
+    pub(crate) fn wake_server(&self, doorbell: shared_types::Doorbell) -> Result<(), RequestError> {
+        self.control()?.wake(doorbell);
         Ok(())
     }
 

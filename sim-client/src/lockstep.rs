@@ -95,7 +95,14 @@ impl Participant {
             .ok_or_else(missing)?;
         let mut participant = Self {
             world: world.clone(),
-            port: RequestPort::new(port, Some(wake), "request send", world.as_str(), server_pid),
+            port: RequestPort::new(
+                port,
+                Some(wake),
+                specs.lockstep.doorbell,
+                "request send",
+                world.as_str(),
+                server_pid,
+            ),
             name: name.to_owned(),
             server_pid,
             joined: (0, 0),

@@ -204,6 +204,7 @@ impl Client {
         let port = RequestPort::new(
             client,
             None,
+            specs.recorder.doorbell,
             "recorder send",
             self.world.as_str(),
             self.server_pid,

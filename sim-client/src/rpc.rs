@@ -16,8 +16,9 @@ use iceoryx2::service::builder::request_response::RequestResponseOpenError;
 use iceoryx2::service::port_factory::client::ClientCreateError;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::{
-    BatchResponseHeader, CommandResult, ControlResponse, LockstepResponse, RecorderResponse,
-    Response, ResponseStatus, SensorInfo, SensorResponseHeader, TickResponse, PROTOCOL_VERSION,
+    BatchResponseHeader, CommandResult, ControlResponse, Doorbell, LockstepResponse,
+    RecorderResponse, Response, ResponseStatus, SensorInfo, SensorResponseHeader, TickResponse,
+    PROTOCOL_VERSION,
 };
 use simbus_transport::Bus;
 use tracing::debug;
@@ -33,13 +34,14 @@ pub(crate) type Pending<Req, Resp, ReqHeader = (), RespHeader = ()> =
 
 /// Wakes the server after a request was sent.
 pub(crate) trait Wake {
-    /// Notifies the server's wake-up event.
-    fn wake(&self) -> Result<(), RequestError>;
+    /// Rings `doorbell` (the service that holds the request) on the
+    /// server's wake-up event.
+    fn wake(&self, doorbell: Doorbell) -> Result<(), RequestError>;
 }
 
 impl Wake for Notifier<Bus> {
-    fn wake(&self) -> Result<(), RequestError> {
-        if let Err(e) = self.notify() {
+    fn wake(&self, doorbell: Doorbell) -> Result<(), RequestError> {
+        if let Err(e) = self.notify_with_custom_event_id(EventId::new(doorbell.event_id())) {
             debug!("wake-up not delivered: {e:?}");
         }
         Ok(())
@@ -49,8 +51,8 @@ impl Wake for Notifier<Bus> {
 /// A client wakes the server with its control port's notifier (opening it
 /// first if need be): one notifier per client, whatever ports it uses.
 impl Wake for Client {
-    fn wake(&self) -> Result<(), RequestError> {
-        self.wake_server()
+    fn wake(&self, doorbell: Doorbell) -> Result<(), RequestError> {
+        self.wake_server(doorbell)
     }
 }
 
@@ -205,6 +207,8 @@ where
 {
     client: RequestClient<Bus, Req, ReqHeader, Resp, RespHeader>,
     wake: Option<Notifier<Bus>>,
+    /// Rung after each request: the server then looks at this service only.
+    doorbell: Doorbell,
     /// What a failed send says it was doing.
     what: &'static str,
     world: String,
@@ -220,10 +224,12 @@ where
 {
     /// Requests on `client` to the server of `world` (pid `server_pid`, 0
     /// if unknown), woken with `wake` if given (otherwise by the caller's
-    /// [`Wake`]); `what` names a failed send.
+    /// [`Wake`]) ringing `doorbell` (the service's, from its description);
+    /// `what` names a failed send.
     pub(crate) fn new(
         client: RequestClient<Bus, Req, ReqHeader, Resp, RespHeader>,
         wake: Option<Notifier<Bus>>,
+        doorbell: Doorbell,
         what: &'static str,
         world: &str,
         server_pid: u32,
@@ -231,18 +237,19 @@ where
         Self {
             client,
             wake,
+            doorbell,
             what,
             world: world.to_owned(),
             server_pid,
         }
     }
 
-    /// Wakes the server with this port's notifier (for requests on other
+    /// Rings `doorbell` with this port's notifier (for requests on other
     /// ports), if it has one.
-    pub(crate) fn wake(&self) {
+    pub(crate) fn wake(&self, doorbell: Doorbell) {
         if let Some(notifier) = &self.wake {
             // A lost wake-up is logged, not an error of the request.
-            let _ = Wake::wake(notifier);
+            let _ = Wake::wake(notifier, doorbell);
         }
     }
 
@@ -254,7 +261,7 @@ where
         wake: &(impl Wake + ?Sized),
     ) -> Result<Pending<Req, Resp, ReqHeader, RespHeader>, RequestError> {
         let pending = request.send_on(&self.client, self.what)?;
-        wake.wake()?;
+        wake.wake(self.doorbell)?;
         Ok(pending)
     }
 
@@ -330,9 +337,9 @@ where
     ReqHeader: Debug + ZeroCopySend,
     RespHeader: Debug + ZeroCopySend,
 {
-    fn wake(&self) -> Result<(), RequestError> {
+    fn wake(&self, doorbell: Doorbell) -> Result<(), RequestError> {
         match &self.wake {
-            Some(notifier) => Wake::wake(notifier),
+            Some(notifier) => Wake::wake(notifier, doorbell),
             None => Ok(()),
         }
     }

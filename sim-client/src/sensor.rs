@@ -445,6 +445,7 @@ impl Client {
         let port = RequestPort::new(
             client,
             None,
+            specs.sensors.doorbell,
             "sensor send",
             self.world.as_str(),
             self.server_pid,

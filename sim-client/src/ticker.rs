@@ -156,7 +156,14 @@ impl Ticker {
             .ok_or_else(timeout)?;
         Ok(Self {
             world: world.clone(),
-            port: RequestPort::new(port, Some(wake), "request send", world.as_str(), server_pid),
+            port: RequestPort::new(
+                port,
+                Some(wake),
+                specs.tick.doorbell,
+                "request send",
+                world.as_str(),
+                server_pid,
+            ),
             ready,
             server_pid,
             node_name: node_name.to_owned(),

@@ -8,7 +8,7 @@ use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, WorldName,
+    ControlRequest, ControlResponse, Doorbell, FixedText, RequestKind, ResponseStatus, WorldName,
     WorldSettings, PROTOCOL_VERSION,
 };
 use simbus_transport::Bus;
@@ -27,8 +27,38 @@ type ControlServer = RequestServer<Bus, ControlRequest, (), ControlResponse, ()>
 pub(crate) struct Control {
     port: ControlServer,
     wake: Listener<Bus>,
-    /// Whether a client announced a request since [`Control::take_announced`].
-    announced: bool,
+    /// The doorbells rung since [`Control::take_rung`].
+    rung: Rung,
+}
+
+/// Doorbells rung on the wake-up event: which services hold requests.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct Rung(u32);
+
+impl Rung {
+    /// Every service: what a full pass looks at.
+    pub(crate) const ALL: Rung = Rung(u32::MAX);
+
+    /// Notes event id `id` (from another process: an id this version does
+    /// not know stands for [`Doorbell::Any`]).
+    fn ring(&mut self, id: usize) {
+        let bell = u32::try_from(id)
+            .ok()
+            .and_then(Doorbell::from_u32)
+            .unwrap_or(Doorbell::Any);
+        self.0 |= 1 << bell as u32;
+    }
+
+    /// Whether any doorbell rang.
+    pub(crate) fn any(self) -> bool {
+        self.0 != 0
+    }
+
+    /// Whether the service of `bell` may hold requests: its doorbell or
+    /// [`Doorbell::Any`] rang.
+    pub(crate) fn has(self, bell: Doorbell) -> bool {
+        self.0 & (1 << Doorbell::Any as u32 | 1 << bell as u32) != 0
+    }
 }
 
 impl Control {
@@ -63,7 +93,7 @@ impl Control {
         Ok(Self {
             port,
             wake,
-            announced: false,
+            rung: Rung::default(),
         })
     }
 
@@ -84,8 +114,10 @@ impl Control {
     /// (as coarse as the event's timeouts: for waits that need no precise
     /// end, such as a synchronous world waiting for its tick).
     pub(crate) fn wait_for_request(&mut self, timeout: Duration) -> Result<(), ServerError> {
-        let announced = &mut self.announced;
-        let waited = self.wake.timed_wait(|_| *announced = true, timeout);
+        let rung = &mut self.rung;
+        let waited = self
+            .wake
+            .timed_wait(|event| rung.ring(event.id.as_value()), timeout);
         simbus_transport::stamps::woke();
         match waited {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
@@ -94,18 +126,19 @@ impl Control {
         }
     }
 
-    /// Whether a client announced a request (every client notifies the
-    /// wake-up event after sending one) since the last call: taken before
-    /// the domains answer, so the loop rings the frame-ready event after
-    /// answering what was announced, and a client waiting for an answer on
-    /// that event (the Zenoh exporter) wakes. Costs no system call.
-    pub(crate) fn take_announced(&mut self) -> Result<bool, ServerError> {
-        let announced = &mut self.announced;
-        match self.wake.try_wait(|_| *announced = true) {
+    /// The doorbells rung since the last call (every client rings its
+    /// service's after sending a request): taken before the domains answer,
+    /// so only the services rung are looked at, and the loop rings the
+    /// frame-ready event after answering what was announced (a client
+    /// waiting for an answer on that event, the Zenoh exporter, wakes).
+    /// Costs no system call.
+    pub(crate) fn take_rung(&mut self) -> Result<Rung, ServerError> {
+        let rung = &mut self.rung;
+        match self.wake.try_wait(|event| rung.ring(event.id.as_value())) {
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
             Err(e) => return Err(ServerError::transport("control wake-up wait", e)),
         }
-        Ok(std::mem::take(&mut self.announced))
+        Ok(std::mem::take(&mut self.rung))
     }
 
     /// Answers every pending control request: each is decoded into the
@@ -227,6 +260,36 @@ impl WhileTicked {
             Self::Refused
         } else {
             Self::Unchanged
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_doorbell_admits_its_service_and_any_admits_every_service() {
+        let mut rung = Rung::default();
+        assert!(!rung.any());
+        rung.ring(Doorbell::Tick.event_id());
+        assert!(rung.any() && rung.has(Doorbell::Tick));
+        assert!(!rung.has(Doorbell::Batch) && !rung.has(Doorbell::Control));
+        rung.ring(Doorbell::Batch.event_id());
+        assert!(rung.has(Doorbell::Batch) && !rung.has(Doorbell::Recorder));
+
+        let mut any = Rung::default();
+        any.ring(Doorbell::Any.event_id());
+        assert!(Doorbell::ALL.into_iter().all(|bell| any.has(bell)));
+        assert!(Doorbell::ALL.into_iter().all(|bell| Rung::ALL.has(bell)));
+    }
+
+    #[test]
+    fn an_id_this_version_does_not_know_rings_every_service() {
+        for id in [Doorbell::MAX_ID + 1, 31, 32, usize::MAX] {
+            let mut rung = Rung::default();
+            rung.ring(id);
+            assert!(Doorbell::ALL.into_iter().all(|bell| rung.has(bell)), "{id}");
         }
     }
 }

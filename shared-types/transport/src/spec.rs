@@ -33,7 +33,7 @@ use shared_types::limits::{
 };
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
-    ControlResponse, FrameHeader, LockstepRequest, LockstepResponse, RecorderRequest,
+    ControlResponse, Doorbell, FrameHeader, LockstepRequest, LockstepResponse, RecorderRequest,
     RecorderResponse, SensorHeader, SensorInfo, SensorRequest, SensorResponseHeader, ServiceNames,
     TickRequest, TickResponse,
 };
@@ -91,6 +91,8 @@ pub struct RequestSpec<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> {
     /// Elements reserved in the first sample of a slice payload (it grows
     /// as needed).
     pub initial_slice_len: usize,
+    /// The event id a client rings on the wake-up event after a request.
+    pub doorbell: Doorbell,
     types: Types<Req, ReqHeader, Resp, RespHeader>,
 }
 
@@ -108,6 +110,7 @@ impl<Req: ?Sized, ReqHeader, Resp: ?Sized, RespHeader> Debug
                 "safe_overflow_for_requests",
                 &self.safe_overflow_for_requests,
             )
+            .field("doorbell", &self.doorbell)
             .finish()
     }
 }
@@ -121,6 +124,7 @@ where
 {
     fn new(
         name: &str,
+        doorbell: Doorbell,
         clients: Limit,
         active_requests: usize,
         response_buffer: usize,
@@ -133,6 +137,7 @@ where
             fire_and_forget: true,
             safe_overflow_for_requests: true,
             initial_slice_len: 1,
+            doorbell,
             types: PhantomData,
         })
     }
@@ -400,10 +405,11 @@ pub struct EventSpec {
     pub listeners: Limit,
     /// Notifier ports admitted.
     pub notifiers: Limit,
+    /// The largest event id rung: 0 for an event that says only "now",
+    /// [`Doorbell::MAX_ID`] for the wake-up event (which service holds a
+    /// request).
+    pub max_event_id: usize,
 }
-
-/// The largest event id a simbus event carries: 0, the only one rung.
-pub const EVENT_ID_MAX_VALUE: usize = 0;
 
 impl EventSpec {
     fn configured(
@@ -413,10 +419,10 @@ impl EventSpec {
     ) -> iceoryx2::service::builder::event::Builder<Bus> {
         node.service_builder(&self.name)
             .event()
-            // One event id (every notifier rings id 0): a listener's wait
-            // or check drains one counter, not iceoryx2's default 256 (which
-            // cost ~2 µs on every wait and every doorbell look).
-            .event_id_max_value(EVENT_ID_MAX_VALUE)
+            // As few event ids as are rung: a listener's wait or check
+            // drains one counter per id, and iceoryx2's default of 256 cost
+            // ~2 µs on every wait and every doorbell look.
+            .event_id_max_value(self.max_event_id)
             .max_listeners(self.listeners.of(limits))
             .max_notifiers(self.notifiers.of(limits))
             .max_nodes(Limit::Nodes.of(limits))
@@ -504,32 +510,40 @@ impl WorldServices {
             growable: true,
             types: PhantomData,
         };
-        let event = |name: &str, notifiers| -> Result<EventSpec, ServiceNameError> {
+        let event = |name: &str, notifiers, max_event_id| -> Result<EventSpec, ServiceNameError> {
             Ok(EventSpec {
                 name: ServiceName::new(name)?,
                 listeners: Limit::EventListeners,
                 notifiers,
+                max_event_id,
             })
         };
-        let mut batch = RequestSpec::new(&names.batch, Limit::Clients, MAX_BATCHES_IN_FLIGHT, 1)?;
+        let mut batch = RequestSpec::new(
+            &names.batch,
+            Doorbell::Batch,
+            Limit::Clients,
+            MAX_BATCHES_IN_FLIGHT,
+            1,
+        )?;
         // A batch is never dropped: a sender that outruns the server waits.
         batch.safe_overflow_for_requests = false;
         batch.initial_slice_len = INITIAL_MAX_BATCH;
-        let mut sensors = RequestSpec::new(&names.sensors, Limit::Clients, 2, 1)?;
+        let mut sensors =
+            RequestSpec::new(&names.sensors, Doorbell::Sensors, Limit::Clients, 2, 1)?;
         sensors.initial_slice_len = 16;
         Ok(Self {
             frames,
-            frame_ready: event(&names.frame_ready, Limit::Fixed(4))?,
-            control: RequestSpec::new(&names.control, Limit::Clients, 2, 2)?,
-            control_wake: event(&names.control_wake, Limit::Clients)?,
+            frame_ready: event(&names.frame_ready, Limit::Fixed(4), 0)?,
+            control: RequestSpec::new(&names.control, Doorbell::Control, Limit::Clients, 2, 2)?,
+            control_wake: event(&names.control_wake, Limit::Clients, Doorbell::MAX_ID)?,
             // Four tick clients: the ticker, a dead ticker's port waiting
             // for cleanup (a new ticker connects meanwhile) and two standby
             // tickers (ownership, not the port count, admits one ticker).
-            tick: RequestSpec::new(&names.tick, Limit::Fixed(4), 4, 4)?,
+            tick: RequestSpec::new(&names.tick, Doorbell::Tick, Limit::Fixed(4), 4, 4)?,
             batch,
-            lockstep: RequestSpec::new(&names.lockstep, Limit::Clients, 4, 2)?,
+            lockstep: RequestSpec::new(&names.lockstep, Doorbell::Lockstep, Limit::Clients, 4, 2)?,
             sensors,
-            recorder: RequestSpec::new(&names.recorder, Limit::Clients, 2, 2)?,
+            recorder: RequestSpec::new(&names.recorder, Doorbell::Recorder, Limit::Clients, 2, 2)?,
             names: names.clone(),
         })
     }

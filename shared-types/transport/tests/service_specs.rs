@@ -4,7 +4,7 @@
 
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
-use shared_types::{ImuMeasurement, LidarPoint, ServiceNames, WorldName};
+use shared_types::{Doorbell, ImuMeasurement, LidarPoint, ServiceNames, WorldName};
 use simbus_transport::spec::{Limit, WorldServices};
 use simbus_transport::Bus;
 
@@ -46,6 +46,21 @@ fn every_service_created_from_its_spec_opens_with_the_same_config() {
     assert_eq!(ready.static_config().max_notifiers(), 4);
     let (wake, _) = round_trip!(server, client, specs.control_wake, &limits);
     assert_eq!(wake.static_config().max_notifiers(), 7);
+    // Every request service rings its own doorbell, and the wake-up event
+    // carries every doorbell's id (a frame-ready ring carries only 0).
+    assert_eq!(wake.static_config().event_id_max_value(), Doorbell::MAX_ID);
+    assert_eq!(ready.static_config().event_id_max_value(), 0);
+    let bells = [
+        specs.control.doorbell,
+        specs.tick.doorbell,
+        specs.batch.doorbell,
+        specs.lockstep.doorbell,
+        specs.sensors.doorbell,
+        specs.recorder.doorbell,
+    ];
+    let mut sorted = bells.map(Doorbell::event_id);
+    sorted.sort_unstable();
+    assert_eq!(sorted, [1, 2, 3, 4, 5, 6], "{bells:?}");
     let (control, _) = round_trip!(server, client, specs.control, &limits);
     assert_eq!(control.static_config().max_clients(), 7);
     assert_eq!(control.static_config().max_servers(), 1);

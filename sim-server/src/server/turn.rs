@@ -4,62 +4,92 @@
 
 use std::time::Instant;
 
-use shared_types::{FixedText, WaitMode};
+use shared_types::{Doorbell, FixedText, WaitMode};
 
-use super::{Server, FULL_PASS_PERIOD, MAX_IDLE_WAIT};
+use super::{Domains, Server, FULL_PASS_PERIOD, MAX_IDLE_WAIT};
 use crate::batches::BatchEffect;
+use crate::control::Rung;
 use crate::ticker::Ticker;
 use crate::ServerError;
 
-impl Server {
-    /// Every domain answers what arrived, in this order. Returns whether a
-    /// client announced a request or an answer went out late: the
-    /// frame-ready event then rings before the loop waits (a frame stepped
-    /// now rings it anyway), so clients waiting on it for an answer (the
-    /// Zenoh exporter) wake, and a tick's round trip costs one ring.
-    ///
-    /// A client rings the wake-up event after each request it sends (the
-    /// doorbell): while nothing rang, a polling server looks at one word
-    /// instead of every domain's ports, and at all of them every
-    /// [`FULL_PASS_PERIOD`] anyway.
-    pub(super) fn answer_requests(&mut self) -> Result<bool, ServerError> {
-        let d = &mut self.domains;
-        let mut answered = self.control.take_announced()?;
-        if !answered && d.timers.full_pass.elapsed() < FULL_PASS_PERIOD {
-            return Ok(false);
+impl Domains {
+    /// The batch domain answers what arrived: applied now, queued for the
+    /// next tick, or refused while a replay runs.
+    fn answer_batches(&mut self) -> Result<(), ServerError> {
+        if self.replayer.is_running() {
+            return self.batches.refuse_while_replaying(&self.clock);
         }
-        d.timers.full_pass = Instant::now();
-        self.control.handle(|call| d.answer_control(call))?;
-        if let Some(response) = d.replay_prepared() {
-            self.recorder.answer_replay(response);
-            answered = true;
-        }
-        self.recorder
-            .handle(|call, client_pid| d.answer_recorder(call, client_pid))?;
-        let episode = d.runtime.episode;
-        if d.replayer.is_running() {
-            d.batches.refuse_while_replaying(&d.clock)?;
-        } else {
-            let (frame, ticker_pid) = (d.clock.frame(), d.ticker.owner_pid());
-            let (recorder, ticker) = (&mut d.recorder, &mut d.ticker);
-            let applied = d
-                .batches
-                .handle(&mut d.world, ticker_pid, &d.clock, |effect| match effect {
+        let (frame, episode) = (self.clock.frame(), self.runtime.episode);
+        let ticker_pid = self.ticker.owner_pid();
+        let (recorder, ticker) = (&mut self.recorder, &mut self.ticker);
+        let applied =
+            self.batches.handle(
+                &mut self.world,
+                ticker_pid,
+                &self.clock,
+                |effect| match effect {
                     BatchEffect::Applied(command, result) => {
                         recorder.command(frame + 1, episode, command, result)
                     }
                     BatchEffect::Tick(request, results) => ticker.queue_batch(request, results),
-                })?;
-            if applied {
-                d.sensors.end_orphans(&d.world, frame, episode);
-            }
+                },
+            )?;
+        if applied {
+            self.sensors.end_orphans(&self.world, frame, episode);
         }
-        d.lockstep.handle(episode, &d.clock)?;
-        let follow = d.replayer.follow_id();
-        d.sensors
-            .handle(&d.transport, &d.world, &d.clock, episode, follow)?;
+        Ok(())
+    }
+}
+
+impl Server {
+    /// Every domain whose doorbell rang answers what arrived, in this
+    /// order. Returns whether a client announced a request or an answer
+    /// went out late: the frame-ready event then rings before the loop
+    /// waits (a frame stepped now rings it anyway), so clients waiting on
+    /// it for an answer (the Zenoh exporter) wake, and a tick's round trip
+    /// costs one ring.
+    ///
+    /// A client rings its service's doorbell on the wake-up event after each
+    /// request: while nothing rang, a polling server looks at one word
+    /// instead of every domain's ports, a tick is taken without looking at
+    /// the other services, and every [`FULL_PASS_PERIOD`] all of them are
+    /// looked at anyway.
+    pub(super) fn answer_requests(&mut self) -> Result<bool, ServerError> {
+        let d = &mut self.domains;
+        let mut rung = self.control.take_rung()?;
+        let mut answered = rung.any();
+        if d.timers.full_pass.elapsed() >= FULL_PASS_PERIOD {
+            d.timers.full_pass = Instant::now();
+            rung = Rung::ALL;
+        } else if !answered {
+            return Ok(false);
+        }
+        if rung.has(Doorbell::Control) {
+            self.control.handle(|call| d.answer_control(call))?;
+        }
+        if let Some(response) = d.replay_prepared() {
+            self.recorder.answer_replay(response);
+            answered = true;
+        }
+        if rung.has(Doorbell::Recorder) {
+            self.recorder
+                .handle(|call, client_pid| d.answer_recorder(call, client_pid))?;
+        }
+        if rung.has(Doorbell::Batch) {
+            d.answer_batches()?;
+        }
+        if rung.has(Doorbell::Lockstep) {
+            d.lockstep.handle(d.runtime.episode, &d.clock)?;
+        }
+        if rung.has(Doorbell::Sensors) {
+            let follow = d.replayer.follow_id();
+            d.sensors
+                .handle(&d.transport, &d.world, &d.clock, d.runtime.episode, follow)?;
+        }
         d.recorder.sensor_notes(d.sensors.take_journal());
-        d.ticker.handle(&mut d.runtime, &d.clock)?;
+        if rung.has(Doorbell::Tick) {
+            d.ticker.handle(&mut d.runtime, &d.clock)?;
+        }
         Ok(answered | d.housekeeping())
     }
 

@@ -52,6 +52,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         lockstep_timeout: Duration::from_secs(10),
         limits: Default::default(),
         keyframe_seconds: None,
+        render_threads: None,
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

@@ -29,6 +29,20 @@ pub(crate) struct SensorsArgs {
     /// (percentile plot, log µs), into this PNG.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<std::path::PathBuf>,
+    /// The delivery rows' server renders on this many threads (`sim-server
+    /// --render-threads`); default: one CPU fewer than the machine has, so
+    /// the spinning reader keeps one. The frame-time rows render on every CPU.
+    #[arg(long, value_name = "N")]
+    render_threads: Option<usize>,
+}
+
+impl SensorsArgs {
+    /// The delivery rows' render threads.
+    fn delivery_render_threads(&self) -> usize {
+        self.render_threads.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
+        })
+    }
 }
 
 /// Payload sizes and the depth image that has them (4 bytes per pixel).
@@ -98,7 +112,11 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
 /// a reader process spinning on the sensor itself (not behind a tick
 /// round trip), the ticker asleep between paced ticks; and over TCP.
 fn delivery_rows(args: &SensorsArgs) -> anyhow::Result<Vec<DeliveryRow>> {
-    let server = BenchServer::start("sensors", &["--scene", "empty"])?;
+    let threads = args.delivery_render_threads().to_string();
+    let server = BenchServer::start(
+        "sensors",
+        &["--scene", "empty", "--render-threads", threads.as_str()],
+    )?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
     let mut rows = Vec::new();
@@ -200,13 +218,15 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
         println!(
             "{}",
             serde_json::json!({"delivery": delivery, "frame_time": frame_json,
+                "delivery_render_threads": args.delivery_render_threads(),
                 "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns}})
         );
         return;
     }
     println!(
-        "sensor delivery: capture sent -> a reader process spinning on the sensor holds it, first and last element read ({} captures each)",
-        args.samples
+        "sensor delivery: capture sent -> a reader process spinning on the sensor holds it, first and last element read ({} captures each; server --render-threads {})",
+        args.samples,
+        args.delivery_render_threads()
     );
     println!(
         "{:<8} {:>14} {:>14} {:>14} {:>14} {:>10}",

@@ -112,6 +112,13 @@ pub(crate) struct ServerArgs {
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
     pub(crate) lockstep_timeout: Duration,
 
+    /// Threads that render cameras and lidars (1..=1024; default: one per
+    /// CPU). A reader spinning on a capture wants a CPU of its own: on a
+    /// machine with N CPUs, `--render-threads N-1` leaves it one (rendering
+    /// then takes longer).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::render_threads)]
+    pub(crate) render_threads: Option<std::num::NonZeroUsize>,
+
     /// Simulation seconds between two keyframes of a recording (the
     /// serialized world a replay seeks to): 0.001..=1e9.
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::keyframe_seconds)]
@@ -272,6 +279,7 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
         seed: args.seed,
         lockstep_timeout: args.lockstep_timeout,
         keyframe_seconds: Some(args.keyframe_seconds),
+        render_threads: args.render_threads,
         limits,
     };
     // `SIMBUS_STAMPS=FILE`: the tick path's stamps, written on exit

@@ -2,6 +2,7 @@
 //! life. What changes while it runs (settings, scene, episode) is
 //! [`crate::state::Runtime`].
 
+use std::num::NonZeroUsize;
 use std::time::Duration;
 
 use shared_types::limits::WorldLimits;
@@ -42,6 +43,10 @@ pub struct ServerConfig {
     pub limits: WorldLimits,
     /// Simulation seconds between a recording's keyframes (`None`: 10 s).
     pub keyframe_seconds: Option<f64>,
+    /// Threads cameras and lidars render on (`None`: rayon's global pool,
+    /// one per CPU). Fewer than the CPUs leave one to a reader spinning on
+    /// a capture.
+    pub render_threads: Option<NonZeroUsize>,
 }
 
 impl ServerConfig {
@@ -63,6 +68,7 @@ impl ServerConfig {
             lockstep_timeout: Duration::from_secs(10),
             limits: WorldLimits::default(),
             keyframe_seconds: None,
+            render_threads: None,
         }
     }
 }

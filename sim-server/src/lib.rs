@@ -77,6 +77,7 @@ pub mod world;
 
 pub use config::ServerConfig;
 pub use scene::{Scene, SceneError};
+pub use sensors::RenderThreadsError;
 pub use server::{RunSummary, Server};
 pub use ticker::OnTickerLoss;
 pub use timing::{FrameTime, FrameTimings};
@@ -109,6 +110,9 @@ pub enum ServerError {
         /// The longest accepted.
         max: f64,
     },
+    /// The render threads (`--render-threads`) could not be started.
+    #[error(transparent)]
+    RenderThreads(RenderThreadsError),
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}")]
     Transport {

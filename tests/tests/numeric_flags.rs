@@ -88,6 +88,7 @@ const FLAGS: &[Flag] = &[
     server_flag("--keyframe-seconds", NONE),
     server_flag("--max-clients", NONE),
     server_flag("--max-sensor-readers", NONE),
+    server_flag("--render-threads", NONE),
     server_flag("--max-frames", NONE),
     Flag {
         template: "boxes:{}",

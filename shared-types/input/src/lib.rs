@@ -304,6 +304,15 @@ pub fn max_sensor_readers(text: &str) -> Result<usize, InputError> {
     whole_in(text, 1..=MAX_MAX_SENSOR_READERS as u64).map(|n| n as usize)
 }
 
+/// `--render-threads`: `1..=`[`MAX_RENDER_THREADS`].
+pub fn render_threads(text: &str) -> Result<std::num::NonZeroUsize, InputError> {
+    whole_in(text, 1..=MAX_RENDER_THREADS as u64)
+        .map(|n| std::num::NonZeroUsize::new(n as usize).unwrap_or(std::num::NonZeroUsize::MIN))
+}
+
+/// The most render threads a server starts.
+pub const MAX_RENDER_THREADS: usize = 1024;
+
 /// Lockstep participants to wait for: `0..=`[`MAX_MAX_CLIENTS`] (a world
 /// admits no more).
 pub fn participants(text: &str) -> Result<u32, InputError> {
@@ -416,6 +425,10 @@ mod tests {
 
     #[test]
     fn huge_tiny_and_odd_values_are_refused_not_panicked_on() {
+        assert_eq!(render_threads("3").unwrap().get(), 3);
+        for refused in ["0", "-1", "1025", "1.5", "many", "18446744073709551616"] {
+            assert!(render_threads(refused).is_err(), "{refused}");
+        }
         assert!(timeout("1e20").is_err());
         assert!(timeout("0").is_err());
         assert!(timeout("-1").is_err());

@@ -8,6 +8,10 @@
 mod camera;
 mod capture;
 mod culling;
+mod renderer;
+
+pub use renderer::RenderThreadsError;
+use renderer::Renderer;
 
 /// The default scene after 1.2 s (the sphere rolling, boxes tumbling, the
 /// capsule falling) and the id of one of its vehicles: what the ray-casting
@@ -29,6 +33,7 @@ fn default_world_in_motion() -> (World, u64) {
 }
 
 use std::mem::MaybeUninit;
+use std::num::NonZeroUsize;
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
@@ -84,6 +89,8 @@ pub(crate) struct Sensors {
     limits: WorldLimits,
     /// Spawns and ends since the recorder last took them.
     journal: Vec<SensorNote>,
+    /// The threads cameras and lidars render on.
+    renderer: Renderer,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
@@ -116,7 +123,11 @@ impl std::fmt::Debug for Sensors {
 impl Sensors {
     /// Opens the sensor service; no sensors yet, each will admit
     /// `limits.max_sensor_readers` readers.
-    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(
+        transport: &Transport,
+        limits: &WorldLimits,
+        render_threads: Option<NonZeroUsize>,
+    ) -> Result<Self, ServerError> {
         let spec = &transport.services.sensors;
         let service = spec
             .open_or_create(&transport.node, limits)
@@ -130,6 +141,7 @@ impl Sensors {
             next_id: 0,
             limits: *limits,
             journal: Vec::new(),
+            renderer: Renderer::new(render_threads).map_err(ServerError::RenderThreads)?,
         })
     }
 
@@ -346,6 +358,7 @@ impl Sensors {
         episode: u64,
         mut record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
     ) {
+        let renderer = &self.renderer;
         for sensor in &mut self.list {
             if elapsed_ns < sensor.next_capture_ns {
                 continue;
@@ -373,7 +386,8 @@ impl Sensors {
                 SensorPort::Depth(port) => unsafe {
                     publish(port, header, record.as_deref_mut(), |slots, header| {
                         header.count = slots.len() as u32;
-                        camera::depth_into(world, &sensor.spec, pose, slots)
+                        let spec = &sensor.spec;
+                        renderer.run(|| camera::depth_into(world, spec, pose, slots))
                     })
                 },
                 SensorPort::Lidar(port) => {
@@ -384,14 +398,10 @@ impl Sensors {
                     // every remaining slot.
                     unsafe {
                         publish(port, header, record.as_deref_mut(), |slots, header| {
-                            header.count = capture::lidar_into(
-                                world,
-                                &sensor.spec,
-                                &mut sensor.lidar_rays,
-                                pose,
-                                sweep,
-                                slots,
-                            ) as u32;
+                            let (spec, rays) = (&sensor.spec, &mut sensor.lidar_rays);
+                            header.count = renderer
+                                .run(|| capture::lidar_into(world, spec, rays, pose, sweep, slots))
+                                as u32;
                         })
                     }
                 }

@@ -157,7 +157,7 @@ impl Server {
         let ticker = Ticker::open(&transport, &limits)?;
         let batches = Batches::open(&transport, &limits)?;
         let lockstep = Lockstep::open(&transport, &limits)?;
-        let sensors = Sensors::open(&transport, &limits)?;
+        let sensors = Sensors::open(&transport, &limits, config.render_threads)?;
         let recorder = RecorderPort::open(&transport, &limits)?;
         let now = Instant::now();
         let domains = Domains {

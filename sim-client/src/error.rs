@@ -75,6 +75,13 @@ pub enum RequestError {
         /// How long the client waited.
         timeout: Duration,
     },
+    /// The wait was interrupted ([`crate::set_interrupt_check`]: Ctrl-C
+    /// in the Python package).
+    #[error("interrupted while waiting on world '{world}'")]
+    Interrupted {
+        /// The world.
+        world: String,
+    },
     /// The server process is gone.
     #[error("the server of world '{world}' (pid {pid}) has exited")]
     ServerGone {
@@ -177,6 +184,13 @@ pub enum WaitError {
         timeout: Duration,
         /// The last frame this client saw.
         last_frame: Option<u64>,
+    },
+    /// The wait was interrupted ([`crate::set_interrupt_check`]: Ctrl-C
+    /// in the Python package).
+    #[error("interrupted while waiting on world '{world}'")]
+    Interrupted {
+        /// The world.
+        world: String,
     },
     /// The server process is gone.
     #[error("the server of world '{world}' (pid {pid}) has exited")]

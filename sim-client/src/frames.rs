@@ -128,7 +128,7 @@ impl FrameStream {
             }
             Err(Stop::Failed(e)) => Err(e),
             Err(Stop::Event(e)) => Err(WaitError::transport("frame-ready wait", e)),
-            Err(Stop::TimedOut | Stop::ServerGone) => Ok(None),
+            Err(Stop::TimedOut | Stop::ServerGone | Stop::Interrupted) => Ok(None),
         }
     }
 
@@ -160,6 +160,9 @@ impl FrameStream {
                 Stop::ServerGone => WaitError::ServerGone {
                     world: world.to_owned(),
                     pid,
+                },
+                Stop::Interrupted => WaitError::Interrupted {
+                    world: world.to_owned(),
                 },
                 Stop::Event(e) => WaitError::transport("frame-ready wait", e),
             },

@@ -65,7 +65,7 @@ pub use snapshot::{FrameView, WorldSnapshot};
 pub use standby::{StandbyTicker, TakeOver};
 pub use status::{ParticipantStatus, Status, TickerStatus};
 pub use ticker::Ticker;
-pub use wait::process_alive;
+pub use wait::{process_alive, set_interrupt_check};
 
 /// What most programs use: `use sim_client::prelude::*;`.
 pub mod prelude {

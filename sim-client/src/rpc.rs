@@ -421,6 +421,9 @@ fn await_with<T>(
             world: world.to_owned(),
             pid: server_pid,
         },
+        Stop::Interrupted => RequestError::Interrupted {
+            world: world.to_owned(),
+        },
         Stop::Event(e) => RequestError::transport("event wait", e),
     })
 }

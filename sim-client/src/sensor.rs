@@ -319,6 +319,9 @@ impl Sensor {
                     world: self.world.clone(),
                     pid,
                 },
+                Stop::Interrupted => WaitError::Interrupted {
+                    world: self.world.clone(),
+                },
                 Stop::Event(e) => WaitError::transport("frame-ready wait", e),
             },
         )

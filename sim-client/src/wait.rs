@@ -3,6 +3,7 @@
 //! block on an event, back off, or spin, until the deadline — and end early
 //! when the server process is gone.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -32,6 +33,32 @@ pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
 
 /// How often a waiting client checks that the server process still lives.
 pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
+
+/// The interrupt check, a `fn() -> bool` stored as its address (0: none).
+static INTERRUPT: AtomicUsize = AtomicUsize::new(0);
+
+/// Makes every wait of this process's clients (a tick, a frame, a capture,
+/// an answer) call `check` at least every 100 ms, and end with an
+/// `Interrupted` error when it returns true: how a host language delivers
+/// Ctrl-C to a wait (the Python package checks its signals there). `None`
+/// removes it. A wait checks nothing else and costs nothing without one.
+pub fn set_interrupt_check(check: Option<fn() -> bool>) {
+    INTERRUPT.store(check.map_or(0, |f| f as usize), Ordering::Release);
+}
+
+/// Whether the interrupt check, if any, says to stop.
+fn interrupted() -> bool {
+    match INTERRUPT.load(Ordering::Acquire) {
+        0 => false,
+        address => {
+            // SAFETY: a non-zero value was stored by `set_interrupt_check`
+            // from a `fn() -> bool`; function pointers and `usize` have the
+            // same size, and functions are never unloaded while stored here.
+            let check: fn() -> bool = unsafe { std::mem::transmute(address) };
+            check()
+        }
+    }
+}
 
 /// How to pass the time between polls.
 #[derive(Debug, Clone, Copy)]
@@ -69,11 +96,14 @@ pub(crate) enum Stop<E> {
     ServerGone,
     /// The event could not be waited on.
     Event(ListenerWaitError),
+    /// The interrupt check ([`set_interrupt_check`]) said to stop.
+    Interrupted,
 }
 
 /// Calls `poll` until it yields, waiting between calls as `wait` says,
 /// until `deadline`; checks every [`LIVENESS_PERIOD`] that `server_pid`
-/// (when non-zero) still lives.
+/// (when non-zero) still lives and that the interrupt check, if any, does
+/// not say to stop.
 pub(crate) fn until<T, E>(
     deadline: Instant,
     server_pid: u32,
@@ -94,6 +124,9 @@ pub(crate) fn until<T, E>(
         if now >= next_liveness_check {
             if server_pid != 0 && !process_alive(server_pid) {
                 return Err(Stop::ServerGone);
+            }
+            if interrupted() {
+                return Err(Stop::Interrupted);
             }
             next_liveness_check = now + LIVENESS_PERIOD;
         }

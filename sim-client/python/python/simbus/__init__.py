@@ -1,0 +1,58 @@
+"""simbus for Python: ticks, frames and sensor captures of a simbus world at
+shared-memory speed, frames' actors and captures as numpy arrays over the
+shared memory itself.
+
+>>> import simbus
+>>> client = simbus.connect("default")            # doctest: +SKIP
+>>> with client.ticker(delta_seconds=0.05) as ticker:  # doctest: +SKIP
+...     frame_id = ticker.tick()
+...     with client.wait_for_frame() as frame:
+...         print(frame.frame, frame.actors["position"][:3])
+"""
+
+from . import _errors
+from ._errors import (
+    CommandError,
+    Error,
+    Full,
+    NotTickerError,
+    ProtocolMismatch,
+    ReleasedError,
+    SensorEnded,
+    ServerGone,
+    SettingsError,
+    TimeoutError,
+)
+from ._simbus import (
+    PROTOCOL_VERSION,
+    Client,
+    Frame,
+    Frames,
+    Settings,
+    Status,
+    Ticker,
+    TickerInfo,
+    connect,
+)
+
+__all__ = [
+    "PROTOCOL_VERSION",
+    "Client",
+    "CommandError",
+    "Error",
+    "Frame",
+    "Frames",
+    "Full",
+    "NotTickerError",
+    "ProtocolMismatch",
+    "ReleasedError",
+    "SensorEnded",
+    "ServerGone",
+    "Settings",
+    "SettingsError",
+    "Status",
+    "Ticker",
+    "TickerInfo",
+    "TimeoutError",
+    "connect",
+]

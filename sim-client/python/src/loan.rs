@@ -1,0 +1,102 @@
+//! Numpy arrays over shared memory. A [`Loan`] holds a sample the server
+//! lent (a frame, a capture); an array made over it has the loan as its
+//! base object, so the sample stays lent while any array views it, and the
+//! array never reads memory that went back to the server. The arrays are
+//! read-only: the server's samples are mapped read-only in a client.
+
+use numpy::ndarray::ArrayView1;
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+/// A sample lent by the server: what numpy arrays over shared memory keep
+/// alive. Bound to the thread that received it (iceoryx2's samples are).
+#[pyclass(module = "simbus", unsendable)]
+pub(crate) struct Loan {
+    pub(crate) sample: Lent,
+}
+
+/// What a [`Loan`] holds.
+pub(crate) enum Lent {
+    /// A frame's snapshot.
+    Frame(sim_client::FrameView),
+    /// A sensor capture.
+    Capture(sim_client::Capture),
+}
+
+impl std::fmt::Debug for Loan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.sample {
+            Lent::Frame(view) => write!(f, "Loan(frame {})", view.frame()),
+            Lent::Capture(capture) => write!(f, "Loan(capture {})", capture.header().sequence),
+        }
+    }
+}
+
+#[pymethods]
+impl Loan {
+    fn __repr__(&self) -> String {
+        format!("<simbus {self:?}>")
+    }
+}
+
+impl Loan {
+    /// The bytes of the sample's payload.
+    fn bytes(&self) -> &[u8] {
+        match &self.sample {
+            Lent::Frame(view) => bytemuck_bytes(view.actors()),
+            Lent::Capture(capture) => capture.bytes(),
+        }
+    }
+}
+
+fn bytemuck_bytes(actors: &[shared_types::ActorState]) -> &[u8] {
+    // SAFETY: `ActorState` is `#[repr(C)]` plain old data (integers and
+    // floats, no padding: the wire layout); its bytes are initialised.
+    unsafe {
+        std::slice::from_raw_parts(actors.as_ptr().cast::<u8>(), std::mem::size_of_val(actors))
+    }
+}
+
+/// A read-only `uint8` array over `loan`'s payload, its base the loan.
+pub(crate) fn bytes_of<'py>(loan: &Bound<'py, Loan>) -> PyResult<Bound<'py, PyArray1<u8>>> {
+    let borrowed = loan.borrow();
+    let bytes = borrowed.bytes();
+    let view = ArrayView1::from(bytes);
+    // SAFETY: the array views memory the loan owns (the sample's payload in
+    // shared memory, mapped for as long as the sample lives); the loan is
+    // the array's base object, so it outlives the array, and nothing
+    // changes the payload while it is lent (the server writes a sample
+    // only before it sends it).
+    let array = unsafe { PyArray1::borrow_from_array(&view, loan.clone().into_any()) };
+    drop(borrowed);
+    array.call_method1("setflags", (false,))?;
+    Ok(array)
+}
+
+/// A read-only array over `loan`'s payload as `dtype` elements, shaped
+/// `shape` (its base chain ends at the loan).
+pub(crate) fn view_as<'py>(
+    loan: &Bound<'py, Loan>,
+    dtype: &Bound<'py, PyAny>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyAny>> {
+    let bytes = bytes_of(loan)?;
+    let typed = bytes.call_method1("view", (dtype,))?;
+    typed.call_method1("reshape", (PyList::new(loan.py(), shape)?,))
+}
+
+/// A numpy structured dtype from `(name, format, offset)` fields and the
+/// record's size.
+pub(crate) fn structured_dtype<'py>(
+    py: Python<'py>,
+    fields: &[(&str, &str, usize)],
+    itemsize: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let spec = PyDict::new(py);
+    spec.set_item("names", fields.iter().map(|f| f.0).collect::<Vec<_>>())?;
+    spec.set_item("formats", fields.iter().map(|f| f.1).collect::<Vec<_>>())?;
+    spec.set_item("offsets", fields.iter().map(|f| f.2).collect::<Vec<_>>())?;
+    spec.set_item("itemsize", itemsize)?;
+    py.import("numpy")?.getattr("dtype")?.call1((spec,))
+}

@@ -1,0 +1,184 @@
+//! [`Ticker`]: tick ownership of a world, `with client.ticker(...)`.
+
+use pyo3::prelude::*;
+use shared_types::WorldSettings;
+
+use crate::client::seconds;
+use crate::errors;
+use crate::gil::detached;
+use crate::settings::{Changes, Settings};
+
+/// The world's single ticker: `tick()` computes the next frame. Leaving
+/// the `with` block (or `release()`) puts the settings back as they were
+/// before the claim, asynchronous, and gives the world back.
+#[pyclass(module = "simbus", unsendable)]
+#[derive(Debug)]
+pub(crate) struct Ticker {
+    inner: Option<sim_client::Ticker>,
+    /// The settings to put back on release (`None`: nothing to put back).
+    restore: Option<WorldSettings>,
+    /// The settings in force: the world's at the claim, then what this
+    /// ticker applied (while it ticks, only it changes them).
+    settings: WorldSettings,
+    timeout: std::time::Duration,
+}
+
+impl Ticker {
+    /// Claims `client`'s world and, with `delta_seconds`, applies a fixed
+    /// step (and synchronous mode unless asked otherwise).
+    pub(crate) fn claim(
+        py: Python<'_>,
+        client: &sim_client::Client,
+        delta_seconds: Option<f64>,
+        synchronous_mode: bool,
+        timeout: f64,
+    ) -> PyResult<Self> {
+        let timeout = seconds("timeout", timeout)?;
+        let (ticker, before) = detached(py, || {
+            let before = client.get_settings().map_err(sim_client::TickError::from)?;
+            client.claim_ticker().map(|t| (t, before))
+        })
+        .map_err(errors::tick)?;
+        let mut held = Ticker {
+            inner: Some(ticker),
+            restore: None,
+            settings: before,
+            timeout,
+        };
+        if let Some(delta) = delta_seconds {
+            let wanted = Changes {
+                synchronous_mode: Some(synchronous_mode),
+                fixed_delta_seconds: Some(delta),
+                ..Changes::default()
+            }
+            .applied_to(before);
+            held.apply(py, wanted)?;
+            let restore = WorldSettings {
+                synchronous_mode: false,
+                ..before
+            };
+            held.restore = (restore != wanted).then_some(restore);
+        }
+        Ok(held)
+    }
+
+    fn held(&mut self) -> PyResult<&mut sim_client::Ticker> {
+        self.inner.as_mut().ok_or_else(|| {
+            errors::raise(
+                "NotTickerError",
+                "this ticker was released; claim the world again with client.ticker()",
+            )
+        })
+    }
+
+    fn apply(&mut self, py: Python<'_>, settings: WorldSettings) -> PyResult<u64> {
+        let ticker = self.held()?;
+        let frame = detached(py, || ticker.apply_settings(settings)).map_err(errors::settings)?;
+        self.settings = settings;
+        Ok(frame)
+    }
+}
+
+#[pymethods]
+impl Ticker {
+    /// Computes the next frame and returns its id once its snapshot is
+    /// published (a `wait_for_frame` after it sees it). Waits up to
+    /// `timeout` seconds (the claim's by default); a tick held up by a
+    /// lockstep participant waits for the server to drop it.
+    #[pyo3(signature = (timeout = None))]
+    fn tick(&mut self, py: Python<'_>, timeout: Option<f64>) -> PyResult<u64> {
+        let timeout = match timeout {
+            Some(t) => seconds("timeout", t)?,
+            None => self.timeout,
+        };
+        let ticker = self.held()?;
+        detached(py, || ticker.tick(timeout)).map_err(errors::tick)
+    }
+
+    /// The last frame this ticker produced (or saw when claiming).
+    #[getter]
+    fn last_frame(&self) -> Option<u64> {
+        self.inner.as_ref()?.last_frame().map(|(frame, _)| frame)
+    }
+
+    /// Changes the given settings as the ticker (which may enter or leave
+    /// synchronous mode); returns the first frame computed with them.
+    #[pyo3(signature = (*, synchronous_mode = None, fixed_delta_seconds = None, substepping = None, max_substep_delta_time = None, max_substeps = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn apply_settings(
+        &mut self,
+        py: Python<'_>,
+        synchronous_mode: Option<bool>,
+        fixed_delta_seconds: Option<f64>,
+        substepping: Option<bool>,
+        max_substep_delta_time: Option<f64>,
+        max_substeps: Option<u32>,
+    ) -> PyResult<u64> {
+        let changes = Changes {
+            synchronous_mode,
+            fixed_delta_seconds,
+            substepping,
+            max_substep_delta_time,
+            max_substeps,
+        };
+        self.apply(py, changes.applied_to(self.settings))
+    }
+
+    /// The settings in force (the ticker's own view: only it changes them).
+    #[getter]
+    fn settings(&self) -> Settings {
+        self.settings.into()
+    }
+
+    /// Puts the settings back as they were before the claim (asynchronous)
+    /// and gives the world back. Called by the end of a `with` block;
+    /// harmless twice.
+    fn release(&mut self, py: Python<'_>) -> PyResult<()> {
+        let Some(mut ticker) = self.inner.take() else {
+            return Ok(());
+        };
+        let restore = self.restore.take();
+        let restored = detached(py, || match restore {
+            Some(settings) => ticker.apply_settings(settings).map(|_| ()),
+            None => Ok(()),
+        });
+        let released = detached(py, || ticker.release());
+        restored.map_err(errors::settings)?;
+        released.map_err(errors::tick)
+    }
+
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __exit__(
+        &mut self,
+        py: Python<'_>,
+        _kind: Option<Bound<'_, PyAny>>,
+        _value: Option<Bound<'_, PyAny>>,
+        _traceback: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.release(py)
+    }
+
+    fn __repr__(&self) -> String {
+        match &self.inner {
+            Some(t) => format!(
+                "<simbus.Ticker world={:?} last_frame={:?}>",
+                t.world().as_str(),
+                self.last_frame()
+            ),
+            None => "<simbus.Ticker released>".to_owned(),
+        }
+    }
+}
+
+impl Drop for Ticker {
+    fn drop(&mut self) {
+        // Dropped without release (garbage collected): the settings still
+        // go back; the Rust ticker releases ownership as it drops.
+        if let (Some(ticker), Some(settings)) = (self.inner.as_mut(), self.restore.take()) {
+            let _ = ticker.apply_settings(settings);
+        }
+    }
+}

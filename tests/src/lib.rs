@@ -19,7 +19,7 @@ mod python;
 pub mod raw;
 mod root;
 pub use hosts::{Host, Mirrored, TwoHosts};
-pub use python::{python, python_requirements};
+pub use python::{python, python_requirements, python_with_simbus};
 pub use root::PrivateRoot;
 
 /// A binary of the workspace (`sim-server`, `sim-client`), from the same

@@ -1,12 +1,14 @@
 //! The Python tests (`tests/python`, pytest): CARLA 0.9.16's own client
 //! library against the gateway, a Foxglove WebSocket client against the
 //! live view, a Zenoh peer and a ROS 2 CDR decoder against the Zenoh
-//! bridge; run in the venv the fixture creates with pinned packages. Each
-//! test starts its own server and the process it checks.
+//! bridge, and simbus's own Python package (`sim-client/python`, built
+//! from this checkout into the venv: `test_simbus_*.py`); run in the venv
+//! the fixture creates with pinned packages. Each test starts its own
+//! server and the process it checks.
 
 #[test]
 fn the_python_tests_pass() {
-    let python = simbus_tests::python();
+    let python = simbus_tests::python_with_simbus();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python");
     let bin_dir = simbus_tests::bin("sim-client")
         .parent()

@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 use pyo3::types::PyType;
+use shared_types::SensorEnd;
 use sim_client::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, WaitError,
 };
@@ -77,7 +78,18 @@ pub(crate) fn connect(error: ConnectError) -> PyErr {
     raise(kind, message(&error))
 }
 
-/// A wait error as its exception (`SensorEnded` carries the reason).
+/// The word `simbus.SensorEnded.reason` holds for `end`.
+fn end_word(end: SensorEnd) -> &'static str {
+    match end {
+        SensorEnd::Destroyed => "destroyed",
+        SensorEnd::ParentDestroyed => "parent destroyed",
+        SensorEnd::EpisodeEnded => "episode ended",
+        SensorEnd::ServerStopped => "server stopped",
+    }
+}
+
+/// A wait error as its exception (`SensorEnded` carries the reason in a
+/// word; a subscriber holding all it may is `Full`).
 pub(crate) fn wait(error: WaitError) -> PyErr {
     let kind = match &error {
         WaitError::Interrupted { .. } => return interrupted(),
@@ -85,12 +97,14 @@ pub(crate) fn wait(error: WaitError) -> PyErr {
         WaitError::ServerGone { .. } => "ServerGone",
         WaitError::ProtocolMismatch { .. } => "ProtocolMismatch",
         WaitError::SensorEnded { reason, .. } => {
-            let text = message(&error);
-            let reason = reason.to_string();
+            let (text, word) = (message(&error), end_word(*reason));
             return Python::attach(|py| match class(py, "SensorEnded") {
-                Ok(class) => PyErr::from_type(class, (text, reason)),
+                Ok(class) => PyErr::from_type(class, (text, word)),
                 Err(e) => e,
             });
+        }
+        WaitError::Transport { source, .. } if source.to_string().contains("ExceedsMaxBorrows") => {
+            "Full"
         }
         _ => "Error",
     };

@@ -1,8 +1,477 @@
-//! Sensors: spawning them, reading captures as numpy arrays over shared memory, listening on a thread.
+//! Sensors: spawning them (`client.spawn_sensor(...)`), reading captures
+//! as numpy arrays over the capture's shared memory ([`Capture`]), and
+//! listening on a thread of their own ([`Listening`]).
+//!
+//! A capture's arrays view the sample the server lent, through a
+//! [`Loan`] that is the arrays' base object: no copy, and no array outlives
+//! its sample. The sample belongs to the thread that received it (iceoryx2's
+//! samples do), so the arrays are read there; a capture's other values
+//! (frame, pose, ...) and `copy()`'s arrays may go anywhere.
 
+mod capture;
+mod listen;
+
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use shared_types::{
+    DepthCamera, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal, SensorSpec,
+    SensorSpecError,
+};
+use sim_client::{SensorError, WaitError};
+
+use self::capture::Capture;
+use self::listen::Listening;
+use crate::client::{seconds, Client};
+use crate::errors::{self, message, raise};
+use crate::gil::detached;
 
 /// Adds this module's classes and functions to the extension module.
-pub(crate) fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Sensor>()?;
+    m.add_class::<Capture>()?;
+    m.add_class::<Listening>()?;
+    m.add_class::<SensorInfo>()?;
     Ok(())
+}
+
+/// A sensor request's error as its exception: a spec that breaks a rule is
+/// a `ValueError` (nothing was sent), a refusal (unknown actor or sensor)
+/// a `simbus.CommandError`, a failed request as every request's.
+fn sensor_error(error: SensorError) -> PyErr {
+    // The Rust message says it all (a spec error is also its source).
+    let text = error.to_string();
+    match error {
+        SensorError::InvalidSpec(_) => PyValueError::new_err(text),
+        SensorError::Refused(SensorRefusal::NoMemory) => raise("Error", text),
+        SensorError::Refused(_) | SensorError::UnknownSensor { .. } => raise("CommandError", text),
+        SensorError::Request(e) => errors::request(e),
+    }
+}
+
+/// A capture wait's error as its exception: `simbus.Full`, saying what to
+/// do, when this reader holds as many captures as it may; the rest as
+/// every wait's ([`errors::wait`]).
+fn wait_error(sensor: u64, error: WaitError) -> PyErr {
+    match &error {
+        WaitError::Transport { source, .. } if source.to_string().contains("ExceedsMaxBorrows") => {
+            raise(
+                "Full",
+                format!(
+                    "this reader of sensor {sensor} already holds {MAX_HELD} captures: release() one (copy() what you keep), or delete the arrays that view it ({})",
+                    message(&error)
+                ),
+            )
+        }
+        _ => errors::wait(error),
+    }
+}
+
+/// How many captures one reader may hold at once (the sensor services'
+/// `subscriber_borrowed`).
+const MAX_HELD: usize = 2;
+
+/// A size given as a number: a whole one, or the Rust check's error
+/// (`not_whole`, or NaN's) as a `ValueError`. The check bounds it.
+fn whole(value: f64, not_whole: SensorSpecError) -> PyResult<u32> {
+    let error = match value {
+        v if !v.is_finite() => SensorSpecError::NotFinite,
+        v if v.fract() != 0.0 || !(1.0..=f64::from(u32::MAX)).contains(&v) => not_whole,
+        v => return Ok(v as u32),
+    };
+    Err(sensor_error(SensorError::InvalidSpec(error)))
+}
+
+/// The spec `kind` and the keyword arguments of `spawn_sensor` describe
+/// (checked by the Rust client before anything is sent).
+fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
+    use SensorKind as Kind;
+    let Some(kind) = Kind::from_name(kind) else {
+        return Err(PyValueError::new_err(format!(
+            "unknown sensor kind {kind:?}: expected 'depth', 'lidar' or 'imu'"
+        )));
+    };
+    let given: [(&str, bool, &[Kind]); 9] = [
+        ("width", p.width.is_some(), &[Kind::Depth]),
+        ("height", p.height.is_some(), &[Kind::Depth]),
+        ("fov", p.fov.is_some(), &[Kind::Depth]),
+        ("range", p.range.is_some(), &[Kind::Depth, Kind::Lidar]),
+        ("channels", p.channels.is_some(), &[Kind::Lidar]),
+        ("points", p.points.is_some(), &[Kind::Lidar]),
+        ("upper_fov", p.upper_fov.is_some(), &[Kind::Lidar]),
+        ("lower_fov", p.lower_fov.is_some(), &[Kind::Lidar]),
+        (
+            "rotation_frequency",
+            p.rotation_frequency.is_some(),
+            &[Kind::Lidar],
+        ),
+    ];
+    for (name, present, kinds) in given {
+        if present && !kinds.contains(&kind) {
+            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+            return Err(PyValueError::new_err(format!(
+                "{name} applies to {} sensors, not to {}",
+                names.join(" and "),
+                kind.name()
+            )));
+        }
+    }
+    let at = p.at.map(|v| v as f32);
+    let mut spec = match kind {
+        Kind::Depth => SensorSpec::with_params(
+            at,
+            DepthCamera {
+                width: whole(p.width.unwrap_or(640.0), SensorSpecError::DepthSize)?,
+                height: whole(p.height.unwrap_or(480.0), SensorSpecError::DepthSize)?,
+                fov: p.fov.unwrap_or(90.0) as f32,
+                range: p.range.unwrap_or(100.0) as f32,
+            },
+        ),
+        Kind::Lidar => SensorSpec::with_params(
+            at,
+            Lidar {
+                channels: whole(p.channels.unwrap_or(32.0), SensorSpecError::LidarSize)?,
+                points: whole(p.points.unwrap_or(512.0), SensorSpecError::LidarSize)?,
+                range: p.range.unwrap_or(50.0) as f32,
+                upper_fov: p.upper_fov.unwrap_or(10.0) as f32,
+                lower_fov: p.lower_fov.unwrap_or(-30.0) as f32,
+                rotation_hz: p.rotation_frequency.unwrap_or(0.0) as f32,
+            },
+        ),
+        Kind::Imu => SensorSpec::imu(at),
+    };
+    spec.rotation = p.rotation.unwrap_or_default().map(|v| v as f32);
+    Ok(spec.attached_to(p.parent.unwrap_or(0)).every(p.sensor_tick))
+}
+
+/// `spawn_sensor`'s keyword arguments.
+struct SpawnParams {
+    parent: Option<u64>,
+    at: [f64; 3],
+    rotation: Option<[f64; 4]>,
+    sensor_tick: f64,
+    width: Option<f64>,
+    height: Option<f64>,
+    fov: Option<f64>,
+    range: Option<f64>,
+    channels: Option<f64>,
+    points: Option<f64>,
+    upper_fov: Option<f64>,
+    lower_fov: Option<f64>,
+    rotation_frequency: Option<f64>,
+}
+
+#[pymethods]
+impl Client {
+    /// Builds a sensor and subscribes to it: `kind` is `"depth"`,
+    /// `"lidar"` or `"imu"`. It rides on actor `parent` (and dies with it)
+    /// or, without one, stays fixed in the world; `at` is its position
+    /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
+    /// default), `rotation` its orientation relative to the parent as a
+    /// quaternion (x, y, z, w), `sensor_tick` its capture
+    /// period in simulation seconds (0: every frame). Depth: `width`,
+    /// `height` (640 x 480), horizontal `fov` in degrees (90), far `range`
+    /// in metres (100). Lidar: `channels` (32), `points` per channel in a
+    /// turn (512), `range` (50), `upper_fov`/`lower_fov` in degrees
+    /// (10/-30), `rotation_frequency` in Hz (0: a full turn every capture).
+    /// Invalid values raise `ValueError` and spawn nothing; an unknown
+    /// parent raises `simbus.CommandError`.
+    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn spawn_sensor(
+        slf: &Bound<'_, Self>,
+        kind: &str,
+        parent: Option<u64>,
+        at: [f64; 3],
+        rotation: Option<[f64; 4]>,
+        sensor_tick: f64,
+        width: Option<f64>,
+        height: Option<f64>,
+        fov: Option<f64>,
+        range: Option<f64>,
+        channels: Option<f64>,
+        points: Option<f64>,
+        upper_fov: Option<f64>,
+        lower_fov: Option<f64>,
+        rotation_frequency: Option<f64>,
+    ) -> PyResult<Sensor> {
+        let params = SpawnParams {
+            parent,
+            at,
+            rotation,
+            sensor_tick,
+            width,
+            height,
+            fov,
+            range,
+            channels,
+            points,
+            upper_fov,
+            lower_fov,
+            rotation_frequency,
+        };
+        let spec = spec_for(kind, &params)?;
+        let client = slf.borrow();
+        let inner = &client.inner;
+        let sensor = detached(slf.py(), || inner.spawn_sensor(spec)).map_err(|e| match e {
+            SensorError::Refused(SensorRefusal::UnknownActor) => raise(
+                "CommandError",
+                format!(
+                    "{e}: world '{}' has no actor {}",
+                    inner.world().as_str(),
+                    spec.attach_to
+                ),
+            ),
+            e => sensor_error(e),
+        })?;
+        Ok(Sensor::new(slf, sensor))
+    }
+
+    /// Subscribes to the existing sensor `id` (`simbus.CommandError` names
+    /// an id the world does not have).
+    fn sensor(slf: &Bound<'_, Self>, id: u64) -> PyResult<Sensor> {
+        let client = slf.borrow();
+        let inner = &client.inner;
+        let sensor = detached(slf.py(), || inner.sensor(id)).map_err(sensor_error)?;
+        Ok(Sensor::new(slf, sensor))
+    }
+
+    /// Every sensor of the world, as `simbus.SensorInfo`s.
+    fn list_sensors(&self, py: Python<'_>) -> PyResult<Vec<SensorInfo>> {
+        let list = detached(py, || self.inner.list_sensors()).map_err(sensor_error)?;
+        Ok(list.into_iter().map(SensorInfo::from).collect())
+    }
+
+    /// Removes sensor `id` from the world; its readers' next read raises
+    /// `simbus.SensorEnded`. An unknown id raises `simbus.CommandError`
+    /// naming it.
+    fn destroy_sensor(&self, py: Python<'_>, id: u64) -> PyResult<()> {
+        detached(py, || self.inner.destroy_sensor(id)).map_err(sensor_error)
+    }
+}
+
+/// What the world says about one sensor (`client.list_sensors()`); a
+/// parameter of another kind is `None`.
+#[pyclass(module = "simbus", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub(crate) struct SensorInfo {
+    /// The sensor's id.
+    id: u64,
+    /// `"depth"`, `"lidar"` or `"imu"`.
+    kind: &'static str,
+    /// The actor it rides on, or `None` when fixed in the world.
+    parent: Option<u64>,
+    /// Position relative to the parent (or the world), metres.
+    position: (f32, f32, f32),
+    /// Orientation relative to the parent, quaternion (x, y, z, w); zeros
+    /// mean none.
+    rotation: (f32, f32, f32, f32),
+    /// Capture period in simulation seconds (0: every frame).
+    sensor_tick: f64,
+    /// Captures so far.
+    captures: u64,
+    /// Depth: image width in pixels.
+    width: Option<u32>,
+    /// Depth: image height in pixels.
+    height: Option<u32>,
+    /// Depth: horizontal field of view, degrees.
+    fov: Option<f32>,
+    /// Depth: far range; lidar: range, metres.
+    range: Option<f32>,
+    /// Lidar: channels.
+    channels: Option<u32>,
+    /// Lidar: points per channel in a full turn.
+    points: Option<u32>,
+    /// Lidar: elevation of the top channel, degrees.
+    upper_fov: Option<f32>,
+    /// Lidar: elevation of the bottom channel, degrees.
+    lower_fov: Option<f32>,
+    /// Lidar: rotation frequency, Hz (0: a full turn every capture).
+    rotation_frequency: Option<f32>,
+}
+
+impl From<Info> for SensorInfo {
+    fn from(info: Info) -> Self {
+        let spec = &info.spec;
+        let (depth, lidar) = (spec.depth_camera(), spec.lidar_params());
+        let [x, y, z] = spec.position;
+        let [qx, qy, qz, qw] = spec.rotation;
+        Self {
+            id: info.id,
+            kind: kind_name(spec.kind),
+            parent: (spec.attach_to != 0).then_some(spec.attach_to),
+            position: (x, y, z),
+            rotation: (qx, qy, qz, qw),
+            sensor_tick: spec.sensor_tick,
+            captures: info.captures,
+            width: depth.map(|d| d.width),
+            height: depth.map(|d| d.height),
+            fov: depth.map(|d| d.fov),
+            range: match spec.sensor_params() {
+                Some(SensorParams::Depth(d)) => Some(d.range),
+                Some(SensorParams::Lidar(l)) => Some(l.range),
+                _ => None,
+            },
+            channels: lidar.map(|l| l.channels),
+            points: lidar.map(|l| l.points),
+            upper_fov: lidar.map(|l| l.upper_fov),
+            lower_fov: lidar.map(|l| l.lower_fov),
+            rotation_frequency: lidar.map(|l| l.rotation_hz),
+        }
+    }
+}
+
+#[pymethods]
+impl SensorInfo {
+    fn __repr__(&self) -> String {
+        format!(
+            "<simbus.SensorInfo {} {} parent={:?} captures={}>",
+            self.id, self.kind, self.parent, self.captures
+        )
+    }
+}
+
+/// The name of wire kind `kind`.
+fn kind_name(kind: u32) -> &'static str {
+    SensorKind::from_u32(kind).map_or("unknown", |k| k.name())
+}
+
+/// A subscription to one sensor (`client.spawn_sensor(...)`,
+/// `client.sensor(id)`). In synchronous mode a reader that reads every
+/// capture before the next tick gets each frame's, none lost; a slower one
+/// loses the oldest (4 are queued), counted by `missed`. A reader holds at
+/// most 2 captures at once: release them. Leaving a `with` block closes
+/// the reader (the sensor stays in the world; `destroy()` removes it).
+/// Bound to the thread that opened it.
+#[pyclass(module = "simbus", unsendable)]
+#[derive(Debug)]
+pub(crate) struct Sensor {
+    /// The reader; `None` once closed.
+    inner: Option<sim_client::Sensor>,
+    id: u64,
+    kind: u32,
+    /// The client that opened it (destroy asks through it).
+    client: Py<Client>,
+}
+
+impl Sensor {
+    fn new(client: &Bound<'_, Client>, inner: sim_client::Sensor) -> Self {
+        Self {
+            id: inner.id(),
+            kind: inner.spec().kind,
+            inner: Some(inner),
+            client: client.clone().unbind(),
+        }
+    }
+
+    fn open(&mut self) -> PyResult<&mut sim_client::Sensor> {
+        let id = self.id;
+        self.inner.as_mut().ok_or_else(|| {
+            raise(
+                "Error",
+                format!(
+                    "the reader of sensor {id} was closed; open it again with client.sensor({id})"
+                ),
+            )
+        })
+    }
+}
+
+#[pymethods]
+impl Sensor {
+    /// The sensor's id.
+    #[getter]
+    fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// `"depth"`, `"lidar"` or `"imu"`.
+    #[getter]
+    fn kind(&self) -> &'static str {
+        kind_name(self.kind)
+    }
+
+    /// Captures this reader lost since it subscribed (it fell more than 4
+    /// behind).
+    #[getter]
+    fn missed(&self) -> u64 {
+        self.inner.as_ref().map_or(0, |s| s.missed())
+    }
+
+    /// Whether the reader was closed.
+    #[getter]
+    fn closed(&self) -> bool {
+        self.inner.is_none()
+    }
+
+    /// The next capture, waiting up to `timeout` seconds (the GIL
+    /// released). Raises `simbus.TimeoutError` when none came, and
+    /// `simbus.SensorEnded` (with `reason`) once the sensor is gone.
+    #[pyo3(signature = (timeout = 5.0))]
+    fn read(&mut self, py: Python<'_>, timeout: f64) -> PyResult<Capture> {
+        let (timeout, id) = (seconds("timeout", timeout)?, self.id);
+        let reader = self.open()?;
+        let capture = detached(py, || reader.recv(timeout)).map_err(|e| wait_error(id, e))?;
+        Capture::lent(py, capture)
+    }
+
+    /// The next queued capture, or `None` without waiting.
+    fn try_read(&mut self, py: Python<'_>) -> PyResult<Option<Capture>> {
+        let id = self.id;
+        let capture = self.open()?.try_recv().map_err(|e| wait_error(id, e))?;
+        capture.map(|c| Capture::lent(py, c)).transpose()
+    }
+
+    /// Calls `callback(capture)` with every capture from now on, on a
+    /// thread of its own with its own client and subscription (CARLA's
+    /// `sensor.listen`), until `stop()`. A capture's arrays are valid
+    /// during the callback: `copy()` what you keep. Exceptions raised by
+    /// the callback are printed (with their traceback) and counted; the
+    /// listening goes on. The sensor's end stops it (`Listening.ended`).
+    #[pyo3(signature = (callback, *, timeout = 5.0))]
+    fn listen(&self, py: Python<'_>, callback: Py<PyAny>, timeout: f64) -> PyResult<Listening> {
+        if !callback.bind(py).is_callable() {
+            return Err(pyo3::exceptions::PyTypeError::new_err(
+                "callback must be callable",
+            ));
+        }
+        let world = self.client.borrow(py).inner.world().to_string();
+        Listening::start(py, world, seconds("timeout", timeout)?, self.id, callback)
+    }
+
+    /// Removes the sensor from the world and closes this reader.
+    fn destroy(&mut self, py: Python<'_>) -> PyResult<()> {
+        let client = self.client.borrow(py);
+        let (inner, id) = (&client.inner, self.id);
+        detached(py, || inner.destroy_sensor(id)).map_err(sensor_error)?;
+        self.inner = None;
+        Ok(())
+    }
+
+    /// Closes this reader (the sensor stays in the world). Captures still
+    /// held stay valid until released.
+    fn close(&mut self) {
+        self.inner = None;
+    }
+
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __exit__(
+        &mut self,
+        _kind: Option<Bound<'_, PyAny>>,
+        _value: Option<Bound<'_, PyAny>>,
+        _traceback: Option<Bound<'_, PyAny>>,
+    ) {
+        self.close();
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<simbus.Sensor {} {}{}>",
+            self.id,
+            self.kind(),
+            if self.closed() { " closed" } else { "" }
+        )
+    }
 }

@@ -71,11 +71,9 @@ impl Changes {
     pub(crate) fn applied_to(self, current: WorldSettings) -> WorldSettings {
         WorldSettings {
             synchronous_mode: self.synchronous_mode.unwrap_or(current.synchronous_mode),
-            fixed_delta_seconds: match self.fixed_delta_seconds {
-                Some(d) if d == 0.0 => None,
-                Some(d) => Some(d),
-                None => current.fixed_delta_seconds,
-            },
+            fixed_delta_seconds: self
+                .fixed_delta_seconds
+                .map_or(current.fixed_delta_seconds, |d| (d != 0.0).then_some(d)),
             substepping: self.substepping.unwrap_or(current.substepping),
             max_substep_delta_time: self
                 .max_substep_delta_time

@@ -1,0 +1,309 @@
+//! [`Capture`]: one capture of a sensor, its data a numpy array over the
+//! capture's shared memory (the [`Loan`] is the array's base object, so no
+//! array outlives its sample).
+
+use std::mem::{offset_of, size_of};
+use std::thread::ThreadId;
+
+use pyo3::exceptions::PyBufferError;
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PySlice, PyString, PyTuple};
+use shared_types::{ImuMeasurement, LidarPoint, SensorHeader, SensorKind};
+
+use super::kind_name;
+use crate::errors::raise;
+use crate::loan::{bytes_of, structured_dtype, Lent, Loan};
+
+/// An IMU capture's dtype: the wire layout of [`ImuMeasurement`].
+fn imu_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                (
+                    "accelerometer",
+                    "(3,)<f4",
+                    offset_of!(ImuMeasurement, accelerometer),
+                ),
+                (
+                    "gyroscope",
+                    "(3,)<f4",
+                    offset_of!(ImuMeasurement, gyroscope),
+                ),
+            ];
+            structured_dtype(py, &fields, size_of::<ImuMeasurement>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// One capture: its header's values, and its data as a numpy array over
+/// the capture's shared memory while the capture is held (`release()`,
+/// the end of a `with` block, or `copy()` to keep it). The arrays are
+/// read, and the capture released, on the thread that read it; its other
+/// values, and a copy, go anywhere.
+#[pyclass(module = "simbus")]
+#[derive(Debug)]
+pub(crate) struct Capture {
+    header: SensorHeader,
+    /// The sample, while held; `None` once released.
+    pub(super) loan: Option<Py<Loan>>,
+    /// The thread the sample belongs to (the one that received it).
+    thread: ThreadId,
+    /// The data, copied (a capture from `copy()`).
+    owned: Option<Py<PyAny>>,
+}
+
+impl Capture {
+    /// A capture over `capture`, lent until released.
+    pub(crate) fn lent(py: Python<'_>, capture: sim_client::Capture) -> PyResult<Self> {
+        let header = *capture.header();
+        let loan = Py::new(
+            py,
+            Loan {
+                sample: Lent::Capture(capture),
+            },
+        )?;
+        Ok(Self {
+            header,
+            loan: Some(loan),
+            thread: std::thread::current().id(),
+            owned: None,
+        })
+    }
+
+    /// The loan, on the thread it belongs to.
+    fn loan<'py>(&self, py: Python<'py>) -> PyResult<&Bound<'py, Loan>> {
+        let Some(loan) = &self.loan else {
+            return Err(raise(
+                "ReleasedError",
+                format!(
+                    "capture {} of sensor {} (frame {}) was released: its shared memory went back to the server (copy() a capture to keep it)",
+                    self.header.sequence, self.header.sensor_id, self.header.frame
+                ),
+            ));
+        };
+        if std::thread::current().id() != self.thread {
+            return Err(raise(
+                "Error",
+                format!(
+                    "capture {} of sensor {} belongs to the thread that received it: use its arrays there, or copy() it there to use it anywhere",
+                    self.header.sequence, self.header.sensor_id
+                ),
+            ));
+        }
+        Ok(loan.bind(py))
+    }
+
+    /// How many arrays view the loan.
+    pub(super) fn views(&self) -> isize {
+        self.loan.as_ref().map_or(0, |loan| {
+            // SAFETY: `loan` is a live object (this capture holds a reference).
+            unsafe { pyo3::ffi::Py_REFCNT(loan.as_ptr()) - 1 }
+        })
+    }
+
+    /// The array over the start of the loan's payload: elements of
+    /// `element` bytes viewed as `dtype`, shaped `shape` (the sizes come
+    /// from the server's header: checked against the sample).
+    fn typed<'py>(
+        &self,
+        loan: &Bound<'py, Loan>,
+        dtype: &Bound<'py, PyAny>,
+        element: usize,
+        shape: &[usize],
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let py = loan.py();
+        let bytes = bytes_of(loan)?;
+        let wanted = shape.iter().try_fold(element, |n, &d| n.checked_mul(d));
+        let have = bytes.as_any().len()?;
+        let Some(wanted) = wanted.filter(|&n| n <= have) else {
+            return Err(raise(
+                "Error",
+                format!(
+                    "capture {} of sensor {} says it holds {shape:?} elements of {element} bytes but its sample has {have} bytes",
+                    self.header.sequence, self.header.sensor_id
+                ),
+            ));
+        };
+        let slice = PySlice::new(py, 0, wanted as isize, 1);
+        let prefix = bytes.as_any().get_item(slice)?;
+        let typed = prefix.call_method1("view", (dtype,))?;
+        typed.call_method1("reshape", (PyTuple::new(py, shape)?,))
+    }
+}
+
+#[pymethods]
+impl Capture {
+    /// The frame captured.
+    #[getter]
+    fn frame(&self) -> u64 {
+        self.header.frame
+    }
+
+    /// Simulation time of the frame since the episode began, nanoseconds.
+    #[getter]
+    fn elapsed_ns(&self) -> u64 {
+        self.header.elapsed_ns
+    }
+
+    /// Simulation time of the frame since the episode began, seconds.
+    #[getter]
+    fn elapsed_seconds(&self) -> f64 {
+        self.header.elapsed_ns as f64 / 1e9
+    }
+
+    /// The episode of the frame.
+    #[getter]
+    fn episode(&self) -> u64 {
+        self.header.episode
+    }
+
+    /// Captures of this sensor so far, this one included (gaps: missed).
+    #[getter]
+    fn sequence(&self) -> u64 {
+        self.header.sequence
+    }
+
+    /// The sensor's id.
+    #[getter]
+    fn sensor_id(&self) -> u64 {
+        self.header.sensor_id
+    }
+
+    /// `"depth"`, `"lidar"` or `"imu"`.
+    #[getter]
+    fn kind(&self) -> &'static str {
+        kind_name(self.header.kind)
+    }
+
+    /// Depth: image width in pixels; lidar: channels; IMU: 1.
+    #[getter]
+    fn width(&self) -> u32 {
+        self.header.size[0]
+    }
+
+    /// Depth: image height in pixels; lidar: points per channel; IMU: 1.
+    #[getter]
+    fn height(&self) -> u32 {
+        self.header.size[1]
+    }
+
+    /// Valid elements: pixels, lidar returns, 1 IMU reading.
+    #[getter]
+    fn count(&self) -> u32 {
+        self.header.count
+    }
+
+    /// The sensor's position in the world at capture, metres.
+    #[getter]
+    fn position(&self) -> (f32, f32, f32) {
+        let [x, y, z] = self.header.position;
+        (x, y, z)
+    }
+
+    /// The sensor's orientation in the world at capture, quaternion
+    /// (x, y, z, w).
+    #[getter]
+    fn rotation(&self) -> (f32, f32, f32, f32) {
+        let [x, y, z, w] = self.header.rotation;
+        (x, y, z, w)
+    }
+
+    /// Wall-clock time at which the server published it (seconds).
+    #[getter]
+    fn timestamp(&self) -> f64 {
+        self.header.platform_timestamp
+    }
+
+    /// The data, read-only, over the capture's shared memory (its base
+    /// keeps the capture lent while it lives): depth `float32 (height,
+    /// width)` metres; lidar `float32 (N, 4)` x, y, z, intensity for the N
+    /// returns; IMU one record (`accelerometer`, `gyroscope`).
+    #[getter]
+    fn array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(owned) = &self.owned {
+            return Ok(owned.bind(py).clone());
+        }
+        let loan = self.loan(py)?;
+        let f4 = PyString::new(py, "<f4").into_any();
+        let [w, h] = self.header.size.map(|v| v as usize);
+        match SensorKind::from_u32(self.header.kind) {
+            Some(SensorKind::Depth) => self.typed(loan, &f4, size_of::<f32>(), &[h, w]),
+            Some(SensorKind::Lidar) => {
+                let element = size_of::<LidarPoint>();
+                let slots = match &loan.borrow().sample {
+                    Lent::Capture(c) => c.bytes().len() / element,
+                    Lent::Frame(_) => 0,
+                };
+                let n = (self.header.count as usize).min(slots);
+                self.typed(loan, &f4, size_of::<f32>(), &[n, 4])
+            }
+            _ => self.typed(loan, imu_dtype(py)?, size_of::<ImuMeasurement>(), &[1]),
+        }
+    }
+
+    /// Whether the data is still held (lent, or copied).
+    #[getter]
+    fn held(&self) -> bool {
+        self.loan.is_some() || self.owned.is_some()
+    }
+
+    /// A capture with the same values and its own copy of the data: it
+    /// holds no shared memory, and may go to any thread.
+    fn copy(&self, py: Python<'_>) -> PyResult<Capture> {
+        let array = self.array(py)?.call_method0("copy")?;
+        Ok(Capture {
+            header: self.header,
+            loan: None,
+            thread: self.thread,
+            owned: Some(array.unbind()),
+        })
+    }
+
+    /// Gives the capture's shared memory back to the server. Raises
+    /// `BufferError` while numpy arrays still view it (delete them, or
+    /// `copy()` first); afterwards `array` raises `simbus.ReleasedError`.
+    fn release(&mut self, py: Python<'_>) -> PyResult<()> {
+        if self.loan.is_none() {
+            return Ok(());
+        }
+        self.loan(py)?;
+        let views = self.views();
+        if views > 0 {
+            return Err(PyBufferError::new_err(format!(
+                "{views} numpy array(s) still view capture {} of sensor {} (frame {}): delete them, or copy() them first",
+                self.header.sequence, self.header.sensor_id, self.header.frame
+            )));
+        }
+        self.loan = None;
+        Ok(())
+    }
+
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __exit__(
+        &mut self,
+        py: Python<'_>,
+        _kind: Option<Bound<'_, PyAny>>,
+        _value: Option<Bound<'_, PyAny>>,
+        _traceback: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.release(py)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<simbus.Capture sensor {} {} frame {} #{} {}x{}{}>",
+            self.header.sensor_id,
+            self.kind(),
+            self.header.frame,
+            self.header.sequence,
+            self.header.size[0],
+            self.header.size[1],
+            if self.held() { "" } else { " released" }
+        )
+    }
+}

@@ -1,0 +1,367 @@
+"""The `simbus` Python package against real servers: connecting, settings,
+the ticker, frames as numpy arrays over shared memory, and what a Python
+program relies on (exceptions, the GIL released while waiting, Ctrl-C,
+thread binding, determinism)."""
+
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+
+import pytest
+
+import simbus
+
+BIN = os.environ["SIMBUS_BIN_DIR"]
+_counter = itertools.count()
+
+
+def unique_world(tag):
+    return f"py-{tag}-{os.getpid()}-{next(_counter)}"
+
+
+class Server:
+    """A sim-server on a world of its own, killed and reaped by `stop`."""
+
+    def __init__(self, tag, *args):
+        self.world = unique_world(tag)
+        self.proc = subprocess.Popen(
+            [os.path.join(BIN, "sim-server"), "--world", self.world, *args],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        )
+
+    def client(self, **kwargs):
+        return simbus.connect(self.world, timeout=10.0, **kwargs)
+
+    def sim_client(self, *args, **kwargs):
+        return subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", self.world, *args],
+            start_new_session=True, **kwargs,
+        )
+
+    def stop(self):
+        self.proc.kill()
+        self.proc.wait()
+
+
+@pytest.fixture
+def server(request):
+    started = []
+
+    def start(*args):
+        s = Server(request.node.name[:20].replace("[", "-").replace("]", ""), *args)
+        started.append(s)
+        return s
+
+    yield start
+    for s in started:
+        s.stop()
+
+
+def python_child(code, world):
+    """A Python process running `code` (with `world` and simbus imported),
+    its stdout a pipe."""
+    return subprocess.Popen(
+        [sys.executable, "-c", f"import simbus, sys\nworld = {world!r}\n{code}"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+
+
+def test_settings_round_trip_and_the_substep_rule(server):
+    client = server().client()
+    before = client.settings()
+    assert before.synchronous_mode is False
+    frame = client.apply_settings(fixed_delta_seconds=0.02, max_substeps=4)
+    assert frame >= 1
+    after = client.settings()
+    assert (after.fixed_delta_seconds, after.max_substeps) == (0.02, 4)
+    assert after.max_substep_delta_time == before.max_substep_delta_time
+    # 0.5 s in substeps of at most 0.01 s x 4: refused, nothing changed.
+    with pytest.raises(simbus.SettingsError, match="substep"):
+        client.apply_settings(fixed_delta_seconds=0.5)
+    with pytest.raises(ValueError):  # SettingsError is a ValueError too
+        client.apply_settings(max_substeps=0)
+    with pytest.raises(simbus.SettingsError):
+        client.apply_settings(fixed_delta_seconds=float("nan"))
+    assert client.settings() == after
+    with pytest.raises(TypeError):
+        client.apply_settings(max_substeps="four")
+    with pytest.raises(simbus.SettingsError, match="tick owner"):
+        client.apply_settings(synchronous_mode=True)
+    assert client.settings() == after
+
+
+def test_a_thousand_ticks_keep_exact_integer_nanosecond_time(server):
+    client = server().client()
+    with client.ticker(delta_seconds=0.05) as ticker:
+        assert client.settings().synchronous_mode
+        first = ticker.tick()
+        with client.wait_for_frame() as frame:
+            assert frame.frame == first
+            start_ns = frame.elapsed_ns
+        for n in range(1, 1000):
+            assert ticker.tick() == first + n
+            with client.wait_for_frame() as frame:
+                assert (frame.frame, frame.missed) == (first + n, 0)
+                assert frame.elapsed_ns == start_ns + n * 50_000_000
+                assert frame.delta_seconds == 0.05
+    # Leaving the block gave the world back, asynchronous, as it was.
+    settings = client.settings()
+    assert settings.synchronous_mode is False
+    assert settings.fixed_delta_seconds is None
+    assert client.status().ticker is None
+
+
+def test_a_second_ticker_is_refused_naming_the_owner(server):
+    s = server()
+    owner = s.client()
+    other = s.client()
+    with owner.ticker(delta_seconds=0.05) as ticker:
+        ticker.tick()
+        with pytest.raises(simbus.NotTickerError, match=str(os.getpid())):
+            other.ticker()
+        # Refused changes nothing: the owner still ticks.
+        assert ticker.tick() == ticker.last_frame
+        assert other.status().ticker.pid == os.getpid()
+
+
+def test_a_killed_python_ticker_is_replaced_from_the_next_frame(server):
+    s = server("--sync", "--delta-seconds", "0.05")
+    child = python_child(
+        "c = simbus.connect(world, timeout=10)\n"
+        "t = c.ticker()\n"
+        "for _ in range(20):\n"
+        "    print(t.tick(), flush=True)\n"
+        "print('ticked', flush=True)\n"
+        "sys.stdin.read() if False else __import__('time').sleep(3600)\n",
+        s.world,
+    )
+    try:
+        lines = [child.stdout.readline() for _ in range(21)]
+        assert lines[-1].strip() == "ticked", lines
+        last = int(lines[-2])
+    finally:
+        child.kill()
+        child.wait()
+    client = s.client()
+    # The server notices the death (a pidfd); a claim succeeds once it has.
+    for attempt in itertools.count():
+        try:
+            ticker = client.ticker()
+            break
+        except simbus.NotTickerError:
+            assert attempt < 100_000, "the dead ticker's claim was never dropped"
+    with ticker:
+        assert client.status().frame == last
+        assert ticker.tick() == last + 1
+
+
+def test_frames_actors_match_sim_client_watch_json(server):
+    s = server("--sync", "--delta-seconds", "0.05", "--seed", "7")
+    client = s.client()
+    watch = s.sim_client("watch", "--json", "--lockstep", "--frames", "20",
+                         stdout=subprocess.PIPE, text=True)
+    try:
+        seen = {}
+        with client.ticker() as ticker:
+            # The watcher joins the lockstep, then every tick waits for it.
+            while client.status().participants == 0:
+                assert watch.poll() is None, "the watcher exited"
+            for _ in range(20):
+                ticker.tick()
+                with client.wait_for_frame() as frame:
+                    actors = frame.actors
+                    assert actors.flags.writeable is False
+                    assert list(actors["id"]) == sorted(actors["id"])
+                    norms = (actors["rotation"] ** 2).sum(axis=1)
+                    assert abs(norms - 1).max() < 1e-4
+                    seen[frame.frame] = (frame.elapsed_ns, len(actors), frame.digest,
+                                         actors.copy())
+                    del actors
+        out, _ = watch.communicate(timeout=30)
+    finally:
+        watch.kill()
+        watch.wait()
+    rows = [json.loads(line) for line in out.splitlines()]
+    assert len(rows) == 20
+    for row in rows:
+        elapsed_ns, count, digest, _ = seen[row["frame"]]
+        assert row["elapsed_ns"] == elapsed_ns
+        assert row["actors"] == count
+        assert row["digest"] == f"{digest:016x}"
+
+
+def test_an_array_never_outlives_its_frame(server):
+    s = server()
+    client = s.client()
+    frame = client.wait_for_frame()
+    actors = frame.actors
+    ids = actors["id"].copy()
+    # The frame cannot go back while an array views it...
+    with pytest.raises(BufferError, match="still view"):
+        frame.release()
+    assert (actors["id"] == ids).all()
+    assert actors.base is not None
+    kept = frame.copy()
+    del actors
+    frame.release()
+    # ...and once released, it raises instead of reading freed memory.
+    assert not frame.held
+    with pytest.raises(simbus.ReleasedError):
+        frame.actors
+    assert (kept.actors["id"] == ids).all()
+    assert kept.held
+
+
+def test_an_array_over_shared_memory_is_read_only(server):
+    client = server().client()
+    with client.wait_for_frame() as frame:
+        actors = frame.actors
+        with pytest.raises(ValueError, match="read-only"):
+            actors["position"][0] = (1.0, 2.0, 3.0)
+        with pytest.raises(ValueError):
+            actors.flags.writeable = True
+        del actors
+
+
+def test_the_gil_is_released_while_a_tick_waits(server):
+    # Asynchronous at 5 frames per second: a tick waits ~200 ms for its frame.
+    client = server("--max-fps", "5").client()
+    counted = []
+    stop = threading.Event()
+
+    def count():
+        n = 0
+        while not stop.is_set():
+            n += 1
+        counted.append(n)
+
+    with client.ticker() as ticker:
+        ticker.tick()
+        thread = threading.Thread(target=count)
+        thread.start()
+        try:
+            ticker.tick()
+        finally:
+            stop.set()
+            thread.join()
+    # A thread kept off the GIL for the whole wait would count a handful.
+    assert counted[0] > 10_000
+
+
+def test_ctrl_c_interrupts_a_wait(server):
+    s = server("--sync", "--delta-seconds", "0.05")
+    child = python_child(
+        "c = simbus.connect(world, timeout=10)\n"
+        "c.wait_for_frame().release()  # the current frame: at once\n"
+        "print('waiting', flush=True)\n"
+        "try:\n"
+        "    c.wait_for_frame(timeout=60)  # none comes: nobody ticks\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n",
+        s.world,
+    )
+    try:
+        assert child.stdout.readline().strip() == "waiting"
+        # Signalled once asleep in the wait (a futex), not before it.
+        while "futex" not in open(f"/proc/{child.pid}/wchan").read():
+            assert child.poll() is None, child.stderr.read()
+        os.kill(child.pid, signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        assert out.strip() == "interrupted", err
+    finally:
+        child.kill()
+        child.wait()
+
+
+def test_a_client_is_bound_to_its_thread(server):
+    client = server().client()
+    errors = []
+
+    def use_and_keep_the_error():
+        # PyO3 raises its PanicException (a BaseException) for an object
+        # used off its thread; nothing of the client is touched.
+        try:
+            client.status()
+        except BaseException as e:  # noqa: B036
+            errors.append(f"{type(e).__name__}: {e}")
+
+    thread = threading.Thread(target=use_and_keep_the_error)
+    thread.start()
+    thread.join()
+    assert len(errors) == 1 and "unsendable" in errors[0], errors
+    assert client.status().frame >= 0
+
+
+def test_bad_input_raises_and_changes_nothing(server):
+    s = server()
+    with pytest.raises(ValueError, match="timeout"):
+        simbus.connect(s.world, timeout=float("nan"))
+    with pytest.raises(ValueError, match="wait_mode"):
+        simbus.connect(s.world, wait_mode="fast")
+    with pytest.raises(ValueError):
+        simbus.connect("no spaces allowed")
+    with pytest.raises(simbus.TimeoutError):
+        simbus.connect(unique_world("nobody"), timeout=0.2)
+    client = s.client()
+    before = client.settings()
+    with pytest.raises(ValueError):
+        client.load_world("no-such-scene")
+    with pytest.raises(ValueError):
+        client.wait_for_frame(timeout=-1)
+    assert client.settings() == before
+    assert client.status().scene == "default"
+
+
+def test_the_package_digest_of_300_frames_equals_the_rust_clients(server):
+    args = ("--sync", "--delta-seconds", "0.05", "--seed", "3")
+    s = server(*args)
+    client = s.client()
+    python_digests = []
+    with client.ticker() as ticker:
+        for _ in range(300):
+            ticker.tick()
+            with client.wait_for_frame() as frame:
+                python_digests.append(f"frame {frame.frame} digest {frame.digest:016x}")
+    r = server(*args)
+    watch = r.sim_client("watch", "--digest", "--lockstep", "--frames", "300",
+                         stdout=subprocess.PIPE, text=True)
+    try:
+        probe = r.client()
+        while probe.status().participants == 0:
+            assert watch.poll() is None, "the watcher exited"
+        tick = r.sim_client("tick", "--count", "300", stdout=subprocess.DEVNULL)
+        assert tick.wait(timeout=120) == 0
+        out, _ = watch.communicate(timeout=60)
+    finally:
+        watch.kill()
+        watch.wait()
+    rust_digests = [line.strip() for line in out.splitlines() if line.startswith("frame")]
+    assert len(rust_digests) == 300
+    assert [d.split()[3] for d in python_digests] == [d.split()[3] for d in rust_digests]
+
+
+def test_the_type_stubs_cover_every_class_and_method():
+    import ast
+    import inspect
+
+    from simbus import _simbus
+
+    path = os.path.join(os.path.dirname(_simbus.__file__), "_simbus.pyi")
+    tree = ast.parse(open(path).read())
+    stubbed = {node.name: {item.name for item in node.body if isinstance(item, ast.FunctionDef)}
+               for node in tree.body if isinstance(node, ast.ClassDef)}
+    functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
+    for name, value in vars(_simbus).items():
+        if name.startswith("_"):
+            continue
+        if inspect.isclass(value):
+            assert name in stubbed, f"class {name} has no stub"
+            methods = {m for m in vars(value) if not m.startswith("_")}
+            assert methods <= stubbed[name], f"{name}: no stub for {methods - stubbed[name]}"
+        elif callable(value):
+            assert name in functions, f"function {name} has no stub"
+    assert set(simbus.__all__) <= set(dir(simbus))

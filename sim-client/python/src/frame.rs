@@ -3,13 +3,12 @@
 
 use std::mem::{offset_of, size_of};
 
-use pyo3::exceptions::PyBufferError;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use shared_types::{ActorState, FrameHeader};
 
 use crate::errors::raise;
-use crate::loan::{structured_dtype, view_as, Lent, Loan};
+use crate::loan::{give_back, structured_dtype, view_as, Lent, Loan};
 
 /// The actors' dtype: the wire layout of [`ActorState`], field by field.
 pub(crate) fn actor_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
@@ -173,18 +172,8 @@ impl Frame {
     /// `BufferError` while numpy arrays still view it (delete them, or
     /// `copy()` first); afterwards `actors` raises `simbus.ReleasedError`.
     fn release(&mut self) -> PyResult<()> {
-        if let Some(loan) = &self.loan {
-            // SAFETY: `loan` is a live object (this frame holds a reference).
-            let views = unsafe { pyo3::ffi::Py_REFCNT(loan.as_ptr()) } - 1;
-            if views > 0 {
-                return Err(PyBufferError::new_err(format!(
-                    "{views} numpy array(s) still view frame {}: delete them, or copy() them first",
-                    self.frame()
-                )));
-            }
-        }
-        self.loan = None;
-        Ok(())
+        let frame = self.frame();
+        give_back(&mut self.loan, || format!("frame {frame}"))
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

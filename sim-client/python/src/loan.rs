@@ -58,6 +58,27 @@ fn bytemuck_bytes(actors: &[shared_types::ActorState]) -> &[u8] {
     }
 }
 
+/// Gives `loan` back (empties it) unless numpy arrays still view it: then
+/// `BufferError` naming `what` (Python's `memoryview.release()` rule), and
+/// the loan stays.
+pub(crate) fn give_back(
+    loan: &mut Option<Py<Loan>>,
+    what: impl FnOnce() -> String,
+) -> PyResult<()> {
+    let views = loan.as_ref().map_or(0, |loan| {
+        // SAFETY: `loan` is a live object (the caller holds a reference).
+        unsafe { pyo3::ffi::Py_REFCNT(loan.as_ptr()) - 1 }
+    });
+    if views > 0 {
+        return Err(pyo3::exceptions::PyBufferError::new_err(format!(
+            "{views} numpy array(s) still view {}: delete them, or copy() them first",
+            what()
+        )));
+    }
+    *loan = None;
+    Ok(())
+}
+
 /// A read-only `uint8` array over `loan`'s payload, its base the loan.
 pub(crate) fn bytes_of<'py>(loan: &Bound<'py, Loan>) -> PyResult<Bound<'py, PyArray1<u8>>> {
     let borrowed = loan.borrow();

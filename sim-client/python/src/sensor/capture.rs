@@ -5,7 +5,6 @@
 use std::mem::{offset_of, size_of};
 use std::thread::ThreadId;
 
-use pyo3::exceptions::PyBufferError;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PySlice, PyString, PyTuple};
@@ -13,7 +12,7 @@ use shared_types::{ImuMeasurement, LidarPoint, SensorHeader, SensorKind};
 
 use super::kind_name;
 use crate::errors::raise;
-use crate::loan::{bytes_of, structured_dtype, Lent, Loan};
+use crate::loan::{bytes_of, give_back, structured_dtype, Lent, Loan};
 
 /// An IMU capture's dtype: the wire layout of [`ImuMeasurement`].
 fn imu_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
@@ -93,14 +92,6 @@ impl Capture {
             ));
         }
         Ok(loan.bind(py))
-    }
-
-    /// How many arrays view the loan.
-    pub(super) fn views(&self) -> isize {
-        self.loan.as_ref().map_or(0, |loan| {
-            // SAFETY: `loan` is a live object (this capture holds a reference).
-            unsafe { pyo3::ffi::Py_REFCNT(loan.as_ptr()) - 1 }
-        })
     }
 
     /// The array over the start of the loan's payload: elements of
@@ -269,15 +260,13 @@ impl Capture {
             return Ok(());
         }
         self.loan(py)?;
-        let views = self.views();
-        if views > 0 {
-            return Err(PyBufferError::new_err(format!(
-                "{views} numpy array(s) still view capture {} of sensor {} (frame {}): delete them, or copy() them first",
-                self.header.sequence, self.header.sensor_id, self.header.frame
-            )));
-        }
-        self.loan = None;
-        Ok(())
+        let h = self.header;
+        give_back(&mut self.loan, || {
+            format!(
+                "capture {} of sensor {} (frame {})",
+                h.sequence, h.sensor_id, h.frame
+            )
+        })
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

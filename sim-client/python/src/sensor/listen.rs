@@ -15,6 +15,7 @@ use super::{sensor_error, wait_error};
 use crate::client::seconds;
 use crate::errors::{self, raise};
 use crate::gil::detached;
+use crate::loan::give_back;
 
 /// A running `sensor.listen(callback)`: `stop()` (or the end of a `with`
 /// block) ends it; the sensor's end stops it too (`ended` says why).
@@ -139,12 +140,11 @@ fn deliver(py: Python<'_>, callback: &Py<PyAny>, capture: sim_client::Capture, s
         shared.failed.fetch_add(1, Ordering::Relaxed);
         e.display(py);
     }
-    let held = capture.try_borrow_mut(py);
-    if let Ok(mut held) = held {
-        if held.views() == 0 {
-            held.loan = None;
-        }
-    }
+    // Released unless the callback kept arrays over it (those keep the
+    // sample; it goes back when they do).
+    if let Ok(mut held) = capture.try_borrow_mut(py) {
+        let _ = give_back(&mut held.loan, String::new);
+    };
 }
 
 #[pymethods]

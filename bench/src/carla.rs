@@ -20,7 +20,7 @@ use crate::stats::{header, Latencies};
 use crate::support::{now_ns, sync_ticker, BenchServer};
 
 /// The CARLA client's side, run with the venv's Python.
-const SCRIPT: &str = include_str!("carla_bench.py");
+pub(crate) const SCRIPT: &str = include_str!("carla_bench.py");
 /// The client library the gateway speaks to.
 const CARLA: &str = "carla==0.9.16";
 
@@ -96,35 +96,37 @@ fn venv(bin: &Path) -> anyhow::Result<PathBuf> {
 }
 
 /// A free TCP port on loopback.
-fn free_port() -> anyhow::Result<u16> {
+pub(crate) fn free_port() -> anyhow::Result<u16> {
     Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
-/// The CARLA side: `script` run with the venv's `python` against the
-/// gateway on `port`.
+/// A Python side: `script` run with the venv's `python` against `target`
+/// (the CARLA client: the gateway's port; simbus's package: the world).
 #[derive(Debug, Clone, Copy)]
-struct CarlaSide<'a> {
-    python: &'a Path,
-    script: &'a Path,
-    port: u16,
+pub(crate) struct ScriptSide<'a> {
+    pub(crate) python: &'a Path,
+    pub(crate) script: &'a Path,
+    pub(crate) target: &'a str,
 }
 
-/// Runs the CARLA side in `mode` and returns its JSON answer; `started`
-/// runs while it works (with a channel that yields its output lines).
-fn carla_side(
-    carla: CarlaSide<'_>,
+/// Runs `side`'s script as `script MODE TARGET ARGS..` and returns its
+/// JSON answer (its last line); `started` runs while it works (with a
+/// channel that yields its output lines).
+pub(crate) fn script_side(
+    side: ScriptSide<'_>,
     mode: &str,
-    n: usize,
+    args: &[&str],
     started: impl FnOnce(&mpsc::Receiver<String>) -> anyhow::Result<()>,
 ) -> anyhow::Result<serde_json::Value> {
-    let CarlaSide {
+    let ScriptSide {
         python,
         script,
-        port,
-    } = carla;
+        target,
+    } = side;
     let mut child = Command::new(python)
         .arg(script)
-        .args([mode, &port.to_string(), &n.to_string()])
+        .args([mode, target])
+        .args(args)
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
         .spawn()
@@ -146,13 +148,17 @@ fn carla_side(
     }
     let status = guard.wait_timeout(Duration::from_secs(10))?;
     if !status.is_some_and(|s| s.success()) {
-        bail!("the CARLA client's {mode} run failed (its error is above)");
+        bail!(
+            "the {mode} run of {} failed (its error is above)",
+            script.display()
+        );
     }
-    let last = last.context("the CARLA client printed nothing")?;
+    let last = last.with_context(|| format!("{} printed nothing", script.display()))?;
     Ok(serde_json::from_str(&last)?)
 }
 
-fn latencies(answer: &serde_json::Value, key: &str) -> anyhow::Result<Latencies> {
+/// The nanosecond samples under `key` of a script's answer.
+pub(crate) fn latencies(answer: &serde_json::Value, key: &str) -> anyhow::Result<Latencies> {
     let mut l = Latencies::new();
     for v in answer[key].as_array().context("no samples")? {
         l.record(v.as_u64().unwrap_or(0));
@@ -160,7 +166,9 @@ fn latencies(answer: &serde_json::Value, key: &str) -> anyhow::Result<Latencies>
     Ok(l)
 }
 
-fn start_gateway(
+/// Starts `sim-client carla-gateway` for `world` on `port` (and its
+/// sensor streams on `streams`), once it says it listens.
+pub(crate) fn start_gateway(
     sim_client: &Path,
     world: &str,
     port: u16,
@@ -213,18 +221,20 @@ fn measure(
     let server = BenchServer::start("carla", &["--scene", "empty"])?;
     let (port, streams) = (free_port()?, free_port()?);
     let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
-    let carla = CarlaSide {
+    let port = port.to_string();
+    let carla = ScriptSide {
         python,
         script,
-        port,
+        target: &port,
     };
     let timeout = Duration::from_secs(30);
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
-    let (native_tick, carla_tick, carla_rpc) = tick_round_trips(args, &client, carla, timeout)?;
+    let (native_tick, carla_tick, carla_rpc) =
+        tick_round_trips(args.ticks, &client, carla, timeout)?;
     let mut ticker = sync_ticker(&client, 0.01)?;
     let (native_wait, carla_wait) =
-        wait_for_tick(args, &server.world, &mut ticker, carla, timeout)?;
-    let (native_fps, carla_fps) = depth_fps(args, &client, ticker, carla, timeout)?;
+        wait_for_tick(args.ticks, &server.world, &mut ticker, carla, timeout)?;
+    let (native_fps, carla_fps) = depth_fps(args.frames, &client, ticker, carla, timeout)?;
     report(
         args,
         &Measured {
@@ -241,40 +251,42 @@ fn measure(
     Ok(())
 }
 
-/// Tick round trip: native, then the CARLA client (and its bare RPC).
-fn tick_round_trips(
-    args: &CarlaArgs,
+/// Tick round trip, `ticks` of each: native, then the CARLA client (and
+/// its bare RPC).
+pub(crate) fn tick_round_trips(
+    ticks: usize,
     client: &Client,
-    carla: CarlaSide<'_>,
+    carla: ScriptSide<'_>,
     timeout: Duration,
 ) -> anyhow::Result<(Latencies, Latencies, Latencies)> {
     let mut ticker = sync_ticker(client, 0.01)?;
     let mut native_tick = Latencies::new();
-    for i in 0..args.ticks + args.ticks / 10 {
+    for i in 0..ticks + ticks / 10 {
         let start = Instant::now();
         ticker.tick(timeout)?;
-        if i >= args.ticks / 10 {
+        if i >= ticks / 10 {
             native_tick.record(start.elapsed().as_nanos() as u64);
         }
     }
     ticker.release()?;
-    let answer = carla_side(carla, "tick", args.ticks, |_| Ok(()))?;
+    let answer = script_side(carla, "tick", &[&ticks.to_string()], |_| Ok(()))?;
     let carla_tick = latencies(&answer, "ns")?;
     let carla_rpc = latencies(&answer, "floor_ns")?;
     Ok((native_tick, carla_tick, carla_rpc))
 }
 
-/// wait_for_tick: `ticker` steps every 2 ms; a native waiter and the CARLA
-/// client measure publish -> returned for the same frames.
-fn wait_for_tick(
-    args: &CarlaArgs,
+/// wait_for_tick: `ticker` steps every 2 ms; a native waiter and `side`
+/// (the CARLA client, or any script whose `wait` mode says "ready" once it
+/// saw a frame) measure publish -> returned for the same `ticks` frames.
+pub(crate) fn wait_for_tick(
+    ticks: usize,
     world: &str,
     ticker: &mut Ticker,
-    carla: CarlaSide<'_>,
+    side: ScriptSide<'_>,
     timeout: Duration,
 ) -> anyhow::Result<(Latencies, Latencies)> {
     let world = world.to_owned();
-    let samples = args.ticks;
+    let samples = ticks;
     let native_waiter = std::thread::spawn(move || -> anyhow::Result<Latencies> {
         let mut client = Client::connect(&world, Duration::from_secs(10))?;
         let mut l = Latencies::new();
@@ -286,7 +298,7 @@ fn wait_for_tick(
         }
         Ok(l)
     });
-    let carla_wait = carla_side(carla, "wait", args.ticks, |lines| {
+    let side_wait = script_side(side, "wait", &[&ticks.to_string()], |lines| {
         // Tick until the client saw a frame and said so, then on.
         loop {
             ticker.tick(timeout)?;
@@ -295,26 +307,27 @@ fn wait_for_tick(
             }
             std::thread::sleep(Duration::from_millis(2));
         }
-        for _ in 0..args.ticks + args.ticks / 2 {
+        for _ in 0..ticks + ticks / 2 {
             ticker.tick(timeout)?;
             std::thread::sleep(Duration::from_millis(2));
         }
         Ok(())
     })?;
-    let carla_wait = latencies(&carla_wait, "ns")?;
+    let side_wait = latencies(&side_wait, "ns")?;
     let native_wait = native_waiter
         .join()
         .map_err(|_| anyhow::anyhow!("the native waiter panicked"))??;
-    Ok((native_wait, carla_wait))
+    Ok((native_wait, side_wait))
 }
 
-/// Depth 640x480 frames per second: a native subscriber ticking with
-/// `ticker` (released after), then camera.listen on the CARLA client.
-fn depth_fps(
-    args: &CarlaArgs,
+/// Depth 640x480 frames per second, `frames` of each: a native subscriber
+/// ticking with `ticker` (released after), then camera.listen on the
+/// CARLA client.
+pub(crate) fn depth_fps(
+    frames: usize,
     client: &Client,
     mut ticker: Ticker,
-    carla: CarlaSide<'_>,
+    carla: ScriptSide<'_>,
     timeout: Duration,
 ) -> anyhow::Result<(f64, f64)> {
     let mut sensor =
@@ -324,7 +337,7 @@ fn depth_fps(
         sensor.recv(timeout)?;
     }
     let start = Instant::now();
-    for _ in 0..args.frames {
+    for _ in 0..frames {
         let frame = ticker.tick(timeout)?;
         let capture = sensor.recv(timeout)?;
         anyhow::ensure!(
@@ -332,10 +345,10 @@ fn depth_fps(
             "a capture of another frame"
         );
     }
-    let native_fps = args.frames as f64 / start.elapsed().as_secs_f64();
+    let native_fps = frames as f64 / start.elapsed().as_secs_f64();
     client.destroy_sensor(sensor.id())?;
     ticker.release()?;
-    let carla_fps = carla_side(carla, "depth", args.frames, |_| Ok(()))?["fps"]
+    let carla_fps = script_side(carla, "depth", &[&frames.to_string()], |_| Ok(()))?["fps"]
         .as_f64()
         .context("no fps")?;
     Ok((native_fps, carla_fps))

@@ -5,6 +5,10 @@ against the gateway. Prints one JSON object on its last line.
                                    and get_server_version() (no simbus) as the floor
     carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
     carla_bench.py depth PORT N    640x480 depth frames through camera.listen
+    carla_bench.py capture PORT N W H
+                                   a W x H depth camera through camera.listen:
+                                   world.tick() returned -> the image in hand
+                                   as a numpy array (np.frombuffer, no copy)
 """
 
 import json
@@ -74,8 +78,40 @@ def main():
         camera.destroy()
         sync(world, False)
         print(json.dumps({"fps": n / elapsed}))
+    elif mode == "capture":
+        width, height = int(sys.argv[4]), int(sys.argv[5])
+        print(json.dumps({"ns": capture(world, n, width, height)}))
     else:
         raise SystemExit(f"unknown mode {mode}")
+
+
+def capture(world, n, width, height):
+    """World.tick() returned -> a W x H depth image in hand as a numpy array
+    (its first and last byte read), n times after n // 10 to warm up."""
+    import numpy as np
+
+    sync(world, True)
+    blueprint = world.get_blueprint_library().find("sensor.camera.depth")
+    blueprint.set_attribute("image_size_x", str(width))
+    blueprint.set_attribute("image_size_y", str(height))
+    camera = world.spawn_actor(blueprint, carla.Transform(carla.Location(z=2.0)))
+    images = queue.Queue()
+    camera.listen(images.put)
+    samples = []
+    for i in range(n + n // 10):
+        frame = world.tick()
+        start = time.perf_counter_ns()
+        image = images.get(timeout=30)
+        array = np.frombuffer(image.raw_data, dtype=np.uint8)
+        array[0], array[-1]
+        elapsed = time.perf_counter_ns() - start
+        assert image.frame == frame and array.size == width * height * 4
+        if i >= n // 10:
+            samples.append(elapsed)
+    camera.stop()
+    camera.destroy()
+    sync(world, False)
+    return samples
 
 
 if __name__ == "__main__":

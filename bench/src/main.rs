@@ -9,6 +9,7 @@
 //! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
 //! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
 //! cargo run --release -p simbus-bench -- carla [--ticks N] [--frames N] [--python P] [--json]
+//! cargo run --release -p simbus-bench -- python [--ticks N] [--frames N] [--captures N] [--python P] [--json]
 //! cargo run --release -p simbus-bench -- substeps [--out DIR] [--seconds S] [--json]
 //! cargo run --release -p simbus-bench -- zenoh [--ticks N] [--captures N] [--no-veth] [--json]
 //! ```
@@ -26,6 +27,7 @@ mod frames;
 mod futex;
 mod peer;
 mod plot;
+mod python;
 mod recorder;
 mod scaling;
 mod sensors;
@@ -70,6 +72,11 @@ enum Command {
     /// the native client: tick round trip, wait_for_tick latency, depth
     /// 640x480 frames per second (needs `cargo build --release`).
     Carla(carla::CarlaArgs),
+    /// simbus's Python package (a release wheel built here) next to the
+    /// Rust client and CARLA's client through the gateway: tick round
+    /// trip, wait_for_frame, 8 B and 8 MiB captures to numpy, depth
+    /// 640x480 frames per second (needs `cargo build --release`).
+    Python(python::PythonArgs),
     /// Fan-out: the last of 1, 4, 16, 64 subscriber processes to hold a
     /// frame or an 8 MiB capture, spinning and blocking.
     Fanout(fanout::FanoutArgs),
@@ -100,6 +107,7 @@ fn main() -> ExitCode {
         Command::Sensors(a) => sensors::run(a),
         Command::Recorder(a) => recorder::run(a),
         Command::Carla(a) => carla::run(a),
+        Command::Python(a) => python::run(a),
         Command::Fanout(a) => fanout::run(a),
         Command::Substeps(a) => substeps::run(a),
         Command::Zenoh(a) => zenoh::run(a),

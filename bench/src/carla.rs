@@ -259,7 +259,23 @@ pub(crate) fn tick_round_trips(
     carla: ScriptSide<'_>,
     timeout: Duration,
 ) -> anyhow::Result<(Latencies, Latencies, Latencies)> {
+    let native_tick = native_ticks(client, ticks, sim_client::WaitMode::Block, timeout)?;
+    let answer = script_side(carla, "tick", &[&ticks.to_string()], |_| Ok(()))?;
+    let carla_tick = latencies(&answer, "ns")?;
+    let carla_rpc = latencies(&answer, "floor_ns")?;
+    Ok((native_tick, carla_tick, carla_rpc))
+}
+
+/// `ticks` tick round trips of the native client waiting as `mode` says
+/// (after a tenth as many to warm up).
+pub(crate) fn native_ticks(
+    client: &Client,
+    ticks: usize,
+    mode: sim_client::WaitMode,
+    timeout: Duration,
+) -> anyhow::Result<Latencies> {
     let mut ticker = sync_ticker(client, 0.01)?;
+    ticker.set_wait_mode(mode);
     let mut native_tick = Latencies::new();
     for i in 0..ticks + ticks / 10 {
         let start = Instant::now();
@@ -269,10 +285,7 @@ pub(crate) fn tick_round_trips(
         }
     }
     ticker.release()?;
-    let answer = script_side(carla, "tick", &[&ticks.to_string()], |_| Ok(()))?;
-    let carla_tick = latencies(&answer, "ns")?;
-    let carla_rpc = latencies(&answer, "floor_ns")?;
-    Ok((native_tick, carla_tick, carla_rpc))
+    Ok(native_tick)
 }
 
 /// wait_for_tick: `ticker` steps every 2 ms; a native waiter and `side`

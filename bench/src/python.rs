@@ -17,7 +17,7 @@ use sim_client::{Client, Ticker};
 
 use crate::carla::{self, latencies, script_side, ScriptSide};
 use crate::stats::{header, Latencies};
-use crate::support::{load_average, sibling, sync_ticker, BenchServer};
+use crate::support::{cpus_online, load_average, sibling, sync_ticker, BenchServer, Placement};
 
 /// The package's side, run with the venv's Python.
 const SCRIPT: &str = include_str!("python_bench.py");
@@ -254,6 +254,9 @@ struct Measured {
     /// The load average before the run.
     load: String,
     tick: Row,
+    /// The tick round trip in the package's default wait mode (hybrid):
+    /// Rust native, Python native.
+    hybrid_tick: [Latencies; 2],
     /// CARLA's bare version RPC: the floor under its tick.
     carla_rpc: Latencies,
     wait: Row,
@@ -287,11 +290,29 @@ fn measure(
     let timeout = Duration::from_secs(30);
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
 
+    // The tick rows under one placement (this process and the Python
+    // side it starts on CPU 0, the server on CPU 1): unpinned, each row's
+    // wake-ups cost what the scheduler's pick costs, not what the client
+    // does (the performance chapter's "placement decides").
+    let split = cpus_online() >= 2;
+    if split {
+        Placement::Split.apply(&[server.pid()])?;
+    }
     let (rust_tick, carla_tick, carla_rpc) =
         carla::tick_round_trips(args.ticks, &client, gateway, timeout)?;
     let ticks = args.ticks.to_string();
     let python_tick = latencies(&script_side(package, "tick", &[&ticks], |_| Ok(()))?, "ns")?;
+    let hybrid_tick = [
+        carla::native_ticks(&client, args.ticks, sim_client::WaitMode::Hybrid, timeout)?,
+        latencies(
+            &script_side(package, "tick", &[&ticks, "hybrid"], |_| Ok(()))?,
+            "ns",
+        )?,
+    ];
 
+    if split {
+        Placement::Unpinned.apply(&[server.pid()])?;
+    }
     let mut ticker = sync_ticker(&client, 0.01)?;
     let (rust_wait, python_wait) =
         carla::wait_for_tick(args.ticks, &server.world, &mut ticker, package, timeout)?;
@@ -306,6 +327,7 @@ fn measure(
             python: python_tick,
             carla: carla_tick,
         },
+        hybrid_tick,
         carla_rpc,
         wait: Row {
             rust: rust_wait,
@@ -418,13 +440,19 @@ impl Goal {
     }
 }
 
-fn goals(m: &Measured) -> [Goal; 4] {
+fn goals(m: &Measured) -> [Goal; 5] {
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     let [small, big] = [&m.captures[0], &m.captures[1]];
     [
         Goal {
-            what: "Python / Rust tick p50",
+            what: "Python / Rust tick p50, block",
             value: p50(&m.tick.python) / p50(&m.tick.rust),
+            at_most: true,
+            bound: 2.0,
+        },
+        Goal {
+            what: "Python / Rust tick p50, hybrid",
+            value: p50(&m.hybrid_tick[1]) / p50(&m.hybrid_tick[0]),
             at_most: true,
             bound: 2.0,
         },
@@ -470,6 +498,7 @@ fn report(args: &PythonArgs, m: &Measured) {
             serde_json::json!({
                 "load_before": m.load,
                 "tick_round_trip": row(&m.tick),
+                "tick_round_trip_hybrid": {"rust": m.hybrid_tick[0].json(), "python": m.hybrid_tick[1].json()},
                 "carla_version_rpc": m.carla_rpc.json(),
                 "wait_for_frame": row(&m.wait),
                 "capture_to_numpy": captures,
@@ -480,7 +509,7 @@ fn report(args: &PythonArgs, m: &Measured) {
         return;
     }
     println!(
-        "simbus's Python package (release wheel) vs the Rust client and CARLA's client through the gateway, one run, one server, every wait blocking (load average before: {})",
+        "simbus's Python package (release wheel) vs the Rust client and CARLA's client through the gateway, one run, one server, every wait blocking unless a row says; the tick rows with this process and the Python side on CPU 0, the server on CPU 1 (load average before: {})",
         m.load
     );
     let rows = |title: &str, r: &Row, carla: &str| {
@@ -491,6 +520,10 @@ fn report(args: &PythonArgs, m: &Measured) {
     };
     rows("tick round trip", &m.tick, "  CARLA world.tick");
     println!("{}", m.carla_rpc.row("  CARLA version RPC (floor)"));
+    println!("{}", header("tick round trip, hybrid"));
+    println!("{}", m.hybrid_tick[0].row("  Rust native"));
+    println!("{}", m.hybrid_tick[1].row("  Python native"));
+    println!("  (both poll 100 µs, then sleep: the package's default wait mode)");
     rows("wait_for_frame", &m.wait, "  CARLA wait_for_tick");
     println!("  (frame published -> the wait returned; the ticker steps every 2 ms)");
     for ((label, width, height), r) in CAPTURES.iter().zip(&m.captures) {

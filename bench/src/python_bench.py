@@ -2,7 +2,9 @@
 extension, a release build) against a world. Every wait blocks, as the Rust
 client's do by default. Prints one JSON object on its last line.
 
-    python_bench.py tick WORLD N      ticker.tick() round trips (this client ticks)
+    python_bench.py tick WORLD N [MODE]
+                                      ticker.tick() round trips (this client ticks,
+                                      waiting as MODE says: block, the default, or hybrid)
     python_bench.py wait WORLD N      wait_for_frame: publish -> returned (another ticks)
     python_bench.py capture WORLD N W H
                                       a W x H depth camera: tick returned -> the
@@ -89,7 +91,8 @@ def depth(client, n):
 
 def main():
     mode, world, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    client = simbus.connect(world, timeout=30.0, wait_mode="block")
+    mode_arg = sys.argv[4] if mode == "tick" and len(sys.argv) > 4 else "block"
+    client = simbus.connect(world, timeout=30.0, wait_mode=mode_arg)
     if mode == "tick":
         answer = tick(client, n)
     elif mode == "wait":

@@ -133,7 +133,7 @@ impl Placement {
     /// Pins this process (every thread) and `peers` (every thread of
     /// each) as the placement says; unpinned undoes earlier pinning.
     pub(crate) fn apply(self, peers: &[u32]) -> anyhow::Result<()> {
-        let all: Vec<usize> = (0..cpu_count()).collect();
+        let all: Vec<usize> = (0..cpus_online()).collect();
         let (mine, theirs) = match self {
             Placement::Same => (vec![0], vec![0]),
             Placement::Split => {
@@ -152,7 +152,7 @@ impl Placement {
 
 /// CPUs this machine has online (not what this process may use: the
 /// placement changes that).
-fn cpu_count() -> usize {
+pub(crate) fn cpus_online() -> usize {
     // SAFETY: sysconf reads a value and has no preconditions.
     let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
     usize::try_from(online).unwrap_or(1).max(1)

@@ -115,6 +115,17 @@ def test_a_thousand_ticks_keep_exact_integer_nanosecond_time(server):
     assert client.status().ticker is None
 
 
+@pytest.mark.parametrize("mode", ["block", "hybrid", "spin"])
+def test_every_wait_mode_ticks_and_reads_the_same_frames(server, mode):
+    client = server().client(wait_mode=mode)
+    assert client.wait_mode == mode
+    with client.ticker(delta_seconds=0.05) as ticker:
+        for _ in range(50):
+            frame = ticker.tick()
+            with client.wait_for_frame() as seen:
+                assert (seen.frame, seen.missed) == (frame, 0)
+
+
 def test_a_second_ticker_is_refused_naming_the_owner(server):
     s = server()
     owner = s.client()

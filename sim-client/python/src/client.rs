@@ -41,11 +41,15 @@ pub(crate) fn connect(
     timeout: f64,
     wait_mode: &str,
 ) -> PyResult<Client> {
+    let mode = self::wait_mode(wait_mode)?;
     let builder = sim_client::Client::builder(world)
         .timeout(seconds("timeout", timeout)?)
-        .wait_mode(self::wait_mode(wait_mode)?);
+        .wait_mode(mode);
     let client = detached(py, || builder.connect()).map_err(errors::connect)?;
-    Ok(Client { inner: client })
+    Ok(Client {
+        inner: client,
+        wait_mode: mode,
+    })
 }
 
 /// A connection to one world: settings, frames, the ticker, actors,
@@ -55,6 +59,8 @@ pub(crate) fn connect(
 #[derive(Debug)]
 pub(crate) struct Client {
     pub(crate) inner: sim_client::Client,
+    /// How every wait of this client, its ticker's and its sensors' waits.
+    pub(crate) wait_mode: WaitMode,
 }
 
 #[pymethods]
@@ -63,6 +69,13 @@ impl Client {
     #[getter]
     fn world(&self) -> String {
         self.inner.world().to_string()
+    }
+
+    /// How this client's waits wait: `"hybrid"`, `"block"` or `"spin"`
+    /// (its ticker's and sensors' too).
+    #[getter]
+    fn wait_mode(&self) -> &'static str {
+        self.wait_mode.name()
     }
 
     /// The server's process id.
@@ -163,7 +176,7 @@ impl Client {
         synchronous_mode: bool,
         timeout: f64,
     ) -> PyResult<Ticker> {
-        Ticker::claim(py, &self.inner, delta_seconds, synchronous_mode, timeout)
+        Ticker::claim(py, self, delta_seconds, synchronous_mode, timeout)
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

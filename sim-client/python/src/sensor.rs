@@ -354,7 +354,8 @@ pub(crate) struct Sensor {
 }
 
 impl Sensor {
-    fn new(client: &Bound<'_, Client>, inner: sim_client::Sensor) -> Self {
+    fn new(client: &Bound<'_, Client>, mut inner: sim_client::Sensor) -> Self {
+        inner.set_wait_mode(client.borrow().wait_mode);
         Self {
             id: inner.id(),
             kind: inner.spec().kind,
@@ -434,8 +435,12 @@ impl Sensor {
                 "callback must be callable",
             ));
         }
-        let world = self.client.borrow(py).inner.world().to_string();
-        Listening::start(py, world, seconds("timeout", timeout)?, self.id, callback)
+        let (world, mode) = {
+            let client = self.client.borrow(py);
+            (client.inner.world().to_string(), client.wait_mode)
+        };
+        let timeout = seconds("timeout", timeout)?;
+        Listening::start(py, world, timeout, self.id, mode, callback)
     }
 
     /// Removes the sensor from the world and closes this reader.

@@ -28,17 +28,19 @@ impl Ticker {
     /// step (and synchronous mode unless asked otherwise).
     pub(crate) fn claim(
         py: Python<'_>,
-        client: &sim_client::Client,
+        client: &crate::client::Client,
         delta_seconds: Option<f64>,
         synchronous_mode: bool,
         timeout: f64,
     ) -> PyResult<Self> {
         let timeout = seconds("timeout", timeout)?;
-        let (ticker, before) = detached(py, || {
-            let before = client.get_settings().map_err(sim_client::TickError::from)?;
-            client.claim_ticker().map(|t| (t, before))
+        let inner = &client.inner;
+        let (mut ticker, before) = detached(py, || {
+            let before = inner.get_settings().map_err(sim_client::TickError::from)?;
+            inner.claim_ticker().map(|t| (t, before))
         })
         .map_err(errors::tick)?;
+        ticker.set_wait_mode(client.wait_mode);
         let mut held = Ticker {
             inner: Some(ticker),
             restore: None,

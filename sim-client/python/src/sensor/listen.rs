@@ -53,12 +53,14 @@ impl Drop for Finished {
 }
 
 impl Listening {
-    /// Starts listening to sensor `id` of `world`, once its subscription is open.
+    /// Starts listening to sensor `id` of `world`, once its subscription is
+    /// open, waiting as `mode` says.
     pub(super) fn start(
         py: Python<'_>,
         world: String,
         timeout: Duration,
         id: u64,
+        mode: shared_types::WaitMode,
         callback: Py<PyAny>,
     ) -> PyResult<Self> {
         let shared = Arc::new(Shared::default());
@@ -73,9 +75,14 @@ impl Listening {
                 let opened = sim_client::Client::builder(world)
                     .timeout(timeout)
                     .request_timeout(timeout)
+                    .wait_mode(mode)
                     .connect()
                     .map_err(errors::connect)
-                    .and_then(|client| client.sensor(id).map_err(sensor_error));
+                    .and_then(|client| client.sensor(id).map_err(sensor_error))
+                    .map(|mut sensor| {
+                        sensor.set_wait_mode(mode);
+                        sensor
+                    });
                 match opened {
                     Ok(sensor) => {
                         let _ = ready_tx.send(Ok(()));

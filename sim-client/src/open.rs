@@ -17,7 +17,8 @@ use crate::error::TransportError;
 use crate::{ConnectError, RequestError};
 
 /// Opens a service, retrying while `is_missing` says it does not exist yet,
-/// until `deadline`. `Ok(None)` when it never appeared.
+/// until `deadline` or the interrupt check ([`crate::set_interrupt_check`])
+/// says to stop. `Ok(None)` when it never appeared.
 pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
     deadline: Instant,
     mut open: impl FnMut() -> Result<T, E>,
@@ -27,7 +28,7 @@ pub(crate) fn open_with_retry<T, E: std::fmt::Debug>(
         match open() {
             Ok(port) => return Ok(Some(port)),
             Err(e) if is_missing(&e) => {
-                if Instant::now() >= deadline {
+                if Instant::now() >= deadline || crate::wait::interrupted() {
                     return Ok(None);
                 }
                 std::thread::sleep(Duration::from_millis(10));

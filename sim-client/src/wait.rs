@@ -3,7 +3,7 @@
 //! block on an event, back off, or spin, until the deadline — and end early
 //! when the server process is gone.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicPtr, Ordering};
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -34,8 +34,8 @@ pub(crate) const HYBRID_SPIN: Duration = Duration::from_micros(100);
 /// How often a waiting client checks that the server process still lives.
 pub(crate) const LIVENESS_PERIOD: Duration = Duration::from_millis(100);
 
-/// The interrupt check, a `fn() -> bool` stored as its address (0: none).
-static INTERRUPT: AtomicUsize = AtomicUsize::new(0);
+/// The interrupt check, a `fn() -> bool` stored as a pointer (null: none).
+static INTERRUPT: AtomicPtr<()> = AtomicPtr::new(std::ptr::null_mut());
 
 /// Makes every wait of this process's clients (a tick, a frame, a capture,
 /// an answer) call `check` at least every 100 ms, and end with an
@@ -43,21 +43,22 @@ static INTERRUPT: AtomicUsize = AtomicUsize::new(0);
 /// Ctrl-C to a wait (the Python package checks its signals there). `None`
 /// removes it. A wait checks nothing else and costs nothing without one.
 pub fn set_interrupt_check(check: Option<fn() -> bool>) {
-    INTERRUPT.store(check.map_or(0, |f| f as usize), Ordering::Release);
+    let pointer = check.map_or(std::ptr::null_mut(), |f| f as *mut ());
+    INTERRUPT.store(pointer, Ordering::Release);
 }
 
 /// Whether the interrupt check, if any, says to stop.
-fn interrupted() -> bool {
-    match INTERRUPT.load(Ordering::Acquire) {
-        0 => false,
-        address => {
-            // SAFETY: a non-zero value was stored by `set_interrupt_check`
-            // from a `fn() -> bool`; function pointers and `usize` have the
-            // same size, and functions are never unloaded while stored here.
-            let check: fn() -> bool = unsafe { std::mem::transmute(address) };
-            check()
-        }
+pub(crate) fn interrupted() -> bool {
+    let pointer = INTERRUPT.load(Ordering::Acquire);
+    if pointer.is_null() {
+        return false;
     }
+    // SAFETY: a non-null value was stored by `set_interrupt_check` from a
+    // `fn() -> bool` cast to a pointer (the same size on every platform
+    // Rust supports, provenance kept); the function stays loaded while it
+    // is stored here (it is this process's code).
+    let check: fn() -> bool = unsafe { std::mem::transmute::<*mut (), fn() -> bool>(pointer) };
+    check()
 }
 
 /// How to pass the time between polls.

@@ -126,6 +126,40 @@ def test_every_wait_mode_ticks_and_reads_the_same_frames(server, mode):
                 assert (seen.frame, seen.missed) == (frame, 0)
 
 
+def test_a_ticker_puts_back_settings_it_changed_itself(server):
+    client = server().client()
+    before = client.settings()
+    with client.ticker() as ticker:
+        assert client.settings() == before
+        ticker.apply_settings(synchronous_mode=True, fixed_delta_seconds=0.05)
+        assert ticker.settings.synchronous_mode
+        ticker.tick()
+    assert client.settings() == before
+    assert client.status().ticker is None
+
+
+def test_ctrl_c_interrupts_a_connect_that_waits_for_a_server():
+    child = python_child(
+        "print('connecting', flush=True)\n"
+        "try:\n"
+        "    simbus.connect(world, timeout=60)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n",
+        unique_world("nobody"),
+    )
+    try:
+        assert child.stdout.readline().strip() == "connecting"
+        # Signalled once asleep between two looks for the server.
+        while "sleep" not in open(f"/proc/{child.pid}/wchan").read():
+            assert child.poll() is None, child.stderr.read()
+        os.kill(child.pid, signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        assert out.strip() == "interrupted", err
+    finally:
+        child.kill()
+        child.wait()
+
+
 def test_a_second_ticker_is_refused_naming_the_owner(server):
     s = server()
     owner = s.client()
@@ -238,29 +272,32 @@ def test_an_array_over_shared_memory_is_read_only(server):
         del actors
 
 
-def test_the_gil_is_released_while_a_tick_waits(server):
-    # Asynchronous at 5 frames per second: a tick waits ~200 ms for its frame.
-    client = server("--max-fps", "5").client()
-    counted = []
-    stop = threading.Event()
+def test_the_gil_is_released_while_a_wait_waits(server):
+    # Only another Python thread's tick can end the main thread's wait, and
+    # with a switch interval of 60 s that thread runs only when the main
+    # thread lets go of the GIL: a wait that held it would time out.
+    s = server("--sync", "--delta-seconds", "0.05")
+    client = s.client()
+    with client.wait_for_frame() as current:
+        first = current.frame
+    ticked = []
 
-    def count():
-        n = 0
-        while not stop.is_set():
-            n += 1
-        counted.append(n)
+    def tick():
+        other = s.client()
+        with other.ticker() as ticker:
+            ticked.append(ticker.tick())
 
-    with client.ticker() as ticker:
-        ticker.tick()
-        thread = threading.Thread(target=count)
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(60.0)
+    try:
+        thread = threading.Thread(target=tick)
         thread.start()
-        try:
-            ticker.tick()
-        finally:
-            stop.set()
-            thread.join()
-    # A thread kept off the GIL for the whole wait would count a handful.
-    assert counted[0] > 10_000
+        with client.wait_for_frame(timeout=30) as frame:
+            assert frame.frame == first + 1
+    finally:
+        sys.setswitchinterval(interval)
+        thread.join()
+    assert ticked == [first + 1]
 
 
 def test_ctrl_c_interrupts_a_wait(server):
@@ -345,7 +382,11 @@ def test_the_package_digest_of_300_frames_equals_the_rust_clients(server):
         while probe.status().participants == 0:
             assert watch.poll() is None, "the watcher exited"
         tick = r.sim_client("tick", "--count", "300", stdout=subprocess.DEVNULL)
-        assert tick.wait(timeout=120) == 0
+        try:
+            assert tick.wait(timeout=120) == 0
+        finally:
+            tick.kill()
+            tick.wait()
         out, _ = watch.communicate(timeout=60)
     finally:
         watch.kill()

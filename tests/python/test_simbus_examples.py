@@ -50,9 +50,13 @@ def test_variable_step(world):
 def test_fixed_step(world):
     lines = run("fixed_step.py", world, "--frames", "5", "--delta-seconds", "0.05")
     assert lines[0] == "fixed_delta_seconds = 0.05"
-    times = [int(re.search(r"t = (\d+) ns", line).group(1)) for line in lines[1:]]
-    assert len(times) == 5
-    assert [b - a for a, b in zip(times, times[1:])] == [50_000_000] * 4
+    rows = [re.search(r"frame (\d+) t = (\d+) ns dt = 0.05 s missed (\d+)", line).groups()
+            for line in lines[1:]]
+    assert len(rows) == 5
+    for (f0, t0, _), (f1, t1, missed) in zip(rows, rows[1:]):
+        # Every frame, seen or skipped, advanced exactly 0.05 s.
+        assert int(f1) - int(f0) == 1 + int(missed)
+        assert int(t1) - int(t0) == (int(f1) - int(f0)) * 50_000_000
 
 
 def test_substepping(world):

@@ -26,7 +26,10 @@ def main():
         with frame:
             if frame.delta_seconds != args.delta_seconds:
                 continue  # a frame computed before the settings took hold
-            print(f"frame {frame.frame} t = {frame.elapsed_ns} ns dt = {frame.delta_seconds} s")
+            # Asynchronous: a reader slower than the server skips frames
+            # (`missed`); each still advanced exactly dt.
+            print(f"frame {frame.frame} t = {frame.elapsed_ns} ns dt = {frame.delta_seconds} s"
+                  f" missed {frame.missed}")
         seen += 1
         if seen == args.frames:
             break

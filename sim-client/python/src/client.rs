@@ -45,7 +45,7 @@ pub(crate) fn connect(
     let builder = sim_client::Client::builder(world)
         .timeout(seconds("timeout", timeout)?)
         .wait_mode(mode);
-    let client = detached(py, || builder.connect()).map_err(errors::connect)?;
+    let client = detached(py, (), |()| builder.connect()).map_err(errors::connect)?;
     Ok(Client {
         inner: client,
         wait_mode: mode,
@@ -86,13 +86,13 @@ impl Client {
 
     /// The world's state now.
     fn status(&self, py: Python<'_>) -> PyResult<Status> {
-        let status = detached(py, || self.inner.status()).map_err(errors::request)?;
+        let status = detached(py, &self.inner, |c| c.status()).map_err(errors::request)?;
         Ok(status.into())
     }
 
     /// The settings in force for the next frame.
     fn settings(&self, py: Python<'_>) -> PyResult<Settings> {
-        let settings = detached(py, || self.inner.get_settings()).map_err(errors::request)?;
+        let settings = detached(py, &self.inner, |c| c.get_settings()).map_err(errors::request)?;
         Ok(settings.into())
     }
 
@@ -117,9 +117,9 @@ impl Client {
             max_substep_delta_time,
             max_substeps,
         };
-        detached(py, || {
-            let current = self.inner.get_settings()?;
-            self.inner.apply_settings(changes.applied_to(current))
+        detached(py, &self.inner, |c| {
+            let current = c.get_settings()?;
+            c.apply_settings(changes.applied_to(current))
         })
         .map_err(errors::settings)
     }
@@ -129,7 +129,7 @@ impl Client {
     #[pyo3(signature = (*, reset_settings = false))]
     fn reload_world(&self, py: Python<'_>, reset_settings: bool) -> PyResult<Status> {
         let status =
-            detached(py, || self.inner.reload_world(reset_settings)).map_err(errors::load)?;
+            detached(py, &self.inner, |c| c.reload_world(reset_settings)).map_err(errors::load)?;
         Ok(status.into())
     }
 
@@ -137,8 +137,8 @@ impl Client {
     /// episode.
     #[pyo3(signature = (scene, *, reset_settings = false))]
     fn load_world(&self, py: Python<'_>, scene: &str, reset_settings: bool) -> PyResult<Status> {
-        let status =
-            detached(py, || self.inner.load_world(scene, reset_settings)).map_err(errors::load)?;
+        let status = detached(py, &self.inner, |c| c.load_world(scene, reset_settings))
+            .map_err(errors::load)?;
         Ok(status.into())
     }
 
@@ -149,7 +149,7 @@ impl Client {
     fn wait_for_frame(&mut self, py: Python<'_>, timeout: f64) -> PyResult<Frame> {
         let timeout = seconds("timeout", timeout)?;
         let inner = &mut self.inner;
-        let view = detached(py, || inner.wait_for_frame(timeout)).map_err(errors::wait)?;
+        let view = detached(py, inner, |c| c.wait_for_frame(timeout)).map_err(errors::wait)?;
         Frame::lent(py, view)
     }
 

@@ -64,8 +64,12 @@ fn interrupted() -> PyErr {
         .unwrap_or_else(|| pyo3::exceptions::PyKeyboardInterrupt::new_err("interrupted"))
 }
 
-/// A connect error as its exception.
+/// A connect error as its exception; a connect that Ctrl-C cut short
+/// raises what the signal handler raised.
 pub(crate) fn connect(error: ConnectError) -> PyErr {
+    if let Some(pending) = gil::take_pending() {
+        return pending;
+    }
     let kind = match &error {
         ConnectError::InvalidWorld(_) => {
             return pyo3::exceptions::PyValueError::new_err(message(&error))

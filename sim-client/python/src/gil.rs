@@ -10,23 +10,54 @@ thread_local! {
     static PENDING: RefCell<Option<PyErr>> = const { RefCell::new(None) };
 }
 
-/// Moves a value across [`Python::detach`], which runs its closure on the
-/// calling thread: nothing inside is sent to another thread.
+/// The values [`detached`] may hand to its closure: the Rust client's, which
+/// are bound to the thread that opened them (iceoryx2's ports are) and hold
+/// no Python object. Sealed: nothing else crosses.
+pub(crate) trait ThreadBound: sealed::Sealed {}
+
+mod sealed {
+    pub(crate) trait Sealed {}
+    impl Sealed for () {}
+    impl Sealed for &sim_client::Client {}
+    impl Sealed for &mut sim_client::Client {}
+    impl Sealed for &mut sim_client::Ticker {}
+    impl Sealed for sim_client::Ticker {}
+    impl Sealed for &mut sim_client::Sensor {}
+}
+
+impl ThreadBound for () {}
+impl ThreadBound for &sim_client::Client {}
+impl ThreadBound for &mut sim_client::Client {}
+impl ThreadBound for &mut sim_client::Ticker {}
+impl ThreadBound for sim_client::Ticker {}
+impl ThreadBound for &mut sim_client::Sensor {}
+
+/// Carries a value into and out of [`Python::detach`], which runs its
+/// closure synchronously on the calling thread: the value never leaves
+/// this thread. Private to this module, used only by [`detached`].
 struct SameThread<T>(T);
 
-// SAFETY: `Python::detach` runs the closure synchronously on the thread
-// that calls it, so the value never leaves that thread; the closures given
-// to `detached` touch no Python object (they run the Rust client).
+// SAFETY: a `SameThread` is made only in `detached`, around a
+// `ThreadBound` value (no Python object) going into `Python::detach` and
+// the closure's result coming out; `detach` runs the closure on the thread
+// that calls it and returns before `detached` does, so neither value is
+// ever used by another thread.
 unsafe impl<T> Send for SameThread<T> {}
 
-/// Runs `wait` (a Rust client call that may block) with the GIL released,
-/// so other Python threads run meanwhile. `wait` must not touch Python
-/// objects.
-pub(crate) fn detached<R>(py: Python<'_>, wait: impl FnOnce() -> R) -> R {
-    let wait = SameThread(wait);
+/// Runs `wait(value)` with the GIL released, so other Python threads run
+/// while a Rust client call blocks. `value` is the Rust client's thread-bound
+/// port (see [`ThreadBound`]); `wait` must be `Send`, which keeps Python
+/// objects (and the `Python` token that makes them) out of it, as PyO3's
+/// `detach` requires.
+pub(crate) fn detached<T: ThreadBound, R>(
+    py: Python<'_>,
+    value: T,
+    wait: impl FnOnce(T) -> R + Send,
+) -> R {
+    let value = SameThread(value);
     py.detach(move || {
-        let wait = wait;
-        SameThread((wait.0)())
+        let value = value;
+        SameThread(wait(value.0))
     })
     .0
 }
@@ -35,13 +66,16 @@ pub(crate) fn detached<R>(py: Python<'_>, wait: impl FnOnce() -> R) -> R {
 /// runs Python's signal handlers (on the main thread) and says to stop when
 /// one raised, keeping its exception for [`take_pending`].
 pub(crate) fn signalled() -> bool {
-    Python::attach(|py| match py.check_signals() {
+    // Not at all while the interpreter shuts down (a listening thread may
+    // still wait then); Python runs signal handlers on its main thread only.
+    Python::try_attach(|py| match py.check_signals() {
         Ok(()) => false,
         Err(error) => {
             PENDING.with(|pending| *pending.borrow_mut() = Some(error));
             true
         }
     })
+    .unwrap_or(false)
 }
 
 /// The exception a signal handler raised during this thread's last wait.

@@ -44,17 +44,9 @@ impl Loan {
     /// The bytes of the sample's payload.
     fn bytes(&self) -> &[u8] {
         match &self.sample {
-            Lent::Frame(view) => bytemuck_bytes(view.actors()),
+            Lent::Frame(view) => bytemuck::cast_slice(view.actors()),
             Lent::Capture(capture) => capture.bytes(),
         }
-    }
-}
-
-fn bytemuck_bytes(actors: &[shared_types::ActorState]) -> &[u8] {
-    // SAFETY: `ActorState` is `#[repr(C)]` plain old data (integers and
-    // floats, no padding: the wire layout); its bytes are initialised.
-    unsafe {
-        std::slice::from_raw_parts(actors.as_ptr().cast::<u8>(), std::mem::size_of_val(actors))
     }
 }
 

@@ -134,7 +134,7 @@ impl Client {
     /// then waits for this participant's `done(frame)` every frame. Use it
     /// as a context manager (leaving the block leaves the lockstep).
     fn participant(&self, py: Python<'_>, name: &str) -> PyResult<Participant> {
-        let inner = detached(py, || self.inner.join_lockstep(name)).map_err(request)?;
+        let inner = detached(py, &self.inner, |c| c.join_lockstep(name)).map_err(request)?;
         Ok(Participant {
             episode: inner.joined_at().0,
             inner: Some(inner),

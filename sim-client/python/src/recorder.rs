@@ -145,21 +145,21 @@ impl Client {
     /// capture if `sensors`. Returns the path the server writes.
     #[pyo3(signature = (path, *, sensors = false))]
     fn start_recorder(&self, py: Python<'_>, path: PathBuf, sensors: bool) -> PyResult<String> {
-        let written =
-            detached(py, || self.inner.start_recorder(&path, sensors)).map_err(recorder_error)?;
+        let written = detached(py, &self.inner, |c| c.start_recorder(&path, sensors))
+            .map_err(recorder_error)?;
         Ok(written.to_string_lossy().into_owned())
     }
 
     /// Stops the recording and closes its file; the status says how many
     /// frames and bytes it holds.
     fn stop_recorder(&self, py: Python<'_>) -> PyResult<RecorderStatus> {
-        let status = detached(py, || self.inner.stop_recorder()).map_err(recorder_error)?;
+        let status = detached(py, &self.inner, |c| c.stop_recorder()).map_err(recorder_error)?;
         Ok(status.into())
     }
 
     /// How the recorder and the replayer are doing.
     fn recorder_status(&self, py: Python<'_>) -> PyResult<RecorderStatus> {
-        let status = detached(py, || self.inner.recorder_status()).map_err(recorder_error)?;
+        let status = detached(py, &self.inner, |c| c.recorder_status()).map_err(recorder_error)?;
         Ok(status.into())
     }
 
@@ -201,7 +201,8 @@ impl Client {
                 .map_err(PyValueError::new_err)?,
             keep_actors,
         };
-        let status = detached(py, || self.inner.replay(&path, &options)).map_err(recorder_error)?;
+        let status =
+            detached(py, &self.inner, |c| c.replay(&path, &options)).map_err(recorder_error)?;
         Ok(status.into())
     }
 
@@ -209,8 +210,8 @@ impl Client {
     /// `set_replayer_time_factor`; asynchronous mode).
     fn set_replayer_time_factor(&self, py: Python<'_>, factor: f64) -> PyResult<RecorderStatus> {
         let factor = finite("factor", factor)?;
-        let status =
-            detached(py, || self.inner.set_replayer_time_factor(factor)).map_err(recorder_error)?;
+        let status = detached(py, &self.inner, |c| c.set_replayer_time_factor(factor))
+            .map_err(recorder_error)?;
         Ok(status.into())
     }
 
@@ -220,7 +221,7 @@ impl Client {
     #[pyo3(signature = (keep_actors = false))]
     fn stop_replayer(&self, py: Python<'_>, keep_actors: bool) -> PyResult<RecorderStatus> {
         let status =
-            detached(py, || self.inner.stop_replayer(keep_actors)).map_err(recorder_error)?;
+            detached(py, &self.inner, |c| c.stop_replayer(keep_actors)).map_err(recorder_error)?;
         Ok(status.into())
     }
 }
@@ -418,7 +419,8 @@ fn recording_info(py: Python<'_>, path: PathBuf, show_all: bool) -> PyResult<Rec
             path.display()
         )));
     };
-    let info = detached(py, || inspect::file_info(path, show_all))
+    let info = py
+        .detach(|| inspect::file_info(path, show_all))
         .map_err(|e| raise("Error", message(&e)))?;
     Ok(info.into())
 }

@@ -212,7 +212,7 @@ impl Client {
         let spec = spec_for(kind, &params)?;
         let client = slf.borrow();
         let inner = &client.inner;
-        let sensor = detached(slf.py(), || inner.spawn_sensor(spec)).map_err(|e| match e {
+        let sensor = detached(slf.py(), inner, |c| c.spawn_sensor(spec)).map_err(|e| match e {
             SensorError::Refused(SensorRefusal::UnknownActor) => raise(
                 "CommandError",
                 format!(
@@ -231,13 +231,13 @@ impl Client {
     fn sensor(slf: &Bound<'_, Self>, id: u64) -> PyResult<Sensor> {
         let client = slf.borrow();
         let inner = &client.inner;
-        let sensor = detached(slf.py(), || inner.sensor(id)).map_err(sensor_error)?;
+        let sensor = detached(slf.py(), inner, |c| c.sensor(id)).map_err(sensor_error)?;
         Ok(Sensor::new(slf, sensor))
     }
 
     /// Every sensor of the world, as `simbus.SensorInfo`s.
     fn list_sensors(&self, py: Python<'_>) -> PyResult<Vec<SensorInfo>> {
-        let list = detached(py, || self.inner.list_sensors()).map_err(sensor_error)?;
+        let list = detached(py, &self.inner, |c| c.list_sensors()).map_err(sensor_error)?;
         Ok(list.into_iter().map(SensorInfo::from).collect())
     }
 
@@ -245,7 +245,7 @@ impl Client {
     /// `simbus.SensorEnded`. An unknown id raises `simbus.CommandError`
     /// naming it.
     fn destroy_sensor(&self, py: Python<'_>, id: u64) -> PyResult<()> {
-        detached(py, || self.inner.destroy_sensor(id)).map_err(sensor_error)
+        detached(py, &self.inner, |c| c.destroy_sensor(id)).map_err(sensor_error)
     }
 }
 
@@ -411,7 +411,7 @@ impl Sensor {
     fn read(&mut self, py: Python<'_>, timeout: f64) -> PyResult<Capture> {
         let (timeout, id) = (seconds("timeout", timeout)?, self.id);
         let reader = self.open()?;
-        let capture = detached(py, || reader.recv(timeout)).map_err(|e| wait_error(id, e))?;
+        let capture = detached(py, reader, |r| r.recv(timeout)).map_err(|e| wait_error(id, e))?;
         Capture::lent(py, capture)
     }
 
@@ -447,7 +447,7 @@ impl Sensor {
     fn destroy(&mut self, py: Python<'_>) -> PyResult<()> {
         let client = self.client.borrow(py);
         let (inner, id) = (&client.inner, self.id);
-        detached(py, || inner.destroy_sensor(id)).map_err(sensor_error)?;
+        detached(py, inner, |c| c.destroy_sensor(id)).map_err(sensor_error)?;
         self.inner = None;
         Ok(())
     }

@@ -15,8 +15,9 @@ use crate::settings::{Changes, Settings};
 #[derive(Debug)]
 pub(crate) struct Ticker {
     inner: Option<sim_client::Ticker>,
-    /// The settings to put back on release (`None`: nothing to put back).
-    restore: Option<WorldSettings>,
+    /// The settings to put back on release: the world's before the claim,
+    /// asynchronous (put back when they differ from [`Ticker::settings`]).
+    restore: WorldSettings,
     /// The settings in force: the world's at the claim, then what this
     /// ticker applied (while it ticks, only it changes them).
     settings: WorldSettings,
@@ -35,15 +36,18 @@ impl Ticker {
     ) -> PyResult<Self> {
         let timeout = seconds("timeout", timeout)?;
         let inner = &client.inner;
-        let (mut ticker, before) = detached(py, || {
-            let before = inner.get_settings().map_err(sim_client::TickError::from)?;
-            inner.claim_ticker().map(|t| (t, before))
+        let (mut ticker, before) = detached(py, inner, |c| {
+            let before = c.get_settings().map_err(sim_client::TickError::from)?;
+            c.claim_ticker().map(|t| (t, before))
         })
         .map_err(errors::tick)?;
         ticker.set_wait_mode(client.wait_mode);
         let mut held = Ticker {
             inner: Some(ticker),
-            restore: None,
+            restore: WorldSettings {
+                synchronous_mode: false,
+                ..before
+            },
             settings: before,
             timeout,
         };
@@ -55,11 +59,6 @@ impl Ticker {
             }
             .applied_to(before);
             held.apply(py, wanted)?;
-            let restore = WorldSettings {
-                synchronous_mode: false,
-                ..before
-            };
-            held.restore = (restore != wanted).then_some(restore);
         }
         Ok(held)
     }
@@ -75,7 +74,8 @@ impl Ticker {
 
     fn apply(&mut self, py: Python<'_>, settings: WorldSettings) -> PyResult<u64> {
         let ticker = self.held()?;
-        let frame = detached(py, || ticker.apply_settings(settings)).map_err(errors::settings)?;
+        let frame =
+            detached(py, ticker, |t| t.apply_settings(settings)).map_err(errors::settings)?;
         self.settings = settings;
         Ok(frame)
     }
@@ -94,7 +94,7 @@ impl Ticker {
             None => self.timeout,
         };
         let ticker = self.held()?;
-        detached(py, || ticker.tick(timeout)).map_err(errors::tick)
+        detached(py, ticker, |t| t.tick(timeout)).map_err(errors::tick)
     }
 
     /// The last frame this ticker produced (or saw when claiming).
@@ -135,18 +135,19 @@ impl Ticker {
     /// Puts the settings back as they were before the claim (asynchronous)
     /// and gives the world back. Called by the end of a `with` block;
     /// harmless twice.
+    /// If putting the settings back fails (the server is gone, Ctrl-C), it
+    /// raises and this ticker still holds the world: `release()` again.
     fn release(&mut self, py: Python<'_>) -> PyResult<()> {
-        let Some(mut ticker) = self.inner.take() else {
+        if self.inner.is_none() {
             return Ok(());
-        };
-        let restore = self.restore.take();
-        let restored = detached(py, || match restore {
-            Some(settings) => ticker.apply_settings(settings).map(|_| ()),
+        }
+        if self.settings != self.restore {
+            self.apply(py, self.restore)?;
+        }
+        match self.inner.take() {
+            Some(ticker) => detached(py, ticker, |t| t.release()).map_err(errors::tick),
             None => Ok(()),
-        });
-        let released = detached(py, || ticker.release());
-        restored.map_err(errors::settings)?;
-        released.map_err(errors::tick)
+        }
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -179,8 +180,10 @@ impl Drop for Ticker {
     fn drop(&mut self) {
         // Dropped without release (garbage collected): the settings still
         // go back; the Rust ticker releases ownership as it drops.
-        if let (Some(ticker), Some(settings)) = (self.inner.as_mut(), self.restore.take()) {
-            let _ = ticker.apply_settings(settings);
+        if let Some(ticker) = self.inner.as_mut() {
+            if self.settings != self.restore {
+                let _ = ticker.apply_settings(self.restore);
+            }
         }
     }
 }

@@ -130,7 +130,7 @@ impl Client {
         half_height: Option<f64>,
     ) -> PyResult<u64> {
         let wire = spawn_command(kind, at, rotation, half_extents, radius, half_height)?;
-        detached(py, || self.inner.spawn_actor(wire)).map_err(|e| match e {
+        detached(py, &self.inner, |c| c.spawn_actor(wire)).map_err(|e| match e {
             CommandError::Refused { status, .. } => raise(
                 "CommandError",
                 format!("spawning {} was refused: {status}", describe(&wire)),
@@ -143,7 +143,7 @@ impl Client {
     /// naming it.
     fn destroy(&self, py: Python<'_>, actor_id: &Bound<'_, PyAny>) -> PyResult<()> {
         let id = self::actor_id(actor_id)?;
-        detached(py, || self.inner.destroy(id)).map_err(command_error)
+        detached(py, &self.inner, |c| c.destroy(id)).map_err(command_error)
     }
 
     /// Sends `commands` (an iterable of `simbus.Command`s) to be applied, in
@@ -151,7 +151,7 @@ impl Client {
     /// (CARLA's `apply_batch`): a command that fails does so silently.
     fn apply_batch(&self, py: Python<'_>, commands: &Bound<'_, PyAny>) -> PyResult<()> {
         let wire = wire_commands(commands)?;
-        detached(py, || self.inner.apply_batch(&wire)).map_err(request)
+        detached(py, &self.inner, |c| c.apply_batch(&wire)).map_err(request)
     }
 
     /// Applies `commands` (an iterable of `simbus.Command`s) at the next
@@ -168,7 +168,7 @@ impl Client {
     ) -> PyResult<Vec<BatchResult>> {
         let wire = wire_commands(commands)?;
         let response =
-            detached(py, || self.inner.apply_batch_sync(&wire, tick)).map_err(batch_error)?;
+            detached(py, &self.inner, |c| c.apply_batch_sync(&wire, tick)).map_err(batch_error)?;
         Ok(results(&response))
     }
 }

@@ -14,7 +14,6 @@ use super::capture::Capture;
 use super::{sensor_error, wait_error};
 use crate::client::seconds;
 use crate::errors::{self, raise};
-use crate::gil::detached;
 use crate::loan::give_back;
 
 /// A running `sensor.listen(callback)`: `stop()` (or the end of a `with`
@@ -51,6 +50,9 @@ impl Drop for Finished {
         self.0.finishing.notify_all();
     }
 }
+
+/// How long a wait sleeps between two looks at Python's signals.
+const SIGNAL_SLICE: Duration = Duration::from_millis(100);
 
 impl Listening {
     /// Starts listening to sensor `id` of `world`, once its subscription is
@@ -101,7 +103,7 @@ impl Listening {
                 )
             })?;
         let thread_id = thread.thread().id();
-        let started = detached(py, || ready_rx.recv());
+        let started = py.detach(move || ready_rx.recv());
         match started {
             Ok(Ok(())) => Ok(Self {
                 shared,
@@ -165,7 +167,7 @@ impl Listening {
         }
         let thread = self.thread.lock().ok().and_then(|mut t| t.take());
         if let Some(thread) = thread {
-            let _ = detached(py, || thread.join());
+            let _ = py.detach(|| thread.join());
         }
     }
 
@@ -175,25 +177,30 @@ impl Listening {
     #[pyo3(signature = (timeout = None))]
     fn wait(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<bool> {
         let timeout = timeout.map(|t| seconds("timeout", t)).transpose()?;
+        let deadline = timeout.map(|t| std::time::Instant::now() + t);
         let shared = &self.shared;
-        detached(py, || {
-            let finished = shared.finished.lock().map_err(|_| ())?;
-            let finished = match timeout {
-                Some(t) => {
-                    shared
+        // In slices of 100 ms, Python's signal handlers run between them:
+        // Ctrl-C ends the wait.
+        loop {
+            let slice = deadline.map_or(SIGNAL_SLICE, |d| {
+                d.saturating_duration_since(std::time::Instant::now())
+                    .min(SIGNAL_SLICE)
+            });
+            let finished = py
+                .detach(|| {
+                    let finished = shared.finished.lock().map_err(|_| ())?;
+                    let (finished, _) = shared
                         .finishing
-                        .wait_timeout_while(finished, t, |done| !*done)
-                        .map_err(|_| ())?
-                        .0
-                }
-                None => shared
-                    .finishing
-                    .wait_while(finished, |done| !*done)
-                    .map_err(|_| ())?,
-            };
-            Ok(*finished)
-        })
-        .map_err(|()| raise("Error", "the listening thread panicked"))
+                        .wait_timeout_while(finished, slice, |done| !*done)
+                        .map_err(|_| ())?;
+                    Ok(*finished)
+                })
+                .map_err(|()| raise("Error", "the listening thread panicked"))?;
+            if finished || deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                return Ok(finished);
+            }
+            py.check_signals()?;
+        }
     }
 
     /// Whether callbacks still come.
@@ -260,7 +267,7 @@ impl Drop for Listening {
         let thread = self.thread.get_mut().ok().and_then(Option::take);
         if let Some(thread) = thread {
             // The thread may wait for the GIL to finish a callback.
-            Python::attach(|py| detached(py, || thread.join())).ok();
+            Python::attach(|py| py.detach(|| thread.join())).ok();
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Every error of the Rust client as an exception of `simbus/_errors.py`,
 //! with the Rust error's message (and its sources, `: `-joined).
 
+use iceoryx2::port::ReceiveError;
 use pyo3::prelude::*;
 use pyo3::types::PyType;
 use shared_types::SensorEnd;
@@ -107,12 +108,19 @@ pub(crate) fn wait(error: WaitError) -> PyErr {
                 Err(e) => e,
             });
         }
-        WaitError::Transport { source, .. } if source.to_string().contains("ExceedsMaxBorrows") => {
-            "Full"
-        }
+        WaitError::Transport { source, .. } if holds_all_it_may(source.as_ref()) => "Full",
         _ => "Error",
     };
     raise(kind, message(&error))
+}
+
+/// Whether a receive failed because the subscriber holds as many samples
+/// as it may (frames or captures the caller did not release).
+pub(crate) fn holds_all_it_may(source: &(dyn std::error::Error + 'static)) -> bool {
+    matches!(
+        source.downcast_ref::<ReceiveError>(),
+        Some(ReceiveError::ExceedsMaxBorrows)
+    )
 }
 
 /// A tick error as its exception.

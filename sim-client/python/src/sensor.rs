@@ -53,7 +53,7 @@ fn sensor_error(error: SensorError) -> PyErr {
 /// every wait's ([`errors::wait`]).
 fn wait_error(sensor: u64, error: WaitError) -> PyErr {
     match &error {
-        WaitError::Transport { source, .. } if source.to_string().contains("ExceedsMaxBorrows") => {
+        WaitError::Transport { source, .. } if errors::holds_all_it_may(source.as_ref()) => {
             raise(
                 "Full",
                 format!(

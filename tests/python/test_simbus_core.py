@@ -70,6 +70,23 @@ def python_child(code, world):
     )
 
 
+def interrupt_once_asleep(child, said, asleep_in):
+    """Sends SIGINT to `child` once it said `said` and sleeps in a kernel
+    function named like `asleep_in` (its /proc wchan), and checks that it
+    printed "interrupted" (its KeyboardInterrupt handler); kills and reaps
+    it whatever happens."""
+    try:
+        assert child.stdout.readline().strip() == said
+        while asleep_in not in open(f"/proc/{child.pid}/wchan").read():
+            assert child.poll() is None, child.stderr.read()
+        os.kill(child.pid, signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        assert out.strip() == "interrupted", err
+    finally:
+        child.kill()
+        child.wait()
+
+
 def test_settings_round_trip_and_the_substep_rule(server):
     client = server().client()
     before = client.settings()
@@ -147,17 +164,8 @@ def test_ctrl_c_interrupts_a_connect_that_waits_for_a_server():
         "    print('interrupted', flush=True)\n",
         unique_world("nobody"),
     )
-    try:
-        assert child.stdout.readline().strip() == "connecting"
-        # Signalled once asleep between two looks for the server.
-        while "sleep" not in open(f"/proc/{child.pid}/wchan").read():
-            assert child.poll() is None, child.stderr.read()
-        os.kill(child.pid, signal.SIGINT)
-        out, err = child.communicate(timeout=30)
-        assert out.strip() == "interrupted", err
-    finally:
-        child.kill()
-        child.wait()
+    # Signalled once asleep between two looks for the server.
+    interrupt_once_asleep(child, "connecting", "sleep")
 
 
 def test_a_second_ticker_is_refused_naming_the_owner(server):
@@ -312,17 +320,8 @@ def test_ctrl_c_interrupts_a_wait(server):
         "    print('interrupted', flush=True)\n",
         s.world,
     )
-    try:
-        assert child.stdout.readline().strip() == "waiting"
-        # Signalled once asleep in the wait (a futex), not before it.
-        while "futex" not in open(f"/proc/{child.pid}/wchan").read():
-            assert child.poll() is None, child.stderr.read()
-        os.kill(child.pid, signal.SIGINT)
-        out, err = child.communicate(timeout=30)
-        assert out.strip() == "interrupted", err
-    finally:
-        child.kill()
-        child.wait()
+    # Signalled once asleep in the wait (a futex), not before it.
+    interrupt_once_asleep(child, "waiting", "futex")
 
 
 def test_a_client_is_bound_to_its_thread(server):

@@ -144,6 +144,33 @@ mod tests {
     }
 
     #[test]
+    fn every_finite_number_reads_back_bit_for_bit() {
+        // Subnormals and the extremes too: the recorder's header round trip
+        // found -1.031589542038677e-308 read back a few ULPs off.
+        for value in [
+            -1.031589542038677e-308,
+            f64::MIN_POSITIVE / 3.0,
+            -f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            f64::MIN,
+            0.1 + 0.2,
+            -0.0,
+            1.0 / 3.0,
+        ] {
+            let json = serde_json::to_string(&header(value, Some(value))).unwrap();
+            let back: RecordingHeader = serde_json::from_str(&json).unwrap();
+            assert_eq!(
+                back.keyframe_seconds.to_bits(),
+                value.to_bits(),
+                "{value:e}"
+            );
+            let fixed = back.settings.fixed_delta_seconds.expect("kept as Some");
+            assert_eq!(fixed.to_bits(), value.to_bits(), "{value:e}");
+        }
+    }
+
+    #[test]
     fn headers_written_with_null_before_this_encoding_read() {
         // What `--keyframe-seconds NaN` wrote before (issue #24).
         let json = serde_json::to_string(&header(10.0, None))

@@ -1,33 +1,14 @@
 //! [`Client`]: a connection to one world, `simbus.connect(...)`.
 
-use std::time::Duration;
-
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use shared_types::WaitMode;
 
-use crate::errors;
+use crate::args::seconds;
 use crate::frame::Frame;
 use crate::gil::detached;
 use crate::settings::{Changes, Settings, Status};
 use crate::ticker::Ticker;
-
-/// A number of seconds from Python: finite and not negative.
-pub(crate) fn seconds(name: &str, value: f64) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(value).map_err(|_| {
-        PyValueError::new_err(format!(
-            "{name} must be a finite number of seconds >= 0, got {value}"
-        ))
-    })
-}
-
-fn wait_mode(text: &str) -> PyResult<WaitMode> {
-    text.parse().map_err(|_| {
-        PyValueError::new_err(format!(
-            "wait_mode must be 'hybrid', 'block' or 'spin', got {text:?}"
-        ))
-    })
-}
+use crate::{args, errors};
 
 /// Connects to the server of `world`, waiting up to `timeout` seconds for
 /// it. `wait_mode` says how this client waits for frames and answers:
@@ -41,7 +22,7 @@ pub(crate) fn connect(
     timeout: f64,
     wait_mode: &str,
 ) -> PyResult<Client> {
-    let mode = self::wait_mode(wait_mode)?;
+    let mode = args::wait_mode(wait_mode)?;
     let builder = sim_client::Client::builder(world)
         .timeout(seconds("timeout", timeout)?)
         .wait_mode(mode);
@@ -176,7 +157,8 @@ impl Client {
         synchronous_mode: bool,
         timeout: f64,
     ) -> PyResult<Ticker> {
-        Ticker::claim(py, self, delta_seconds, synchronous_mode, timeout)
+        let claimed = (&self.inner, self.wait_mode);
+        Ticker::claim(py, claimed, delta_seconds, synchronous_mode, timeout)
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

@@ -11,6 +11,7 @@
 
 use pyo3::prelude::*;
 
+mod args;
 mod client;
 mod errors;
 mod frame;

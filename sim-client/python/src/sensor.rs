@@ -21,7 +21,8 @@ use sim_client::{SensorError, WaitError};
 
 use self::capture::Capture;
 use self::listen::Listening;
-use crate::client::{seconds, Client};
+use crate::args::seconds;
+use crate::client::Client;
 use crate::errors::{self, message, raise};
 use crate::gil::detached;
 

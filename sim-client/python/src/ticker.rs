@@ -3,7 +3,7 @@
 use pyo3::prelude::*;
 use shared_types::WorldSettings;
 
-use crate::client::seconds;
+use crate::args::seconds;
 use crate::errors;
 use crate::gil::detached;
 use crate::settings::{Changes, Settings};
@@ -25,23 +25,23 @@ pub(crate) struct Ticker {
 }
 
 impl Ticker {
-    /// Claims `client`'s world and, with `delta_seconds`, applies a fixed
-    /// step (and synchronous mode unless asked otherwise).
+    /// Claims `client`'s world (its ticks waiting as `mode` says) and, with
+    /// `delta_seconds`, applies a fixed step (and synchronous mode unless
+    /// asked otherwise).
     pub(crate) fn claim(
         py: Python<'_>,
-        client: &crate::client::Client,
+        (client, mode): (&sim_client::Client, shared_types::WaitMode),
         delta_seconds: Option<f64>,
         synchronous_mode: bool,
         timeout: f64,
     ) -> PyResult<Self> {
         let timeout = seconds("timeout", timeout)?;
-        let inner = &client.inner;
-        let (mut ticker, before) = detached(py, inner, |c| {
+        let (mut ticker, before) = detached(py, client, |c| {
             let before = c.get_settings().map_err(sim_client::TickError::from)?;
             c.claim_ticker().map(|t| (t, before))
         })
         .map_err(errors::tick)?;
-        ticker.set_wait_mode(client.wait_mode);
+        ticker.set_wait_mode(mode);
         let mut held = Ticker {
             inner: Some(ticker),
             restore: WorldSettings {

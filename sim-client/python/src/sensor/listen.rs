@@ -12,7 +12,7 @@ use sim_client::WaitError;
 
 use super::capture::Capture;
 use super::{sensor_error, wait_error};
-use crate::client::seconds;
+use crate::args::seconds;
 use crate::errors::{self, raise};
 use crate::loan::give_back;
 

@@ -89,6 +89,9 @@ pub(crate) struct Session {
     hub: Arc<Hub>,
     client: Option<Client>,
     ticker: Option<Ticker>,
+    /// The factor of the last `set_replayer_time_factor`, applied to every
+    /// later `replay_file` (CARLA's replayer keeps it; 1 until set).
+    replay_time_factor: f64,
 }
 
 impl std::fmt::Debug for Session {
@@ -116,6 +119,7 @@ impl Session {
             hub,
             client: None,
             ticker: None,
+            replay_time_factor: 1.0,
         }
     }
 

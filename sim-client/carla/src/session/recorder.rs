@@ -2,6 +2,9 @@
 //! the file here and answer JSON text (CARLA's answer preformatted text).
 
 use rmpv::Value;
+use shared_types::{ActorKind, RecorderRefusal};
+use sim_client::{RecorderError, ReplayOptions};
+use simbus_recording::inspect;
 
 use super::{arg_f64, arg_flag, arg_str, Session};
 use crate::error::CallError;
@@ -17,6 +20,26 @@ fn json(value: &impl serde::Serialize) -> Result<Answer, CallError> {
 fn frames(n: u64) -> String {
     let s = if n == 1 { "" } else { "s" };
     format!("{n} frame{s}")
+}
+
+/// Whether an actor of kind `kind` (its name in a recording) is in CARLA's
+/// collision category `category`: `a` any, `v` vehicle, `o` other (anything
+/// not a vehicle, walker or traffic light: simbus's boxes, spheres,
+/// capsules and static bodies such as the ground), `w` walker and `t`
+/// traffic light (simbus has neither), `h` hero, and simbus's own letters
+/// (see [`inspect::kind_matches`]); any other letter matches nothing.
+fn in_category(category: char, kind: &str) -> bool {
+    let vehicle = kind == ActorKind::Vehicle.name();
+    match category {
+        'a' => true,
+        'v' => vehicle,
+        'o' => !vehicle,
+        // CARLA's hero is the actor whose role_name is "hero". A simbus
+        // recording keeps no role_name, so no recorded actor is the hero:
+        // 'h' matches nothing.
+        'h' | 'w' | 't' => false,
+        _ => ActorKind::from_name(kind).is_some_and(|k| inspect::kind_matches(category, k as u32)),
+    }
 }
 
 impl Session {
@@ -41,11 +64,19 @@ impl Session {
         const METHOD: &str = "replay_file";
         let name = arg_str(args, 0, METHOD)?;
         let (start, duration) = (arg_f64(args, 1, METHOD)?, arg_f64(args, 2, METHOD)?);
-        let follow = args.get(3).and_then(Value::as_u64).unwrap_or(0);
-        let sensors = arg_flag(args, 4);
+        let options = ReplayOptions {
+            start,
+            duration,
+            follow_id: args.get(3).and_then(Value::as_u64).unwrap_or(0),
+            replay_sensors: arg_flag(args, 4),
+            // The factor of the session's last set_replayer_time_factor,
+            // as CARLA's replayer keeps it for the replays that follow.
+            time_factor: self.replay_time_factor,
+            ..ReplayOptions::default()
+        };
         let status = self
             .client()?
-            .replay_file(&name, start, duration, follow, sensors)
+            .replay(&name, &options)
             .map_err(CallError::simbus)?;
         Ok(Answer::Value(Value::from(format!(
             "Replaying {name}: {} ({})",
@@ -66,11 +97,24 @@ impl Session {
         &mut self,
         args: &[Value],
     ) -> Result<Answer, CallError> {
-        let factor = arg_f64(args, 0, "set_replayer_time_factor")?;
-        self.client()?
-            .set_replayer_time_factor(factor)
-            .map_err(CallError::simbus)?;
-        Ok(Answer::Done)
+        const METHOD: &str = "set_replayer_time_factor";
+        let factor = arg_f64(args, 0, METHOD)?;
+        if !(factor.is_finite() && factor > 0.0) {
+            return Err(CallError::Shape {
+                method: METHOD,
+                what: "the time factor must be a positive number",
+            });
+        }
+        // Kept for the next replay_file (CARLA's replayer keeps it too).
+        self.replay_time_factor = factor;
+        match self.client()?.set_replayer_time_factor(factor) {
+            Ok(_) => Ok(Answer::Done),
+            Err(RecorderError::Refused {
+                refusal: RecorderRefusal::NotReplaying,
+                ..
+            }) => Ok(Answer::Done),
+            Err(e) => Err(CallError::simbus(e)),
+        }
     }
 
     pub(super) fn on_show_recorder_file_info(
@@ -79,8 +123,7 @@ impl Session {
     ) -> Result<Answer, CallError> {
         let name = arg_str(args, 0, "show_recorder_file_info")?;
         let all = arg_flag(args, 1);
-        let info =
-            simbus_recording::inspect::file_info(&name, all).map_err(CallError::recording)?;
+        let info = inspect::file_info(&name, all).map_err(CallError::recording)?;
         json(&info)
     }
 
@@ -95,8 +138,12 @@ impl Session {
                 .and_then(|c| char::from_u32(c as u32))
                 .unwrap_or('a')
         };
-        let list = simbus_recording::inspect::collisions(&name, kind(1), kind(2))
-            .map_err(CallError::recording)?;
+        let (kind1, kind2) = (kind(1), kind(2));
+        let mut list = inspect::collisions(&name, 'a', 'a').map_err(CallError::recording)?;
+        list.retain(|c| {
+            (in_category(kind1, c.kind_a) && in_category(kind2, c.kind_b))
+                || (in_category(kind1, c.kind_b) && in_category(kind2, c.kind_a))
+        });
         json(&list)
     }
 
@@ -107,7 +154,14 @@ impl Session {
         const METHOD: &str = "show_recorder_actors_blocked";
         let name = arg_str(args, 0, METHOD)?;
         let (min_time, min_distance) = (arg_f64(args, 1, METHOD)?, arg_f64(args, 2, METHOD)?);
-        let list = simbus_recording::inspect::actors_blocked(&name, min_time, min_distance)
+        // CARLA's min_distance is in centimetres; simbus's in metres.
+        if !(min_distance.is_finite() && min_distance > 0.0) {
+            return Err(CallError::Shape {
+                method: METHOD,
+                what: "min_distance must be a positive, finite number of centimetres",
+            });
+        }
+        let list = inspect::actors_blocked(&name, min_time, min_distance / 100.0)
             .map_err(CallError::recording)?;
         json(&list)
     }

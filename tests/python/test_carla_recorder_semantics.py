@@ -1,0 +1,106 @@
+"""CARLA 0.9.16's own client gets CARLA's meaning of the recorder calls'
+arguments through the gateway: `show_recorder_actors_blocked` reads its
+`min_distance` in centimetres, `set_replayer_time_factor` before
+`replay_file` applies to that replay, and `show_recorder_collisions` takes
+every CARLA category letter ('a' any, 'v' vehicle, 'w' walker, 't' traffic
+light, 'o' other, 'h' hero)."""
+
+import json
+
+import carla
+import pytest
+
+EMPTY = [["--scene", "empty"]]
+
+
+def synced(gateway):
+    """A client of `gateway` and its world, in synchronous mode with a
+    0.05 s step."""
+    client = gateway.client()
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    return client, world
+
+
+def record(client, world, path, ticks):
+    """Records `ticks` ticks of `world` to `path`."""
+    assert client.start_recorder(path, False) == path
+    for _ in range(ticks):
+        world.tick()
+    client.stop_recorder()
+
+
+def blocked_ids(client, path, min_time, min_distance):
+    answer = client.show_recorder_actors_blocked(path, min_time, min_distance)
+    return {a["actor"] for a in json.loads(answer)}
+
+
+@pytest.mark.parametrize("gateway", EMPTY, indirect=True)
+def test_actors_blocked_reads_min_distance_in_centimetres(gateway, tmp_path):
+    client, world = synced(gateway)
+    library = world.get_blueprint_library()
+    # A box falling in an empty scene (no ground): over 1.2 m in any 0.5 s
+    # of the recording, under 10 m in all of it.
+    box = world.spawn_actor(library.find("static.prop.box"), carla.Transform(carla.Location(z=5)))
+    world.tick()
+    path = str(tmp_path / "falling.mcap")
+    record(client, world, path, 20)
+    # 30 cm in 0.5 s: it falls farther, so it is never blocked (read as
+    # 30 m, it would be blocked all along).
+    assert box.id not in blocked_ids(client, path, 0.5, 30.0)
+    # 1000 cm (10 m) in 0.5 s: it falls less, so it is blocked.
+    assert box.id in blocked_ids(client, path, 0.5, 1000.0)
+    # CARLA's unit is named when min_distance is not positive.
+    with pytest.raises(RuntimeError, match="centimetres"):
+        client.show_recorder_actors_blocked(path, 0.5, 0.0)
+
+
+def test_a_time_factor_set_before_replay_file_applies_to_that_replay(gateway, tmp_path):
+    client, world = synced(gateway)
+    path = str(tmp_path / "run.mcap")
+    record(client, world, path, 10)
+    client.set_replayer_time_factor(2.5)
+    assert "frames" in client.replay_file(path, 0.0, 0.0, 0, False)
+    status = gateway.sim_client("recorder", "status", "--json")
+    assert status.returncode == 0, status.stderr
+    replay = json.loads(status.stdout)["replay"]
+    assert replay["state"] == "running"
+    assert replay["time_factor"] == 2.5
+    # A factor that is not positive is refused (CARLA's client sends this
+    # call without reading its answer) and the kept one stays.
+    client.set_replayer_time_factor(-1.0)
+    client.stop_replayer(False)
+    client.replay_file(path, 0.0, 0.0, 0, False)
+    status = json.loads(gateway.sim_client("recorder", "status", "--json").stdout)
+    assert status["replay"]["time_factor"] == 2.5
+    client.stop_replayer(False)
+
+
+def test_collisions_take_every_carla_category(gateway, tmp_path):
+    client, world = synced(gateway)
+    # The default scene: boxes fall onto the ground and onto each other.
+    path = str(tmp_path / "scene.mcap")
+    record(client, world, path, 40)
+
+    def pairs(category1, category2):
+        answer = json.loads(client.show_recorder_collisions(path, category1, category2))
+        return {(c["actor_a"], c["kind_a"], c["actor_b"], c["kind_b"]) for c in answer}
+
+    everything = pairs("a", "a")
+    # 'o' other: anything not a vehicle (simbus has no walkers or traffic lights).
+    others = {p for p in everything if "vehicle" not in (p[1], p[3])}
+    assert any(p[1] == "static" or p[3] == "static" for p in others), everything
+    assert any(p[1] == "box" and p[3] == "box" for p in others), everything
+    assert pairs("o", "o") == others
+    assert pairs("a", "o") == {p for p in everything if p[1] != "vehicle" or p[3] != "vehicle"}
+    assert pairs("o", "a") == pairs("a", "o")
+    vehicles = {p for p in everything if "vehicle" in (p[1], p[3])}
+    assert pairs("v", "a") == vehicles
+    assert pairs("v", "o") == {p for p in vehicles if p[1] != "vehicle" or p[3] != "vehicle"}
+    # No walker, traffic light or hero took part.
+    for category in "wth":
+        assert pairs(category, "a") == set()
+        assert pairs("o", category) == set()

@@ -172,7 +172,7 @@ def test_garbage_on_the_rpc_port_is_dropped_and_others_are_served(gateway):
     # An unknown method and wrong argument types are RuntimeErrors, not hangs.
     world = client.get_world()
     with pytest.raises(RuntimeError, match="not supported by simbus"):
-        world.get_spectator()
+        world.get_environment_objects()
     assert client.get_server_version() == "0.9.16"
     for s in bad + [silent, huge]:
         s.close()

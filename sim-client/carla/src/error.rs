@@ -154,6 +154,9 @@ pub(crate) enum CallError {
     /// A body's command on a sensor.
     #[error("simbus: actor {0} is a sensor: simbus sensors stay where they were spawned")]
     IsASensor(u32),
+    /// A command on the spectator other than moving it.
+    #[error("simbus: the spectator has no body: only set_transform and set_location move it")]
+    SpectatorHasNoBody,
     /// A command that needs the actor's last state, for an actor not seen.
     #[error("simbus: unknown actor {0}")]
     UnknownActor(u32),

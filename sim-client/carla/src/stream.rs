@@ -99,6 +99,9 @@ pub(crate) struct Hub {
     sent_changed: Condvar,
     /// The `EpisodeSettings` fields simbus does not have, as last set.
     pub(crate) other_settings: Mutex<Vec<Value>>,
+    /// The spectator's pose, as CARLA clients last set it: the gateway's
+    /// own, no simbus body (every client of the gateway sees the same).
+    pub(crate) spectator: Mutex<CarlaTransform>,
 }
 
 impl Default for Hub {
@@ -110,6 +113,7 @@ impl Default for Hub {
             sent: Mutex::default(),
             sent_changed: Condvar::default(),
             other_settings: Mutex::new(crate::session::settings::default_other_fields()),
+            spectator: Mutex::default(),
         }
     }
 }
@@ -269,19 +273,20 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
 }
 
 /// The world state of `frame` as CARLA's client reads it: simbus's actors
-/// (vehicles with their last control) and the gateway's sensors, placed on
-/// their parents in `actors`.
+/// (vehicles with their last control), the gateway's sensors, placed on
+/// their parents in `actors`, and the spectator at `spectator`.
 fn world_state(
     frame: &FrameView,
     server_pid: u32,
     actors: &HashMap<u32, ActorInfo>,
     registry: &Registry,
+    spectator: CarlaTransform,
 ) -> Vec<u8> {
     let t = frame.timestamp();
     let mut out = Vec::with_capacity(
         carla::SENSOR_HEADER_LEN
             + carla::EPISODE_HEADER_LEN
-            + (actors.len() + registry.sensors.len()) * carla::ACTOR_STATE_LEN,
+            + (actors.len() + registry.sensors.len() + 1) * carla::ACTOR_STATE_LEN,
     );
     carla::sensor_header(
         &mut out,
@@ -320,6 +325,12 @@ fn world_state(
         };
         carla::actor_state(&mut out, &state);
     }
+    let spectator = CarlaActorState {
+        id: carla::SPECTATOR_ID,
+        transform: spectator,
+        ..CarlaActorState::default()
+    };
+    carla::actor_state(&mut out, &spectator);
     out
 }
 
@@ -415,7 +426,8 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
         registry
             .sensors
             .retain(|_, s| s.parent == 0 || actors.contains_key(&s.parent));
-        world_state(frame, server_pid, &actors, &registry)
+        let spectator = *lock(&hub.spectator);
+        world_state(frame, server_pid, &actors, &registry, spectator)
     };
     *lock(&hub.actors) = actors;
     hub.send(carla::WORLD_STREAM_ID, &message);

@@ -34,6 +34,10 @@ pub const DEPTH_FAR_METRES: f32 = 1000.0;
 /// `SENSOR_ID_BASE + n`): simbus numbers sensors apart from actors, CARLA
 /// numbers them together. The sensor's stream id is its actor id.
 pub const SENSOR_ID_BASE: u32 = 1_000_000_000;
+/// The CARLA actor id of the world's spectator: `SENSOR_ID_BASE` itself,
+/// sensor 0, which simbus never numbers (its sensors count from 1), and
+/// above every simbus actor id CARLA can name.
+pub const SPECTATOR_ID: u32 = SENSOR_ID_BASE;
 /// The version the gateway reports (`client.get_server_version()`).
 pub const CARLA_VERSION: &str = "0.9.16";
 

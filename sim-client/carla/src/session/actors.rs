@@ -13,7 +13,7 @@ use crate::error::CallError;
 use crate::rpc::Answer;
 use crate::sensors;
 use crate::stream::{lock, SensorEntry};
-use crate::wire::{token, CarlaTransform};
+use crate::wire::{token, CarlaTransform, SPECTATOR_ID};
 
 /// One result per command of a batch: the actor's CARLA id, or why not.
 type Results = Vec<Result<u32, CallError>>;
@@ -33,6 +33,15 @@ impl Session {
             .filter_map(|id| self.actor_record(id))
             .collect();
         Ok(Answer::Value(Value::Array(records)))
+    }
+
+    /// CARLA's `world.get_spectator()`: the spectator's record (one per
+    /// gateway, a pose with no simbus body).
+    pub(super) fn on_get_spectator(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        let record = self
+            .actor_record(SPECTATOR_ID)
+            .ok_or(CallError::Vanished(SPECTATOR_ID))?;
+        Ok(Answer::Value(record))
     }
 
     pub(super) fn on_get_actor_definitions(&mut self, _: &[Value]) -> Result<Answer, CallError> {
@@ -162,6 +171,9 @@ impl Session {
 
     /// CARLA's `rpc::Actor` of actor `id`, if the world has it.
     fn actor_record(&self, id: u32) -> Option<Value> {
+        if id == SPECTATOR_ID {
+            return Some(spectator_record());
+        }
         let registry = lock(&self.hub.registry);
         if let Some(sensor) = registry.sensors.get(&id) {
             return Some(actor_record(
@@ -317,6 +329,7 @@ impl Session {
                         id
                     }
                 },
+                Ok(BatchCommand::Actor(SPECTATOR_ID, op)) => self.move_spectator(op),
                 Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::simbus_id(id).is_some() => {
                     self.destroy_sensor(id)
                 }
@@ -390,6 +403,18 @@ impl Session {
         }
     }
 
+    /// Moves the spectator (its pose goes out with the next world state);
+    /// anything else on it is refused: it has no body.
+    fn move_spectator(&mut self, op: Op) -> Result<u32, CallError> {
+        let mut pose = lock(&self.hub.spectator);
+        match op {
+            Op::Transform(t) => *pose = t,
+            Op::Location(l) => pose.location = l,
+            _ => return Err(CallError::SpectatorHasNoBody),
+        }
+        Ok(SPECTATOR_ID)
+    }
+
     fn destroy_sensor(&mut self, id: u32) -> Result<u32, CallError> {
         let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
         self.client()?
@@ -409,6 +434,23 @@ fn type_id(kind: u32) -> &'static str {
         Some(ActorKind::Vehicle) => "vehicle.simbus.car",
         _ => "static.prop.fixed",
     }
+}
+
+/// The spectator's `rpc::Actor`: CARLA's type id `spectator`, no
+/// attributes, no extent.
+fn spectator_record() -> Value {
+    let description = Value::Array(vec![
+        Value::from(0u8),
+        Value::from("spectator"),
+        Value::Array(Vec::new()),
+    ]);
+    actor_record(
+        SPECTATOR_ID,
+        0,
+        description,
+        [0.0; 3],
+        Value::Binary(Vec::new()),
+    )
 }
 
 /// CARLA's `BoundingBox` of actor `id`: centred, `extent` half sizes.

@@ -62,6 +62,7 @@ fn call_of(method: &str) -> Option<Call> {
             Session::on_empty_list
         }
         "get_actors_by_id" => Session::on_get_actors_by_id,
+        "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,
         "get_actor_bounding_box" => Session::on_get_actor_bounding_box,
         "spawn_actor" => Session::on_spawn_actor,

@@ -15,50 +15,7 @@ import pytest
 
 import simbus
 
-BIN = os.environ["SIMBUS_BIN_DIR"]
-_counter = itertools.count()
-
-
-def unique_world(tag):
-    return f"py-{tag}-{os.getpid()}-{next(_counter)}"
-
-
-class Server:
-    """A sim-server on a world of its own, killed and reaped by `stop`."""
-
-    def __init__(self, tag, *args):
-        self.world = unique_world(tag)
-        self.proc = subprocess.Popen(
-            [os.path.join(BIN, "sim-server"), "--world", self.world, *args],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        )
-
-    def client(self, **kwargs):
-        return simbus.connect(self.world, timeout=10.0, **kwargs)
-
-    def sim_client(self, *args, **kwargs):
-        return subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", self.world, *args],
-            start_new_session=True, **kwargs,
-        )
-
-    def stop(self):
-        self.proc.kill()
-        self.proc.wait()
-
-
-@pytest.fixture
-def server(request):
-    started = []
-
-    def start(*args):
-        s = Server(request.node.name[:20].replace("[", "-").replace("]", ""), *args)
-        started.append(s)
-        return s
-
-    yield start
-    for s in started:
-        s.stop()
+from simbus_support import server, unique_world  # noqa: F401 (a fixture)
 
 
 def python_child(code, world):

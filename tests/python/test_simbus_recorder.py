@@ -3,46 +3,15 @@ a file, read back without a server (`simbus.recording.info`), and replayed
 exactly in a fresh server with the recorded digests, frame for frame; a
 file that is no recording, and bad arguments, raise and change nothing."""
 
-import itertools
 import math
 import os
-import subprocess
 
 import pytest
 
 import simbus
 
-BIN = os.environ["SIMBUS_BIN_DIR"]
-_counter = itertools.count()
+from simbus_support import frame_at, server  # noqa: F401 (a fixture)
 TICKS = 20
-
-
-@pytest.fixture
-def server():
-    """Starts sim-servers, each on a world of its own; kills and reaps them."""
-    procs = []
-
-    def start(*args):
-        world = f"py-rec-{os.getpid()}-{next(_counter)}"
-        procs.append(subprocess.Popen(
-            [os.path.join(BIN, "sim-server"), "--world", world, *args],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        ))
-        return world
-
-    yield start
-    for proc in procs:
-        proc.kill()
-        proc.wait()
-
-
-def frame_at(client, frame_id):
-    """Frame `frame_id` (skipping older ones), its actors copied."""
-    while True:
-        with client.wait_for_frame(timeout=10) as frame:
-            if frame.frame >= frame_id:
-                assert frame.frame == frame_id
-                return frame.copy()
 
 
 def record(client, path):
@@ -69,7 +38,7 @@ def record(client, path):
 
 def test_recorded_frames_read_back_and_replay_with_their_digests(server, tmp_path):
     path = tmp_path / "run.mcap"
-    world = server("--seed", "7")
+    world = server("--seed", "7").world
     recorded = record(simbus.connect(world, timeout=10.0), path)
     first, last = recorded[0][0], recorded[-1][0]
 
@@ -87,7 +56,7 @@ def test_recorded_frames_read_back_and_replay_with_their_digests(server, tmp_pat
     assert [line[0] for line in listed] == [f for f, _ in recorded]
 
     # Exact replay in a fresh server: one recorded frame per tick.
-    client = simbus.connect(server(), timeout=10.0)
+    client = server().client()
     with client.ticker(delta_seconds=0.05) as ticker:
         status = client.replay(path, mode="exact")
         assert (status.replay.mode, status.replay.total) == ("exact", TICKS + 1)
@@ -119,7 +88,7 @@ def test_a_file_that_is_no_recording_raises_and_changes_nothing(server, tmp_path
     with pytest.raises(TypeError):
         simbus.recording.info(42)
 
-    client = simbus.connect(server(), timeout=10.0)
+    client = server().client()
     before = client.recorder_status()
     with pytest.raises(simbus.Error, match="MCAP"):
         client.replay(text)
@@ -140,7 +109,7 @@ def test_a_file_that_is_no_recording_raises_and_changes_nothing(server, tmp_path
 
 def test_a_recording_cut_short_reads_as_far_as_it_goes(server, tmp_path):
     path = tmp_path / "run.mcap"
-    record(simbus.connect(server(), timeout=10.0), path)
+    record(server().client(), path)
     assert simbus.recording.info(path).truncated is False
     data = path.read_bytes()
     cut = tmp_path / "cut.mcap"

@@ -4,10 +4,7 @@ command (an unknown actor refused, the others applied), bad input raises
 the right exception and changes nothing, and a lockstep participant holds
 the tick until it is done and is dropped when it never is."""
 
-import itertools
 import math
-import os
-import subprocess
 import threading
 
 import numpy as np
@@ -15,70 +12,8 @@ import pytest
 
 import simbus
 
-BIN = os.environ["SIMBUS_BIN_DIR"]
-_counter = itertools.count()
+from simbus_support import SimbusServer as Server, frame_at, server  # noqa: F401 (a fixture)
 UNKNOWN = 987654321
-
-
-class Server:
-    """A sim-server on a world of its own whose log lines are kept (to wait
-    for one); killed and reaped by `stop`."""
-
-    def __init__(self, *args):
-        self.world = f"py-world-{os.getpid()}-{next(_counter)}"
-        self.proc = subprocess.Popen(
-            [os.path.join(BIN, "sim-server"), "--world", self.world, *args],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-            start_new_session=True, env={**os.environ, "RUST_LOG": "info", "NO_COLOR": "1"},
-        )
-        self.lines = []
-        self.said = threading.Condition()
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self):
-        for line in self.proc.stderr:
-            with self.said:
-                self.lines.append(line)
-                self.said.notify_all()
-
-    def wait_line(self, needle, timeout=30):
-        """The first log line holding `needle`, waiting up to `timeout` s."""
-        found = lambda: next((l for l in self.lines if needle in l), None)
-        with self.said:
-            if not self.said.wait_for(found, timeout):
-                raise AssertionError(f"the server never said {needle!r}:\n{''.join(self.lines)}")
-            return found()
-
-    def client(self):
-        return simbus.connect(self.world, timeout=10.0)
-
-    def stop(self):
-        self.proc.kill()
-        self.proc.wait()
-        self.reader.join()
-
-
-@pytest.fixture
-def server():
-    started = []
-
-    def start(*args):
-        started.append(Server(*args))
-        return started[-1]
-
-    yield start
-    for s in started:
-        s.stop()
-
-
-def frame_at(client, frame_id):
-    """Frame `frame_id` (skipping older ones), its actors copied."""
-    while True:
-        with client.wait_for_frame(timeout=10) as frame:
-            if frame.frame >= frame_id:
-                assert frame.frame == frame_id
-                return frame.copy()
 
 
 def actor(frame, actor_id):

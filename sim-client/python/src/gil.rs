@@ -17,20 +17,24 @@ pub(crate) trait ThreadBound: sealed::Sealed {}
 
 mod sealed {
     pub(crate) trait Sealed {}
-    impl Sealed for () {}
-    impl Sealed for &sim_client::Client {}
-    impl Sealed for &mut sim_client::Client {}
-    impl Sealed for &mut sim_client::Ticker {}
-    impl Sealed for sim_client::Ticker {}
-    impl Sealed for &mut sim_client::Sensor {}
 }
 
-impl ThreadBound for () {}
-impl ThreadBound for &sim_client::Client {}
-impl ThreadBound for &mut sim_client::Client {}
-impl ThreadBound for &mut sim_client::Ticker {}
-impl ThreadBound for sim_client::Ticker {}
-impl ThreadBound for &mut sim_client::Sensor {}
+/// Marks each type as [`ThreadBound`] (and sealed: nothing else is).
+macro_rules! thread_bound {
+    ($($t:ty),* $(,)?) => {$(
+        impl sealed::Sealed for $t {}
+        impl ThreadBound for $t {}
+    )*};
+}
+
+thread_bound!(
+    (),
+    &sim_client::Client,
+    &mut sim_client::Client,
+    &mut sim_client::Ticker,
+    sim_client::Ticker,
+    &mut sim_client::Sensor,
+);
 
 /// Carries a value into and out of [`Python::detach`], which runs its
 /// closure synchronously on the calling thread: the value never leaves

@@ -45,7 +45,13 @@ async def collect(port, topics, count, timeout=30.0):
         while any(len(got[t]) < count for t in topics):
             remaining = deadline - asyncio.get_running_loop().time()
             assert remaining > 0, f"only {[(t, len(m)) for t, m in got.items()]} in {timeout} s"
-            raw = await asyncio.wait_for(ws.recv(), remaining)
+            try:
+                raw = await asyncio.wait_for(ws.recv(), remaining)
+            except asyncio.TimeoutError:
+                raise AssertionError(
+                    f"only {[(t, len(m)) for t, m in got.items()]} in {timeout} s; "
+                    f"subscribed to {sorted(subscribed.values())}, {len(times)} time messages"
+                ) from None
             if isinstance(raw, str):
                 op = json.loads(raw)
                 if op["op"] == "advertise":
@@ -71,7 +77,7 @@ async def collect(port, topics, count, timeout=30.0):
         return got, times
 
 
-def test_the_scene_clock_and_a_depth_camera_reach_a_foxglove_client(request):
+def test_the_scene_clock_and_a_depth_camera_reach_a_foxglove_client(request, tmp_path):
     world = world_name(request)
     procs = []
     try:
@@ -95,9 +101,12 @@ def test_the_scene_clock_and_a_depth_camera_reach_a_foxglove_client(request):
              "--channels", "8", "--points", "64"],
             capture_output=True, text=True, timeout=60, check=True,
         ).stdout.split()[-1]
+        # The bridge's own log, shown if the messages do not come.
+        log = tmp_path / "bridge.log"
         bridge = subprocess.Popen(
             [os.path.join(BIN, "sim-client"), "--world", world, "foxglove", "--port", "0", "--max-hz", "0"],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+            stdout=subprocess.PIPE, stderr=open(log, "w"), text=True, start_new_session=True,
+            env={**os.environ, "RUST_LOG": "simbus_foxglove=debug,foxglove=info"},
         )
         procs.append(bridge)
         line = wait_line(bridge, "foxglove:")
@@ -105,7 +114,10 @@ def test_the_scene_clock_and_a_depth_camera_reach_a_foxglove_client(request):
 
         depth_topic = f"/simbus/sensor/{sensor}/depth"
         lidar_topic = f"/simbus/sensor/{lidar}/points"
-        got, times = asyncio.run(collect(port, ["/simbus/scene", depth_topic, lidar_topic], 10))
+        try:
+            got, times = asyncio.run(collect(port, ["/simbus/scene", depth_topic, lidar_topic], 10))
+        except AssertionError as e:
+            raise AssertionError(f"{e}\nthe bridge's log:\n{log.read_text()[-4000:]}") from None
 
         scene = got["/simbus/scene"]
         previous = -1

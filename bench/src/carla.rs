@@ -1,7 +1,9 @@
 //! `simbus-bench carla`: CARLA 0.9.16's own Python client through
 //! `sim-client carla-gateway`, next to the native client, in one run: the
 //! `world.tick()` round trip, `wait_for_tick` latency (publish → returned),
-//! and 640x480 depth frames per second through `camera.listen`.
+//! 640x480 depth frames per second through `camera.listen`, and CARLA's
+//! traffic manager (in the script's process) driving 30 and 100 vehicles
+//! on simbus's town, with the time of `get_map()` + `generate_waypoints`.
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
@@ -36,6 +38,9 @@ pub(crate) struct CarlaArgs {
     /// (target/simbus-venv), else one made here in target/simbus-bench-venv].
     #[arg(long)]
     python: Option<PathBuf>,
+    /// Ticks timed per traffic-manager row.
+    #[arg(long, default_value_t = 500)]
+    traffic_ticks: usize,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
@@ -209,6 +214,51 @@ struct Measured {
     carla_wait: Latencies,
     native_fps: f64,
     carla_fps: f64,
+    traffic: Traffic,
+}
+
+/// The traffic manager's rows: ticks per second with 30 and 100 autopilot
+/// vehicles, and `get_map()` + `generate_waypoints(2.0)` on the town.
+struct Traffic {
+    ticks_per_s_30: f64,
+    ticks_per_s_100: f64,
+    map: Latencies,
+    waypoints: u64,
+}
+
+/// The traffic manager's rows, on a server of the town and a gateway of
+/// their own.
+fn traffic(
+    args: &CarlaArgs,
+    sim_client: &Path,
+    python: &Path,
+    script: &Path,
+) -> anyhow::Result<Traffic> {
+    let server = BenchServer::start("carla-town", &["--scene", "town"])?;
+    let (port, streams) = (free_port()?, free_port()?);
+    let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
+    let port = port.to_string();
+    let carla = ScriptSide {
+        python,
+        script,
+        target: &port,
+    };
+    let ticks = args.traffic_ticks.to_string();
+    let rate = |vehicles: &str| -> anyhow::Result<f64> {
+        let tm_port = free_port()?.to_string();
+        let answer = script_side(carla, "traffic", &[&ticks, vehicles, &tm_port], |_| Ok(()))?;
+        answer["ticks_per_s"]
+            .as_f64()
+            .context("no ticks per second")
+    };
+    let (ticks_per_s_30, ticks_per_s_100) = (rate("30")?, rate("100")?);
+    let answer = script_side(carla, "map", &["5"], |_| Ok(()))?;
+    Ok(Traffic {
+        ticks_per_s_30,
+        ticks_per_s_100,
+        map: latencies(&answer, "ns")?,
+        waypoints: answer["waypoints"].as_u64().unwrap_or(0),
+    })
 }
 
 fn measure(
@@ -235,6 +285,7 @@ fn measure(
     let (native_wait, carla_wait) =
         wait_for_tick(args.ticks, &server.world, &mut ticker, carla, timeout)?;
     let (native_fps, carla_fps) = depth_fps(args.frames, &client, ticker, carla, timeout)?;
+    let traffic = traffic(args, sim_client, python, script)?;
     report(
         args,
         &Measured {
@@ -246,6 +297,7 @@ fn measure(
             carla_wait,
             native_fps,
             carla_fps,
+            traffic,
         },
     );
     Ok(())
@@ -378,7 +430,9 @@ fn report(args: &CarlaArgs, m: &Measured) {
         carla_wait,
         native_fps,
         carla_fps,
+        traffic,
     } = m;
+    let map_ms = traffic.map.quantile_us(0.5) / 1e3;
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     if args.json {
         println!(
@@ -393,6 +447,10 @@ fn report(args: &CarlaArgs, m: &Measured) {
                     "carla_over_native_p50": p50(carla_wait) / p50(native_wait)},
                 "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
                     "native_over_carla": native_fps / carla_fps},
+                "traffic_manager_ticks_per_s": {"vehicles_30": traffic.ticks_per_s_30,
+                    "vehicles_100": traffic.ticks_per_s_100},
+                "get_map_generate_waypoints_ms_p50": map_ms,
+                "waypoints": traffic.waypoints,
             })
         );
         return;
@@ -416,5 +474,13 @@ fn report(args: &CarlaArgs, m: &Measured) {
     println!(
         "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",
         native_fps / carla_fps
+    );
+    println!(
+        "CARLA's traffic manager on the town, synchronous, 0.05 s steps: {:.0} ticks/s with 30 vehicles, {:.0} with 100",
+        traffic.ticks_per_s_30, traffic.ticks_per_s_100
+    );
+    println!(
+        "get_map() + generate_waypoints(2.0) on the town: {map_ms:.0} ms (p50 of 5; {} waypoints)",
+        traffic.waypoints
     );
 }

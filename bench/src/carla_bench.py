@@ -5,6 +5,12 @@ against the gateway. Prints one JSON object on its last line.
                                    and get_server_version() (no simbus) as the floor
     carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
     carla_bench.py depth PORT N    640x480 depth frames through camera.listen
+    carla_bench.py traffic PORT N VEHICLES TM_PORT
+                                   the traffic manager in synchronous mode on
+                                   simbus's town: VEHICLES autopilot vehicles,
+                                   N world.tick() timed (the TM step included)
+    carla_bench.py map PORT N      world.get_map() + generate_waypoints(2.0)
+                                   on the town, N times
     carla_bench.py capture PORT N W H
                                    a W x H depth camera through camera.listen:
                                    world.tick() returned -> the image in hand
@@ -78,11 +84,53 @@ def main():
         camera.destroy()
         sync(world, False)
         print(json.dumps({"fps": n / elapsed}))
+    elif mode == "traffic":
+        print(json.dumps(traffic(client, n, int(sys.argv[4]), int(sys.argv[5]))))
+    elif mode == "map":
+        client.load_world("town")
+        world = client.get_world()
+        samples, waypoints = [], 0
+        for _ in range(n):
+            start = time.perf_counter_ns()
+            waypoints = len(world.get_map().generate_waypoints(2.0))
+            samples.append(time.perf_counter_ns() - start)
+        print(json.dumps({"ns": samples, "waypoints": waypoints}))
     elif mode == "capture":
         width, height = int(sys.argv[4]), int(sys.argv[5])
         print(json.dumps({"ns": capture(world, n, width, height)}))
     else:
         raise SystemExit(f"unknown mode {mode}")
+
+
+def traffic(client, n, vehicles, tm_port):
+    """Ticks per second with `vehicles` autopilot vehicles on the town, the
+    traffic manager in synchronous mode (its step rides in each tick)."""
+    client.load_world("town")
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    tm = client.get_trafficmanager(tm_port)
+    tm.set_synchronous_mode(True)
+    tm.set_random_device_seed(1)
+    blueprints = world.get_blueprint_library().filter("vehicle.*")
+    points = world.get_map().get_spawn_points()
+    if len(points) < vehicles:
+        raise SystemExit(f"{vehicles} vehicles asked, {len(points)} spawn points")
+    batch = [
+        carla.command.SpawnActor(blueprints[i % len(blueprints)], point).then(
+            carla.command.SetAutopilot(carla.command.FutureActor, True, tm_port))
+        for i, point in enumerate(points[:vehicles])
+    ]
+    spawned = [r.actor_id for r in client.apply_batch_sync(batch, True) if not r.error]
+    for _ in range(20):
+        world.tick()
+    start = time.perf_counter()
+    for _ in range(n):
+        world.tick()
+    elapsed = time.perf_counter() - start
+    return {"ticks_per_s": n / elapsed, "vehicles": len(spawned)}
 
 
 def capture(world, n, width, height):

@@ -71,6 +71,7 @@ pub(crate) fn simulate(steps: Steps, seconds: f64) -> anyhow::Result<Vec<Sample>
         substepping: true,
         max_substep_delta_time: steps.physics,
         max_substeps: 16,
+        substep_rule: Default::default(),
     };
     settings
         .validate()

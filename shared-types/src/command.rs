@@ -17,7 +17,12 @@ wire_enum! {
         SpawnSphere = 2,
         /// Spawn a dynamic capsule along Y: `params[0]` = radius, `params[1]` = half height.
         SpawnCapsule = 3,
-        /// Spawn a four-wheeled ray-cast vehicle (chassis 2 × 0.5 × 1 m, facing +X).
+        /// Spawn a four-wheeled ray-cast vehicle facing +X: `params[0..3]` =
+        /// chassis half extents (X length, Y height, Z width, metres),
+        /// `params[3]` = mass (kg); all four zero = the original vehicle
+        /// (chassis 2 × 0.5 × 1 m, 100 kg). Wheels, engine and brakes follow
+        /// from them ([`crate::VehicleSpec`]); a partial or out-of-range set
+        /// is refused with [`CommandStatus::InvalidArgument`].
         SpawnVehicle = 4,
         /// Remove `actor`.
         Destroy = 5,
@@ -38,6 +43,11 @@ wire_enum! {
         /// Drive a vehicle: `params` = throttle 0..1, steer -1..1 (positive
         /// left), brake 0..1; `flags` bit 0 = hand brake. Holds until changed.
         VehicleControl = 13,
+        /// Hold `actor` at a constant velocity, `vector` (m/s) in the
+        /// actor's own axes, every physics step until switched off
+        /// (`flags` bit 0 set: on; clear: off). CARLA's
+        /// `enable_constant_velocity`.
+        ConstantVelocity = 14,
     }
 }
 
@@ -121,6 +131,16 @@ impl Command {
         }
     }
 
+    /// Spawn a vehicle of chassis half extents `half` (simbus axes) and
+    /// `mass` kg at `at`, facing +X.
+    pub fn spawn_sized_vehicle(at: [f32; 3], half: [f32; 3], mass: f32) -> Self {
+        Self {
+            vector: at,
+            params: [half[0], half[1], half[2], mass],
+            ..Self::new(CommandKind::SpawnVehicle, 0)
+        }
+    }
+
     /// Remove `actor`.
     pub fn destroy(actor: u64) -> Self {
         Self::new(CommandKind::Destroy, actor)
@@ -184,6 +204,16 @@ impl Command {
         }
     }
 
+    /// Hold `actor` at `velocity` (m/s, in its own axes) from now on, or
+    /// (`None`) let it go.
+    pub fn constant_velocity(actor: u64, velocity: Option<[f32; 3]>) -> Self {
+        Self {
+            flags: if velocity.is_some() { Self::ON } else { 0 },
+            vector: velocity.unwrap_or_default(),
+            ..Self::new(CommandKind::ConstantVelocity, actor)
+        }
+    }
+
     /// Drive vehicle `actor`.
     pub fn vehicle_control(
         actor: u64,
@@ -226,7 +256,9 @@ impl std::fmt::Display for CommandStatus {
             Self::UnknownActor => "unknown actor",
             Self::InvalidArgument => {
                 "invalid argument: values must be finite; sizes in (0, 1000] m, positions \
-                 within +-100000 m of the origin, throttle and brake in 0..=1, steer in -1..=1"
+                 within +-100000 m of the origin, throttle and brake in 0..=1, steer in -1..=1; \
+                 a vehicle's params all zero or half extents in 0.05..=20 m and mass in \
+                 1..=100000 kg"
             }
             Self::NotAVehicle => "the actor is not a vehicle",
             Self::UnknownCommand => "unknown command",
@@ -308,7 +340,7 @@ mod tests {
     #[test]
     fn kinds_and_statuses_are_numbered_without_gaps() {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(kinds, (1..=13).collect::<Vec<_>>());
+        assert_eq!(kinds, (1..=14).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
         assert_eq!(statuses, (0..=5).collect::<Vec<_>>());
     }

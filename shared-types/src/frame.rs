@@ -85,6 +85,39 @@ impl FrameHeader {
     pub const SUBSTEPS_CAPPED: u32 = 1;
     /// Flag: the frame is a replay of a recording (not computed live).
     pub const REPLAY: u32 = 2;
+    /// Flag: under the substep rule `clamp` (CARLA's), physics advanced
+    /// only `max_substeps * max_substep_delta_time`, less than the frame's
+    /// delta ([`FrameHeader::physics_ns`] says how much).
+    pub const PHYSICS_CLAMPED: u32 = 4;
+
+    /// Whether physics advanced less than the frame's delta (the substep
+    /// rule `clamp`, CARLA's).
+    pub fn is_physics_clamped(&self) -> bool {
+        self.flags & Self::PHYSICS_CLAMPED != 0
+    }
+
+    /// The simulation time physics advanced in this frame, in nanoseconds:
+    /// the frame's delta, or for a [`FrameHeader::PHYSICS_CLAMPED`] frame
+    /// `max_substeps * max_substep_delta_time` of its settings. Zero for the
+    /// initial frame.
+    pub fn physics_ns(&self) -> u64 {
+        let delta_ns = self.timestamp.delta_ns;
+        if !self.is_physics_clamped() {
+            return delta_ns;
+        }
+        let s = crate::WorldSettings::from(self.settings);
+        crate::SubstepRule::Clamp.physics_ns(
+            delta_ns,
+            s.substepping,
+            s.max_substep_nanos(),
+            s.max_substeps,
+        )
+    }
+
+    /// [`FrameHeader::physics_ns`] in seconds.
+    pub fn physics_seconds(&self) -> f64 {
+        nanos_to_seconds(self.physics_ns())
+    }
 
     /// Whether the frame is a replay of a recording.
     pub fn is_replay(&self) -> bool {

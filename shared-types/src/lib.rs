@@ -40,6 +40,7 @@ mod names;
 mod number;
 pub use number::{Exact, Readable};
 mod recorder;
+pub mod roads;
 pub mod scene;
 pub use recorder::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
@@ -50,8 +51,16 @@ mod sensor_params;
 mod settings;
 mod settings_wire;
 pub use settings_wire::{WireSettings, WireSettingsError};
+mod substep_rule;
+pub use substep_rule::{SubstepRule, UnknownSubstepRule};
 mod tick;
 mod wait_mode;
+mod vehicle;
+pub use vehicle::{
+    full_throttle_acceleration, VehicleSpec, VehicleSpecError, DEFAULT_VEHICLE_HALF_EXTENTS,
+    DEFAULT_VEHICLE_MASS, MAX_VEHICLE_HALF_EXTENT, MAX_VEHICLE_MASS, MIN_VEHICLE_HALF_EXTENT,
+    MIN_VEHICLE_MASS, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS,
+};
 
 pub use command::{
     BatchHeader, BatchResponseHeader, Command, CommandKind, CommandResult, CommandStatus,

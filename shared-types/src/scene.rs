@@ -1,5 +1,5 @@
 //! Scene names, as `sim-server --scene`, `sim-client load` and a load
-//! request spell them: `default`, `empty` or `boxes:N`. One grammar, so a
+//! request spell them: `default`, `empty`, `town`, `flat` or `boxes:N`. One grammar, so a
 //! client refuses a bad name with the same words as the server, before it
 //! asks.
 
@@ -16,6 +16,11 @@ pub enum SceneName {
     Default,
     /// `empty`: no actors.
     Empty,
+    /// `town`: a grid of roads with junctions and a loop, on a flat ground.
+    Town,
+    /// `flat`: a flat ground and nothing on it (the world CARLA's
+    /// `generate_opendrive_world` builds).
+    Flat,
     /// `boxes:N`: ground plus N boxes, N in `1..=`[`MAX_SCENE_BOXES`].
     Boxes(u32),
 }
@@ -24,7 +29,7 @@ pub enum SceneName {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum SceneNameError {
     /// Not one of the known scenes.
-    #[error("unknown scene '{0}': expected 'default', 'empty' or 'boxes:N'")]
+    #[error("unknown scene '{0}': expected 'default', 'empty', 'town', 'flat' or 'boxes:N'")]
     Unknown(String),
     /// `boxes:N` with N not a whole number in range.
     #[error("invalid box count in '{0}': boxes:N needs N in 1..={MAX_SCENE_BOXES}")]
@@ -38,6 +43,8 @@ impl FromStr for SceneName {
         match s {
             "default" => Ok(Self::Default),
             "empty" => Ok(Self::Empty),
+            "town" => Ok(Self::Town),
+            "flat" => Ok(Self::Flat),
             _ => {
                 let count = s
                     .strip_prefix("boxes:")
@@ -56,6 +63,8 @@ impl fmt::Display for SceneName {
         match self {
             Self::Default => f.write_str("default"),
             Self::Empty => f.write_str("empty"),
+            Self::Town => f.write_str("town"),
+            Self::Flat => f.write_str("flat"),
             Self::Boxes(n) => write!(f, "boxes:{n}"),
         }
     }
@@ -86,5 +95,17 @@ mod tests {
             "town10".parse::<SceneName>(),
             Err(SceneNameError::Unknown(_))
         ));
+    }
+
+    #[test]
+    fn every_scene_name_prints_back_and_the_error_lists_them() {
+        for name in ["default", "empty", "town", "flat", "boxes:7"] {
+            assert_eq!(name.parse::<SceneName>().unwrap().to_string(), name);
+        }
+        let e = "Town10HD_Opt".parse::<SceneName>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown scene 'Town10HD_Opt': expected 'default', 'empty', 'town', 'flat' or 'boxes:N'"
+        );
     }
 }

@@ -3,7 +3,7 @@
 use std::fmt;
 
 use crate::wire::wire_enum;
-use crate::NANOS_PER_SECOND;
+use crate::{SubstepRule, NANOS_PER_SECOND};
 
 /// The largest `max_substeps` accepted (CARLA's limit).
 pub const MAX_SUBSTEPS_LIMIT: u32 = 16;
@@ -62,6 +62,10 @@ pub struct WorldSettings {
     pub max_substep_delta_time: f64,
     /// The most physics substeps per frame, 1 to [`MAX_SUBSTEPS_LIMIT`].
     pub max_substeps: u32,
+    /// What a fixed delta longer than `max_substep_delta_time *
+    /// max_substeps` does: refused ([`SubstepRule::Refuse`], the default),
+    /// physics clamped as CARLA does, or substeps stretched.
+    pub substep_rule: SubstepRule,
 }
 
 impl Default for WorldSettings {
@@ -72,13 +76,15 @@ impl Default for WorldSettings {
             substepping: true,
             max_substep_delta_time: 0.01,
             max_substeps: 10,
+            substep_rule: SubstepRule::Refuse,
         }
     }
 }
 
 /// One line for logs: `sync, fixed step 0.05 s, substepping <= 0.01 s x 10`
-/// or `async, variable step, no substepping`. A fixed step of 0 reads as
-/// the variable step it means.
+/// or `async, variable step, no substepping`, then `, substep rule clamp`
+/// for a rule other than the default. A fixed step of 0 reads as the
+/// variable step it means.
 impl fmt::Display for WorldSettings {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let settings = self.normalized();
@@ -96,9 +102,13 @@ impl fmt::Display for WorldSettings {
                 f,
                 ", substepping <= {} s x {}",
                 settings.max_substep_delta_time, settings.max_substeps
-            )
+            )?;
         } else {
-            f.write_str(", no substepping")
+            f.write_str(", no substepping")?;
+        }
+        match settings.substep_rule {
+            SubstepRule::Refuse => Ok(()),
+            rule => write!(f, ", substep rule {rule}"),
         }
     }
 }
@@ -115,6 +125,8 @@ wire_enum! {
         MaxSubsteps = 3,
         /// `fps` (fixed_delta_seconds = 1 / fps).
         Fps = 4,
+        /// `substep_rule`.
+        SubstepRule = 5,
     }
 }
 
@@ -124,6 +136,7 @@ impl SettingsField {
         match self {
             Self::FixedDeltaSeconds | Self::Fps => "it must be >= 0 (0 means variable step)",
             Self::MaxSubstepDeltaTime | Self::MaxSubsteps => "it must be positive",
+            Self::SubstepRule => "it must be refuse, clamp or stretch",
         }
     }
 }
@@ -135,6 +148,7 @@ impl fmt::Display for SettingsField {
             Self::MaxSubstepDeltaTime => "max_substep_delta_time",
             Self::MaxSubsteps => "max_substeps",
             Self::Fps => "fps",
+            Self::SubstepRule => "substep_rule",
         })
     }
 }
@@ -195,11 +209,15 @@ pub enum SettingsError {
         max: u32,
     },
     /// The substep rule `fixed_delta_seconds <= max_substep_delta_time * max_substeps`
-    /// does not hold.
+    /// does not hold (under [`SubstepRule::Refuse`]; the message names the
+    /// other rules and what each would do with these values).
     #[error(
         "substep rule violated: fixed_delta_seconds ({fixed} s) must be <= \
-         max_substep_delta_time ({max_dt} s) * max_substeps ({max_substeps}) = {limit} s",
-        limit = max_dt * f64::from(*max_substeps)
+         max_substep_delta_time ({max_dt} s) * max_substeps ({max_substeps}) = {limit} s \
+         (substep rule 'refuse'; 'clamp' runs CARLA's way: physics advances {limit} s per \
+         {fixed} s frame; 'stretch' lengthens the substeps to {stretched} s)",
+        limit = max_dt * f64::from(*max_substeps),
+        stretched = fixed / f64::from((*max_substeps).max(1))
     )]
     SubstepRule {
         /// The requested fixed frame time.
@@ -208,6 +226,13 @@ pub enum SettingsError {
         max_dt: f64,
         /// The requested most substeps.
         max_substeps: u32,
+    },
+    /// A `substep_rule` wire value this version does not know (a peer of a
+    /// newer or broken protocol).
+    #[error("substep_rule = {value} is not a substep rule known to this version of simbus (0 refuse, 1 clamp, 2 stretch)")]
+    UnknownSubstepRule {
+        /// The value given.
+        value: u32,
     },
 }
 
@@ -224,6 +249,17 @@ pub enum SettingsWarning {
         /// The longest substep the settings allow.
         substep_seconds: f64,
     },
+    /// Under [`SubstepRule::Clamp`], frames longer than `max_substeps ×
+    /// max_substep_delta_time`: physics advances less than the frame's time
+    /// (CARLA's behaviour).
+    PhysicsClamped {
+        /// The frame time.
+        delta_seconds: f64,
+        /// The longest substep.
+        max_substep_delta_time: f64,
+        /// The most substeps per frame.
+        max_substeps: u32,
+    },
 }
 
 impl fmt::Display for SettingsWarning {
@@ -236,6 +272,17 @@ impl fmt::Display for SettingsWarning {
             Self::LongSubstep { substep_seconds } => write!(
                 f,
                 "physics substep {substep_seconds} s is above 1/60 s: physics may be unreliable"
+            ),
+            Self::PhysicsClamped {
+                delta_seconds,
+                max_substep_delta_time,
+                max_substeps,
+            } => write!(
+                f,
+                "substep rule 'clamp': physics advances {:.3} s per {delta_seconds:.3} s frame \
+                 ({max_substeps} substeps of {max_substep_delta_time:.3} s), as in CARLA; \
+                 frames are flagged clamped",
+                max_substep_delta_time * f64::from(*max_substeps)
             ),
         }
     }
@@ -300,9 +347,11 @@ impl WorldSettings {
     ///
     /// Rules: times are finite, not negative and at least 1 µs (a fixed delta
     /// of 0 means variable step); `max_substeps` is in `1..=16`; with
-    /// substepping on, `fixed_delta_seconds <= max_substep_delta_time *
-    /// max_substeps` (compared in integer nanoseconds, so 0.1 = 0.01 × 10
-    /// holds exactly).
+    /// substepping on and the substep rule [`SubstepRule::Refuse`],
+    /// `fixed_delta_seconds <= max_substep_delta_time * max_substeps`
+    /// (compared in integer nanoseconds, so 0.1 = 0.01 × 10 holds exactly).
+    /// [`SubstepRule::Clamp`] and [`SubstepRule::Stretch`] accept longer
+    /// frames and say what they do with them.
     pub fn validate(&self) -> Result<(), SettingsError> {
         let settings = self.normalized();
         if let Some(dt) = settings.fixed_delta_seconds {
@@ -318,7 +367,10 @@ impl WorldSettings {
                 max: MAX_SUBSTEPS_LIMIT,
             });
         }
-        if let (true, Some(fixed)) = (settings.substepping, settings.fixed_delta_seconds) {
+        let refused = settings.substep_rule == SubstepRule::Refuse;
+        if let (true, true, Some(fixed)) =
+            (refused, settings.substepping, settings.fixed_delta_seconds)
+        {
             let limit = settings
                 .max_substep_nanos()
                 .saturating_mul(u64::from(settings.max_substeps));
@@ -341,7 +393,14 @@ impl WorldSettings {
             warnings.push(SettingsWarning::LongFrame { delta_seconds });
         }
         let substep_seconds = match (self.substepping, fixed) {
-            (true, Some(dt)) => dt / (dt / self.max_substep_delta_time).ceil().max(1.0),
+            (true, Some(dt)) => {
+                let max = f64::from(self.max_substeps.max(1));
+                let count = (dt / self.max_substep_delta_time).ceil().clamp(1.0, max);
+                match self.substep_rule {
+                    SubstepRule::Clamp => (dt / count).min(self.max_substep_delta_time),
+                    SubstepRule::Refuse | SubstepRule::Stretch => dt / count,
+                }
+            }
             (true, None) => self.max_substep_delta_time,
             (false, Some(dt)) => dt,
             (false, None) => 0.0,
@@ -349,221 +408,31 @@ impl WorldSettings {
         if substep_seconds > LONG_SUBSTEP_SECONDS {
             warnings.push(SettingsWarning::LongSubstep { substep_seconds });
         }
+        if let Some(delta_seconds) = fixed.filter(|_| self.clamps_physics()) {
+            warnings.push(SettingsWarning::PhysicsClamped {
+                delta_seconds,
+                max_substep_delta_time: self.max_substep_delta_time,
+                max_substeps: self.max_substeps,
+            });
+        }
         warnings
+    }
+
+    /// Whether each fixed-step frame runs less physics time than it lasts:
+    /// [`SubstepRule::Clamp`] with substepping on and `fixed_delta_seconds >
+    /// max_substep_delta_time * max_substeps` (in integer nanoseconds).
+    pub fn clamps_physics(&self) -> bool {
+        self.fixed_delta_nanos().is_some_and(|delta_ns| {
+            self.substep_rule.physics_ns(
+                delta_ns,
+                self.substepping,
+                self.max_substep_nanos(),
+                self.max_substeps,
+            ) < delta_ns
+        })
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::{WireSettings, WireSettingsError};
-
-    fn fixed(dt: f64) -> WorldSettings {
-        WorldSettings {
-            fixed_delta_seconds: Some(dt),
-            ..Default::default()
-        }
-    }
-
-    #[test]
-    fn defaults_are_carla_defaults_and_valid() {
-        let s = WorldSettings::default();
-        assert!(!s.synchronous_mode);
-        assert_eq!(s.fixed_delta_seconds, None);
-        assert!(s.substepping);
-        assert_eq!(s.max_substep_delta_time, 0.01);
-        assert_eq!(s.max_substeps, 10);
-        assert_eq!(s.validate(), Ok(()));
-    }
-
-    #[test]
-    fn non_finite_and_negative_values_are_refused() {
-        let field = SettingsField::FixedDeltaSeconds;
-        assert!(matches!(
-            fixed(f64::NAN).validate(),
-            Err(SettingsError::NotFinite { field: f, .. }) if f == field
-        ));
-        assert!(matches!(
-            fixed(f64::INFINITY).validate(),
-            Err(SettingsError::NotFinite { .. })
-        ));
-        assert_eq!(
-            fixed(-0.1).validate(),
-            Err(SettingsError::Negative { field, value: -0.1 })
-        );
-        let s = WorldSettings {
-            max_substep_delta_time: -1.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            s.validate(),
-            Err(SettingsError::Negative {
-                field: SettingsField::MaxSubstepDeltaTime,
-                ..
-            })
-        ));
-        assert!(matches!(
-            fixed(1e-9).validate(),
-            Err(SettingsError::TooSmall { .. })
-        ));
-    }
-
-    #[test]
-    fn zero_fixed_delta_means_variable_step() {
-        assert_eq!(fixed(0.0).validate(), Ok(()));
-        assert_eq!(fixed(0.0).normalized().fixed_delta_seconds, None);
-        assert_eq!(fixed(0.0).fixed_delta_nanos(), None);
-        assert_eq!(WorldSettings::delta_from_fps(0.0), Ok(None));
-        assert_eq!(WorldSettings::delta_from_fps(20.0), Ok(Some(0.05)));
-        assert!(WorldSettings::delta_from_fps(-1.0).is_err());
-        assert!(WorldSettings::delta_from_fps(f64::NAN).is_err());
-    }
-
-    #[test]
-    fn max_substeps_must_be_within_1_to_16() {
-        for (n, ok) in [(0, false), (1, true), (16, true), (17, false)] {
-            let s = WorldSettings {
-                max_substeps: n,
-                fixed_delta_seconds: Some(0.001),
-                ..Default::default()
-            };
-            assert_eq!(s.validate().is_ok(), ok, "max_substeps = {n}");
-        }
-    }
-
-    #[test]
-    fn substep_rule_is_checked_exactly_and_named() {
-        assert_eq!(fixed(0.1).validate(), Ok(()), "0.1 = 0.01 * 10 holds");
-        let err = fixed(0.100_000_001).validate().unwrap_err();
-        assert_eq!(
-            err,
-            SettingsError::SubstepRule {
-                fixed: 0.100_000_001,
-                max_dt: 0.01,
-                max_substeps: 10
-            }
-        );
-        assert!(err.to_string().contains("substep rule"));
-        assert!(err
-            .to_string()
-            .contains("max_substep_delta_time (0.01 s) * max_substeps (10)"));
-        let off = WorldSettings {
-            substepping: false,
-            ..fixed(0.5)
-        };
-        assert_eq!(
-            off.validate(),
-            Ok(()),
-            "the rule binds only with substepping"
-        );
-    }
-
-    #[test]
-    fn warnings_follow_the_limits() {
-        assert!(fixed(0.05).warnings().is_empty());
-        assert!(matches!(
-            fixed(0.12).warnings()[..],
-            [SettingsWarning::LongFrame { .. }]
-        ));
-        let coarse = WorldSettings {
-            substepping: false,
-            ..fixed(0.05)
-        };
-        assert!(matches!(
-            coarse.warnings()[..],
-            [SettingsWarning::LongSubstep { .. }]
-        ));
-    }
-
-    #[test]
-    fn errors_survive_the_wire() {
-        let errors = [
-            SettingsError::NotFinite {
-                field: SettingsField::Fps,
-                value: f64::INFINITY,
-            },
-            SettingsError::Negative {
-                field: SettingsField::FixedDeltaSeconds,
-                value: -2.0,
-            },
-            SettingsError::TooSmall {
-                field: SettingsField::MaxSubstepDeltaTime,
-                value: 1e-9,
-                min: MIN_DELTA_SECONDS,
-            },
-            SettingsError::MaxSubstepsOutOfRange { value: 17, max: 16 },
-            SettingsError::SubstepRule {
-                fixed: 0.5,
-                max_dt: 0.01,
-                max_substeps: 10,
-            },
-        ];
-        for e in errors {
-            let (c, f, v) = e.to_wire();
-            assert_eq!(SettingsError::from_wire(c, f, v), Some(e));
-            assert_eq!(WireSettingsError::from(&e).error(), Some(e));
-        }
-        assert_eq!(SettingsError::from_wire(99, 0, [0.0; 3]), None);
-        assert_eq!(WireSettingsError::NONE.error(), None);
-        assert_eq!(WireSettingsError::default(), WireSettingsError::NONE);
-        let unknown_field = WireSettingsError {
-            field: 99,
-            ..WireSettingsError::from(&errors[0])
-        };
-        assert_eq!(unknown_field.error(), None);
-    }
-
-    #[test]
-    fn wire_settings_error_layout_is_fixed() {
-        assert_eq!(std::mem::size_of::<WireSettingsError>(), 32);
-        assert_eq!(std::mem::align_of::<WireSettingsError>(), 8);
-    }
-
-    #[test]
-    fn long_thresholds_agree_in_seconds_and_nanoseconds() {
-        assert_eq!(seconds_to_nanos(LONG_FRAME_SECONDS), LONG_FRAME_NS);
-        assert_eq!(seconds_to_nanos(LONG_SUBSTEP_SECONDS), LONG_SUBSTEP_NS);
-        // A frame of exactly 0.1 s is not long; one nanosecond more is.
-        assert!(fixed(0.1).warnings().is_empty());
-        assert!(seconds_to_nanos(0.1) <= LONG_FRAME_NS);
-        assert!(seconds_to_nanos(0.100_000_001) > LONG_FRAME_NS);
-        assert!(!fixed(0.100_000_001).warnings().is_empty());
-    }
-
-    #[test]
-    fn settings_display_as_one_line() {
-        assert_eq!(
-            WorldSettings::default().to_string(),
-            "async, variable step, substepping <= 0.01 s x 10"
-        );
-        let sync = WorldSettings {
-            synchronous_mode: true,
-            ..fixed(0.05)
-        };
-        assert_eq!(
-            sync.to_string(),
-            "sync, fixed step 0.05 s, substepping <= 0.01 s x 10"
-        );
-        let coarse = WorldSettings {
-            substepping: false,
-            ..fixed(0.0)
-        };
-        assert_eq!(coarse.to_string(), "async, variable step, no substepping");
-    }
-
-    #[test]
-    fn settings_survive_the_wire() {
-        let s = WorldSettings {
-            synchronous_mode: true,
-            fixed_delta_seconds: Some(0.05),
-            substepping: false,
-            max_substep_delta_time: 0.002,
-            max_substeps: 3,
-        };
-        assert_eq!(WorldSettings::from(WireSettings::from(s)), s);
-        assert_eq!(
-            WorldSettings::from(WireSettings::from(WorldSettings::default())),
-            WorldSettings::default()
-        );
-    }
-}
+#[path = "settings_tests.rs"]
+mod tests;

@@ -4,12 +4,17 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::settings::{SettingsError, SettingsField};
-use crate::WorldSettings;
+use crate::{SubstepRule, WorldSettings};
 
 /// [`WorldSettings`] as they travel in shared memory.
+///
+/// Version 2 gave the first of version 1's two zero bytes to
+/// [`WireSettings::substep_rule`]; the layout (size, offsets) is unchanged,
+/// and the zero that every version 1 peer and recording holds there reads
+/// as [`SubstepRule::Refuse`], version 1's only behaviour.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::WireSettings/1")]
+#[type_name("simbus::WireSettings/2")]
 pub struct WireSettings {
     /// Fixed frame time in seconds; 0 means variable step.
     pub fixed_delta_seconds: f64,
@@ -21,8 +26,31 @@ pub struct WireSettings {
     pub synchronous_mode: u8,
     /// 1 = substepping on.
     pub substepping: u8,
+    /// The [`SubstepRule`] as its `u32` wire value (which fits a byte);
+    /// read it with [`WireSettings::substep_rule`].
+    pub substep_rule: u8,
     /// Zero.
-    pub reserved: [u8; 2],
+    pub reserved: u8,
+}
+
+impl WireSettings {
+    /// The substep rule carried, refused with an error naming the value
+    /// when this version does not know it.
+    pub fn substep_rule(&self) -> Result<SubstepRule, SettingsError> {
+        SubstepRule::try_from(u32::from(self.substep_rule))
+            .map_err(|e| SettingsError::UnknownSubstepRule { value: e.value })
+    }
+
+    /// The settings carried, checked: an unknown substep rule from another
+    /// process is an error, never a guess. (The [`From`] conversion, for
+    /// settings this process's own server wrote, reads an unknown rule as
+    /// [`SubstepRule::Refuse`].)
+    pub fn settings(&self) -> Result<WorldSettings, SettingsError> {
+        Ok(WorldSettings {
+            substep_rule: self.substep_rule()?,
+            ..WorldSettings::from(*self)
+        })
+    }
 }
 
 impl From<WorldSettings> for WireSettings {
@@ -33,7 +61,9 @@ impl From<WorldSettings> for WireSettings {
             max_substeps: s.max_substeps,
             synchronous_mode: u8::from(s.synchronous_mode),
             substepping: u8::from(s.substepping),
-            reserved: [0; 2],
+            // Every rule's wire value is below 256 (see the layout test).
+            substep_rule: u32::from(s.substep_rule) as u8,
+            reserved: 0,
         }
     }
 }
@@ -46,6 +76,7 @@ impl From<WireSettings> for WorldSettings {
             substepping: w.substepping != 0,
             max_substep_delta_time: w.max_substep_delta_time,
             max_substeps: w.max_substeps,
+            substep_rule: w.substep_rule().unwrap_or_default(),
         }
     }
 }
@@ -96,6 +127,7 @@ mod code {
     pub(super) const MAX_SUBSTEPS: u32 = 4;
     pub(super) const SUBSTEP_RULE: u32 = 5;
     pub(super) const TOO_LARGE: u32 = 6;
+    pub(super) const UNKNOWN_SUBSTEP_RULE: u32 = 7;
 }
 
 impl SettingsError {
@@ -124,6 +156,11 @@ impl SettingsError {
                 code::SUBSTEP_RULE,
                 SettingsField::FixedDeltaSeconds as u32,
                 [fixed, max_dt, f64::from(max_substeps)],
+            ),
+            Self::UnknownSubstepRule { value } => (
+                code::UNKNOWN_SUBSTEP_RULE,
+                SettingsField::SubstepRule as u32,
+                [f64::from(value), 0.0, 0.0],
             ),
         }
     }
@@ -161,7 +198,41 @@ impl SettingsError {
                 max_dt: b,
                 max_substeps: c as u32,
             },
+            code::UNKNOWN_SUBSTEP_RULE => Self::UnknownSubstepRule { value: a as u32 },
             _ => return None,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_substep_rule_takes_a_byte_version_1_left_zero() {
+        // Version 1's layout: 24 bytes, the flags at 20 and 21.
+        assert_eq!(std::mem::size_of::<WireSettings>(), 24);
+        assert_eq!(std::mem::offset_of!(WireSettings, substepping), 21);
+        assert_eq!(std::mem::offset_of!(WireSettings, substep_rule), 22);
+        assert!(SubstepRule::ALL.iter().all(|&r| u32::from(r) < 256));
+        // A version 1 peer's zero reads as refuse.
+        let mut wire = WireSettings::from(WorldSettings::default());
+        assert_eq!(wire.substep_rule, 0);
+        assert_eq!(wire.substep_rule(), Ok(SubstepRule::Refuse));
+        for rule in SubstepRule::ALL {
+            let s = WorldSettings {
+                substep_rule: rule,
+                ..WorldSettings::default()
+            };
+            assert_eq!(WireSettings::from(s).settings(), Ok(s));
+        }
+        // An unknown value is an error naming it, never a panic.
+        wire.substep_rule = 9;
+        let error = wire.settings().unwrap_err();
+        assert_eq!(error, SettingsError::UnknownSubstepRule { value: 9 });
+        assert!(error
+            .to_string()
+            .contains("substep_rule = 9 is not a substep rule"));
+        assert_eq!(WorldSettings::from(wire).substep_rule, SubstepRule::Refuse);
     }
 }

@@ -142,6 +142,7 @@ mod tests {
         round_trips("CommandStatus", &CommandStatus::ALL);
         round_trips("ActorKind", &ActorKind::ALL);
         round_trips("SettingsField", &SettingsField::ALL);
+        round_trips("SubstepRule", &crate::SubstepRule::ALL);
         round_trips("RecorderKind", &crate::RecorderKind::ALL);
         round_trips("ReplayMode", &crate::ReplayMode::ALL);
         round_trips("ReplayState", &crate::ReplayState::ALL);

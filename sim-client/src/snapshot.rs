@@ -65,6 +65,19 @@ impl FrameView {
         self.header().settings.into()
     }
 
+    /// Whether physics advanced less than the frame's delta: the substep
+    /// rule `clamp` (CARLA's) with a frame longer than `max_substeps *
+    /// max_substep_delta_time` ([`FrameHeader::PHYSICS_CLAMPED`]).
+    pub fn is_physics_clamped(&self) -> bool {
+        self.header().is_physics_clamped()
+    }
+
+    /// The simulation seconds physics advanced in this frame: its delta,
+    /// or less for a clamped frame ([`FrameView::is_physics_clamped`]).
+    pub fn physics_seconds(&self) -> f64 {
+        self.header().physics_seconds()
+    }
+
     /// A replayed frame's id in the recording (see [`WorldSnapshot::recorded_frame`]).
     pub fn recorded_frame(&self) -> Option<u64> {
         self.header()
@@ -144,6 +157,18 @@ impl WorldSnapshot {
     /// The settings the frame was computed with.
     pub fn settings(&self) -> WorldSettings {
         self.header.settings.into()
+    }
+
+    /// Whether physics advanced less than the frame's delta (see
+    /// [`FrameView::is_physics_clamped`]).
+    pub fn is_physics_clamped(&self) -> bool {
+        self.header.is_physics_clamped()
+    }
+
+    /// The simulation seconds physics advanced in this frame (see
+    /// [`FrameView::physics_seconds`]).
+    pub fn physics_seconds(&self) -> f64 {
+        self.header.physics_seconds()
     }
 
     /// For a replayed frame, the id it had in the recording (its own

@@ -30,7 +30,7 @@ pub(crate) struct ServerArgs {
     #[arg(long, env = "SIMBUS_WORLD", default_value = "default")]
     pub(crate) world: WorldName,
 
-    /// Scene to load: default, empty or boxes:N (N in 1..=100000).
+    /// Scene to load: default, empty, town (roads with 144 spawn points), flat (a 4 km ground) or boxes:N (N in 1..=100000).
     #[arg(long, default_value = "default")]
     pub(crate) scene: Scene,
 
@@ -161,6 +161,7 @@ impl ServerArgs {
             substepping: !self.no_substepping,
             max_substep_delta_time: self.max_substep_delta_time,
             max_substeps: self.max_substeps,
+            substep_rule: Default::default(),
         };
         settings.validate()?;
         if self.sync && settings.normalized().fixed_delta_seconds.is_none() {

@@ -24,21 +24,36 @@ pub struct SubstepPlan {
     /// Length of each physics step, in seconds (rapier runs in `f32`).
     pub substep_seconds: f32,
     /// The frame was longer than `max_substeps * max_substep_delta_time`, so
-    /// its substeps are longer than `max_substep_delta_time`.
+    /// its substeps are longer than `max_substep_delta_time` (the substep
+    /// rules `refuse`, for a variable step, and `stretch`).
     pub capped: bool,
+    /// The frame was longer than `max_substeps * max_substep_delta_time`
+    /// and the substep rule `clamp` (CARLA's) ran only that much physics:
+    /// `count * substep_seconds` is less than the frame's delta.
+    pub clamped: bool,
 }
 
 impl SubstepPlan {
     /// The plan for a frame of `delta_ns` under `settings`.
     ///
-    /// With substepping: `n = ceil(dt / max_substep_delta_time)` steps of
-    /// `dt / n`, with `n` capped at `max_substeps` (then `capped` is set).
+    /// With substepping: the physics time `t` is `dt`, or under the substep
+    /// rule `clamp` at most `max_substeps * max_substep_delta_time` (then
+    /// `clamped` is set); `n = ceil(t / max_substep_delta_time)` steps of
+    /// `t / n`, with `n` capped at `max_substeps` (then `capped` is set).
     /// Without substepping: one step of `dt`.
+    ///
+    /// The substep length is computed from integer nanoseconds only, so a
+    /// clamped 0.2 s frame steps bit for bit as a 0.1 s frame does.
     pub fn new(delta_ns: u64, settings: &WorldSettings) -> Self {
+        let max_substep_ns = settings.max_substep_nanos().max(1);
+        let physics_ns = settings.substep_rule.physics_ns(
+            delta_ns,
+            settings.substepping,
+            max_substep_ns,
+            settings.max_substeps,
+        );
         let (count, capped) = if settings.substepping {
-            let needed = delta_ns
-                .div_ceil(settings.max_substep_nanos().max(1))
-                .max(1);
+            let needed = physics_ns.div_ceil(max_substep_ns).max(1);
             let max = u64::from(settings.max_substeps.max(1));
             (needed.min(max) as u32, needed > max)
         } else {
@@ -46,8 +61,10 @@ impl SubstepPlan {
         };
         Self {
             count,
-            substep_seconds: (delta_ns as f64 / f64::from(count) / NANOS_PER_SECOND as f64) as f32,
+            substep_seconds: (physics_ns as f64 / f64::from(count) / NANOS_PER_SECOND as f64)
+                as f32,
             capped,
+            clamped: physics_ns < delta_ns,
         }
     }
 }
@@ -238,6 +255,43 @@ mod tests {
         assert!(plan.capped);
         assert!((plan.substep_seconds - 0.025).abs() < 1e-7);
         assert!(long_substep(&plan));
+    }
+
+    #[test]
+    fn each_substep_rule_splits_a_long_frame_its_own_way() {
+        use shared_types::SubstepRule;
+        let rule = |substep_rule| WorldSettings {
+            substep_rule,
+            ..settings(true, 0.01, 10)
+        };
+        // CARLA's example, 0.2 s frames: clamp runs exactly the plan of a
+        // 0.1 s frame, bit for bit.
+        let clamp = SubstepPlan::new(200_000_000, &rule(SubstepRule::Clamp));
+        let tenth = SubstepPlan::new(100_000_000, &rule(SubstepRule::Refuse));
+        assert_eq!(clamp.count, 10);
+        assert_eq!(
+            clamp.substep_seconds.to_bits(),
+            tenth.substep_seconds.to_bits()
+        );
+        assert!(clamp.clamped && !clamp.capped && !tenth.clamped);
+        // Stretch: 10 substeps of 0.02 s, as 0.02 s x 10 would plan them.
+        let stretch = SubstepPlan::new(200_000_000, &rule(SubstepRule::Stretch));
+        let coarse = SubstepPlan::new(200_000_000, &settings(true, 0.02, 10));
+        assert_eq!(
+            (stretch.count, stretch.capped, stretch.clamped),
+            (10, true, false)
+        );
+        assert_eq!(
+            stretch.substep_seconds.to_bits(),
+            coarse.substep_seconds.to_bits()
+        );
+        // Within the limit the rules agree.
+        for r in SubstepRule::ALL {
+            assert_eq!(
+                SubstepPlan::new(50_000_000, &rule(r)),
+                SubstepPlan::new(50_000_000, &settings(true, 0.01, 10))
+            );
+        }
     }
 
     #[test]

@@ -5,10 +5,10 @@
 
 use rapier3d::prelude::*;
 use shared_types::limits::{MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION};
-use shared_types::{ActorKind, Command, CommandKind, CommandResult, CommandStatus};
+use shared_types::{ActorKind, Command, CommandKind, CommandResult, CommandStatus, VehicleSpec};
+use tracing::debug;
 
 use crate::scene::Placement;
-use crate::vehicles::VEHICLE_HALF_EXTENTS;
 use crate::world::World;
 
 /// Whether every value is finite.
@@ -60,6 +60,7 @@ impl World {
         let body = &mut self.physics.bodies[handle];
         match kind {
             CommandKind::Destroy => {
+                self.held.retain(|&(h, _)| h != handle);
                 self.physics.remove_body(handle);
                 self.actors.remove(index);
                 self.vehicles.remove(id);
@@ -96,6 +97,13 @@ impl World {
                 },
                 true,
             ),
+            CommandKind::ConstantVelocity => {
+                self.held.retain(|&(h, _)| h != handle);
+                if command.flags & Command::ON != 0 {
+                    self.held.push((handle, v));
+                }
+                body.wake_up(true);
+            }
             CommandKind::VehicleControl => {
                 let [throttle, steer, brake, _] = command.params;
                 if !((0.0..=1.0).contains(&throttle)
@@ -120,11 +128,21 @@ impl World {
 
     fn spawn(&mut self, kind: CommandKind, command: &Command) -> CommandResult {
         let [a, b, c, _] = command.params;
+        let mut vehicle = None;
         let (actor_kind, extent) = match kind {
             CommandKind::SpawnBox => (ActorKind::Box, [a, b, c]),
             CommandKind::SpawnSphere => (ActorKind::Sphere, [a, a, a]),
             CommandKind::SpawnCapsule => (ActorKind::Capsule, [a, b, a]),
-            _ => (ActorKind::Vehicle, VEHICLE_HALF_EXTENTS),
+            _ => match VehicleSpec::from_params(command.params) {
+                Ok(spec) => {
+                    vehicle = Some(spec);
+                    (ActorKind::Vehicle, spec.half_extents)
+                }
+                Err(e) => {
+                    debug!("SpawnVehicle refused: {e}");
+                    return result(0, CommandStatus::InvalidArgument);
+                }
+            },
         };
         let position = command.vector;
         if extent.iter().any(|e| !(*e > 0.0 && *e <= MAX_ACTOR_EXTENT))
@@ -141,12 +159,97 @@ impl World {
             position: Vector::from_array(position),
             rotation: rotation.to_scaled_axis(),
             linear_velocity: Vector::ZERO,
-            density: if actor_kind == ActorKind::Vehicle {
-                100.0
-            } else {
-                1.0
-            },
+            density: vehicle.as_ref().map_or(1.0, VehicleSpec::density),
         };
-        result(self.insert(&placement), CommandStatus::Ok)
+        let id = self.insert(&placement);
+        if let (Some(spec), Some(actor)) = (vehicle, self.actors.last()) {
+            // `insert` built the original vehicle: this one is built as its
+            // params say.
+            let body = actor.body;
+            self.vehicles.remove(id);
+            self.vehicles.add(id, body, &spec);
+        }
+        result(id, CommandStatus::Ok)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clock::SubstepPlan;
+    use crate::scene::Scene;
+    use shared_types::{ActorState, WorldSettings};
+
+    /// A world with a 200 × 200 m ground.
+    fn world_on_ground() -> World {
+        let mut world = World::new(&Scene::Empty.placements(0), 1);
+        world.insert(&Placement {
+            kind: ActorKind::Static,
+            extent: Vector::new(100.0, 0.5, 100.0),
+            position: Vector::new(0.0, -0.5, 0.0),
+            rotation: Vector::ZERO,
+            linear_velocity: Vector::ZERO,
+            density: 1.0,
+        });
+        world
+    }
+
+    fn step(world: &mut World, frames: usize) {
+        let settings = WorldSettings {
+            fixed_delta_seconds: Some(0.05),
+            ..Default::default()
+        };
+        let plan = SubstepPlan::new(settings.fixed_delta_nanos().unwrap(), &settings);
+        for _ in 0..frames {
+            world.step(&plan);
+        }
+    }
+
+    fn state(world: &World, id: u64) -> ActorState {
+        world.actor_state(world.index_of(id).expect("actor exists"))
+    }
+
+    #[test]
+    fn a_sized_vehicle_has_its_size_rests_on_its_wheels_and_drives() {
+        for (half, mass) in [([2.4, 0.74, 1.08], 1850.0), ([5.1, 2.1, 1.97], 10_000.0)] {
+            let mut world = world_on_ground();
+            let at = [0.0, half[1] + 0.3, 0.0];
+            let r = world.apply(&Command::spawn_sized_vehicle(at, half, mass));
+            assert_eq!(r.status, CommandStatus::Ok as u32);
+            assert_eq!(state(&world, r.actor).extent, half);
+            step(&mut world, 40);
+            let rest = state(&world, r.actor).position;
+            // On its wheels: the chassis's bottom just above the ground.
+            let clearance = rest[1] - half[1];
+            assert!((0.0..0.3).contains(&clearance), "{mass} kg: {clearance}");
+            world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false));
+            step(&mut world, 40);
+            // At least 1 m/s² for 2 s, forward (+X).
+            let moved = state(&world, r.actor).position[0] - rest[0];
+            assert!(moved > 1.5, "{mass} kg moved {moved} m in 2 s");
+        }
+    }
+
+    #[test]
+    fn vehicle_params_that_are_partial_or_absurd_are_refused() {
+        let mut world = world_on_ground();
+        for (half, mass) in [
+            ([2.0, 0.7, 1.0], 0.0),
+            ([2.0, 0.7, 1.0], -5.0),
+            ([2.0, 0.7, 1.0], 1e9),
+            ([200.0, 0.7, 1.0], 1500.0),
+            ([2.0, f32::NAN, 1.0], 1500.0),
+        ] {
+            let r = world.apply(&Command::spawn_sized_vehicle([0.0, 2.0, 0.0], half, mass));
+            assert_eq!(
+                r.status,
+                CommandStatus::InvalidArgument as u32,
+                "{half:?} {mass}"
+            );
+            assert_eq!(r.actor, 0);
+        }
+        // All zero: the original vehicle.
+        let r = world.apply(&Command::spawn_vehicle([0.0, 2.0, 0.0]));
+        assert_eq!(state(&world, r.actor).extent, [1.0, 0.25, 0.5]);
     }
 }

@@ -8,8 +8,8 @@ use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    ControlRequest, ControlResponse, Doorbell, FixedText, RequestKind, ResponseStatus, WorldName,
-    WorldSettings, PROTOCOL_VERSION,
+    ControlRequest, ControlResponse, Doorbell, FixedText, RequestKind, ResponseStatus,
+    SettingsError, WorldName, WorldSettings, PROTOCOL_VERSION,
 };
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
@@ -169,6 +169,9 @@ pub(crate) enum ControlCall {
     /// Refused before it reaches the world (protocol version, unknown
     /// request or scene), with this status.
     Refuse(ResponseStatus),
+    /// Settings that cannot be read (a substep rule this version does not
+    /// know): refused with this error, changing nothing.
+    RefuseSettings(SettingsError),
     /// New settings from `pid`, a client named `name`.
     ApplySettings {
         /// The settings asked for, normalized.
@@ -205,10 +208,16 @@ fn decode(request: &ControlRequest) -> ControlCall {
             ControlCall::Status
         }
         Some(RequestKind::GetSettings | RequestKind::Status) => ControlCall::Status,
-        Some(RequestKind::ApplySettings) => ControlCall::ApplySettings {
-            settings: WorldSettings::from(request.settings).normalized(),
-            pid: request.client_pid,
-            name: request.client_name,
+        Some(RequestKind::ApplySettings) => match request.settings.settings() {
+            Ok(settings) => ControlCall::ApplySettings {
+                settings: settings.normalized(),
+                pid: request.client_pid,
+                name: request.client_name,
+            },
+            Err(error) => {
+                info!(client_pid = request.client_pid, "refused settings: {error}");
+                ControlCall::RefuseSettings(error)
+            }
         },
         Some(kind @ (RequestKind::LoadWorld | RequestKind::ReloadWorld)) => {
             let scene = match kind {

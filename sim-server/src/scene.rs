@@ -4,6 +4,11 @@
 //!   boxes, boxes and a capsule falling and tumbling, two vehicles —
 //!   something visibly moves for several seconds.
 //! - `empty`: nothing at all (measures the bus, not the physics).
+//! - `town`: a flat ground under `town`'s road network (a grid with
+//!   junctions and a loop, `shared_types::roads`), buildings in the blocks
+//!   between the roads.
+//! - `flat`: a flat ground and nothing on it (CARLA's
+//!   `generate_opendrive_world` builds its world on it).
 //! - `boxes:N`: ground and N boxes dropped in a grid (physics load).
 
 use std::fmt;
@@ -14,6 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
 use shared_types::ActorKind;
 
+use shared_types::roads::{FLAT_GROUND_HALF_SIZE, TOWN_GROUND_HALF_SIZE};
 use shared_types::scene::SceneName;
 pub use shared_types::scene::MAX_SCENE_BOXES;
 
@@ -27,6 +33,10 @@ pub enum Scene {
     Default,
     /// No actors.
     Empty,
+    /// A ground under a town's roads.
+    Town,
+    /// A flat ground, nothing on it.
+    Flat,
     /// Ground plus this many boxes.
     Boxes(u32),
 }
@@ -36,6 +46,8 @@ impl From<SceneName> for Scene {
         match name {
             SceneName::Default => Self::Default,
             SceneName::Empty => Self::Empty,
+            SceneName::Town => Self::Town,
+            SceneName::Flat => Self::Flat,
             SceneName::Boxes(n) => Self::Boxes(n),
         }
     }
@@ -54,6 +66,8 @@ impl fmt::Display for Scene {
         match self {
             Self::Default => f.write_str("default"),
             Self::Empty => f.write_str("empty"),
+            Self::Town => f.write_str("town"),
+            Self::Flat => f.write_str("flat"),
             Self::Boxes(n) => write!(f, "boxes:{n}"),
         }
     }
@@ -142,6 +156,8 @@ impl Scene {
         let mut placements = match *self {
             Self::Empty => Vec::new(),
             Self::Default => default_scene(),
+            Self::Town => town_scene(),
+            Self::Flat => vec![ground(FLAT_GROUND_HALF_SIZE)],
             Self::Boxes(n) => boxes_scene(n),
         };
         if seed != 0 {
@@ -213,6 +229,23 @@ fn default_scene() -> Vec<Placement> {
     scene
 }
 
+/// `town`: its ground, and a building in the middle of each block
+/// between the roads (the grid lines run at ±40 m and ±120 m).
+fn town_scene() -> Vec<Placement> {
+    let mut scene = vec![ground(TOWN_GROUND_HALF_SIZE)];
+    let blocks = [-80.0, 0.0, 80.0];
+    for x in blocks {
+        scene.extend(blocks.map(|z| {
+            Placement::new(
+                ActorKind::Static,
+                Vector::new(12.0, 4.0, 12.0),
+                Vector::new(x, 4.0, z),
+            )
+        }));
+    }
+    scene
+}
+
 fn boxes_scene(n: u32) -> Vec<Placement> {
     // A cube of boxes: columns that land on each other and topple.
     let per_row = (f64::from(n).cbrt().ceil() as u32).clamp(1, 40);
@@ -260,7 +293,7 @@ mod tests {
 
     #[test]
     fn scene_names_parse_and_print_back() {
-        for name in ["default", "empty", "boxes:1", "boxes:1000"] {
+        for name in ["default", "empty", "town", "flat", "boxes:1", "boxes:1000"] {
             assert_eq!(name.parse::<Scene>().unwrap().to_string(), name);
         }
     }
@@ -268,7 +301,7 @@ mod tests {
     #[test]
     fn bad_scene_names_are_refused_with_the_reason() {
         assert!(matches!(
-            "town".parse::<Scene>(),
+            "town10".parse::<Scene>(),
             Err(SceneError::Unknown(_))
         ));
         for bad in ["boxes:", "boxes:0", "boxes:-3", "boxes:x", "boxes:100001"] {
@@ -276,6 +309,55 @@ mod tests {
                 matches!(bad.parse::<Scene>(), Err(SceneError::BoxCount(_))),
                 "{bad}"
             );
+        }
+    }
+
+    #[test]
+    fn every_scene_s_roads_lie_on_its_ground_and_clear_of_its_bodies() {
+        for scene in [
+            Scene::Default,
+            Scene::Town,
+            Scene::Flat,
+            Scene::Boxes(1),
+            Scene::Boxes(1000),
+            Scene::Boxes(MAX_SCENE_BOXES),
+        ] {
+            let placements = scene.placements(0);
+            let ground = &placements[0];
+            assert_eq!(ground.kind, ActorKind::Static);
+            assert_eq!(
+                ground.position.y + ground.extent.y,
+                0.0,
+                "{scene}: ground top at 0"
+            );
+            let name = scene.to_string().parse().unwrap();
+            let points = shared_types::roads::network(name).spawn_points();
+            assert!(!points.is_empty(), "{scene}");
+            for p in points {
+                // CARLA's (x, y) is simbus's (x, z).
+                let (x, z) = (p.location[0] as f32, p.location[1] as f32);
+                // The lane's far edge (and a margin) on the ground.
+                let edge = 3.5 + 1.0;
+                assert!(
+                    x.abs() + edge < ground.extent.x,
+                    "{scene}: {p:?} off the ground"
+                );
+                assert!(
+                    z.abs() + edge < ground.extent.z,
+                    "{scene}: {p:?} off the ground"
+                );
+                // Nothing within 3 m of the lane (bodies' sizes counted).
+                for body in &placements[1..] {
+                    let reach = body.extent.x.max(body.extent.z) + 3.0;
+                    let (dx, dz) = (body.position.x - x, body.position.z - z);
+                    assert!(
+                        dx.abs() > reach || dz.abs() > reach,
+                        "{scene}: {p:?} within 3 m of a {:?} at {:?}",
+                        body.kind,
+                        body.position
+                    );
+                }
+            }
         }
     }
 

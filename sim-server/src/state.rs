@@ -116,6 +116,7 @@ impl Runtime {
             substeps = plan.count,
             substep_seconds = plan.substep_seconds,
             capped = plan.capped,
+            clamped = plan.clamped,
             "frame {frame} is too long for reliable physics (frame dt > 0.1 s or substep dt > 1/60 s)",
         );
     }

@@ -4,6 +4,7 @@
 
 use rapier3d::control::{DynamicRayCastVehicleController, WheelTuning};
 use rapier3d::prelude::*;
+use shared_types::{VehicleSpec, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS};
 
 /// A vehicle's controller and the control it holds until told otherwise.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
@@ -14,16 +15,29 @@ pub(crate) struct Vehicle {
     steer: f32,
     brake: f32,
     hand_brake: bool,
+    /// Engine force per driven (rear) wheel at full throttle, newtons
+    /// (absent from keyframes of before sized vehicles: the original's).
+    #[serde(default = "original_engine_force")]
+    max_engine_force: f32,
+    /// Brake per wheel at full brake.
+    #[serde(default = "original_brake")]
+    max_brake: f32,
+    /// Front-wheel angle at full steer, radians.
+    #[serde(default = "original_steer")]
+    max_steer: f32,
 }
 
-/// Chassis half extents of a spawned vehicle: 2 m long (X), 0.5 m high, 1 m wide.
-pub(crate) const VEHICLE_HALF_EXTENTS: [f32; 3] = [1.0, 0.25, 0.5];
-/// Engine force per driven (rear) wheel at full throttle, newtons.
-const MAX_ENGINE_FORCE: f32 = 300.0;
-/// Brake force per wheel at full brake.
-const MAX_BRAKE: f32 = 40.0;
-/// Front-wheel angle at full steer, radians.
-const MAX_STEER: f32 = 0.5;
+fn original_engine_force() -> f32 {
+    VehicleSpec::default().engine_force
+}
+
+fn original_brake() -> f32 {
+    VehicleSpec::default().brake
+}
+
+fn original_steer() -> f32 {
+    VehicleSpec::default().max_steer
+}
 
 impl Vehicle {
     /// Holds this control until the next one.
@@ -42,16 +56,19 @@ pub(crate) struct Vehicles {
 }
 
 impl Vehicles {
-    /// Adds a vehicle for actor `actor` whose chassis is `body`, with half
-    /// extents `half`, standing still.
-    pub(crate) fn add(&mut self, actor: u64, body: RigidBodyHandle, half: Vector) {
+    /// Adds a vehicle for actor `actor` whose chassis is `body`, built as
+    /// `spec` says, standing still.
+    pub(crate) fn add(&mut self, actor: u64, body: RigidBodyHandle, spec: &VehicleSpec) {
         self.list.push(Vehicle {
             actor,
-            controller: vehicle_controller(body, half),
+            controller: vehicle_controller(body, spec),
             throttle: 0.0,
             steer: 0.0,
             brake: 0.0,
             hand_brake: false,
+            max_engine_force: spec.engine_force,
+            max_brake: spec.brake,
+            max_steer: spec.max_steer,
         });
     }
 
@@ -78,19 +95,19 @@ impl Vehicles {
             for (i, wheel) in vehicle.controller.wheels_mut().iter_mut().enumerate() {
                 let front = i < 2;
                 wheel.steering = if front {
-                    vehicle.steer * MAX_STEER
+                    vehicle.steer * vehicle.max_steer
                 } else {
                     0.0
                 };
                 wheel.engine_force = if front {
                     0.0
                 } else {
-                    vehicle.throttle * MAX_ENGINE_FORCE
+                    vehicle.throttle * vehicle.max_engine_force
                 };
                 wheel.brake = if vehicle.hand_brake && !front {
-                    MAX_BRAKE * 4.0
+                    vehicle.max_brake * 4.0
                 } else {
-                    vehicle.brake * MAX_BRAKE
+                    vehicle.brake * vehicle.max_brake
                 };
             }
             let queries = physics.broad_phase.as_query_pipeline_mut(
@@ -104,24 +121,29 @@ impl Vehicles {
     }
 }
 
-/// A four-wheeled controller for the chassis `body` with half extents `half`.
-fn vehicle_controller(body: RigidBodyHandle, half: Vector) -> DynamicRayCastVehicleController {
+/// A four-wheeled controller for the chassis `body`, built as `spec` says.
+fn vehicle_controller(
+    body: RigidBodyHandle,
+    spec: &VehicleSpec,
+) -> DynamicRayCastVehicleController {
     let mut controller = DynamicRayCastVehicleController::new(body);
     let tuning = WheelTuning {
-        suspension_stiffness: 40.0,
-        suspension_damping: 4.0,
-        friction_slip: 1.5,
+        suspension_stiffness: SUSPENSION_STIFFNESS,
+        suspension_damping: SUSPENSION_DAMPING,
+        friction_slip: FRICTION_SLIP,
+        max_suspension_force: spec.max_suspension_force,
         ..WheelTuning::default()
     };
-    let (x, y, z) = (half.x * 0.7, -half.y, half.z);
     // Front wheels first (steered), then the driven rear wheels.
-    for position in [
-        Vector::new(x, y, z),
-        Vector::new(x, y, -z),
-        Vector::new(-x, y, z),
-        Vector::new(-x, y, -z),
-    ] {
-        controller.add_wheel(position, -Vector::Y, Vector::Z, 0.3, 0.3, &tuning);
+    for position in spec.wheels {
+        controller.add_wheel(
+            Vector::from_array(position),
+            -Vector::Y,
+            Vector::Z,
+            spec.suspension_rest_length,
+            spec.wheel_radius,
+            &tuning,
+        );
     }
     controller
 }

@@ -64,7 +64,7 @@ def test_the_blueprint_library_has_simbus_actors_and_sensors(gateway):
     with pytest.raises(ValueError, match="read-only"):
         car.set_attribute("number_of_wheels", "3")  # not modifiable
     with pytest.raises(IndexError):
-        library.find("vehicle.tesla.model3")
+        library.find("vehicle.tesla.roadster")
 
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
@@ -334,8 +334,8 @@ def test_bad_calls_get_errors_and_a_stream_reader_that_never_reads_is_dropped(ga
     # Wrong argument types, an unknown blueprint, an unknown method, a
     # stream nobody has: each an error, and the connection goes on.
     assert "spawn_actor" in error_of(raw.call("spawn_actor", "not a description", 5))
-    assert "vehicle.tesla.model3" in error_of(
-        raw.call("spawn_actor", [0, "vehicle.tesla.model3", []], [[0, 0, 0], [0, 0, 0]]))
+    assert "vehicle.tesla.roadster" in error_of(
+        raw.call("spawn_actor", [0, "vehicle.tesla.roadster", []], [[0, 0, 0], [0, 0, 0]]))
     assert "not supported by simbus" in error_of(raw.call("no_such_method"))
     assert "wrong shape" in error_of(raw.call("set_episode_settings", "fast please"))
     assert "no sensor" in error_of(raw.call("get_sensor_token", 1_000_000_999))

@@ -51,9 +51,11 @@ def test_seed_variable_fixed_and_substepping_settings(gateway):
     world.apply_settings(settings)
     got = world.get_settings()
     assert (got.substepping, got.max_substep_delta_time, got.max_substeps) == (True, 0.01, 10)
-    # Invalid settings name the rule, and change nothing.
-    settings.fixed_delta_seconds = 0.5
-    with pytest.raises(RuntimeError, match="substep"):
+    # Invalid settings name the rule, and change nothing. (A step longer
+    # than 0.01 x 10 is not one: CARLA accepts it, and so does the gateway,
+    # with the substep rule 'clamp'; see test_carla_substepping.py.)
+    settings.max_substeps = 17
+    with pytest.raises(RuntimeError, match="max_substeps = 17"):
         world.apply_settings(settings)
     assert world.get_settings().fixed_delta_seconds == 0.05
 
@@ -192,13 +194,11 @@ def test_the_recorder_calls_map_onto_simbus_recorder(gateway, tmp_path):
     client.stop_recorder()
     # stop_recorder is one of CARLA's fire-and-forget calls, but the gateway
     # answers a connection's calls in order: the next one sees the file closed.
-    import json
-
-    info = json.loads(client.show_recorder_file_info(path, False))
-    assert info["stopped"] == "stop"
-    assert info["frames"] == 21
-    assert isinstance(json.loads(client.show_recorder_collisions(path, "a", "a")), list)
-    assert isinstance(json.loads(client.show_recorder_actors_blocked(path, 0.5, 0.1)), list)
+    # CARLA's text: its footer counts the recorded frames.
+    info = client.show_recorder_file_info(path, False)
+    assert "\nFrames: 21\n" in info, info
+    assert client.show_recorder_collisions(path, "a", "a").startswith("Version: 1\n")
+    assert client.show_recorder_actors_blocked(path, 0.5, 0.1).startswith("Version: 1\n")
     with pytest.raises(RuntimeError, match="cannot read .*missing.mcap"):
         client.replay_file(str(tmp_path / "missing.mcap"), 0.0, 0.0, 0, False)
     answer = client.replay_file(path, 0.0, 0.0, 0, False)

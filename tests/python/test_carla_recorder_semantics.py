@@ -3,9 +3,11 @@ arguments through the gateway: `show_recorder_actors_blocked` reads its
 `min_distance` in centimetres, `set_replayer_time_factor` before
 `replay_file` applies to that replay, and `show_recorder_collisions` takes
 every CARLA category letter ('a' any, 'v' vehicle, 'w' walker, 't' traffic
-light, 'o' other, 'h' hero)."""
+light, 'o' other, 'h' hero). Their answers are CARLA's text (see
+test_carla_recorder_text.py); the tests read its rows as CARLA users do."""
 
 import json
+import re
 
 import carla
 import pytest
@@ -33,9 +35,16 @@ def record(client, world, path, ticks):
     client.stop_recorder()
 
 
+# A row of CARLA's blocked-actors table: time, id, type id, duration.
+BLOCKED_ROW = re.compile(r"^\s*\d+\s+(\d+)\s+(\S+)\s+\d+\s*$")
+# A row of CARLA's collisions table: time, the two categories, then id and
+# type id of each actor.
+COLLISION_ROW = re.compile(r"^\s*\d+\s+([a-z]) ([a-z])\s+(\d+) (\S+)\s+(\d+) (\S+)\s*$")
+
+
 def blocked_ids(client, path, min_time, min_distance):
     answer = client.show_recorder_actors_blocked(path, min_time, min_distance)
-    return {a["actor"] for a in json.loads(answer)}
+    return {int(m.group(1)) for m in map(BLOCKED_ROW.match, answer.splitlines()) if m}
 
 
 @pytest.mark.parametrize("gateway", EMPTY, indirect=True)
@@ -86,20 +95,30 @@ def test_collisions_take_every_carla_category(gateway, tmp_path):
     record(client, world, path, 40)
 
     def pairs(category1, category2):
-        answer = json.loads(client.show_recorder_collisions(path, category1, category2))
-        return {(c["actor_a"], c["kind_a"], c["actor_b"], c["kind_b"]) for c in answer}
+        answer = client.show_recorder_collisions(path, category1, category2)
+        rows = [m for m in map(COLLISION_ROW.match, answer.splitlines()) if m]
+        # Each actor's category letter goes with its type id.
+        for m in rows:
+            for letter, type_id in ((m.group(1), m.group(4)), (m.group(2), m.group(6))):
+                assert letter == ("v" if type_id.startswith("vehicle.") else "o"), answer
+        return {(int(m.group(3)), m.group(4), int(m.group(5)), m.group(6)) for m in rows}
+
+    def vehicle(type_id):
+        return type_id.startswith("vehicle.")
 
     everything = pairs("a", "a")
     # 'o' other: anything not a vehicle (simbus has no walkers or traffic lights).
-    others = {p for p in everything if "vehicle" not in (p[1], p[3])}
-    assert any(p[1] == "static" or p[3] == "static" for p in others), everything
-    assert any(p[1] == "box" and p[3] == "box" for p in others), everything
+    others = {p for p in everything if not vehicle(p[1]) and not vehicle(p[3])}
+    # The ground (a fixed prop) and boxes.
+    ground, box = "static.prop.fixed", "static.prop.box"
+    assert any(p[1] == ground or p[3] == ground for p in others), everything
+    assert any(p[1] == box and p[3] == box for p in others), everything
     assert pairs("o", "o") == others
-    assert pairs("a", "o") == {p for p in everything if p[1] != "vehicle" or p[3] != "vehicle"}
+    assert pairs("a", "o") == {p for p in everything if not vehicle(p[1]) or not vehicle(p[3])}
     assert pairs("o", "a") == pairs("a", "o")
-    vehicles = {p for p in everything if "vehicle" in (p[1], p[3])}
+    vehicles = {p for p in everything if vehicle(p[1]) or vehicle(p[3])}
     assert pairs("v", "a") == vehicles
-    assert pairs("v", "o") == {p for p in vehicles if p[1] != "vehicle" or p[3] != "vehicle"}
+    assert pairs("v", "o") == {p for p in vehicles if not vehicle(p[1]) or not vehicle(p[3])}
     # No walker, traffic light or hero took part.
     for category in "wth":
         assert pairs(category, "a") == set()

@@ -157,6 +157,7 @@ fn every_printing_command_ends_quietly_when_its_stdout_is_closed() {
         (&["recorder", "info", recording], 0),
         (&["recorder", "info", "--all", recording], 0),
         (&["recorder", "info", "--all", "--json", recording], 0),
+        (&["recorder", "info", "--all", "--carla-text", recording], 0),
         (&["recorder", "collisions", recording], 0),
         (&["recorder", "collisions", "--json", recording], 0),
         (&["recorder", "blocked", recording], 0),

@@ -228,6 +228,7 @@ const FLAGS: &[Flag] = &[
 const NOT_NUMERIC: &[&str] = &[
     "--world",
     "--wait-mode",
+    "--substep-rule",
     "--on-ticker-loss",
     "--host",
     "--listen",

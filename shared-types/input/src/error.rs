@@ -397,7 +397,8 @@ mod tests {
             ),
             (
                 message(scene("nope")),
-                "unknown scene 'nope': expected 'default', 'empty' or 'boxes:N'".to_owned(),
+                "unknown scene 'nope': expected 'default', 'empty', 'town', 'flat' or 'boxes:N'"
+                    .to_owned(),
             ),
         ];
         for (got, want) in cases {

@@ -412,7 +412,7 @@ pub fn position(text: &str) -> Result<[f32; 3], InputError> {
     }
 }
 
-/// A scene name (`default`, `empty` or `boxes:N`, N in
+/// A scene name (`default`, `empty`, `town`, `flat` or `boxes:N`, N in
 /// `1..=`[`crate::scene::MAX_SCENE_BOXES`]), checked as the server reads it.
 pub fn scene(text: &str) -> Result<String, InputError> {
     let name = text.parse::<shared_types::scene::SceneName>()?;

@@ -40,7 +40,7 @@ pub use read::{Entry, RecordingReader};
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use shared_types::{Command, CommandResult, SensorSpec, WireSettings, WorldSettings};
+use shared_types::{Command, CommandResult, SensorSpec, SubstepRule, WireSettings, WorldSettings};
 
 /// The version of the recording format as a whole (the header's layout and
 /// the set of channels a replay needs).
@@ -160,6 +160,10 @@ pub struct RecordedSettings {
     pub max_substep_delta_time: f64,
     /// See [`WorldSettings::max_substeps`].
     pub max_substeps: u32,
+    /// See [`WorldSettings::substep_rule`]; absent (a recording made before
+    /// the rule existed) reads as `refuse`, the only behaviour then.
+    #[serde(default)]
+    pub substep_rule: SubstepRule,
 }
 
 impl From<WorldSettings> for RecordedSettings {
@@ -170,6 +174,7 @@ impl From<WorldSettings> for RecordedSettings {
             substepping: s.substepping,
             max_substep_delta_time: s.max_substep_delta_time,
             max_substeps: s.max_substeps,
+            substep_rule: s.substep_rule,
         }
     }
 }
@@ -182,6 +187,7 @@ impl From<RecordedSettings> for WorldSettings {
             substepping: s.substepping,
             max_substep_delta_time: s.max_substep_delta_time,
             max_substeps: s.max_substeps,
+            substep_rule: s.substep_rule,
         }
     }
 }
@@ -426,6 +432,26 @@ mod tests {
         assert_eq!(check_schema(LEGACY_FRAME_SCHEMA), Ok(true));
         assert_eq!(check_schema("simbus::Weather/1"), Ok(false));
         assert_eq!(check_schema("simbus::FrameHeader/1"), Ok(false));
+    }
+
+    #[test]
+    fn the_substep_rule_is_recorded_by_name_and_defaults_to_refuse() {
+        let clamp = WorldSettings {
+            fixed_delta_seconds: Some(0.2),
+            substep_rule: SubstepRule::Clamp,
+            ..WorldSettings::default()
+        };
+        let json = serde_json::to_string(&RecordedSettings::from(clamp)).unwrap();
+        assert!(json.contains("\"substep_rule\":\"clamp\""), "{json}");
+        let back: RecordedSettings = serde_json::from_str(&json).unwrap();
+        assert_eq!(WorldSettings::from(back), clamp);
+        // A header written before the rule existed reads as refuse.
+        let old = json.replace(",\"substep_rule\":\"clamp\"", "");
+        let back: RecordedSettings = serde_json::from_str(&old).unwrap();
+        assert_eq!(back.substep_rule, SubstepRule::Refuse);
+        // A rule this version does not know is an error, not a guess.
+        let unknown = json.replace("\"clamp\"", "\"bend\"");
+        assert!(serde_json::from_str::<RecordedSettings>(&unknown).is_err());
     }
 
     #[test]

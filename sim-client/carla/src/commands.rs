@@ -71,6 +71,9 @@ pub(crate) enum Op {
     Physics(bool),
     Gravity(bool),
     Control(CarlaVehicleControl),
+    /// CARLA's `enable_constant_velocity` (m/s in the actor's own axes),
+    /// or `disable_constant_velocity` (`None`).
+    ConstantVelocity(Option<V3>),
     Destroy,
 }
 
@@ -112,13 +115,16 @@ impl Op {
                 // CARLA steers right for positive values, simbus left.
                 Command::vehicle_control(actor, c.throttle, -c.steer, c.brake, c.hand_brake)
             }
+            Op::ConstantVelocity(v) => {
+                Command::constant_velocity(actor, v.map(convert::vector))
+            }
             Op::Destroy => Command::destroy(actor),
         })
     }
 }
 
 /// The RPC methods that act on one actor, as [`rpc_op`] reads them.
-const RPC_OPS: [&str; 10] = [
+const RPC_OPS: [&str; 12] = [
     "set_actor_transform",
     "set_actor_location",
     "set_actor_target_velocity",
@@ -129,6 +135,8 @@ const RPC_OPS: [&str; 10] = [
     "set_actor_simulate_physics",
     "set_actor_enable_gravity",
     "apply_control_to_vehicle",
+    "enable_actor_constant_velocity",
+    "disable_actor_constant_velocity",
 ];
 
 /// The RPC methods that act on one actor: `(actor, what)` from their
@@ -152,6 +160,8 @@ pub(crate) fn rpc_op(method: &str, args: &[Value]) -> Option<Result<(u32, Op), C
         "set_actor_simulate_physics" => arg(1).as_bool().map(Op::Physics).ok_or_else(bad),
         "set_actor_enable_gravity" => arg(1).as_bool().map(Op::Gravity).ok_or_else(bad),
         "apply_control_to_vehicle" => vehicle_control(arg(1)).map(Op::Control).ok_or_else(bad),
+        "enable_actor_constant_velocity" => v3().map(|v| Op::ConstantVelocity(Some(v))),
+        "disable_actor_constant_velocity" => Ok(Op::ConstantVelocity(None)),
         _ => return None,
     };
     Some(op.and_then(|op| actor_id(arg(0)).map(|id| (id, op)).ok_or_else(bad)))
@@ -170,6 +180,10 @@ pub(crate) enum BatchCommand {
     },
     /// A command on an existing actor.
     Actor(u32, Op),
+    /// `SetAutopilot`: CARLA's client registers the vehicle with the
+    /// traffic manager in its own process; the server only checks the
+    /// actor (simbus has no server-side autopilot).
+    Autopilot(u32),
 }
 
 /// The names of CARLA 0.9.16's batch commands, in variant order.
@@ -230,6 +244,14 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
             then: field(5).as_array().cloned().unwrap_or_default(),
         });
     }
+    let id = || match actor {
+        Some(id) => Ok(id),
+        None => actor_id(field(0)).ok_or_else(bad),
+    };
+    if index == 16 {
+        field(1).as_bool().ok_or_else(bad)?;
+        return Ok(BatchCommand::Autopilot(id()?));
+    }
     let v3 = || vector(field(1)).ok_or_else(bad);
     let op = match index {
         1 => Op::Destroy,
@@ -245,11 +267,7 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
         19 => Op::Location(v3()?),
         _ => return Err(CallError::UnsupportedCommand(name)),
     };
-    let id = match actor {
-        Some(id) => id,
-        None => actor_id(field(0)).ok_or_else(bad)?,
-    };
-    Ok(BatchCommand::Actor(id, op))
+    Ok(BatchCommand::Actor(id()?, op))
 }
 
 #[cfg(test)]

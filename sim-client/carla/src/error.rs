@@ -157,6 +157,15 @@ pub(crate) enum CallError {
     /// A command on the spectator other than moving it.
     #[error("simbus: the spectator has no body: only set_transform and set_location move it")]
     SpectatorHasNoBody,
+    /// A vehicle's call on an actor that is not a vehicle.
+    #[error("simbus: actor {0} is not a vehicle")]
+    NotAVehicle(u32),
+    /// `apply_physics_control`.
+    #[error(
+        "simbus: apply_physics_control is not supported: a simbus vehicle is built from its \
+         blueprint's size and mass (get_physics_control says how)"
+    )]
+    PhysicsControl,
     /// A command that needs the actor's last state, for an actor not seen.
     #[error("simbus: unknown actor {0}")]
     UnknownActor(u32),
@@ -214,6 +223,9 @@ pub(crate) enum BlueprintError {
     /// Not in the library (listed, comma-separated, in `known`).
     #[error("blueprint '{id}' is not in simbus's library ({known})")]
     Unknown { id: String, known: String },
+    /// A walker or walker controller: listed, not spawned.
+    #[error("walkers are not supported ({0})")]
+    Walker(String),
     #[error("{blueprint}: attribute {name} = '{text}' is not a number")]
     NotANumber {
         blueprint: String,

@@ -16,6 +16,8 @@ mod blueprints;
 mod commands;
 mod convert;
 mod error;
+mod maps;
+pub mod recorder_text;
 mod rpc;
 mod sensors;
 mod session;
@@ -53,6 +55,9 @@ pub struct Config {
     pub streaming_port: Option<u16>,
     /// How long a call waits for the world's server, and for a tick.
     pub timeout: Duration,
+    /// Refuse to load CARLA's towns (`Town01`…`Town15`) instead of
+    /// loading simbus's `town` in their place (`--strict-maps`).
+    pub strict_maps: bool,
 }
 
 /// Where the gateway listens, once it does: the ports actually bound.
@@ -119,7 +124,9 @@ pub fn serve(
     };
     // Accepted without blocking once `stop::wait` said one waits.
     rpc.set_nonblocking(true).map_err(GatewayError::Wait)?;
-    let hub = Arc::new(Hub::default());
+    let mut hub = Hub::default();
+    hub.maps = maps::Maps::new(config.strict_maps);
+    let hub = Arc::new(hub);
     {
         let hub = hub.clone();
         std::thread::spawn(move || stream::accept(streams, hub));

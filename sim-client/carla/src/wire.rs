@@ -174,8 +174,13 @@ pub struct CarlaActorState {
     pub vehicle: Option<CarlaVehicleControl>,
 }
 
-/// Appends one actor's 119-byte record (alive; no vehicle, walker or
-/// traffic state).
+/// The speed limit every vehicle reports, km/h: CARLA's default.
+pub const SPEED_LIMIT_KMH: f32 = 30.0;
+/// CARLA's `TrafficLightState::Green`.
+const TRAFFIC_LIGHT_GREEN: u8 = 2;
+
+/// Appends one actor's 119-byte record (alive; a vehicle's control, speed
+/// limit and traffic-light state; no walker or traffic-light actors).
 pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
     let start = out.len();
     out.extend_from_slice(&actor.id.to_le_bytes());
@@ -201,6 +206,14 @@ pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
             u8::from(c.manual_gear_shift),
         ]);
         out.extend_from_slice(&c.gear.to_le_bytes());
+        // The rest of CARLA's `VehicleData`: the speed limit the traffic
+        // manager drives to (0 would make its controller divide by zero),
+        // and no traffic light, green (CARLA's state away from a light: a
+        // junction is then no stop sign).
+        out.extend_from_slice(&SPEED_LIMIT_KMH.to_le_bytes());
+        out.push(TRAFFIC_LIGHT_GREEN);
+        out.push(0); // has_traffic_light
+        out.extend_from_slice(&0u32.to_le_bytes()); // traffic_light_id
     }
     out.resize(start + ACTOR_STATE_LEN, 0);
 }
@@ -275,6 +288,9 @@ mod tests {
         assert_eq!(&out[69..73], &(-0.25f32).to_le_bytes());
         assert_eq!(out[77], 1);
         assert_eq!(&out[80..84], &3i32.to_le_bytes());
+        // The speed limit the traffic manager reads, and a green light.
+        assert_eq!(&out[84..88], &30f32.to_le_bytes());
+        assert_eq!(out[88], 2);
     }
 
     #[test]

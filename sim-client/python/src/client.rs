@@ -81,7 +81,8 @@ impl Client {
     /// first frame computed with them. Synchronous mode is entered by a
     /// ticker (`client.ticker(...)`), not here; invalid settings raise
     /// `simbus.SettingsError` and change nothing.
-    #[pyo3(signature = (*, synchronous_mode = None, fixed_delta_seconds = None, substepping = None, max_substep_delta_time = None, max_substeps = None))]
+    #[pyo3(signature = (*, synchronous_mode = None, fixed_delta_seconds = None, substepping = None, max_substep_delta_time = None, max_substeps = None, substep_rule = None))]
+    #[allow(clippy::too_many_arguments)]
     fn apply_settings(
         &self,
         py: Python<'_>,
@@ -90,6 +91,7 @@ impl Client {
         substepping: Option<bool>,
         max_substep_delta_time: Option<f64>,
         max_substeps: Option<u32>,
+        substep_rule: Option<&str>,
     ) -> PyResult<u64> {
         let changes = Changes {
             synchronous_mode,
@@ -97,6 +99,7 @@ impl Client {
             substepping,
             max_substep_delta_time,
             max_substeps,
+            substep_rule: crate::settings::substep_rule(substep_rule)?,
         };
         detached(py, &self.inner, |c| {
             let current = c.get_settings()?;

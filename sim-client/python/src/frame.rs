@@ -116,6 +116,20 @@ impl Frame {
         self.header.episode
     }
 
+    /// Whether physics advanced less than `delta_seconds` (the substep
+    /// rule "clamp", CARLA's, with a frame longer than substepping allows).
+    #[getter]
+    fn physics_clamped(&self) -> bool {
+        self.header.is_physics_clamped()
+    }
+
+    /// The simulation seconds physics advanced in this frame:
+    /// `delta_seconds`, or less for a clamped frame.
+    #[getter]
+    fn physics_seconds(&self) -> f64 {
+        self.header.physics_seconds()
+    }
+
     /// Frames published between the previous frame this client took and
     /// this one that it did not see.
     #[getter]

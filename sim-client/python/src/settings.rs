@@ -1,8 +1,9 @@
 //! The world's settings and status as Python objects (read-only
 //! attributes, `repr`, equality), converted from and to the Rust types.
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use shared_types::WorldSettings;
+use shared_types::{SubstepRule, WorldSettings};
 
 /// The world's time-step and synchrony settings, as CARLA's
 /// `WorldSettings` names them.
@@ -19,6 +20,9 @@ pub(crate) struct Settings {
     max_substep_delta_time: f64,
     /// The most substeps per frame.
     max_substeps: u32,
+    /// What a fixed step longer than `max_substeps * max_substep_delta_time`
+    /// does: "refuse", "clamp" (CARLA's) or "stretch".
+    substep_rule: &'static str,
 }
 
 impl From<WorldSettings> for Settings {
@@ -29,6 +33,7 @@ impl From<WorldSettings> for Settings {
             substepping: s.substepping,
             max_substep_delta_time: s.max_substep_delta_time,
             max_substeps: s.max_substeps,
+            substep_rule: s.substep_rule.name(),
         }
     }
 }
@@ -37,12 +42,13 @@ impl From<WorldSettings> for Settings {
 impl Settings {
     fn __repr__(&self) -> String {
         format!(
-            "Settings(synchronous_mode={}, fixed_delta_seconds={}, substepping={}, max_substep_delta_time={}, max_substeps={})",
+            "Settings(synchronous_mode={}, fixed_delta_seconds={}, substepping={}, max_substep_delta_time={}, max_substeps={}, substep_rule='{}')",
             py_bool(self.synchronous_mode),
             self.fixed_delta_seconds.map_or("None".to_owned(), |d| d.to_string()),
             py_bool(self.substepping),
             self.max_substep_delta_time,
-            self.max_substeps
+            self.max_substeps,
+            self.substep_rule
         )
     }
 }
@@ -64,6 +70,7 @@ pub(crate) struct Changes {
     pub(crate) substepping: Option<bool>,
     pub(crate) max_substep_delta_time: Option<f64>,
     pub(crate) max_substeps: Option<u32>,
+    pub(crate) substep_rule: Option<SubstepRule>,
 }
 
 impl Changes {
@@ -79,8 +86,16 @@ impl Changes {
                 .max_substep_delta_time
                 .unwrap_or(current.max_substep_delta_time),
             max_substeps: self.max_substeps.unwrap_or(current.max_substeps),
+            substep_rule: self.substep_rule.unwrap_or(current.substep_rule),
         }
     }
+}
+
+/// A `substep_rule` argument ("refuse", "clamp" or "stretch"); another word
+/// raises `ValueError` naming the three.
+pub(crate) fn substep_rule(word: Option<&str>) -> PyResult<Option<SubstepRule>> {
+    word.map(|w| w.parse().map_err(|e| PyValueError::new_err(format!("{e}"))))
+        .transpose()
 }
 
 /// Who holds tick ownership.

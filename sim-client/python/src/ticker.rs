@@ -105,7 +105,7 @@ impl Ticker {
 
     /// Changes the given settings as the ticker (which may enter or leave
     /// synchronous mode); returns the first frame computed with them.
-    #[pyo3(signature = (*, synchronous_mode = None, fixed_delta_seconds = None, substepping = None, max_substep_delta_time = None, max_substeps = None))]
+    #[pyo3(signature = (*, synchronous_mode = None, fixed_delta_seconds = None, substepping = None, max_substep_delta_time = None, max_substeps = None, substep_rule = None))]
     #[allow(clippy::too_many_arguments)]
     fn apply_settings(
         &mut self,
@@ -115,6 +115,7 @@ impl Ticker {
         substepping: Option<bool>,
         max_substep_delta_time: Option<f64>,
         max_substeps: Option<u32>,
+        substep_rule: Option<&str>,
     ) -> PyResult<u64> {
         let changes = Changes {
             synchronous_mode,
@@ -122,6 +123,7 @@ impl Ticker {
             substepping,
             max_substep_delta_time,
             max_substeps,
+            substep_rule: crate::settings::substep_rule(substep_rule)?,
         };
         self.apply(py, changes.applied_to(self.settings))
     }

@@ -34,6 +34,7 @@ fn any_settings() -> impl Strategy<Value = RecordedSettings> {
         any::<bool>(),
         any_seconds(),
         any::<u32>(),
+        proptest::sample::select(shared_types::SubstepRule::ALL.to_vec()),
     )
         .prop_map(
             |(
@@ -42,6 +43,7 @@ fn any_settings() -> impl Strategy<Value = RecordedSettings> {
                 substepping,
                 max_substep_delta_time,
                 max_substeps,
+                substep_rule,
             )| {
                 RecordedSettings {
                     synchronous_mode,
@@ -49,6 +51,7 @@ fn any_settings() -> impl Strategy<Value = RecordedSettings> {
                     substepping,
                     max_substep_delta_time,
                     max_substeps,
+                    substep_rule,
                 }
             },
         )
@@ -97,6 +100,7 @@ fn same_settings(a: &RecordedSettings, b: &RecordedSettings) -> bool {
     a.synchronous_mode == b.synchronous_mode
         && a.substepping == b.substepping
         && a.max_substeps == b.max_substeps
+        && a.substep_rule == b.substep_rule
         && same(a.max_substep_delta_time, b.max_substep_delta_time)
         && match (a.fixed_delta_seconds, b.fixed_delta_seconds) {
             (None, None) => true,

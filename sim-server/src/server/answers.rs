@@ -40,6 +40,9 @@ impl Domains {
         match call {
             ControlCall::Status => ControlResponse::ok(self.report()),
             ControlCall::Refuse(status) => ControlResponse::refused(status, self.report()),
+            ControlCall::RefuseSettings(error) => {
+                ControlResponse::invalid_settings(&error, self.report())
+            }
             ControlCall::ApplySettings {
                 settings,
                 pid,

@@ -307,6 +307,10 @@ impl Domains {
             FrameHeader::SUBSTEPS_CAPPED
         } else {
             0
+        } | if plan.clamped {
+            FrameHeader::PHYSICS_CLAMPED
+        } else {
+            0
         };
         self.publish(plan.count, flags)?;
         stamps::stamp(Stage::Published, frame);

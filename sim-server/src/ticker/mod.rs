@@ -14,7 +14,7 @@ use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     CommandResult, FixedText, ResponseStatus, TickRequest, TickRequestKind, TickResponse,
-    TickerInfo, WorldSettings, PROTOCOL_VERSION,
+    TickerInfo, PROTOCOL_VERSION,
 };
 use simbus_transport::stamps::{self, Stage};
 use simbus_transport::Bus;
@@ -196,8 +196,10 @@ impl Ticker {
                 return None;
             }
             Some(TickRequestKind::ApplySettings) if self.ownership.is_owner(origin) => {
-                let settings = WorldSettings::from(payload.settings);
-                match runtime.change_settings(settings, true, pid, clock.frame() + 1) {
+                let changed = payload.settings.settings().map_err(Refusal::Invalid);
+                match changed.and_then(|settings| {
+                    runtime.change_settings(settings, true, pid, clock.frame() + 1)
+                }) {
                     Ok(effective_frame) => TickResponse {
                         effective_frame,
                         ..self.response(ResponseStatus::Ok, clock)

@@ -39,6 +39,10 @@ pub struct World {
     pub(crate) vehicles: Vehicles,
     /// Bodies given a one-frame force or torque, cleared after the frame.
     pub(crate) pushed: Vec<RigidBodyHandle>,
+    /// Bodies held at a constant velocity in their own axes (CARLA's
+    /// `enable_constant_velocity`), set again before every physics step.
+    #[serde(default)]
+    pub(crate) held: Vec<(RigidBodyHandle, Vector)>,
     /// The id of this world's first actor (the scene's first placement).
     first_id: u64,
     next_id: u64,
@@ -70,6 +74,7 @@ impl World {
             actors: Vec::new(),
             vehicles: Vehicles::default(),
             pushed: Vec::new(),
+            held: Vec::new(),
             first_id,
             next_id: first_id,
             queries_stale: false,
@@ -97,7 +102,7 @@ impl World {
             acceleration: Vector::ZERO,
         });
         if placement.kind == ActorKind::Vehicle {
-            self.vehicles.add(id, body, e);
+            self.vehicles.add(id, body, &shared_types::VehicleSpec::default());
         }
         id
     }
@@ -152,6 +157,12 @@ impl World {
         for _ in 0..plan.count {
             self.vehicles
                 .update(&mut self.physics, plan.substep_seconds);
+            for &(handle, local) in &self.held {
+                if let Some(body) = self.physics.bodies.get_mut(handle) {
+                    let velocity = body.rotation() * local;
+                    body.set_linvel(velocity, true);
+                }
+            }
             let clock = physics.is_some().then(Instant::now);
             match collisions {
                 Some(_) => self.physics.step_with_events(&(), &started),

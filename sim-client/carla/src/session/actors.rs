@@ -105,6 +105,7 @@ impl Session {
             ),
         };
         let id = self.spawn(&description, &transform, parent)?;
+        self.show_spawned(&[id]);
         let record = self.actor_record(id).ok_or(CallError::Vanished(id))?;
         Ok(Answer::Value(record))
     }
@@ -132,13 +133,22 @@ impl Session {
                 method: "apply_batch",
                 what: "no command list",
             })?;
-        let batch = list
+        let batch: Vec<_> = list
             .iter()
             .map(|c| commands::batch_command(c, None))
+            .collect();
+        let spawns: Vec<bool> = batch
+            .iter()
+            .map(|c| matches!(c, Ok(BatchCommand::Spawn { .. })))
             .collect();
         let results = self.run_batch(batch);
         if args.get(1).and_then(Value::as_bool) == Some(true) {
             self.tick()?;
+        } else {
+            let spawned: Vec<u32> = (results.iter().zip(spawns))
+                .filter_map(|(r, spawn)| r.as_ref().ok().filter(|_| spawn).copied())
+                .collect();
+            self.show_spawned(&spawned);
         }
         let responses = results
             .into_iter()
@@ -190,16 +200,14 @@ impl Session {
                 // Spawned through the gateway, not in a frame yet.
                 let description = registry.descriptions.get(&id)?;
                 let uid = description.as_array()?.first()?.as_u64()?;
-                (blueprints::kind_of_uid(uid), [0.0; 3])
+                (blueprints::kind_of_uid(uid), blueprints::spawned_extent(description))
             }
         };
-        let description = registry.descriptions.get(&id).cloned().unwrap_or_else(|| {
-            Value::Array(vec![
-                Value::from(kind),
-                Value::from(type_id(kind)),
-                Value::Array(Vec::new()),
-            ])
-        });
+        let description = registry
+            .descriptions
+            .get(&id)
+            .cloned()
+            .unwrap_or_else(|| blueprints::scene_description(kind, type_id(kind)));
         Some(actor_record(
             id,
             0,
@@ -329,6 +337,7 @@ impl Session {
                         id
                     }
                 },
+                Ok(BatchCommand::Autopilot(id)) => self.autopilot_target(id),
                 Ok(BatchCommand::Actor(SPECTATOR_ID, op)) => self.move_spectator(op),
                 Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::simbus_id(id).is_some() => {
                     self.destroy_sensor(id)
@@ -426,7 +435,7 @@ impl Session {
 }
 
 /// CARLA's type id of a simbus actor kind.
-fn type_id(kind: u32) -> &'static str {
+pub(crate) fn type_id(kind: u32) -> &'static str {
     match ActorKind::from_u32(kind) {
         Some(ActorKind::Box) => "static.prop.box",
         Some(ActorKind::Sphere) => "static.prop.sphere",

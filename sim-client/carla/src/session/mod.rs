@@ -8,8 +8,12 @@
 //! below.
 
 mod actors;
+mod physics;
 mod recorder;
 pub(crate) mod settings;
+mod spawned;
+pub(crate) mod traffic;
+pub(crate) mod weather;
 mod world;
 
 use std::io::{BufReader, Write};
@@ -26,6 +30,9 @@ use crate::error::CallError;
 use crate::rpc::{self, Answer, ReadError, Request};
 use crate::stream::Hub;
 
+/// The type id of an actor of a kind (the recorder texts name actors by it).
+pub(crate) use actors::type_id;
+
 /// The calls answered with `Response<void>` by CARLA (their errors have
 /// another shape).
 const VOID_CALLS: &[&str] = &[
@@ -33,6 +40,10 @@ const VOID_CALLS: &[&str] = &[
     "set_actor_simulate_physics",
     "set_actor_collisions",
     "copy_opendrive_to_file",
+    "apply_physics_control",
+    "set_weather_parameters",
+    "enable_actor_constant_velocity",
+    "disable_actor_constant_velocity",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -57,7 +68,9 @@ fn call_of(method: &str) -> Option<Call> {
         "get_map_data" => Session::on_get_map_data,
         "get_available_maps" => Session::on_get_available_maps,
         "get_weather_parameters" => Session::on_get_weather_parameters,
+        "set_weather_parameters" => Session::on_set_weather_parameters,
         "load_new_episode" => Session::on_load_new_episode,
+        "copy_opendrive_to_file" => Session::on_copy_opendrive_to_file,
         "get_required_files" | "query_lights_state" | "get_vehicle_light_states" => {
             Session::on_empty_list
         }
@@ -65,6 +78,8 @@ fn call_of(method: &str) -> Option<Call> {
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,
         "get_actor_bounding_box" => Session::on_get_actor_bounding_box,
+        "get_physics_control" => Session::on_get_physics_control,
+        "apply_physics_control" => Session::on_apply_physics_control,
         "spawn_actor" => Session::on_spawn_actor,
         "spawn_actor_with_parent" => Session::on_spawn_actor_with_parent,
         "destroy_actor" => Session::on_destroy_actor,
@@ -77,6 +92,11 @@ fn call_of(method: &str) -> Option<Call> {
         "show_recorder_file_info" => Session::on_show_recorder_file_info,
         "show_recorder_collisions" => Session::on_show_recorder_collisions,
         "show_recorder_actors_blocked" => Session::on_show_recorder_actors_blocked,
+        "is_traffic_manager_running" => Session::on_is_traffic_manager_running,
+        "get_traffic_manager_running" => Session::on_get_traffic_manager_running,
+        "add_traffic_manager_running" => Session::on_add_traffic_manager_running,
+        "destroy_traffic_manager" => Session::on_destroy_traffic_manager,
+        "reset_all_traffic_lights" => Session::on_reset_all_traffic_lights,
         _ => return None,
     })
 }
@@ -155,6 +175,7 @@ impl Session {
                 break;
             }
         }
+        self.forget_traffic_managers();
         info!(%peer, "CARLA client gone");
     }
 

@@ -1,5 +1,6 @@
 //! CARLA's recorder calls on simbus's recorder. The `show_*` calls read
-//! the file here and answer JSON text (CARLA's answer preformatted text).
+//! the file here and answer CARLA's preformatted text
+//! ([`crate::recorder_text`]).
 
 use rmpv::Value;
 use shared_types::{ActorKind, RecorderRefusal};
@@ -8,11 +9,11 @@ use simbus_recording::inspect;
 
 use super::{arg_f64, arg_flag, arg_str, Session};
 use crate::error::CallError;
+use crate::recorder_text;
 use crate::rpc::Answer;
 
-/// `value` as the JSON text a `show_*` call answers.
-fn json(value: &impl serde::Serialize) -> Result<Answer, CallError> {
-    let text = serde_json::to_string_pretty(value).unwrap_or_default();
+/// `text` as a `show_*` call answers it.
+fn text(text: String) -> Result<Answer, CallError> {
     Ok(Answer::Value(Value::from(text)))
 }
 
@@ -123,8 +124,7 @@ impl Session {
     ) -> Result<Answer, CallError> {
         let name = arg_str(args, 0, "show_recorder_file_info")?;
         let all = arg_flag(args, 1);
-        let info = inspect::file_info(&name, all).map_err(CallError::recording)?;
-        json(&info)
+        text(recorder_text::file_info(&name, all).map_err(CallError::recording)?)
     }
 
     pub(super) fn on_show_recorder_collisions(
@@ -139,12 +139,11 @@ impl Session {
                 .unwrap_or('a')
         };
         let (kind1, kind2) = (kind(1), kind(2));
-        let mut list = inspect::collisions(&name, 'a', 'a').map_err(CallError::recording)?;
-        list.retain(|c| {
-            (in_category(kind1, c.kind_a) && in_category(kind2, c.kind_b))
-                || (in_category(kind1, c.kind_b) && in_category(kind2, c.kind_a))
-        });
-        json(&list)
+        let keep = |a: &str, b: &str| {
+            (in_category(kind1, a) && in_category(kind2, b))
+                || (in_category(kind1, b) && in_category(kind2, a))
+        };
+        text(recorder_text::collisions(&name, keep).map_err(CallError::recording)?)
     }
 
     pub(super) fn on_show_recorder_actors_blocked(
@@ -163,6 +162,6 @@ impl Session {
         }
         let list = inspect::actors_blocked(&name, min_time, min_distance / 100.0)
             .map_err(CallError::recording)?;
-        json(&list)
+        text(recorder_text::actors_blocked(&name, &list).map_err(CallError::recording)?)
     }
 }

@@ -5,11 +5,14 @@ use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::WaitMode;
-use tracing::info;
+use tracing::{info, warn};
 
-use super::settings::{default_other_fields, episode_settings, other_fields, parse_settings};
+use super::settings::{
+    carla_substep_warning, default_other_fields, episode_settings, other_fields, parse_settings,
+};
 use super::{arg_flag, arg_str, arg_u64, Session};
 use crate::error::CallError;
+use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
 use crate::rpc::Answer;
 use crate::sensors;
 use crate::stream::lock;
@@ -19,30 +22,6 @@ use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
 /// (already in shared memory when the tick returns, so in practice no
 /// wait); past it the world stream's pump sends that frame instead.
 const STEPPED_FRAME: Duration = Duration::from_millis(5);
-
-/// A minimal OpenDRIVE map: one straight two-lane road. CARLA's client
-/// builds its map from it (`world.get_map()`); simbus scenes have no roads.
-const OPENDRIVE: &str = r#"<?xml version="1.0" standalone="yes"?>
-<OpenDRIVE>
-  <header revMajor="1" revMinor="4" name="" version="1" north="0" south="0" east="0" west="0"/>
-  <road name="r0" length="100.0" id="0" junction="-1">
-    <link/>
-    <planView><geometry s="0.0" x="0.0" y="0.0" hdg="0.0" length="100.0"><line/></geometry></planView>
-    <elevationProfile/>
-    <lateralProfile/>
-    <lanes>
-      <laneSection s="0.0">
-        <left><lane id="1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></left>
-        <center><lane id="0" type="none" level="false"><link/></lane></center>
-        <right><lane id="-1" type="driving" level="false"><link/><width sOffset="0.0" a="3.5" b="0" c="0" d="0"/></lane></right>
-      </laneSection>
-    </lanes>
-  </road>
-</OpenDRIVE>
-"#;
-
-/// The maps `get_available_maps` lists: simbus's scenes.
-const MAPS: [&str; 3] = ["default", "empty", "boxes:100"];
 
 impl Session {
     pub(super) fn on_version(&mut self, _: &[Value]) -> Result<Answer, CallError> {
@@ -87,6 +66,9 @@ impl Session {
             method: "set_episode_settings",
             what: "settings of the wrong shape",
         })?;
+        if let Some(warning) = carla_substep_warning(&settings) {
+            warn!(peer = %self.peer, "{warning}");
+        }
         if settings.synchronous_mode && self.ticker.is_none() {
             let name = self.ticker_name();
             let mut ticker = self
@@ -119,26 +101,42 @@ impl Session {
         self.tick()
     }
 
+    /// CARLA's `MapInfo`: the map's name and its recommended spawn points.
     pub(super) fn on_get_map_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
-        let status = self.client()?.status().map_err(CallError::simbus)?;
-        Ok(Answer::Value(Value::Array(vec![
-            Value::from(status.scene),
-            Value::Array(Vec::new()),
-        ])))
+        Ok(Answer::Value(self.map()?.info()))
     }
 
+    /// The map's OpenDRIVE text (CARLA's client builds its map from it).
     pub(super) fn on_get_map_data(&mut self, _: &[Value]) -> Result<Answer, CallError> {
-        Ok(Answer::Value(Value::from(OPENDRIVE)))
+        Ok(Answer::Value(Value::from(&*self.map()?.opendrive)))
     }
 
+    /// simbus's scenes (`config.py --list` prints them, `-m` loads one).
     pub(super) fn on_get_available_maps(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         Ok(Answer::Value(Value::Array(
-            MAPS.into_iter().map(Value::from).collect(),
+            AVAILABLE_MAPS.into_iter().map(Value::from).collect(),
         )))
     }
 
-    pub(super) fn on_get_weather_parameters(&mut self, _: &[Value]) -> Result<Answer, CallError> {
-        Ok(Answer::Value(Value::Array(vec![Value::F32(0.0); 14])))
+    /// The first half of CARLA's `generate_opendrive_world`: the
+    /// OpenDRIVE to build the next `OpenDriveMap` on, checked (a text that
+    /// is not OpenDRIVE is refused and nothing changes).
+    pub(super) fn on_copy_opendrive_to_file(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let opendrive = arg_str(args, 0, "copy_opendrive_to_file")?;
+        self.hub.maps.send(&opendrive).map_err(CallError::simbus)?;
+        Ok(Answer::Done)
+    }
+
+    /// The map of the world's current episode.
+    fn map(&mut self) -> Result<MapAnswer, CallError> {
+        let status = self.client()?.status().map_err(CallError::simbus)?;
+        self.hub
+            .maps
+            .answer(status.server_pid, status.episode, &status.scene)
+            .map_err(CallError::simbus)
     }
 
     /// The calls simbus answers with an empty list (no files, no lights).
@@ -146,18 +144,46 @@ impl Session {
         Ok(Answer::Value(Value::Array(Vec::new())))
     }
 
-    /// CARLA's `load_world`/`reload_world`: a scene by name, or the same
-    /// again (empty name).
+    /// CARLA's `load_world`/`reload_world`: a scene by name (with or
+    /// without CARLA's `/Game/Carla/Maps/`), the same again (empty name),
+    /// simbus's `town` in place of one of CARLA's towns (refused with
+    /// `--strict-maps`), or `OpenDriveMap`: a flat world on the OpenDRIVE
+    /// `generate_opendrive_world` sent. A reload keeps the map the
+    /// episode had.
     pub(super) fn on_load_new_episode(&mut self, args: &[Value]) -> Result<Answer, CallError> {
-        let scene = arg_str(args, 0, "load_new_episode")?;
+        let name = arg_str(args, 0, "load_new_episode")?;
         let reset = arg_flag(args, 1);
+        let request = MapRequest::of(&name);
+        let (scene, map) = match &request {
+            MapRequest::Reload => {
+                let status = self.client()?.status().map_err(CallError::simbus)?;
+                ("", self.hub.maps.given((status.server_pid, status.episode)))
+            }
+            MapRequest::Scene(scene) => (scene.as_str(), None),
+            MapRequest::CarlaTown(town) => {
+                let scene = self
+                    .hub
+                    .maps
+                    .stand_in_for(town)
+                    .map_err(CallError::simbus)?;
+                (scene, Some(EpisodeMap::substitute(town)))
+            }
+            MapRequest::OpenDrive => {
+                let (scene, map) = self.hub.maps.opendrive_world().map_err(CallError::simbus)?;
+                (scene, Some(map))
+            }
+        };
         let client = self.client()?;
         let loaded = if scene.is_empty() {
             client.reload_world(reset)
         } else {
-            client.load_world(&scene, reset)
+            client.load_world(scene, reset)
         };
-        loaded.map_err(CallError::simbus)?;
+        let status = loaded.map_err(CallError::simbus)?;
+        self.hub.maps.give(status.server_pid, status.episode, map);
+        if let MapRequest::CarlaTown(town) = &request {
+            info!(peer = %self.peer, "CARLA's map {town} is not in simbus: loading simbus's {TOWN} instead");
+        }
         if reset {
             *lock(&self.hub.other_settings) = default_other_fields();
         }

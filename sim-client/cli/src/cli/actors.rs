@@ -50,7 +50,7 @@ pub(crate) struct ReloadArgs {
 /// Load a scene as a new episode.
 #[derive(Debug, Args)]
 pub(crate) struct LoadArgs {
-    /// default, empty or boxes:N (N in 1..=100000).
+    /// default, empty, town (roads with 144 spawn points), flat (a 4 km ground) or boxes:N (N in 1..=100000).
     #[arg(value_parser = simbus_input::scene)]
     scene: String,
     /// Also reset the settings to the defaults (async, variable step).

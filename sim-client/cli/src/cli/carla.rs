@@ -32,6 +32,11 @@ pub(crate) struct GatewayArgs {
     /// actually bound (so scripts can use --port 0).
     #[arg(long)]
     json: bool,
+    /// Refuse to load CARLA's towns (Town01 … Town15, Town10HD_Opt):
+    /// without it, `load_world("Town10HD_Opt")` loads simbus's town in
+    /// their place and says so (in the log and in the map's name).
+    #[arg(long)]
+    strict_maps: bool,
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Result<(), Failure> {
@@ -40,6 +45,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         port: args.port,
         streaming_port: args.streaming_port,
         timeout,
+        strict_maps: args.strict_maps,
     };
     let host = config.host.as_str();
     // Ctrl-C / SIGTERM end the gateway: they wake it, it never polls.

@@ -3,10 +3,11 @@
 use std::time::Duration;
 
 use anyhow::anyhow;
-use clap::Args;
-use shared_types::{WorldName, WorldSettings};
+use clap::{Args, ValueEnum};
+use shared_types::{SubstepRule, WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client};
 use simbus_input as input;
+use simbus_input::Readable;
 
 use crate::Failure;
 
@@ -49,6 +50,11 @@ pub(crate) struct ConfigArgs {
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::max_substeps)]
     max_substeps: Option<u32>,
 
+    /// What a fixed step longer than max_substeps x max_substep_delta_time
+    /// does (with substepping on).
+    #[arg(long, value_name = "RULE")]
+    substep_rule: Option<SubstepRuleArg>,
+
     /// Print the settings (after any change).
     #[arg(long)]
     inspect: bool,
@@ -56,6 +62,57 @@ pub(crate) struct ConfigArgs {
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+/// `--substep-rule` of `config` and `tick`: the values and their help.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub(crate) enum SubstepRuleArg {
+    /// Refuse such a step (simbus's rule; the default).
+    Refuse,
+    /// CARLA's way: physics advances only max_substeps x
+    /// max_substep_delta_time per frame while the frame's time advances the
+    /// full step; each such frame is flagged clamped.
+    Clamp,
+    /// Lengthen the substeps to step / max_substeps, so physics keeps pace
+    /// with time (substeps longer than max_substep_delta_time).
+    Stretch,
+}
+
+impl From<SubstepRuleArg> for SubstepRule {
+    fn from(rule: SubstepRuleArg) -> Self {
+        match rule {
+            SubstepRuleArg::Refuse => Self::Refuse,
+            SubstepRuleArg::Clamp => Self::Clamp,
+            SubstepRuleArg::Stretch => Self::Stretch,
+        }
+    }
+}
+
+/// The `rule` line of the printed settings: the substep rule and what it
+/// does with these settings.
+pub(crate) fn substep_rule_line(settings: &WorldSettings) -> String {
+    let limit = settings.max_substep_delta_time * f64::from(settings.max_substeps);
+    let what = match settings.substep_rule {
+        SubstepRule::Refuse => format!("a fixed step over {} s is refused", Readable(limit)),
+        SubstepRule::Clamp => format!(
+            "CARLA's: physics advances at most {} s per frame",
+            Readable(limit)
+        ),
+        SubstepRule::Stretch => format!(
+            "a fixed step over {} s lengthens the substeps",
+            Readable(limit)
+        ),
+    };
+    match (settings.substepping, settings.clamps_physics()) {
+        (false, _) => format!("{} (no substepping: no effect)", settings.substep_rule),
+        (true, false) => format!("{} ({what})", settings.substep_rule),
+        (true, true) => format!(
+            "{} ({what}: {} s of each {} s frame)",
+            settings.substep_rule,
+            Readable(limit),
+            Readable(settings.fixed_delta_seconds.unwrap_or(0.0))
+        ),
+    }
 }
 
 impl ConfigArgs {
@@ -67,6 +124,7 @@ impl ConfigArgs {
             || self.substepping
             || self.max_substep_delta_time.is_some()
             || self.max_substeps.is_some()
+            || self.substep_rule.is_some()
     }
 
     /// `current` with this command's changes applied.
@@ -92,6 +150,9 @@ impl ConfigArgs {
         }
         if let Some(n) = self.max_substeps {
             settings.max_substeps = n;
+        }
+        if let Some(rule) = self.substep_rule {
+            settings.substep_rule = rule.into();
         }
         settings.validate()?;
         Ok(settings.normalized())

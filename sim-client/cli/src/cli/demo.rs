@@ -24,7 +24,7 @@ pub(crate) struct DemoArgs {
     #[arg(long, value_name = "N", default_value_t = 300, allow_negative_numbers = true, value_parser = input::count)]
     frames: u64,
 
-    /// Scene for the server: default, empty or boxes:N (N in 1..=100000).
+    /// Scene for the server: default, empty, town (roads with 144 spawn points), flat (a 4 km ground) or boxes:N (N in 1..=100000).
     #[arg(long, default_value = "default", value_parser = input::scene)]
     scene: String,
 

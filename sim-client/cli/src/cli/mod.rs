@@ -201,6 +201,7 @@ pub(crate) fn settings_json(settings: &WorldSettings) -> serde_json::Value {
         "substepping": settings.substepping,
         "max_substep_delta_time": settings.max_substep_delta_time,
         "max_substeps": settings.max_substeps,
+        "substep_rule": settings.substep_rule.name(),
     })
 }
 
@@ -236,5 +237,6 @@ pub(crate) fn settings_lines(settings: &WorldSettings) -> Vec<(&'static str, Str
                 "off: one physics step per frame".to_owned()
             },
         ),
+        ("rule", config::substep_rule_line(settings)),
     ]
 }

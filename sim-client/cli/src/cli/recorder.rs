@@ -77,6 +77,10 @@ enum RecorderCommand {
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
+        /// Print CARLA's text instead (its show_recorder_file_info layout:
+        /// Version, Map, Date, frames with events, Frames, Duration).
+        #[arg(long, conflicts_with = "json")]
+        carla_text: bool,
     },
     /// The collisions in a recording (contacts that started), in order.
     Collisions {
@@ -189,7 +193,18 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: RecorderArgs) -> R
         RecorderCommand::Status { json } => status(world, timeout, json),
         RecorderCommand::TimeFactor { factor } => time_factor(world, timeout, factor),
         RecorderCommand::StopReplay { keep_actors } => stop_replay(world, timeout, keep_actors),
-        RecorderCommand::Info { file, all, json } => info(&file, all, json),
+        RecorderCommand::Info {
+            file,
+            all,
+            json,
+            carla_text,
+        } => {
+            if carla_text {
+                carla_info(&file, all)
+            } else {
+                info(&file, all, json)
+            }
+        }
         RecorderCommand::Collisions {
             file,
             kind1,
@@ -314,6 +329,23 @@ fn info(file: &str, all: bool, json: bool) -> Result<(), Failure> {
         print::info(&info);
     }
     Ok(())
+}
+
+/// `recorder info --carla-text`: what the file holds, in the text CARLA's
+/// server answers to `show_recorder_file_info`.
+#[cfg(feature = "carla")]
+fn carla_info(file: &str, all: bool) -> Result<(), Failure> {
+    let text = simbus_carla::recorder_text::file_info(file, all).map_err(file_error(false))?;
+    print!("{text}");
+    Ok(())
+}
+
+/// `recorder info --carla-text` in a build without the CARLA gateway.
+#[cfg(not(feature = "carla"))]
+fn carla_info(_: &str, _: bool) -> Result<(), Failure> {
+    Err(Failure::Refused(anyhow!(
+        "--carla-text needs a sim-client built with the `carla` feature"
+    )))
 }
 
 /// `recorder collisions`: the contacts that started between two categories.

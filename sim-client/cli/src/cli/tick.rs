@@ -41,6 +41,11 @@ pub(crate) struct TickArgs {
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::fps)]
     fps: Option<f64>,
 
+    /// What a fixed step longer than max_substeps x max_substep_delta_time
+    /// does while this command ticks (default: the world's rule).
+    #[arg(long, value_name = "RULE")]
+    substep_rule: Option<super::config::SubstepRuleArg>,
+
     /// Before the first tick, wait (up to --timeout) until N lockstep
     /// participants (autopilot, `watch --lockstep`, ...) have joined, so
     /// none misses the first frame (0..=1024).
@@ -81,6 +86,12 @@ pub(crate) struct TickArgs {
 }
 
 impl TickArgs {
+    /// The substep rule to tick with: --substep-rule, else the world's.
+    fn rule(&self, current: &WorldSettings) -> shared_types::SubstepRule {
+        self.substep_rule
+            .map_or(current.substep_rule, shared_types::SubstepRule::from)
+    }
+
     /// The fixed step to tick with; `None` is a variable step.
     fn delta(&self, current: &WorldSettings) -> Result<Option<f64>, Failure> {
         let delta = match (self.delta_seconds, self.fps) {
@@ -112,6 +123,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     let sync = WorldSettings {
         synchronous_mode: true,
         fixed_delta_seconds: delta,
+        substep_rule: args.rule(&current),
         ..current
     };
     // Refuse bad input before anything changes, ownership included.
@@ -129,6 +141,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
         let sync = WorldSettings {
             synchronous_mode: true,
             fixed_delta_seconds: delta,
+            substep_rule: args.rule(&current),
             ..current
         };
         (ticker, current, sync, delta)

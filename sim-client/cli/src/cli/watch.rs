@@ -59,6 +59,10 @@ pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
         "platform_timestamp": t.platform_timestamp,
         "actors": s.actors().len(),
         "physics_substeps": s.header().physics_substeps,
+        // The substep rule `clamp` (CARLA's): physics ran less than delta.
+        "physics_clamped": s.is_physics_clamped(),
+        "physics_seconds": s.physics_seconds(),
+        "substep_rule": s.settings().substep_rule.name(),
         "synchronous_mode": s.settings().synchronous_mode,
         "fixed_delta_seconds": s.settings().fixed_delta_seconds,
         "missed": s.missed(),
@@ -82,6 +86,12 @@ fn frame_line(s: &FrameView) -> String {
         s.actors().len(),
         s.header().physics_substeps,
     );
+    if s.is_physics_clamped() {
+        line.push_str(&format!(
+            "  (physics clamped to {} s)",
+            simbus_input::Readable(s.physics_seconds())
+        ));
+    }
     if s.missed() > 0 {
         line.push_str(&format!("  (missed {})", s.missed()));
     }

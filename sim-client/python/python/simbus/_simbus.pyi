@@ -33,6 +33,11 @@ class Settings:
     def max_substep_delta_time(self) -> float: ...
     @property
     def max_substeps(self) -> int: ...
+    @property
+    def substep_rule(self) -> str:
+        """What a fixed step longer than max_substeps * max_substep_delta_time
+        does: "refuse", "clamp" (CARLA's: physics advances only that much) or
+        "stretch" (longer substeps)."""
     def __eq__(self, other: object) -> bool: ...
 
 class TickerInfo:
@@ -94,6 +99,12 @@ class Frame:
     @property
     def missed(self) -> int: ...
     @property
+    def physics_clamped(self) -> bool:
+        """Physics advanced less than delta_seconds (substep rule "clamp")."""
+    @property
+    def physics_seconds(self) -> float:
+        """Seconds physics advanced: delta_seconds, or less when clamped."""
+    @property
     def digest(self) -> int:
         """Equal digests, bit-identical worlds."""
     @property
@@ -138,6 +149,7 @@ class Ticker:
         substepping: Optional[bool] = None,
         max_substep_delta_time: Optional[float] = None,
         max_substeps: Optional[int] = None,
+        substep_rule: Optional[str] = None,
     ) -> int: ...
     def release(self) -> None:
         """Puts the settings back as before the claim and gives the world back."""
@@ -169,6 +181,7 @@ class Client:
         substepping: Optional[bool] = None,
         max_substep_delta_time: Optional[float] = None,
         max_substeps: Optional[int] = None,
+        substep_rule: Optional[str] = None,
     ) -> int:
         """Changes the given settings; returns the first frame with them."""
     def reload_world(self, *, reset_settings: bool = False) -> Status: ...

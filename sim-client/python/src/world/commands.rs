@@ -159,6 +159,10 @@ pub(super) fn describe(w: &Wire) -> String {
         CommandKind::ApplyTorque => format!("ApplyTorque({id}, torque={:?})", triple(v)),
         CommandKind::SetPhysics => format!("SetSimulatePhysics({id}, {})", py_bool(flag(w))),
         CommandKind::SetGravity => format!("SetEnableGravity({id}, {})", py_bool(flag(w))),
+        CommandKind::ConstantVelocity => match flag(w) {
+            true => format!("ConstantVelocity({id}, velocity={:?})", triple(v)),
+            false => format!("ConstantVelocity({id}, velocity=None)"),
+        },
         CommandKind::VehicleControl => format!(
             "ApplyVehicleControl({id}, throttle={:?}, steer={:?}, brake={:?}, hand_brake={})",
             p[0],

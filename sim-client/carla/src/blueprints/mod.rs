@@ -1,6 +1,13 @@
 //! The blueprint library the gateway offers (`world.get_blueprint_library()`)
-//! and what a CARLA actor description spawns in simbus: a prop, the
-//! ray-cast vehicle, or a sensor.
+//! and what a CARLA actor description spawns in simbus: a prop, a ray-cast
+//! vehicle (simbus's own or one of CARLA's catalogue, [`catalog`]), or a
+//! sensor. CARLA's walkers are listed and refused at spawn.
+
+mod catalog;
+mod library;
+
+use library::definition;
+pub(crate) use library::{library, scene_description, spawned_extent, vehicle_build};
 
 use std::collections::HashMap;
 
@@ -14,9 +21,11 @@ use crate::wire::{CarlaTransform, DEPTH_FAR_METRES};
 /// CARLA's `ActorAttributeType`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
+    Bool = 1,
     Int = 2,
     Float = 3,
     String = 4,
+    RGBColor = 5,
 }
 
 /// One attribute of a blueprint: name, type, default, whether a script
@@ -43,15 +52,6 @@ const fn int(id: &'static str, default: &'static str) -> Attribute {
         kind: Kind::Int,
         default,
         modifiable: true,
-    }
-}
-
-const fn fixed(id: &'static str, kind: Kind, default: &'static str) -> Attribute {
-    Attribute {
-        id,
-        kind,
-        default,
-        modifiable: false,
     }
 }
 
@@ -106,12 +106,8 @@ const LIBRARY: &[Blueprint] = &[
         uid: 5,
         id: "vehicle.simbus.car",
         tags: "vehicle,car,simbus",
-        attributes: &[
-            ROLE_NAME,
-            fixed("number_of_wheels", Kind::Int, "4"),
-            fixed("base_type", Kind::String, "car"),
-            fixed("generation", Kind::Int, "2"),
-        ],
+        // Its attributes are a catalogue vehicle's ([`vehicle_attributes`]).
+        attributes: &[ROLE_NAME],
     },
     Blueprint {
         uid: 6,
@@ -173,38 +169,6 @@ pub(crate) fn kind_of_uid(uid: u64) -> u32 {
     u32::try_from(uid).unwrap_or(0)
 }
 
-/// The library as CARLA's `[ActorDefinition]`:
-/// `[uid, id, tags, [[id, type, value, recommended, modifiable, restricted]]]`.
-pub(crate) fn library() -> Value {
-    Value::Array(
-        LIBRARY
-            .iter()
-            .map(|bp| {
-                let attributes = bp
-                    .attributes
-                    .iter()
-                    .map(|a| {
-                        Value::Array(vec![
-                            Value::from(a.id),
-                            Value::from(a.kind as u8),
-                            Value::from(a.default),
-                            Value::Array(Vec::new()),
-                            Value::Boolean(a.modifiable),
-                            Value::Boolean(false),
-                        ])
-                    })
-                    .collect();
-                Value::Array(vec![
-                    Value::from(bp.uid),
-                    Value::from(bp.id),
-                    Value::from(bp.tags),
-                    Value::Array(attributes),
-                ])
-            })
-            .collect(),
-    )
-}
-
 /// What a description spawns.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Spawn {
@@ -220,8 +184,6 @@ pub(crate) enum Spawn {
 pub(crate) struct Description {
     pub(crate) id: String,
     values: HashMap<String, String>,
-    /// The description as it came.
-    raw: Value,
 }
 
 impl Description {
@@ -232,22 +194,19 @@ impl Description {
             .get(1)
             .and_then(Value::as_str)
             .ok_or(BlueprintError::NoId)?;
-        let blueprint =
-            LIBRARY
+        let blueprint = definition(id).ok_or_else(|| BlueprintError::Unknown {
+            id: id.to_string(),
+            known: LIBRARY
                 .iter()
-                .find(|bp| bp.id == id)
-                .ok_or_else(|| BlueprintError::Unknown {
-                    id: id.to_string(),
-                    known: LIBRARY
-                        .iter()
-                        .map(|bp| bp.id)
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                })?;
+                .map(|bp| bp.id)
+                .chain(["CARLA's vehicle.*, walker.pedestrian.* and controller.ai.walker"])
+                .collect::<Vec<_>>()
+                .join(", "),
+        })?;
         let mut values: HashMap<String, String> = blueprint
             .attributes
             .iter()
-            .map(|a| (a.id.to_string(), a.default.to_string()))
+            .map(|a| (a.id.to_string(), a.value.clone()))
             .collect();
         for attribute in fields
             .get(2)
@@ -268,24 +227,33 @@ impl Description {
         Ok(Self {
             id: id.to_string(),
             values,
-            raw: value.clone(),
         })
     }
 
-    /// The description as an actor's record carries it: as it came, with
-    /// the blueprint's uid (a body's uid is its simbus kind).
+    /// The description as an actor's record carries it: the blueprint's
+    /// uid (a body's uid is its simbus kind), its id, and every attribute
+    /// of the blueprint with the value the script set (or the default).
     pub(crate) fn record(&self) -> Value {
-        let uid = LIBRARY
+        let Some(d) = definition(&self.id) else {
+            return Value::Array(vec![Value::from(0u8), Value::from(self.id.as_str())]);
+        };
+        let attributes = d
+            .attributes
             .iter()
-            .find(|bp| bp.id == self.id)
-            .map_or(0, |bp| bp.uid);
-        let mut record = self.raw.clone();
-        if let Value::Array(fields) = &mut record {
-            if let Some(first) = fields.first_mut() {
-                *first = Value::from(uid);
-            }
-        }
-        record
+            .map(|a| {
+                let value = self.values.get(a.id).unwrap_or(&a.value);
+                Value::Array(vec![
+                    Value::from(a.id),
+                    Value::from(a.kind as u8),
+                    Value::from(value.as_str()),
+                ])
+            })
+            .collect();
+        Value::Array(vec![
+            Value::from(d.uid),
+            Value::from(self.id.as_str()),
+            Value::Array(attributes),
+        ])
     }
 
     fn number(&self, name: &str) -> Result<f32, BlueprintError> {
@@ -341,6 +309,18 @@ impl Description {
                 self.number("half_height")?,
             )),
             "vehicle.simbus.car" => body(Command::spawn_vehicle(position)),
+            id if id.starts_with("walker.") || id.starts_with("controller.") => {
+                Err(BlueprintError::Walker(id.to_string()))
+            }
+            id if catalog::vehicle(id).is_some() => {
+                let (mass, extent) = vehicle_build(id).unwrap_or_default();
+                let half = convert::vector(extent);
+                // CARLA's vehicle stands on the ground below its location:
+                // simbus places the chassis's centre, so lift it by its
+                // half height.
+                let at = [position[0], position[1] + half[1], position[2]];
+                body(Command::spawn_sized_vehicle(at, half, mass))
+            }
             "sensor.camera.depth" => {
                 let (w, h) = (self.number("image_size_x")?, self.number("image_size_y")?);
                 let spec = SensorSpec::depth(
@@ -415,6 +395,7 @@ impl Description {
 
 #[cfg(test)]
 mod tests {
+    use super::library::definitions;
     use super::*;
 
     fn description(id: &str, attributes: &[(&str, &str)]) -> Value {
@@ -441,6 +422,78 @@ mod tests {
     }
 
     #[test]
+    fn every_catalog_vehicle_has_carlas_attributes_and_spawns_at_its_size() {
+        let ids: std::collections::HashSet<&str> =
+            definitions().iter().map(|d| d.id.as_str()).collect();
+        assert_eq!(ids.len(), definitions().len(), "ids are unique");
+        for v in catalog::VEHICLES {
+            let d = definition(v.id).expect(v.id);
+            for name in [
+                "base_type",
+                "number_of_wheels",
+                "generation",
+                "object_type",
+                "special_type",
+                "has_dynamic_doors",
+                "has_lights",
+                "role_name",
+                "sticky_control",
+                "terramechanics",
+            ] {
+                assert!(d.attributes.iter().any(|a| a.id == name), "{} {name}", v.id);
+            }
+            let parsed = Description::parse(&description(v.id, &[])).unwrap();
+            let Spawn::Body(command) = parsed.spawn(&CarlaTransform::default()).unwrap() else {
+                panic!("{} is not a body", v.id);
+            };
+            let spec = shared_types::VehicleSpec::from_params(command.params).expect(v.id);
+            assert_eq!(spec.half_extents, convert::vector(v.extent), "{}", v.id);
+            assert_eq!(spec.mass, v.mass);
+            // Lifted so it stands on the ground below the location.
+            assert_eq!(command.vector[1], spec.half_extents[1]);
+        }
+    }
+
+    #[test]
+    fn walkers_are_listed_and_refused_at_spawn() {
+        for id in [
+            "walker.pedestrian.0001",
+            "walker.pedestrian.0051",
+            "controller.ai.walker",
+        ] {
+            let d = Description::parse(&description(id, &[])).expect(id);
+            let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+            assert_eq!(e, format!("walkers are not supported ({id})"));
+        }
+        let generation = |id: &str| {
+            let d = definition(id).unwrap();
+            d.attributes
+                .iter()
+                .find(|a| a.id == "generation")
+                .unwrap()
+                .value
+                .clone()
+        };
+        assert_eq!(generation("walker.pedestrian.0030"), "2");
+    }
+
+    #[test]
+    fn scene_actors_report_an_empty_role_name_and_fixed_attributes() {
+        let d = scene_description(5, "vehicle.simbus.car");
+        let attributes = d.as_array().unwrap()[2].as_array().unwrap().clone();
+        let get = |name: &str| {
+            attributes
+                .iter()
+                .find(|a| a.as_array().unwrap()[0].as_str() == Some(name))
+                .map(|a| a.as_array().unwrap()[2].as_str().unwrap().to_string())
+        };
+        assert_eq!(get("role_name").as_deref(), Some(""));
+        assert_eq!(get("number_of_wheels").as_deref(), Some("4"));
+        let ground = scene_description(1, "static.prop.fixed");
+        assert_eq!(ground.as_array().unwrap()[2].as_array().unwrap().len(), 1);
+    }
+
+    #[test]
     fn a_lidar_gets_carlas_points_per_turn_and_spin() {
         let d = Description::parse(&description(
             "sensor.lidar.ray_cast",
@@ -462,11 +515,11 @@ mod tests {
 
     #[test]
     fn unknown_blueprints_bad_numbers_and_noise_are_refused_by_name() {
-        let e = Description::parse(&description("vehicle.tesla.model3", &[]))
+        let e = Description::parse(&description("vehicle.tesla.roadster", &[]))
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("vehicle.tesla.model3") && e.contains("static.prop.box"),
+            e.contains("vehicle.tesla.roadster") && e.contains("static.prop.box"),
             "{e}"
         );
         let d =

@@ -1,0 +1,51 @@
+//! Actors spawned in asynchronous mode are shown to CARLA's clients before
+//! the spawn is answered. CARLA 0.9.16's client reads an actor's state from
+//! the last world state it received, and `actor.destroy()` on an actor no
+//! world state has held yet is dropped on the client's side ("attempting
+//! to destroy an actor that is already dead"): a script that spawns and at
+//! once destroys would leak the actor. In asynchronous mode the server
+//! steps on its own, so the gateway waits for the first frame holding the
+//! new actors and sends it before answering. In synchronous mode no frame
+//! comes before the next tick, as on CARLA.
+
+use std::time::{Duration, Instant};
+
+use super::Session;
+use crate::stream;
+
+/// The longest a spawn's answer waits for a frame holding the new actors.
+const SHOWN_WITHIN: Duration = Duration::from_secs(1);
+
+impl Session {
+    /// In asynchronous mode, sends CARLA's clients the first frame holding
+    /// every actor of `spawned` (a sensor is in every world state from its
+    /// spawn on); gives up quietly after [`SHOWN_WITHIN`].
+    pub(super) fn show_spawned(&mut self, spawned: &[u32]) {
+        let bodies: Vec<u64> = spawned
+            .iter()
+            .filter(|&&id| crate::sensors::simbus_id(id).is_none())
+            .map(|&id| u64::from(id))
+            .collect();
+        if bodies.is_empty() || self.ticker.is_some() {
+            return;
+        }
+        let Some(client) = self.client.as_mut() else {
+            return;
+        };
+        if client.get_settings().map_or(true, |s| s.synchronous_mode) {
+            return;
+        }
+        let pid = client.server_pid();
+        let deadline = Instant::now() + SHOWN_WITHIN;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            let Ok(view) = client.wait_for_frame(left) else {
+                return;
+            };
+            let actors = view.actors();
+            if bodies.iter().all(|id| actors.iter().any(|a| a.id == *id)) {
+                stream::publish(&self.hub, &view, pid);
+                return;
+            }
+        }
+    }
+}

@@ -1,0 +1,175 @@
+//! The traffic manager's registry: CARLA 0.9.16's client runs the traffic
+//! manager inside the script's process and asks the server which port has
+//! one (`is_traffic_manager_running`, `get_traffic_manager_running`),
+//! registers the one it starts (`add_traffic_manager_running`) and drops
+//! it (`destroy_traffic_manager`). The gateway keeps that map, one per
+//! gateway, and drops an entry when the connection that registered it
+//! closes: a dead entry would make the next script connect to a traffic
+//! manager that is gone (CARLA's client waits for it, then fails).
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+
+use rmpv::Value;
+use tracing::info;
+
+use super::{arg, arg_u64, Session};
+use crate::error::CallError;
+use crate::rpc::Answer;
+use crate::stream::lock;
+
+/// One running traffic manager: where its RPC server listens, and the
+/// CARLA connection that registered it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct TrafficManager {
+    pub(crate) host: String,
+    pub(crate) port: u16,
+    pub(crate) owner: SocketAddr,
+}
+
+/// The traffic managers running, by port.
+pub(crate) type Registry = HashMap<u16, TrafficManager>;
+
+/// Drops every traffic manager `owner` registered (its connection closed).
+pub(crate) fn forget_owner(registry: &mut Registry, owner: SocketAddr) -> Vec<u16> {
+    let gone: Vec<u16> = registry
+        .iter()
+        .filter(|(_, tm)| tm.owner == owner)
+        .map(|(&port, _)| port)
+        .collect();
+    for port in &gone {
+        registry.remove(port);
+    }
+    gone
+}
+
+/// A port argument: an integer in 0..=65535.
+fn arg_port(args: &[Value], i: usize, method: &'static str) -> Result<u16, CallError> {
+    let port = arg_u64(args, i, method)?;
+    u16::try_from(port).map_err(|_| CallError::Argument {
+        method,
+        index: i,
+        expected: "a port (0..=65535)",
+    })
+}
+
+impl Session {
+    /// Whether a traffic manager runs on the port.
+    pub(super) fn on_is_traffic_manager_running(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let port = arg_port(args, 0, "is_traffic_manager_running")?;
+        let running = lock(&self.hub.traffic_managers).contains_key(&port);
+        Ok(Answer::Value(Value::Boolean(running)))
+    }
+
+    /// Where the traffic manager of the port listens: `(host, port)`, or
+    /// `("", 0)` if none runs there (CARLA's answer).
+    pub(super) fn on_get_traffic_manager_running(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let port = arg_port(args, 0, "get_traffic_manager_running")?;
+        let (host, port) = lock(&self.hub.traffic_managers)
+            .get(&port)
+            .map_or((String::new(), 0), |tm| (tm.host.clone(), tm.port));
+        Ok(Answer::Value(Value::Array(vec![
+            Value::from(host),
+            Value::from(port),
+        ])))
+    }
+
+    /// Registers the traffic manager a script started: `true`, or `false`
+    /// if the port has one already (CARLA's answer).
+    pub(super) fn on_add_traffic_manager_running(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        const METHOD: &str = "add_traffic_manager_running";
+        let (host, port) = arg(args, 0, METHOD, "a (host, port) pair", |v| {
+            match v.as_array().map(Vec::as_slice) {
+                Some([host, port]) => Some((
+                    host.as_str()?.to_string(),
+                    u16::try_from(port.as_u64()?).ok()?,
+                )),
+                _ => None,
+            }
+        })?;
+        let mut registry = lock(&self.hub.traffic_managers);
+        if registry.contains_key(&port) {
+            return Ok(Answer::Value(Value::Boolean(false)));
+        }
+        info!(peer = %self.peer, "a traffic manager runs in the CARLA client, at {host}:{port}");
+        registry.insert(
+            port,
+            TrafficManager {
+                host,
+                port,
+                owner: self.peer,
+            },
+        );
+        Ok(Answer::Value(Value::Boolean(true)))
+    }
+
+    /// Drops the traffic manager of the port: whether one was there.
+    pub(super) fn on_destroy_traffic_manager(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let port = arg_port(args, 0, "destroy_traffic_manager")?;
+        let removed = lock(&self.hub.traffic_managers).remove(&port).is_some();
+        Ok(Answer::Value(Value::Boolean(removed)))
+    }
+
+    /// The traffic manager's `set_random_device_seed` resets the lights:
+    /// simbus's roads have none, so there is nothing to reset.
+    pub(super) fn on_reset_all_traffic_lights(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        Ok(Answer::Done)
+    }
+
+    /// `SetAutopilot` on actor `id`: nothing for the server to do (the
+    /// traffic manager runs in CARLA's client), but the actor must exist:
+    /// in the last frame, or just spawned through the gateway.
+    pub(super) fn autopilot_target(&self, id: u32) -> Result<u32, CallError> {
+        let known = lock(&self.hub.actors).contains_key(&id)
+            || lock(&self.hub.registry).descriptions.contains_key(&id);
+        if known {
+            Ok(id)
+        } else {
+            Err(CallError::UnknownActor(id))
+        }
+    }
+
+    /// The connection closed: the traffic managers it ran are gone.
+    pub(super) fn forget_traffic_managers(&self) {
+        let gone = forget_owner(&mut lock(&self.hub.traffic_managers), self.peer);
+        for port in gone {
+            info!(peer = %self.peer, "the traffic manager on port {port} left with its client");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_closed_connection_takes_only_its_own_traffic_managers() {
+        let a: SocketAddr = "127.0.0.1:1000".parse().unwrap();
+        let b: SocketAddr = "127.0.0.1:2000".parse().unwrap();
+        let tm = |port, owner| TrafficManager {
+            host: "127.0.0.1".into(),
+            port,
+            owner,
+        };
+        let mut registry = Registry::new();
+        registry.insert(8000, tm(8000, a));
+        registry.insert(8001, tm(8001, b));
+        registry.insert(8002, tm(8002, a));
+        let mut gone = forget_owner(&mut registry, a);
+        gone.sort_unstable();
+        assert_eq!(gone, [8000, 8002]);
+        assert_eq!(registry.keys().copied().collect::<Vec<_>>(), [8001]);
+    }
+}

@@ -1,0 +1,82 @@
+//! The weather: CARLA's `world.set_weather` / `world.get_weather`. simbus
+//! renders no sky, so the gateway keeps the weather CARLA clients set (one
+//! per gateway, CARLA's `ClearNoon` until set) and answers it back.
+
+use rmpv::Value;
+
+use super::Session;
+use crate::commands::number;
+use crate::error::CallError;
+use crate::rpc::Answer;
+use crate::stream::lock;
+
+/// CARLA 0.9.16's `WeatherParameters`, in its msgpack order: cloudiness,
+/// precipitation, precipitation_deposits, wind_intensity,
+/// sun_azimuth_angle, sun_altitude_angle, fog_density, fog_distance,
+/// fog_falloff, wetness, scattering_intensity, mie_scattering_scale,
+/// rayleigh_scattering_scale, dust_storm.
+pub(crate) type Weather = [f32; 14];
+
+/// CARLA's `WeatherParameters.ClearNoon`, what a new world has.
+pub(crate) const CLEAR_NOON: Weather = [
+    5.0, 0.0, 0.0, 10.0, -1.0, 45.0, 2.0, 0.75, 0.1, 0.0, 1.0, 0.03, 0.0331, 0.0,
+];
+
+/// CARLA's `WeatherParameters` from its msgpack array: 14 finite numbers.
+fn parse(v: &Value) -> Option<Weather> {
+    let fields = v.as_array()?;
+    if fields.len() != CLEAR_NOON.len() {
+        return None;
+    }
+    let mut weather = CLEAR_NOON;
+    for (slot, field) in weather.iter_mut().zip(fields) {
+        let x = number(field)? as f32;
+        if !x.is_finite() {
+            return None;
+        }
+        *slot = x;
+    }
+    Some(weather)
+}
+
+impl Session {
+    /// Keeps the weather a script sets; refuses another shape, changing
+    /// nothing.
+    pub(super) fn on_set_weather_parameters(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let weather = args.first().and_then(parse).ok_or(CallError::Shape {
+            method: "set_weather_parameters",
+            what: "weather parameters of the wrong shape (14 finite numbers)",
+        })?;
+        *lock(&self.hub.weather) = weather;
+        Ok(Answer::Done)
+    }
+
+    /// The weather last set (CARLA's `ClearNoon` until then).
+    pub(super) fn on_get_weather_parameters(&mut self, _: &[Value]) -> Result<Answer, CallError> {
+        let weather = *lock(&self.hub.weather);
+        Ok(Answer::Value(Value::Array(
+            weather.into_iter().map(Value::F32).collect(),
+        )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weather_reads_fourteen_finite_numbers_and_nothing_else() {
+        let fields = |n: usize| Value::Array((0..n).map(|i| Value::from(i as f64)).collect());
+        let weather = parse(&fields(14)).expect("fourteen numbers");
+        assert_eq!(weather[13], 13.0);
+        assert!(parse(&fields(13)).is_none());
+        assert!(parse(&fields(15)).is_none());
+        let mut nan = vec![Value::F32(0.0); 14];
+        nan[3] = Value::F64(f64::NAN);
+        assert!(parse(&Value::Array(nan)).is_none());
+        assert!(parse(&Value::from("sunny")).is_none());
+    }
+}

@@ -1,0 +1,147 @@
+"""CARLA 0.9.16's vehicle catalogue through the gateway: every `vehicle.*`
+blueprint is listed with CARLA's attributes and spawns as a simbus
+ray-cast vehicle of that model's size and mass (`get_bounding_box`,
+`get_physics_control`) that drives forward; walkers are listed and refused
+at spawn; every actor reported (scene ones included) carries CARLA's
+attributes (`role_name`, `number_of_wheels`)."""
+
+import carla
+import pytest
+
+VEHICLE_ATTRIBUTES = [
+    "base_type", "number_of_wheels", "generation", "object_type", "special_type",
+    "has_dynamic_doors", "has_lights", "role_name", "sticky_control", "terramechanics",
+]
+
+
+def synced(gateway):
+    client = gateway.client()
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    return client, world, world.get_blueprint_library()
+
+
+def test_every_carla_vehicle_is_listed_with_carlas_attributes(gateway):
+    library = gateway.client().get_world().get_blueprint_library()
+    assert [bp.id for bp in library.filter("model3")] == ["vehicle.tesla.model3"]
+    mkz = library.find("vehicle.lincoln.mkz_2020")
+    assert mkz.has_tag("lincoln")
+    assert {bp.id for bp in library.filter("tt")} == {"vehicle.audi.tt"}
+    vehicles = library.filter("vehicle.*")
+    # CARLA 0.9.16's 41 vehicles and simbus's own.
+    assert len(vehicles) == 42
+    # simbus's props and sensors, 51 walkers, the walker controller.
+    assert len(library.filter("*")) == len(vehicles) + 6 + 51 + 1
+    for bp in vehicles:
+        for name in VEHICLE_ATTRIBUTES:
+            assert bp.has_attribute(name), (bp.id, name)
+        assert bp.get_attribute("generation").as_int() in (1, 2)
+    model3 = library.find("vehicle.tesla.model3")
+    assert model3.get_attribute("base_type").as_str() == "car"
+    assert model3.get_attribute("number_of_wheels").as_int() == 4
+    assert model3.get_attribute("role_name").as_str() == "autopilot"
+    colors = model3.get_attribute("color").recommended_values
+    assert len(colors) > 1
+    model3.set_attribute("color", colors[2])
+    assert library.find("vehicle.yamaha.yzf").get_attribute("number_of_wheels").as_int() == 2
+    assert library.find("vehicle.yamaha.yzf").get_attribute("driver_id").recommended_values
+    assert library.find("vehicle.carlamotors.firetruck").get_attribute("base_type").as_str() == "truck"
+    with pytest.raises(ValueError, match="read-only"):
+        model3.set_attribute("number_of_wheels", "3")
+    # generate_traffic.py's filter: generation-2 walkers, even for none.
+    walkers = [bp for bp in library.filter("walker.pedestrian.*")
+               if bp.get_attribute("generation").as_int() == 2]
+    assert walkers and all(bp.has_attribute("speed") for bp in walkers)
+    assert library.find("walker.pedestrian.0001").get_attribute("is_invincible").as_bool()
+    assert library.find("controller.ai.walker").id == "controller.ai.walker"
+
+
+@pytest.mark.parametrize("gateway", [["--scene", "flat"]], indirect=True)
+def test_catalog_vehicles_have_their_models_size_and_mass_and_drive(gateway):
+    client, world, library = synced(gateway)
+    models = {
+        "vehicle.tesla.model3": ((2.3959, 1.0817, 0.7438), 1850.0),
+        "vehicle.carlamotors.firetruck": ((4.2340, 1.4455, 1.9137), 14000.0),
+        "vehicle.kawasaki.ninja": ((1.0218, 0.3985, 0.7616), 280.0),
+    }
+    spawned = {}
+    for i, type_id in enumerate(models):
+        bp = library.find(type_id)
+        bp.set_attribute("role_name", "hero")
+        at = carla.Transform(carla.Location(x=-30 + 30 * i, y=10 * i, z=0.5))
+        spawned[type_id] = world.spawn_actor(bp, at)
+    for _ in range(20):
+        world.tick()
+    for type_id, ((x, y, z), mass) in models.items():
+        vehicle = spawned[type_id]
+        assert vehicle.type_id == type_id
+        assert vehicle.attributes["role_name"] == "hero"
+        extent = vehicle.bounding_box.extent
+        assert (extent.x, extent.y, extent.z) == pytest.approx((x, y, z), abs=1e-4), type_id
+        extent = world.get_actor(vehicle.id).bounding_box.extent
+        assert abs(extent.x - x) < 1e-3, type_id
+        physics = vehicle.get_physics_control()
+        assert physics.mass == pytest.approx(mass)
+        assert len(physics.wheels) == 4
+        front, rear = physics.wheels[0], physics.wheels[2]
+        # Wheels in the world, in centimetres: the front ahead of the rear.
+        assert front.position.x > rear.position.x + 100 * x * 0.5, type_id
+        assert front.max_steer_angle > 0 and rear.max_steer_angle == 0
+    car = spawned["vehicle.tesla.model3"]
+    # CARLA's client sends apply_physics_control without waiting for the
+    # answer: simbus refuses it (and logs so), the vehicle keeps its mass.
+    physics = car.get_physics_control()
+    physics.mass = 1.0
+    car.apply_physics_control(physics)
+    world.tick()
+    assert car.get_physics_control().mass == pytest.approx(1850.0)
+    start = car.get_location()
+    car.apply_control(carla.VehicleControl(throttle=1.0))
+    for _ in range(20):
+        world.tick()
+    moved = car.get_location() - start
+    # 1 s at full throttle: forward (+x, the way it faces), metres of it.
+    assert moved.x > 1.0 and abs(moved.y) < 0.5 * moved.x
+    vehicles = {a.id: a.type_id for a in world.get_actors().filter("vehicle.*")}
+    assert vehicles == {v.id: t for t, v in spawned.items()}
+
+
+@pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
+def test_walkers_are_refused_at_spawn_alone_and_in_a_batch(gateway):
+    client, world, library = synced(gateway)
+    walker = library.find("walker.pedestrian.0001")
+    with pytest.raises(RuntimeError,
+                       match=r"simbus: walkers are not supported \(walker.pedestrian.0001\)"):
+        world.spawn_actor(walker, carla.Transform(carla.Location(z=1)))
+    box = library.find("static.prop.box")
+    responses = client.apply_batch_sync([
+        carla.command.SpawnActor(walker, carla.Transform(carla.Location(z=1))),
+        carla.command.SpawnActor(box, carla.Transform(carla.Location(x=5, z=1))),
+    ], True)
+    assert responses[0].has_error()
+    assert "walkers are not supported (walker.pedestrian.0001)" in responses[0].error
+    assert not responses[1].has_error() and responses[1].actor_id > 0
+
+
+def test_scene_and_spawned_actors_carry_carlas_attributes(gateway):
+    client, world, library = synced(gateway)
+    bp = library.find("vehicle.audi.tt")
+    bp.set_attribute("role_name", "hero")
+    hero = world.spawn_actor(bp, carla.Transform(carla.Location(x=20, y=-20, z=0.5)))
+    world.tick()
+    actors = world.get_actors()
+    boxes = actors.filter("static.prop.box")
+    assert boxes, "the default scene has boxes"
+    for box in boxes:
+        assert box.attributes["role_name"] == ""
+    vehicles = actors.filter("vehicle.*")
+    scene = [v for v in vehicles if v.type_id == "vehicle.simbus.car"]
+    assert scene, "the default scene has vehicles"
+    for vehicle in vehicles:
+        assert int(vehicle.attributes["number_of_wheels"]) == 4
+        assert "role_name" in vehicle.attributes
+    assert world.get_actor(hero.id).attributes["role_name"] == "hero"
+    assert {v.type_id for v in vehicles} == {"vehicle.simbus.car", "vehicle.audi.tt"}

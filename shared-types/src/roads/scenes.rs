@@ -8,8 +8,10 @@ use std::f64::consts::FRAC_PI_2;
 use super::{Contact, Pose2, RoadNetwork, Segment};
 use crate::scene::SceneName;
 
-/// Half the side of `town`'s ground, metres: the network and a margin.
-pub const TOWN_GROUND_HALF_SIZE: f32 = 150.0;
+/// Half the side of `town`'s ground, metres: well past the network
+/// (about ±122 m), so the positions CARLA's scripts hard-code for CARLA's
+/// towns (a few hundred metres out) stand on ground instead of falling.
+pub const TOWN_GROUND_HALF_SIZE: f32 = 1000.0;
 /// Half the side of `flat`'s ground, metres (the world
 /// `generate_opendrive_world` builds: roads of about 4 km across fit).
 pub const FLAT_GROUND_HALF_SIZE: f32 = 2000.0;

@@ -159,8 +159,11 @@ struct FrameText {
 
 /// CARLA's `show_recorder_file_info` text, built entry by entry.
 #[derive(Debug)]
-struct InfoText {
+struct InfoText<'a> {
     out: String,
+    /// Type ids the caller knows better than the kind does (a catalog
+    /// vehicle's model), by CARLA id.
+    names: &'a Names,
     show_all: bool,
     /// Frames so far (CARLA numbers them from 1).
     frames: u64,
@@ -175,10 +178,11 @@ struct InfoText {
     pending: Vec<RecordedCollision>,
 }
 
-impl InfoText {
-    fn new(header: &RecordingHeader, show_all: bool) -> Self {
+impl<'a> InfoText<'a> {
+    fn new(header: &RecordingHeader, show_all: bool, names: &'a Names) -> Self {
         Self {
             out: heading(header),
+            names,
             show_all,
             frames: 0,
             last_ns: 0,
@@ -229,7 +233,7 @@ impl InfoText {
                 text.events,
                 " Create {}: {} ({}) at {}",
                 convert::actor_id(a.id),
-                type_id(a.kind),
+                name_of(self.names, a.id, a.kind),
                 actor_type(a.kind),
                 centimetres(a.position)
             );
@@ -298,8 +302,30 @@ fn collision_line(out: &mut String, id: u64, c: &RecordedCollision) {
 /// `path`: the heading, each frame with events (every frame and its
 /// positions with `show_all`), and `Frames:` and `Duration:`.
 pub fn file_info(path: &str, show_all: bool) -> Result<String, RecordingError> {
+    file_info_named(path, show_all, &Names::new())
+}
+
+/// CARLA's type ids of actors, by CARLA id, where the recording's kinds
+/// say less (the gateway knows which catalog model each vehicle it
+/// spawned is).
+pub type Names = std::collections::HashMap<u32, String>;
+
+/// The type id of simbus actor `id` of `kind`: its name in `names`, else
+/// its kind's.
+fn name_of(names: &Names, id: u64, kind: u32) -> &str {
+    names
+        .get(&convert::actor_id(id))
+        .map_or_else(|| type_id(kind), String::as_str)
+}
+
+/// [`file_info`], naming the actors in `names` by their type ids there.
+pub fn file_info_named(
+    path: &str,
+    show_all: bool,
+    names: &Names,
+) -> Result<String, RecordingError> {
     let mut reader = RecordingReader::open(path)?;
-    let mut text = InfoText::new(reader.header(), show_all);
+    let mut text = InfoText::new(reader.header(), show_all, names);
     while let Some(entry) = reader.next() {
         text.entry(&entry?);
     }
@@ -309,7 +335,11 @@ pub fn file_info(path: &str, show_all: bool) -> Result<String, RecordingError> {
 /// CARLA's `show_recorder_collisions` text: the heading, a row per
 /// collision that started between actors of kinds for which
 /// `keep(kind_a, kind_b)` (simbus's kind names) holds, and the footer.
-pub fn collisions(path: &str, keep: impl Fn(&str, &str) -> bool) -> Result<String, RecordingError> {
+pub fn collisions(
+    path: &str,
+    keep: impl Fn(&str, &str) -> bool,
+    names: &Names,
+) -> Result<String, RecordingError> {
     let mut reader = RecordingReader::open(path)?;
     let mut out = heading(reader.header());
     let _ = writeln!(
@@ -335,9 +365,9 @@ pub fn collisions(path: &str, keep: impl Fn(&str, &str) -> bool) -> Result<Strin
                     category(c.kind_a),
                     category(c.kind_b),
                     convert::actor_id(c.actor_a),
-                    type_id(c.kind_a),
+                    name_of(names, c.actor_a, c.kind_a),
                     convert::actor_id(c.actor_b),
-                    type_id(c.kind_b)
+                    name_of(names, c.actor_b, c.kind_b)
                 );
             }
             _ => {}

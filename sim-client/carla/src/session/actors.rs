@@ -171,7 +171,20 @@ impl Session {
         void: bool,
     ) -> Result<Answer, CallError> {
         let results = self.run_batch(vec![Ok(BatchCommand::Actor(id, op))]);
-        results.into_iter().next().unwrap_or(Ok(id))?;
+        match results.into_iter().next().unwrap_or(Ok(id)) {
+            // CARLA's traffic manager turns physics on for the vehicles of
+            // its last snapshot, on its own thread, where an error ends
+            // the script: an actor the script destroyed since is ignored.
+            Err(CallError::CommandRefused {
+                status: CommandStatus::UnknownActor,
+                ..
+            }) if matches!(op, Op::Physics(_)) => {
+                debug!(peer = %self.peer, actor = id, "simulate physics on an actor gone: ignored");
+            }
+            result => {
+                result?;
+            }
+        }
         Ok(if void {
             Answer::Done
         } else {
@@ -234,10 +247,13 @@ impl Session {
                         parent,
                     });
                 }
-                self.apply(&[command])?
+                let id = self
+                    .apply(&[command])?
                     .into_iter()
                     .next()
-                    .unwrap_or(Err(CallError::NoAnswer))?
+                    .unwrap_or(Err(CallError::NoAnswer))?;
+                self.provisional(id, &command);
+                id
             }
             Spawn::Sensor(spec) => return self.spawn_sensor(description, spec, parent),
         };
@@ -326,7 +342,7 @@ impl Session {
                     Ok(Spawn::Body(command)) if parent.is_none() => {
                         slots.push(i);
                         simbus.push(command);
-                        after.push((i, then, description));
+                        after.push((i, then, description, command));
                         Ok(0)
                     }
                     _ => {
@@ -357,8 +373,9 @@ impl Session {
             results.push(result);
         }
         self.apply_in_slots(&simbus, slots, &mut results);
-        for (i, then, description) in after {
+        for (i, then, description, command) in after {
             if let Ok(id) = results[i] {
+                self.provisional(id, &command);
                 lock(&self.hub.registry)
                     .descriptions
                     .insert(id, description.record());

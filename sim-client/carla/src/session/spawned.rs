@@ -10,13 +10,43 @@
 
 use std::time::{Duration, Instant};
 
+use shared_types::{ActorKind, Command, CommandKind, VehicleSpec};
+
 use super::Session;
-use crate::stream;
+use crate::convert;
+use crate::stream::{self, lock, ActorInfo};
 
 /// The longest a spawn's answer waits for a frame holding the new actors.
 const SHOWN_WITHIN: Duration = Duration::from_secs(1);
 
 impl Session {
+    /// Until a frame holds actor `id`, just spawned by `command`, the
+    /// gateway knows it from the spawn: where, what and how big (so
+    /// `get_physics_control`, `bounding_box` and the calls that keep part
+    /// of its state answer at once, as CARLA's do). The next frame's
+    /// actors replace it.
+    pub(super) fn provisional(&self, id: u32, command: &Command) {
+        let [a, b, c, _] = command.params;
+        let (kind, extent) = match CommandKind::from_u32(command.kind) {
+            Some(CommandKind::SpawnBox) => (ActorKind::Box, [a, b, c]),
+            Some(CommandKind::SpawnSphere) => (ActorKind::Sphere, [a, a, a]),
+            Some(CommandKind::SpawnCapsule) => (ActorKind::Capsule, [a, b, a]),
+            Some(CommandKind::SpawnVehicle) => match VehicleSpec::from_params(command.params) {
+                Ok(spec) => (ActorKind::Vehicle, spec.half_extents),
+                Err(_) => return,
+            },
+            _ => return,
+        };
+        let info = ActorInfo {
+            kind: kind as u32,
+            extent: convert::vector(extent),
+            position: command.vector,
+            rotation: command.rotation,
+            ..ActorInfo::default()
+        };
+        lock(&self.hub.actors).entry(id).or_insert(info);
+    }
+
     /// In asynchronous mode, sends CARLA's clients the first frame holding
     /// every actor of `spawned` (a sensor is in every world state from its
     /// spawn on); gives up quietly after [`SHOWN_WITHIN`].

@@ -174,14 +174,14 @@ impl World {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::clock::SubstepPlan;
     use crate::scene::Scene;
     use shared_types::{ActorState, WorldSettings};
 
     /// A world with a 200 × 200 m ground.
-    fn world_on_ground() -> World {
+    pub(crate) fn world_on_ground() -> World {
         let mut world = World::new(&Scene::Empty.placements(0), 1);
         world.insert(&Placement {
             kind: ActorKind::Static,

@@ -34,6 +34,18 @@ class Gateway:
         )
 
 
+def synced(gateway, delta=0.05):
+    """A client of `gateway` and its world, in synchronous mode with a
+    `delta` step (this connection ticks)."""
+    client = gateway.client()
+    world = client.get_world()
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = delta
+    world.apply_settings(settings)
+    return client, world
+
+
 def wait_line(proc, needle, timeout=30):
     deadline = time.time() + timeout
     while time.time() < deadline:
@@ -45,10 +57,12 @@ def wait_line(proc, needle, timeout=30):
     raise RuntimeError(f"{proc.args} never said {needle!r}")
 
 
-def start(world, server_args, procs):
-    """Starts a sim-server on `world` and a gateway in front of it, on two
-    free ports the gateway picks and prints; both are appended to `procs`
-    (killed by the caller)."""
+def start(world, server_args, procs, gateway_args=(), log=subprocess.DEVNULL, env=None):
+    """Starts a sim-server on `world` and a gateway in front of it (with
+    `gateway_args`, its log to `log`: a file, or subprocess.STDOUT to read
+    it with the ports), on two free ports the gateway picks and prints; both
+    are appended to `procs` (killed by the caller). The gateway's process
+    is the Gateway's `proc`."""
     server = subprocess.Popen(
         [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
@@ -56,12 +70,15 @@ def start(world, server_args, procs):
     procs.append(server)
     gateway = subprocess.Popen(
         [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
-         "carla-gateway", "--port", "0", "--json"],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+         "carla-gateway", "--port", "0", "--json", *gateway_args],
+        stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True,
+        env=None if env is None else {**os.environ, **env},
     )
     procs.append(gateway)
     listening = json.loads(wait_line(gateway, '"streaming_port"'))
-    return Gateway(world, listening["port"], listening["streaming_port"], procs)
+    started = Gateway(world, listening["port"], listening["streaming_port"], procs)
+    started.proc = gateway
+    return started
 
 
 def kill_all(procs):

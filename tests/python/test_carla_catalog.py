@@ -8,20 +8,12 @@ attributes (`role_name`, `number_of_wheels`)."""
 import carla
 import pytest
 
+from conftest import synced
+
 VEHICLE_ATTRIBUTES = [
     "base_type", "number_of_wheels", "generation", "object_type", "special_type",
     "has_dynamic_doors", "has_lights", "role_name", "sticky_control", "terramechanics",
 ]
-
-
-def synced(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    settings = world.get_settings()
-    settings.synchronous_mode = True
-    settings.fixed_delta_seconds = 0.05
-    world.apply_settings(settings)
-    return client, world, world.get_blueprint_library()
 
 
 def test_every_carla_vehicle_is_listed_with_carlas_attributes(gateway):
@@ -61,7 +53,8 @@ def test_every_carla_vehicle_is_listed_with_carlas_attributes(gateway):
 
 @pytest.mark.parametrize("gateway", [["--scene", "flat"]], indirect=True)
 def test_catalog_vehicles_have_their_models_size_and_mass_and_drive(gateway):
-    client, world, library = synced(gateway)
+    client, world = synced(gateway)
+    library = world.get_blueprint_library()
     models = {
         "vehicle.tesla.model3": ((2.3959, 1.0817, 0.7438), 1850.0),
         "vehicle.carlamotors.firetruck": ((4.2340, 1.4455, 1.9137), 14000.0),
@@ -111,7 +104,8 @@ def test_catalog_vehicles_have_their_models_size_and_mass_and_drive(gateway):
 
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_walkers_are_refused_at_spawn_alone_and_in_a_batch(gateway):
-    client, world, library = synced(gateway)
+    client, world = synced(gateway)
+    library = world.get_blueprint_library()
     walker = library.find("walker.pedestrian.0001")
     with pytest.raises(RuntimeError,
                        match=r"simbus: walkers are not supported \(walker.pedestrian.0001\)"):
@@ -127,7 +121,8 @@ def test_walkers_are_refused_at_spawn_alone_and_in_a_batch(gateway):
 
 
 def test_scene_and_spawned_actors_carry_carlas_attributes(gateway):
-    client, world, library = synced(gateway)
+    client, world = synced(gateway)
+    library = world.get_blueprint_library()
     bp = library.find("vehicle.audi.tt")
     bp.set_attribute("role_name", "hero")
     hero = world.spawn_actor(bp, carla.Transform(carla.Location(x=20, y=-20, z=0.5)))

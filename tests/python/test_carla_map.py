@@ -5,15 +5,13 @@ loaded as simbus's town (or refused with --strict-maps), worlds built on an
 OpenDRIVE a script sends, and the default scene's ring road, on its ground
 and clear of its bodies."""
 
-import json
-import os
 import subprocess
 import sys
 
 import carla
 import pytest
 
-from conftest import BIN, Gateway, kill_all, wait_line, world_name
+from conftest import kill_all, start, wait_line, world_name
 
 TOWN = [["--scene", "town"]]
 
@@ -41,21 +39,9 @@ SMALL_XODR = """<?xml version="1.0" standalone="yes"?>
 def start_logged(request, server_args, gateway_args, procs):
     """A sim-server and a gateway (with `gateway_args`, logging at info
     level into its stdout, for `wait_line`) on a world of this test's."""
-    world = world_name(request)
-    server = subprocess.Popen(
-        [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-    )
-    procs.append(server)
-    gateway = subprocess.Popen(
-        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
-         "carla-gateway", "--port", "0", "--json", *gateway_args],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-        env={**os.environ, "RUST_LOG": "simbus_carla=info", "NO_COLOR": "1"},
-    )
-    procs.append(gateway)
-    listening = json.loads(wait_line(gateway, '"streaming_port"'))
-    return Gateway(world, listening["port"], listening["streaming_port"], procs), gateway
+    gateway = start(world_name(request), server_args, procs, gateway_args, log=subprocess.STDOUT,
+                    env={"RUST_LOG": "simbus_carla=info", "NO_COLOR": "1"})
+    return gateway, gateway.proc
 
 
 @pytest.fixture

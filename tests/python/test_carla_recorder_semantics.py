@@ -12,19 +12,9 @@ import re
 import carla
 import pytest
 
+from conftest import synced
+
 EMPTY = [["--scene", "empty"]]
-
-
-def synced(gateway):
-    """A client of `gateway` and its world, in synchronous mode with a
-    0.05 s step."""
-    client = gateway.client()
-    world = client.get_world()
-    settings = world.get_settings()
-    settings.synchronous_mode = True
-    settings.fixed_delta_seconds = 0.05
-    world.apply_settings(settings)
-    return client, world
 
 
 def record(client, world, path, ticks):

@@ -14,19 +14,9 @@ import re
 
 import carla
 
+from conftest import synced
+
 DATE = re.compile(r"^Date: \d\d/\d\d/\d\d \d\d:\d\d:\d\d$", re.M)
-
-
-def synced(gateway):
-    """A client of `gateway` and its world, in synchronous mode with a
-    0.05 s step."""
-    client = gateway.client()
-    world = client.get_world()
-    settings = world.get_settings()
-    settings.synchronous_mode = True
-    settings.fixed_delta_seconds = 0.05
-    world.apply_settings(settings)
-    return client, world
 
 
 def frames_and_duration(text):

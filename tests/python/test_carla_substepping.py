@@ -7,14 +7,11 @@ advances 0.1 s per 0.2 s frame. The gateway does the same (the substep rule
 it does in 0.1 s frames while the timestamps advance twice as far, and the
 gateway's log carries CARLA's warning and what it means in numbers."""
 
-import json
-import os
-import subprocess
 
 import carla
 import pytest
 
-from conftest import BIN, Gateway, kill_all, wait_line, world_name
+from conftest import kill_all, start, synced, world_name
 
 CARLA_WARNING = (
     "synchronous mode and substepping are enabled but the values for the simulation "
@@ -29,20 +26,8 @@ TICKS = 6
 def start_logged(world, log_path, procs):
     """A sim-server on the `empty` scene and a gateway in front of it whose
     log (stderr) goes to `log_path`; both appended to `procs`."""
-    server = subprocess.Popen(
-        [os.path.join(BIN, "sim-server"), "--world", world, "--scene", "empty"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-    )
-    procs.append(server)
     with open(log_path, "w") as log:
-        gateway = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
-             "carla-gateway", "--port", "0", "--json"],
-            stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True,
-        )
-    procs.append(gateway)
-    listening = json.loads(wait_line(gateway, '"streaming_port"'))
-    return Gateway(world, listening["port"], listening["streaming_port"], procs)
+        return start(world, ["--scene", "empty"], procs, log=log)
 
 
 @pytest.fixture
@@ -63,12 +48,7 @@ def fall(gateway, delta):
     """Synchronous mode with `delta` as CARLA's examples set it, a sphere
     spawned 100 m up, TICKS ticks: the settings read back, and per tick the
     sphere's height and the frame's delta."""
-    client = gateway.client()
-    world = client.get_world()
-    settings = world.get_settings()
-    settings.synchronous_mode = True
-    settings.fixed_delta_seconds = delta
-    world.apply_settings(settings)
+    client, world = synced(gateway, delta)
     applied = world.get_settings()
     blueprint = world.get_blueprint_library().find("static.prop.sphere")
     sphere = world.spawn_actor(blueprint, carla.Transform(carla.Location(x=0.0, y=0.0, z=100.0)))
@@ -79,8 +59,9 @@ def fall(gateway, delta):
         assert snapshot.frame == frame
         heights.append(snapshot.find(sphere.id).get_transform().location.z)
         deltas.append(snapshot.timestamp.delta_seconds)
-    settings.synchronous_mode = False
-    world.apply_settings(settings)
+    applied.synchronous_mode = False
+    world.apply_settings(applied)
+    applied.synchronous_mode = True
     return applied, heights, deltas
 
 

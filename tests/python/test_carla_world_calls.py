@@ -7,15 +7,7 @@ import math
 import carla
 import pytest
 
-
-def synced(gateway, delta=0.05):
-    client = gateway.client()
-    world = client.get_world()
-    settings = world.get_settings()
-    settings.synchronous_mode = True
-    settings.fixed_delta_seconds = delta
-    world.apply_settings(settings)
-    return client, world
+from conftest import synced
 
 
 def test_the_weather_a_script_sets_is_the_weather_it_gets(gateway):

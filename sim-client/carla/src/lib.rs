@@ -16,6 +16,7 @@ mod blueprints;
 mod commands;
 mod convert;
 mod error;
+mod locks;
 mod maps;
 pub mod recorder_text;
 mod rpc;
@@ -23,6 +24,7 @@ mod sensors;
 mod session;
 mod stop;
 mod stream;
+mod traffic_managers;
 pub mod wire;
 
 use std::net::TcpListener;

@@ -12,7 +12,7 @@ use rmpv::Value;
 use shared_types::roads::{self, OpenDriveError, SpawnPoint};
 use shared_types::scene::{SceneName, SceneNameError};
 
-use crate::stream::lock;
+use crate::locks::lock;
 
 /// The folder CARLA's map names start with (`get_available_maps`).
 const CARLA_MAPS_FOLDER: &str = "/Game/Carla/Maps/";

@@ -14,7 +14,8 @@ use tracing::{debug, info};
 
 use crate::convert;
 use crate::error::{CallError, Source};
-use crate::stream::{lock, Hub};
+use crate::locks::lock;
+use crate::stream::Hub;
 use crate::wire::{self as carla, SENSOR_ID_BASE};
 
 /// A forwarder's wait for a capture while no token is pending: none in

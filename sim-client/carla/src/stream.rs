@@ -190,9 +190,9 @@ pub(crate) struct Hub {
     /// The maps the gateway gave episodes (`maps.rs`).
     pub(crate) maps: crate::maps::Maps,
     /// The traffic managers CARLA clients run, by port.
-    pub(crate) traffic_managers: Mutex<crate::session::traffic::Registry>,
+    pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
     /// The weather CARLA clients set (simbus renders no sky).
-    pub(crate) weather: Mutex<crate::session::weather::Weather>,
+    pub(crate) weather: Mutex<carla::Weather>,
 }
 
 impl Default for Hub {
@@ -207,7 +207,7 @@ impl Default for Hub {
             spectator: Mutex::default(),
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
-            weather: Mutex::new(crate::session::weather::CLEAR_NOON),
+            weather: Mutex::new(carla::CLEAR_NOON),
         }
     }
 }

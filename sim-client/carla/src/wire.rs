@@ -218,6 +218,18 @@ pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
     out.resize(start + ACTOR_STATE_LEN, 0);
 }
 
+/// CARLA 0.9.16's `WeatherParameters`, in its msgpack order: cloudiness,
+/// precipitation, precipitation_deposits, wind_intensity,
+/// sun_azimuth_angle, sun_altitude_angle, fog_density, fog_distance,
+/// fog_falloff, wetness, scattering_intensity, mie_scattering_scale,
+/// rayleigh_scattering_scale, dust_storm.
+pub type Weather = [f32; 14];
+
+/// CARLA's `WeatherParameters.ClearNoon`, what a new world has.
+pub const CLEAR_NOON: Weather = [
+    5.0, 0.0, 0.0, 10.0, -1.0, 45.0, 2.0, 0.75, 0.1, 0.0, 1.0, 0.03, 0.0331, 0.0,
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -537,15 +537,7 @@ mod tests {
 
     #[test]
     fn a_vehicle_drives_forward_with_throttle_and_turns_with_steer() {
-        let mut world = World::new(&Scene::Empty.placements(0), 1);
-        world.insert(&Placement {
-            kind: ActorKind::Static,
-            extent: Vector::new(100.0, 0.5, 100.0),
-            position: Vector::new(0.0, -0.5, 0.0),
-            rotation: Vector::ZERO,
-            linear_velocity: Vector::ZERO,
-            density: 1.0,
-        });
+        let mut world = crate::commands::tests::world_on_ground();
         let id = world.apply(&Command::spawn_vehicle([0.0, 1.0, 0.0])).actor;
         let plan = fixed_plan(0.02);
         for _ in 0..50 {

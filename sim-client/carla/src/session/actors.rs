@@ -12,7 +12,8 @@ use crate::commands::{self, BatchCommand, Op};
 use crate::error::CallError;
 use crate::rpc::Answer;
 use crate::sensors;
-use crate::stream::{lock, SensorEntry};
+use crate::locks::lock;
+use crate::stream::SensorEntry;
 use crate::wire::{token, CarlaTransform, SPECTATOR_ID};
 
 /// One result per command of a batch: the actor's CARLA id, or why not.

@@ -14,7 +14,8 @@ use crate::commands;
 use crate::convert;
 use crate::error::CallError;
 use crate::rpc::Answer;
-use crate::stream::{lock, ActorInfo};
+use crate::locks::lock;
+use crate::stream::ActorInfo;
 
 /// CARLA's unit for wheel radii and positions: centimetres.
 const CM: f32 = 100.0;

@@ -11,7 +11,7 @@ use super::{arg_f64, arg_flag, arg_str, Session};
 use crate::error::CallError;
 use crate::recorder_text;
 use crate::rpc::Answer;
-use crate::stream::lock;
+use crate::locks::lock;
 
 /// `text` as a `show_*` call answers it.
 fn text(text: String) -> Result<Answer, CallError> {
@@ -58,7 +58,6 @@ impl Session {
     }
 
     pub(super) fn on_stop_recorder(&mut self, _: &[Value]) -> Result<Answer, CallError> {
-        self.let_the_last_batch_land();
         self.client()?.stop_recorder().map_err(CallError::simbus)?;
         Ok(Answer::Done)
     }
@@ -148,31 +147,6 @@ impl Session {
         };
         let names = self.type_ids();
         text(recorder_text::collisions(&name, keep, &names).map_err(CallError::recording)?)
-    }
-
-    /// In asynchronous mode a batch answered just before lands in the
-    /// next frame (simbus applies commands at a frame boundary): the
-    /// recording takes that frame before it stops, as CARLA's recorder
-    /// holds a batch's effects at once (`start_recording.py` destroys its
-    /// vehicles, then stops). Gives up quietly after a second.
-    fn let_the_last_batch_land(&mut self) {
-        let Some(client) = self.client.as_mut() else {
-            return;
-        };
-        let Ok(status) = client.status() else {
-            return;
-        };
-        if status.settings.synchronous_mode {
-            return;
-        }
-        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(1);
-        while let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) {
-            match client.wait_for_frame(left) {
-                Ok(view) if view.frame() > status.frame => return,
-                Ok(_) => {}
-                Err(_) => return,
-            }
-        }
     }
 
     /// The type ids of the actors CARLA clients spawned through the

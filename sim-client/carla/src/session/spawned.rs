@@ -14,7 +14,8 @@ use shared_types::{ActorKind, Command, CommandKind, VehicleSpec};
 
 use super::Session;
 use crate::convert;
-use crate::stream::{self, lock, ActorInfo};
+use crate::locks::lock;
+use crate::stream::{self, ActorInfo};
 
 /// The longest a spawn's answer waits for a frame holding the new actors.
 const SHOWN_WITHIN: Duration = Duration::from_secs(1);

@@ -7,41 +7,14 @@
 //! closes: a dead entry would make the next script connect to a traffic
 //! manager that is gone (CARLA's client waits for it, then fails).
 
-use std::collections::HashMap;
-use std::net::SocketAddr;
-
 use rmpv::Value;
 use tracing::info;
 
 use super::{arg, arg_u64, Session};
 use crate::error::CallError;
+use crate::locks::lock;
 use crate::rpc::Answer;
-use crate::stream::lock;
-
-/// One running traffic manager: where its RPC server listens, and the
-/// CARLA connection that registered it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct TrafficManager {
-    pub(crate) host: String,
-    pub(crate) port: u16,
-    pub(crate) owner: SocketAddr,
-}
-
-/// The traffic managers running, by port.
-pub(crate) type Registry = HashMap<u16, TrafficManager>;
-
-/// Drops every traffic manager `owner` registered (its connection closed).
-pub(crate) fn forget_owner(registry: &mut Registry, owner: SocketAddr) -> Vec<u16> {
-    let gone: Vec<u16> = registry
-        .iter()
-        .filter(|(_, tm)| tm.owner == owner)
-        .map(|(&port, _)| port)
-        .collect();
-    for port in &gone {
-        registry.remove(port);
-    }
-    gone
-}
+use crate::traffic_managers::{forget_owner, TrafficManager};
 
 /// A port argument: an integer in 0..=65535.
 fn arg_port(args: &[Value], i: usize, method: &'static str) -> Result<u16, CallError> {
@@ -147,29 +120,5 @@ impl Session {
         for port in gone {
             info!(peer = %self.peer, "the traffic manager on port {port} left with its client");
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_closed_connection_takes_only_its_own_traffic_managers() {
-        let a: SocketAddr = "127.0.0.1:1000".parse().unwrap();
-        let b: SocketAddr = "127.0.0.1:2000".parse().unwrap();
-        let tm = |port, owner| TrafficManager {
-            host: "127.0.0.1".into(),
-            port,
-            owner,
-        };
-        let mut registry = Registry::new();
-        registry.insert(8000, tm(8000, a));
-        registry.insert(8001, tm(8001, b));
-        registry.insert(8002, tm(8002, a));
-        let mut gone = forget_owner(&mut registry, a);
-        gone.sort_unstable();
-        assert_eq!(gone, [8000, 8002]);
-        assert_eq!(registry.keys().copied().collect::<Vec<_>>(), [8001]);
     }
 }

@@ -7,20 +7,9 @@ use rmpv::Value;
 use super::Session;
 use crate::commands::number;
 use crate::error::CallError;
+use crate::locks::lock;
 use crate::rpc::Answer;
-use crate::stream::lock;
-
-/// CARLA 0.9.16's `WeatherParameters`, in its msgpack order: cloudiness,
-/// precipitation, precipitation_deposits, wind_intensity,
-/// sun_azimuth_angle, sun_altitude_angle, fog_density, fog_distance,
-/// fog_falloff, wetness, scattering_intensity, mie_scattering_scale,
-/// rayleigh_scattering_scale, dust_storm.
-pub(crate) type Weather = [f32; 14];
-
-/// CARLA's `WeatherParameters.ClearNoon`, what a new world has.
-pub(crate) const CLEAR_NOON: Weather = [
-    5.0, 0.0, 0.0, 10.0, -1.0, 45.0, 2.0, 0.75, 0.1, 0.0, 1.0, 0.03, 0.0331, 0.0,
-];
+use crate::wire::{Weather, CLEAR_NOON};
 
 /// CARLA's `WeatherParameters` from its msgpack array: 14 finite numbers.
 fn parse(v: &Value) -> Option<Weather> {

@@ -15,7 +15,7 @@ use crate::error::CallError;
 use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
 use crate::rpc::Answer;
 use crate::sensors;
-use crate::stream::lock;
+use crate::locks::lock;
 use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
 
 /// The longest [`Session::publish`] waits for the frame its tick stepped

@@ -54,12 +54,12 @@ pub use settings_wire::{WireSettings, WireSettingsError};
 mod substep_rule;
 pub use substep_rule::{SubstepRule, UnknownSubstepRule};
 mod tick;
-mod wait_mode;
 mod vehicle;
+mod wait_mode;
 pub use vehicle::{
     full_throttle_acceleration, VehicleSpec, VehicleSpecError, DEFAULT_VEHICLE_HALF_EXTENTS,
-    DEFAULT_VEHICLE_MASS, MAX_VEHICLE_HALF_EXTENT, MAX_VEHICLE_MASS, MIN_VEHICLE_HALF_EXTENT,
-    MIN_VEHICLE_MASS, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS,
+    DEFAULT_VEHICLE_MASS, FRICTION_SLIP, MAX_VEHICLE_HALF_EXTENT, MAX_VEHICLE_MASS,
+    MIN_VEHICLE_HALF_EXTENT, MIN_VEHICLE_MASS, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS,
 };
 
 pub use command::{

@@ -115,9 +115,7 @@ impl Op {
                 // CARLA steers right for positive values, simbus left.
                 Command::vehicle_control(actor, c.throttle, -c.steer, c.brake, c.hand_brake)
             }
-            Op::ConstantVelocity(v) => {
-                Command::constant_velocity(actor, v.map(convert::vector))
-            }
+            Op::ConstantVelocity(v) => Command::constant_velocity(actor, v.map(convert::vector)),
             Op::Destroy => Command::destroy(actor),
         })
     }

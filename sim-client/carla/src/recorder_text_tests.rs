@@ -74,7 +74,8 @@ fn recording() -> Vec<Entry> {
 }
 
 fn text(show_all: bool) -> String {
-    let mut text = InfoText::new(&header(), show_all);
+    let names = Names::new();
+    let mut text = InfoText::new(&header(), show_all, &names);
     for entry in recording() {
         text.entry(&entry);
     }
@@ -144,7 +145,8 @@ fn show_all_lists_every_frame_and_its_positions() {
 fn a_collision_read_before_its_frame_goes_with_that_frame() {
     let mut entries = recording();
     entries.swap(1, 2); // the collision before frame 41
-    let mut text = InfoText::new(&header(), false);
+    let names = Names::new();
+    let mut text = InfoText::new(&header(), false, &names);
     for entry in entries {
         text.entry(&entry);
     }
@@ -157,7 +159,7 @@ fn a_collision_read_before_its_frame_goes_with_that_frame() {
 
 #[test]
 fn an_empty_recording_has_zero_frames() {
-    let text = InfoText::new(&header(), true).finish();
+    let text = InfoText::new(&header(), true, &Names::new()).finish();
     assert!(
         text.ends_with("\n\nFrames: 0\nDuration: 0 seconds\n"),
         "{text}"

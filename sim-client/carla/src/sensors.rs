@@ -113,21 +113,15 @@ fn forward(
             Ok(capture) => {
                 let h = capture.header();
                 hub.after_world_state(server_pid, h.episode, h.frame, WORLD_STATE_FIRST);
-                let sent = message(&capture, &spec)
-                    .is_some_and(|m| hub.send_capture(stream, server_pid, h.episode, &m));
-                if !sent {
-                    debug!(
-                        sensor = simbus_id,
-                        frame = h.frame,
-                        "a capture not forwarded"
-                    );
+                if let Some(message) = message(&capture, &spec) {
+                    hub.send(stream, &message);
                 }
             }
             Err(WaitError::NoCapture { .. }) => {}
             Err(e) => {
                 debug!(sensor = simbus_id, "sensor stream ended: {e}");
                 lock(&hub.registry).sensors.remove(&stream);
-                hub.end(stream);
+                hub.close(stream);
                 return;
             }
         }

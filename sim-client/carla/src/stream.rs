@@ -3,27 +3,11 @@
 //! stream carries one world state per simbus frame, pumped from a frame
 //! subscription of the gateway's own; each sensor stream is fed by a
 //! forwarder (`sensors.rs`) while someone listens.
-//!
-//! Two rules keep CARLA's client alive across an episode change (its
-//! `reload_world`/`load_world` replace its episode object without a lock,
-//! and its stream sockets are closed without one):
-//! - no message of an older episode goes out once a newer one began: a
-//!   sensor message its io thread reads while the main thread swaps the
-//!   episode makes that io thread build an episode of its own (a
-//!   use-after-free, a 10 s wait thrown in a `noexcept` function, or two
-//!   subscriptions of the world stream unsubscribing each other's socket);
-//! - the gateway never closes a stream socket its client still reads: the
-//!   client reconnects from its io thread, closing the socket there while
-//!   its main thread may close it too (a stopped or collected sensor), and
-//!   the second close throws `close: Bad file descriptor` on a thread that
-//!   catches nothing. A stream that ended keeps its readers open, unwritten,
-//!   until their clients hang up ([`linger`]).
 
-use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use rmpv::Value;
@@ -32,6 +16,7 @@ use sim_client::{Client, ConnectError, FrameView};
 use tracing::{debug, info, warn};
 
 use crate::convert;
+use crate::locks::lock;
 use crate::wire::{self as carla, CarlaActorState, CarlaTransform, CarlaVehicleControl};
 
 /// How long a subscriber may take to accept one message before it is
@@ -84,9 +69,6 @@ pub(crate) struct Registry {
     pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
 }
 
-/// A stack is enough for a thread that only reads a socket to its end.
-const LINGER_STACK: usize = 64 * 1024;
-
 /// One stream's readers, and what waits for a reader about to connect.
 #[derive(Debug, Default)]
 struct Stream {
@@ -105,77 +87,11 @@ impl Stream {
     }
 }
 
-/// (server pid, episode): the episode a message belongs to.
-type EpisodeKey = (u32, u64);
-
-/// Whether `key` names an episode older than `than`: the same server, an
-/// earlier episode (a server's episodes only grow; another server's
-/// episode is never older, it replaces the world).
-fn older(key: EpisodeKey, than: EpisodeKey) -> bool {
-    key.0 == than.0 && key.1 < than.1
-}
-
-/// Every stream by id, and the episode the streams carry now.
-#[derive(Debug, Default)]
-struct Streams {
-    by_id: HashMap<u32, Stream>,
-    /// The newest episode begun: messages of an older one are dropped.
-    /// Changed under the same lock as every write, so once a change
-    /// returns no message of an older episode is written.
-    episode: EpisodeKey,
-    /// World loads in flight ([`Hub::change_episode`]): while any is, no
-    /// sensor capture is written.
-    changing: usize,
-}
-
-impl Streams {
-    /// Makes `key` the current episode unless a newer one began; whether
-    /// messages of `key` may go out.
-    fn admit(&mut self, key: EpisodeKey) -> bool {
-        if older(key, self.episode) {
-            return false;
-        }
-        if key != self.episode {
-            debug!(
-                server_pid = key.0,
-                episode = key.1,
-                "the streams carry a new episode"
-            );
-        }
-        self.episode = key;
-        true
-    }
-}
-
-/// A world load in flight, from [`Hub::change_episode`]: sensor captures
-/// are held back until it goes (dropped: their sensors end with the
-/// episode; a load that fails lets them flow again).
-#[derive(Debug)]
-pub(crate) struct EpisodeChange {
-    hub: Arc<Hub>,
-}
-
-impl EpisodeChange {
-    /// The load began episode `episode` of the server `server_pid`: from
-    /// the return on, no message of an older episode goes out, and
-    /// captures of this one flow again.
-    pub(crate) fn begun(self, server_pid: u32, episode: u64) {
-        lock(&self.hub.streams).admit((server_pid, episode));
-    }
-}
-
-impl Drop for EpisodeChange {
-    fn drop(&mut self) {
-        let mut streams = lock(&self.hub.streams);
-        streams.changing = streams.changing.saturating_sub(1);
-    }
-}
-
 /// The streams and who reads them, and what the gateway keeps for CARLA
 /// clients about the world.
 #[derive(Debug)]
 pub(crate) struct Hub {
-    streams: Mutex<Streams>,
+    streams: Mutex<HashMap<u32, Stream>>,
     /// The actors of the last frame.
     pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
     pub(crate) registry: Mutex<Registry>,
@@ -215,53 +131,27 @@ impl Default for Hub {
 /// (server pid, episode, frame) of a world state.
 type Sent = (u32, u64, u64);
 
-/// Locks `m`, even if a thread panicked holding it.
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 impl Hub {
-    /// Sends `message`, a capture of `episode` (of the server `server_pid`),
-    /// to every reader of sensor stream `stream`, unless a newer episode
-    /// began (the sensor is gone with its episode; see the module's
-    /// rules). Returns whether it went out (or waits for its reader).
-    pub(crate) fn send_capture(
-        &self,
-        stream: u32,
-        server_pid: u32,
-        episode: u64,
-        message: &[u8],
-    ) -> bool {
+    /// Sends `message` to every reader of `stream`; a reader that fails is
+    /// dropped. With no reader yet but one expected, the message waits.
+    pub(crate) fn send(&self, stream: u32, message: &[u8]) {
         let mut streams = lock(&self.streams);
-        if streams.changing > 0 || older((server_pid, episode), streams.episode) {
-            return false;
+        let Some(s) = streams.get_mut(&stream) else {
+            return;
+        };
+        if s.readers.is_empty() {
+            if s.expecting() {
+                if s.backlog.len() == BACKLOG {
+                    s.backlog.remove(0);
+                }
+                s.backlog.push(message.to_vec());
+            }
+            return;
         }
-        send_locked(&mut streams, stream, message);
-        true
+        s.readers
+            .retain_mut(|reader| write_message(reader, message, stream));
     }
 
-    /// A world load or reload is about to be asked for: until the returned
-    /// guard goes, no sensor capture goes out (the sensors end with their
-    /// episode, and CARLA's client swaps its episode as soon as
-    /// `load_new_episode` is answered: a capture read meanwhile crashes
-    /// it); [`EpisodeChange::begun`] names the new episode, whose world
-    /// states and captures alone go out from then on.
-    pub(crate) fn change_episode(self: &Arc<Self>) -> EpisodeChange {
-        lock(&self.streams).changing += 1;
-        EpisodeChange { hub: self.clone() }
-    }
-
-    /// Sends world state `message` of `episode` (of the server
-    /// `server_pid`) unless a newer episode began; a newer one begins with
-    /// it.
-    fn send_world_state(&self, server_pid: u32, episode: u64, message: &[u8]) -> bool {
-        let mut streams = lock(&self.streams);
-        if !streams.admit((server_pid, episode)) {
-            return false;
-        }
-        send_locked(&mut streams, carla::WORLD_STREAM_ID, message);
-        true
-    }
     /// The frame of the last world state sent.
     pub(crate) fn last_frame(&self) -> u64 {
         lock(&self.sent).2
@@ -294,7 +184,7 @@ impl Hub {
     /// sensor's end) can leave the stream without readers.
     pub(crate) fn patience(&self, stream: u32) -> Option<Duration> {
         let mut streams = lock(&self.streams);
-        let s = streams.by_id.get_mut(&stream)?;
+        let s = streams.get_mut(&stream)?;
         s.expecting();
         s.pending
             .iter()
@@ -306,7 +196,7 @@ impl Hub {
     /// to. If so it is marked stopped, atomically with the check.
     pub(crate) fn retire(&self, stream: u32) -> bool {
         let mut streams = lock(&self.streams);
-        let Some(s) = streams.by_id.get_mut(&stream) else {
+        let Some(s) = streams.get_mut(&stream) else {
             return true;
         };
         if s.readers.is_empty() && !s.expecting() {
@@ -321,44 +211,27 @@ impl Hub {
     /// connection comes. Returns whether a forwarder must be started.
     pub(crate) fn expect(&self, stream: u32) -> bool {
         let mut streams = lock(&self.streams);
-        let s = streams.by_id.entry(stream).or_default();
+        let s = streams.entry(stream).or_default();
         s.pending.push(Instant::now());
         !std::mem::replace(&mut s.forwarded, true)
     }
 
     /// The forwarder of `stream` could not start.
     pub(crate) fn forwarder_failed(&self, stream: u32) {
-        if let Some(s) = lock(&self.streams).by_id.get_mut(&stream) {
+        if let Some(s) = lock(&self.streams).get_mut(&stream) {
             s.forwarded = false;
             s.pending.pop();
         }
     }
 
-    /// Stream `stream` ended (its sensor is gone): nothing more is written
-    /// to its readers, which stay open until their clients hang up.
-    pub(crate) fn end(&self, stream: u32) {
-        let ended = lock(&self.streams).by_id.remove(&stream);
-        for reader in ended.into_iter().flat_map(|s| s.readers) {
-            linger(reader, stream);
-        }
+    /// Closes every reader of `stream` (the sensor is gone).
+    pub(crate) fn close(&self, stream: u32) {
+        lock(&self.streams).remove(&stream);
     }
 
-    /// Adds `socket` to the readers of `stream`, first sending it what
-    /// waited for it. A socket for a sensor stream the gateway does not
-    /// have (it ended, or never was) lingers: CARLA's client reconnects a
-    /// stream closed under it, and would again.
     fn subscribe(&self, stream: u32, mut socket: TcpStream) {
         let mut streams = lock(&self.streams);
-        let s = match streams.by_id.entry(stream) {
-            Entry::Occupied(s) => s.into_mut(),
-            Entry::Vacant(s) if stream == carla::WORLD_STREAM_ID => s.insert(Stream::default()),
-            Entry::Vacant(_) => {
-                drop(streams);
-                debug!(stream, "a reader of a stream that ended");
-                linger(socket, stream);
-                return;
-            }
-        };
+        let s = streams.entry(stream).or_default();
         s.pending.pop();
         for message in s.backlog.drain(..) {
             if !write_message(&mut socket, &message, stream) {
@@ -366,48 +239,6 @@ impl Hub {
             }
         }
         s.readers.push(socket);
-    }
-}
-
-/// Sends `message` to every reader of `stream` in `streams`; a reader that
-/// fails is dropped. With no reader yet but one expected, the message
-/// waits.
-fn send_locked(streams: &mut Streams, stream: u32, message: &[u8]) {
-    let Some(s) = streams.by_id.get_mut(&stream) else {
-        return;
-    };
-    if s.readers.is_empty() {
-        if s.expecting() {
-            if s.backlog.len() == BACKLOG {
-                s.backlog.remove(0);
-            }
-            s.backlog.push(message.to_vec());
-        }
-        return;
-    }
-    s.readers
-        .retain_mut(|reader| write_message(reader, message, stream));
-}
-
-/// Keeps `socket`, a reader of `stream` that will get nothing more, open
-/// until its client hangs up (see the module's rules: the gateway closing
-/// it would make CARLA's client reconnect from its io thread). The client
-/// closes it when it stops listening (`sensor.stop()`, `destroy()`, the
-/// sensor object collected, the client's end); one small thread per such
-/// socket waits for that, reading nothing but the end.
-fn linger(mut socket: TcpStream, stream: u32) {
-    let spawned = std::thread::Builder::new()
-        .name(format!("stream-{stream}-linger"))
-        .stack_size(LINGER_STACK)
-        .spawn(move || {
-            let _ = socket.set_read_timeout(None);
-            let mut sink = [0u8; 64];
-            while matches!(socket.read(&mut sink), Ok(n) if n > 0) {}
-            debug!(stream, "the reader of an ended stream hung up");
-        });
-    if let Err(e) = spawned {
-        // The socket went with the closure: closed, as before.
-        warn!(stream, "cannot keep an ended stream's reader open: {e}");
     }
 }
 
@@ -572,8 +403,7 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     let episode = frame.episode();
     let mut sent = lock(&hub.sent);
     let (p, e, f) = *sent;
-    let stale = older((server_pid, episode), (p, e));
-    if stale || (p == server_pid && e == episode && f >= frame.frame()) {
+    if p == server_pid && e == episode && f >= frame.frame() {
         return;
     }
     let actors: HashMap<u32, ActorInfo> = frame
@@ -604,12 +434,8 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
         let spectator = *lock(&hub.spectator);
         world_state(frame, server_pid, &actors, &registry, spectator)
     };
-    // A frame of an episode older than one begun (its reload answered
-    // before the world stream's pump saw it) is not news.
-    if !hub.send_world_state(server_pid, episode, &message) {
-        return;
-    }
     *lock(&hub.actors) = actors;
+    hub.send(carla::WORLD_STREAM_ID, &message);
     *sent = (server_pid, episode, frame.frame());
     drop(sent);
     hub.sent_changed.notify_all();

@@ -102,7 +102,8 @@ impl World {
             acceleration: Vector::ZERO,
         });
         if placement.kind == ActorKind::Vehicle {
-            self.vehicles.add(id, body, &shared_types::VehicleSpec::default());
+            self.vehicles
+                .add(id, body, &shared_types::VehicleSpec::default());
         }
         id
     }

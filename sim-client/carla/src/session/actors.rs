@@ -10,9 +10,9 @@ use super::Session;
 use crate::blueprints::{self, Description, Spawn};
 use crate::commands::{self, BatchCommand, Op};
 use crate::error::CallError;
+use crate::locks::lock;
 use crate::rpc::Answer;
 use crate::sensors;
-use crate::locks::lock;
 use crate::stream::SensorEntry;
 use crate::wire::{token, CarlaTransform, SPECTATOR_ID};
 
@@ -214,7 +214,10 @@ impl Session {
                 // Spawned through the gateway, not in a frame yet.
                 let description = registry.descriptions.get(&id)?;
                 let uid = description.as_array()?.first()?.as_u64()?;
-                (blueprints::kind_of_uid(uid), blueprints::spawned_extent(description))
+                (
+                    blueprints::kind_of_uid(uid),
+                    blueprints::spawned_extent(description),
+                )
             }
         };
         let description = registry

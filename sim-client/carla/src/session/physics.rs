@@ -13,8 +13,8 @@ use crate::blueprints;
 use crate::commands;
 use crate::convert;
 use crate::error::CallError;
-use crate::rpc::Answer;
 use crate::locks::lock;
+use crate::rpc::Answer;
 use crate::stream::ActorInfo;
 
 /// CARLA's unit for wheel radii and positions: centimetres.

@@ -9,9 +9,9 @@ use simbus_recording::inspect;
 
 use super::{arg_f64, arg_flag, arg_str, Session};
 use crate::error::CallError;
+use crate::locks::lock;
 use crate::recorder_text;
 use crate::rpc::Answer;
-use crate::locks::lock;
 
 /// `text` as a `show_*` call answers it.
 fn text(text: String) -> Result<Answer, CallError> {

@@ -12,10 +12,10 @@ use super::settings::{
 };
 use super::{arg_flag, arg_str, arg_u64, Session};
 use crate::error::CallError;
+use crate::locks::lock;
 use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
 use crate::rpc::Answer;
 use crate::sensors;
-use crate::locks::lock;
 use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
 
 /// The longest [`Session::publish`] waits for the frame its tick stepped

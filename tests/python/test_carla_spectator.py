@@ -103,6 +103,8 @@ def run(gateway, move_spectator):
     sync(world)
     world = client.reload_world(False)
     spectator = world.get_spectator()
+    # The new episode's first frame, so both runs read their actors from it.
+    world.tick()
     before = others(world)
     for i in range(30):
         if move_spectator:

@@ -113,15 +113,21 @@ fn forward(
             Ok(capture) => {
                 let h = capture.header();
                 hub.after_world_state(server_pid, h.episode, h.frame, WORLD_STATE_FIRST);
-                if let Some(message) = message(&capture, &spec) {
-                    hub.send(stream, &message);
+                let sent = message(&capture, &spec)
+                    .is_some_and(|m| hub.send_capture(stream, server_pid, h.episode, &m));
+                if !sent {
+                    debug!(
+                        sensor = simbus_id,
+                        frame = h.frame,
+                        "a capture not forwarded"
+                    );
                 }
             }
             Err(WaitError::NoCapture { .. }) => {}
             Err(e) => {
                 debug!(sensor = simbus_id, "sensor stream ended: {e}");
                 lock(&hub.registry).sensors.remove(&stream);
-                hub.close(stream);
+                hub.end(stream);
                 return;
             }
         }

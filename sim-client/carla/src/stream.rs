@@ -3,12 +3,18 @@
 //! stream carries one world state per simbus frame, pumped from a frame
 //! subscription of the gateway's own; each sensor stream is fed by a
 //! forwarder (`sensors.rs`) while someone listens.
+//!
+//! Who reads which stream, and what each is sent across an episode change
+//! (CARLA's client survives one only if the gateway is quiet then), lives
+//! in [`readers`].
+
+mod readers;
 
 use std::collections::HashMap;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::net::{TcpListener, TcpStream};
 use std::sync::{Arc, Condvar, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::SensorSpec;
@@ -22,11 +28,6 @@ use crate::wire::{self as carla, CarlaActorState, CarlaTransform, CarlaVehicleCo
 /// How long a subscriber may take to accept one message before it is
 /// dropped (a client that connects and never reads must not stall the rest).
 const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
-/// How long a handed-out sensor token waits for its connection.
-const PENDING_FOR: Duration = Duration::from_secs(10);
-/// Captures kept for a listener between `get_sensor_token` and its
-/// connection (the captures of the ticks in between).
-const BACKLOG: usize = 32;
 /// How long the world stream's connection waits for the world's server.
 const SERVER_WAIT: Duration = Duration::from_secs(5);
 /// How long the world stream waits before it connects again after a
@@ -69,21 +70,30 @@ pub(crate) struct Registry {
     pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
 }
 
-/// One stream's readers, and what waits for a reader about to connect.
-#[derive(Debug, Default)]
-struct Stream {
-    readers: Vec<TcpStream>,
-    /// Tokens handed out whose connection has not come yet.
-    pending: Vec<Instant>,
-    backlog: Vec<Vec<u8>>,
-    /// A forwarder feeds it.
-    forwarded: bool,
+/// A world load in flight, from [`Hub::change_episode`]: no sensor
+/// capture goes out and the world stream is held until it goes (the
+/// sensors end with their episode; a load that fails lets both flow
+/// again). See [`readers`] for why.
+#[derive(Debug)]
+pub(crate) struct EpisodeChange {
+    hub: Arc<Hub>,
+    /// The episode the load began, once it did.
+    began: Option<readers::EpisodeKey>,
 }
 
-impl Stream {
-    fn expecting(&mut self) -> bool {
-        self.pending.retain(|at| at.elapsed() < PENDING_FOR);
-        !self.pending.is_empty()
+impl EpisodeChange {
+    /// The load began episode `episode` of the server `server_pid`: from
+    /// the return on, no message of an older episode goes out, captures of
+    /// this one flow again, and the world stream waits for the loading
+    /// client to subscribe to it again.
+    pub(crate) fn begun(mut self, server_pid: u32, episode: u64) {
+        self.began = Some((server_pid, episode));
+    }
+}
+
+impl Drop for EpisodeChange {
+    fn drop(&mut self) {
+        lock(&self.hub.streams).change_ends(self.began);
     }
 }
 
@@ -91,7 +101,7 @@ impl Stream {
 /// clients about the world.
 #[derive(Debug)]
 pub(crate) struct Hub {
-    streams: Mutex<HashMap<u32, Stream>>,
+    streams: Mutex<readers::Streams>,
     /// The actors of the last frame.
     pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
     pub(crate) registry: Mutex<Registry>,
@@ -132,24 +142,30 @@ impl Default for Hub {
 type Sent = (u32, u64, u64);
 
 impl Hub {
-    /// Sends `message` to every reader of `stream`; a reader that fails is
-    /// dropped. With no reader yet but one expected, the message waits.
-    pub(crate) fn send(&self, stream: u32, message: &[u8]) {
-        let mut streams = lock(&self.streams);
-        let Some(s) = streams.get_mut(&stream) else {
-            return;
-        };
-        if s.readers.is_empty() {
-            if s.expecting() {
-                if s.backlog.len() == BACKLOG {
-                    s.backlog.remove(0);
-                }
-                s.backlog.push(message.to_vec());
-            }
-            return;
+    /// Sends `message`, a capture of `episode` (of the server `server_pid`),
+    /// to every reader of sensor stream `stream`, unless a world load is in
+    /// flight or a newer episode began (the sensor is gone with its
+    /// episode). Returns whether it went out (or waits for its reader).
+    pub(crate) fn send_capture(
+        &self,
+        stream: u32,
+        server_pid: u32,
+        episode: u64,
+        message: &[u8],
+    ) -> bool {
+        lock(&self.streams).send_capture(stream, (server_pid, episode), message)
+    }
+
+    /// A world load or reload is about to be asked for (CARLA's
+    /// `load_new_episode`): until the returned guard goes, no sensor
+    /// capture goes out and world states are held; its
+    /// [`EpisodeChange::begun`] names the new episode.
+    pub(crate) fn change_episode(self: &Arc<Self>) -> EpisodeChange {
+        lock(&self.streams).change_begins();
+        EpisodeChange {
+            hub: self.clone(),
+            began: None,
         }
-        s.readers
-            .retain_mut(|reader| write_message(reader, message, stream));
     }
 
     /// The frame of the last world state sent.
@@ -183,74 +199,43 @@ impl Hub {
     /// is pending: then only the forwarder's own failed write (or the
     /// sensor's end) can leave the stream without readers.
     pub(crate) fn patience(&self, stream: u32) -> Option<Duration> {
-        let mut streams = lock(&self.streams);
-        let s = streams.get_mut(&stream)?;
-        s.expecting();
-        s.pending
-            .iter()
-            .map(|at| PENDING_FOR.saturating_sub(at.elapsed()))
-            .min()
+        lock(&self.streams).patience(stream)
     }
 
     /// Whether a forwarder of `stream` may stop: nobody reads or is about
     /// to. If so it is marked stopped, atomically with the check.
     pub(crate) fn retire(&self, stream: u32) -> bool {
-        let mut streams = lock(&self.streams);
-        let Some(s) = streams.get_mut(&stream) else {
-            return true;
-        };
-        if s.readers.is_empty() && !s.expecting() {
-            s.forwarded = false;
-            s.backlog.clear();
-            return true;
-        }
-        false
+        lock(&self.streams).retire(stream)
     }
 
     /// A token for `stream` was handed out: keep its messages until the
     /// connection comes. Returns whether a forwarder must be started.
     pub(crate) fn expect(&self, stream: u32) -> bool {
-        let mut streams = lock(&self.streams);
-        let s = streams.entry(stream).or_default();
-        s.pending.push(Instant::now());
-        !std::mem::replace(&mut s.forwarded, true)
+        lock(&self.streams).expect(stream)
     }
 
     /// The forwarder of `stream` could not start.
     pub(crate) fn forwarder_failed(&self, stream: u32) {
-        if let Some(s) = lock(&self.streams).get_mut(&stream) {
-            s.forwarded = false;
-            s.pending.pop();
+        lock(&self.streams).forwarder_failed(stream);
+    }
+
+    /// Stream `stream` ended (its sensor is gone): nothing more is written
+    /// to its readers, which stay open until their clients hang up.
+    pub(crate) fn end(&self, stream: u32) {
+        let readers = lock(&self.streams).end(stream);
+        for reader in readers {
+            readers::linger(reader, stream);
         }
     }
 
-    /// Closes every reader of `stream` (the sensor is gone).
-    pub(crate) fn close(&self, stream: u32) {
-        lock(&self.streams).remove(&stream);
-    }
-
-    fn subscribe(&self, stream: u32, mut socket: TcpStream) {
-        let mut streams = lock(&self.streams);
-        let s = streams.entry(stream).or_default();
-        s.pending.pop();
-        for message in s.backlog.drain(..) {
-            if !write_message(&mut socket, &message, stream) {
-                return;
-            }
+    /// Adds `socket` to the readers of `stream`.
+    fn subscribe(&self, stream: u32, socket: TcpStream) {
+        let unknown = lock(&self.streams).subscribe(stream, socket);
+        if let Some(socket) = unknown {
+            debug!(stream, "a reader of a stream that ended");
+            readers::linger(socket, stream);
         }
-        s.readers.push(socket);
     }
-}
-
-fn write_message(reader: &mut TcpStream, message: &[u8], stream: u32) -> bool {
-    let length = (message.len() as u32).to_le_bytes();
-    let sent = reader
-        .write_all(&length)
-        .and_then(|()| reader.write_all(message));
-    if let Err(e) = &sent {
-        debug!(stream, "stream reader dropped: {e}");
-    }
-    sent.is_ok()
 }
 
 /// Accepts stream subscriptions until the listener fails.
@@ -403,7 +388,8 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
     let episode = frame.episode();
     let mut sent = lock(&hub.sent);
     let (p, e, f) = *sent;
-    if p == server_pid && e == episode && f >= frame.frame() {
+    let stale = readers::older((server_pid, episode), (p, e));
+    if stale || (p == server_pid && e == episode && f >= frame.frame()) {
         return;
     }
     let actors: HashMap<u32, ActorInfo> = frame
@@ -434,8 +420,12 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
         let spectator = *lock(&hub.spectator);
         world_state(frame, server_pid, &actors, &registry, spectator)
     };
+    // A frame of an episode older than one begun (its reload answered
+    // before the world stream's pump saw it) is not news.
+    if !lock(&hub.streams).send_world_state((server_pid, episode), &message) {
+        return;
+    }
     *lock(&hub.actors) = actors;
-    hub.send(carla::WORLD_STREAM_ID, &message);
     *sent = (server_pid, episode, frame.frame());
     drop(sent);
     hub.sent_changed.notify_all();

@@ -151,6 +151,7 @@ impl Session {
     /// `generate_opendrive_world` sent. A reload keeps the map the
     /// episode had.
     pub(super) fn on_load_new_episode(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let change = self.hub.change_episode();
         let name = arg_str(args, 0, "load_new_episode")?;
         let reset = arg_flag(args, 1);
         let request = MapRequest::of(&name);
@@ -180,6 +181,7 @@ impl Session {
             client.load_world(scene, reset)
         };
         let status = loaded.map_err(CallError::simbus)?;
+        change.begun(status.server_pid, status.episode);
         self.hub.maps.give(status.server_pid, status.episode, map);
         if let MapRequest::CarlaTown(town) = &request {
             info!(peer = %self.peer, "CARLA's map {town} is not in simbus: loading simbus's {TOWN} instead");

@@ -5,8 +5,10 @@
 //! to destroy an actor that is already dead"): a script that spawns and at
 //! once destroys would leak the actor. In asynchronous mode the server
 //! steps on its own, so the gateway waits for the first frame holding the
-//! new actors and sends it before answering. In synchronous mode no frame
-//! comes before the next tick, as on CARLA.
+//! new actors and sends it before answering. The client reads world
+//! states on its streaming connection and answers on its RPC one, so this
+//! shortens the window rather than closing it. In synchronous mode no
+//! frame comes before the next tick, as on CARLA.
 
 use std::time::{Duration, Instant};
 

@@ -202,6 +202,19 @@ pub(crate) fn start_gateway(
     Ok(guard)
 }
 
+/// A server of `scene` and a gateway in front of it (both stopped when
+/// dropped), and the gateway's RPC port.
+fn gateway_on(
+    name: &str,
+    scene: &str,
+    sim_client: &Path,
+) -> anyhow::Result<(BenchServer, ChildGuard, String)> {
+    let server = BenchServer::start(name, &["--scene", scene])?;
+    let (port, streams) = (free_port()?, free_port()?);
+    let gateway = start_gateway(sim_client, &server.world, port, streams)?;
+    Ok((server, gateway, port.to_string()))
+}
+
 /// What one run measured.
 struct Measured {
     /// /proc/loadavg before the run.
@@ -234,10 +247,7 @@ fn traffic(
     python: &Path,
     script: &Path,
 ) -> anyhow::Result<Traffic> {
-    let server = BenchServer::start("carla-town", &["--scene", "town"])?;
-    let (port, streams) = (free_port()?, free_port()?);
-    let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
-    let port = port.to_string();
+    let (_server, _gateway, port) = gateway_on("carla-town", "town", sim_client)?;
     let carla = ScriptSide {
         python,
         script,
@@ -268,10 +278,7 @@ fn measure(
     script: &Path,
 ) -> anyhow::Result<()> {
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    let server = BenchServer::start("carla", &["--scene", "empty"])?;
-    let (port, streams) = (free_port()?, free_port()?);
-    let _gateway = start_gateway(sim_client, &server.world, port, streams)?;
-    let port = port.to_string();
+    let (server, _gateway, port) = gateway_on("carla", "empty", sim_client)?;
     let carla = ScriptSide {
         python,
         script,

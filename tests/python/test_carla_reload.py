@@ -25,10 +25,21 @@ writing world states while the client stopped its old world stream. The
 gateway now holds captures and world states across a load and never
 closes a stream socket its client still reads (`stream/readers.rs`).
 
+The same with `load_world` in asynchronous mode, straight after
+`get_world`, as the seeds' determinism example begins: world states flow
+all along, so the client's streaming thread may still hold the old
+episode, reading a state, when `load_new_episode` is answered. The old
+episode then unsubscribes its world stream from that thread, after the
+new one subscribed; under one world stream id for every episode the new
+subscription was refused (CARLA's client keys streams by id) and freed
+while connecting: a segmentation fault in its first read, about one
+`load_world` in 30 on a busy machine. Each `get_episode_info` now hands
+out a world stream id of its own.
+
 The client runs as a subprocess with a time limit, so an abort is a
 return code (-6, -11) here rather than the end of pytest; it prints a JSON
 summary of the captures each reload's sensors delivered. This file is
-that script too (`python test_carla_reload.py PORT RELOADS`)."""
+that script too (`python test_carla_reload.py PORT RELOADS [load]`)."""
 
 import json
 import os
@@ -37,6 +48,7 @@ import sys
 import threading
 
 RELOADS = 50
+LOADS = 100
 # Long enough for a capture on a machine whose cores are busy: a failure
 # is a capture that never comes, not a slow one.
 CAPTURE_WAIT = 10.0
@@ -48,17 +60,35 @@ def busy_cores(n=2):
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
-def test_50_reloads_with_two_sensors_listening_on_a_busy_machine(gateway):
+def run_busy(gateway, *args):
+    """This file as CARLA's client, against `gateway`, while two other
+    processes keep both cores busy."""
     busy = busy_cores()
     try:
-        run = subprocess.run(
-            [sys.executable, os.path.abspath(__file__), str(gateway.port), str(RELOADS)],
+        return subprocess.run(
+            [sys.executable, os.path.abspath(__file__), str(gateway.port), *args],
             capture_output=True, text=True, timeout=SCRIPT_LIMIT,
         )
     finally:
         for proc in busy:
             proc.kill()
             proc.wait()
+
+
+def test_100_load_worlds_in_asynchronous_mode_on_a_busy_machine(gateway):
+    run = run_busy(gateway, str(LOADS), "load")
+    assert run.returncode == 0, (
+        f"CARLA's client exited with {run.returncode}\n"
+        f"stdout: {run.stdout[-2000:]}\nstderr: {run.stderr[-4000:]}"
+    )
+    summary = json.loads(run.stdout.strip().splitlines()[-1])
+    assert summary["loads"] == LOADS
+    assert len(set(summary["episodes"])) == LOADS + 1, "every load began an episode"
+    assert summary["map"].startswith("simbus/town"), summary["map"]
+
+
+def test_50_reloads_with_two_sensors_listening_on_a_busy_machine(gateway):
+    run = run_busy(gateway, str(RELOADS))
     assert run.returncode == 0, (
         f"CARLA's client exited with {run.returncode}\n"
         f"stdout: {run.stdout[-2000:]}\nstderr: {run.stderr[-4000:]}"
@@ -176,5 +206,27 @@ def main(port, reloads):
     }), flush=True)
 
 
+def main_loads(port, loads):
+    """`load_world` `loads` times in asynchronous mode, the first straight
+    after `get_world`."""
+    import carla
+
+    client = carla.Client("127.0.0.1", port)
+    client.set_timeout(10.0)
+    world = client.get_world()
+    episodes = [world.id]
+    for _ in range(loads):
+        world = client.load_world("Town10HD_Opt")
+        episodes.append(world.id)
+    print(json.dumps({
+        "loads": loads,
+        "episodes": episodes,
+        "map": world.get_map().name,
+    }), flush=True)
+
+
 if __name__ == "__main__":
-    main(int(sys.argv[1]), int(sys.argv[2]))
+    if sys.argv[3:] == ["load"]:
+        main_loads(int(sys.argv[1]), int(sys.argv[2]))
+    else:
+        main(int(sys.argv[1]), int(sys.argv[2]))

@@ -57,6 +57,10 @@ SCENARIOS = {
 }
 
 
+def transform(x, y, z, yaw):
+    return carla.Transform(carla.Location(x, y, z), carla.Rotation(yaw=yaw))
+
+
 def spawn_scene(world, actors):
     """The scenario's actors spawned, one tick, launched, one tick."""
     library = world.get_blueprint_library()
@@ -65,7 +69,7 @@ def spawn_scene(world, actors):
         bp = library.filter(pattern)[0]
         if bp.has_attribute("is_invincible"):
             bp.set_attribute("is_invincible", "false")
-        at = carla.Transform(carla.Location(x, y, z), carla.Rotation(yaw=yaw))
+        at = transform(x, y, z, yaw)
         spawned.append(world.spawn_actor(bp, at))
     world.tick()
     for actor, (_, _, velocity) in zip(spawned, actors):
@@ -109,13 +113,7 @@ def deterministic_repetitions(runs):
     return sorted({sum(row) for row in same}, reverse=True)
 
 
-@pytest.mark.parametrize("scenario", [
-    pytest.param(name, marks=pytest.mark.xfail(
-        strict=True, raises=RuntimeError,
-        reason="simbus refuses walkers (issue 28: listed, spawning refused)"))
-    if name == "CarWalkerCollision" else name
-    for name in SCENARIOS
-])
+@pytest.mark.parametrize("scenario", [name for name in SCENARIOS if name != "CarWalkerCollision"])
 def test_check_collisions_substepping_scenario_is_deterministic(gateway, scenario):
     """Mirrors PythonAPI/util/check_collisions_substepping.py (CARLA
     0.9.16) for one of its scenarios: 10 repetitions at 20 frames/s with
@@ -147,3 +145,22 @@ def test_check_collisions_substepping_scenario_is_deterministic(gateway, scenari
     assert all(np.linalg.norm(rows[-1][2:4] - rows[0][2:4]) > 1.0 for rows in first)
     # On the ground all along: Town03's coordinates are on simbus's ground.
     assert all(-1.0 < z < 3.0 for rows in first for z in rows[:, 4]), [rows[-1][4] for rows in first]
+
+
+def test_check_collisions_substepping_walker_scenario_is_refused_clearly(gateway):
+    """The script's `CarWalkerCollision` scenario: simbus lists CARLA's
+    walkers but refuses to spawn one (issue 28, item 3), so the script
+    stops there with simbus's message, and the refused spawn leaves the
+    world as it was (the car spawned before it stays, nothing else)."""
+    client = gateway.client(timeout=30.0)
+    world = client.load_world("Town03")
+    (car_filter, car_at, _), (walker_id, walker_at, _) = SCENARIOS["CarWalkerCollision"]
+    library = world.get_blueprint_library()
+    walker = library.find(walker_id)
+    assert walker.has_attribute("generation")
+    car = world.spawn_actor(library.filter(car_filter)[0], transform(*car_at))
+    before = sorted(a.id for a in world.get_actors())
+    with pytest.raises(RuntimeError, match=r"walkers are not supported \(walker\.pedestrian\.0007\)"):
+        world.spawn_actor(walker, transform(*walker_at))
+    assert sorted(a.id for a in world.get_actors()) == before
+    assert car.id in before

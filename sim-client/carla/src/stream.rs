@@ -13,6 +13,7 @@ mod readers;
 use std::collections::HashMap;
 use std::io::Read;
 use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
@@ -119,6 +120,8 @@ pub(crate) struct Hub {
     pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
     /// The weather CARLA clients set (simbus renders no sky).
     pub(crate) weather: Mutex<carla::Weather>,
+    /// The last world stream id handed out ([`Hub::next_world_stream`]).
+    world_streams: AtomicU32,
 }
 
 impl Default for Hub {
@@ -134,6 +137,7 @@ impl Default for Hub {
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
+            world_streams: AtomicU32::new(0),
         }
     }
 }
@@ -142,6 +146,24 @@ impl Default for Hub {
 type Sent = (u32, u64, u64);
 
 impl Hub {
+    /// A world stream id no episode of this gateway's clients had just
+    /// before: CARLA's client keys its stream subscriptions by id without
+    /// a lock, and when a world load drops its episode while an io thread
+    /// still reads a world state, the old episode unsubscribes later, from
+    /// that thread. Under one id for all episodes the new subscription is
+    /// then refused (the id is taken) and freed while it connects: a
+    /// segfault in its first read. A new id per `get_episode_info` keeps
+    /// the two subscriptions apart; all of them read the one world stream.
+    pub(crate) fn next_world_stream(&self) -> u32 {
+        let previous = self
+            .world_streams
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
+                Some(carla::world_stream_after(n))
+            })
+            .unwrap_or_default();
+        carla::world_stream_after(previous)
+    }
+
     /// Sends `message`, a capture of `episode` (of the server `server_pid`),
     /// to every reader of sensor stream `stream`, unless a world load is in
     /// flight or a newer episode began (the sensor is gone with its

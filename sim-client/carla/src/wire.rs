@@ -18,7 +18,9 @@ pub const EPISODE_HEADER_LEN: usize = 36;
 pub const ACTOR_STATE_LEN: usize = 119;
 /// The sensor type id of the world state in 0.9.16's sensor registry.
 pub const WORLD_STATE_SENSOR_TYPE: u64 = 17;
-/// The stream id of the world state.
+/// The gateway's own key of the world stream. CARLA clients subscribe to
+/// it under any id of [`is_world_stream`]: each `get_episode_info` hands
+/// out a new one (see [`crate::stream::Hub::next_world_stream`]).
 pub const WORLD_STREAM_ID: u32 = 1;
 /// The sensor type id of a depth camera's `carla.Image`.
 pub const DEPTH_SENSOR_TYPE: u64 = 1;
@@ -34,6 +36,21 @@ pub const DEPTH_FAR_METRES: f32 = 1000.0;
 /// `SENSOR_ID_BASE + n`): simbus numbers sensors apart from actors, CARLA
 /// numbers them together. The sensor's stream id is its actor id.
 pub const SENSOR_ID_BASE: u32 = 1_000_000_000;
+/// Whether stream id `stream` names the world stream: every id below the
+/// sensors' ([`SENSOR_ID_BASE`]) but 0.
+pub fn is_world_stream(stream: u32) -> bool {
+    (1..SENSOR_ID_BASE).contains(&stream)
+}
+
+/// The world stream id handed out after `previous` (0: none yet): the
+/// next one, from 1 again past the last.
+pub fn world_stream_after(previous: u32) -> u32 {
+    match previous.checked_add(1) {
+        Some(next) if is_world_stream(next) => next,
+        _ => 1,
+    }
+}
+
 /// The CARLA actor id of the world's spectator: `SENSOR_ID_BASE` itself,
 /// sensor 0, which simbus never numbers (its sensors count from 1), and
 /// above every simbus actor id CARLA can name.
@@ -233,6 +250,15 @@ pub const CLEAR_NOON: Weather = [
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn world_stream_ids_follow_each_other_below_the_sensors() {
+        assert_eq!(world_stream_after(0), 1);
+        assert_eq!(world_stream_after(1), 2);
+        assert_eq!(world_stream_after(SENSOR_ID_BASE - 1), 1);
+        assert!(is_world_stream(1) && is_world_stream(SENSOR_ID_BASE - 1));
+        assert!(!is_world_stream(0) && !is_world_stream(SENSOR_ID_BASE + 1));
+    }
 
     #[test]
     fn layouts_have_carla_sizes() {

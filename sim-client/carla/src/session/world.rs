@@ -16,7 +16,7 @@ use crate::locks::lock;
 use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
 use crate::rpc::Answer;
 use crate::sensors;
-use crate::wire::{self, token, CARLA_VERSION, WORLD_STREAM_ID};
+use crate::wire::{self, token, CARLA_VERSION};
 
 /// The longest [`Session::publish`] waits for the frame its tick stepped
 /// (already in shared memory when the tick returns, so in practice no
@@ -28,14 +28,15 @@ impl Session {
         Ok(Answer::Value(Value::from(CARLA_VERSION)))
     }
 
-    /// The episode id and the world stream's token.
+    /// The episode id and a token of the world stream, under an id of its
+    /// own ([`crate::stream::Hub::next_world_stream`]).
     pub(super) fn on_get_episode_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         let episode = self.client()?.status().map_err(CallError::simbus)?.episode;
         let episode = wire::episode_id(self.client()?.server_pid(), episode);
         Ok(Answer::Value(Value::Array(vec![
             Value::from(episode),
             Value::Array(vec![Value::Binary(
-                token(WORLD_STREAM_ID, self.streaming_port).to_vec(),
+                token(self.hub.next_world_stream(), self.streaming_port).to_vec(),
             )]),
         ])))
     }
@@ -44,7 +45,7 @@ impl Session {
     pub(super) fn on_get_sensor_token(&mut self, args: &[Value]) -> Result<Answer, CallError> {
         let stream = arg_u64(args, 0, "get_sensor_token")?;
         let stream = u32::try_from(stream).map_err(|_| CallError::NoStream(stream))?;
-        if stream != WORLD_STREAM_ID {
+        if !wire::is_world_stream(stream) {
             sensors::expect(&self.hub, &self.world, stream, self.timeout)?;
         }
         Ok(Answer::Value(Value::Array(vec![Value::Binary(

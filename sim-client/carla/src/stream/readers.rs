@@ -34,7 +34,7 @@ use std::time::{Duration, Instant};
 
 use tracing::{debug, warn};
 
-use crate::wire::WORLD_STREAM_ID;
+use crate::wire::{is_world_stream, WORLD_STREAM_ID};
 
 /// How long a handed-out sensor token waits for its connection.
 const PENDING_FOR: Duration = Duration::from_secs(10);
@@ -257,11 +257,17 @@ impl Streams {
     }
 
     /// Adds `socket` to the readers of `stream`, first sending it what
-    /// waited for it; a world reader ends the world stream's hold once no
+    /// waited for it (every world stream id is the one world stream); a
+    /// world reader ends the world stream's hold once no
     /// load is in flight. A socket for a sensor stream the gateway does
     /// not have (it ended, or never was) is handed back, to [`linger`]:
     /// CARLA's client would reconnect a stream closed under it.
     pub(super) fn subscribe(&mut self, stream: u32, mut socket: TcpStream) -> Option<TcpStream> {
+        let stream = if is_world_stream(stream) {
+            WORLD_STREAM_ID
+        } else {
+            stream
+        };
         let s = match self.by_id.entry(stream) {
             Entry::Occupied(s) => s.into_mut(),
             Entry::Vacant(s) if stream == WORLD_STREAM_ID => s.insert(Stream::default()),
@@ -398,8 +404,9 @@ mod tests {
         assert!(streams.send_world_state((7, 2), b"frame 0"));
         assert!(nothing_to_read(&old_client), "held while the client swaps");
 
+        // The new episode's subscription comes under its own world id.
         let (new_reader, mut new_client) = pair();
-        assert!(streams.subscribe(WORLD_STREAM_ID, new_reader).is_none());
+        assert!(streams.subscribe(WORLD_STREAM_ID + 1, new_reader).is_none());
         assert_eq!(read_message(&mut new_client), b"frame 0");
         assert_eq!(read_message(&mut old_client), b"frame 0");
         assert!(streams.send_world_state((7, 2), b"frame 1"));

@@ -13,10 +13,9 @@ process, on a free port instead of CARLA's 8000)."""
 
 import json
 import math
+import sys
 
-import pytest
-
-from test_carla_scripts_examples import run_mirror
+from carla_tm_deadlock import on_fresh_pairs, run_script
 from test_carla_traffic_manager import free_port
 
 GENERATE_TRAFFIC = """
@@ -134,13 +133,21 @@ finally:
 """
 
 
-def generate_traffic(gateway, mode):
+def generate_traffic(request, mode):
     """Runs the mirror with `-n 30 -w 0` (and `--asynch` when `mode` is
-    "asynch"); returns (its lines, each vehicle's positions per frame)."""
-    done = run_mirror(GENERATE_TRAFFIC, gateway.port, free_port(), 30, mode, timeout=400)
-    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-3000:]}"
-    assert "terminate called" not in done.stderr, done.stderr[-3000:]
-    lines = done.stdout.splitlines()
+    "asynch") against a fresh pair on the town (again on another should
+    CARLA's traffic manager deadlock: `carla_tm_deadlock.py`); returns
+    (its lines, each vehicle's positions per frame)."""
+    def attempt(gateway):
+        status, out, err = run_script([
+            sys.executable, "-c", GENERATE_TRAFFIC,
+            str(gateway.port), str(free_port()), "30", mode,
+        ])
+        assert status == 0, f"exit {status}\n{err[-3000:]}"
+        assert "terminate called" not in err, err[-3000:]
+        return out
+    [out] = on_fresh_pairs(request, [attempt], server_args=["--scene", "town"])
+    lines = out.splitlines()
     return lines[:-1], json.loads(lines[-1])["track"]
 
 
@@ -157,14 +164,13 @@ def assert_traffic_drove(lines, track):
         "destroying 30 vehicles", "destroying 0 walkers", "done."], lines
 
 
-@pytest.mark.parametrize("gateway", [["--scene", "town"]], indirect=True)
-def test_generate_traffic_30_vehicles_synchronous_200_frames(gateway):
+def test_generate_traffic_30_vehicles_synchronous_200_frames(request):
     """Mirrors PythonAPI/examples/generate_traffic.py -n 30 -w 0 (CARLA
     0.9.16, synchronous by default): the traffic manager synchronous, the
     world at 0.05 s frames, 30 autopilot vehicles spawned in one
     `SpawnActor.then(SetAutopilot)` batch, 200 ticks, the settings put
     back (0.9.16 puts back the object it changed: synchronous stays on)."""
-    lines, track = generate_traffic(gateway, "sync")
+    lines, track = generate_traffic(request, "sync")
     assert "synchronous_mode=False" in lines[0], lines
     assert lines[1].startswith("apply_world_settings WorldSettings(synchronous_mode=True"), lines
     assert "fixed_delta_seconds=0.05" in lines[1], lines
@@ -175,13 +181,12 @@ def test_generate_traffic_30_vehicles_synchronous_200_frames(gateway):
         lines[1].replace("apply_world_settings", "restore world_settings")], lines
 
 
-@pytest.mark.parametrize("gateway", [["--scene", "town"]], indirect=True)
-def test_generate_traffic_30_vehicles_asynchronous_200_frames(gateway):
+def test_generate_traffic_30_vehicles_asynchronous_200_frames(request):
     """Mirrors PythonAPI/examples/generate_traffic.py -n 30 -w 0 --asynch
     (CARLA 0.9.16): the world left asynchronous (the script says so), 30
     autopilot vehicles, 200 frames (and 10 simulated seconds) waited for,
     nothing put back."""
-    lines, track = generate_traffic(gateway, "asynch")
+    lines, track = generate_traffic(request, "asynch")
     assert "synchronous_mode=False" in lines[0], lines
     assert lines[1] == "You are currently in asynchronous mode.", lines
     assert lines[2].startswith("apply_world_settings WorldSettings(synchronous_mode=False"), lines

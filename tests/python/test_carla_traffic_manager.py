@@ -5,7 +5,9 @@ registry of running traffic managers and the streamed vehicle state it
 reads (speed limit, traffic-light state, elapsed time).
 
 Scripts run as their own processes (`carla_tm_run.py`): a traffic manager
-binds its port and keeps threads until its process ends."""
+binds its port and keeps threads until its process ends. CARLA 0.9.16's
+traffic manager can deadlock in synchronous mode on its own
+(`carla_tm_deadlock.py`): such a run is made again on a fresh pair."""
 
 import json
 import math
@@ -17,7 +19,7 @@ import time
 
 from test_carla_actors_sensors import Raw
 
-from conftest import kill_all, start, world_name
+from carla_tm_deadlock import on_fresh_pairs, run_script
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -28,19 +30,21 @@ def free_port():
         return s.getsockname()[1]
 
 
-def run_script(gateway, *args, timeout=240):
-    """Runs carla_tm_run.py against `gateway` and returns its JSON."""
-    done = subprocess.run(
-        [sys.executable, os.path.join(HERE, "carla_tm_run.py"), "--port", str(gateway.port), *args],
-        capture_output=True, text=True, timeout=timeout,
-    )
-    assert done.returncode == 0, f"exit {done.returncode}\n{done.stderr[-3000:]}"
-    return json.loads(done.stdout.strip().splitlines()[-1])
+def tm_run(*args):
+    """An attempt (carla_tm_deadlock.on_fresh_pairs) at carla_tm_run.py
+    with `args`: its JSON."""
+    def attempt(gateway):
+        status, out, err = run_script([
+            sys.executable, os.path.join(HERE, "carla_tm_run.py"),
+            "--port", str(gateway.port), "--tm-port", str(free_port()), *args,
+        ])
+        assert status == 0, f"exit {status}\n{err[-3000:]}"
+        return json.loads(out.strip().splitlines()[-1])
+    return attempt
 
 
-def test_autopilot_vehicles_drive_along_the_town_roads(gateway):
-    tm_port = free_port()
-    out = run_script(gateway, "--tm-port", str(tm_port), "--vehicles", "10", "--ticks", "200")
+def test_autopilot_vehicles_drive_along_the_town_roads(request):
+    [out] = on_fresh_pairs(request, [tm_run("--vehicles", "10", "--ticks", "200")])
     assert out["map"].startswith("simbus/town"), out["map"]
     assert out["spawn_points"] >= 100
     first, last = out["ticks"][0], out["ticks"][-1]
@@ -55,15 +59,9 @@ def test_autopilot_vehicles_drive_along_the_town_roads(gateway):
 def test_the_seeds_determinism_example_repeats_exactly(request):
     """Two fresh server + gateway pairs, the same seed: every vehicle's
     transform identical at every tick; a third with another seed differs."""
-    runs = []
-    for seed, suffix in [(7, "-a"), (7, "-b"), (8, "-c")]:
-        procs = []
-        try:
-            gateway = start(world_name(request, suffix), [], procs)
-            runs.append(run_script(gateway, "--tm-port", str(free_port()), "--seed", str(seed),
-                                   "--vehicles", "30", "--ticks", "500"))
-        finally:
-            kill_all(procs)
+    runs = on_fresh_pairs(request, [
+        tm_run("--seed", str(seed), "--vehicles", "30", "--ticks", "500") for seed in (7, 7, 8)
+    ])
     a, b, c = runs
     assert len(a["ticks"]) == 500 and len(a["ids"]) == 30
     assert a["ticks"] == b["ticks"], "the same seed gives the same run, tick by tick"

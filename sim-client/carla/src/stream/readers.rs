@@ -256,12 +256,12 @@ impl Streams {
             .unwrap_or_default()
     }
 
-    /// Adds `socket` to the readers of `stream`, first sending it what
-    /// waited for it (every world stream id is the one world stream); a
-    /// world reader ends the world stream's hold once no
-    /// load is in flight. A socket for a sensor stream the gateway does
-    /// not have (it ended, or never was) is handed back, to [`linger`]:
-    /// CARLA's client would reconnect a stream closed under it.
+    /// Adds `socket` to the readers of `stream` (every world stream id is
+    /// the one world stream), first sending it what waited for it; a world
+    /// reader ends the world stream's hold once no load is in flight. A
+    /// socket for a sensor stream the gateway does not have (it ended, or
+    /// never was) is handed back, to [`linger`]: CARLA's client would
+    /// reconnect a stream closed under it.
     pub(super) fn subscribe(&mut self, stream: u32, mut socket: TcpStream) -> Option<TcpStream> {
         let stream = if is_world_stream(stream) {
             WORLD_STREAM_ID

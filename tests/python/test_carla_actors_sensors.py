@@ -224,6 +224,31 @@ def test_actors_spawn_move_and_are_destroyed(gateway):
     assert not [a for a in world.get_actors() if a.id in (actor.id, car.id)]
 
 
+def test_a_sensor_goes_with_its_parent_and_is_destroyed_as_a_dying_actor(gateway):
+    """A sensor ends with its parent (simbus ends it): from the frame the
+    parent is gone, CARLA's client reads it as dying (`PendingKill`):
+    `is_alive` false while the client still holds it, where it last was,
+    and `destroy()` succeeds and removes it. (Absent from the world state,
+    CARLA 0.9.16's client would read its state from uninitialised memory.)"""
+    client, world, library = synced(gateway)
+    car = world.spawn_actor(library.find("vehicle.tesla.model3"), carla.Transform(carla.Location(x=-20, z=1)))
+    camera = world.spawn_actor(small_camera(library), carla.Transform(carla.Location(z=2)), attach_to=car)
+    images = queue.Queue()
+    camera.listen(images.put)
+    frame = world.tick()
+    assert images.get(timeout=10).frame == frame
+    assert camera.is_alive and camera.parent.id == car.id
+    last = camera.get_transform().location
+    assert car.destroy()
+    world.tick()
+    assert not camera.is_alive
+    assert camera.get_transform().location.distance(last) < 0.5
+    assert camera.id in [a.id for a in world.get_actors()], "dying, still known"
+    assert camera.destroy(), "destroying a dying sensor succeeds"
+    world.tick()
+    assert camera.id not in [a.id for a in world.get_actors()]
+
+
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_batches_answer_one_response_per_command_with_errors_per_command(gateway):
     client, world, library = synced(gateway)

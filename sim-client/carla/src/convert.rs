@@ -83,6 +83,7 @@ pub(crate) fn actor(state: &ActorState) -> CarlaActorState {
         angular_velocity: angular_velocity(state.angular_velocity),
         acceleration: vector(state.acceleration),
         vehicle: None,
+        dying: false,
     }
 }
 

@@ -53,7 +53,11 @@ pub(crate) fn expect(
 ) -> Result<(), CallError> {
     let spec = {
         let registry = lock(&hub.registry);
-        registry.sensors.get(&stream).map(|s| (s.simbus_id, s.spec))
+        registry
+            .sensors
+            .get(&stream)
+            .filter(|s| !s.gone)
+            .map(|s| (s.simbus_id, s.spec))
     };
     let Some((simbus_id, spec)) = spec else {
         return Err(CallError::NoSensorStream(stream));
@@ -126,7 +130,10 @@ fn forward(
             Err(WaitError::NoCapture { .. }) => {}
             Err(e) => {
                 debug!(sensor = simbus_id, "sensor stream ended: {e}");
-                lock(&hub.registry).sensors.remove(&stream);
+                // Dying until a client destroys it (or its episode ends).
+                if let Some(sensor) = lock(&hub.registry).sensors.get_mut(&stream) {
+                    sensor.gone = true;
+                }
                 hub.end(stream);
                 return;
             }

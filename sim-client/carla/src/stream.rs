@@ -60,6 +60,27 @@ pub(crate) struct SensorEntry {
     pub(crate) description: Value,
     /// The CARLA id of its parent (0: none).
     pub(crate) parent: u32,
+    /// Where it was in the last world state.
+    pub(crate) pose: ([f32; 3], [f32; 4]),
+    /// Its parent went (its simbus sensor with it) and no client destroyed
+    /// it yet: reported as CARLA's `PendingKill` where it last was, so
+    /// `is_alive` reads false and `destroy()` succeeds (CARLA's client
+    /// reads an absent actor's state from uninitialised memory).
+    pub(crate) gone: bool,
+}
+
+impl SensorEntry {
+    /// A sensor just spawned on `parent` (0: none) from `spec`.
+    pub(crate) fn new(simbus_id: u64, spec: SensorSpec, description: Value, parent: u32) -> Self {
+        Self {
+            simbus_id,
+            spec,
+            description,
+            parent,
+            pose: (spec.position, [0.0, 0.0, 0.0, 1.0]),
+            gone: false,
+        }
+    }
 }
 
 /// What CARLA clients spawned and set through the gateway: descriptions
@@ -327,12 +348,11 @@ fn world_state(
         carla::actor_state(&mut out, &state);
     }
     for (&id, sensor) in &registry.sensors {
-        let Some(pose) = sensor_pose(sensor, actors) else {
-            continue;
-        };
+        let (position, rotation) = sensor.pose;
         let state = CarlaActorState {
             id,
-            transform: convert::transform(pose.0, pose.1),
+            transform: convert::transform(position, rotation),
+            dying: sensor.gone,
             ..CarlaActorState::default()
         };
         carla::actor_state(&mut out, &state);
@@ -435,10 +455,14 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
             // A new episode (or server) ended every sensor.
             registry.sensors.clear();
         }
-        // A sensor whose parent is gone went with it.
-        registry
-            .sensors
-            .retain(|_, s| s.parent == 0 || actors.contains_key(&s.parent));
+        // A sensor whose parent is gone went with it; it stays, dying,
+        // where it was until a client destroys it.
+        for sensor in registry.sensors.values_mut() {
+            match sensor_pose(sensor, &actors) {
+                Some(pose) if !sensor.gone => sensor.pose = pose,
+                _ => sensor.gone = true,
+            }
+        }
         let spectator = *lock(&hub.spectator);
         world_state(frame, server_pid, &actors, &registry, spectator)
     };

@@ -189,6 +189,9 @@ pub struct CarlaActorState {
     pub acceleration: [f32; 3],
     /// A vehicle's last control.
     pub vehicle: Option<CarlaVehicleControl>,
+    /// Gone with its parent, not yet destroyed by a client: CARLA's
+    /// `ActorState::PendingKill` (`is_alive` false, `destroy()` still sent).
+    pub dying: bool,
 }
 
 /// The speed limit every vehicle reports, km/h: CARLA's default.
@@ -196,12 +199,22 @@ pub const SPEED_LIMIT_KMH: f32 = 30.0;
 /// CARLA's `TrafficLightState::Green`.
 const TRAFFIC_LIGHT_GREEN: u8 = 2;
 
-/// Appends one actor's 119-byte record (alive; a vehicle's control, speed
-/// limit and traffic-light state; no walker or traffic-light actors).
+/// CARLA's `rpc::ActorState::Active`.
+const ACTOR_ACTIVE: u8 = 1;
+/// CARLA's `rpc::ActorState::PendingKill`.
+const ACTOR_PENDING_KILL: u8 = 3;
+
+/// Appends one actor's 119-byte record (alive or dying; a vehicle's
+/// control, speed limit and traffic-light state; no walker or
+/// traffic-light actors).
 pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
     let start = out.len();
     out.extend_from_slice(&actor.id.to_le_bytes());
-    out.push(1); // ActorState::Active
+    out.push(if actor.dying {
+        ACTOR_PENDING_KILL
+    } else {
+        ACTOR_ACTIVE
+    });
     let t = &actor.transform;
     let floats = t
         .location
@@ -250,6 +263,21 @@ pub const CLEAR_NOON: Weather = [
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_dying_actor_is_pending_kill_an_alive_one_active() {
+        let mut out = Vec::new();
+        actor_state(&mut out, &CarlaActorState::default());
+        actor_state(
+            &mut out,
+            &CarlaActorState {
+                dying: true,
+                ..CarlaActorState::default()
+            },
+        );
+        assert_eq!(out.len(), 2 * ACTOR_STATE_LEN);
+        assert_eq!((out[4], out[ACTOR_STATE_LEN + 4]), (1, 3));
+    }
 
     #[test]
     fn world_stream_ids_follow_each_other_below_the_sensors() {

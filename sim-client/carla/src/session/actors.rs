@@ -287,12 +287,7 @@ impl Session {
         let id = sensors::carla_id(info.id).ok_or(CallError::SensorIdRange(info.id))?;
         lock(&self.hub.registry).sensors.insert(
             id,
-            SensorEntry {
-                simbus_id: info.id,
-                spec,
-                description: description.record(),
-                parent,
-            },
+            SensorEntry::new(info.id, spec, description.record(), parent),
         );
         Ok(id)
     }
@@ -447,6 +442,14 @@ impl Session {
 
     fn destroy_sensor(&mut self, id: u32) -> Result<u32, CallError> {
         let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
+        // A sensor that went with its parent is destroyed already in
+        // simbus: the client's destroy ends its dying.
+        let mut registry = lock(&self.hub.registry);
+        if registry.sensors.get(&id).is_some_and(|s| s.gone) {
+            registry.sensors.remove(&id);
+            return Ok(id);
+        }
+        drop(registry);
         self.client()?
             .destroy_sensor(simbus_id)
             .map_err(CallError::simbus)?;

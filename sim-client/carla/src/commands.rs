@@ -81,7 +81,7 @@ impl Op {
     /// The simbus command doing `self` to CARLA actor `id`, whose last
     /// state is `last` (for the parts a CARLA command leaves as they are).
     pub(crate) fn command(self, id: u32, last: Option<&ActorInfo>) -> Result<Command, CallError> {
-        if sensors::simbus_id(id).is_some() && self != Op::Destroy {
+        if sensors::is_sensor(id) && self != Op::Destroy {
             return Err(CallError::IsASensor(id));
         }
         let actor = u64::from(id);

@@ -16,7 +16,7 @@ use crate::convert;
 use crate::error::{CallError, Source};
 use crate::locks::lock;
 use crate::stream::Hub;
-use crate::wire::{self as carla, SENSOR_ID_BASE};
+use crate::wire::{self as carla, CLIENT_SIDE_SENSOR_BASE, SENSOR_ID_BASE};
 
 /// A forwarder's wait for a capture while no token is pending: none in
 /// effect (it ends with a capture, the sensor, the server or its
@@ -38,8 +38,19 @@ pub(crate) fn carla_id(simbus_id: u64) -> Option<u32> {
 /// The simbus sensor behind CARLA actor `id`, if it names one.
 pub(crate) fn simbus_id(id: u32) -> Option<u64> {
     id.checked_sub(SENSOR_ID_BASE)
-        .filter(|&n| n > 0)
+        .filter(|&n| n > 0 && id < CLIENT_SIDE_SENSOR_BASE)
         .map(u64::from)
+}
+
+/// Whether CARLA actor `id` names a sensor: simbus's, or one CARLA's
+/// client computes itself.
+pub(crate) fn is_sensor(id: u32) -> bool {
+    id > SENSOR_ID_BASE
+}
+
+/// The CARLA actor id of the `n`th client-side sensor (from 0), if in range.
+pub(crate) fn client_side_id(n: u32) -> Option<u32> {
+    CLIENT_SIDE_SENSOR_BASE.checked_add(n)
 }
 
 /// A client will connect to sensor stream `stream` (it asked for its
@@ -56,7 +67,7 @@ pub(crate) fn expect(
         registry
             .sensors
             .get(&stream)
-            .filter(|s| !s.gone)
+            .filter(|s| !s.gone && s.simbus_id != 0)
             .map(|s| (s.simbus_id, s.spec))
     };
     let Some((simbus_id, spec)) = spec else {
@@ -241,5 +252,11 @@ mod tests {
         assert_eq!(simbus_id(42), None);
         assert_eq!(simbus_id(SENSOR_ID_BASE), None);
         assert_eq!(carla_id(u64::MAX), None);
+        // Client-side sensors are sensors, but no simbus sensor is behind them.
+        let lane_invasion = client_side_id(0).unwrap();
+        assert!(is_sensor(lane_invasion) && is_sensor(SENSOR_ID_BASE + 3));
+        assert!(!is_sensor(42) && !is_sensor(SENSOR_ID_BASE));
+        assert_eq!(simbus_id(lane_invasion), None);
+        assert_eq!(client_side_id(u32::MAX), None);
     }
 }

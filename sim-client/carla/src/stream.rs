@@ -54,6 +54,7 @@ pub(crate) struct ActorInfo {
 /// A sensor spawned through the gateway.
 #[derive(Debug, Clone)]
 pub(crate) struct SensorEntry {
+    /// Its simbus sensor (0: none, a sensor CARLA's client computes).
     pub(crate) simbus_id: u64,
     pub(crate) spec: SensorSpec,
     /// CARLA's actor description it was spawned from.
@@ -90,6 +91,8 @@ pub(crate) struct Registry {
     pub(crate) descriptions: HashMap<u32, Value>,
     pub(crate) sensors: HashMap<u32, SensorEntry>,
     pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
+    /// Client-side sensors numbered so far ([`crate::sensors::client_side_id`]).
+    pub(crate) client_side: u32,
 }
 
 /// A world load in flight, from [`Hub::change_episode`]: no sensor

@@ -51,6 +51,10 @@ pub fn world_stream_after(previous: u32) -> u32 {
     }
 }
 
+/// CARLA actor ids at and above this name sensors CARLA's client computes
+/// itself (the lane-invasion sensor): the gateway numbers them, simbus has
+/// no sensor behind them.
+pub const CLIENT_SIDE_SENSOR_BASE: u32 = 3_000_000_000;
 /// The CARLA actor id of the world's spectator: `SENSOR_ID_BASE` itself,
 /// sensor 0, which simbus never numbers (its sensors count from 1), and
 /// above every simbus actor id CARLA can name.

@@ -143,6 +143,12 @@ const LIBRARY: &[Blueprint] = &[
         ],
     },
     Blueprint {
+        uid: 9,
+        id: "sensor.other.lane_invasion",
+        tags: "sensor,other,lane_invasion",
+        attributes: &[ROLE_NAME],
+    },
+    Blueprint {
         uid: 8,
         id: "sensor.other.imu",
         tags: "sensor,other,imu",
@@ -176,6 +182,10 @@ pub(crate) enum Spawn {
     Body(Command),
     /// A sensor, and the CARLA type id it reports.
     Sensor(SensorSpec),
+    /// A sensor CARLA's client computes itself (the lane-invasion sensor:
+    /// crossings of the map's lane marks by its parent's bounding box): a
+    /// pose-only actor at this pose, no simbus sensor.
+    ClientSide([f32; 3], [f32; 4]),
 }
 
 /// A parsed CARLA `ActorDescription` `[uid, id, [[id, type, value]]]`:
@@ -333,6 +343,7 @@ impl Description {
                 self.sensor(spec, rotation)
             }
             "sensor.lidar.ray_cast" => self.lidar(position, rotation),
+            "sensor.other.lane_invasion" => Ok(Spawn::ClientSide(position, rotation)),
             _ => {
                 self.zero(&[
                     "noise_accel_stddev_x",

@@ -260,6 +260,9 @@ impl Session {
                 id
             }
             Spawn::Sensor(spec) => return self.spawn_sensor(description, spec, parent),
+            Spawn::ClientSide(position, rotation) => {
+                return self.spawn_client_side(description, position, rotation, parent)
+            }
         };
         lock(&self.hub.registry)
             .descriptions
@@ -276,7 +279,7 @@ impl Session {
         parent: Option<u32>,
     ) -> Result<u32, CallError> {
         let parent = parent.unwrap_or(0);
-        if sensors::simbus_id(parent).is_some() {
+        if sensors::is_sensor(parent) {
             return Err(CallError::SensorOnSensor(parent));
         }
         let spec = spec.attached_to(u64::from(parent));
@@ -289,6 +292,35 @@ impl Session {
             id,
             SensorEntry::new(info.id, spec, description.record(), parent),
         );
+        Ok(id)
+    }
+
+    /// Registers a sensor CARLA's client computes itself (on `parent` if
+    /// given): a pose-only actor the world states carry, no simbus sensor.
+    fn spawn_client_side(
+        &mut self,
+        description: &Description,
+        position: [f32; 3],
+        rotation: [f32; 4],
+        parent: Option<u32>,
+    ) -> Result<u32, CallError> {
+        let parent = parent.unwrap_or(0);
+        if sensors::is_sensor(parent) {
+            return Err(CallError::SensorOnSensor(parent));
+        }
+        let spec = shared_types::SensorSpec {
+            position,
+            rotation,
+            attach_to: u64::from(parent),
+            ..shared_types::SensorSpec::default()
+        };
+        let mut registry = lock(&self.hub.registry);
+        let id = sensors::client_side_id(registry.client_side)
+            .ok_or(CallError::SensorIdRange(u64::from(registry.client_side)))?;
+        registry.client_side += 1;
+        registry
+            .sensors
+            .insert(id, SensorEntry::new(0, spec, description.record(), parent));
         Ok(id)
     }
 
@@ -354,7 +386,7 @@ impl Session {
                 },
                 Ok(BatchCommand::Autopilot(id)) => self.autopilot_target(id),
                 Ok(BatchCommand::Actor(SPECTATOR_ID, op)) => self.move_spectator(op),
-                Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::simbus_id(id).is_some() => {
+                Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::is_sensor(id) => {
                     self.destroy_sensor(id)
                 }
                 Ok(BatchCommand::Actor(id, op)) => {
@@ -441,15 +473,20 @@ impl Session {
     }
 
     fn destroy_sensor(&mut self, id: u32) -> Result<u32, CallError> {
-        let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
         // A sensor that went with its parent is destroyed already in
-        // simbus: the client's destroy ends its dying.
+        // simbus, a client-side one never was there: the client's destroy
+        // ends it here.
         let mut registry = lock(&self.hub.registry);
-        if registry.sensors.get(&id).is_some_and(|s| s.gone) {
+        if registry
+            .sensors
+            .get(&id)
+            .is_some_and(|s| s.gone || s.simbus_id == 0)
+        {
             registry.sensors.remove(&id);
             return Ok(id);
         }
         drop(registry);
+        let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
         self.client()?
             .destroy_sensor(simbus_id)
             .map_err(CallError::simbus)?;

@@ -46,6 +46,8 @@ pub use recorder::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
     ReplayState, DEFAULT_KEYFRAME_SECONDS, MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS,
 };
+pub mod gnss;
+pub use gnss::{Gnss, GnssMeasurement};
 mod sensor;
 mod sensor_params;
 mod settings;

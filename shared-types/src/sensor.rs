@@ -31,6 +31,8 @@ wire_enum! {
         Lidar = 2,
         /// Inertial measurement unit: one [`ImuMeasurement`].
         Imu = 3,
+        /// GNSS receiver: one [`crate::GnssMeasurement`].
+        Gnss = 4,
     }
 }
 
@@ -41,6 +43,7 @@ impl SensorKind {
             Self::Depth => "depth",
             Self::Lidar => "lidar",
             Self::Imu => "imu",
+            Self::Gnss => "gnss",
         }
     }
 
@@ -121,6 +124,10 @@ pub enum SensorSpecError {
     /// Lidar rotation frequency must be >= 0 Hz.
     #[error("lidar rotation frequency must be >= 0 Hz")]
     LidarRotation,
+    /// GNSS biases must be finite, deviations finite and >= 0, and the
+    /// seed a whole number in `0..=`[`crate::gnss::MAX_GNSS_SEED`].
+    #[error("GNSS biases must be finite, deviations finite and >= 0, and the seed a whole number in 0..=16777216")]
+    GnssNoise,
     /// Unknown sensor kind.
     #[error("unknown sensor kind")]
     UnknownKind,
@@ -178,6 +185,11 @@ impl SensorSpec {
         Self::with_params(position, Imu)
     }
 
+    /// A GNSS receiver without noise.
+    pub fn gnss(position: [f32; 3]) -> Self {
+        Self::with_params(position, crate::gnss::Gnss::default())
+    }
+
     /// Attached to actor `id`.
     pub fn attached_to(mut self, id: u64) -> Self {
         self.attach_to = id;
@@ -209,6 +221,7 @@ impl SensorSpec {
         let element = match self.sensor_kind() {
             Some(SensorKind::Depth) => std::mem::size_of::<f32>(),
             Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
+            Some(SensorKind::Gnss) => std::mem::size_of::<crate::GnssMeasurement>(),
             _ => std::mem::size_of::<ImuMeasurement>(),
         };
         self.elements() * element
@@ -273,6 +286,10 @@ impl SensorSpec {
                 }
             }
             Some(SensorParams::Imu(_)) => {}
+            Some(SensorParams::Gnss(g)) if !g.valid(p[6]) => {
+                return Err(SensorSpecError::GnssNoise)
+            }
+            Some(SensorParams::Gnss(_)) => {}
             None => return Err(SensorSpecError::UnknownKind),
         }
         Ok(())

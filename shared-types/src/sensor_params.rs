@@ -13,6 +13,7 @@
 //! assert_eq!(spec.lidar_params(), None);
 //! ```
 
+use crate::gnss::Gnss;
 use crate::{SensorKind, SensorSpec};
 
 /// A ray-cast depth camera's parameters.
@@ -58,6 +59,8 @@ pub enum SensorParams {
     Lidar(Lidar),
     /// An IMU.
     Imu(Imu),
+    /// A GNSS receiver.
+    Gnss(Gnss),
 }
 
 impl SensorParams {
@@ -67,17 +70,18 @@ impl SensorParams {
             Self::Depth(_) => SensorKind::Depth,
             Self::Lidar(_) => SensorKind::Lidar,
             Self::Imu(_) => SensorKind::Imu,
+            Self::Gnss(_) => SensorKind::Gnss,
         }
     }
 
     /// The capture's size as [`crate::SensorHeader::size`] states it: a
     /// depth camera's width and height, a lidar's channels and points per
-    /// channel; zeros for an IMU.
+    /// channel; zeros for an IMU and a GNSS receiver.
     pub fn size(&self) -> [u32; 2] {
         match self {
             Self::Depth(d) => [d.width, d.height],
             Self::Lidar(l) => [l.channels, l.points],
-            Self::Imu(_) => [0, 0],
+            Self::Imu(_) | Self::Gnss(_) => [0, 0],
         }
     }
 
@@ -105,6 +109,16 @@ impl SensorParams {
                 0.0,
             ],
             Self::Imu(Imu) => [0.0; 8],
+            Self::Gnss(g) => [
+                g.lat_bias,
+                g.lat_stddev,
+                g.lon_bias,
+                g.lon_stddev,
+                g.alt_bias,
+                g.alt_stddev,
+                g.seed as f32,
+                0.0,
+            ],
         }
     }
 
@@ -128,6 +142,15 @@ impl SensorParams {
                 rotation_hz: p[5],
             }),
             SensorKind::Imu => Self::Imu(Imu),
+            SensorKind::Gnss => Self::Gnss(Gnss {
+                lat_bias: p[0],
+                lat_stddev: p[1],
+                lon_bias: p[2],
+                lon_stddev: p[3],
+                alt_bias: p[4],
+                alt_stddev: p[5],
+                seed: p[6] as u32,
+            }),
         }
     }
 }
@@ -147,6 +170,12 @@ impl From<Lidar> for SensorParams {
 impl From<Imu> for SensorParams {
     fn from(value: Imu) -> Self {
         Self::Imu(value)
+    }
+}
+
+impl From<Gnss> for SensorParams {
+    fn from(value: Gnss) -> Self {
+        Self::Gnss(value)
     }
 }
 
@@ -179,6 +208,14 @@ impl SensorSpec {
     pub fn depth_camera(&self) -> Option<DepthCamera> {
         match self.sensor_params()? {
             SensorParams::Depth(camera) => Some(camera),
+            _ => None,
+        }
+    }
+
+    /// The GNSS receiver's parameters, if this is one.
+    pub fn gnss_params(&self) -> Option<Gnss> {
+        match self.sensor_params()? {
+            SensorParams::Gnss(gnss) => Some(gnss),
             _ => None,
         }
     }
@@ -222,6 +259,18 @@ mod tests {
         let imu = SensorSpec::imu([1.0, 2.0, 3.0]);
         assert_eq!(imu.sensor_params(), Some(SensorParams::Imu(Imu)));
         assert_eq!(SensorSpec::with_params([1.0, 2.0, 3.0], Imu), imu);
+        let gnss = Gnss {
+            lat_stddev: 1e-6,
+            seed: 42,
+            ..Gnss::default()
+        };
+        let spec = SensorSpec::with_params([0.0; 3], gnss);
+        assert_eq!(spec.params, [0.0, 1e-6, 0.0, 0.0, 0.0, 0.0, 42.0, 0.0]);
+        assert_eq!(spec.gnss_params(), Some(gnss));
+        assert_eq!(
+            SensorSpec::gnss([0.0; 3]).gnss_params(),
+            Some(Gnss::default())
+        );
         let unknown = SensorSpec { kind: 99, ..imu };
         assert_eq!(unknown.sensor_params(), None);
     }

@@ -54,7 +54,7 @@ pub enum ConnectError {
         flag: &'static str,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}")]
+    #[error("shared-memory transport failed at {what}: {source}")]
     Transport {
         /// What was being done.
         what: &'static str,
@@ -132,7 +132,7 @@ pub enum RequestError {
         flag: &'static str,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}")]
+    #[error("shared-memory transport failed at {what}: {source}")]
     Transport {
         /// What was being done.
         what: &'static str,
@@ -229,7 +229,7 @@ pub enum WaitError {
         client: u32,
     },
     /// iceoryx2 refused an operation.
-    #[error("shared-memory transport failed at {what}")]
+    #[error("shared-memory transport failed at {what}: {source}")]
     Transport {
         /// What was being done.
         what: &'static str,

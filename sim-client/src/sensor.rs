@@ -12,9 +12,9 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use shared_types::limits::MAX_SENSOR_READERS_FLAG;
 use shared_types::{
-    ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
-    SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
-    SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
+    GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
+    SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
+    SensorSpec, SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -34,6 +34,7 @@ enum Port {
     Depth(Sub<f32>),
     Lidar(Sub<LidarPoint>),
     Imu(Sub<ImuMeasurement>),
+    Gnss(Sub<GnssMeasurement>),
 }
 
 /// One capture, borrowed from shared memory: nothing is copied until you do.
@@ -44,6 +45,8 @@ pub enum Capture {
     Lidar(Sample<Bus, [LidarPoint], SensorHeader>),
     /// An IMU reading.
     Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
+    /// A GNSS reading.
+    Gnss(Sample<Bus, [GnssMeasurement], SensorHeader>),
 }
 
 impl Capture {
@@ -53,6 +56,7 @@ impl Capture {
             Self::Depth(s) => s.user_header(),
             Self::Lidar(s) => s.user_header(),
             Self::Imu(s) => s.user_header(),
+            Self::Gnss(s) => s.user_header(),
         }
     }
 
@@ -83,12 +87,21 @@ impl Capture {
         }
     }
 
+    /// The GNSS reading, if a GNSS capture.
+    pub fn gnss(&self) -> Option<&GnssMeasurement> {
+        match self {
+            Self::Gnss(s) => s.payload().first(),
+            _ => None,
+        }
+    }
+
     /// The payload's bytes in place.
     pub fn bytes(&self) -> &[u8] {
         match self {
             Self::Depth(s) => bytemuck::cast_slice(s.payload()),
             Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
             Self::Imu(s) => bytemuck::cast_slice(s.payload()),
+            Self::Gnss(s) => bytemuck::cast_slice(s.payload()),
         }
     }
 }
@@ -169,6 +182,7 @@ impl Reader {
             Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
             Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
             Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
+            Port::Gnss(s) => s.receive().map(|c| c.map(Capture::Gnss)),
         }
         .map_err(|e| WaitError::transport("sensor receive", e))?;
         if let Some(capture) = &capture {
@@ -241,6 +255,7 @@ impl Sensor {
             Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::Gnss) => Port::Gnss(subscribe(&node, &specs, info.id, deadline)?),
             None => {
                 return Err(RequestError::UnknownAnswer {
                     status: ResponseStatus::Ok as u32,

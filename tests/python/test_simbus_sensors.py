@@ -141,6 +141,28 @@ def test_lidar_array_is_what_the_rust_client_reads(world, client, tmp_path):
     assert mine[frame] == saved.tobytes()
 
 
+def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
+    """A GNSS receiver 100 m along Z and 30 m along X of the origin, 2 m
+    up: one record (latitude, longitude, altitude), float64, over the
+    capture's memory; near the map's origin a degree is 111 274.955 m
+    (0.9996 x 6 378 137 m x pi / 180) both ways."""
+    with client.ticker(delta_seconds=0.05) as ticker:
+        gnss = client.spawn_sensor("gnss", at=(30.0, 2.0, 100.0))
+        assert gnss.kind == "gnss"
+        frame = ticker.tick()
+        with gnss.read() as capture:
+            assert (capture.frame, capture.kind) == (frame, "gnss")
+            record = capture.array
+            assert record.dtype.names == ("latitude", "longitude", "altitude")
+            assert record.shape == (1,) and record.dtype.itemsize == 24
+            assert record["latitude"][0] == pytest.approx(100.0 / 111274.955, abs=1e-7)
+            assert record["longitude"][0] == pytest.approx(30.0 / 111274.955, abs=1e-7)
+            assert record["altitude"][0] == pytest.approx(2.0, abs=1e-5)
+            del record  # a view may not outlive the capture's loan
+    with pytest.raises(ValueError, match="'depth', 'lidar', 'imu' or 'gnss'"):
+        client.spawn_sensor("radar")
+
+
 def test_arrays_have_each_kind_s_shape_and_dtype_over_the_loan(client):
     with client.ticker(delta_seconds=0.05) as ticker:
         depth = client.spawn_sensor("depth", width=32, height=24, rotation=LOOKING_DOWN)

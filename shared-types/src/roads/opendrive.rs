@@ -6,11 +6,12 @@ use std::fmt::Write;
 
 use super::{Contact, Lane, Link, Road, RoadNetwork, Segment, LANE_WIDTH, SPEED_LIMIT_KMH};
 
-/// The geographic reference of every simbus network (a transverse
-/// Mercator projection at 0°, 0°): CARLA's client warns when a map has
-/// none.
-pub const GEO_REFERENCE: &str = "+proj=tmerc +lat_0=0 +lon_0=0 +k=1 +x_0=0 +y_0=0 \
-     +datum=WGS84 +units=m +no_defs";
+/// The geographic reference of every simbus network: a transverse
+/// Mercator projection of a sphere at 0°, 0° (see [`crate::gnss`]: what
+/// CARLA 0.9.16's client computes on it is what it says). CARLA's client
+/// warns when a map has none.
+pub const GEO_REFERENCE: &str = "+proj=tmerc +lat_0=0 +lon_0=0 +k=0.9996 +x_0=0 +y_0=0 \
+     +R=6378137 +units=m +no_defs";
 
 /// The largest OpenDRIVE text [`check_opendrive`] reads, bytes.
 pub const MAX_OPENDRIVE_BYTES: usize = 64 << 20;

@@ -165,6 +165,7 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
         Capture::Depth(_) => carla::DEPTH_SENSOR_TYPE,
         Capture::Lidar(_) => carla::LIDAR_SENSOR_TYPE,
         Capture::Imu(_) => carla::IMU_SENSOR_TYPE,
+        Capture::Gnss(_) => carla::GNSS_SENSOR_TYPE,
     };
     // Room for the headers and the payload: one allocation for an image.
     let room = carla::SENSOR_HEADER_LEN + carla::IMAGE_HEADER_LEN + capture.bytes().len();
@@ -174,6 +175,7 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
         Capture::Depth(_) => depth(&mut out, capture, spec)?,
         Capture::Lidar(_) => lidar(&mut out, capture, spec)?,
         Capture::Imu(_) => imu(&mut out, capture)?,
+        Capture::Gnss(_) => gnss(&mut out, capture)?,
     }
     Some(out)
 }
@@ -237,6 +239,18 @@ fn imu(out: &mut Vec<u8>, capture: &Capture) -> Option<()> {
         vector(convert::vector(imu.accelerometer)),
         vector(gyro),
         Value::F32(convert::compass(capture.header().rotation)),
+    ]);
+    rmpv::encode::write_value(out, &payload).ok()
+}
+
+/// A GNSS capture as `carla.GnssMeasurement`'s payload (msgpack):
+/// CARLA's `GeoLocation`, latitude, longitude and altitude as doubles.
+fn gnss(out: &mut Vec<u8>, capture: &Capture) -> Option<()> {
+    let g = capture.gnss()?;
+    let payload = Value::Array(vec![
+        Value::F64(g.latitude),
+        Value::F64(g.longitude),
+        Value::F64(g.altitude),
     ]);
     rmpv::encode::write_value(out, &payload).ok()
 }

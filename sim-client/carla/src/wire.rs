@@ -24,6 +24,8 @@ pub const WORLD_STATE_SENSOR_TYPE: u64 = 17;
 pub const WORLD_STREAM_ID: u32 = 1;
 /// The sensor type id of a depth camera's `carla.Image`.
 pub const DEPTH_SENSOR_TYPE: u64 = 1;
+/// The sensor type id of a GNSS receiver's `carla.GnssMeasurement`.
+pub const GNSS_SENSOR_TYPE: u64 = 4;
 /// The sensor type id of an IMU's `carla.IMUMeasurement`.
 pub const IMU_SENSOR_TYPE: u64 = 5;
 /// The sensor type id of a ray-cast lidar's `carla.LidarMeasurement`.

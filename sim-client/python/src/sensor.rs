@@ -88,7 +88,7 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     use SensorKind as Kind;
     let Some(kind) = Kind::from_name(kind) else {
         return Err(PyValueError::new_err(format!(
-            "unknown sensor kind {kind:?}: expected 'depth', 'lidar' or 'imu'"
+            "unknown sensor kind {kind:?}: expected 'depth', 'lidar', 'imu' or 'gnss'"
         )));
     };
     let given: [(&str, bool, &[Kind]); 9] = [
@@ -139,6 +139,7 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
             },
         ),
         Kind::Imu => SensorSpec::imu(at),
+        Kind::Gnss => SensorSpec::gnss(at),
     };
     spec.rotation = p.rotation.unwrap_or_default().map(|v| v as f32);
     Ok(spec.attached_to(p.parent.unwrap_or(0)).every(p.sensor_tick))
@@ -164,7 +165,7 @@ struct SpawnParams {
 #[pymethods]
 impl Client {
     /// Builds a sensor and subscribes to it: `kind` is `"depth"`,
-    /// `"lidar"` or `"imu"`. It rides on actor `parent` (and dies with it)
+    /// `"lidar"`, `"imu"` or `"gnss"` (without noise). It rides on actor `parent` (and dies with it)
     /// or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
@@ -257,7 +258,7 @@ impl Client {
 pub(crate) struct SensorInfo {
     /// The sensor's id.
     id: u64,
-    /// `"depth"`, `"lidar"` or `"imu"`.
+    /// `"depth"`, `"lidar"`, `"imu"` or `"gnss"`.
     kind: &'static str,
     /// The actor it rides on, or `None` when fixed in the world.
     parent: Option<u64>,
@@ -386,7 +387,7 @@ impl Sensor {
         self.id
     }
 
-    /// `"depth"`, `"lidar"` or `"imu"`.
+    /// `"depth"`, `"lidar"`, `"imu"` or `"gnss"`.
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.kind)

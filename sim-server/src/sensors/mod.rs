@@ -8,6 +8,7 @@
 mod camera;
 mod capture;
 mod culling;
+mod gnss;
 mod renderer;
 
 pub use renderer::RenderThreadsError;
@@ -40,9 +41,9 @@ use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    seconds_to_nanos, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
-    SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
-    SensorSpec, PROTOCOL_VERSION,
+    seconds_to_nanos, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd,
+    SensorHeader, SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind,
+    SensorResponseHeader, SensorSpec, PROTOCOL_VERSION,
 };
 use simbus_recording::RecordedSensor;
 use simbus_transport::Bus;
@@ -62,6 +63,7 @@ enum SensorPort {
     Depth(Port<f32>),
     Lidar(Port<LidarPoint>),
     Imu(Port<ImuMeasurement>),
+    Gnss(Port<GnssMeasurement>),
 }
 
 /// One sensor.
@@ -77,6 +79,8 @@ struct Sensor {
     lidar_column: usize,
     /// Lidar: its ray directions, computed once.
     lidar_rays: capture::LidarRays,
+    /// GNSS: its error generator.
+    gnss_noise: gnss::GnssNoise,
     captures: u64,
 }
 
@@ -230,6 +234,7 @@ impl Sensors {
             SensorKind::Depth => open_port(transport, id, elements, limits).map(SensorPort::Depth),
             SensorKind::Lidar => open_port(transport, id, elements, limits).map(SensorPort::Lidar),
             SensorKind::Imu => open_port(transport, id, 1, limits).map(SensorPort::Imu),
+            SensorKind::Gnss => open_port(transport, id, 1, limits).map(SensorPort::Gnss),
         };
         let port = match port {
             Ok(port) => port,
@@ -259,6 +264,7 @@ impl Sensors {
             } else {
                 capture::LidarRays::default()
             },
+            gnss_noise: gnss::GnssNoise::new(spec.gnss_params().map_or(0, |g| g.seed)),
             captures: 0,
         };
         let info = sensor.info();
@@ -415,6 +421,18 @@ impl Sensors {
                         }
                     })
                 },
+                // SAFETY: a GNSS capture has one slot, written here.
+                SensorPort::Gnss(port) => unsafe {
+                    let params = sensor.spec.gnss_params().unwrap_or_default();
+                    let noise = &mut sensor.gnss_noise;
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
+                        header.count = 1;
+                        header.size = [1, 1];
+                        for slot in slots.iter_mut() {
+                            slot.write(gnss::reading(&params, pose, noise));
+                        }
+                    })
+                },
             };
             // A lost capture shows as a gap in the sequence; the world goes on.
             if let Err(e) = published {
@@ -440,6 +458,7 @@ impl Sensor {
             SensorPort::Depth(port) => send_end(port, header),
             SensorPort::Lidar(port) => send_end(port, header),
             SensorPort::Imu(port) => send_end(port, header),
+            SensorPort::Gnss(port) => send_end(port, header),
         };
         if let Err(e) = sent {
             warn!(

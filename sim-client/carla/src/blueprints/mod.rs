@@ -12,7 +12,8 @@ pub(crate) use library::{library, scene_description, spawned_extent, vehicle_bui
 use std::collections::HashMap;
 
 use rmpv::Value;
-use shared_types::{Command, SensorSpec};
+use shared_types::gnss::MAX_GNSS_SEED;
+use shared_types::{Command, Gnss, SensorSpec, SensorSpecError};
 
 use crate::convert;
 use crate::error::BlueprintError;
@@ -140,6 +141,22 @@ const LIBRARY: &[Blueprint] = &[
             float("dropoff_intensity_limit", "0.0"),
             float("dropoff_zero_intensity", "0.0"),
             float("atmosphere_attenuation_rate", "0.0"),
+        ],
+    },
+    Blueprint {
+        uid: 10,
+        id: "sensor.other.gnss",
+        tags: "sensor,other,gnss",
+        attributes: &[
+            ROLE_NAME,
+            float("sensor_tick", "0.0"),
+            float("noise_alt_bias", "0.0"),
+            float("noise_alt_stddev", "0.0"),
+            float("noise_lat_bias", "0.0"),
+            float("noise_lat_stddev", "0.0"),
+            float("noise_lon_bias", "0.0"),
+            float("noise_lon_stddev", "0.0"),
+            int("noise_seed", "0"),
         ],
     },
     Blueprint {
@@ -344,6 +361,7 @@ impl Description {
             }
             "sensor.lidar.ray_cast" => self.lidar(position, rotation),
             "sensor.other.lane_invasion" => Ok(Spawn::ClientSide(position, rotation)),
+            "sensor.other.gnss" => self.gnss(position, rotation),
             _ => {
                 self.zero(&[
                     "noise_accel_stddev_x",
@@ -393,6 +411,27 @@ impl Description {
         self.sensor(spec, rotation)
     }
 
+    /// A GNSS receiver: CARLA's noise attributes as simbus's.
+    fn gnss(&self, position: [f32; 3], rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
+        let seed = self.number("noise_seed")?;
+        if !(0.0..=MAX_GNSS_SEED as f32).contains(&seed) || seed.fract() != 0.0 {
+            return Err(BlueprintError::Sensor {
+                blueprint: self.id.clone(),
+                source: SensorSpecError::GnssNoise,
+            });
+        }
+        let gnss = Gnss {
+            lat_bias: self.number("noise_lat_bias")?,
+            lat_stddev: self.number("noise_lat_stddev")?,
+            lon_bias: self.number("noise_lon_bias")?,
+            lon_stddev: self.number("noise_lon_stddev")?,
+            alt_bias: self.number("noise_alt_bias")?,
+            alt_stddev: self.number("noise_alt_stddev")?,
+            seed: seed as u32,
+        };
+        self.sensor(SensorSpec::with_params(position, gnss), rotation)
+    }
+
     fn sensor(&self, spec: SensorSpec, rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
         let tick = self.number("sensor_tick")?;
         let spec = SensorSpec { rotation, ..spec }.every(f64::from(tick));
@@ -405,150 +444,4 @@ impl Description {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::library::definitions;
-    use super::*;
-
-    fn description(id: &str, attributes: &[(&str, &str)]) -> Value {
-        Value::Array(vec![
-            Value::from(0u32),
-            Value::from(id),
-            Value::Array(
-                attributes
-                    .iter()
-                    .map(|(k, v)| {
-                        Value::Array(vec![Value::from(*k), Value::from(3u8), Value::from(*v)])
-                    })
-                    .collect(),
-            ),
-        ])
-    }
-
-    #[test]
-    fn every_blueprint_spawns_with_its_defaults() {
-        for bp in LIBRARY {
-            let d = Description::parse(&description(bp.id, &[])).expect(bp.id);
-            d.spawn(&CarlaTransform::default()).expect(bp.id);
-        }
-    }
-
-    #[test]
-    fn every_catalog_vehicle_has_carlas_attributes_and_spawns_at_its_size() {
-        let ids: std::collections::HashSet<&str> =
-            definitions().iter().map(|d| d.id.as_str()).collect();
-        assert_eq!(ids.len(), definitions().len(), "ids are unique");
-        for v in catalog::VEHICLES {
-            let d = definition(v.id).expect(v.id);
-            for name in [
-                "base_type",
-                "number_of_wheels",
-                "generation",
-                "object_type",
-                "special_type",
-                "has_dynamic_doors",
-                "has_lights",
-                "role_name",
-                "sticky_control",
-                "terramechanics",
-            ] {
-                assert!(d.attributes.iter().any(|a| a.id == name), "{} {name}", v.id);
-            }
-            let parsed = Description::parse(&description(v.id, &[])).unwrap();
-            let Spawn::Body(command) = parsed.spawn(&CarlaTransform::default()).unwrap() else {
-                panic!("{} is not a body", v.id);
-            };
-            let spec = shared_types::VehicleSpec::from_params(command.params).expect(v.id);
-            assert_eq!(spec.half_extents, convert::vector(v.extent), "{}", v.id);
-            assert_eq!(spec.mass, v.mass);
-            // Lifted so it stands on the ground below the location.
-            assert_eq!(command.vector[1], spec.half_extents[1]);
-        }
-    }
-
-    #[test]
-    fn walkers_are_listed_and_refused_at_spawn() {
-        for id in [
-            "walker.pedestrian.0001",
-            "walker.pedestrian.0051",
-            "controller.ai.walker",
-        ] {
-            let d = Description::parse(&description(id, &[])).expect(id);
-            let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
-            assert_eq!(e, format!("walkers are not supported ({id})"));
-        }
-        let generation = |id: &str| {
-            let d = definition(id).unwrap();
-            d.attributes
-                .iter()
-                .find(|a| a.id == "generation")
-                .unwrap()
-                .value
-                .clone()
-        };
-        assert_eq!(generation("walker.pedestrian.0030"), "2");
-    }
-
-    #[test]
-    fn scene_actors_report_an_empty_role_name_and_fixed_attributes() {
-        let d = scene_description(5, "vehicle.simbus.car");
-        let attributes = d.as_array().unwrap()[2].as_array().unwrap().clone();
-        let get = |name: &str| {
-            attributes
-                .iter()
-                .find(|a| a.as_array().unwrap()[0].as_str() == Some(name))
-                .map(|a| a.as_array().unwrap()[2].as_str().unwrap().to_string())
-        };
-        assert_eq!(get("role_name").as_deref(), Some(""));
-        assert_eq!(get("number_of_wheels").as_deref(), Some("4"));
-        let ground = scene_description(1, "static.prop.fixed");
-        assert_eq!(ground.as_array().unwrap()[2].as_array().unwrap().len(), 1);
-    }
-
-    #[test]
-    fn a_lidar_gets_carlas_points_per_turn_and_spin() {
-        let d = Description::parse(&description(
-            "sensor.lidar.ray_cast",
-            &[
-                ("channels", "16"),
-                ("points_per_second", "160000"),
-                ("rotation_frequency", "20"),
-            ],
-        ))
-        .unwrap();
-        let Spawn::Sensor(spec) = d.spawn(&CarlaTransform::default()).unwrap() else {
-            panic!("not a sensor");
-        };
-        let lidar = spec.lidar_params().expect("a lidar");
-        assert_eq!(lidar.channels, 16);
-        assert_eq!(lidar.points, 500);
-        assert_eq!(lidar.rotation_hz, 20.0);
-    }
-
-    #[test]
-    fn unknown_blueprints_bad_numbers_and_noise_are_refused_by_name() {
-        let e = Description::parse(&description("vehicle.tesla.roadster", &[]))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("vehicle.tesla.roadster") && e.contains("static.prop.box"),
-            "{e}"
-        );
-        let d =
-            Description::parse(&description("static.prop.sphere", &[("radius", "big")])).unwrap();
-        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
-        assert!(e.contains("radius"), "{e}");
-        let d = Description::parse(&description(
-            "sensor.lidar.ray_cast",
-            &[("noise_stddev", "0.1")],
-        ))
-        .unwrap();
-        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
-        assert!(e.contains("noise_stddev"), "{e}");
-        let d = Description::parse(&description(
-            "sensor.camera.depth",
-            &[("image_size_x", "100000")],
-        ))
-        .unwrap();
-        assert!(d.spawn(&CarlaTransform::default()).is_err());
-    }
-}
+mod tests;

@@ -5,7 +5,8 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
 use shared_types::{
-    DepthCamera, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError, WorldName,
+    DepthCamera, GnssMeasurement, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError,
+    WorldName,
 };
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
 use simbus_input as input;
@@ -43,7 +44,7 @@ enum SensorCommand {
 /// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
 #[derive(Debug, Args)]
 struct SpawnArgs {
-    /// depth, lidar or imu.
+    /// depth, lidar, imu or gnss.
     kind: String,
     /// Actor to ride on (default: fixed in the world). The sensor is
     /// destroyed with it.
@@ -101,6 +102,18 @@ struct SpawnArgs {
     /// turn (0: a full turn every capture; at most 1e6) [default: 0].
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rotation_frequency)]
     rotation_frequency: Option<f32>,
+    /// GNSS: standard deviations of the normal errors added to latitude,
+    /// longitude (degrees) and altitude (metres), each >= 0 [default: 0,0,0].
+    #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
+    noise_stddev: Option<String>,
+    /// GNSS: biases added to latitude, longitude (degrees) and altitude
+    /// (metres) [default: 0,0,0].
+    #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
+    noise_bias: Option<String>,
+    /// GNSS: the errors' seed, 0..=16777216 (the same seed, the same errors)
+    /// [default: 0].
+    #[arg(long, value_name = "N")]
+    noise_seed: Option<u32>,
     /// Print {"id": N, ...}.
     #[arg(long)]
     json: bool,
@@ -222,12 +235,12 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
 
 /// The spec `a` describes, checked.
 fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
-    use SensorKind::{Depth, Lidar};
+    use SensorKind::{Depth, Gnss, Lidar};
     let at = super::numbers::<3>(&a.at, "--at")?;
     let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
     let Some(kind) = SensorKind::from_name(&a.kind) else {
         return Err(Failure::Refused(anyhow!(
-            "unknown sensor kind '{}': expected depth, lidar or imu",
+            "unknown sensor kind '{}': expected depth, lidar, imu or gnss",
             a.kind
         )));
     };
@@ -245,6 +258,9 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
                 a.rotation_frequency.is_some(),
                 &[Lidar],
             ),
+            ("--noise-stddev", a.noise_stddev.is_some(), &[Gnss]),
+            ("--noise-bias", a.noise_bias.is_some(), &[Gnss]),
+            ("--noise-seed", a.noise_seed.is_some(), &[Gnss]),
         ],
     )?;
     // The depth size as typed: the spec holds it as whole pixels, so a
@@ -278,6 +294,7 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             .rotating(a.rotation_frequency.unwrap_or(0.0))
         }
         SensorKind::Imu => SensorSpec::imu(at),
+        SensorKind::Gnss => SensorSpec::with_params(at, gnss_params(a)?),
     }
     .attached_to(a.attach)
     .every(a.sensor_tick);
@@ -285,6 +302,31 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     check_depth_size(&spec, typed_size)
         .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;
     Ok(spec)
+}
+
+/// A GNSS receiver's noise as `--noise-stddev`, `--noise-bias` and
+/// `--noise-seed` give it (checked with the rest of the spec).
+fn gnss_params(a: &SpawnArgs) -> Result<shared_types::Gnss, Failure> {
+    let three =
+        |text: &Option<String>, flag| super::numbers::<3>(text.as_deref().unwrap_or("0,0,0"), flag);
+    let [lat_stddev, lon_stddev, alt_stddev] = three(&a.noise_stddev, "--noise-stddev")?;
+    let [lat_bias, lon_bias, alt_bias] = three(&a.noise_bias, "--noise-bias")?;
+    let seed = a.noise_seed.unwrap_or(0);
+    if seed > shared_types::gnss::MAX_GNSS_SEED {
+        return Err(Failure::Refused(anyhow!(
+            "invalid gnss sensor: {}",
+            SensorSpecError::GnssNoise
+        )));
+    }
+    Ok(shared_types::Gnss {
+        lat_bias,
+        lat_stddev,
+        lon_bias,
+        lon_stddev,
+        alt_bias,
+        alt_stddev,
+        seed,
+    })
 }
 
 /// [`SensorSpec::check`], with a depth camera's size as typed (`size`):
@@ -344,7 +386,20 @@ fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
         object.insert("gyroscope".into(), imu.gyroscope.into());
         object.insert("compass".into(), compass(h.rotation).into());
     }
+    if let (Some(gnss), Some(object)) = (capture.gnss(), json.as_object_mut()) {
+        object.insert("latitude".into(), gnss.latitude.into());
+        object.insert("longitude".into(), gnss.longitude.into());
+        object.insert("altitude".into(), gnss.altitude.into());
+    }
     json
+}
+
+/// A GNSS reading as one readable phrase.
+fn gnss_text(gnss: &GnssMeasurement) -> String {
+    format!(
+        "latitude {:.9}°  longitude {:.9}°  altitude {:.3} m",
+        gnss.latitude, gnss.longitude, gnss.altitude
+    )
 }
 
 /// An IMU's readings as one readable phrase.
@@ -366,6 +421,7 @@ fn print_capture(capture: &Capture, missed: u64, json: bool) {
         let readings = capture
             .imu()
             .map(|imu| format!("  {}", imu_text(imu, h.rotation)))
+            .or_else(|| capture.gnss().map(|g| format!("  {}", gnss_text(g))))
             .unwrap_or_default();
         println!(
             "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {}  {}{readings}",
@@ -471,6 +527,12 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
                 path.display(),
                 imu_text(imu, h.rotation)
             );
+        } else if let Some(gnss) = capture.gnss() {
+            let path = stem.with_extension("json");
+            let mut text = capture_json(&capture, sensor.missed()).to_string();
+            text.push('\n');
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+            println!("wrote {} (gnss: {})", path.display(), gnss_text(gnss));
         }
     }
     Ok(())

@@ -230,7 +230,7 @@ class Client:
         lower_fov: Optional[float] = None,
         rotation_frequency: Optional[float] = None,
     ) -> Sensor:
-        """Spawns a "depth", "lidar" or "imu" sensor and opens a reader of it."""
+        """Spawns a "depth", "lidar", "imu" or "gnss" sensor and opens a reader of it."""
     def sensor(self, id: int) -> Sensor:
         """Opens a reader of an existing sensor."""
     def list_sensors(self) -> List[SensorInfo]: ...
@@ -431,7 +431,8 @@ class Capture:
     @property
     def array(self) -> npt.NDArray[np.generic]:
         """Read-only, over shared memory: depth float32 (H, W), lidar float32
-        (N, 4), IMU one record (accelerometer, gyroscope)."""
+        (N, 4), IMU one record (accelerometer, gyroscope), GNSS one record
+        (latitude, longitude, altitude; float64)."""
     def copy(self) -> Capture: ...
     def release(self) -> None: ...
     def __enter__(self) -> Capture: ...

@@ -8,7 +8,7 @@ use std::thread::ThreadId;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PySlice, PyString, PyTuple};
-use shared_types::{ImuMeasurement, LidarPoint, SensorHeader, SensorKind};
+use shared_types::{GnssMeasurement, ImuMeasurement, LidarPoint, SensorHeader, SensorKind};
 
 use super::kind_name;
 use crate::errors::raise;
@@ -32,6 +32,21 @@ fn imu_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
                 ),
             ];
             structured_dtype(py, &fields, size_of::<ImuMeasurement>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// A GNSS capture's dtype: the wire layout of [`GnssMeasurement`].
+fn gnss_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                ("latitude", "<f8", offset_of!(GnssMeasurement, latitude)),
+                ("longitude", "<f8", offset_of!(GnssMeasurement, longitude)),
+                ("altitude", "<f8", offset_of!(GnssMeasurement, altitude)),
+            ];
+            structured_dtype(py, &fields, size_of::<GnssMeasurement>()).map(Bound::unbind)
         })
         .map(|dtype| dtype.bind(py))
 }
@@ -162,7 +177,7 @@ impl Capture {
         self.header.sensor_id
     }
 
-    /// `"depth"`, `"lidar"` or `"imu"`.
+    /// `"depth"`, `"lidar"`, `"imu"` or `"gnss"`.
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.header.kind)
@@ -229,6 +244,9 @@ impl Capture {
                 };
                 let n = (self.header.count as usize).min(slots);
                 self.typed(loan, &f4, size_of::<f32>(), &[n, 4])
+            }
+            Some(SensorKind::Gnss) => {
+                self.typed(loan, gnss_dtype(py)?, size_of::<GnssMeasurement>(), &[1])
             }
             _ => self.typed(loan, imu_dtype(py)?, size_of::<ImuMeasurement>(), &[1]),
         }

@@ -16,9 +16,9 @@ use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
-    ControlResponse, FrameHeader, ImuMeasurement, LidarPoint, LockstepRequest, LockstepResponse,
-    RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
+    ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint, LockstepRequest,
+    LockstepResponse, RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind,
+    SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -262,6 +262,7 @@ enum SensorPort {
     Depth(Publisher<Bus, [f32], SensorHeader>),
     Lidar(Publisher<Bus, [LidarPoint], SensorHeader>),
     Imu(Publisher<Bus, [ImuMeasurement], SensorHeader>),
+    Gnss(Publisher<Bus, [GnssMeasurement], SensorHeader>),
 }
 
 /// The sensors' publishers here, created when a sensor is first listed or
@@ -342,6 +343,9 @@ impl SensorPorts {
             Some(SensorKind::Imu) => {
                 SensorPort::Imu(sensor_publisher(node, names, id, elements, limits)?)
             }
+            Some(SensorKind::Gnss) => {
+                SensorPort::Gnss(sensor_publisher(node, names, id, elements, limits)?)
+            }
             None => return Err(LocalError::UnknownSensorKind(kind)),
         };
         self.ports.insert(id, port);
@@ -364,6 +368,7 @@ impl SensorPorts {
             SensorPort::Depth(p) => publish(p, header, payload),
             SensorPort::Lidar(p) => publish(p, header, payload),
             SensorPort::Imu(p) => publish(p, header, payload),
+            SensorPort::Gnss(p) => publish(p, header, payload),
         };
         if header.end().is_some() {
             self.ports.remove(&id);

@@ -1,0 +1,145 @@
+//! The blueprints' tests.
+use super::library::definitions;
+use super::*;
+
+fn description(id: &str, attributes: &[(&str, &str)]) -> Value {
+    Value::Array(vec![
+        Value::from(0u32),
+        Value::from(id),
+        Value::Array(
+            attributes
+                .iter()
+                .map(|(k, v)| {
+                    Value::Array(vec![Value::from(*k), Value::from(3u8), Value::from(*v)])
+                })
+                .collect(),
+        ),
+    ])
+}
+
+#[test]
+fn every_blueprint_spawns_with_its_defaults() {
+    for bp in LIBRARY {
+        let d = Description::parse(&description(bp.id, &[])).expect(bp.id);
+        d.spawn(&CarlaTransform::default()).expect(bp.id);
+    }
+}
+
+#[test]
+fn every_catalog_vehicle_has_carlas_attributes_and_spawns_at_its_size() {
+    let ids: std::collections::HashSet<&str> =
+        definitions().iter().map(|d| d.id.as_str()).collect();
+    assert_eq!(ids.len(), definitions().len(), "ids are unique");
+    for v in catalog::VEHICLES {
+        let d = definition(v.id).expect(v.id);
+        for name in [
+            "base_type",
+            "number_of_wheels",
+            "generation",
+            "object_type",
+            "special_type",
+            "has_dynamic_doors",
+            "has_lights",
+            "role_name",
+            "sticky_control",
+            "terramechanics",
+        ] {
+            assert!(d.attributes.iter().any(|a| a.id == name), "{} {name}", v.id);
+        }
+        let parsed = Description::parse(&description(v.id, &[])).unwrap();
+        let Spawn::Body(command) = parsed.spawn(&CarlaTransform::default()).unwrap() else {
+            panic!("{} is not a body", v.id);
+        };
+        let spec = shared_types::VehicleSpec::from_params(command.params).expect(v.id);
+        assert_eq!(spec.half_extents, convert::vector(v.extent), "{}", v.id);
+        assert_eq!(spec.mass, v.mass);
+        // Lifted so it stands on the ground below the location.
+        assert_eq!(command.vector[1], spec.half_extents[1]);
+    }
+}
+
+#[test]
+fn walkers_are_listed_and_refused_at_spawn() {
+    for id in [
+        "walker.pedestrian.0001",
+        "walker.pedestrian.0051",
+        "controller.ai.walker",
+    ] {
+        let d = Description::parse(&description(id, &[])).expect(id);
+        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+        assert_eq!(e, format!("walkers are not supported ({id})"));
+    }
+    let generation = |id: &str| {
+        let d = definition(id).unwrap();
+        d.attributes
+            .iter()
+            .find(|a| a.id == "generation")
+            .unwrap()
+            .value
+            .clone()
+    };
+    assert_eq!(generation("walker.pedestrian.0030"), "2");
+}
+
+#[test]
+fn scene_actors_report_an_empty_role_name_and_fixed_attributes() {
+    let d = scene_description(5, "vehicle.simbus.car");
+    let attributes = d.as_array().unwrap()[2].as_array().unwrap().clone();
+    let get = |name: &str| {
+        attributes
+            .iter()
+            .find(|a| a.as_array().unwrap()[0].as_str() == Some(name))
+            .map(|a| a.as_array().unwrap()[2].as_str().unwrap().to_string())
+    };
+    assert_eq!(get("role_name").as_deref(), Some(""));
+    assert_eq!(get("number_of_wheels").as_deref(), Some("4"));
+    let ground = scene_description(1, "static.prop.fixed");
+    assert_eq!(ground.as_array().unwrap()[2].as_array().unwrap().len(), 1);
+}
+
+#[test]
+fn a_lidar_gets_carlas_points_per_turn_and_spin() {
+    let d = Description::parse(&description(
+        "sensor.lidar.ray_cast",
+        &[
+            ("channels", "16"),
+            ("points_per_second", "160000"),
+            ("rotation_frequency", "20"),
+        ],
+    ))
+    .unwrap();
+    let Spawn::Sensor(spec) = d.spawn(&CarlaTransform::default()).unwrap() else {
+        panic!("not a sensor");
+    };
+    let lidar = spec.lidar_params().expect("a lidar");
+    assert_eq!(lidar.channels, 16);
+    assert_eq!(lidar.points, 500);
+    assert_eq!(lidar.rotation_hz, 20.0);
+}
+
+#[test]
+fn unknown_blueprints_bad_numbers_and_noise_are_refused_by_name() {
+    let e = Description::parse(&description("vehicle.tesla.roadster", &[]))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("vehicle.tesla.roadster") && e.contains("static.prop.box"),
+        "{e}"
+    );
+    let d = Description::parse(&description("static.prop.sphere", &[("radius", "big")])).unwrap();
+    let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+    assert!(e.contains("radius"), "{e}");
+    let d = Description::parse(&description(
+        "sensor.lidar.ray_cast",
+        &[("noise_stddev", "0.1")],
+    ))
+    .unwrap();
+    let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
+    assert!(e.contains("noise_stddev"), "{e}");
+    let d = Description::parse(&description(
+        "sensor.camera.depth",
+        &[("image_size_x", "100000")],
+    ))
+    .unwrap();
+    assert!(d.spawn(&CarlaTransform::default()).is_err());
+}

@@ -8,7 +8,7 @@ as a pose-only actor on its parent; simbus has no sensor behind it."""
 import carla
 import pytest
 
-from test_carla_actors_sensors import sync
+from test_carla_actors_sensors import Raw, sync
 
 TOWN = [["--scene", "town"]]
 
@@ -74,6 +74,14 @@ def test_a_lane_sensor_goes_with_its_car_and_attaches_to_no_sensor(gateway):
     library = world.get_blueprint_library()
     with pytest.raises(RuntimeError, match="sensor"):
         world.spawn_actor(library.find("sensor.other.lane_invasion"), carla.Transform(), attach_to=sensor)
+    # An actor the world does not have: refused, nothing spawned.
+    before = len(world.get_actors())
+    raw = Raw(gateway.port)
+    answer = raw.call("spawn_actor_with_parent", [9, "sensor.other.lane_invasion", []],
+                      [[0, 0, 0], [0, 0, 0]], 987654, 0)
+    assert "987654" in str(answer), answer
+    world.tick()
+    assert len(world.get_actors()) == before
     sensor.stop()
     assert car.destroy()
     world.tick()

@@ -308,6 +308,10 @@ impl Session {
         if sensors::is_sensor(parent) {
             return Err(CallError::SensorOnSensor(parent));
         }
+        // simbus checks a simbus sensor's parent; this one is the gateway's.
+        if parent != 0 && !lock(&self.hub.actors).contains_key(&parent) {
+            return Err(CallError::UnknownActor(parent));
+        }
         let spec = shared_types::SensorSpec {
             position,
             rotation,

@@ -159,8 +159,10 @@ def test_check_collisions_substepping_walker_scenario_is_refused_clearly(gateway
     walker = library.find(walker_id)
     assert walker.has_attribute("generation")
     car = world.spawn_actor(library.filter(car_filter)[0], transform(*car_at))
+    world.wait_for_tick()  # a world state the client has read holds the car
     before = sorted(a.id for a in world.get_actors())
     with pytest.raises(RuntimeError, match=r"walkers are not supported \(walker\.pedestrian\.0007\)"):
         world.spawn_actor(walker, transform(*walker_at))
+    world.wait_for_tick()
     assert sorted(a.id for a in world.get_actors()) == before
     assert car.id in before

@@ -122,7 +122,11 @@ fn bad_noise_is_refused_before_anything_is_spawned() {
     );
     let out = world.cli(&["sensor", "spawn", "gnss", "--noise-stddev", "0,-1,0"]);
     out.assert_code(2);
-    assert!(out.stderr.contains("deviations finite and >= 0"), "{out}");
+    assert!(
+        out.stderr
+            .contains("--noise-stddev takes standard deviations >= 0"),
+        "{out}"
+    );
     let out = world.cli(&["sensor", "spawn", "depth", "--noise-seed", "3"]);
     out.assert_code(2);
     assert!(

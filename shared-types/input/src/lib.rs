@@ -35,6 +35,7 @@ mod error;
 pub use error::InputError;
 /// The sensor limits a spec's check enforces, re-exported where the flags
 /// that set them are parsed (one definition, in [`shared_types::SensorSpec`]'s module).
+pub use shared_types::gnss::MAX_GNSS_SEED;
 pub use shared_types::{Exact, Readable, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS};
 
 /// The highest rate any flag accepts (`--rate`, `--max-fps`, `--max-hz`,
@@ -361,6 +362,11 @@ pub fn lidar_channels(text: &str) -> Result<u32, InputError> {
 /// A lidar's points per channel: `1..=`[`MAX_LIDAR_POINTS`].
 pub fn lidar_points(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_LIDAR_POINTS)).map(|n| n as u32)
+}
+
+/// A GNSS receiver's noise seed: `0..=`[`MAX_GNSS_SEED`].
+pub fn gnss_seed(text: &str) -> Result<u32, InputError> {
+    whole_in(text, 0..=u64::from(MAX_GNSS_SEED)).map(|n| n as u32)
 }
 
 /// A lidar's rotation frequency: 0 (a full turn every capture) up to

@@ -112,7 +112,7 @@ struct SpawnArgs {
     noise_bias: Option<String>,
     /// GNSS: the errors' seed, 0..=16777216 (the same seed, the same errors)
     /// [default: 0].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::gnss_seed)]
     noise_seed: Option<u32>,
     /// Print {"id": N, ...}.
     #[arg(long)]
@@ -310,14 +310,17 @@ fn gnss_params(a: &SpawnArgs) -> Result<shared_types::Gnss, Failure> {
     let three =
         |text: &Option<String>, flag| super::numbers::<3>(text.as_deref().unwrap_or("0,0,0"), flag);
     let [lat_stddev, lon_stddev, alt_stddev] = three(&a.noise_stddev, "--noise-stddev")?;
-    let [lat_bias, lon_bias, alt_bias] = three(&a.noise_bias, "--noise-bias")?;
-    let seed = a.noise_seed.unwrap_or(0);
-    if seed > shared_types::gnss::MAX_GNSS_SEED {
+    if [lat_stddev, lon_stddev, alt_stddev]
+        .iter()
+        .any(|d| *d < 0.0)
+    {
         return Err(Failure::Refused(anyhow!(
-            "invalid gnss sensor: {}",
-            SensorSpecError::GnssNoise
+            "--noise-stddev takes standard deviations >= 0, got '{}'",
+            a.noise_stddev.as_deref().unwrap_or_default()
         )));
     }
+    let [lat_bias, lon_bias, alt_bias] = three(&a.noise_bias, "--noise-bias")?;
+    let seed = a.noise_seed.unwrap_or(0);
     Ok(shared_types::Gnss {
         lat_bias,
         lat_stddev,

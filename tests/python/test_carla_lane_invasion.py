@@ -13,10 +13,13 @@ from test_carla_actors_sensors import Raw, sync
 TOWN = [["--scene", "town"]]
 
 
-def car_with_lane_sensor(world):
-    """A model3 held still (no physics) on the town's first spawn point,
-    with a listening lane-invasion sensor; returns (car, sensor, the spawn
-    point's waypoint, the events heard)."""
+def car_with_lane_sensor(gateway):
+    """The gateway's world, synchronous, and in it a model3 held still (no
+    physics) on the town's first spawn point with a listening
+    lane-invasion sensor; returns (world, car, sensor, the spawn point, its
+    waypoint, the events heard)."""
+    world = gateway.client().get_world()
+    sync(world)
     town = world.get_map()
     library = world.get_blueprint_library()
     at = town.get_spawn_points()[0]
@@ -26,15 +29,12 @@ def car_with_lane_sensor(world):
     events = []
     sensor.listen(events.append)
     world.tick()
-    return car, sensor, at, town.get_waypoint(at.location), events
+    return world, car, sensor, at, town.get_waypoint(at.location), events
 
 
 @pytest.mark.parametrize("gateway", TOWN, indirect=True)
 def test_crossing_the_centre_mark_fires_once_with_its_type(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    car, sensor, start, lane, events = car_with_lane_sensor(world)
+    world, car, sensor, start, lane, events = car_with_lane_sensor(gateway)
     assert isinstance(sensor, carla.LaneInvasionSensor)
     assert sensor.type_id == "sensor.other.lane_invasion" and sensor.parent.id == car.id
     assert sensor.is_alive
@@ -67,10 +67,7 @@ def test_crossing_the_centre_mark_fires_once_with_its_type(gateway):
 
 @pytest.mark.parametrize("gateway", TOWN, indirect=True)
 def test_a_lane_sensor_goes_with_its_car_and_attaches_to_no_sensor(gateway):
-    client = gateway.client()
-    world = client.get_world()
-    sync(world)
-    car, sensor, _, _, _ = car_with_lane_sensor(world)
+    world, car, sensor, _, _, _ = car_with_lane_sensor(gateway)
     library = world.get_blueprint_library()
     with pytest.raises(RuntimeError, match="sensor"):
         world.spawn_actor(library.find("sensor.other.lane_invasion"), carla.Transform(), attach_to=sensor)

@@ -225,6 +225,27 @@ def test_actors_spawn_move_and_are_destroyed(gateway):
     assert not [a for a in world.get_actors() if a.id in (actor.id, car.id)]
 
 
+def test_carlas_no_drop_off_lidar_recipe_is_accepted_and_a_drop_off_refused(gateway):
+    """CARLA's documented way to keep every lidar point (general rate 0,
+    intensity limit 1, nothing dropped at zero intensity) spawns simbus's
+    exact lidar; a drop-off that would drop points is refused, naming it."""
+    client, world, library = synced(gateway)
+    recipe = dict(dropoff_general_rate=0.0, dropoff_intensity_limit=1.0, dropoff_zero_intensity=0.0,
+                  channels=4, points_per_second=4000)
+    lidar = world.spawn_actor(blueprint(library, "sensor.lidar.ray_cast", **recipe),
+                              carla.Transform(carla.Location(z=2.0)))
+    scans = queue.Queue()
+    lidar.listen(scans.put)
+    frame = world.tick()
+    scan = scans.get(timeout=10)
+    assert isinstance(scan, carla.LidarMeasurement) and scan.frame == frame
+    lidar.stop()
+    assert lidar.destroy()
+    with pytest.raises(RuntimeError, match="dropoff_zero_intensity must be 0"):
+        world.spawn_actor(blueprint(library, "sensor.lidar.ray_cast", dropoff_zero_intensity=0.4),
+                          carla.Transform())
+
+
 def test_a_sensor_goes_with_its_parent_and_is_destroyed_as_a_dying_actor(gateway):
     """A sensor ends with its parent (simbus ends it): from the frame the
     parent is gone, CARLA's client reads it as dying (`PendingKill`):

@@ -381,10 +381,11 @@ impl Description {
 
     /// A ray-cast lidar: CARLA's attributes as simbus's lidar.
     fn lidar(&self, position: [f32; 3], rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
+        // No drop-off at zero intensity drops nothing whatever the limit
+        // (CARLA's "no drop-off" recipe sets the limit to 1.0).
         self.zero(&[
             "noise_stddev",
             "dropoff_general_rate",
-            "dropoff_intensity_limit",
             "dropoff_zero_intensity",
             "atmosphere_attenuation_rate",
         ])?;

@@ -98,6 +98,29 @@ fn scene_actors_report_an_empty_role_name_and_fixed_attributes() {
 }
 
 #[test]
+fn a_lidar_takes_carlas_no_drop_off_recipe_and_refuses_a_drop_off() {
+    let lidar = |attributes: &[(&str, &str)]| {
+        Description::parse(&description("sensor.lidar.ray_cast", attributes))
+            .unwrap()
+            .spawn(&CarlaTransform::default())
+    };
+    // Nothing dropped at zero intensity: the limit changes nothing.
+    let no_drop_off = [
+        ("dropoff_general_rate", "0.0"),
+        ("dropoff_intensity_limit", "1.0"),
+        ("dropoff_zero_intensity", "0.0"),
+    ];
+    assert!(matches!(lidar(&no_drop_off), Ok(Spawn::Sensor(_))));
+    let e = lidar(&[
+        ("dropoff_intensity_limit", "0.8"),
+        ("dropoff_zero_intensity", "0.4"),
+    ])
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("dropoff_zero_intensity must be 0"), "{e}");
+}
+
+#[test]
 fn a_lidar_gets_carlas_points_per_turn_and_spin() {
     let d = Description::parse(&description(
         "sensor.lidar.ray_cast",

@@ -165,8 +165,8 @@ struct SpawnParams {
 #[pymethods]
 impl Client {
     /// Builds a sensor and subscribes to it: `kind` is `"depth"`,
-    /// `"lidar"`, `"imu"` or `"gnss"` (without noise). It rides on actor `parent` (and dies with it)
-    /// or, without one, stays fixed in the world; `at` is its position
+    /// `"lidar"`, `"imu"` or `"gnss"` (without noise). It rides on actor
+    /// `parent` (and dies with it) or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
     /// quaternion (x, y, z, w), `sensor_tick` its capture

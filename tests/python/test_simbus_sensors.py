@@ -163,6 +163,29 @@ def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
         client.spawn_sensor("radar")
 
 
+def test_gnss_noise_repeats_with_its_seed_and_bad_noise_spawns_nothing(client):
+    noise = {"lat_stddev": 1e-5, "alt_stddev": 0.5, "alt_bias": 10.0, "seed": 7}
+    with client.ticker(delta_seconds=0.05) as ticker:
+        sensors = [client.spawn_sensor("gnss", noise=n) for n in (noise, noise, {**noise, "seed": 8})]
+        readings = [[], [], []]
+        for _ in range(10):
+            ticker.tick()
+            for sensor, got in zip(sensors, readings):
+                with sensor.read() as capture:
+                    got.append(capture.array.copy())
+    assert readings[0] == readings[1] and readings[0] != readings[2]
+    assert 11.0 < np.mean([r["altitude"][0] for r in readings[0]]) < 13.0
+    spawned = len(client.list_sensors())
+    for bad, message in [({"alt_stddev": -1.0}, "GNSS biases must be finite"),
+                         ({"seed": 0.5}, "GNSS biases must be finite"),
+                         ({"colour": 1.0}, "unknown noise setting 'colour'")]:
+        with pytest.raises(ValueError, match=message):
+            client.spawn_sensor("gnss", noise=bad)
+    with pytest.raises(ValueError, match="noise applies to gnss sensors, not to depth"):
+        client.spawn_sensor("depth", noise={"seed": 1})
+    assert len(client.list_sensors()) == spawned
+
+
 def test_arrays_have_each_kind_s_shape_and_dtype_over_the_loan(client):
     with client.ticker(delta_seconds=0.05) as ticker:
         depth = client.spawn_sensor("depth", width=32, height=24, rotation=LOOKING_DOWN)

@@ -11,11 +11,14 @@
 mod capture;
 mod listen;
 
+use std::collections::HashMap;
+
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use shared_types::gnss::MAX_GNSS_SEED;
 use shared_types::{
-    DepthCamera, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal, SensorSpec,
-    SensorSpecError,
+    DepthCamera, Gnss, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal,
+    SensorSpec, SensorSpecError,
 };
 use sim_client::{SensorError, WaitError};
 
@@ -91,7 +94,7 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
             "unknown sensor kind {kind:?}: expected 'depth', 'lidar', 'imu' or 'gnss'"
         )));
     };
-    let given: [(&str, bool, &[Kind]); 9] = [
+    let given: [(&str, bool, &[Kind]); 10] = [
         ("width", p.width.is_some(), &[Kind::Depth]),
         ("height", p.height.is_some(), &[Kind::Depth]),
         ("fov", p.fov.is_some(), &[Kind::Depth]),
@@ -105,6 +108,7 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
             p.rotation_frequency.is_some(),
             &[Kind::Lidar],
         ),
+        ("noise", p.noise.is_some(), &[Kind::Gnss]),
     ];
     for (name, present, kinds) in given {
         if present && !kinds.contains(&kind) {
@@ -139,10 +143,42 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
             },
         ),
         Kind::Imu => SensorSpec::imu(at),
-        Kind::Gnss => SensorSpec::gnss(at),
+        Kind::Gnss => SensorSpec::with_params(at, gnss_noise(p.noise.as_ref())?),
     };
     spec.rotation = p.rotation.unwrap_or_default().map(|v| v as f32);
     Ok(spec.attached_to(p.parent.unwrap_or(0)).every(p.sensor_tick))
+}
+
+/// A GNSS receiver's `noise` keyword argument: CARLA's attribute names
+/// without their `noise_` prefix (`lat_bias`, `lat_stddev`, `lon_bias`,
+/// `lon_stddev`, `alt_bias`, `alt_stddev`, `seed`), each 0 unless given.
+fn gnss_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<Gnss> {
+    let mut gnss = Gnss::default();
+    for (name, &value) in noise.into_iter().flatten() {
+        let slot = match name.as_str() {
+            "lat_bias" => &mut gnss.lat_bias,
+            "lat_stddev" => &mut gnss.lat_stddev,
+            "lon_bias" => &mut gnss.lon_bias,
+            "lon_stddev" => &mut gnss.lon_stddev,
+            "alt_bias" => &mut gnss.alt_bias,
+            "alt_stddev" => &mut gnss.alt_stddev,
+            "seed" => {
+                let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
+                if !whole {
+                    return Err(sensor_error(SensorError::InvalidSpec(SensorSpecError::GnssNoise)));
+                }
+                gnss.seed = value as u32;
+                continue;
+            }
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown noise setting '{other}': expected lat_bias, lat_stddev, lon_bias, lon_stddev, alt_bias, alt_stddev or seed"
+                )))
+            }
+        };
+        *slot = value as f32;
+    }
+    Ok(gnss)
 }
 
 /// `spawn_sensor`'s keyword arguments.
@@ -160,12 +196,13 @@ struct SpawnParams {
     upper_fov: Option<f64>,
     lower_fov: Option<f64>,
     rotation_frequency: Option<f64>,
+    noise: Option<HashMap<String, f64>>,
 }
 
 #[pymethods]
 impl Client {
     /// Builds a sensor and subscribes to it: `kind` is `"depth"`,
-    /// `"lidar"`, `"imu"` or `"gnss"` (without noise). It rides on actor
+    /// `"lidar"`, `"imu"` or `"gnss"`. It rides on actor
     /// `parent` (and dies with it) or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
@@ -175,9 +212,11 @@ impl Client {
     /// in metres (100). Lidar: `channels` (32), `points` per channel in a
     /// turn (512), `range` (50), `upper_fov`/`lower_fov` in degrees
     /// (10/-30), `rotation_frequency` in Hz (0: a full turn every capture).
+    /// GNSS: `noise`, a dict of CARLA's noise attributes without their
+    /// `noise_` prefix (`lat_stddev`, `alt_bias`, `seed`, ...; all 0).
     /// Invalid values raise `ValueError` and spawn nothing; an unknown
     /// parent raises `simbus.CommandError`.
-    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None))]
+    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None, noise = None))]
     #[allow(clippy::too_many_arguments)]
     fn spawn_sensor(
         slf: &Bound<'_, Self>,
@@ -195,6 +234,7 @@ impl Client {
         upper_fov: Option<f64>,
         lower_fov: Option<f64>,
         rotation_frequency: Option<f64>,
+        noise: Option<HashMap<String, f64>>,
     ) -> PyResult<Sensor> {
         let params = SpawnParams {
             parent,
@@ -210,6 +250,7 @@ impl Client {
             upper_fov,
             lower_fov,
             rotation_frequency,
+            noise,
         };
         let spec = spec_for(kind, &params)?;
         let client = slf.borrow();

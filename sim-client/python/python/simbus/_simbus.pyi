@@ -2,7 +2,7 @@
 
 from types import TracebackType
 from os import PathLike
-from typing import Callable, Iterator, List, Optional, Sequence, Tuple, Type, Union
+from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Type, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -229,8 +229,12 @@ class Client:
         upper_fov: Optional[float] = None,
         lower_fov: Optional[float] = None,
         rotation_frequency: Optional[float] = None,
+        noise: Optional[Dict[str, float]] = None,
     ) -> Sensor:
-        """Spawns a "depth", "lidar", "imu" or "gnss" sensor and opens a reader of it."""
+        """Spawns a "depth", "lidar", "imu" or "gnss" sensor and opens a reader of it.
+        A GNSS receiver's `noise`: CARLA's noise attributes without their
+        "noise_" prefix (lat_bias, lat_stddev, lon_bias, lon_stddev, alt_bias,
+        alt_stddev, seed), each 0 unless given."""
     def sensor(self, id: int) -> Sensor:
         """Opens a reader of an existing sensor."""
     def list_sensors(self) -> List[SensorInfo]: ...

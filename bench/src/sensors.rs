@@ -143,8 +143,8 @@ fn delivery_rows(args: &SensorsArgs) -> anyhow::Result<Vec<DeliveryRow>> {
     Ok(rows)
 }
 
-/// The tick round trip with no sensors, then with a depth camera, then
-/// with a lidar too.
+/// The tick round trip with no sensors, then with a GNSS receiver, then
+/// with a depth camera too, then with a lidar too.
 fn frame_times(
     args: &SensorsArgs,
     client: &Client,
@@ -161,6 +161,8 @@ fn frame_times(
         Ok((label, latencies))
     };
     let mut frames = vec![frame_time("no sensors")?];
+    let gnss = client.spawn_sensor(SensorSpec::gnss([0.0, 2.0, 0.0]))?;
+    frames.push(frame_time("+ gnss")?);
     let depth = client.spawn_sensor(SensorSpec::depth([-4.0, 3.0, 0.0], 640, 480, 90.0, 100.0))?;
     frames.push(frame_time("+ depth 640x480")?);
     let lidar = client.spawn_sensor(SensorSpec::lidar(
@@ -172,7 +174,7 @@ fn frame_times(
         -30.0,
     ))?;
     frames.push(frame_time("+ lidar 64x1024")?);
-    drop((depth, lidar));
+    drop((gnss, depth, lidar));
     Ok(frames)
 }
 
@@ -202,7 +204,9 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
     // Wall time per ray: what each sensor added to the frame, over its rays.
     let per_ray =
         |row: usize, rays: f64| (p50(&frames[row].1) - p50(&frames[row - 1].1)) * 1e3 / rays;
-    let (depth_ns, lidar_ns) = (per_ray(1, 640.0 * 480.0), per_ray(2, 64.0 * 1024.0));
+    let (depth_ns, lidar_ns) = (per_ray(2, 640.0 * 480.0), per_ray(3, 64.0 * 1024.0));
+    // What one GNSS receiver adds to a frame (its reading and publication).
+    let gnss_us = p50(&frames[1].1) - p50(&frames[0].1);
     if args.json {
         let delivery: Vec<_> = rows
             .iter()
@@ -219,7 +223,8 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
             "{}",
             serde_json::json!({"delivery": delivery, "frame_time": frame_json,
                 "delivery_render_threads": args.delivery_render_threads(),
-                "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns}})
+                "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns},
+                "gnss_added_us_p50": gnss_us})
         );
         return;
     }
@@ -249,4 +254,5 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
         println!("{}", latencies.row(label));
     }
     println!("wall time per ray at p50 (2 cores): depth {depth_ns:.1} ns, lidar {lidar_ns:.1} ns");
+    println!("a GNSS receiver adds {gnss_us:.1} µs to a frame at p50");
 }

@@ -9,9 +9,9 @@
 //! place in CARLA's axes (x forward, y right, z up; simbus's X, Z, Y, with
 //! CARLA's `y` taken as it is); the altitude is the place's height. It is
 //! what CARLA 0.9.16's client computes on that map
-//! (`Map.transform_to_geolocation`), which reads any `tmerc` reference this
-//! way: a WGS84 reference there would disagree with the reference's own
-//! meaning by 0.6 %.
+//! (`Map.transform_to_geolocation`); it computed the WGS84 `k=1` reference
+//! simbus carried before the same way, 0.6 % away from what that reference
+//! says.
 //!
 //! ```
 //! use shared_types::gnss::geolocation;

@@ -17,6 +17,7 @@ next frame would come up to 50 ms late."""
 import select
 import socket
 import struct
+import time
 
 import pytest
 
@@ -49,22 +50,26 @@ class Messages:
         self.reader, self.buffer = reader, b""
 
     def pending(self, wait=0.0):
-        """The messages already in the socket (waiting at most `wait` s for
-        the first byte)."""
-        ready, _, _ = select.select([self.reader], [], [], wait)
-        while ready:
-            data = self.reader.recv(1 << 20)
-            assert data, "the gateway closed the world stream"
-            self.buffer += data
-            ready, _, _ = select.select([self.reader], [], [], 0)
+        """The whole messages already in the socket; with `wait`, waiting
+        up to that many seconds for at least one."""
+        deadline = time.monotonic() + wait
         out = []
-        while len(self.buffer) >= 4:
-            (length,) = struct.unpack_from("<I", self.buffer)
-            if len(self.buffer) < 4 + length:
-                break
-            out.append(self.buffer[4:4 + length])
-            self.buffer = self.buffer[4 + length:]
-        return out
+        while True:
+            remaining = max(0.0, deadline - time.monotonic())
+            ready, _, _ = select.select([self.reader], [], [], remaining if not out else 0)
+            while ready:
+                data = self.reader.recv(1 << 20)
+                assert data, "the gateway closed the world stream"
+                self.buffer += data
+                ready, _, _ = select.select([self.reader], [], [], 0)
+            while len(self.buffer) >= 4:
+                (length,) = struct.unpack_from("<I", self.buffer)
+                if len(self.buffer) < 4 + length:
+                    break
+                out.append(self.buffer[4:4 + length])
+                self.buffer = self.buffer[4 + length:]
+            if out or time.monotonic() >= deadline:
+                return out
 
 
 def actor_ids(world_state):

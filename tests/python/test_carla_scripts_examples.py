@@ -53,7 +53,7 @@ def vehicles_after(world, before, frames=2000):
 
 
 TUTORIAL = """
-import os, random, sys, threading
+import os, random, sys, threading, weakref
 import carla
 
 port, tm_port, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
@@ -62,13 +62,23 @@ frames = []
 enough = threading.Event()
 
 
-def on_depth(image):
-    image.save_to_disk(os.path.join(out, "%06d.png" % image.frame),
-                       carla.ColorConverter.LogarithmicDepth)
-    frames.append(image.timestamp)
-    if frames[-1] - frames[0] >= 5.0:
-        enough.set()
+class OnDepth:
+    def __call__(self, image):
+        image.save_to_disk(os.path.join(out, "%06d.png" % image.frame),
+                           carla.ColorConverter.LogarithmicDepth)
+        frames.append(image.timestamp)
+        if frames[-1] - frames[0] >= 5.0:
+            enough.set()
 
+
+# Ours, not the script's: CARLA's client lets go of a stopped sensor's
+# callback on its io thread, taking the GIL; if Python is finalising by
+# then the process aborts ("terminate called without an active
+# exception"), as CARLA's own tutorial can. The mirror holds the callback
+# only through CARLA and waits until CARLA has let go of it before it ends.
+on_depth = OnDepth()
+released = threading.Event()
+weakref.finalize(on_depth, released.set)
 
 try:
     client = carla.Client("127.0.0.1", port)
@@ -89,6 +99,7 @@ try:
     actor_list.append(camera)
     print("created %s" % camera.type_id)
     camera.listen(on_depth)
+    del on_depth
     location = vehicle.get_location()
     location.x += 40
     vehicle.set_location(location)
@@ -111,6 +122,7 @@ finally:
     camera.destroy()
     client.apply_batch([carla.command.DestroyActor(x) for x in actor_list])
     print("done.")
+    released.wait(30)
 """
 
 

@@ -149,6 +149,14 @@ impl View {
         client.set_request_timeout(config.timeout);
         client.set_wait_mode(WaitMode::Block);
         let ctx = Context::new();
+        // Every channel of what is there now exists before the server
+        // listens, so a viewer connecting once this returns gets them all
+        // advertised at once: a channel made while a viewer registers can
+        // be advertised to it before its session knows the channel (its
+        // subscription is then refused as "unknown channel").
+        let scene = ctx.channel_builder("/simbus/scene").build();
+        let mut forwards = BTreeMap::new();
+        sensors::pick_up(&client, &ctx, &mut forwards)?;
         let server = WebSocketServer::new()
             .name(format!("simbus {world}"))
             .context(&ctx)
@@ -160,20 +168,19 @@ impl View {
                 port: config.port,
                 source,
             })?;
-        let scene = ctx.channel_builder("/simbus/scene").build();
         Ok(Self {
             client,
             ctx,
             server,
             scene,
-            forwards: BTreeMap::new(),
+            forwards,
             min_gap: if max_hz > 0.0 {
                 Duration::from_secs_f64(1.0 / max_hz)
             } else {
                 Duration::ZERO
             },
             last_sent: None,
-            last_look: None,
+            last_look: Some(Instant::now()),
             sent: 0,
         })
     }

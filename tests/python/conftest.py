@@ -2,6 +2,7 @@
 and carla-gateway on a unique world and free ports (`--port 0`: the
 gateway picks them and names them), killed after it."""
 
+import hashlib
 import json
 import os
 import signal
@@ -91,7 +92,11 @@ def kill_all(procs):
 
 
 def world_name(request, suffix=""):
-    name = f"py-{os.getpid()}-{request.node.name[:40]}{suffix}"
+    """A world of this test's own: the test's name cut to fit, and a hash
+    of its whole id, so parametrized tests (whose names differ only at the
+    end) never share a world."""
+    digest = hashlib.sha1(request.node.nodeid.encode()).hexdigest()[:8]
+    name = f"py-{os.getpid()}-{digest}-{request.node.name[:32]}{suffix}"
     return name.replace("[", "-").replace("]", "")
 
 

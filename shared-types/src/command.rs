@@ -48,6 +48,10 @@ wire_enum! {
         /// (`flags` bit 0 set: on; clear: off). CARLA's
         /// `enable_constant_velocity`.
         ConstantVelocity = 14,
+        /// Move the sun that lights RGB cameras (`actor` 0): `params[0]` =
+        /// azimuth, `params[1]` = altitude in −90..=90, degrees (CARLA's
+        /// `sun_azimuth_angle`, `sun_altitude_angle`).
+        SetSun = 15,
     }
 }
 
@@ -93,6 +97,14 @@ impl Command {
             kind: kind as u32,
             actor,
             ..Self::default()
+        }
+    }
+
+    /// Move the sun that lights RGB cameras to `sun`.
+    pub fn set_sun(sun: crate::Sun) -> Self {
+        Self {
+            params: [sun.azimuth, sun.altitude, 0.0, 0.0],
+            ..Self::new(CommandKind::SetSun, 0)
         }
     }
 

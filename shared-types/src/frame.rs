@@ -67,8 +67,9 @@ pub struct FrameHeader {
     /// The server's process id: a client that only reads frames watches it
     /// to notice the server's death.
     pub server_pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The rays the sensors cast for this frame (cameras of one parent,
+    /// pose, size and field of view share one cast; saturates).
+    pub sensor_rays: u32,
     /// A replayed frame ([`FrameHeader::REPLAY`]): the id the frame had in
     /// the recording (`timestamp.frame` is the server's own, next id: frame
     /// ids on the bus never go back). Zero for a live frame.

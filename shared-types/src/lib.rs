@@ -46,6 +46,8 @@ pub use recorder::{
     PathText, RecorderKind, RecorderRefusal, RecorderRequest, RecorderResponse, ReplayMode,
     ReplayState, DEFAULT_KEYFRAME_SECONDS, MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS,
 };
+pub mod camera;
+pub use camera::{Bgra, SemanticTag, Sun};
 pub mod gnss;
 pub use gnss::{Gnss, GnssMeasurement};
 mod sensor;
@@ -80,7 +82,7 @@ pub use sensor::{
     MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
     MAX_SENSOR_TICK_SECONDS,
 };
-pub use sensor_params::{DepthCamera, Imu, Lidar, SensorParams};
+pub use sensor_params::{Camera, Imu, Lidar, SensorParams};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
     LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_DELTA_SECONDS,

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::{DepthCamera, Imu, Lidar, SensorParams, PROTOCOL_VERSION};
+use crate::{Camera, Imu, Lidar, SensorParams, PROTOCOL_VERSION};
 
 /// The largest capture a sensor may publish (its shared memory holds a few
 /// dozen of them).
@@ -33,6 +33,16 @@ wire_enum! {
         Imu = 3,
         /// GNSS receiver: one [`crate::GnssMeasurement`].
         Gnss = 4,
+        /// Ray-cast RGB camera: one [`crate::Bgra`] per pixel, row by row
+        /// from the top left, each surface lit by the sun.
+        Rgb = 5,
+        /// Ray-cast semantic segmentation camera: one [`crate::Bgra`] per
+        /// pixel, CARLA's [`crate::SemanticTag`] in red.
+        Semantic = 6,
+        /// Ray-cast instance segmentation camera: one [`crate::Bgra`] per
+        /// pixel, the tag in red, the actor's id in green (low byte) and
+        /// blue (high byte).
+        Instance = 7,
     }
 }
 
@@ -44,7 +54,18 @@ impl SensorKind {
             Self::Lidar => "lidar",
             Self::Imu => "imu",
             Self::Gnss => "gnss",
+            Self::Rgb => "rgb",
+            Self::Semantic => "semantic",
+            Self::Instance => "instance",
         }
+    }
+
+    /// Whether it is a camera (its captures are images).
+    pub fn is_camera(&self) -> bool {
+        matches!(
+            self,
+            Self::Depth | Self::Rgb | Self::Semantic | Self::Instance
+        )
     }
 
     /// The kind named `name`.
@@ -102,17 +123,17 @@ pub enum SensorSpecError {
         "sensor_tick must be a finite number of seconds in 0..=18446744073 (the clock's range)"
     )]
     SensorTick,
-    /// Depth width and height must be whole numbers in
+    /// Camera width and height must be whole numbers in
     /// `1..=`[`MAX_IMAGE_SIDE`] with width x height at most 8388608 pixels
     /// (32 MiB per capture).
-    #[error("depth width and height must be whole numbers in 1..={MAX_IMAGE_SIDE} with width x height at most 8388608 pixels (32 MiB per capture)")]
-    DepthSize,
-    /// Depth field of view must be in (0, 180) degrees.
-    #[error("depth field of view must be in (0, 180) degrees")]
-    DepthFieldOfView,
-    /// Depth far range must be positive.
-    #[error("depth far range must be positive")]
-    DepthRange,
+    #[error("camera width and height must be whole numbers in 1..={MAX_IMAGE_SIDE} with width x height at most 8388608 pixels (32 MiB per capture)")]
+    CameraSize,
+    /// Camera field of view must be in (0, 180) degrees.
+    #[error("camera field of view must be in (0, 180) degrees")]
+    CameraFieldOfView,
+    /// Camera far range must be positive.
+    #[error("camera far range must be positive")]
+    CameraRange,
     /// Lidar channels must be in `1..=`[`MAX_LIDAR_CHANNELS`] and points per
     /// channel in `1..=`[`MAX_LIDAR_POINTS`], with channels x points at most
     /// 2097152 (32 MiB per capture).
@@ -137,7 +158,7 @@ impl SensorSpec {
     /// A depth camera of `width` × `height` pixels, horizontal field of view
     /// `fov_degrees`, reading `far` metres where nothing is hit.
     pub fn depth(position: [f32; 3], width: u32, height: u32, fov_degrees: f32, far: f32) -> Self {
-        let camera = DepthCamera {
+        let camera = Camera {
             width,
             height,
             fov: fov_degrees,
@@ -180,6 +201,29 @@ impl SensorSpec {
         self
     }
 
+    /// A camera of `kind` (depth, RGB, semantic or instance segmentation)
+    /// of `width` × `height` pixels and horizontal field of view
+    /// `fov_degrees`, seeing `far` metres; `None` for a kind that is not a
+    /// camera.
+    pub fn camera_of(
+        kind: SensorKind,
+        position: [f32; 3],
+        (width, height): (u32, u32),
+        fov_degrees: f32,
+        far: f32,
+    ) -> Option<Self> {
+        let camera = Camera {
+            width,
+            height,
+            fov: fov_degrees,
+            range: far,
+        };
+        Some(Self::with_params(
+            position,
+            SensorParams::camera_of(kind, camera)?,
+        ))
+    }
+
     /// An IMU.
     pub fn imu(position: [f32; 3]) -> Self {
         Self::with_params(position, Imu)
@@ -210,7 +254,10 @@ impl SensorSpec {
     /// How many payload elements one capture holds (pixels, lidar slots, 1).
     pub fn elements(&self) -> usize {
         match self.sensor_params() {
-            Some(SensorParams::Depth(d)) => d.width as usize * d.height as usize,
+            Some(p) if p.kind().is_camera() => {
+                let [w, h] = p.size();
+                w as usize * h as usize
+            }
             Some(SensorParams::Lidar(l)) => l.channels as usize * l.points as usize,
             _ => 1,
         }
@@ -220,6 +267,9 @@ impl SensorSpec {
     pub fn payload_bytes(&self) -> usize {
         let element = match self.sensor_kind() {
             Some(SensorKind::Depth) => std::mem::size_of::<f32>(),
+            Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
+                std::mem::size_of::<crate::Bgra>()
+            }
             Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
             Some(SensorKind::Gnss) => std::mem::size_of::<crate::GnssMeasurement>(),
             _ => std::mem::size_of::<ImuMeasurement>(),
@@ -255,17 +305,22 @@ impl SensorSpec {
         let [first, second, ..] = p;
         let whole = |v: f32, max: u32| v >= 1.0 && v <= max as f32 && v.fract() == 0.0;
         match self.sensor_params() {
-            Some(SensorParams::Depth(d)) => {
+            Some(
+                SensorParams::Depth(d)
+                | SensorParams::Rgb(d)
+                | SensorParams::Semantic(d)
+                | SensorParams::Instance(d),
+            ) => {
                 if !(whole(first, MAX_IMAGE_SIDE) && whole(second, MAX_IMAGE_SIDE))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
-                    return Err(SensorSpecError::DepthSize);
+                    return Err(SensorSpecError::CameraSize);
                 }
                 if !(d.fov > 0.0 && d.fov < 180.0) {
-                    return Err(SensorSpecError::DepthFieldOfView);
+                    return Err(SensorSpecError::CameraFieldOfView);
                 }
                 if d.range <= 0.0 {
-                    return Err(SensorSpecError::DepthRange);
+                    return Err(SensorSpecError::CameraRange);
                 }
             }
             Some(SensorParams::Lidar(l)) => {
@@ -379,7 +434,7 @@ pub struct SensorHeader {
     pub count: u32,
     /// Sensor orientation in the world at capture (x, y, z, w).
     pub rotation: [f32; 4],
-    /// Depth: width and height in pixels. Lidar: channels and points per channel.
+    /// Cameras: width and height in pixels. Lidar: channels and points per channel.
     pub size: [u32; 2],
     /// [`SensorHeader::END_OF_STREAM`] and future flags.
     pub flags: u32,
@@ -506,93 +561,5 @@ impl std::fmt::Display for SensorRefusal {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn specs_are_checked() {
-        assert!(SensorSpec::depth([0.0; 3], 640, 480, 90.0, 100.0)
-            .check()
-            .is_ok());
-        assert!(SensorSpec::depth([0.0; 3], 0, 480, 90.0, 100.0)
-            .check()
-            .is_err());
-        assert!(SensorSpec::depth([0.0; 3], 64, 48, 180.0, 100.0)
-            .check()
-            .is_err());
-        assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, 10.0, -30.0)
-            .check()
-            .is_ok());
-        assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, -30.0, 10.0)
-            .check()
-            .is_err());
-        assert!(SensorSpec::imu([f32::NAN, 0.0, 0.0]).check().is_err());
-        assert!(SensorSpec::imu([0.0; 3]).every(-1.0).check().is_err());
-        // Issue #24: sensors are kept within the world's reach, as actors are.
-        assert_eq!(
-            SensorSpec::imu([1e9, 0.0, 0.0]).check(),
-            Err(SensorSpecError::Position)
-        );
-        assert!(SensorSpec::imu([0.0, -100_000.0, 100_000.0])
-            .check()
-            .is_ok());
-        assert_eq!(SensorSpec::depth([0.0; 3], 4, 3, 60.0, 10.0).elements(), 12);
-        // 2048 x 1024 x 4 B = 8 MiB is fine; 8192 x 8192 x 4 B = 256 MiB is not.
-        assert!(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 10.0)
-            .check()
-            .is_ok());
-        assert!(SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0)
-            .check()
-            .is_err());
-        assert!(SensorSpec::lidar([0.0; 3], 256, 65536, 50.0, 10.0, -30.0)
-            .check()
-            .is_err());
-        // One limit, stated where it is broken.
-        let too_big = SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0).check();
-        assert!(too_big.unwrap_err().to_string().contains("8388608 pixels"));
-        let forever = SensorSpec::imu([0.0; 3]).every(1e300).check();
-        assert!(forever.unwrap_err().to_string().contains("18446744073"));
-    }
-
-    #[test]
-    fn the_check_and_the_flags_share_one_set_of_size_limits() {
-        // Each side / count at its limit passes (with the other kept small
-        // enough for the capture's byte cap), one past it does not: the
-        // same constants bound `sim-client sensor --size/--channels/--points`.
-        let depth = |w, h| SensorSpec::depth([0.0; 3], w, h, 90.0, 10.0).check();
-        assert_eq!(depth(MAX_IMAGE_SIDE, 1), Ok(()));
-        assert_eq!(depth(1, MAX_IMAGE_SIDE), Ok(()));
-        assert_eq!(
-            depth(MAX_IMAGE_SIDE + 1, 1),
-            Err(SensorSpecError::DepthSize)
-        );
-        assert_eq!(
-            depth(1, MAX_IMAGE_SIDE + 1),
-            Err(SensorSpecError::DepthSize)
-        );
-        let lidar = |c, p| SensorSpec::lidar([0.0; 3], c, p, 50.0, 10.0, -30.0).check();
-        assert_eq!(lidar(MAX_LIDAR_CHANNELS, 1), Ok(()));
-        assert_eq!(lidar(1, MAX_LIDAR_POINTS), Ok(()));
-        assert_eq!(
-            lidar(MAX_LIDAR_CHANNELS + 1, 1),
-            Err(SensorSpecError::LidarSize)
-        );
-        assert_eq!(
-            lidar(1, MAX_LIDAR_POINTS + 1),
-            Err(SensorSpecError::LidarSize)
-        );
-        let message = SensorSpecError::LidarSize.to_string();
-        assert!(
-            message.contains("1..=256 and points per channel in 1..=65536"),
-            "{message}"
-        );
-    }
-
-    #[test]
-    fn kinds_round_trip_through_their_names() {
-        for k in SensorKind::ALL {
-            assert_eq!(SensorKind::from_name(k.name()), Some(k));
-        }
-        assert_eq!(SensorKind::from_name("camera"), None);
-    }
-}
+#[path = "sensor_tests.rs"]
+mod tests;

@@ -5,27 +5,30 @@
 //! writes them through these views, never by index.
 //!
 //! ```
-//! use shared_types::{DepthCamera, SensorSpec};
+//! use shared_types::{Camera, SensorSpec};
 //!
-//! let camera = DepthCamera { width: 64, height: 48, fov: 90.0, range: 50.0 };
+//! let camera = Camera { width: 64, height: 48, fov: 90.0, range: 50.0 };
 //! let spec = SensorSpec::with_params([0.0, 1.0, 0.0], camera);
-//! assert_eq!(spec.depth_camera(), Some(camera));
+//! assert_eq!(spec.camera(), Some(camera));
 //! assert_eq!(spec.lidar_params(), None);
 //! ```
 
 use crate::gnss::Gnss;
 use crate::{SensorKind, SensorSpec};
 
-/// A ray-cast depth camera's parameters.
+/// A ray-cast camera's parameters: the depth camera's, and the RGB,
+/// semantic and instance segmentation cameras' (cameras of one parent,
+/// pose, size and field of view share one ray cast per frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DepthCamera {
+pub struct Camera {
     /// Image width in pixels.
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
     /// Horizontal field of view, degrees.
     pub fov: f32,
-    /// Far range in metres: what a pixel reads where nothing is hit.
+    /// Far range in metres: what a depth pixel reads where nothing is hit;
+    /// the other cameras see the sky beyond it.
     pub range: f32,
 }
 
@@ -54,7 +57,13 @@ pub struct Imu;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SensorParams {
     /// A depth camera.
-    Depth(DepthCamera),
+    Depth(Camera),
+    /// An RGB camera.
+    Rgb(Camera),
+    /// A semantic segmentation camera.
+    Semantic(Camera),
+    /// An instance segmentation camera.
+    Instance(Camera),
     /// A lidar.
     Lidar(Lidar),
     /// An IMU.
@@ -68,6 +77,9 @@ impl SensorParams {
     pub fn kind(&self) -> SensorKind {
         match self {
             Self::Depth(_) => SensorKind::Depth,
+            Self::Rgb(_) => SensorKind::Rgb,
+            Self::Semantic(_) => SensorKind::Semantic,
+            Self::Instance(_) => SensorKind::Instance,
             Self::Lidar(_) => SensorKind::Lidar,
             Self::Imu(_) => SensorKind::Imu,
             Self::Gnss(_) => SensorKind::Gnss,
@@ -79,16 +91,38 @@ impl SensorParams {
     /// channel; zeros for an IMU and a GNSS receiver.
     pub fn size(&self) -> [u32; 2] {
         match self {
-            Self::Depth(d) => [d.width, d.height],
+            Self::Depth(d) | Self::Rgb(d) | Self::Semantic(d) | Self::Instance(d) => {
+                [d.width, d.height]
+            }
             Self::Lidar(l) => [l.channels, l.points],
             Self::Imu(_) | Self::Gnss(_) => [0, 0],
+        }
+    }
+
+    /// A camera of `kind` with `camera`'s parameters; `None` for a kind
+    /// that is not a camera.
+    pub fn camera_of(kind: SensorKind, camera: Camera) -> Option<Self> {
+        match kind {
+            SensorKind::Depth => Some(Self::Depth(camera)),
+            SensorKind::Rgb => Some(Self::Rgb(camera)),
+            SensorKind::Semantic => Some(Self::Semantic(camera)),
+            SensorKind::Instance => Some(Self::Instance(camera)),
+            _ => None,
+        }
+    }
+
+    /// The camera's parameters, if these are a camera's of any kind.
+    pub fn camera(&self) -> Option<Camera> {
+        match *self {
+            Self::Depth(c) | Self::Rgb(c) | Self::Semantic(c) | Self::Instance(c) => Some(c),
+            _ => None,
         }
     }
 
     /// The wire form: the eight `f32` of [`SensorSpec::params`].
     pub fn to_wire(&self) -> [f32; 8] {
         match *self {
-            Self::Depth(d) => [
+            Self::Depth(d) | Self::Rgb(d) | Self::Semantic(d) | Self::Instance(d) => [
                 d.width as f32,
                 d.height as f32,
                 d.fov,
@@ -127,12 +161,10 @@ impl SensorParams {
     /// ([`SensorSpec::check`] refuses them).
     pub fn from_wire(kind: SensorKind, p: [f32; 8]) -> Self {
         match kind {
-            SensorKind::Depth => Self::Depth(DepthCamera {
-                width: p[0] as u32,
-                height: p[1] as u32,
-                fov: p[2],
-                range: p[3],
-            }),
+            SensorKind::Depth => Self::Depth(Camera::from_wire(p)),
+            SensorKind::Rgb => Self::Rgb(Camera::from_wire(p)),
+            SensorKind::Semantic => Self::Semantic(Camera::from_wire(p)),
+            SensorKind::Instance => Self::Instance(Camera::from_wire(p)),
             SensorKind::Lidar => Self::Lidar(Lidar {
                 channels: p[0] as u32,
                 points: p[1] as u32,
@@ -155,8 +187,20 @@ impl SensorParams {
     }
 }
 
-impl From<DepthCamera> for SensorParams {
-    fn from(value: DepthCamera) -> Self {
+impl Camera {
+    fn from_wire(p: [f32; 8]) -> Self {
+        Self {
+            width: p[0] as u32,
+            height: p[1] as u32,
+            fov: p[2],
+            range: p[3],
+        }
+    }
+}
+
+/// A depth camera (see [`SensorParams::camera`] for the other cameras).
+impl From<Camera> for SensorParams {
+    fn from(value: Camera) -> Self {
         Self::Depth(value)
     }
 }
@@ -204,12 +248,9 @@ impl SensorSpec {
             .map(|kind| SensorParams::from_wire(kind, self.params))
     }
 
-    /// The depth camera's parameters, if this is a depth camera.
-    pub fn depth_camera(&self) -> Option<DepthCamera> {
-        match self.sensor_params()? {
-            SensorParams::Depth(camera) => Some(camera),
-            _ => None,
-        }
+    /// The camera's parameters, if this is a camera of any kind.
+    pub fn camera(&self) -> Option<Camera> {
+        self.sensor_params()?.camera()
     }
 
     /// The GNSS receiver's parameters, if this is one.
@@ -237,7 +278,7 @@ mod tests {
     fn views_keep_the_wire_layout() {
         let depth = SensorSpec::depth([0.0; 3], 64, 48, 90.0, 50.0);
         assert_eq!(depth.params, [64.0, 48.0, 90.0, 50.0, 0.0, 0.0, 0.0, 0.0]);
-        let camera = depth.depth_camera().expect("a depth camera");
+        let camera = depth.camera().expect("a depth camera");
         assert_eq!((camera.width, camera.height), (64, 48));
         assert_eq!((camera.fov, camera.range), (90.0, 50.0));
         assert_eq!(SensorSpec::with_params([0.0; 3], camera), depth);
@@ -254,7 +295,7 @@ mod tests {
         );
         assert_eq!((view.upper_fov, view.lower_fov), (10.0, -30.0));
         assert_eq!(SensorSpec::with_params([0.0; 3], view), lidar);
-        assert_eq!(lidar.depth_camera(), None);
+        assert_eq!(lidar.camera(), None);
 
         let imu = SensorSpec::imu([1.0, 2.0, 3.0]);
         assert_eq!(imu.sensor_params(), Some(SensorParams::Imu(Imu)));
@@ -280,7 +321,7 @@ mod tests {
         let mut spec = SensorSpec::depth([0.0; 3], 1, 1, 90.0, 1.0);
         spec.params[0] = 1e30;
         spec.params[1] = -5.0;
-        let camera = spec.depth_camera().expect("a depth camera");
+        let camera = spec.camera().expect("a depth camera");
         assert_eq!((camera.width, camera.height), (u32::MAX, 0));
         assert!(spec.check().is_err());
     }

@@ -32,6 +32,7 @@
 
 mod batch;
 mod builder;
+mod capture;
 mod client;
 mod error;
 mod frames;
@@ -49,6 +50,7 @@ mod wait;
 
 pub use batch::{BatchError, BatchResponse, CommandError};
 pub use builder::{ClientBuilder, DEFAULT_CONNECT_TIMEOUT};
+pub use capture::Capture;
 pub use client::{Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, TransportError,
@@ -59,7 +61,7 @@ pub use on_tick::CallbackId;
 pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };
-pub use sensor::{Capture, Listening, Sensor, SensorError};
+pub use sensor::{Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
 pub use standby::{StandbyTicker, TakeOver};
@@ -75,7 +77,7 @@ pub mod prelude {
         TickError, Ticker, WaitError, WaitMode, WorldSnapshot,
     };
     pub use shared_types::{
-        DepthCamera, Imu, Lidar, SensorKind, SensorParams, SensorSpec, WorldName, WorldSettings,
+        Camera, Imu, Lidar, SensorKind, SensorParams, SensorSpec, WorldName, WorldSettings,
     };
 }
 

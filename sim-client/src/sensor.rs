@@ -9,10 +9,9 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
-use iceoryx2::sample::Sample;
 use shared_types::limits::MAX_SENSOR_READERS_FLAG;
 use shared_types::{
-    GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
+    Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
     SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
     SensorSpec, SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
@@ -22,7 +21,7 @@ use simbus_transport::Bus;
 use crate::open::{frame_ready_listener, open_with_retry, OpenFailure};
 use crate::rpc::{client_error, RequestPort};
 use crate::wait::{self, Stop, Wait};
-use crate::{Client, RequestError, WaitError, WaitMode};
+use crate::{Capture, Client, RequestError, WaitError, WaitMode};
 
 type Sub<T> = Subscriber<Bus, [T], SensorHeader>;
 
@@ -32,78 +31,10 @@ pub(crate) type SensorRequestClient =
 
 enum Port {
     Depth(Sub<f32>),
+    Image(Sub<Bgra>),
     Lidar(Sub<LidarPoint>),
     Imu(Sub<ImuMeasurement>),
     Gnss(Sub<GnssMeasurement>),
-}
-
-/// One capture, borrowed from shared memory: nothing is copied until you do.
-pub enum Capture {
-    /// A depth image: `f32` planar depths, row by row.
-    Depth(Sample<Bus, [f32], SensorHeader>),
-    /// A lidar scan.
-    Lidar(Sample<Bus, [LidarPoint], SensorHeader>),
-    /// An IMU reading.
-    Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
-    /// A GNSS reading.
-    Gnss(Sample<Bus, [GnssMeasurement], SensorHeader>),
-}
-
-impl Capture {
-    /// The capture's header: sensor, frame, simulation time, pose at capture.
-    pub fn header(&self) -> &SensorHeader {
-        match self {
-            Self::Depth(s) => s.user_header(),
-            Self::Lidar(s) => s.user_header(),
-            Self::Imu(s) => s.user_header(),
-            Self::Gnss(s) => s.user_header(),
-        }
-    }
-
-    /// The depth image in place (width × height, row-major), if a depth capture.
-    pub fn depth(&self) -> Option<&[f32]> {
-        match self {
-            Self::Depth(s) => Some(s.payload()),
-            _ => None,
-        }
-    }
-
-    /// The lidar returns in place (sensor frame), if a lidar capture.
-    pub fn points(&self) -> Option<&[LidarPoint]> {
-        match self {
-            Self::Lidar(s) => {
-                let count = (s.user_header().count as usize).min(s.payload().len());
-                Some(&s.payload()[..count])
-            }
-            _ => None,
-        }
-    }
-
-    /// The IMU reading, if an IMU capture.
-    pub fn imu(&self) -> Option<&ImuMeasurement> {
-        match self {
-            Self::Imu(s) => s.payload().first(),
-            _ => None,
-        }
-    }
-
-    /// The GNSS reading, if a GNSS capture.
-    pub fn gnss(&self) -> Option<&GnssMeasurement> {
-        match self {
-            Self::Gnss(s) => s.payload().first(),
-            _ => None,
-        }
-    }
-
-    /// The payload's bytes in place.
-    pub fn bytes(&self) -> &[u8] {
-        match self {
-            Self::Depth(s) => bytemuck::cast_slice(s.payload()),
-            Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
-            Self::Imu(s) => bytemuck::cast_slice(s.payload()),
-            Self::Gnss(s) => bytemuck::cast_slice(s.payload()),
-        }
-    }
 }
 
 /// Why a sensor request failed.
@@ -180,6 +111,7 @@ impl Reader {
         }
         let capture = match &self.port {
             Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
+            Port::Image(s) => s.receive().map(|c| c.map(Capture::Image)),
             Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
             Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
             Port::Gnss(s) => s.receive().map(|c| c.map(Capture::Gnss)),
@@ -253,6 +185,9 @@ impl Sensor {
         }
         let port = match info.spec.sensor_kind() {
             Some(SensorKind::Depth) => Port::Depth(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
+                Port::Image(subscribe(&node, &specs, info.id, deadline)?)
+            }
             Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Gnss) => Port::Gnss(subscribe(&node, &specs, info.id, deadline)?),

@@ -36,6 +36,17 @@ fn result(actor: u64, status: CommandStatus) -> CommandResult {
 }
 
 impl World {
+    /// Moves the sun (no actor); an angle out of range changes nothing.
+    fn set_sun(&mut self, command: &Command) -> CommandResult {
+        let [azimuth, altitude, ..] = command.params;
+        let sun = shared_types::Sun { azimuth, altitude };
+        if !sun.valid() {
+            return result(0, CommandStatus::InvalidArgument);
+        }
+        self.sun = sun;
+        result(0, CommandStatus::Ok)
+    }
+
     /// Applies one command; its result names the actor (the new one for a
     /// spawn) and what went wrong, if anything. A failed command changes nothing.
     pub fn apply(&mut self, command: &Command) -> CommandResult {
@@ -47,6 +58,9 @@ impl World {
         }
         if kind.spawns() {
             return self.spawn(kind, command);
+        }
+        if kind == CommandKind::SetSun {
+            return self.set_sun(command);
         }
         let Some(index) = self.index_of(command.actor) else {
             return result(command.actor, CommandStatus::UnknownActor);
@@ -122,6 +136,7 @@ impl World {
             | CommandKind::SpawnSphere
             | CommandKind::SpawnCapsule
             | CommandKind::SpawnVehicle => return self.spawn(kind, command),
+            CommandKind::SetSun => return self.set_sun(command),
         }
         result(id, CommandStatus::Ok)
     }

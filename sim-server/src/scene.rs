@@ -53,6 +53,19 @@ impl From<SceneName> for Scene {
     }
 }
 
+impl Scene {
+    /// Its name (which also names its road network).
+    pub fn name(&self) -> SceneName {
+        match *self {
+            Self::Default => SceneName::Default,
+            Self::Empty => SceneName::Empty,
+            Self::Town => SceneName::Town,
+            Self::Flat => SceneName::Flat,
+            Self::Boxes(n) => SceneName::Boxes(n),
+        }
+    }
+}
+
 impl FromStr for Scene {
     type Err = SceneError;
 

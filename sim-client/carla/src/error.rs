@@ -180,6 +180,9 @@ pub(crate) enum CallError {
     /// The server refused a command on an actor.
     #[error("simbus: actor {actor}: {status}")]
     CommandRefused { actor: u64, status: CommandStatus },
+    /// The server refused to move the sun to a weather's.
+    #[error("simbus: the weather's sun refused: {0}")]
+    SunRefused(CommandStatus),
     /// A batch answered fewer results than it had commands.
     #[error("simbus: no answer")]
     NoAnswer,

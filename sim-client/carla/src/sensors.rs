@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use rmpv::Value;
-use shared_types::SensorSpec;
+use shared_types::{SensorKind, SensorSpec};
 use sim_client::{Capture, Client, WaitError};
 use tracing::{debug, info};
 
@@ -163,6 +163,11 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
     let elapsed = shared_types::nanos_to_seconds(h.elapsed_ns);
     let sensor_type = match capture {
         Capture::Depth(_) => carla::DEPTH_SENSOR_TYPE,
+        Capture::Image(_) => match SensorKind::from_u32(h.kind) {
+            Some(SensorKind::Semantic) => carla::SEMANTIC_SENSOR_TYPE,
+            Some(SensorKind::Instance) => carla::INSTANCE_SENSOR_TYPE,
+            _ => carla::RGB_SENSOR_TYPE,
+        },
         Capture::Lidar(_) => carla::LIDAR_SENSOR_TYPE,
         Capture::Imu(_) => carla::IMU_SENSOR_TYPE,
         Capture::Gnss(_) => carla::GNSS_SENSOR_TYPE,
@@ -173,6 +178,7 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
     carla::sensor_header(&mut out, sensor_type, h.frame, elapsed, transform);
     match capture {
         Capture::Depth(_) => depth(&mut out, capture, spec)?,
+        Capture::Image(_) => image(&mut out, capture, spec)?,
         Capture::Lidar(_) => lidar(&mut out, capture, spec)?,
         Capture::Imu(_) => imu(&mut out, capture)?,
         Capture::Gnss(_) => gnss(&mut out, capture)?,
@@ -186,10 +192,19 @@ fn depth(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> 
     let depth = capture.depth()?;
     let [w, hgt] = capture.header().size;
     out.reserve(carla::IMAGE_HEADER_LEN + depth.len() * 4);
-    carla::image_header(out, w, hgt, spec.depth_camera()?.fov);
+    carla::image_header(out, w, hgt, spec.camera()?.fov);
     for &d in depth {
         out.extend_from_slice(&carla::depth_pixel(d));
     }
+    Some(())
+}
+
+/// An RGB, semantic or instance capture as `carla.Image`'s payload: the
+/// image header, then the pixels as they are (CARLA's BGRA).
+fn image(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
+    let [w, hgt] = capture.header().size;
+    carla::image_header(out, w, hgt, spec.camera()?.fov);
+    out.extend_from_slice(capture.bytes());
     Some(())
 }
 

@@ -30,6 +30,13 @@ pub const GNSS_SENSOR_TYPE: u64 = 4;
 pub const IMU_SENSOR_TYPE: u64 = 5;
 /// The sensor type id of a ray-cast lidar's `carla.LidarMeasurement`.
 pub const LIDAR_SENSOR_TYPE: u64 = 11;
+/// `ASceneCaptureCamera` (`sensor.camera.rgb`): `carla.Image`.
+pub const RGB_SENSOR_TYPE: u64 = 13;
+/// `ASemanticSegmentationCamera`: `carla.Image`, the tag in red.
+pub const SEMANTIC_SENSOR_TYPE: u64 = 14;
+/// `AInstanceSegmentationCamera`: `carla.Image`, the tag in red, the
+/// actor's id in green and blue.
+pub const INSTANCE_SENSOR_TYPE: u64 = 15;
 /// Bytes of an image's header (width, height, field of view).
 pub const IMAGE_HEADER_LEN: usize = 12;
 /// CARLA's depth camera encodes 0..=1000 m in 24 bits.

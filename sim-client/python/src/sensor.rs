@@ -17,8 +17,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use shared_types::gnss::MAX_GNSS_SEED;
 use shared_types::{
-    DepthCamera, Gnss, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal,
-    SensorSpec, SensorSpecError,
+    Camera, Gnss, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal, SensorSpec,
+    SensorSpecError,
 };
 use sim_client::{SensorError, WaitError};
 
@@ -91,14 +91,22 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     use SensorKind as Kind;
     let Some(kind) = Kind::from_name(kind) else {
         return Err(PyValueError::new_err(format!(
-            "unknown sensor kind {kind:?}: expected 'depth', 'lidar', 'imu' or 'gnss'"
+            "unknown sensor kind {kind:?}: expected 'depth', 'rgb', 'semantic', 'instance', 'lidar', 'imu' or 'gnss'"
         )));
     };
+    const CAMERAS: &[Kind] = &[Kind::Depth, Kind::Rgb, Kind::Semantic, Kind::Instance];
+    const RANGED: &[Kind] = &[
+        Kind::Depth,
+        Kind::Rgb,
+        Kind::Semantic,
+        Kind::Instance,
+        Kind::Lidar,
+    ];
     let given: [(&str, bool, &[Kind]); 10] = [
-        ("width", p.width.is_some(), &[Kind::Depth]),
-        ("height", p.height.is_some(), &[Kind::Depth]),
-        ("fov", p.fov.is_some(), &[Kind::Depth]),
-        ("range", p.range.is_some(), &[Kind::Depth, Kind::Lidar]),
+        ("width", p.width.is_some(), CAMERAS),
+        ("height", p.height.is_some(), CAMERAS),
+        ("fov", p.fov.is_some(), CAMERAS),
+        ("range", p.range.is_some(), RANGED),
         ("channels", p.channels.is_some(), &[Kind::Lidar]),
         ("points", p.points.is_some(), &[Kind::Lidar]),
         ("upper_fov", p.upper_fov.is_some(), &[Kind::Lidar]),
@@ -122,15 +130,17 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     }
     let at = p.at.map(|v| v as f32);
     let mut spec = match kind {
-        Kind::Depth => SensorSpec::with_params(
-            at,
-            DepthCamera {
-                width: whole(p.width.unwrap_or(640.0), SensorSpecError::DepthSize)?,
-                height: whole(p.height.unwrap_or(480.0), SensorSpecError::DepthSize)?,
+        Kind::Depth | Kind::Rgb | Kind::Semantic | Kind::Instance => {
+            let far = if kind == Kind::Depth { 100.0 } else { 1000.0 };
+            let camera = Camera {
+                width: whole(p.width.unwrap_or(640.0), SensorSpecError::CameraSize)?,
+                height: whole(p.height.unwrap_or(480.0), SensorSpecError::CameraSize)?,
                 fov: p.fov.unwrap_or(90.0) as f32,
-                range: p.range.unwrap_or(100.0) as f32,
-            },
-        ),
+                range: p.range.unwrap_or(far) as f32,
+            };
+            let params = SensorParams::camera_of(kind, camera).expect("a camera kind");
+            SensorSpec::with_params(at, params)
+        }
         Kind::Lidar => SensorSpec::with_params(
             at,
             Lidar {
@@ -335,7 +345,7 @@ pub(crate) struct SensorInfo {
 impl From<Info> for SensorInfo {
     fn from(info: Info) -> Self {
         let spec = &info.spec;
-        let (depth, lidar) = (spec.depth_camera(), spec.lidar_params());
+        let (depth, lidar) = (spec.camera(), spec.lidar_params());
         let [x, y, z] = spec.position;
         let [qx, qy, qz, qw] = spec.rotation;
         Self {

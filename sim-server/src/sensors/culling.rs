@@ -12,6 +12,7 @@
 use std::ops::RangeInclusive;
 
 use rapier3d::prelude::{Aabb, Pose, Ray, RigidBodyHandle, Rotation, Shape, Vector};
+use shared_types::ActorKind;
 
 use crate::world::World;
 
@@ -166,6 +167,30 @@ pub(super) struct Target<'a> {
     inverse: Rotation,
     origin: Vector,
     pub(super) bounds: Bounds,
+    /// Its actor's id (0: none), kind and half extents.
+    pub(super) actor: u64,
+    pub(super) kind: Option<ActorKind>,
+    pub(super) extent: [f32; 3],
+}
+
+impl Target<'_> {
+    /// The ray along `direction` (world frame) from the sensor, in this
+    /// target's frame.
+    fn local_ray(&self, direction: Vector) -> Ray {
+        Ray::new(self.origin, self.inverse * direction)
+    }
+
+    /// The outward unit normal (world frame) where the ray along
+    /// `direction` meets this target at `distance`, or `None` if parry
+    /// finds none there.
+    pub(super) fn normal(&self, direction: Vector, distance: f32) -> Option<Vector> {
+        let hit = self.shape.cast_local_ray_and_get_normal(
+            &self.local_ray(direction),
+            distance * 1.001 + 1e-4,
+            true,
+        )?;
+        Some(self.inverse.inverse() * hit.normal)
+    }
 }
 
 /// The colliders `view` from `sensor` may see within `far`, `exclude`'s
@@ -179,13 +204,16 @@ pub(super) fn targets<'a>(
 ) -> Vec<Target<'a>> {
     world
         .ray_targets(exclude)
-        .filter_map(|(shape, at)| {
-            let bounds = view.bounds(sensor, at, &shape.compute_local_aabb(), far)?;
+        .filter_map(|t| {
+            let bounds = view.bounds(sensor, t.pose, &t.shape.compute_local_aabb(), far)?;
             Some(Target {
-                shape,
-                inverse: at.rotation.inverse(),
-                origin: at.inverse_transform_point(sensor.translation),
+                shape: t.shape,
+                inverse: t.pose.rotation.inverse(),
+                origin: t.pose.inverse_transform_point(sensor.translation),
                 bounds,
+                actor: t.actor,
+                kind: t.kind,
+                extent: t.extent,
             })
         })
         .collect()
@@ -200,14 +228,30 @@ pub(super) fn nearest<'t, 'a: 't>(
     direction: Vector,
     far: f32,
 ) -> Option<f32> {
+    nearest_target(targets, direction, far).map(|(distance, _)| distance)
+}
+
+/// [`nearest`], with the target it met.
+pub(super) fn nearest_target<'t, 'a: 't>(
+    targets: impl Iterator<Item = &'t Target<'a>>,
+    direction: Vector,
+    far: f32,
+) -> Option<(f32, &'t Target<'a>)> {
     let mut nearest = far;
+    let mut met = None;
     for target in targets {
-        let local = Ray::new(target.origin, target.inverse * direction);
-        if let Some(distance) = target.shape.cast_local_ray(&local, nearest, true) {
+        if let Some(distance) =
+            target
+                .shape
+                .cast_local_ray(&target.local_ray(direction), nearest, true)
+        {
+            if distance < nearest || met.is_none() {
+                met = Some(target);
+            }
             nearest = nearest.min(distance);
         }
     }
-    (nearest < far).then_some(nearest)
+    met.filter(|_| nearest < far).map(|t| (nearest, t))
 }
 
 /// A lidar's view: the cube's six faces and each one's targets.

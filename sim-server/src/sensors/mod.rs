@@ -1,5 +1,6 @@
-//! The sensor domain: a depth camera and a lidar that ray-cast the rapier
-//! world, and an IMU. Each writes its capture **directly into the loaned
+//! The sensor domain: cameras (depth, RGB, semantic and instance
+//! segmentation) and a lidar that ray-cast the rapier world, an IMU and a
+//! GNSS receiver. Each writes its capture **directly into the loaned
 //! shared-memory sample** of its own iceoryx2 service — no intermediate
 //! buffer, no copy. The sensor service spawns, lists and destroys them; a
 //! sensor ends with its parent actor, its episode and the server, and its
@@ -7,8 +8,10 @@
 
 mod camera;
 mod capture;
+mod casts;
 mod culling;
 mod gnss;
+mod ground;
 mod renderer;
 
 pub use renderer::RenderThreadsError;
@@ -40,8 +43,9 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
+use shared_types::scene::SceneName;
 use shared_types::{
-    seconds_to_nanos, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd,
+    seconds_to_nanos, Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd,
     SensorHeader, SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind,
     SensorResponseHeader, SensorSpec, PROTOCOL_VERSION,
 };
@@ -61,6 +65,8 @@ type SensorServer = RequestServer<Bus, SensorRequest, (), [SensorInfo], SensorRe
 /// A sensor's publisher, typed by what it captures.
 enum SensorPort {
     Depth(Port<f32>),
+    /// RGB, semantic and instance segmentation.
+    Image(Port<Bgra>),
     Lidar(Port<LidarPoint>),
     Imu(Port<ImuMeasurement>),
     Gnss(Port<GnssMeasurement>),
@@ -95,6 +101,8 @@ pub(crate) struct Sensors {
     journal: Vec<SensorNote>,
     /// The threads cameras and lidars render on.
     renderer: Renderer,
+    /// The cameras' shared casts.
+    casts: casts::Casts,
 }
 
 fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
@@ -146,6 +154,7 @@ impl Sensors {
             limits: *limits,
             journal: Vec::new(),
             renderer: Renderer::new(render_threads).map_err(ServerError::RenderThreads)?,
+            casts: casts::Casts::default(),
         })
     }
 
@@ -232,6 +241,9 @@ impl Sensors {
         let (elements, limits) = (spec.elements(), &self.limits);
         let port = match kind {
             SensorKind::Depth => open_port(transport, id, elements, limits).map(SensorPort::Depth),
+            SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance => {
+                open_port(transport, id, elements, limits).map(SensorPort::Image)
+            }
             SensorKind::Lidar => open_port(transport, id, elements, limits).map(SensorPort::Lidar),
             SensorKind::Imu => open_port(transport, id, 1, limits).map(SensorPort::Imu),
             SensorKind::Gnss => open_port(transport, id, 1, limits).map(SensorPort::Gnss),
@@ -353,18 +365,29 @@ impl Sensors {
         }
     }
 
-    /// Captures and publishes every sensor due at this frame; a copy of
-    /// each capture goes to `record` when it is given (a recording with
-    /// sensors).
+    /// The rays the sensors cast for the last frame captured (saturates).
+    pub(crate) fn rays(&self) -> u32 {
+        u32::try_from(self.casts.rays).unwrap_or(u32::MAX)
+    }
+
+    /// Captures and publishes every sensor due at this frame of `scene`; a
+    /// copy of each capture goes to `record` when it is given (a recording
+    /// with sensors).
     pub(crate) fn capture(
         &mut self,
         world: &World,
-        frame: u64,
-        elapsed_ns: u64,
-        episode: u64,
+        scene: SceneName,
+        (frame, elapsed_ns, episode): (u64, u64, u64),
         mut record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
     ) {
-        let renderer = &self.renderer;
+        let (renderer, casts) = (&self.renderer, &mut self.casts);
+        casts.plan(
+            self.list
+                .iter()
+                .filter(|s| elapsed_ns >= s.next_capture_ns)
+                .filter_map(|s| Some((&s.spec, s.spec.sensor_kind()?)))
+                .filter(|(_, kind)| kind.is_camera()),
+        );
         for sensor in &mut self.list {
             if elapsed_ns < sensor.next_capture_ns {
                 continue;
@@ -387,18 +410,38 @@ impl Sensors {
             header.rotation = pose.rotation.to_array();
             header.size = sensor.spec.sensor_params().map_or([0, 0], |p| p.size());
             let published = match &sensor.port {
-                // SAFETY: depth_into writes one value per pixel, and the
-                // slice holds exactly width x height elements.
+                // SAFETY: depth_from writes one value per hit, and the
+                // slots past the hits are written here.
                 SensorPort::Depth(port) => unsafe {
+                    let hits = casts.hits(world, scene, &sensor.spec, pose, renderer);
+                    let camera = sensor.spec.camera().expect("checked at spawn");
+                    let intrinsics = camera::Intrinsics::of(&camera);
                     publish(port, header, record.as_deref_mut(), |slots, header| {
                         header.count = slots.len() as u32;
-                        let spec = &sensor.spec;
-                        renderer.run(|| camera::depth_into(world, spec, pose, slots))
+                        let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
+                        renderer.run(|| camera::depth_from(hits, &intrinsics, camera.range, cast));
+                        for slot in rest {
+                            slot.write(camera.range);
+                        }
+                    })
+                },
+                // SAFETY: as the depth camera's, with image_from.
+                SensorPort::Image(port) => unsafe {
+                    let hits = casts.hits(world, scene, &sensor.spec, pose, renderer);
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
+                        header.count = slots.len() as u32;
+                        let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
+                        renderer.run(|| camera::image_from(kind, hits, cast));
+                        for slot in rest {
+                            slot.write(Bgra::default());
+                        }
                     })
                 },
                 SensorPort::Lidar(port) => {
                     let sweep =
                         capture::lidar_sweep(&sensor.spec, sensor.lidar_column, since_last_ns);
+                    let [channels, _] = header.size;
+                    casts.rays += sweep.columns as u64 * u64::from(channels);
                     sensor.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel;
                     // SAFETY: lidar_into writes the returns, then zeros in
                     // every remaining slot.
@@ -456,6 +499,7 @@ impl Sensor {
         header.end_reason = reason as u32;
         let sent = match &self.port {
             SensorPort::Depth(port) => send_end(port, header),
+            SensorPort::Image(port) => send_end(port, header),
             SensorPort::Lidar(port) => send_end(port, header),
             SensorPort::Imu(port) => send_end(port, header),
             SensorPort::Gnss(port) => send_end(port, header),

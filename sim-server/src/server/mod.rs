@@ -298,9 +298,12 @@ impl Domains {
         // tick is done) finds its captures already queued.
         self.sensors.capture(
             &self.world,
-            self.clock.frame(),
-            self.clock.elapsed_ns(),
-            self.runtime.episode,
+            self.runtime.scene.name(),
+            (
+                self.clock.frame(),
+                self.clock.elapsed_ns(),
+                self.runtime.episode,
+            ),
             self.recorder.captures(),
         );
         let flags = if plan.capped {
@@ -350,7 +353,7 @@ impl Domains {
             flags,
             first_actor_id: self.world.first_id(),
             server_pid: shared_types::this_process_id(),
-            reserved: 0,
+            sensor_rays: self.sensors.rays(),
             recorded_frame: 0,
             recorded_elapsed_ns: 0,
         }

@@ -282,16 +282,19 @@ impl Domains {
         }
         self.sensors.capture(
             &self.world,
-            self.clock.frame(),
-            self.clock.elapsed_ns(),
-            self.runtime.episode,
+            self.runtime.scene.name(),
+            (
+                self.clock.frame(),
+                self.clock.elapsed_ns(),
+                self.runtime.episode,
+            ),
             None,
         );
         let header = FrameHeader {
             episode: self.runtime.episode,
             // A recording of an older protocol replays as this one's frames.
             protocol_version: PROTOCOL_VERSION,
-            reserved: 0,
+            sensor_rays: self.sensors.rays(),
             flags: frame.header.flags | FrameHeader::REPLAY,
             server_pid: shared_types::this_process_id(),
             timestamp: shared_types::Timestamp {

@@ -30,6 +30,21 @@ pub(crate) struct Actor {
     acceleration: Vector,
 }
 
+/// A collider a sensor's ray can meet, and the actor it belongs to.
+#[derive(Clone, Copy)]
+pub(crate) struct RayTarget<'a> {
+    /// Its shape.
+    pub(crate) shape: &'a dyn Shape,
+    /// Where it is.
+    pub(crate) pose: &'a Pose,
+    /// Its actor's id (0: none).
+    pub(crate) actor: u64,
+    /// Its actor's kind.
+    pub(crate) kind: Option<ActorKind>,
+    /// Its actor's half extents.
+    pub(crate) extent: [f32; 3],
+}
+
 /// The rapier world and its actors, in id order. All of it serializes
 /// (a recording's keyframe): restored, it steps exactly as the original.
 #[derive(Serialize, Deserialize)]
@@ -43,6 +58,9 @@ pub struct World {
     /// `enable_constant_velocity`), set again before every physics step.
     #[serde(default)]
     pub(crate) held: Vec<(RigidBodyHandle, Vector)>,
+    /// The sun that lights RGB cameras (a weather's).
+    #[serde(default)]
+    pub(crate) sun: shared_types::Sun,
     /// The id of this world's first actor (the scene's first placement).
     first_id: u64,
     next_id: u64,
@@ -75,6 +93,7 @@ impl World {
             vehicles: Vehicles::default(),
             pushed: Vec::new(),
             held: Vec::new(),
+            sun: shared_types::Sun::default(),
             first_id,
             next_id: first_id,
             queries_stale: false,
@@ -304,15 +323,28 @@ impl World {
     /// What [`World::cast_ray`] with `exclude` tests rays against: every
     /// enabled collider not on the excluded body, with its pose. Casting against each with `Shape::cast_ray` and keeping
     /// the nearest hit below the range is the same answer, bit for bit.
-    pub fn ray_targets(
+    pub(crate) fn ray_targets(
         &self,
         exclude: Option<RigidBodyHandle>,
-    ) -> impl Iterator<Item = (&dyn Shape, &Pose)> + '_ {
+    ) -> impl Iterator<Item = RayTarget<'_>> + '_ {
         self.physics
             .colliders
             .iter()
             .filter(move |(_, c)| c.is_enabled() && (exclude.is_none() || c.parent() != exclude))
-            .map(|(_, c)| (c.shape(), c.position()))
+            .map(|(_, c)| {
+                let actor = c
+                    .parent()
+                    .and_then(|body| self.physics.bodies.get(body))
+                    .and_then(|body| self.index_of(body.user_data as u64))
+                    .map(|i| &self.actors[i]);
+                RayTarget {
+                    shape: c.shape(),
+                    pose: c.position(),
+                    actor: actor.map_or(0, |a| a.id),
+                    kind: actor.map(|a| a.kind),
+                    extent: actor.map_or([0.0; 3], |a| a.extent),
+                }
+            })
     }
 
     /// Every actor's state, in id order, as published.

@@ -3,6 +3,7 @@
 //! vehicle (simbus's own or one of CARLA's catalogue, [`catalog`]), or a
 //! sensor. CARLA's walkers are listed and refused at spawn.
 
+mod cameras;
 mod catalog;
 mod library;
 
@@ -13,7 +14,7 @@ use std::collections::HashMap;
 
 use rmpv::Value;
 use shared_types::gnss::MAX_GNSS_SEED;
-use shared_types::{Command, Gnss, SensorSpec, SensorSpecError};
+use shared_types::{Command, Gnss, SensorKind, SensorSpec, SensorSpecError};
 
 use crate::convert;
 use crate::error::BlueprintError;
@@ -114,13 +115,25 @@ const LIBRARY: &[Blueprint] = &[
         uid: 6,
         id: "sensor.camera.depth",
         tags: "sensor,camera,depth",
-        attributes: &[
-            ROLE_NAME,
-            int("image_size_x", "800"),
-            int("image_size_y", "600"),
-            float("fov", "90.0"),
-            float("sensor_tick", "0.0"),
-        ],
+        attributes: cameras::SEGMENTATION,
+    },
+    Blueprint {
+        uid: 11,
+        id: "sensor.camera.rgb",
+        tags: "sensor,camera,rgb",
+        attributes: cameras::RGB,
+    },
+    Blueprint {
+        uid: 12,
+        id: "sensor.camera.semantic_segmentation",
+        tags: "sensor,camera,semantic_segmentation",
+        attributes: cameras::SEGMENTATION,
+    },
+    Blueprint {
+        uid: 13,
+        id: "sensor.camera.instance_segmentation",
+        tags: "sensor,camera,instance_segmentation",
+        attributes: cameras::SEGMENTATION,
     },
     Blueprint {
         uid: 7,
@@ -348,16 +361,13 @@ impl Description {
                 let at = [position[0], position[1] + half[1], position[2]];
                 body(Command::spawn_sized_vehicle(at, half, mass))
             }
-            "sensor.camera.depth" => {
-                let (w, h) = (self.number("image_size_x")?, self.number("image_size_y")?);
-                let spec = SensorSpec::depth(
-                    position,
-                    w as u32,
-                    h as u32,
-                    self.number("fov")?,
-                    DEPTH_FAR_METRES,
-                );
-                self.sensor(spec, rotation)
+            "sensor.camera.depth" => self.camera(SensorKind::Depth, position, rotation),
+            "sensor.camera.rgb" => self.camera(SensorKind::Rgb, position, rotation),
+            "sensor.camera.semantic_segmentation" => {
+                self.camera(SensorKind::Semantic, position, rotation)
+            }
+            "sensor.camera.instance_segmentation" => {
+                self.camera(SensorKind::Instance, position, rotation)
             }
             "sensor.lidar.ray_cast" => self.lidar(position, rotation),
             "sensor.other.lane_invasion" => Ok(Spawn::ClientSide(position, rotation)),
@@ -377,6 +387,28 @@ impl Description {
                 self.sensor(SensorSpec::imu(position), rotation)
             }
         }
+    }
+
+    /// A camera of `kind`: CARLA's size and field of view, seeing as far
+    /// as CARLA's depth camera reads.
+    fn camera(
+        &self,
+        kind: SensorKind,
+        position: [f32; 3],
+        rotation: [f32; 4],
+    ) -> Result<Spawn, BlueprintError> {
+        let size = (self.number("image_size_x")?, self.number("image_size_y")?);
+        // A size that is not a whole number reads as zero pixels: refused.
+        let whole = |v: f32| if v.fract() == 0.0 { v as u32 } else { 0 };
+        let spec = SensorSpec::camera_of(
+            kind,
+            position,
+            (whole(size.0), whole(size.1)),
+            self.number("fov")?,
+            DEPTH_FAR_METRES,
+        )
+        .expect("a camera kind");
+        self.sensor(spec, rotation)
     }
 
     /// A ray-cast lidar: CARLA's attributes as simbus's lidar.

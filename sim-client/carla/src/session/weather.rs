@@ -1,8 +1,11 @@
-//! The weather: CARLA's `world.set_weather` / `world.get_weather`. simbus
-//! renders no sky, so the gateway keeps the weather CARLA clients set (one
-//! per gateway, CARLA's `ClearNoon` until set) and answers it back.
+//! The weather: CARLA's `world.set_weather` / `world.get_weather`. The
+//! gateway keeps the whole weather CARLA clients set (one per gateway,
+//! CARLA's `ClearNoon` until set) and answers it back; its sun (azimuth and
+//! altitude) moves the server's sun, which lights the RGB cameras. Clouds,
+//! rain, fog and the rest change nothing in simbus's images.
 
 use rmpv::Value;
+use shared_types::{Command, CommandStatus, Sun};
 
 use super::Session;
 use crate::commands::number;
@@ -10,6 +13,10 @@ use crate::error::CallError;
 use crate::locks::lock;
 use crate::rpc::Answer;
 use crate::wire::{Weather, CLEAR_NOON};
+
+/// Where the sun's angles are in CARLA's `WeatherParameters`.
+const SUN_AZIMUTH: usize = 4;
+const SUN_ALTITUDE: usize = 5;
 
 /// CARLA's `WeatherParameters` from its msgpack array: 14 finite numbers.
 fn parse(v: &Value) -> Option<Weather> {
@@ -39,6 +46,29 @@ impl Session {
             method: "set_weather_parameters",
             what: "weather parameters of the wrong shape (14 finite numbers)",
         })?;
+        let sun = Sun {
+            azimuth: weather[SUN_AZIMUTH],
+            altitude: weather[SUN_ALTITUDE],
+        };
+        if !sun.valid() {
+            return Err(CallError::Shape {
+                method: "set_weather_parameters",
+                what: "sun_altitude_angle out of -90..=90",
+            });
+        }
+        let results = self
+            .client()?
+            .apply_batch_sync(&[Command::set_sun(sun)], false)
+            .map_err(CallError::simbus)?;
+        if let Some(refused) = results
+            .results
+            .iter()
+            .find(|r| r.status != CommandStatus::Ok as u32)
+        {
+            let status =
+                CommandStatus::from_u32(refused.status).unwrap_or(CommandStatus::UnknownCommand);
+            return Err(CallError::SunRefused(status));
+        }
         *lock(&self.hub.weather) = weather;
         Ok(Answer::Done)
     }

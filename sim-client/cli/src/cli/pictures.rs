@@ -220,6 +220,33 @@ pub(crate) fn save_lidar_top_down(
 }
 
 /// A lidar scan as an ASCII PLY point cloud (x, y, z, intensity).
+/// Writes an RGB, semantic or instance image as a colour PNG: RGB and
+/// instance pixels as they are (an instance's red is its tag, green and
+/// blue its actor's id), semantic tags in CARLA's CityScapes colours.
+pub(crate) fn save_image(
+    path: &Path,
+    pixels: &[shared_types::Bgra],
+    width: usize,
+    height: usize,
+    cityscapes: bool,
+) -> anyhow::Result<()> {
+    let mut rgb = Vec::with_capacity(width * height * 3);
+    for p in pixels.iter().take(width * height) {
+        let colour = if cityscapes {
+            shared_types::camera::cityscapes(p.r)
+        } else {
+            [p.r, p.g, p.b]
+        };
+        rgb.extend_from_slice(&colour);
+    }
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = png::Encoder::new(file, width as u32, height as u32);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(&rgb)?;
+    Ok(())
+}
+
 pub(crate) fn save_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(

@@ -5,7 +5,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Context};
 use clap::{Args, Subcommand};
 use shared_types::{
-    DepthCamera, GnssMeasurement, ImuMeasurement, SensorKind, SensorSpec, SensorSpecError,
+    Camera, GnssMeasurement, ImuMeasurement, SensorKind, SensorParams, SensorSpec, SensorSpecError,
     WorldName,
 };
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
@@ -15,7 +15,8 @@ use super::words::count;
 use crate::Failure;
 use simbus_pose::compass;
 
-/// Sensors: depth camera, lidar and IMU, read in place from shared memory.
+/// Sensors: cameras (depth, RGB, semantic and instance segmentation),
+/// lidar, IMU and GNSS, read in place from shared memory.
 #[derive(Debug, Args)]
 pub(crate) struct SensorArgs {
     #[command(subcommand)]
@@ -30,8 +31,9 @@ enum SensorCommand {
     List(ListArgs),
     /// One line per capture of a sensor.
     Watch(WatchArgs),
-    /// Write captures to files: depth as PNG, lidar as PLY and a top-down
-    /// PNG, IMU readings as JSON.
+    /// Write captures to files: cameras as PNG (semantic in CARLA's
+    /// CityScapes colours), lidar as PLY and a top-down PNG, IMU and GNSS
+    /// readings as JSON; `--raw` also writes each payload's bytes.
     Save(SaveArgs),
     /// Remove a sensor.
     Destroy {
@@ -44,7 +46,7 @@ enum SensorCommand {
 /// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
 #[derive(Debug, Args)]
 struct SpawnArgs {
-    /// depth, lidar, imu or gnss.
+    /// depth, rgb, semantic, instance, lidar, imu or gnss.
     kind: String,
     /// Actor to ride on (default: fixed in the world). The sensor is
     /// destroyed with it.
@@ -78,15 +80,16 @@ struct SpawnArgs {
     /// Capture period in simulation seconds, 0..=18446744073 (0: every frame).
     #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true, value_parser = input::sensor_tick)]
     sensor_tick: f64,
-    /// Depth: image width and height in pixels, each 1..=8192 [default: 640,480].
+    /// Cameras: image width and height in pixels, each 1..=8192 [default: 640,480].
     #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = |s: &str| input::image_size(s).map(|_| s.to_owned()))]
     size: Option<String>,
-    /// Depth: horizontal field of view in degrees, above 0 and below 180
+    /// Cameras: horizontal field of view in degrees, above 0 and below 180
     /// [default: 90].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = input::field_of_view)]
     fov: Option<f32>,
-    /// Depth: far range; lidar: range, in metres, above 0 and at most 1e6
-    /// [default: depth 100, lidar 50].
+    /// Cameras: far range (the RGB, semantic and instance cameras see sky
+    /// beyond it); lidar: range, in metres, above 0 and at most 1e6
+    /// [default: depth 100, other cameras 1000, lidar 50].
     #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = input::sensor_range)]
     range: Option<f32>,
     /// Lidar: channels (rings), 1..=256 [default: 32].
@@ -159,6 +162,10 @@ struct SaveArgs {
     /// the farthest hit in the image, so a 20 m scene is not all white).
     #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = |s: &str| input::metres(s).map(|m| m as f32))]
     range: Option<f32>,
+    /// Also write each capture's payload as it is in shared memory
+    /// (`.raw`: a camera's pixels row by row, a lidar's points, ...).
+    #[arg(long)]
+    raw: bool,
 }
 
 fn failure(e: SensorError) -> Failure {
@@ -235,21 +242,29 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
 
 /// The spec `a` describes, checked.
 fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
-    use SensorKind::{Depth, Gnss, Lidar};
+    use SensorKind::{Depth, Gnss, Instance, Lidar, Rgb, Semantic};
     let at = super::numbers::<3>(&a.at, "--at")?;
     let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
     let Some(kind) = SensorKind::from_name(&a.kind) else {
         return Err(Failure::Refused(anyhow!(
-            "unknown sensor kind '{}': expected depth, lidar, imu or gnss",
+            "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, imu or gnss",
             a.kind
         )));
     };
     only_for(
         kind,
         &[
-            ("--size", a.size.is_some(), &[Depth]),
-            ("--fov", a.fov.is_some(), &[Depth]),
-            ("--range", a.range.is_some(), &[Depth, Lidar]),
+            (
+                "--size",
+                a.size.is_some(),
+                &[Depth, Rgb, Semantic, Instance],
+            ),
+            ("--fov", a.fov.is_some(), &[Depth, Rgb, Semantic, Instance]),
+            (
+                "--range",
+                a.range.is_some(),
+                &[Depth, Rgb, Semantic, Instance, Lidar],
+            ),
             ("--channels", a.channels.is_some(), &[Lidar]),
             ("--points", a.points.is_some(), &[Lidar]),
             ("--fov-range", a.fov_range.is_some(), &[Lidar]),
@@ -267,17 +282,19 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     // fractional size is refused from this (see `check_depth_size`).
     let mut typed_size = None;
     let mut spec = match kind {
-        SensorKind::Depth => {
+        SensorKind::Depth | SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance => {
             let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
             typed_size = Some([w, h]);
+            let far = if kind == Depth { 100.0 } else { 1000.0 };
+            let camera = Camera {
+                width: w as u32,
+                height: h as u32,
+                fov: a.fov.unwrap_or(90.0),
+                range: a.range.unwrap_or(far),
+            };
             SensorSpec::with_params(
                 at,
-                DepthCamera {
-                    width: w as u32,
-                    height: h as u32,
-                    fov: a.fov.unwrap_or(90.0),
-                    range: a.range.unwrap_or(100.0),
-                },
+                SensorParams::camera_of(kind, camera).expect("a camera kind"),
             )
         }
         SensorKind::Lidar => {
@@ -348,7 +365,7 @@ fn check_depth_size(spec: &SensorSpec, size: Option<[f32; 2]>) -> Result<(), Sen
             | SensorSpecError::Position
             | SensorSpecError::SensorTick),
         ) => Err(e),
-        _ if size.iter().any(|v| v.fract() != 0.0) => Err(SensorSpecError::DepthSize),
+        _ if size.iter().any(|v| v.fract() != 0.0) => Err(SensorSpecError::CameraSize),
         checked => checked,
     }
 }
@@ -481,7 +498,7 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
         .with_context(|| format!("creating the directory {}", a.out.display()))?;
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     let spec = sensor.spec();
-    let depth_range = spec.depth_camera().map_or(0.0, |d| d.range);
+    let depth_range = spec.camera().map_or(0.0, |d| d.range);
     let lidar_range = spec.lidar_params().map_or(0.0, |l| l.range);
     for _ in 0..a.captures {
         let Some(capture) = next_capture(&mut sensor, timeout)? else {
@@ -491,7 +508,31 @@ fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> 
         let stem = a
             .out
             .join(format!("sensor{}-frame{}", h.sensor_id, h.frame));
-        if let Some(depth) = capture.depth() {
+        if a.raw {
+            let path = stem.with_extension("raw");
+            std::fs::write(&path, capture.bytes())
+                .with_context(|| format!("writing {}", path.display()))?;
+            println!(
+                "wrote {} ({})",
+                path.display(),
+                count(capture.bytes().len() as u64, "byte")
+            );
+        }
+        if let Some(pixels) = capture.image() {
+            let path = stem.with_extension("png");
+            let kind = SensorKind::from_u32(h.kind).unwrap_or(SensorKind::Rgb);
+            let [w, hgt] = h.size.map(|v| v as usize);
+            super::pictures::save_image(&path, pixels, w, hgt, kind == SensorKind::Semantic)
+                .with_context(|| format!("writing {}", path.display()))?;
+            let what = match kind {
+                SensorKind::Semantic => "semantic segmentation, CARLA's CityScapes colours",
+                SensorKind::Instance => {
+                    "instance segmentation: red the tag, green and blue the actor id"
+                }
+                _ => "rgb",
+            };
+            println!("wrote {} ({what})", path.display());
+        } else if let Some(depth) = capture.depth() {
             let path = stem.with_extension("png");
             let range = super::pictures::save_depth(
                 &path,

@@ -183,13 +183,13 @@ impl Capture {
         kind_name(self.header.kind)
     }
 
-    /// Depth: image width in pixels; lidar: channels; IMU: 1.
+    /// Cameras: image width in pixels; lidar: channels; IMU: 1.
     #[getter]
     fn width(&self) -> u32 {
         self.header.size[0]
     }
 
-    /// Depth: image height in pixels; lidar: points per channel; IMU: 1.
+    /// Cameras: image height in pixels; lidar: points per channel; IMU: 1.
     #[getter]
     fn height(&self) -> u32 {
         self.header.size[1]
@@ -224,7 +224,9 @@ impl Capture {
 
     /// The data, read-only, over the capture's shared memory (its base
     /// keeps the capture lent while it lives): depth `float32 (height,
-    /// width)` metres; lidar `float32 (N, 4)` x, y, z, intensity for the N
+    /// width)` metres; RGB, semantic and instance `uint8 (height, width,
+    /// 4)` blue, green, red, alpha (semantic: the tag in red; instance:
+    /// the tag in red, the actor id in green and blue); lidar `float32 (N, 4)` x, y, z, intensity for the N
     /// returns; IMU one record (`accelerometer`, `gyroscope`).
     #[getter]
     fn array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -236,6 +238,10 @@ impl Capture {
         let [w, h] = self.header.size.map(|v| v as usize);
         match SensorKind::from_u32(self.header.kind) {
             Some(SensorKind::Depth) => self.typed(loan, &f4, size_of::<f32>(), &[h, w]),
+            Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
+                let u1 = PyString::new(py, "u1").into_any();
+                self.typed(loan, &u1, 1, &[h, w, 4])
+            }
             Some(SensorKind::Lidar) => {
                 let element = size_of::<LidarPoint>();
                 let slots = match &loan.borrow().sample {

@@ -163,6 +163,7 @@ pub(super) fn describe(w: &Wire) -> String {
             true => format!("ConstantVelocity({id}, velocity={:?})", triple(v)),
             false => format!("ConstantVelocity({id}, velocity=None)"),
         },
+        CommandKind::SetSun => format!("SetSun(azimuth={:?}, altitude={:?})", p[0], p[1]),
         CommandKind::VehicleControl => format!(
             "ApplyVehicleControl({id}, throttle={:?}, steer={:?}, brake={:?}, hand_brake={})",
             p[0],

@@ -15,7 +15,7 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{
-    ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
+    ActorState, BatchHeader, BatchResponseHeader, Bgra, Command, CommandResult, ControlRequest,
     ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint, LockstepRequest,
     LockstepResponse, RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind,
     SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
@@ -260,6 +260,7 @@ impl std::fmt::Debug for LocalServices {
 /// One sensor's publisher here, by the kind of its payload.
 enum SensorPort {
     Depth(Publisher<Bus, [f32], SensorHeader>),
+    Image(Publisher<Bus, [Bgra], SensorHeader>),
     Lidar(Publisher<Bus, [LidarPoint], SensorHeader>),
     Imu(Publisher<Bus, [ImuMeasurement], SensorHeader>),
     Gnss(Publisher<Bus, [GnssMeasurement], SensorHeader>),
@@ -337,6 +338,9 @@ impl SensorPorts {
             Some(SensorKind::Depth) => {
                 SensorPort::Depth(sensor_publisher(node, names, id, elements, limits)?)
             }
+            Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
+                SensorPort::Image(sensor_publisher(node, names, id, elements, limits)?)
+            }
             Some(SensorKind::Lidar) => {
                 SensorPort::Lidar(sensor_publisher(node, names, id, elements, limits)?)
             }
@@ -366,6 +370,7 @@ impl SensorPorts {
         self.ensure(names, limits, local, id, header.kind, elements)?;
         let published = match &self.ports[&id] {
             SensorPort::Depth(p) => publish(p, header, payload),
+            SensorPort::Image(p) => publish(p, header, payload),
             SensorPort::Lidar(p) => publish(p, header, payload),
             SensorPort::Imu(p) => publish(p, header, payload),
             SensorPort::Gnss(p) => publish(p, header, payload),

@@ -1,0 +1,90 @@
+//! The sensor wire types' rules: what a spec may be, and the kinds' names.
+
+use super::*;
+
+#[test]
+fn specs_are_checked() {
+    assert!(SensorSpec::depth([0.0; 3], 640, 480, 90.0, 100.0)
+        .check()
+        .is_ok());
+    assert!(SensorSpec::depth([0.0; 3], 0, 480, 90.0, 100.0)
+        .check()
+        .is_err());
+    assert!(SensorSpec::depth([0.0; 3], 64, 48, 180.0, 100.0)
+        .check()
+        .is_err());
+    assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, 10.0, -30.0)
+        .check()
+        .is_ok());
+    assert!(SensorSpec::lidar([0.0; 3], 64, 1024, 50.0, -30.0, 10.0)
+        .check()
+        .is_err());
+    assert!(SensorSpec::imu([f32::NAN, 0.0, 0.0]).check().is_err());
+    assert!(SensorSpec::imu([0.0; 3]).every(-1.0).check().is_err());
+    // Issue #24: sensors are kept within the world's reach, as actors are.
+    assert_eq!(
+        SensorSpec::imu([1e9, 0.0, 0.0]).check(),
+        Err(SensorSpecError::Position)
+    );
+    assert!(SensorSpec::imu([0.0, -100_000.0, 100_000.0])
+        .check()
+        .is_ok());
+    assert_eq!(SensorSpec::depth([0.0; 3], 4, 3, 60.0, 10.0).elements(), 12);
+    // 2048 x 1024 x 4 B = 8 MiB is fine; 8192 x 8192 x 4 B = 256 MiB is not.
+    assert!(SensorSpec::depth([0.0; 3], 2048, 1024, 90.0, 10.0)
+        .check()
+        .is_ok());
+    assert!(SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0)
+        .check()
+        .is_err());
+    assert!(SensorSpec::lidar([0.0; 3], 256, 65536, 50.0, 10.0, -30.0)
+        .check()
+        .is_err());
+    // One limit, stated where it is broken.
+    let too_big = SensorSpec::depth([0.0; 3], 8192, 8192, 90.0, 10.0).check();
+    assert!(too_big.unwrap_err().to_string().contains("8388608 pixels"));
+    let forever = SensorSpec::imu([0.0; 3]).every(1e300).check();
+    assert!(forever.unwrap_err().to_string().contains("18446744073"));
+}
+
+#[test]
+fn the_check_and_the_flags_share_one_set_of_size_limits() {
+    // Each side / count at its limit passes (with the other kept small
+    // enough for the capture's byte cap), one past it does not: the
+    // same constants bound `sim-client sensor --size/--channels/--points`.
+    let depth = |w, h| SensorSpec::depth([0.0; 3], w, h, 90.0, 10.0).check();
+    assert_eq!(depth(MAX_IMAGE_SIDE, 1), Ok(()));
+    assert_eq!(depth(1, MAX_IMAGE_SIDE), Ok(()));
+    assert_eq!(
+        depth(MAX_IMAGE_SIDE + 1, 1),
+        Err(SensorSpecError::CameraSize)
+    );
+    assert_eq!(
+        depth(1, MAX_IMAGE_SIDE + 1),
+        Err(SensorSpecError::CameraSize)
+    );
+    let lidar = |c, p| SensorSpec::lidar([0.0; 3], c, p, 50.0, 10.0, -30.0).check();
+    assert_eq!(lidar(MAX_LIDAR_CHANNELS, 1), Ok(()));
+    assert_eq!(lidar(1, MAX_LIDAR_POINTS), Ok(()));
+    assert_eq!(
+        lidar(MAX_LIDAR_CHANNELS + 1, 1),
+        Err(SensorSpecError::LidarSize)
+    );
+    assert_eq!(
+        lidar(1, MAX_LIDAR_POINTS + 1),
+        Err(SensorSpecError::LidarSize)
+    );
+    let message = SensorSpecError::LidarSize.to_string();
+    assert!(
+        message.contains("1..=256 and points per channel in 1..=65536"),
+        "{message}"
+    );
+}
+
+#[test]
+fn kinds_round_trip_through_their_names() {
+    for k in SensorKind::ALL {
+        assert_eq!(SensorKind::from_name(k.name()), Some(k));
+    }
+    assert_eq!(SensorKind::from_name("camera"), None);
+}

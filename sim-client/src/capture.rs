@@ -1,0 +1,88 @@
+//! [`Capture`]: one sensor capture, borrowed from shared memory.
+
+use iceoryx2::sample::Sample;
+use shared_types::{Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, SensorHeader};
+use simbus_transport::Bus;
+
+/// One capture, borrowed from shared memory: nothing is copied until you do.
+pub enum Capture {
+    /// A depth image: `f32` planar depths, row by row.
+    Depth(Sample<Bus, [f32], SensorHeader>),
+    /// An RGB, semantic or instance segmentation image: [`Bgra`] pixels,
+    /// row by row (the header's kind says which).
+    Image(Sample<Bus, [Bgra], SensorHeader>),
+    /// A lidar scan.
+    Lidar(Sample<Bus, [LidarPoint], SensorHeader>),
+    /// An IMU reading.
+    Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
+    /// A GNSS reading.
+    Gnss(Sample<Bus, [GnssMeasurement], SensorHeader>),
+}
+
+impl Capture {
+    /// The capture's header: sensor, frame, simulation time, pose at capture.
+    pub fn header(&self) -> &SensorHeader {
+        match self {
+            Self::Depth(s) => s.user_header(),
+            Self::Image(s) => s.user_header(),
+            Self::Lidar(s) => s.user_header(),
+            Self::Imu(s) => s.user_header(),
+            Self::Gnss(s) => s.user_header(),
+        }
+    }
+
+    /// The depth image in place (width × height, row-major), if a depth capture.
+    pub fn depth(&self) -> Option<&[f32]> {
+        match self {
+            Self::Depth(s) => Some(s.payload()),
+            _ => None,
+        }
+    }
+
+    /// The image's pixels in place (width × height, row-major, blue,
+    /// green, red, alpha), if an RGB, semantic or instance capture.
+    pub fn image(&self) -> Option<&[Bgra]> {
+        match self {
+            Self::Image(s) => Some(s.payload()),
+            _ => None,
+        }
+    }
+
+    /// The lidar returns in place (sensor frame), if a lidar capture.
+    pub fn points(&self) -> Option<&[LidarPoint]> {
+        match self {
+            Self::Lidar(s) => {
+                let count = (s.user_header().count as usize).min(s.payload().len());
+                Some(&s.payload()[..count])
+            }
+            _ => None,
+        }
+    }
+
+    /// The IMU reading, if an IMU capture.
+    pub fn imu(&self) -> Option<&ImuMeasurement> {
+        match self {
+            Self::Imu(s) => s.payload().first(),
+            _ => None,
+        }
+    }
+
+    /// The GNSS reading, if a GNSS capture.
+    pub fn gnss(&self) -> Option<&GnssMeasurement> {
+        match self {
+            Self::Gnss(s) => s.payload().first(),
+            _ => None,
+        }
+    }
+
+    /// The payload's bytes in place.
+    pub fn bytes(&self) -> &[u8] {
+        match self {
+            Self::Depth(s) => bytemuck::cast_slice(s.payload()),
+            Self::Image(s) => bytemuck::cast_slice(s.payload()),
+            Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
+            Self::Imu(s) => bytemuck::cast_slice(s.payload()),
+            Self::Gnss(s) => bytemuck::cast_slice(s.payload()),
+        }
+    }
+}

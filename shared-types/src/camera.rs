@@ -136,9 +136,15 @@ impl Default for Sun {
 }
 
 impl Sun {
-    /// Whether both angles are finite and the altitude is in −90..=90.
+    /// Whether both angles are finite (any angle is a place in the sky,
+    /// as in CARLA: an altitude of 120° is 60° up on the other side).
     pub fn valid(&self) -> bool {
-        self.azimuth.is_finite() && self.altitude.is_finite() && self.altitude.abs() <= 90.0
+        self.azimuth.is_finite() && self.altitude.is_finite()
+    }
+
+    /// Its height above the horizon, degrees in −90..=90.
+    pub fn elevation(&self) -> f32 {
+        self.direction()[1].clamp(-1.0, 1.0).asin().to_degrees()
     }
 
     /// The unit vector towards the sun in simbus's world axes (X forward,
@@ -178,9 +184,14 @@ mod tests {
         }
         .direction();
         assert!((east[2] - 1.0).abs() < 1e-6 && east[0].abs() < 1e-6);
+        let past_zenith = Sun {
+            azimuth: 0.0,
+            altitude: 120.0,
+        };
+        assert!(past_zenith.valid() && (past_zenith.elevation() - 60.0).abs() < 1e-3);
         assert!(!Sun {
             azimuth: 0.0,
-            altitude: 91.0
+            altitude: f32::NAN
         }
         .valid());
     }

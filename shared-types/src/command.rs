@@ -49,8 +49,8 @@ wire_enum! {
         /// `enable_constant_velocity`.
         ConstantVelocity = 14,
         /// Move the sun that lights RGB cameras (`actor` 0): `params[0]` =
-        /// azimuth, `params[1]` = altitude in −90..=90, degrees (CARLA's
-        /// `sun_azimuth_angle`, `sun_altitude_angle`).
+        /// azimuth, `params[1]` = altitude, degrees, any finite angles
+        /// (CARLA's `sun_azimuth_angle`, `sun_altitude_angle`).
         SetSun = 15,
     }
 }

@@ -97,11 +97,17 @@ fn every_camera_kind_is_checked_as_the_depth_camera_is() {
         let camera =
             |size, fov, far| SensorSpec::camera_of(kind, [0.0; 3], size, fov, far).unwrap();
         assert_eq!(camera((800, 600), 90.0, 1000.0).check(), Ok(()));
-        assert_eq!(camera((800, 600), 90.0, 1000.0).payload_bytes(), 800 * 600 * 4);
+        assert_eq!(
+            camera((800, 600), 90.0, 1000.0).payload_bytes(),
+            800 * 600 * 4
+        );
         assert_eq!(camera((0, 600), 90.0, 1.0).check(), Err(E::CameraSize));
         assert_eq!(camera((8192, 8192), 90.0, 1.0).check(), Err(E::CameraSize));
         assert_eq!(camera((8, 6), f32::NAN, 1.0).check(), Err(E::NotFinite));
-        assert_eq!(camera((8, 6), 180.0, 1.0).check(), Err(E::CameraFieldOfView));
+        assert_eq!(
+            camera((8, 6), 180.0, 1.0).check(),
+            Err(E::CameraFieldOfView)
+        );
         assert_eq!(camera((8, 6), 90.0, -1.0).check(), Err(E::CameraRange));
     }
     assert!(!SensorKind::Lidar.is_camera());

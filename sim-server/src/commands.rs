@@ -36,7 +36,7 @@ fn result(actor: u64, status: CommandStatus) -> CommandResult {
 }
 
 impl World {
-    /// Moves the sun (no actor); an angle out of range changes nothing.
+    /// Moves the sun (no actor).
     fn set_sun(&mut self, command: &Command) -> CommandResult {
         let [azimuth, altitude, ..] = command.params;
         let sun = shared_types::Sun { azimuth, altitude };

@@ -1,8 +1,8 @@
 //! The image cameras: a red box 10 m ahead appears where the depth camera
 //! says it is, in the box's colour, with its CARLA tag and with its actor id
 //! in green and blue; four cameras at one pose cost one ray cast (the
-//! frame's `sensor_rays`); the weather's sun changes the shading and an
-//! impossible sun changes nothing; `sim-client sensor save --raw` writes
+//! frame's `sensor_rays`); the weather's sun changes the shading and a
+//! sun at NaN degrees changes nothing; `sim-client sensor save --raw` writes
 //! the bytes the Rust client reads in place.
 
 use std::collections::HashMap;
@@ -93,7 +93,10 @@ fn a_red_box_appears_where_the_depth_camera_sees_it_with_its_tag_and_id() {
         }
     }
     // A 2 m face at 9 m in a 60° camera: a sizeable patch, not all the image.
-    assert!(on_box > 50 && on_box < W * H / 2, "{on_box} pixels on the box");
+    assert!(
+        on_box > 50 && on_box < W * H / 2,
+        "{on_box} pixels on the box"
+    );
 }
 
 #[test]
@@ -121,7 +124,7 @@ fn four_cameras_at_one_pose_cost_one_cast() {
 }
 
 #[test]
-fn the_weather_s_sun_changes_the_shading_and_an_impossible_one_changes_nothing() {
+fn the_weather_s_sun_changes_the_shading_and_a_nan_one_changes_nothing() {
     let (_server, client, mut ticker, _) = world_with_a_box("camera-sun");
     let mut rgb = camera(&client, SensorKind::Rgb, [0.0, 5.0, 0.0]);
     let centre = (H / 2) * W + W / 2;
@@ -151,7 +154,7 @@ fn the_weather_s_sun_changes_the_shading_and_an_impossible_one_changes_nothing()
     );
     let (refused, unchanged) = shade(Sun {
         azimuth: 0.0,
-        altitude: 91.0,
+        altitude: f32::NAN,
     });
     assert_eq!(refused, CommandStatus::InvalidArgument as u32);
     assert_eq!(unchanged, shadowed, "the sun did not move");
@@ -191,7 +194,11 @@ fn sensor_save_raw_writes_the_bytes_the_client_reads_in_place() {
         .unwrap_or_else(|| panic!("a frame in {written:?}"));
     let raw = std::fs::read(dir.path().join(format!("sensor{id}-frame{frame}.raw"))).unwrap();
     assert_eq!(raw.len(), W * H * 4);
-    assert_eq!(Some(&raw), read.get(&frame), "frame {frame}: the same bytes");
+    assert_eq!(
+        Some(&raw),
+        read.get(&frame),
+        "frame {frame}: the same bytes"
+    );
     assert!(dir
         .path()
         .join(format!("sensor{id}-frame{frame}.png"))

@@ -102,7 +102,7 @@ pub(super) struct CastSpec {
     pub(super) intrinsics: Intrinsics,
     /// The cameras' range (cameras of different ranges cast apart).
     pub(super) far: f32,
-    /// The body the cameras ride on (never seen).
+    /// The body not seen (the parent of cameras inside it).
     pub(super) exclude: Option<RigidBodyHandle>,
     /// Whether an RGB camera shares it (colours and light are worked out).
     pub(super) lit: bool,
@@ -132,10 +132,10 @@ fn surface(target: &Target, point: Vector, ground: &GroundMap) -> (SemanticTag, 
     }
 }
 
-/// How bright daylight is with the sun at `altitude` degrees: full above
-/// 10°, a night's 0.15 below −10°.
+/// How bright daylight is: full with the sun over 10° up, a night's 0.15
+/// with it over 10° down.
 fn daylight(sun: &Sun) -> f32 {
-    0.15 + 0.85 * ((sun.altitude + 10.0) / 20.0).clamp(0.0, 1.0)
+    0.15 + 0.85 * ((sun.elevation() + 10.0) / 20.0).clamp(0.0, 1.0)
 }
 
 /// The sky's colour along world direction `d`: a gradient from the
@@ -311,7 +311,8 @@ mod tests {
             SensorSpec::depth([-4.0, 3.0, 0.0], 160, 120, 90.0, 100.0),
             // Wide, short range: boxes beside and behind the image plane.
             SensorSpec::depth([2.0, 1.0, 1.0], 96, 64, 150.0, 12.0),
-            // On a vehicle, which it must not see itself.
+            // On a vehicle, left out of the cast (as a lidar leaves out its
+            // parent, and a camera the parent it sits inside).
             SensorSpec::depth([0.0, 1.0, 0.0], 64, 48, 90.0, 60.0).attached_to(vehicle),
         ];
         for spec in specs {

@@ -4,7 +4,7 @@
 //! [`Hit`]s. The buffers are kept from frame to frame (no allocation once
 //! they have grown), and the rays cast are counted for the frame's header.
 
-use rapier3d::prelude::Pose;
+use rapier3d::prelude::{Pose, RigidBodyHandle};
 use shared_types::scene::SceneName;
 use shared_types::{SensorKind, SensorSpec};
 
@@ -37,6 +37,15 @@ impl CastKey {
             bits,
         }
     }
+}
+
+/// The body a camera does not see: its parent when the camera is inside
+/// it. A camera sees its parent otherwise, as CARLA's do (a camera behind
+/// a car films the car); inside it, faces seen from inside are not drawn.
+fn seen_from_inside(world: &World, spec: &SensorSpec, pose: Pose) -> Option<RigidBodyHandle> {
+    world
+        .body_of(spec.attach_to)
+        .filter(|&body| world.body_contains(body, pose.translation))
 }
 
 /// One shared cast of this frame.
@@ -122,7 +131,7 @@ impl Casts {
             let cast = CastSpec {
                 intrinsics: Intrinsics::of(&camera),
                 far: camera.range,
-                exclude: world.body_of(spec.attach_to),
+                exclude: seen_from_inside(world, spec, pose),
                 lit: slot.lit,
             };
             renderer.run(|| camera::cast(world, &cast, pose, ground, &mut slot.hits));

@@ -287,6 +287,28 @@ impl World {
         self.index_of(id).map(|i| self.actors[i].body)
     }
 
+    /// Whether `collider` is out of the physics only because its body's
+    /// simulation is off (CARLA's `set_simulate_physics(False)`): the actor
+    /// is still there, and sensors see it.
+    fn held_still(&self, collider: &Collider) -> bool {
+        collider
+            .parent()
+            .and_then(|b| self.physics.bodies.get(b))
+            .is_some_and(|b| !b.is_enabled())
+    }
+
+    /// Whether world point `point` is inside one of `body`'s colliders.
+    pub(crate) fn body_contains(&self, body: RigidBodyHandle, point: Vector) -> bool {
+        self.physics.bodies.get(body).is_some_and(|b| {
+            b.colliders().iter().any(|&c| {
+                self.physics
+                    .colliders
+                    .get(c)
+                    .is_some_and(|c| c.shape().contains_point(c.position(), point))
+            })
+        })
+    }
+
     /// The pose of actor `id`.
     pub fn pose_of(&self, id: u64) -> Option<Pose> {
         self.body_of(id).map(|b| *self.physics.bodies[b].position())
@@ -320,9 +342,12 @@ impl World {
             .map(|(_, distance)| distance)
     }
 
-    /// What [`World::cast_ray`] with `exclude` tests rays against: every
-    /// enabled collider not on the excluded body, with its pose. Casting against each with `Shape::cast_ray` and keeping
-    /// the nearest hit below the range is the same answer, bit for bit.
+    /// What sensors' rays meet: every collider not on the excluded body,
+    /// with its pose and actor. The enabled ones are what
+    /// [`World::cast_ray`] with `exclude` tests (casting against each with
+    /// `Shape::cast_ray` and keeping the nearest hit below the range is the
+    /// same answer, bit for bit); those of bodies whose simulation is off
+    /// are there too (the actor is still in the world).
     pub(crate) fn ray_targets(
         &self,
         exclude: Option<RigidBodyHandle>,
@@ -330,7 +355,8 @@ impl World {
         self.physics
             .colliders
             .iter()
-            .filter(move |(_, c)| c.is_enabled() && (exclude.is_none() || c.parent() != exclude))
+            .filter(move |(_, c)| exclude.is_none() || c.parent() != exclude)
+            .filter(|(_, c)| c.is_enabled() || self.held_still(c))
             .map(|(_, c)| {
                 let actor = c
                     .parent()

@@ -50,12 +50,6 @@ impl Session {
             azimuth: weather[SUN_AZIMUTH],
             altitude: weather[SUN_ALTITUDE],
         };
-        if !sun.valid() {
-            return Err(CallError::Shape {
-                method: "set_weather_parameters",
-                what: "sun_altitude_angle out of -90..=90",
-            });
-        }
         let results = self
             .client()?
             .apply_batch_sync(&[Command::set_sun(sun)], false)

@@ -141,6 +141,56 @@ def test_lidar_array_is_what_the_rust_client_reads(world, client, tmp_path):
     assert mine[frame] == saved.tobytes()
 
 
+def test_camera_images_are_bgra_views_the_cli_saves_raw_and_the_recorder_keeps(world, client, tmp_path):
+    """An RGB, a semantic and an instance camera at one pose: each capture
+    is a read-only `uint8 (height, width, 4)` view over its loan; the
+    bytes `sim-client sensor save --raw` writes (what the Rust client
+    reads) and the recording holds are the array's."""
+    mine = {}
+    recording = tmp_path / "cameras.mcap"
+    with client.ticker(delta_seconds=0.05) as ticker:
+        cameras = [client.spawn_sensor(kind, width=40, height=30, fov=70, rotation=LOOKING_DOWN)
+                   for kind in ("rgb", "semantic", "instance")]
+        rgb = cameras[0]
+        sim_client(world, "recorder", "start", str(recording), "--sensors")
+        save = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "30",
+             "sensor", "save", str(rgb.id), "--raw", "--out", str(tmp_path)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        try:
+            # Tick until the CLI has subscribed, taken a capture and written it.
+            for _ in range(100_000):
+                if save.poll() is not None:
+                    break
+                frame = ticker.tick()
+                for camera in cameras:
+                    with camera.read() as capture:
+                        assert capture.frame == frame
+                        array = capture.array
+                        assert array.dtype == np.uint8 and array.shape == (30, 40, 4)
+                        assert not array.flags.writeable
+                        assert (array[:, :, 3] == 255).all()
+                        mine[camera.kind, frame] = array.tobytes()
+                        del array
+        finally:
+            save.kill()
+            out, err = save.communicate(timeout=10)
+        sim_client(world, "recorder", "stop")
+    assert save.returncode == 0, out + err
+    [raw] = tmp_path.glob(f"sensor{rgb.id}-frame*.raw")
+    frame = int(raw.stem.rsplit("frame", 1)[1])
+    assert raw.read_bytes() == mine["rgb", frame]
+    assert (tmp_path / f"sensor{rgb.id}-frame{frame}.png").exists()
+    recorded = recorded_captures(recording, cameras[1].id)
+    assert recorded[frame][1] == mine["semantic", frame]
+    # Not trivial: the camera looking down sees the ground's tags and the
+    # sky's, and the RGB image is not one colour.
+    tags = set(np.frombuffer(mine["semantic", frame], np.uint8)[2::4])
+    assert {11} < tags, tags
+    assert len(set(np.frombuffer(mine["rgb", frame], np.uint32))) > 10
+
+
 def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
     """A GNSS receiver 100 m along Z and 30 m along X of the origin, 2 m
     up: one record (latitude, longitude, altitude), float64, over the

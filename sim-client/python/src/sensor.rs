@@ -211,15 +211,15 @@ struct SpawnParams {
 
 #[pymethods]
 impl Client {
-    /// Builds a sensor and subscribes to it: `kind` is `"depth"`,
-    /// `"lidar"`, `"imu"` or `"gnss"`. It rides on actor
+    /// Builds a sensor and subscribes to it: `kind` is `"depth"`, `"rgb"`,
+    /// `"semantic"`, `"instance"`, `"lidar"`, `"imu"` or `"gnss"`. It rides on actor
     /// `parent` (and dies with it) or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
     /// quaternion (x, y, z, w), `sensor_tick` its capture
-    /// period in simulation seconds (0: every frame). Depth: `width`,
+    /// period in simulation seconds (0: every frame). Cameras: `width`,
     /// `height` (640 x 480), horizontal `fov` in degrees (90), far `range`
-    /// in metres (100). Lidar: `channels` (32), `points` per channel in a
+    /// in metres (depth 100, the others 1000). Lidar: `channels` (32), `points` per channel in a
     /// turn (512), `range` (50), `upper_fov`/`lower_fov` in degrees
     /// (10/-30), `rotation_frequency` in Hz (0: a full turn every capture).
     /// GNSS: `noise`, a dict of CARLA's noise attributes without their

@@ -231,8 +231,10 @@ class Client:
         rotation_frequency: Optional[float] = None,
         noise: Optional[Dict[str, float]] = None,
     ) -> Sensor:
-        """Spawns a "depth", "lidar", "imu" or "gnss" sensor and opens a reader of it.
-        A GNSS receiver's `noise`: CARLA's noise attributes without their
+        """Spawns a "depth", "rgb", "semantic", "instance", "lidar", "imu" or
+        "gnss" sensor and opens a reader of it. Cameras take width, height,
+        fov and range (depth 100 m, the others 1000 m); cameras of one
+        parent, pose, size, fov and range share one ray cast. A GNSS receiver's `noise`: CARLA's noise attributes without their
         "noise_" prefix (lat_bias, lat_stddev, lon_bias, lon_stddev, alt_bias,
         alt_stddev, seed), each 0 unless given."""
     def sensor(self, id: int) -> Sensor:
@@ -434,7 +436,10 @@ class Capture:
     def held(self) -> bool: ...
     @property
     def array(self) -> npt.NDArray[np.generic]:
-        """Read-only, over shared memory: depth float32 (H, W), lidar float32
+        """Read-only, over shared memory: depth float32 (H, W); rgb, semantic
+        and instance uint8 (H, W, 4) blue, green, red, alpha (semantic: CARLA's
+        tag in red; instance: the tag in red, the actor id in green and
+        blue); lidar float32
         (N, 4), IMU one record (accelerometer, gyroscope), GNSS one record
         (latitude, longitude, altitude; float64)."""
     def copy(self) -> Capture: ...

@@ -1,7 +1,8 @@
 //! `simbus-bench carla`: CARLA 0.9.16's own Python client through
 //! `sim-client carla-gateway`, next to the native client, in one run: the
 //! `world.tick()` round trip, `wait_for_tick` latency (publish → returned),
-//! 640x480 depth frames per second through `camera.listen`, and CARLA's
+//! 640x480 depth and 800x600 RGB frames per second through
+//! `camera.listen`, and CARLA's
 //! traffic manager (in the script's process) driving 30 and 100 vehicles
 //! on simbus's town, with the time of `get_map()` + `generate_waypoints`.
 
@@ -14,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use shared_types::SensorSpec;
+use shared_types::{SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 use simbus_process::ChildGuard;
 
@@ -227,6 +228,8 @@ struct Measured {
     carla_wait: Latencies,
     native_fps: f64,
     carla_fps: f64,
+    /// RGB 800x600 through `listen`: native, CARLA.
+    rgb_fps: (f64, f64),
     traffic: Traffic,
 }
 
@@ -291,7 +294,9 @@ fn measure(
     let mut ticker = sync_ticker(&client, 0.01)?;
     let (native_wait, carla_wait) =
         wait_for_tick(args.ticks, &server.world, &mut ticker, carla, timeout)?;
-    let (native_fps, carla_fps) = depth_fps(args.frames, &client, ticker, carla, timeout)?;
+    ticker.release()?;
+    let (native_fps, carla_fps) = camera_fps(args.frames, &client, carla, "depth")?;
+    let rgb_fps = camera_fps(args.frames, &client, carla, "rgb")?;
     let traffic = traffic(args, sim_client, python, script)?;
     report(
         args,
@@ -304,6 +309,7 @@ fn measure(
             carla_wait,
             native_fps,
             carla_fps,
+            rgb_fps,
             traffic,
         },
     );
@@ -392,18 +398,25 @@ pub(crate) fn wait_for_tick(
     Ok((native_wait, side_wait))
 }
 
-/// Depth 640x480 frames per second, `frames` of each: a native subscriber
-/// ticking with `ticker` (released after), then camera.listen on the
-/// CARLA client.
-pub(crate) fn depth_fps(
+/// A camera's frames per second, `frames` of each: a native subscriber
+/// ticking (the ticker released before the script's turn), then
+/// `camera.listen` on the CARLA client. `kind`: depth 640x480 or rgb
+/// 800x600.
+pub(crate) fn camera_fps(
     frames: usize,
     client: &Client,
-    mut ticker: Ticker,
     carla: ScriptSide<'_>,
-    timeout: Duration,
+    kind: &str,
 ) -> anyhow::Result<(f64, f64)> {
-    let mut sensor =
-        client.spawn_sensor(SensorSpec::depth([0.0, 2.0, 0.0], 640, 480, 90.0, 1000.0))?;
+    let timeout = Duration::from_secs(30);
+    let mut ticker = sync_ticker(client, 0.01)?;
+    let (sensor_kind, blueprint, (w, h)) = match kind {
+        "rgb" => (SensorKind::Rgb, "sensor.camera.rgb", (800, 600)),
+        _ => (SensorKind::Depth, "sensor.camera.depth", (640, 480)),
+    };
+    let spec = SensorSpec::camera_of(sensor_kind, [0.0, 2.0, 0.0], (w, h), 90.0, 1000.0)
+        .context("a camera kind")?;
+    let mut sensor = client.spawn_sensor(spec)?;
     for _ in 0..5 {
         ticker.tick(timeout)?;
         sensor.recv(timeout)?;
@@ -420,9 +433,11 @@ pub(crate) fn depth_fps(
     let native_fps = frames as f64 / start.elapsed().as_secs_f64();
     client.destroy_sensor(sensor.id())?;
     ticker.release()?;
-    let carla_fps = script_side(carla, "depth", &[&frames.to_string()], |_| Ok(()))?["fps"]
-        .as_f64()
-        .context("no fps")?;
+    let size = [w.to_string(), h.to_string()];
+    let args = [frames.to_string(), blueprint.to_string(), size[0].clone(), size[1].clone()];
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let answer = script_side(carla, "camera", &args, |_| Ok(()))?;
+    let carla_fps = answer["fps"].as_f64().context("no fps")?;
     Ok((native_fps, carla_fps))
 }
 
@@ -437,6 +452,7 @@ fn report(args: &CarlaArgs, m: &Measured) {
         carla_wait,
         native_fps,
         carla_fps,
+        rgb_fps,
         traffic,
     } = m;
     let map_ms = traffic.map.quantile_us(0.5) / 1e3;
@@ -454,6 +470,7 @@ fn report(args: &CarlaArgs, m: &Measured) {
                     "carla_over_native_p50": p50(carla_wait) / p50(native_wait)},
                 "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
                     "native_over_carla": native_fps / carla_fps},
+                "rgb_800x600_fps": {"native": rgb_fps.0, "carla": rgb_fps.1},
                 "traffic_manager_ticks_per_s": {"vehicles_30": traffic.ticks_per_s_30,
                     "vehicles_100": traffic.ticks_per_s_100},
                 "get_map_generate_waypoints_ms_p50": map_ms,
@@ -481,6 +498,10 @@ fn report(args: &CarlaArgs, m: &Measured) {
     println!(
         "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",
         native_fps / carla_fps
+    );
+    println!(
+        "rgb 800x600, tick + image each frame: native {:.1} fps, CARLA camera.listen {:.1} fps (goal >= 100)",
+        rgb_fps.0, rgb_fps.1
     );
     println!(
         "CARLA's traffic manager on the town, synchronous, 0.05 s steps: {:.0} ticks/s with 30 vehicles, {:.0} with 100",

@@ -4,7 +4,8 @@ against the gateway. Prints one JSON object on its last line.
     carla_bench.py tick PORT N     world.tick() round trips (this client ticks),
                                    and get_server_version() (no simbus) as the floor
     carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
-    carla_bench.py depth PORT N    640x480 depth frames through camera.listen
+    carla_bench.py camera PORT N BLUEPRINT W H
+                                   W x H frames of a camera through camera.listen
     carla_bench.py traffic PORT N VEHICLES TM_PORT
                                    the traffic manager in synchronous mode on
                                    simbus's town: VEHICLES autopilot vehicles,
@@ -63,11 +64,12 @@ def main():
             received = time.time_ns()
             samples.append(received - int(snapshot.timestamp.platform_timestamp * 1e9))
         print(json.dumps({"ns": samples}))
-    elif mode == "depth":
+    elif mode == "camera":
         sync(world, True)
-        blueprint = world.get_blueprint_library().find("sensor.camera.depth")
-        blueprint.set_attribute("image_size_x", "640")
-        blueprint.set_attribute("image_size_y", "480")
+        width, height = int(sys.argv[5]), int(sys.argv[6])
+        blueprint = world.get_blueprint_library().find(sys.argv[4])
+        blueprint.set_attribute("image_size_x", str(width))
+        blueprint.set_attribute("image_size_y", str(height))
         camera = world.spawn_actor(blueprint, carla.Transform(carla.Location(z=2.0)))
         images = queue.Queue()
         camera.listen(images.put)
@@ -78,7 +80,7 @@ def main():
         for _ in range(n):
             frame = world.tick()
             image = images.get(timeout=30)
-            assert image.frame == frame and len(image.raw_data) == 640 * 480 * 4
+            assert image.frame == frame and len(image.raw_data) == width * height * 4
         elapsed = time.perf_counter() - start
         camera.stop()
         camera.destroy()

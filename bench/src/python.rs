@@ -356,7 +356,8 @@ fn capture_rows(
             rust_capture(client, &mut ticker, (width, height), args.captures, timeout)
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let (rust_fps, carla_fps) = carla::depth_fps(args.frames, client, ticker, gateway, timeout)?;
+    ticker.release()?;
+    let (rust_fps, carla_fps) = carla::camera_fps(args.frames, client, gateway, "depth")?;
 
     let mut captures = Vec::new();
     let n = args.captures.to_string();

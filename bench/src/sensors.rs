@@ -1,13 +1,15 @@
 //! `sensors`: capture delivery latency from 8 B to 8 MiB over simbus and
-//! over TCP loopback, and the server's frame time with a 640x480 depth camera
-//! and a 64x1024 lidar on the default scene.
+//! over TCP loopback, the server's frame time with a 640x480 depth camera
+//! and a 64x1024 lidar on the default scene, and with an 800x600 RGB
+//! camera, then RGB + semantic + depth at one pose, on the default scene
+//! and the town.
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use shared_types::SensorSpec;
+use shared_types::{SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 
 use crate::stats::{header, Latencies};
@@ -100,12 +102,56 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
     let frames = frame_times(&args, &client, &mut ticker)?;
+    ticker.release()?;
+    drop((client, server));
+    let cameras = [camera_rows(&args, "default")?, camera_rows(&args, "town")?];
 
     if let Some(path) = &args.plot {
         plot_delivery(path, &rows)?;
     }
-    report(&args, &rows, &frames);
+    report(&args, &rows, &frames, &cameras);
     Ok(())
+}
+
+/// The frame-time rows of one scene's cameras: none, an 800x600 RGB
+/// camera, then a semantic and a depth camera at its pose (one cast).
+struct CameraRows {
+    scene: &'static str,
+    rows: Vec<(&'static str, Latencies)>,
+}
+
+fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<CameraRows> {
+    let server = BenchServer::start("sensor-cameras", &["--scene", scene])?;
+    let client = Client::connect(&server.world, Duration::from_secs(10))?;
+    let mut ticker = sync_ticker(&client, 0.01)?;
+    let timeout = Duration::from_secs(30);
+    let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
+        let mut latencies = Latencies::new();
+        for _ in 0..args.frames {
+            let start = Instant::now();
+            ticker.tick(timeout)?;
+            latencies.record(start.elapsed().as_nanos() as u64);
+        }
+        Ok((label, latencies))
+    };
+    frame_time("warm-up")?;
+    let mut rows = vec![frame_time("no sensors")?];
+    // On a road of either scene, looking along it, 15 degrees down.
+    let at = [38.25, 2.0, 20.0];
+    let camera = |kind| {
+        let mut spec = SensorSpec::camera_of(kind, at, (800, 600), 90.0, 1000.0)
+            .expect("a camera kind");
+        spec.rotation = simbus_pose::from_yaw_pitch_roll(90.0, -15.0, 0.0);
+        client.spawn_sensor(spec)
+    };
+    let rgb = camera(SensorKind::Rgb)?;
+    rows.push(frame_time("+ rgb 800x600")?);
+    let semantic = camera(SensorKind::Semantic)?;
+    let depth = camera(SensorKind::Depth)?;
+    rows.push(frame_time("+ semantic + depth, same pose")?);
+    drop((rgb, semantic, depth));
+    ticker.release()?;
+    Ok(CameraRows { scene, rows })
 }
 
 /// Delivery latency: capture published -> header and data readable, in
@@ -202,7 +248,12 @@ fn plot_delivery(path: &std::path::Path, rows: &[DeliveryRow]) -> anyhow::Result
 }
 
 /// Prints the tables (or, with --json, one object).
-fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Latencies)]) {
+fn report(
+    args: &SensorsArgs,
+    rows: &[DeliveryRow],
+    frames: &[(&'static str, Latencies)],
+    cameras: &[CameraRows],
+) {
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     // Wall time per ray: what each sensor added to the frame, over its rays.
     let per_ray =
@@ -210,6 +261,8 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
     let (depth_ns, lidar_ns) = (per_ray(2, 640.0 * 480.0), per_ray(3, 64.0 * 1024.0));
     // What one GNSS receiver adds to a frame (its reading and publication).
     let gnss_us = p50(&frames[1].1) - p50(&frames[0].1);
+    // What the cameras add to a frame: RGB alone, RGB + semantic + depth.
+    let added_ms = |c: &CameraRows, row: usize| (p50(&c.rows[row].1) - p50(&c.rows[0].1)) / 1e3;
     if args.json {
         let delivery: Vec<_> = rows
             .iter()
@@ -222,12 +275,25 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
             .iter()
             .map(|(label, l)| serde_json::json!({"sensors": label, "tick": l.json()}))
             .collect();
+        let camera_json: Vec<_> = cameras
+            .iter()
+            .map(|c| {
+                let rows: Vec<_> = c
+                    .rows
+                    .iter()
+                    .map(|(label, l)| serde_json::json!({"sensors": label, "tick": l.json()}))
+                    .collect();
+                serde_json::json!({"scene": c.scene, "rows": rows,
+                    "rgb_added_ms_p50": added_ms(c, 1),
+                    "rgb_semantic_depth_added_ms_p50": added_ms(c, 2)})
+            })
+            .collect();
         println!(
             "{}",
             serde_json::json!({"delivery": delivery, "frame_time": frame_json,
                 "delivery_render_threads": args.delivery_render_threads(),
                 "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns},
-                "gnss_added_us_p50": gnss_us})
+                "gnss_added_us_p50": gnss_us, "cameras": camera_json})
         );
         return;
     }
@@ -258,4 +324,20 @@ fn report(args: &SensorsArgs, rows: &[DeliveryRow], frames: &[(&'static str, Lat
     }
     println!("wall time per ray at p50 (2 cores): depth {depth_ns:.1} ns, lidar {lidar_ns:.1} ns");
     println!("a GNSS receiver adds {gnss_us:.1} µs to a frame at p50 (the difference of the two rows' medians)");
+    for c in cameras {
+        println!();
+        println!(
+            "server frame time on the {} scene with 800x600 cameras on a road",
+            c.scene
+        );
+        println!("{}", header("sensors"));
+        for (label, latencies) in &c.rows {
+            println!("{}", latencies.row(label));
+        }
+        println!(
+            "an RGB camera adds {:.2} ms at p50; RGB + semantic + depth at one pose (one cast) {:.2} ms",
+            added_ms(c, 1),
+            added_ms(c, 2)
+        );
+    }
 }

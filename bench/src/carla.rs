@@ -434,7 +434,12 @@ pub(crate) fn camera_fps(
     client.destroy_sensor(sensor.id())?;
     ticker.release()?;
     let size = [w.to_string(), h.to_string()];
-    let args = [frames.to_string(), blueprint.to_string(), size[0].clone(), size[1].clone()];
+    let args = [
+        frames.to_string(),
+        blueprint.to_string(),
+        size[0].clone(),
+        size[1].clone(),
+    ];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let answer = script_side(carla, "camera", &args, |_| Ok(()))?;
     let carla_fps = answer["fps"].as_f64().context("no fps")?;

@@ -139,8 +139,8 @@ fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<Camera
     // On a road of either scene, looking along it, 15 degrees down.
     let at = [38.25, 2.0, 20.0];
     let camera = |kind| {
-        let mut spec = SensorSpec::camera_of(kind, at, (800, 600), 90.0, 1000.0)
-            .expect("a camera kind");
+        let mut spec =
+            SensorSpec::camera_of(kind, at, (800, 600), 90.0, 1000.0).expect("a camera kind");
         spec.rotation = simbus_pose::from_yaw_pitch_roll(90.0, -15.0, 0.0);
         client.spawn_sensor(spec)
     };

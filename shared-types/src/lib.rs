@@ -47,7 +47,9 @@ pub use recorder::{
     ReplayState, DEFAULT_KEYFRAME_SECONDS, MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS,
 };
 pub mod camera;
+pub mod events;
 pub use camera::{Bgra, SemanticTag, Sun};
+pub use events::{Collision, CollisionEvent, Obstacle, ObstacleDetection};
 pub mod gnss;
 pub use gnss::{Gnss, GnssMeasurement};
 mod sensor;

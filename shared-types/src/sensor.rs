@@ -43,6 +43,13 @@ wire_enum! {
         /// pixel, the tag in red, the actor's id in green (low byte) and
         /// blue (high byte).
         Instance = 7,
+        /// Collision sensor: [`crate::CollisionEvent`]s, one per contact
+        /// its parent started this frame; published only on such frames,
+        /// whatever its `sensor_tick`.
+        Collision = 8,
+        /// Obstacle detector: one [`crate::ObstacleDetection`], published
+        /// only on frames where something is ahead.
+        Obstacle = 9,
     }
 }
 
@@ -57,6 +64,8 @@ impl SensorKind {
             Self::Rgb => "rgb",
             Self::Semantic => "semantic",
             Self::Instance => "instance",
+            Self::Collision => "collision",
+            Self::Obstacle => "obstacle",
         }
     }
 
@@ -149,6 +158,12 @@ pub enum SensorSpecError {
     /// seed a whole number in `0..=`[`crate::gnss::MAX_GNSS_SEED`].
     #[error("GNSS biases must be finite, deviations finite and >= 0, and the seed a whole number in 0..=16777216")]
     GnssNoise,
+    /// An obstacle detector's distance must be in (0, 1000] m and its hit
+    /// radius in (0, 100] m.
+    #[error(
+        "an obstacle detector's distance must be in (0, 1000] m and its hit radius in (0, 100] m"
+    )]
+    Obstacle,
     /// Unknown sensor kind.
     #[error("unknown sensor kind")]
     UnknownKind,
@@ -259,6 +274,7 @@ impl SensorSpec {
                 w as usize * h as usize
             }
             Some(SensorParams::Lidar(l)) => l.channels as usize * l.points as usize,
+            Some(SensorParams::Collision(_)) => crate::events::MAX_COLLISION_EVENTS,
             _ => 1,
         }
     }
@@ -272,6 +288,8 @@ impl SensorSpec {
             }
             Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
             Some(SensorKind::Gnss) => std::mem::size_of::<crate::GnssMeasurement>(),
+            Some(SensorKind::Collision) => std::mem::size_of::<crate::CollisionEvent>(),
+            Some(SensorKind::Obstacle) => std::mem::size_of::<crate::ObstacleDetection>(),
             _ => std::mem::size_of::<ImuMeasurement>(),
         };
         self.elements() * element
@@ -344,7 +362,11 @@ impl SensorSpec {
             Some(SensorParams::Gnss(g)) if !g.valid(p[6]) => {
                 return Err(SensorSpecError::GnssNoise)
             }
-            Some(SensorParams::Gnss(_)) => {}
+            Some(SensorParams::Gnss(_) | SensorParams::Collision(_)) => {}
+            Some(SensorParams::Obstacle(o)) if !o.valid() || ![0.0, 1.0].contains(&p[2]) => {
+                return Err(SensorSpecError::Obstacle)
+            }
+            Some(SensorParams::Obstacle(_)) => {}
             None => return Err(SensorSpecError::UnknownKind),
         }
         Ok(())

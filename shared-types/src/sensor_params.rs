@@ -13,6 +13,7 @@
 //! assert_eq!(spec.lidar_params(), None);
 //! ```
 
+use crate::events::{Collision, Obstacle};
 use crate::gnss::Gnss;
 use crate::{SensorKind, SensorSpec};
 
@@ -70,6 +71,10 @@ pub enum SensorParams {
     Imu(Imu),
     /// A GNSS receiver.
     Gnss(Gnss),
+    /// A collision sensor.
+    Collision(Collision),
+    /// An obstacle detector.
+    Obstacle(Obstacle),
 }
 
 impl SensorParams {
@@ -83,6 +88,8 @@ impl SensorParams {
             Self::Lidar(_) => SensorKind::Lidar,
             Self::Imu(_) => SensorKind::Imu,
             Self::Gnss(_) => SensorKind::Gnss,
+            Self::Collision(_) => SensorKind::Collision,
+            Self::Obstacle(_) => SensorKind::Obstacle,
         }
     }
 
@@ -95,7 +102,7 @@ impl SensorParams {
                 [d.width, d.height]
             }
             Self::Lidar(l) => [l.channels, l.points],
-            Self::Imu(_) | Self::Gnss(_) => [0, 0],
+            Self::Imu(_) | Self::Gnss(_) | Self::Collision(_) | Self::Obstacle(_) => [0, 0],
         }
     }
 
@@ -142,7 +149,17 @@ impl SensorParams {
                 0.0,
                 0.0,
             ],
-            Self::Imu(Imu) => [0.0; 8],
+            Self::Imu(Imu) | Self::Collision(Collision) => [0.0; 8],
+            Self::Obstacle(o) => [
+                o.distance,
+                o.hit_radius,
+                if o.only_dynamics { 1.0 } else { 0.0 },
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            ],
             Self::Gnss(g) => [
                 g.lat_bias,
                 g.lat_stddev,
@@ -174,6 +191,12 @@ impl SensorParams {
                 rotation_hz: p[5],
             }),
             SensorKind::Imu => Self::Imu(Imu),
+            SensorKind::Collision => Self::Collision(Collision),
+            SensorKind::Obstacle => Self::Obstacle(Obstacle {
+                distance: p[0],
+                hit_radius: p[1],
+                only_dynamics: p[2] != 0.0,
+            }),
             SensorKind::Gnss => Self::Gnss(Gnss {
                 lat_bias: p[0],
                 lat_stddev: p[1],
@@ -217,6 +240,18 @@ impl From<Imu> for SensorParams {
     }
 }
 
+impl From<Collision> for SensorParams {
+    fn from(value: Collision) -> Self {
+        Self::Collision(value)
+    }
+}
+
+impl From<Obstacle> for SensorParams {
+    fn from(value: Obstacle) -> Self {
+        Self::Obstacle(value)
+    }
+}
+
 impl From<Gnss> for SensorParams {
     fn from(value: Gnss) -> Self {
         Self::Gnss(value)
@@ -257,6 +292,14 @@ impl SensorSpec {
     pub fn gnss_params(&self) -> Option<Gnss> {
         match self.sensor_params()? {
             SensorParams::Gnss(gnss) => Some(gnss),
+            _ => None,
+        }
+    }
+
+    /// The obstacle detector's parameters, if this is one.
+    pub fn obstacle_params(&self) -> Option<Obstacle> {
+        match self.sensor_params()? {
+            SensorParams::Obstacle(o) => Some(o),
             _ => None,
         }
     }

@@ -1,7 +1,10 @@
 //! [`Capture`]: one sensor capture, borrowed from shared memory.
 
 use iceoryx2::sample::Sample;
-use shared_types::{Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, SensorHeader};
+use shared_types::{
+    Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection,
+    SensorHeader,
+};
 use simbus_transport::Bus;
 
 /// One capture, borrowed from shared memory: nothing is copied until you do.
@@ -17,6 +20,10 @@ pub enum Capture {
     Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
     /// A GNSS reading.
     Gnss(Sample<Bus, [GnssMeasurement], SensorHeader>),
+    /// The contacts a collision sensor's parent started this frame.
+    Collision(Sample<Bus, [CollisionEvent], SensorHeader>),
+    /// What an obstacle detector saw ahead.
+    Obstacle(Sample<Bus, [ObstacleDetection], SensorHeader>),
 }
 
 impl Capture {
@@ -28,6 +35,8 @@ impl Capture {
             Self::Lidar(s) => s.user_header(),
             Self::Imu(s) => s.user_header(),
             Self::Gnss(s) => s.user_header(),
+            Self::Collision(s) => s.user_header(),
+            Self::Obstacle(s) => s.user_header(),
         }
     }
 
@@ -75,6 +84,26 @@ impl Capture {
         }
     }
 
+    /// The collision events (one per contact the parent started this
+    /// frame), if a collision capture.
+    pub fn collisions(&self) -> Option<&[CollisionEvent]> {
+        match self {
+            Self::Collision(s) => {
+                let count = (s.user_header().count as usize).min(s.payload().len());
+                Some(&s.payload()[..count])
+            }
+            _ => None,
+        }
+    }
+
+    /// What an obstacle detector saw, if an obstacle capture.
+    pub fn obstacle(&self) -> Option<&ObstacleDetection> {
+        match self {
+            Self::Obstacle(s) => s.payload().first(),
+            _ => None,
+        }
+    }
+
     /// The payload's bytes in place.
     pub fn bytes(&self) -> &[u8] {
         match self {
@@ -83,6 +112,8 @@ impl Capture {
             Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
             Self::Imu(s) => bytemuck::cast_slice(s.payload()),
             Self::Gnss(s) => bytemuck::cast_slice(s.payload()),
+            Self::Collision(s) => bytemuck::cast_slice(s.payload()),
+            Self::Obstacle(s) => bytemuck::cast_slice(s.payload()),
         }
     }
 }

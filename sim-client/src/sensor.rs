@@ -11,9 +11,10 @@ use iceoryx2::port::subscriber::SubscriberCreateError;
 use iceoryx2::prelude::*;
 use shared_types::limits::MAX_SENSOR_READERS_FLAG;
 use shared_types::{
-    Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd, SensorHeader,
-    SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
-    SensorSpec, SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
+    Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection,
+    ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal, SensorRequest,
+    SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError, ServiceNames, WorldName,
+    PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -35,6 +36,8 @@ enum Port {
     Lidar(Sub<LidarPoint>),
     Imu(Sub<ImuMeasurement>),
     Gnss(Sub<GnssMeasurement>),
+    Collision(Sub<CollisionEvent>),
+    Obstacle(Sub<ObstacleDetection>),
 }
 
 /// Why a sensor request failed.
@@ -115,6 +118,8 @@ impl Reader {
             Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
             Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
             Port::Gnss(s) => s.receive().map(|c| c.map(Capture::Gnss)),
+            Port::Collision(s) => s.receive().map(|c| c.map(Capture::Collision)),
+            Port::Obstacle(s) => s.receive().map(|c| c.map(Capture::Obstacle)),
         }
         .map_err(|e| WaitError::transport("sensor receive", e))?;
         if let Some(capture) = &capture {
@@ -191,6 +196,12 @@ impl Sensor {
             Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Gnss) => Port::Gnss(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::Collision) => {
+                Port::Collision(subscribe(&node, &specs, info.id, deadline)?)
+            }
+            Some(SensorKind::Obstacle) => {
+                Port::Obstacle(subscribe(&node, &specs, info.id, deadline)?)
+            }
             None => {
                 return Err(RequestError::UnknownAnswer {
                     status: ResponseStatus::Ok as u32,

@@ -15,6 +15,7 @@ use tracing::{debug, info};
 use crate::convert;
 use crate::error::{CallError, Source};
 use crate::locks::lock;
+use crate::session::record_of;
 use crate::stream::Hub;
 use crate::wire::{self as carla, CLIENT_SIDE_SENSOR_BASE, SENSOR_ID_BASE};
 
@@ -58,7 +59,7 @@ pub(crate) fn client_side_id(n: u32) -> Option<u32> {
 /// so that every capture from now on reaches the listener.
 pub(crate) fn expect(
     hub: &Arc<Hub>,
-    world: &str,
+    (world, streaming_port): (&str, u16),
     stream: u32,
     timeout: Duration,
 ) -> Result<(), CallError> {
@@ -78,7 +79,13 @@ pub(crate) fn expect(
     }
     let (ready, started) = mpsc::channel();
     let (hub2, world) = (hub.clone(), world.to_string());
-    std::thread::spawn(move || forward(&hub2, &world, stream, simbus_id, spec, &ready));
+    let source = Forwarded {
+        stream,
+        simbus_id,
+        spec,
+        streaming_port,
+    };
+    std::thread::spawn(move || forward(&hub2, &world, source, &ready));
     match started.recv_timeout(timeout) {
         Ok(Ok(())) => Ok(()),
         Ok(Err(e)) => {
@@ -92,14 +99,23 @@ pub(crate) fn expect(
     }
 }
 
-fn forward(
-    hub: &Hub,
-    world: &str,
+/// The sensor a forwarder reads, and the CARLA stream it feeds.
+#[derive(Debug, Clone, Copy)]
+struct Forwarded {
     stream: u32,
     simbus_id: u64,
     spec: SensorSpec,
-    ready: &mpsc::Sender<Result<(), CallError>>,
-) {
+    /// Where CARLA's clients read streams (an event's actors carry tokens).
+    streaming_port: u16,
+}
+
+fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Result<(), CallError>>) {
+    let Forwarded {
+        stream,
+        simbus_id,
+        spec,
+        streaming_port,
+    } = source;
     let opened = Client::connect(world, Duration::from_secs(5))
         .map_err(|e| Arc::new(e) as Source)
         .and_then(|client| {
@@ -128,8 +144,12 @@ fn forward(
             Ok(capture) => {
                 let h = capture.header();
                 hub.after_world_state(server_pid, h.episode, h.frame, WORLD_STATE_FIRST);
-                let sent = message(&capture, &spec)
-                    .is_some_and(|m| hub.send_capture(stream, server_pid, h.episode, &m));
+                let actor = |id: u32| record_of(hub, id, streaming_port);
+                let sent = messages(&capture, &spec, stream, actor).is_some_and(|messages| {
+                    messages
+                        .iter()
+                        .all(|m| hub.send_capture(stream, server_pid, h.episode, m))
+                });
                 if !sent {
                     debug!(
                         sensor = simbus_id,
@@ -156,8 +176,63 @@ fn forward(
     }
 }
 
-/// One capture as CARLA's stream message.
-pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
+/// One capture as CARLA's stream messages: one per capture, but one per
+/// event for a collision sensor (as CARLA sends them). `actor` gives the
+/// `rpc::Actor` of a CARLA id (an event names its sensor, `stream`, and
+/// the actor met).
+pub(crate) fn messages(
+    capture: &Capture,
+    spec: &SensorSpec,
+    stream: u32,
+    actor: impl Fn(u32) -> Option<Value>,
+) -> Option<Vec<Vec<u8>>> {
+    let h = capture.header();
+    let transform = convert::transform(h.position, h.rotation);
+    let elapsed = shared_types::nanos_to_seconds(h.elapsed_ns);
+    let header = |sensor_type| {
+        let mut out = Vec::with_capacity(carla::SENSOR_HEADER_LEN + 256);
+        carla::sensor_header(&mut out, sensor_type, h.frame, elapsed, transform);
+        out
+    };
+    // An event's two actors; an actor gone (or unknown to CARLA's ids)
+    // drops the event.
+    let pair = |other: u64| Some((actor(stream)?, actor(u32::try_from(other).ok()?)?));
+    match capture {
+        Capture::Collision(_) => {
+            let events = capture.collisions()?;
+            Some(
+                events
+                    .iter()
+                    .filter_map(|e| {
+                        let (me, other) = pair(e.other_actor)?;
+                        let impulse = convert::vector(e.normal_impulse);
+                        let payload = Value::Array(vec![
+                            me,
+                            other,
+                            Value::Array(impulse.iter().map(|&v| Value::F32(v)).collect()),
+                        ]);
+                        let mut out = header(carla::COLLISION_SENSOR_TYPE);
+                        rmpv::encode::write_value(&mut out, &payload).ok()?;
+                        Some(out)
+                    })
+                    .collect(),
+            )
+        }
+        Capture::Obstacle(_) => {
+            let seen = capture.obstacle()?;
+            let (me, other) = pair(seen.other_actor)?;
+            let payload = Value::Array(vec![me, other, Value::F32(seen.distance)]);
+            let mut out = header(carla::OBSTACLE_SENSOR_TYPE);
+            rmpv::encode::write_value(&mut out, &payload).ok()?;
+            Some(vec![out])
+        }
+        _ => message(capture, spec).map(|m| vec![m]),
+    }
+}
+
+/// One capture of a camera, a lidar, an IMU or a GNSS receiver as CARLA's
+/// stream message.
+fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
     let h = capture.header();
     let transform = convert::transform(h.position, h.rotation);
     let elapsed = shared_types::nanos_to_seconds(h.elapsed_ns);
@@ -171,6 +246,7 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
         Capture::Lidar(_) => carla::LIDAR_SENSOR_TYPE,
         Capture::Imu(_) => carla::IMU_SENSOR_TYPE,
         Capture::Gnss(_) => carla::GNSS_SENSOR_TYPE,
+        Capture::Collision(_) | Capture::Obstacle(_) => return None,
     };
     // Room for the headers and the payload: one allocation for an image.
     let room = carla::SENSOR_HEADER_LEN + carla::IMAGE_HEADER_LEN + capture.bytes().len();
@@ -182,6 +258,7 @@ pub(crate) fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
         Capture::Lidar(_) => lidar(&mut out, capture, spec)?,
         Capture::Imu(_) => imu(&mut out, capture)?,
         Capture::Gnss(_) => gnss(&mut out, capture)?,
+        Capture::Collision(_) | Capture::Obstacle(_) => return None,
     }
     Some(out)
 }

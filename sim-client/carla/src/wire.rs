@@ -22,6 +22,11 @@ pub const WORLD_STATE_SENSOR_TYPE: u64 = 17;
 /// it under any id of [`is_world_stream`]: each `get_episode_info` hands
 /// out a new one (see [`crate::stream::Hub::next_world_stream`]).
 pub const WORLD_STREAM_ID: u32 = 1;
+/// The sensor type id of a collision sensor's `carla.CollisionEvent`.
+pub const COLLISION_SENSOR_TYPE: u64 = 0;
+/// The sensor type id of an obstacle detector's
+/// `carla.ObstacleDetectionEvent`.
+pub const OBSTACLE_SENSOR_TYPE: u64 = 7;
 /// The sensor type id of a depth camera's `carla.Image`.
 pub const DEPTH_SENSOR_TYPE: u64 = 1;
 /// The sensor type id of a GNSS receiver's `carla.GnssMeasurement`.

@@ -91,7 +91,7 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     use SensorKind as Kind;
     let Some(kind) = Kind::from_name(kind) else {
         return Err(PyValueError::new_err(format!(
-            "unknown sensor kind {kind:?}: expected 'depth', 'rgb', 'semantic', 'instance', 'lidar', 'imu' or 'gnss'"
+            "unknown sensor kind {kind:?}: expected 'depth', 'rgb', 'semantic', 'instance', 'lidar', 'imu', 'gnss', 'collision' or 'obstacle'"
         )));
     };
     const CAMERAS: &[Kind] = &[Kind::Depth, Kind::Rgb, Kind::Semantic, Kind::Instance];
@@ -101,8 +101,15 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
         Kind::Semantic,
         Kind::Instance,
         Kind::Lidar,
+        Kind::Obstacle,
     ];
-    let given: [(&str, bool, &[Kind]); 10] = [
+    let given: [(&str, bool, &[Kind]); 12] = [
+        ("hit_radius", p.hit_radius.is_some(), &[Kind::Obstacle]),
+        (
+            "only_dynamics",
+            p.only_dynamics.is_some(),
+            &[Kind::Obstacle],
+        ),
         ("width", p.width.is_some(), CAMERAS),
         ("height", p.height.is_some(), CAMERAS),
         ("fov", p.fov.is_some(), CAMERAS),
@@ -154,6 +161,16 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
         ),
         Kind::Imu => SensorSpec::imu(at),
         Kind::Gnss => SensorSpec::with_params(at, gnss_noise(p.noise.as_ref())?),
+        Kind::Collision => SensorSpec::with_params(at, shared_types::Collision),
+        Kind::Obstacle => {
+            let defaults = shared_types::Obstacle::default();
+            let obstacle = shared_types::Obstacle {
+                distance: p.range.map_or(defaults.distance, |v| v as f32),
+                hit_radius: p.hit_radius.map_or(defaults.hit_radius, |v| v as f32),
+                only_dynamics: p.only_dynamics.unwrap_or(defaults.only_dynamics),
+            };
+            SensorSpec::with_params(at, obstacle)
+        }
     };
     spec.rotation = p.rotation.unwrap_or_default().map(|v| v as f32);
     Ok(spec.attached_to(p.parent.unwrap_or(0)).every(p.sensor_tick))
@@ -207,12 +224,15 @@ struct SpawnParams {
     lower_fov: Option<f64>,
     rotation_frequency: Option<f64>,
     noise: Option<HashMap<String, f64>>,
+    hit_radius: Option<f64>,
+    only_dynamics: Option<bool>,
 }
 
 #[pymethods]
 impl Client {
     /// Builds a sensor and subscribes to it: `kind` is `"depth"`, `"rgb"`,
-    /// `"semantic"`, `"instance"`, `"lidar"`, `"imu"` or `"gnss"`. It rides on actor
+    /// `"semantic"`, `"instance"`, `"lidar"`, `"imu"`, `"gnss"`,
+    /// `"collision"` or `"obstacle"`. It rides on actor
     /// `parent` (and dies with it) or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
@@ -222,11 +242,13 @@ impl Client {
     /// in metres (depth 100, the others 1000). Lidar: `channels` (32), `points` per channel in a
     /// turn (512), `range` (50), `upper_fov`/`lower_fov` in degrees
     /// (10/-30), `rotation_frequency` in Hz (0: a full turn every capture).
+    /// Obstacle: `range` ahead (5 m), `hit_radius` (0.5 m),
+    /// `only_dynamics` (False). Collision: a `parent` to watch.
     /// GNSS: `noise`, a dict of CARLA's noise attributes without their
     /// `noise_` prefix (`lat_stddev`, `alt_bias`, `seed`, ...; all 0).
     /// Invalid values raise `ValueError` and spawn nothing; an unknown
     /// parent raises `simbus.CommandError`.
-    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None, noise = None))]
+    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None, noise = None, hit_radius = None, only_dynamics = None))]
     #[allow(clippy::too_many_arguments)]
     fn spawn_sensor(
         slf: &Bound<'_, Self>,
@@ -245,6 +267,8 @@ impl Client {
         lower_fov: Option<f64>,
         rotation_frequency: Option<f64>,
         noise: Option<HashMap<String, f64>>,
+        hit_radius: Option<f64>,
+        only_dynamics: Option<bool>,
     ) -> PyResult<Sensor> {
         let params = SpawnParams {
             parent,
@@ -261,6 +285,8 @@ impl Client {
             lower_fov,
             rotation_frequency,
             noise,
+            hit_radius,
+            only_dynamics,
         };
         let spec = spec_for(kind, &params)?;
         let client = slf.borrow();

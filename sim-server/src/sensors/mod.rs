@@ -10,9 +10,13 @@ mod camera;
 mod capture;
 mod casts;
 mod culling;
+mod events;
 mod gnss;
 mod ground;
+mod publish;
 mod renderer;
+
+use publish::{publish, send_end};
 
 pub use renderer::RenderThreadsError;
 use renderer::Renderer;
@@ -36,7 +40,6 @@ fn default_world_in_motion() -> (World, u64) {
     (world, vehicle)
 }
 
-use std::mem::MaybeUninit;
 use std::num::NonZeroUsize;
 
 use iceoryx2::port::publisher::Publisher;
@@ -45,9 +48,10 @@ use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::scene::SceneName;
 use shared_types::{
-    seconds_to_nanos, Bgra, GnssMeasurement, ImuMeasurement, LidarPoint, ResponseStatus, SensorEnd,
-    SensorHeader, SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind,
-    SensorResponseHeader, SensorSpec, PROTOCOL_VERSION,
+    seconds_to_nanos, Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint,
+    ObstacleDetection, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
+    SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
+    PROTOCOL_VERSION,
 };
 use simbus_recording::RecordedSensor;
 use simbus_transport::Bus;
@@ -70,6 +74,8 @@ enum SensorPort {
     Lidar(Port<LidarPoint>),
     Imu(Port<ImuMeasurement>),
     Gnss(Port<GnssMeasurement>),
+    Collision(Port<CollisionEvent>),
+    Obstacle(Port<ObstacleDetection>),
 }
 
 /// One sensor.
@@ -247,6 +253,10 @@ impl Sensors {
             SensorKind::Lidar => open_port(transport, id, elements, limits).map(SensorPort::Lidar),
             SensorKind::Imu => open_port(transport, id, 1, limits).map(SensorPort::Imu),
             SensorKind::Gnss => open_port(transport, id, 1, limits).map(SensorPort::Gnss),
+            SensorKind::Collision => {
+                open_port(transport, id, elements, limits).map(SensorPort::Collision)
+            }
+            SensorKind::Obstacle => open_port(transport, id, 1, limits).map(SensorPort::Obstacle),
         };
         let port = match port {
             Ok(port) => port,
@@ -318,6 +328,13 @@ impl Sensors {
     /// The spawns and ends since last taken, for the recording.
     pub(crate) fn take_journal(&mut self) -> std::vec::Drain<'_, SensorNote> {
         self.journal.drain(..)
+    }
+
+    /// Whether a collision sensor needs the world's contacts.
+    pub(crate) fn watch_contacts(&self) -> bool {
+        self.list
+            .iter()
+            .any(|s| matches!(s.port, SensorPort::Collision(_)))
     }
 
     /// Whether there is no sensor.
@@ -399,6 +416,18 @@ impl Sensors {
                 debug!(id = sensor.id, "sensor's actor is gone; no capture");
                 continue;
             };
+            // Event sensors publish only on frames where something happened.
+            let parent = sensor.spec.attach_to;
+            let obstacle = match &sensor.port {
+                SensorPort::Obstacle(_) => match events::obstacle(world, &sensor.spec, pose) {
+                    Some(seen) => Some(seen),
+                    None => continue,
+                },
+                SensorPort::Collision(_) if events::collisions(world, parent).next().is_none() => {
+                    continue
+                }
+                _ => None,
+            };
             sensor.captures += 1;
             let kind = sensor.spec.sensor_kind().expect("checked at spawn");
             let mut header = SensorHeader::new(kind, sensor.id);
@@ -464,6 +493,37 @@ impl Sensors {
                         }
                     })
                 },
+                // SAFETY: every slot is written: the events, then zeros.
+                SensorPort::Collision(port) => unsafe {
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
+                        let mut events = events::collisions(world, parent);
+                        let mut count = 0;
+                        for slot in slots.iter_mut() {
+                            let event = events.next();
+                            count += u32::from(event.is_some());
+                            slot.write(event.unwrap_or_default());
+                        }
+                        let dropped = events.count();
+                        if dropped > 0 {
+                            warn!(
+                                id = sensor.id,
+                                frame, dropped, "more collisions than a capture holds"
+                            );
+                        }
+                        header.count = count;
+                        header.size = [count, 1];
+                    })
+                },
+                // SAFETY: an obstacle capture has one slot, written here.
+                SensorPort::Obstacle(port) => unsafe {
+                    publish(port, header, record.as_deref_mut(), |slots, header| {
+                        header.count = 1;
+                        header.size = [1, 1];
+                        for slot in slots.iter_mut() {
+                            slot.write(obstacle.unwrap_or_default());
+                        }
+                    })
+                },
                 // SAFETY: a GNSS capture has one slot, written here.
                 SensorPort::Gnss(port) => unsafe {
                     let params = sensor.spec.gnss_params().unwrap_or_default();
@@ -503,6 +563,8 @@ impl Sensor {
             SensorPort::Lidar(port) => send_end(port, header),
             SensorPort::Imu(port) => send_end(port, header),
             SensorPort::Gnss(port) => send_end(port, header),
+            SensorPort::Collision(port) => send_end(port, header),
+            SensorPort::Obstacle(port) => send_end(port, header),
         };
         if let Err(e) = sent {
             warn!(
@@ -524,56 +586,12 @@ impl Sensor {
 /// When a sensor captures next after `now_ns`: the next frame (sensor_tick
 /// 0), or the next multiple of its period, so captures land on multiples.
 fn next_capture_after(now_ns: u64, spec: &SensorSpec) -> u64 {
+    // A collision sensor reports every contact, whatever its tick.
+    if spec.sensor_kind() == Some(SensorKind::Collision) {
+        return now_ns + 1;
+    }
     let period = seconds_to_nanos(spec.sensor_tick);
     now_ns
         .checked_div(period)
         .map_or(now_ns + 1, |periods| (periods + 1) * period)
-}
-
-/// Sends an empty sample with `header` (an end-of-stream marker).
-fn send_end<T: std::fmt::Debug + ZeroCopySend + 'static>(
-    port: &Port<T>,
-    header: SensorHeader,
-) -> Result<(), ServerError> {
-    let mut sample = port
-        .loan_slice_uninit(0)
-        .map_err(|e| ServerError::transport("sensor loan", e))?;
-    *sample.user_header_mut() = header;
-    // SAFETY: the slice has no elements, so there is nothing to initialise.
-    let sample = unsafe { sample.assume_init() };
-    sample
-        .send()
-        .map_err(|e| ServerError::transport("sensor send", e))?;
-    Ok(())
-}
-
-/// Loans a sample, lets `fill` write every element in place, and sends it.
-///
-/// # Safety
-///
-/// `fill` must initialise every element of the slice it is given (the
-/// sample is sent as initialised memory that readers read in place).
-unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod + 'static>(
-    port: &Port<T>,
-    header: SensorHeader,
-    record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
-    fill: impl FnOnce(&mut [MaybeUninit<T>], &mut SensorHeader),
-) -> Result<(), ServerError> {
-    let elements = port.initial_max_slice_len();
-    let mut sample = port
-        .loan_slice_uninit(elements)
-        .map_err(|e| ServerError::transport("sensor loan", e))?;
-    let mut header = header;
-    fill(sample.payload_mut(), &mut header);
-    header.platform_timestamp = crate::clock::platform_timestamp();
-    *sample.user_header_mut() = header;
-    // SAFETY: the caller guarantees `fill` wrote every element.
-    let sample = unsafe { sample.assume_init() };
-    if let Some(record) = record {
-        record.push((header, bytemuck::cast_slice(sample.payload()).to_vec()));
-    }
-    sample
-        .send()
-        .map_err(|e| ServerError::transport("sensor send", e))?;
-    Ok(())
 }

@@ -286,6 +286,7 @@ impl Domains {
         stamps::stamp(Stage::StepBegin, frame);
         let mut physics = Duration::ZERO;
         let timed = started.map(|_| &mut physics);
+        self.world.watch_contacts = self.sensors.watch_contacts();
         self.world
             .step_timed(&plan, self.recorder.collisions(), timed);
         if let (Some(timings), Some(started)) = (&mut self.timings, started) {

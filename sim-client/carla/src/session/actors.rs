@@ -195,43 +195,7 @@ impl Session {
 
     /// CARLA's `rpc::Actor` of actor `id`, if the world has it.
     fn actor_record(&self, id: u32) -> Option<Value> {
-        if id == SPECTATOR_ID {
-            return Some(spectator_record());
-        }
-        let registry = lock(&self.hub.registry);
-        if let Some(sensor) = registry.sensors.get(&id) {
-            return Some(actor_record(
-                id,
-                sensor.parent,
-                sensor.description.clone(),
-                [0.0; 3],
-                Value::Binary(token(id, self.streaming_port).to_vec()),
-            ));
-        }
-        let (kind, extent) = match lock(&self.hub.actors).get(&id) {
-            Some(a) => (a.kind, a.extent),
-            None => {
-                // Spawned through the gateway, not in a frame yet.
-                let description = registry.descriptions.get(&id)?;
-                let uid = description.as_array()?.first()?.as_u64()?;
-                (
-                    blueprints::kind_of_uid(uid),
-                    blueprints::spawned_extent(description),
-                )
-            }
-        };
-        let description = registry
-            .descriptions
-            .get(&id)
-            .cloned()
-            .unwrap_or_else(|| blueprints::scene_description(kind, type_id(kind)));
-        Some(actor_record(
-            id,
-            0,
-            description,
-            extent,
-            Value::Binary(Vec::new()),
-        ))
+        record_of(&self.hub, id, self.streaming_port)
     }
 
     /// Spawns one actor (a sensor through simbus's sensor service, a body
@@ -536,6 +500,48 @@ fn bounding_box(id: u32, extent: [f32; 3]) -> Value {
         vector([0.0; 3]),
         Value::from(id),
     ])
+}
+
+/// CARLA's `rpc::Actor` of actor `id` (a sensor's with its stream's token
+/// on `streaming_port`), if the world has it.
+pub(crate) fn record_of(hub: &crate::stream::Hub, id: u32, streaming_port: u16) -> Option<Value> {
+    if id == SPECTATOR_ID {
+        return Some(spectator_record());
+    }
+    let registry = lock(&hub.registry);
+    if let Some(sensor) = registry.sensors.get(&id) {
+        return Some(actor_record(
+            id,
+            sensor.parent,
+            sensor.description.clone(),
+            [0.0; 3],
+            Value::Binary(token(id, streaming_port).to_vec()),
+        ));
+    }
+    let (kind, extent) = match lock(&hub.actors).get(&id) {
+        Some(a) => (a.kind, a.extent),
+        None => {
+            // Spawned through the gateway, not in a frame yet.
+            let description = registry.descriptions.get(&id)?;
+            let uid = description.as_array()?.first()?.as_u64()?;
+            (
+                blueprints::kind_of_uid(uid),
+                blueprints::spawned_extent(description),
+            )
+        }
+    };
+    let description = registry
+        .descriptions
+        .get(&id)
+        .cloned()
+        .unwrap_or_else(|| blueprints::scene_description(kind, type_id(kind)));
+    Some(actor_record(
+        id,
+        0,
+        description,
+        extent,
+        Value::Binary(Vec::new()),
+    ))
 }
 
 /// CARLA's `rpc::Actor`: id, parent, description, bounding box, no

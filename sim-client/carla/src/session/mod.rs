@@ -31,7 +31,7 @@ use crate::rpc::{self, Answer, ReadError, Request};
 use crate::stream::Hub;
 
 /// The type id of an actor of a kind (the recorder texts name actors by it).
-pub(crate) use actors::type_id;
+pub(crate) use actors::{record_of, type_id};
 
 /// The calls answered with `Response<void>` by CARLA (their errors have
 /// another shape).

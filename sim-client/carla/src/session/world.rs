@@ -46,7 +46,12 @@ impl Session {
         let stream = arg_u64(args, 0, "get_sensor_token")?;
         let stream = u32::try_from(stream).map_err(|_| CallError::NoStream(stream))?;
         if !wire::is_world_stream(stream) {
-            sensors::expect(&self.hub, &self.world, stream, self.timeout)?;
+            sensors::expect(
+                &self.hub,
+                (&self.world, self.streaming_port),
+                stream,
+                self.timeout,
+            )?;
         }
         Ok(Answer::Value(Value::Array(vec![Value::Binary(
             token(stream, self.streaming_port).to_vec(),

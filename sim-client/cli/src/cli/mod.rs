@@ -54,6 +54,7 @@ pub(crate) mod output;
 pub(crate) mod pictures;
 pub(crate) mod recorder;
 pub(crate) mod sensor;
+mod sensor_save;
 pub(crate) mod stall;
 pub(crate) mod status;
 pub(crate) mod tick;

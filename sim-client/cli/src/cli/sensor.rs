@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use anyhow::{anyhow, Context};
+use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use shared_types::{
     Camera, GnssMeasurement, ImuMeasurement, SensorKind, SensorParams, SensorSpec, SensorSpecError,
@@ -34,7 +34,7 @@ enum SensorCommand {
     /// Write captures to files: cameras as PNG (semantic in CARLA's
     /// CityScapes colours), lidar as PLY and a top-down PNG, IMU and GNSS
     /// readings as JSON; `--raw` also writes each payload's bytes.
-    Save(SaveArgs),
+    Save(super::sensor_save::SaveArgs),
     /// Remove a sensor.
     Destroy {
         /// The sensor id.
@@ -46,7 +46,8 @@ enum SensorCommand {
 /// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
 #[derive(Debug, Args)]
 struct SpawnArgs {
-    /// depth, rgb, semantic, instance, lidar, imu or gnss.
+    /// depth, rgb, semantic, instance, lidar, imu, gnss, collision or
+    /// obstacle.
     kind: String,
     /// Actor to ride on (default: fixed in the world). The sensor is
     /// destroyed with it.
@@ -113,6 +114,13 @@ struct SpawnArgs {
     /// (metres) [default: 0,0,0].
     #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
     noise_bias: Option<String>,
+    /// Obstacle: the radius of the sphere swept ahead, metres, in (0, 100]
+    /// (--range is how far ahead, in (0, 1000]) [default: 0.5, range 5].
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    hit_radius: Option<f32>,
+    /// Obstacle: only dynamic actors count (not the ground, ramps, buildings).
+    #[arg(long)]
+    only_dynamics: bool,
     /// GNSS: the errors' seed, 0..=16777216 (the same seed, the same errors)
     /// [default: 0].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::gnss_seed)]
@@ -147,28 +155,7 @@ struct WatchArgs {
     lockstep: bool,
 }
 
-#[derive(Debug, Args)]
-struct SaveArgs {
-    /// The sensor id.
-    #[arg(allow_negative_numbers = true)]
-    id: u64,
-    /// How many captures to save (N >= 1).
-    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = input::count)]
-    captures: u64,
-    /// Directory to write into (created if missing).
-    #[arg(long, value_name = "DIR")]
-    out: std::path::PathBuf,
-    /// Depth: the range the picture's grey scale spans, metres (default:
-    /// the farthest hit in the image, so a 20 m scene is not all white).
-    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = |s: &str| input::metres(s).map(|m| m as f32))]
-    range: Option<f32>,
-    /// Also write each capture's payload as it is in shared memory
-    /// (`.raw`: a camera's pixels row by row, a lidar's points, ...).
-    #[arg(long)]
-    raw: bool,
-}
-
-fn failure(e: SensorError) -> Failure {
+pub(super) fn failure(e: SensorError) -> Failure {
     match e {
         SensorError::Refused(_) | SensorError::UnknownSensor { .. } => Failure::Refused(e.into()),
         e => Failure::Runtime(e.into()),
@@ -216,7 +203,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
             Ok(())
         }
         SensorCommand::Watch(a) => watch(&client, a, timeout),
-        SensorCommand::Save(a) => save(&client, a, timeout),
+        SensorCommand::Save(a) => super::sensor_save::save(&client, a, timeout),
         SensorCommand::Destroy { id } => {
             client.destroy_sensor(id).map_err(failure)?;
             println!("destroyed sensor {id}");
@@ -242,12 +229,12 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
 
 /// The spec `a` describes, checked.
 fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
-    use SensorKind::{Depth, Gnss, Instance, Lidar, Rgb, Semantic};
+    use SensorKind::{Depth, Gnss, Instance, Lidar, Obstacle, Rgb, Semantic};
     let at = super::numbers::<3>(&a.at, "--at")?;
     let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
     let Some(kind) = SensorKind::from_name(&a.kind) else {
         return Err(Failure::Refused(anyhow!(
-            "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, imu or gnss",
+            "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, imu, gnss, collision or obstacle",
             a.kind
         )));
     };
@@ -263,8 +250,10 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             (
                 "--range",
                 a.range.is_some(),
-                &[Depth, Rgb, Semantic, Instance, Lidar],
+                &[Depth, Rgb, Semantic, Instance, Lidar, Obstacle],
             ),
+            ("--hit-radius", a.hit_radius.is_some(), &[Obstacle]),
+            ("--only-dynamics", a.only_dynamics, &[Obstacle]),
             ("--channels", a.channels.is_some(), &[Lidar]),
             ("--points", a.points.is_some(), &[Lidar]),
             ("--fov-range", a.fov_range.is_some(), &[Lidar]),
@@ -312,6 +301,16 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
         }
         SensorKind::Imu => SensorSpec::imu(at),
         SensorKind::Gnss => SensorSpec::with_params(at, gnss_params(a)?),
+        SensorKind::Collision => SensorSpec::with_params(at, shared_types::Collision),
+        SensorKind::Obstacle => {
+            let defaults = shared_types::Obstacle::default();
+            let obstacle = shared_types::Obstacle {
+                distance: a.range.unwrap_or(defaults.distance),
+                hit_radius: a.hit_radius.unwrap_or(defaults.hit_radius),
+                only_dynamics: a.only_dynamics,
+            };
+            SensorSpec::with_params(at, obstacle)
+        }
     }
     .attached_to(a.attach)
     .every(a.sensor_tick);
@@ -394,7 +393,7 @@ fn seconds_text(seconds: f64) -> String {
 
 /// What `sensor watch --json` prints for a capture, and `sensor save`
 /// writes for an IMU's: the header, and an IMU's readings.
-fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
+pub(super) fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
     let h = capture.header();
     let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
     let mut json = serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
@@ -406,6 +405,17 @@ fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
         object.insert("gyroscope".into(), imu.gyroscope.into());
         object.insert("compass".into(), compass(h.rotation).into());
     }
+    if let (Some(events), Some(object)) = (capture.collisions(), json.as_object_mut()) {
+        let events: Vec<_> = events
+            .iter()
+            .map(|e| serde_json::json!({"other_actor": e.other_actor, "normal_impulse": e.normal_impulse}))
+            .collect();
+        object.insert("collisions".into(), events.into());
+    }
+    if let (Some(seen), Some(object)) = (capture.obstacle(), json.as_object_mut()) {
+        object.insert("other_actor".into(), seen.other_actor.into());
+        object.insert("distance".into(), seen.distance.into());
+    }
     if let (Some(gnss), Some(object)) = (capture.gnss(), json.as_object_mut()) {
         object.insert("latitude".into(), gnss.latitude.into());
         object.insert("longitude".into(), gnss.longitude.into());
@@ -415,7 +425,7 @@ fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
 }
 
 /// A GNSS reading as one readable phrase.
-fn gnss_text(gnss: &GnssMeasurement) -> String {
+pub(super) fn gnss_text(gnss: &GnssMeasurement) -> String {
     format!(
         "latitude {:.9}°  longitude {:.9}°  altitude {:.3} m",
         gnss.latitude, gnss.longitude, gnss.altitude
@@ -423,7 +433,7 @@ fn gnss_text(gnss: &GnssMeasurement) -> String {
 }
 
 /// An IMU's readings as one readable phrase.
-fn imu_text(imu: &ImuMeasurement, rotation: [f32; 4]) -> String {
+pub(super) fn imu_text(imu: &ImuMeasurement, rotation: [f32; 4]) -> String {
     let [ax, ay, az] = imu.accelerometer;
     let [gx, gy, gz] = imu.gyroscope;
     format!(
@@ -442,6 +452,27 @@ fn print_capture(capture: &Capture, missed: u64, json: bool) {
             .imu()
             .map(|imu| format!("  {}", imu_text(imu, h.rotation)))
             .or_else(|| capture.gnss().map(|g| format!("  {}", gnss_text(g))))
+            .or_else(|| {
+                let seen = capture.obstacle()?;
+                Some(format!(
+                    "  actor {} ahead at {:.3} m",
+                    seen.other_actor, seen.distance
+                ))
+            })
+            .or_else(|| {
+                let events = capture.collisions()?;
+                let hits: Vec<String> = events
+                    .iter()
+                    .map(|e| {
+                        let [x, y, z] = e.normal_impulse;
+                        format!(
+                            "actor {} impulse ({x:.3}, {y:.3}, {z:.3}) N·s",
+                            e.other_actor
+                        )
+                    })
+                    .collect();
+                Some(format!("  hit {}", hits.join(", ")))
+            })
             .unwrap_or_default();
         println!(
             "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {}  {}{readings}",
@@ -489,95 +520,9 @@ fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure
 }
 
 /// The next capture within `timeout`; `None` when interrupted.
-fn next_capture(sensor: &mut Sensor, timeout: Duration) -> Result<Option<Capture>, WaitError> {
+pub(super) fn next_capture(
+    sensor: &mut Sensor,
+    timeout: Duration,
+) -> Result<Option<Capture>, WaitError> {
     super::in_slices(timeout, |slice| sensor.recv(slice))
-}
-
-fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("creating the directory {}", a.out.display()))?;
-    let mut sensor = client.sensor(a.id).map_err(failure)?;
-    let spec = sensor.spec();
-    let depth_range = spec.camera().map_or(0.0, |d| d.range);
-    let lidar_range = spec.lidar_params().map_or(0.0, |l| l.range);
-    for _ in 0..a.captures {
-        let Some(capture) = next_capture(&mut sensor, timeout)? else {
-            break;
-        };
-        let h = *capture.header();
-        let stem = a
-            .out
-            .join(format!("sensor{}-frame{}", h.sensor_id, h.frame));
-        if a.raw {
-            let path = stem.with_extension("raw");
-            std::fs::write(&path, capture.bytes())
-                .with_context(|| format!("writing {}", path.display()))?;
-            println!(
-                "wrote {} ({})",
-                path.display(),
-                count(capture.bytes().len() as u64, "byte")
-            );
-        }
-        if let Some(pixels) = capture.image() {
-            let path = stem.with_extension("png");
-            let kind = SensorKind::from_u32(h.kind).unwrap_or(SensorKind::Rgb);
-            let [w, hgt] = h.size.map(|v| v as usize);
-            super::pictures::save_image(&path, pixels, w, hgt, kind == SensorKind::Semantic)
-                .with_context(|| format!("writing {}", path.display()))?;
-            let what = match kind {
-                SensorKind::Semantic => "semantic segmentation, CARLA's CityScapes colours",
-                SensorKind::Instance => {
-                    "instance segmentation: red the tag, green and blue the actor id"
-                }
-                _ => "rgb",
-            };
-            println!("wrote {} ({what})", path.display());
-        } else if let Some(depth) = capture.depth() {
-            let path = stem.with_extension("png");
-            let range = super::pictures::save_depth(
-                &path,
-                depth,
-                h.size[0] as usize,
-                h.size[1] as usize,
-                depth_range,
-                a.range,
-            )
-            .with_context(|| format!("writing {}", path.display()))?;
-            println!(
-                "wrote {} (depth, white = near, legend 0..{range} m)",
-                path.display(),
-            );
-        } else if let Some(points) = capture.points() {
-            let ply = stem.with_extension("ply");
-            super::pictures::save_ply(&ply, points)
-                .with_context(|| format!("writing {}", ply.display()))?;
-            let png = stem.with_extension("png");
-            super::pictures::save_lidar_top_down(&png, points, lidar_range)
-                .with_context(|| format!("writing {}", png.display()))?;
-            println!(
-                "wrote {} and {} ({})",
-                ply.display(),
-                png.display(),
-                count(points.len() as u64, "point")
-            );
-        } else if let Some(imu) = capture.imu() {
-            // Nothing to draw: the readings, as `sensor watch --json` prints them.
-            let path = stem.with_extension("json");
-            let mut text = capture_json(&capture, sensor.missed()).to_string();
-            text.push('\n');
-            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-            println!(
-                "wrote {} (imu: {})",
-                path.display(),
-                imu_text(imu, h.rotation)
-            );
-        } else if let Some(gnss) = capture.gnss() {
-            let path = stem.with_extension("json");
-            let mut text = capture_json(&capture, sensor.missed()).to_string();
-            text.push('\n');
-            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-            println!("wrote {} (gnss: {})", path.display(), gnss_text(gnss));
-        }
-    }
-    Ok(())
 }

@@ -8,7 +8,10 @@ use std::thread::ThreadId;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PySlice, PyString, PyTuple};
-use shared_types::{GnssMeasurement, ImuMeasurement, LidarPoint, SensorHeader, SensorKind};
+use shared_types::{
+    CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection, SensorHeader,
+    SensorKind,
+};
 
 use super::kind_name;
 use crate::errors::raise;
@@ -47,6 +50,46 @@ fn gnss_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
                 ("altitude", "<f8", offset_of!(GnssMeasurement, altitude)),
             ];
             structured_dtype(py, &fields, size_of::<GnssMeasurement>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// A collision capture's dtype: the wire layout of [`CollisionEvent`].
+fn collision_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                (
+                    "other_actor",
+                    "<u8",
+                    offset_of!(CollisionEvent, other_actor),
+                ),
+                (
+                    "normal_impulse",
+                    "(3,)<f4",
+                    offset_of!(CollisionEvent, normal_impulse),
+                ),
+            ];
+            structured_dtype(py, &fields, size_of::<CollisionEvent>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// An obstacle capture's dtype: the wire layout of [`ObstacleDetection`].
+fn obstacle_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                (
+                    "other_actor",
+                    "<u8",
+                    offset_of!(ObstacleDetection, other_actor),
+                ),
+                ("distance", "<f4", offset_of!(ObstacleDetection, distance)),
+            ];
+            structured_dtype(py, &fields, size_of::<ObstacleDetection>()).map(Bound::unbind)
         })
         .map(|dtype| dtype.bind(py))
 }
@@ -227,7 +270,9 @@ impl Capture {
     /// width)` metres; RGB, semantic and instance `uint8 (height, width,
     /// 4)` blue, green, red, alpha (semantic: the tag in red; instance:
     /// the tag in red, the actor id in green and blue); lidar `float32 (N, 4)` x, y, z, intensity for the N
-    /// returns; IMU one record (`accelerometer`, `gyroscope`).
+    /// returns; IMU one record (`accelerometer`, `gyroscope`); collision
+    /// one record per contact (`other_actor`, `normal_impulse`); obstacle
+    /// one record (`other_actor`, `distance`).
     #[getter]
     fn array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         if let Some(owned) = &self.owned {
@@ -254,6 +299,17 @@ impl Capture {
             Some(SensorKind::Gnss) => {
                 self.typed(loan, gnss_dtype(py)?, size_of::<GnssMeasurement>(), &[1])
             }
+            Some(SensorKind::Collision) => {
+                let element = size_of::<CollisionEvent>();
+                let n = self.header.count as usize;
+                self.typed(loan, collision_dtype(py)?, element, &[n])
+            }
+            Some(SensorKind::Obstacle) => self.typed(
+                loan,
+                obstacle_dtype(py)?,
+                size_of::<ObstacleDetection>(),
+                &[1],
+            ),
             _ => self.typed(loan, imu_dtype(py)?, size_of::<ImuMeasurement>(), &[1]),
         }
     }

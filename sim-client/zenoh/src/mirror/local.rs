@@ -15,10 +15,11 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{
-    ActorState, BatchHeader, BatchResponseHeader, Bgra, Command, CommandResult, ControlRequest,
-    ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint, LockstepRequest,
-    LockstepResponse, RecorderRequest, RecorderResponse, SensorHeader, SensorInfo, SensorKind,
-    SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
+    ActorState, BatchHeader, BatchResponseHeader, Bgra, CollisionEvent, Command, CommandResult,
+    ControlRequest, ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint,
+    LockstepRequest, LockstepResponse, ObstacleDetection, RecorderRequest, RecorderResponse,
+    SensorHeader, SensorInfo, SensorKind, SensorRequest, SensorResponseHeader, ServiceNames,
+    TickRequest, TickResponse,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -261,6 +262,8 @@ impl std::fmt::Debug for LocalServices {
 enum SensorPort {
     Depth(Publisher<Bus, [f32], SensorHeader>),
     Image(Publisher<Bus, [Bgra], SensorHeader>),
+    Collision(Publisher<Bus, [CollisionEvent], SensorHeader>),
+    Obstacle(Publisher<Bus, [ObstacleDetection], SensorHeader>),
     Lidar(Publisher<Bus, [LidarPoint], SensorHeader>),
     Imu(Publisher<Bus, [ImuMeasurement], SensorHeader>),
     Gnss(Publisher<Bus, [GnssMeasurement], SensorHeader>),
@@ -341,6 +344,12 @@ impl SensorPorts {
             Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
                 SensorPort::Image(sensor_publisher(node, names, id, elements, limits)?)
             }
+            Some(SensorKind::Collision) => {
+                SensorPort::Collision(sensor_publisher(node, names, id, elements, limits)?)
+            }
+            Some(SensorKind::Obstacle) => {
+                SensorPort::Obstacle(sensor_publisher(node, names, id, elements, limits)?)
+            }
             Some(SensorKind::Lidar) => {
                 SensorPort::Lidar(sensor_publisher(node, names, id, elements, limits)?)
             }
@@ -371,6 +380,8 @@ impl SensorPorts {
         let published = match &self.ports[&id] {
             SensorPort::Depth(p) => publish(p, header, payload),
             SensorPort::Image(p) => publish(p, header, payload),
+            SensorPort::Collision(p) => publish(p, header, payload),
+            SensorPort::Obstacle(p) => publish(p, header, payload),
             SensorPort::Lidar(p) => publish(p, header, payload),
             SensorPort::Imu(p) => publish(p, header, payload),
             SensorPort::Gnss(p) => publish(p, header, payload),

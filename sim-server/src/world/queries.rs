@@ -1,0 +1,133 @@
+//! What sensors ask of the world: rays, the colliders a ray can meet
+//! (with their actors), whether a point is inside a body.
+
+use rapier3d::parry::query::ShapeCastOptions;
+use rapier3d::prelude::*;
+use shared_types::ActorKind;
+
+use super::World;
+
+/// A collider a sensor's ray can meet, and the actor it belongs to.
+#[derive(Clone, Copy)]
+pub(crate) struct RayTarget<'a> {
+    /// Its shape.
+    pub(crate) shape: &'a dyn Shape,
+    /// Where it is.
+    pub(crate) pose: &'a Pose,
+    /// Its actor's id (0: none).
+    pub(crate) actor: u64,
+    /// Its actor's kind.
+    pub(crate) kind: Option<ActorKind>,
+    /// Its actor's half extents.
+    pub(crate) extent: [f32; 3],
+}
+
+impl World {
+    /// Whether `collider` is out of the physics only because its body's
+    /// simulation is off (CARLA's `set_simulate_physics(False)`): the actor
+    /// is still there, and sensors see it.
+    fn held_still(&self, collider: &Collider) -> bool {
+        collider
+            .parent()
+            .and_then(|b| self.physics.bodies.get(b))
+            .is_some_and(|b| !b.is_enabled())
+    }
+
+    /// Whether world point `point` is inside one of `body`'s colliders.
+    pub(crate) fn body_contains(&self, body: RigidBodyHandle, point: Vector) -> bool {
+        self.physics.bodies.get(body).is_some_and(|b| {
+            b.colliders().iter().any(|&c| {
+                self.physics
+                    .colliders
+                    .get(c)
+                    .is_some_and(|c| c.shape().contains_point(c.position(), point))
+            })
+        })
+    }
+
+    /// Distance to the first collider along `direction` (unit) from `origin`,
+    /// up to `max`, ignoring the body `exclude`.
+    pub fn cast_ray(
+        &self,
+        origin: Vector,
+        direction: Vector,
+        max: f32,
+        exclude: Option<RigidBodyHandle>,
+    ) -> Option<f32> {
+        let mut filter = QueryFilter::default();
+        if let Some(body) = exclude {
+            filter = filter.exclude_rigid_body(body);
+        }
+        self.physics
+            .cast_ray(&Ray::new(origin, direction), max, true, filter)
+            .map(|(_, distance)| distance)
+    }
+
+    /// What sensors' rays meet: every collider not on the excluded body,
+    /// with its pose and actor. The enabled ones are what
+    /// [`World::cast_ray`] with `exclude` tests (casting against each with
+    /// `Shape::cast_ray` and keeping the nearest hit below the range is the
+    /// same answer, bit for bit); those of bodies whose simulation is off
+    /// are there too (the actor is still in the world).
+    pub(crate) fn ray_targets(
+        &self,
+        exclude: Option<RigidBodyHandle>,
+    ) -> impl Iterator<Item = RayTarget<'_>> + '_ {
+        self.physics
+            .colliders
+            .iter()
+            .filter(move |(_, c)| exclude.is_none() || c.parent() != exclude)
+            .filter(|(_, c)| c.is_enabled() || self.held_still(c))
+            .map(|(_, c)| {
+                let actor = c
+                    .parent()
+                    .and_then(|body| self.physics.bodies.get(body))
+                    .and_then(|body| self.index_of(body.user_data as u64))
+                    .map(|i| &self.actors[i]);
+                RayTarget {
+                    shape: c.shape(),
+                    pose: c.position(),
+                    actor: actor.map_or(0, |a| a.id),
+                    kind: actor.map(|a| a.kind),
+                    extent: actor.map_or([0.0; 3], |a| a.extent),
+                }
+            })
+    }
+
+    /// The nearest actor a sphere of `radius` swept from `origin` along
+    /// `direction` (unit) meets within `max`, and how far the sphere
+    /// travelled; `exclude`'s body left out, and fixed bodies too when
+    /// `only_dynamic`. A body the sphere starts in is passed through
+    /// unless it is moving into it.
+    pub(crate) fn sweep_sphere(
+        &self,
+        (origin, direction): (Vector, Vector),
+        (radius, max): (f32, f32),
+        exclude: Option<RigidBodyHandle>,
+        only_dynamic: bool,
+    ) -> Option<(u64, f32)> {
+        let mut filter = if only_dynamic {
+            QueryFilter::exclude_fixed()
+        } else {
+            QueryFilter::default()
+        };
+        if let Some(body) = exclude {
+            filter = filter.exclude_rigid_body(body);
+        }
+        let options = ShapeCastOptions {
+            max_time_of_impact: max,
+            target_distance: 0.0,
+            stop_at_penetration: false,
+            compute_impact_geometry_on_penetration: false,
+        };
+        let (collider, hit) = self.physics.query_pipeline_with_filter(filter).cast_shape(
+            &Pose::from_translation(origin),
+            direction,
+            &Ball::new(radius),
+            options,
+        )?;
+        let body = self.physics.colliders.get(collider)?.parent()?;
+        let actor = self.physics.bodies.get(body)?.user_data as u64;
+        Some((actor, hit.time_of_impact))
+    }
+}

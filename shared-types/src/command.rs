@@ -352,7 +352,7 @@ mod tests {
     #[test]
     fn kinds_and_statuses_are_numbered_without_gaps() {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(kinds, (1..=14).collect::<Vec<_>>());
+        assert_eq!(kinds, (1..=15).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
         assert_eq!(statuses, (0..=5).collect::<Vec<_>>());
     }

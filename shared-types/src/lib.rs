@@ -52,6 +52,8 @@ pub use camera::{Bgra, SemanticTag, Sun};
 pub use events::{Collision, CollisionEvent, Obstacle, ObstacleDetection};
 pub mod gnss;
 pub use gnss::{Gnss, GnssMeasurement};
+pub mod ranging;
+pub use ranging::{Radar, RadarDetection, SemanticLidarPoint};
 mod sensor;
 mod sensor_params;
 mod settings;

@@ -50,6 +50,12 @@ wire_enum! {
         /// Obstacle detector: one [`crate::ObstacleDetection`], published
         /// only on frames where something is ahead.
         Obstacle = 9,
+        /// Ray-cast semantic lidar: [`crate::SemanticLidarPoint`]s in the
+        /// sensor frame, each naming the actor and tag it met.
+        SemanticLidar = 10,
+        /// Radar: [`crate::RadarDetection`]s, rays spread at random over
+        /// its field of view, each with the radial velocity of what it met.
+        Radar = 11,
     }
 }
 
@@ -66,7 +72,14 @@ impl SensorKind {
             Self::Instance => "instance",
             Self::Collision => "collision",
             Self::Obstacle => "obstacle",
+            Self::SemanticLidar => "semantic-lidar",
+            Self::Radar => "radar",
         }
+    }
+
+    /// Whether it is a lidar (plain or semantic: the same parameters).
+    pub fn is_lidar(&self) -> bool {
+        matches!(self, Self::Lidar | Self::SemanticLidar)
     }
 
     /// Whether it is a camera (its captures are images).
@@ -158,6 +171,12 @@ pub enum SensorSpecError {
     /// seed a whole number in `0..=`[`crate::gnss::MAX_GNSS_SEED`].
     #[error("GNSS biases must be finite, deviations finite and >= 0, and the seed a whole number in 0..=16777216")]
     GnssNoise,
+    /// A radar's fields of view must be in (0, 180) degrees, its range in
+    /// (0, 1e6] m and its points per second a whole number in
+    /// `1..=`[`crate::ranging::MAX_RADAR_POINTS_PER_SECOND`], its seed in
+    /// `0..=`[`crate::gnss::MAX_GNSS_SEED`].
+    #[error("a radar's fields of view must be in (0, 180) degrees, its range in (0, 1e6] m, its points per second a whole number in 1..=1000000 and its seed a whole number in 0..=16777216")]
+    Radar,
     /// An obstacle detector's distance must be in (0, 1000] m and its hit
     /// radius in (0, 100] m.
     #[error(
@@ -207,13 +226,23 @@ impl SensorSpec {
     /// (CARLA's partial scans); 0 takes a full turn every capture. Other
     /// kinds are returned unchanged.
     pub fn rotating(mut self, hz: f32) -> Self {
-        if let Some(lidar) = self.lidar_params() {
-            self.set_params(Lidar {
-                rotation_hz: hz,
-                ..lidar
-            });
-        }
+        let Some(lidar) = self.lidar_params() else {
+            return self;
+        };
+        let lidar = Lidar {
+            rotation_hz: hz,
+            ..lidar
+        };
+        self.set_params(match self.sensor_kind() {
+            Some(SensorKind::SemanticLidar) => SensorParams::SemanticLidar(lidar),
+            _ => SensorParams::Lidar(lidar),
+        });
         self
+    }
+
+    /// A semantic lidar with `lidar`'s parameters.
+    pub fn semantic_lidar(position: [f32; 3], lidar: Lidar) -> Self {
+        Self::with_params(position, SensorParams::SemanticLidar(lidar))
     }
 
     /// A camera of `kind` (depth, RGB, semantic or instance segmentation)
@@ -273,7 +302,10 @@ impl SensorSpec {
                 let [w, h] = p.size();
                 w as usize * h as usize
             }
-            Some(SensorParams::Lidar(l)) => l.channels as usize * l.points as usize,
+            Some(SensorParams::Lidar(l) | SensorParams::SemanticLidar(l)) => {
+                l.channels as usize * l.points as usize
+            }
+            Some(SensorParams::Radar(r)) => r.capacity().max(1),
             Some(SensorParams::Collision(_)) => crate::events::MAX_COLLISION_EVENTS,
             _ => 1,
         }
@@ -287,6 +319,8 @@ impl SensorSpec {
                 std::mem::size_of::<crate::Bgra>()
             }
             Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
+            Some(SensorKind::SemanticLidar) => std::mem::size_of::<crate::SemanticLidarPoint>(),
+            Some(SensorKind::Radar) => std::mem::size_of::<crate::RadarDetection>(),
             Some(SensorKind::Gnss) => std::mem::size_of::<crate::GnssMeasurement>(),
             Some(SensorKind::Collision) => std::mem::size_of::<crate::CollisionEvent>(),
             Some(SensorKind::Obstacle) => std::mem::size_of::<crate::ObstacleDetection>(),
@@ -341,7 +375,7 @@ impl SensorSpec {
                     return Err(SensorSpecError::CameraRange);
                 }
             }
-            Some(SensorParams::Lidar(l)) => {
+            Some(SensorParams::Lidar(l) | SensorParams::SemanticLidar(l)) => {
                 if !(whole(first, MAX_LIDAR_CHANNELS) && whole(second, MAX_LIDAR_POINTS))
                     || self.payload_bytes() > MAX_CAPTURE_BYTES
                 {
@@ -367,6 +401,10 @@ impl SensorSpec {
                 return Err(SensorSpecError::Obstacle)
             }
             Some(SensorParams::Obstacle(_)) => {}
+            Some(SensorParams::Radar(r)) if !r.valid(p[3], p[4]) => {
+                return Err(SensorSpecError::Radar)
+            }
+            Some(SensorParams::Radar(_)) => {}
             None => return Err(SensorSpecError::UnknownKind),
         }
         Ok(())

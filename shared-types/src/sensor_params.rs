@@ -15,6 +15,7 @@
 
 use crate::events::{Collision, Obstacle};
 use crate::gnss::Gnss;
+use crate::ranging::Radar;
 use crate::{SensorKind, SensorSpec};
 
 /// A ray-cast camera's parameters: the depth camera's, and the RGB,
@@ -67,6 +68,10 @@ pub enum SensorParams {
     Instance(Camera),
     /// A lidar.
     Lidar(Lidar),
+    /// A semantic lidar (a lidar's parameters).
+    SemanticLidar(Lidar),
+    /// A radar.
+    Radar(Radar),
     /// An IMU.
     Imu(Imu),
     /// A GNSS receiver.
@@ -86,6 +91,8 @@ impl SensorParams {
             Self::Semantic(_) => SensorKind::Semantic,
             Self::Instance(_) => SensorKind::Instance,
             Self::Lidar(_) => SensorKind::Lidar,
+            Self::SemanticLidar(_) => SensorKind::SemanticLidar,
+            Self::Radar(_) => SensorKind::Radar,
             Self::Imu(_) => SensorKind::Imu,
             Self::Gnss(_) => SensorKind::Gnss,
             Self::Collision(_) => SensorKind::Collision,
@@ -94,15 +101,20 @@ impl SensorParams {
     }
 
     /// The capture's size as [`crate::SensorHeader::size`] states it: a
-    /// depth camera's width and height, a lidar's channels and points per
-    /// channel; zeros for an IMU and a GNSS receiver.
+    /// camera's width and height, a lidar's channels and points per
+    /// channel; zeros for the others (a radar's and an event sensor's
+    /// captures say their count).
     pub fn size(&self) -> [u32; 2] {
         match self {
             Self::Depth(d) | Self::Rgb(d) | Self::Semantic(d) | Self::Instance(d) => {
                 [d.width, d.height]
             }
-            Self::Lidar(l) => [l.channels, l.points],
-            Self::Imu(_) | Self::Gnss(_) | Self::Collision(_) | Self::Obstacle(_) => [0, 0],
+            Self::Lidar(l) | Self::SemanticLidar(l) => [l.channels, l.points],
+            Self::Imu(_)
+            | Self::Gnss(_)
+            | Self::Collision(_)
+            | Self::Obstacle(_)
+            | Self::Radar(_) => [0, 0],
         }
     }
 
@@ -139,7 +151,7 @@ impl SensorParams {
                 0.0,
                 0.0,
             ],
-            Self::Lidar(l) => [
+            Self::Lidar(l) | Self::SemanticLidar(l) => [
                 l.channels as f32,
                 l.points as f32,
                 l.range,
@@ -150,6 +162,16 @@ impl SensorParams {
                 0.0,
             ],
             Self::Imu(Imu) | Self::Collision(Collision) => [0.0; 8],
+            Self::Radar(r) => [
+                r.horizontal_fov,
+                r.vertical_fov,
+                r.range,
+                r.points_per_second as f32,
+                r.seed as f32,
+                0.0,
+                0.0,
+                0.0,
+            ],
             Self::Obstacle(o) => [
                 o.distance,
                 o.hit_radius,
@@ -182,13 +204,14 @@ impl SensorParams {
             SensorKind::Rgb => Self::Rgb(Camera::from_wire(p)),
             SensorKind::Semantic => Self::Semantic(Camera::from_wire(p)),
             SensorKind::Instance => Self::Instance(Camera::from_wire(p)),
-            SensorKind::Lidar => Self::Lidar(Lidar {
-                channels: p[0] as u32,
-                points: p[1] as u32,
+            SensorKind::Lidar => Self::Lidar(Lidar::from_wire(p)),
+            SensorKind::SemanticLidar => Self::SemanticLidar(Lidar::from_wire(p)),
+            SensorKind::Radar => Self::Radar(Radar {
+                horizontal_fov: p[0],
+                vertical_fov: p[1],
                 range: p[2],
-                upper_fov: p[3],
-                lower_fov: p[4],
-                rotation_hz: p[5],
+                points_per_second: p[3] as u32,
+                seed: p[4] as u32,
             }),
             SensorKind::Imu => Self::Imu(Imu),
             SensorKind::Collision => Self::Collision(Collision),
@@ -206,6 +229,19 @@ impl SensorParams {
                 alt_stddev: p[5],
                 seed: p[6] as u32,
             }),
+        }
+    }
+}
+
+impl Lidar {
+    fn from_wire(p: [f32; 8]) -> Self {
+        Self {
+            channels: p[0] as u32,
+            points: p[1] as u32,
+            range: p[2],
+            upper_fov: p[3],
+            lower_fov: p[4],
+            rotation_hz: p[5],
         }
     }
 }
@@ -231,6 +267,12 @@ impl From<Camera> for SensorParams {
 impl From<Lidar> for SensorParams {
     fn from(value: Lidar) -> Self {
         Self::Lidar(value)
+    }
+}
+
+impl From<Radar> for SensorParams {
+    fn from(value: Radar) -> Self {
+        Self::Radar(value)
     }
 }
 
@@ -304,10 +346,18 @@ impl SensorSpec {
         }
     }
 
-    /// The lidar's parameters, if this is a lidar.
+    /// The lidar's parameters, if this is a lidar (plain or semantic).
     pub fn lidar_params(&self) -> Option<Lidar> {
         match self.sensor_params()? {
-            SensorParams::Lidar(lidar) => Some(lidar),
+            SensorParams::Lidar(lidar) | SensorParams::SemanticLidar(lidar) => Some(lidar),
+            _ => None,
+        }
+    }
+
+    /// The radar's parameters, if this is a radar.
+    pub fn radar_params(&self) -> Option<Radar> {
+        match self.sensor_params()? {
+            SensorParams::Radar(radar) => Some(radar),
             _ => None,
         }
     }

@@ -116,3 +116,57 @@ fn every_camera_kind_is_checked_as_the_depth_camera_is() {
         None
     );
 }
+
+#[test]
+fn a_semantic_lidar_is_a_lidar_that_stays_semantic() {
+    let lidar = SensorSpec::lidar([0.0; 3], 16, 500, 40.0, 10.0, -30.0)
+        .lidar_params()
+        .expect("a lidar");
+    let spec = SensorSpec::semantic_lidar([0.0; 3], lidar).rotating(10.0);
+    assert_eq!(spec.sensor_kind(), Some(SensorKind::SemanticLidar));
+    assert_eq!(spec.lidar_params().map(|l| l.rotation_hz), Some(10.0));
+    assert_eq!(spec.elements(), 16 * 500);
+    assert_eq!(spec.payload_bytes(), 16 * 500 * 24);
+    assert!(spec.check().is_ok());
+    let upside_down = SensorSpec::semantic_lidar(
+        [0.0; 3],
+        crate::Lidar {
+            upper_fov: -30.0,
+            lower_fov: 10.0,
+            ..lidar
+        },
+    );
+    assert_eq!(upside_down.check(), Err(SensorSpecError::LidarRange));
+    assert!(SensorKind::SemanticLidar.is_lidar() && !SensorKind::Radar.is_lidar());
+    assert_eq!(
+        SensorKind::from_name("semantic-lidar"),
+        Some(SensorKind::SemanticLidar)
+    );
+}
+
+#[test]
+fn radars_are_checked_as_sent() {
+    let radar = crate::Radar::default();
+    let spec = SensorSpec::with_params([0.0; 3], radar);
+    assert_eq!(spec.params[..4], [30.0, 30.0, 100.0, 1500.0]);
+    assert_eq!(spec.radar_params(), Some(radar));
+    assert_eq!(spec.elements(), 1500);
+    assert_eq!(spec.payload_bytes(), 1500 * 16);
+    assert!(spec.check().is_ok());
+    for (slot, value) in [
+        (0, f32::NAN),
+        (1, 180.0),
+        (2, 0.0),
+        (3, 0.5),
+        (3, 2e6),
+        (4, -1.0),
+    ] {
+        let mut bad = spec;
+        bad.params[slot] = value;
+        assert!(bad.check().is_err(), "params[{slot}] = {value}");
+    }
+    let mut bad = spec;
+    bad.params[1] = 200.0;
+    let message = bad.check().unwrap_err().to_string();
+    assert!(message.contains("radar's fields of view"), "{message}");
+}

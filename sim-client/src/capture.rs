@@ -3,7 +3,7 @@
 use iceoryx2::sample::Sample;
 use shared_types::{
     Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection,
-    SensorHeader,
+    RadarDetection, SemanticLidarPoint, SensorHeader,
 };
 use simbus_transport::Bus;
 
@@ -18,6 +18,10 @@ pub enum Capture {
     Lidar(Sample<Bus, [LidarPoint], SensorHeader>),
     /// An IMU reading.
     Imu(Sample<Bus, [ImuMeasurement], SensorHeader>),
+    /// A semantic lidar's returns.
+    SemanticLidar(Sample<Bus, [SemanticLidarPoint], SensorHeader>),
+    /// A radar's detections.
+    Radar(Sample<Bus, [RadarDetection], SensorHeader>),
     /// A GNSS reading.
     Gnss(Sample<Bus, [GnssMeasurement], SensorHeader>),
     /// The contacts a collision sensor's parent started this frame.
@@ -35,6 +39,8 @@ impl Capture {
             Self::Lidar(s) => s.user_header(),
             Self::Imu(s) => s.user_header(),
             Self::Gnss(s) => s.user_header(),
+            Self::SemanticLidar(s) => s.user_header(),
+            Self::Radar(s) => s.user_header(),
             Self::Collision(s) => s.user_header(),
             Self::Obstacle(s) => s.user_header(),
         }
@@ -60,10 +66,24 @@ impl Capture {
     /// The lidar returns in place (sensor frame), if a lidar capture.
     pub fn points(&self) -> Option<&[LidarPoint]> {
         match self {
-            Self::Lidar(s) => {
-                let count = (s.user_header().count as usize).min(s.payload().len());
-                Some(&s.payload()[..count])
-            }
+            Self::Lidar(s) => Some(counted(s.payload(), s.user_header())),
+            _ => None,
+        }
+    }
+
+    /// The semantic lidar's returns in place (sensor frame), if a
+    /// semantic lidar capture.
+    pub fn semantic_points(&self) -> Option<&[SemanticLidarPoint]> {
+        match self {
+            Self::SemanticLidar(s) => Some(counted(s.payload(), s.user_header())),
+            _ => None,
+        }
+    }
+
+    /// The radar's detections in place, if a radar capture.
+    pub fn detections(&self) -> Option<&[RadarDetection]> {
+        match self {
+            Self::Radar(s) => Some(counted(s.payload(), s.user_header())),
             _ => None,
         }
     }
@@ -88,10 +108,7 @@ impl Capture {
     /// frame), if a collision capture.
     pub fn collisions(&self) -> Option<&[CollisionEvent]> {
         match self {
-            Self::Collision(s) => {
-                let count = (s.user_header().count as usize).min(s.payload().len());
-                Some(&s.payload()[..count])
-            }
+            Self::Collision(s) => Some(counted(s.payload(), s.user_header())),
             _ => None,
         }
     }
@@ -112,8 +129,16 @@ impl Capture {
             Self::Lidar(s) => bytemuck::cast_slice(s.payload()),
             Self::Imu(s) => bytemuck::cast_slice(s.payload()),
             Self::Gnss(s) => bytemuck::cast_slice(s.payload()),
+            Self::SemanticLidar(s) => bytemuck::cast_slice(s.payload()),
+            Self::Radar(s) => bytemuck::cast_slice(s.payload()),
             Self::Collision(s) => bytemuck::cast_slice(s.payload()),
             Self::Obstacle(s) => bytemuck::cast_slice(s.payload()),
         }
     }
+}
+
+/// The first `header.count` elements of `payload` (all of them if the
+/// header says more: the sample's length bounds what is read).
+fn counted<'a, T>(payload: &'a [T], header: &SensorHeader) -> &'a [T] {
+    &payload[..(header.count as usize).min(payload.len())]
 }

@@ -12,9 +12,9 @@ use iceoryx2::prelude::*;
 use shared_types::limits::MAX_SENSOR_READERS_FLAG;
 use shared_types::{
     Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection,
-    ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal, SensorRequest,
-    SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError, ServiceNames, WorldName,
-    PROTOCOL_VERSION,
+    RadarDetection, ResponseStatus, SemanticLidarPoint, SensorEnd, SensorHeader, SensorInfo,
+    SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
+    SensorSpecError, ServiceNames, WorldName, PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -34,6 +34,8 @@ enum Port {
     Depth(Sub<f32>),
     Image(Sub<Bgra>),
     Lidar(Sub<LidarPoint>),
+    SemanticLidar(Sub<SemanticLidarPoint>),
+    Radar(Sub<RadarDetection>),
     Imu(Sub<ImuMeasurement>),
     Gnss(Sub<GnssMeasurement>),
     Collision(Sub<CollisionEvent>),
@@ -116,6 +118,8 @@ impl Reader {
             Port::Depth(s) => s.receive().map(|c| c.map(Capture::Depth)),
             Port::Image(s) => s.receive().map(|c| c.map(Capture::Image)),
             Port::Lidar(s) => s.receive().map(|c| c.map(Capture::Lidar)),
+            Port::SemanticLidar(s) => s.receive().map(|c| c.map(Capture::SemanticLidar)),
+            Port::Radar(s) => s.receive().map(|c| c.map(Capture::Radar)),
             Port::Imu(s) => s.receive().map(|c| c.map(Capture::Imu)),
             Port::Gnss(s) => s.receive().map(|c| c.map(Capture::Gnss)),
             Port::Collision(s) => s.receive().map(|c| c.map(Capture::Collision)),
@@ -194,6 +198,10 @@ impl Sensor {
                 Port::Image(subscribe(&node, &specs, info.id, deadline)?)
             }
             Some(SensorKind::Lidar) => Port::Lidar(subscribe(&node, &specs, info.id, deadline)?),
+            Some(SensorKind::SemanticLidar) => {
+                Port::SemanticLidar(subscribe(&node, &specs, info.id, deadline)?)
+            }
+            Some(SensorKind::Radar) => Port::Radar(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Imu) => Port::Imu(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Gnss) => Port::Gnss(subscribe(&node, &specs, info.id, deadline)?),
             Some(SensorKind::Collision) => {

@@ -369,6 +369,27 @@ pub fn gnss_seed(text: &str) -> Result<u32, InputError> {
     whole_in(text, 0..=u64::from(MAX_GNSS_SEED)).map(|n| n as u32)
 }
 
+/// A radar's rays per simulated second:
+/// `1..=`[`shared_types::ranging::MAX_RADAR_POINTS_PER_SECOND`].
+pub fn radar_points_per_second(text: &str) -> Result<u32, InputError> {
+    let max = shared_types::ranging::MAX_RADAR_POINTS_PER_SECOND;
+    whole_in(text, 1..=u64::from(max)).map(|n| n as u32)
+}
+
+/// An obstacle detector's hit radius, metres: above 0, at most 100.
+pub fn hit_radius(text: &str) -> Result<f32, InputError> {
+    let radius = number(text)?;
+    if !(radius.is_finite() && radius > 0.0 && radius <= 100.0) {
+        return Err(InputError::OutOfRange {
+            text: text.to_owned(),
+            start: 0.0,
+            end: 100.0,
+            unit: " of metres, above 0",
+        });
+    }
+    Ok(radius as f32)
+}
+
 /// A lidar's rotation frequency: 0 (a full turn every capture) up to
 /// [`MAX_RATE_HZ`].
 pub fn rotation_frequency(text: &str) -> Result<f32, InputError> {

@@ -244,6 +244,8 @@ fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
             _ => carla::RGB_SENSOR_TYPE,
         },
         Capture::Lidar(_) => carla::LIDAR_SENSOR_TYPE,
+        Capture::SemanticLidar(_) => carla::SEMANTIC_LIDAR_SENSOR_TYPE,
+        Capture::Radar(_) => carla::RADAR_SENSOR_TYPE,
         Capture::Imu(_) => carla::IMU_SENSOR_TYPE,
         Capture::Gnss(_) => carla::GNSS_SENSOR_TYPE,
         Capture::Collision(_) | Capture::Obstacle(_) => return None,
@@ -256,6 +258,8 @@ fn message(capture: &Capture, spec: &SensorSpec) -> Option<Vec<u8>> {
         Capture::Depth(_) => depth(&mut out, capture, spec)?,
         Capture::Image(_) => image(&mut out, capture, spec)?,
         Capture::Lidar(_) => lidar(&mut out, capture, spec)?,
+        Capture::SemanticLidar(_) => semantic_lidar(&mut out, capture, spec)?,
+        Capture::Radar(_) => radar(&mut out, capture)?,
         Capture::Imu(_) => imu(&mut out, capture)?,
         Capture::Gnss(_) => gnss(&mut out, capture)?,
         Capture::Collision(_) | Capture::Obstacle(_) => return None,
@@ -285,39 +289,77 @@ fn image(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> 
     Some(())
 }
 
-/// A lidar capture as `carla.LidarMeasurement`'s payload: the points per
-/// channel, then each return in CARLA's axes.
-fn lidar(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
-    let points = capture.points()?;
+/// A lidar's header as CARLA's lidar measurements start: the horizontal
+/// angle the capture ended at (radians) and the returns per channel, each
+/// return's channel found from its elevation (simbus writes them channel
+/// by channel, as CARLA reads them).
+fn lidar_header(
+    out: &mut Vec<u8>,
+    capture: &Capture,
+    spec: &SensorSpec,
+    points: impl ExactSizeIterator<Item = [f32; 3]> + Clone,
+) -> Option<()> {
     let [channels, ..] = capture.header().size;
     let lidar_params = spec.lidar_params()?;
     let (upper, lower) = (lidar_params.upper_fov, lidar_params.lower_fov);
-    let channel_of = |p: &shared_types::LidarPoint| {
+    let channel_of = |[x, y, z]: [f32; 3]| {
         if channels <= 1 {
             return 0;
         }
-        let r = (p.x * p.x + p.y * p.y + p.z * p.z)
-            .sqrt()
-            .max(f32::MIN_POSITIVE);
-        let elevation = (p.y / r).clamp(-1.0, 1.0).asin().to_degrees();
+        let r = (x * x + y * y + z * z).sqrt().max(f32::MIN_POSITIVE);
+        let elevation = (y / r).clamp(-1.0, 1.0).asin().to_degrees();
         let c = ((upper - elevation) / (upper - lower) * (channels - 1) as f32).round();
         (c.max(0.0) as usize).min(channels as usize - 1)
     };
     let mut counts = vec![0u32; channels.max(1) as usize];
-    for p in points {
+    for p in points.clone() {
         counts[channel_of(p)] += 1;
     }
-    let angle = points
-        .last()
-        .map_or(0.0, |p| p.z.atan2(p.x).rem_euclid(std::f32::consts::TAU));
+    let angle = points.last().map_or(0.0, |[x, _, z]| {
+        z.atan2(x).rem_euclid(std::f32::consts::TAU)
+    });
     carla::lidar_header(out, angle, &counts);
-    // simbus writes the returns channel by channel, as CARLA reads them.
+    Some(())
+}
+
+/// A lidar capture as `carla.LidarMeasurement`'s payload: the header, then
+/// each return in CARLA's axes with its intensity.
+fn lidar(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
+    let points = capture.points()?;
+    lidar_header(out, capture, spec, points.iter().map(|p| [p.x, p.y, p.z]))?;
     for p in points {
         let [x, y, z] = convert::vector([p.x, p.y, p.z]);
         for v in [x, y, z, p.intensity] {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
+    Some(())
+}
+
+/// A semantic lidar capture as `carla.SemanticLidarMeasurement`'s payload:
+/// the header, then CARLA's 24-byte detections (the point in CARLA's axes,
+/// the cosine of the incidence angle, the actor's id and its tag).
+fn semantic_lidar(out: &mut Vec<u8>, capture: &Capture, spec: &SensorSpec) -> Option<()> {
+    let points = capture.semantic_points()?;
+    lidar_header(out, capture, spec, points.iter().map(|p| [p.x, p.y, p.z]))?;
+    out.reserve(std::mem::size_of_val(points));
+    for p in points {
+        let [x, y, z] = convert::vector([p.x, p.y, p.z]);
+        for v in [x, y, z, p.cos_inc_angle] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&p.object_idx.to_le_bytes());
+        out.extend_from_slice(&p.object_tag.to_le_bytes());
+    }
+    Some(())
+}
+
+/// A radar capture as `carla.RadarMeasurement`'s payload: the detections
+/// as they are (velocity, azimuth, altitude, depth; CARLA's axes share
+/// simbus's azimuth to the right and altitude up), no count before them.
+fn radar(out: &mut Vec<u8>, capture: &Capture) -> Option<()> {
+    let bytes = std::mem::size_of_val(capture.detections()?);
+    out.extend_from_slice(capture.bytes().get(..bytes)?);
     Some(())
 }
 

@@ -33,6 +33,11 @@ pub const DEPTH_SENSOR_TYPE: u64 = 1;
 pub const GNSS_SENSOR_TYPE: u64 = 4;
 /// The sensor type id of an IMU's `carla.IMUMeasurement`.
 pub const IMU_SENSOR_TYPE: u64 = 5;
+/// The sensor type id of a radar's `carla.RadarMeasurement`.
+pub const RADAR_SENSOR_TYPE: u64 = 9;
+/// The sensor type id of a semantic lidar's
+/// `carla.SemanticLidarMeasurement`.
+pub const SEMANTIC_LIDAR_SENSOR_TYPE: u64 = 10;
 /// The sensor type id of a ray-cast lidar's `carla.LidarMeasurement`.
 pub const LIDAR_SENSOR_TYPE: u64 = 11;
 /// `ASceneCaptureCamera` (`sensor.camera.rgb`): `carla.Image`.

@@ -17,8 +17,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use shared_types::gnss::MAX_GNSS_SEED;
 use shared_types::{
-    Camera, Gnss, Lidar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal, SensorSpec,
-    SensorSpecError,
+    Camera, Gnss, Lidar, Radar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal,
+    SensorSpec, SensorSpecError,
 };
 use sim_client::{SensorError, WaitError};
 
@@ -89,21 +89,32 @@ fn whole(value: f64, not_whole: SensorSpecError) -> PyResult<u32> {
 /// (checked by the Rust client before anything is sent).
 fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     use SensorKind as Kind;
-    let Some(kind) = Kind::from_name(kind) else {
+    // `semantic_lidar` reads as the command line's `semantic-lidar`.
+    let Some(kind) = Kind::from_name(&kind.replace('_', "-")) else {
         return Err(PyValueError::new_err(format!(
-            "unknown sensor kind {kind:?}: expected 'depth', 'rgb', 'semantic', 'instance', 'lidar', 'imu', 'gnss', 'collision' or 'obstacle'"
+            "unknown sensor kind {kind:?}: expected 'depth', 'rgb', 'semantic', 'instance', 'lidar', 'semantic_lidar', 'radar', 'imu', 'gnss', 'collision' or 'obstacle'"
         )));
     };
     const CAMERAS: &[Kind] = &[Kind::Depth, Kind::Rgb, Kind::Semantic, Kind::Instance];
+    const LIDARS: &[Kind] = &[Kind::Lidar, Kind::SemanticLidar];
     const RANGED: &[Kind] = &[
         Kind::Depth,
         Kind::Rgb,
         Kind::Semantic,
         Kind::Instance,
         Kind::Lidar,
+        Kind::SemanticLidar,
+        Kind::Radar,
         Kind::Obstacle,
     ];
-    let given: [(&str, bool, &[Kind]); 12] = [
+    const WIDE: &[Kind] = &[
+        Kind::Depth,
+        Kind::Rgb,
+        Kind::Semantic,
+        Kind::Instance,
+        Kind::Radar,
+    ];
+    let given: [(&str, bool, &[Kind]); 14] = [
         ("hit_radius", p.hit_radius.is_some(), &[Kind::Obstacle]),
         (
             "only_dynamics",
@@ -112,18 +123,20 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
         ),
         ("width", p.width.is_some(), CAMERAS),
         ("height", p.height.is_some(), CAMERAS),
-        ("fov", p.fov.is_some(), CAMERAS),
-        ("range", p.range.is_some(), RANGED),
-        ("channels", p.channels.is_some(), &[Kind::Lidar]),
-        ("points", p.points.is_some(), &[Kind::Lidar]),
-        ("upper_fov", p.upper_fov.is_some(), &[Kind::Lidar]),
-        ("lower_fov", p.lower_fov.is_some(), &[Kind::Lidar]),
+        ("fov", p.fov.is_some(), WIDE),
+        ("vertical_fov", p.vertical_fov.is_some(), &[Kind::Radar]),
         (
-            "rotation_frequency",
-            p.rotation_frequency.is_some(),
-            &[Kind::Lidar],
+            "points_per_second",
+            p.points_per_second.is_some(),
+            &[Kind::Radar],
         ),
-        ("noise", p.noise.is_some(), &[Kind::Gnss]),
+        ("range", p.range.is_some(), RANGED),
+        ("channels", p.channels.is_some(), LIDARS),
+        ("points", p.points.is_some(), LIDARS),
+        ("upper_fov", p.upper_fov.is_some(), LIDARS),
+        ("lower_fov", p.lower_fov.is_some(), LIDARS),
+        ("rotation_frequency", p.rotation_frequency.is_some(), LIDARS),
+        ("noise", p.noise.is_some(), &[Kind::Gnss, Kind::Radar]),
     ];
     for (name, present, kinds) in given {
         if present && !kinds.contains(&kind) {
@@ -148,17 +161,21 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
             let params = SensorParams::camera_of(kind, camera).expect("a camera kind");
             SensorSpec::with_params(at, params)
         }
-        Kind::Lidar => SensorSpec::with_params(
-            at,
-            Lidar {
+        Kind::Lidar | Kind::SemanticLidar => {
+            let lidar = Lidar {
                 channels: whole(p.channels.unwrap_or(32.0), SensorSpecError::LidarSize)?,
                 points: whole(p.points.unwrap_or(512.0), SensorSpecError::LidarSize)?,
                 range: p.range.unwrap_or(50.0) as f32,
                 upper_fov: p.upper_fov.unwrap_or(10.0) as f32,
                 lower_fov: p.lower_fov.unwrap_or(-30.0) as f32,
                 rotation_hz: p.rotation_frequency.unwrap_or(0.0) as f32,
-            },
-        ),
+            };
+            match kind {
+                Kind::Lidar => SensorSpec::with_params(at, lidar),
+                _ => SensorSpec::semantic_lidar(at, lidar),
+            }
+        }
+        Kind::Radar => SensorSpec::with_params(at, radar(p)?),
         Kind::Imu => SensorSpec::imu(at),
         Kind::Gnss => SensorSpec::with_params(at, gnss_noise(p.noise.as_ref())?),
         Kind::Collision => SensorSpec::with_params(at, shared_types::Collision),
@@ -208,6 +225,40 @@ fn gnss_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<Gnss> {
     Ok(gnss)
 }
 
+/// A radar's parameters from `spawn_sensor`'s keyword arguments: `fov`
+/// and `vertical_fov` (30 each), `range` (100), `points_per_second`
+/// (1500) and `noise={"seed": N}` (0).
+fn radar(p: &SpawnParams) -> PyResult<Radar> {
+    let defaults = Radar::default();
+    let mut seed = defaults.seed;
+    for (name, &value) in p.noise.iter().flatten() {
+        let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
+        match name.as_str() {
+            "seed" if whole => seed = value as u32,
+            "seed" => {
+                return Err(sensor_error(SensorError::InvalidSpec(
+                    SensorSpecError::Radar,
+                )))
+            }
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown noise setting '{other}' for a radar: expected seed"
+                )))
+            }
+        }
+    }
+    Ok(Radar {
+        horizontal_fov: p.fov.map_or(defaults.horizontal_fov, |v| v as f32),
+        vertical_fov: p.vertical_fov.map_or(defaults.vertical_fov, |v| v as f32),
+        range: p.range.map_or(defaults.range, |v| v as f32),
+        points_per_second: match p.points_per_second {
+            Some(n) => whole(n, SensorSpecError::Radar)?,
+            None => defaults.points_per_second,
+        },
+        seed,
+    })
+}
+
 /// `spawn_sensor`'s keyword arguments.
 struct SpawnParams {
     parent: Option<u64>,
@@ -226,29 +277,35 @@ struct SpawnParams {
     noise: Option<HashMap<String, f64>>,
     hit_radius: Option<f64>,
     only_dynamics: Option<bool>,
+    vertical_fov: Option<f64>,
+    points_per_second: Option<f64>,
 }
 
 #[pymethods]
 impl Client {
     /// Builds a sensor and subscribes to it: `kind` is `"depth"`, `"rgb"`,
-    /// `"semantic"`, `"instance"`, `"lidar"`, `"imu"`, `"gnss"`,
-    /// `"collision"` or `"obstacle"`. It rides on actor
+    /// `"semantic"`, `"instance"`, `"lidar"`, `"semantic_lidar"`,
+    /// `"radar"`, `"imu"`, `"gnss"`, `"collision"` or `"obstacle"`. It
+    /// rides on actor
     /// `parent` (and dies with it) or, without one, stays fixed in the world; `at` is its position
     /// relative to the parent (X forward, Y up, Z right, metres; 2 m up by
     /// default), `rotation` its orientation relative to the parent as a
     /// quaternion (x, y, z, w), `sensor_tick` its capture
     /// period in simulation seconds (0: every frame). Cameras: `width`,
     /// `height` (640 x 480), horizontal `fov` in degrees (90), far `range`
-    /// in metres (depth 100, the others 1000). Lidar: `channels` (32), `points` per channel in a
-    /// turn (512), `range` (50), `upper_fov`/`lower_fov` in degrees
-    /// (10/-30), `rotation_frequency` in Hz (0: a full turn every capture).
+    /// in metres (depth 100, the others 1000). Lidars (plain and
+    /// semantic): `channels` (32), `points` per channel in a turn (512),
+    /// `range` (50), `upper_fov`/`lower_fov` in degrees (10/-30),
+    /// `rotation_frequency` in Hz (0: a full turn every capture). Radar:
+    /// `fov` and `vertical_fov` in degrees (30/30), `range` (100),
+    /// `points_per_second` (1500), `noise={"seed": N}` (0).
     /// Obstacle: `range` ahead (5 m), `hit_radius` (0.5 m),
     /// `only_dynamics` (False). Collision: a `parent` to watch.
     /// GNSS: `noise`, a dict of CARLA's noise attributes without their
     /// `noise_` prefix (`lat_stddev`, `alt_bias`, `seed`, ...; all 0).
     /// Invalid values raise `ValueError` and spawn nothing; an unknown
     /// parent raises `simbus.CommandError`.
-    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None, noise = None, hit_radius = None, only_dynamics = None))]
+    #[pyo3(signature = (kind, *, parent = None, at = [0.0, 2.0, 0.0], rotation = None, sensor_tick = 0.0, width = None, height = None, fov = None, range = None, channels = None, points = None, upper_fov = None, lower_fov = None, rotation_frequency = None, noise = None, hit_radius = None, only_dynamics = None, vertical_fov = None, points_per_second = None))]
     #[allow(clippy::too_many_arguments)]
     fn spawn_sensor(
         slf: &Bound<'_, Self>,
@@ -269,6 +326,8 @@ impl Client {
         noise: Option<HashMap<String, f64>>,
         hit_radius: Option<f64>,
         only_dynamics: Option<bool>,
+        vertical_fov: Option<f64>,
+        points_per_second: Option<f64>,
     ) -> PyResult<Sensor> {
         let params = SpawnParams {
             parent,
@@ -287,6 +346,8 @@ impl Client {
             noise,
             hit_radius,
             only_dynamics,
+            vertical_fov,
+            points_per_second,
         };
         let spec = spec_for(kind, &params)?;
         let client = slf.borrow();
@@ -411,7 +472,12 @@ impl SensorInfo {
 
 /// The name of wire kind `kind`.
 fn kind_name(kind: u32) -> &'static str {
-    SensorKind::from_u32(kind).map_or("unknown", |k| k.name())
+    match SensorKind::from_u32(kind) {
+        // Python's spelling of the command line's `semantic-lidar`.
+        Some(SensorKind::SemanticLidar) => "semantic_lidar",
+        Some(kind) => kind.name(),
+        None => "unknown",
+    }
 }
 
 /// A subscription to one sensor (`client.spawn_sensor(...)`,

@@ -115,7 +115,11 @@ fn is_ground(extent: [f32; 3]) -> bool {
 }
 
 /// What `target` is at world point `point`: its tag and its colour.
-fn surface(target: &Target, point: Vector, ground: &GroundMap) -> (SemanticTag, [u8; 3]) {
+pub(super) fn surface(
+    target: &Target,
+    point: Vector,
+    ground: &GroundMap,
+) -> (SemanticTag, [u8; 3]) {
     match target.kind {
         Some(ActorKind::Vehicle) => (SemanticTag::Car, [40, 88, 168]),
         Some(ActorKind::Box) => (SemanticTag::Dynamic, [200, 36, 28]),

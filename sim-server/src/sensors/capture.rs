@@ -109,25 +109,48 @@ impl LidarRays {
     }
 }
 
+/// What one lidar ray met: the direction in the sensor's frame and the
+/// world's, how far along it, and the target.
+pub(super) struct Return<'t, 'a> {
+    /// Unit direction, sensor frame.
+    pub(super) local: Vector,
+    /// Unit direction, world frame.
+    pub(super) direction: Vector,
+    pub(super) distance: f32,
+    pub(super) target: &'t culling::Target<'a>,
+}
+
+/// A plain lidar's point for `hit`: where, and an intensity falling from 1
+/// at the sensor to 0 at `range`.
+pub(super) fn lidar_point(hit: &Return, range: f32) -> LidarPoint {
+    let point = hit.local * hit.distance;
+    LidarPoint {
+        x: point.x,
+        y: point.y,
+        z: point.z,
+        intensity: 1.0 - hit.distance / range,
+    }
+}
+
 /// Ray-casts `channels` × `sweep.columns` rays, channels in parallel, each
-/// writing its returns at the start of its own stretch of the sample; the
-/// stretches are then closed up in channel order (the same points, in the
-/// same order, as one thread would write), and the rest zeroed. Returns how
-/// many returns there are.
-pub(super) fn lidar_into(
+/// writing its returns (`point` of each hit) at the start of its own
+/// stretch of the sample; the stretches are then closed up in channel
+/// order (the same points, in the same order, as one thread would write),
+/// and the rest zeroed. Returns how many returns there are.
+pub(super) fn lidar_into<T: Copy + Default + Send>(
     world: &World,
     spec: &SensorSpec,
     rays: &mut LidarRays,
-    pose: Pose,
-    sweep: Sweep,
-    slots: &mut [MaybeUninit<LidarPoint>],
+    (pose, sweep): (Pose, Sweep),
+    slots: &mut [MaybeUninit<T>],
+    point: impl Fn(&Return) -> T + Sync,
 ) -> usize {
     let range = spec.lidar_params().map_or(0.0, |l| l.range);
     let per_channel = sweep.per_channel;
     let exclude = world.body_of(spec.attach_to);
     let columns = sweep.columns.min(per_channel);
     if columns == 0 || rays.per_channel != per_channel {
-        slots.fill(MaybeUninit::new(LidarPoint::default()));
+        slots.fill(MaybeUninit::new(T::default()));
         return 0;
     }
     let channels = (rays.directions.len() / per_channel).min(slots.len() / columns);
@@ -148,20 +171,21 @@ pub(super) fn lidar_into(
             .map(|((stretch, directions), faces)| {
                 let mut hits = 0;
                 for column in sweep.start..sweep.start + columns {
-                    let (direction, face) = (
+                    let (local, face) = (
                         directions[column % per_channel],
                         faces[column % per_channel],
                     );
-                    if let Some(distance) =
-                        culling::nearest(cube.along(face), pose.rotation * direction, range)
+                    let direction = pose.rotation * local;
+                    if let Some((distance, target)) =
+                        culling::nearest_target(cube.along(face), direction, range)
                     {
-                        let point = direction * distance;
-                        stretch[hits].write(LidarPoint {
-                            x: point.x,
-                            y: point.y,
-                            z: point.z,
-                            intensity: 1.0 - distance / range,
-                        });
+                        let hit = Return {
+                            local,
+                            direction,
+                            distance,
+                            target,
+                        };
+                        stretch[hits].write(point(&hit));
                         hits += 1;
                     }
                 }
@@ -174,7 +198,7 @@ pub(super) fn lidar_into(
         slots.copy_within(from..from + count, hits);
         hits += count;
     }
-    slots[hits..].fill(MaybeUninit::new(LidarPoint::default()));
+    slots[hits..].fill(MaybeUninit::new(T::default()));
     hits
 }
 
@@ -260,7 +284,9 @@ mod tests {
             per_channel,
         };
         let mut slots = vec![MaybeUninit::new(LidarPoint::default()); channels * per_channel];
-        let hits = lidar_into(world, &spec, &mut rays, pose, sweep, &mut slots);
+        let hits = lidar_into(world, &spec, &mut rays, (pose, sweep), &mut slots, |hit| {
+            lidar_point(hit, range)
+        });
         let mut expected = Vec::new();
         for c in 0..channels {
             for column in start..start + columns {

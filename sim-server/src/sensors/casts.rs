@@ -101,6 +101,21 @@ impl Casts {
         }
     }
 
+    /// Paints `scene`'s ground unless it is the one painted.
+    fn paint(&mut self, scene: SceneName) {
+        if self.ground.as_ref().is_none_or(|(name, _)| *name != scene) {
+            let network = shared_types::roads::network(scene);
+            self.ground = Some((scene, GroundMap::paint(&network)));
+        }
+    }
+
+    /// The painted ground of `scene`, what tags the ground a semantic
+    /// lidar meets (painted once per scene).
+    pub(super) fn ground(&mut self, scene: SceneName) -> &GroundMap {
+        self.paint(scene);
+        &self.ground.as_ref().expect("painted above").1
+    }
+
     /// The hits of camera `spec` at `pose`: cast now unless a camera of
     /// the same pose was cast this frame.
     pub(super) fn hits(
@@ -116,10 +131,7 @@ impl Casts {
             return &[];
         };
         if !self.slots[index].done {
-            if self.ground.as_ref().is_none_or(|(name, _)| *name != scene) {
-                let network = shared_types::roads::network(scene);
-                self.ground = Some((scene, GroundMap::paint(&network)));
-            }
+            self.paint(scene);
             let ground = &self.ground.as_ref().expect("painted above").1;
             let camera = spec.camera().unwrap_or(shared_types::Camera {
                 width: 0,

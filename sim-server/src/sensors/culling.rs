@@ -55,7 +55,7 @@ impl Bounds {
         up: f32::NEG_INFINITY..=f32::INFINITY,
     };
 
-    fn contains(&self, right: f32, up: f32) -> bool {
+    pub(super) fn contains(&self, right: f32, up: f32) -> bool {
         self.right.contains(&right) && self.up.contains(&up)
     }
 }
@@ -223,15 +223,7 @@ pub(super) fn targets<'a>(
 /// from the sensor among `targets`, as rapier's `cast_ray` would find it:
 /// parry's `Shape::cast_ray` is `cast_local_ray` of the ray in the shape's
 /// frame, which is what this casts.
-pub(super) fn nearest<'t, 'a: 't>(
-    targets: impl Iterator<Item = &'t Target<'a>>,
-    direction: Vector,
-    far: f32,
-) -> Option<f32> {
-    nearest_target(targets, direction, far).map(|(distance, _)| distance)
-}
-
-/// [`nearest`], with the target it met.
+/// Returns the distance and the target met.
 pub(super) fn nearest_target<'t, 'a: 't>(
     targets: impl Iterator<Item = &'t Target<'a>>,
     direction: Vector,

@@ -1,50 +1,17 @@
 //! The GNSS receiver: where on the Earth the sensor is
 //! ([`shared_types::gnss::geolocation`]), plus CARLA's bias and a normal
 //! error per component drawn from a generator seeded with the sensor's
-//! `noise_seed` (the same seed, the same errors, run after run).
+//! `noise_seed` (the same seed, the same errors, run after run:
+//! [`Random`]).
 
 use rapier3d::prelude::Pose;
 use shared_types::{Gnss, GnssMeasurement};
 
-/// A GNSS receiver's error generator: SplitMix64, normals by Box–Muller.
-#[derive(Debug, Clone)]
-pub(super) struct GnssNoise {
-    state: u64,
-}
-
-impl GnssNoise {
-    pub(super) fn new(seed: u32) -> Self {
-        Self {
-            state: u64::from(seed),
-        }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in (0, 1].
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) + 1) as f64 / (1u64 << 53) as f64
-    }
-
-    /// A normal error of standard deviation `stddev` (two draws each time,
-    /// whatever the deviation, so one component's deviation does not move
-    /// the others' errors).
-    fn normal(&mut self, stddev: f32) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        let standard = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-        standard * f64::from(stddev)
-    }
-}
+use super::random::Random;
 
 /// The reading of a receiver with `params` at `pose`, its errors drawn
 /// from `noise`.
-pub(super) fn reading(params: &Gnss, pose: Pose, noise: &mut GnssNoise) -> GnssMeasurement {
+pub(super) fn reading(params: &Gnss, pose: Pose, noise: &mut Random) -> GnssMeasurement {
     let [x, y, z] = pose.translation.to_array().map(f64::from);
     let place = shared_types::gnss::geolocation([x, y, z]);
     let (lat_error, lon_error, alt_error) = (
@@ -74,7 +41,7 @@ mod tests {
             alt_bias: 2.0,
             ..Gnss::default()
         };
-        let mut noise = GnssNoise::new(0);
+        let mut noise = Random::new(0);
         let origin = reading(&params, at(0.0, 1.5, 0.0), &mut noise);
         assert_eq!(
             (origin.latitude, origin.longitude, origin.altitude),
@@ -93,7 +60,7 @@ mod tests {
             ..Gnss::default()
         };
         let draw = |seed| {
-            let mut noise = GnssNoise::new(seed);
+            let mut noise = Random::new(seed);
             (0..2000)
                 .map(|_| reading(&params, at(0.0, 0.0, 0.0), &mut noise).latitude)
                 .collect::<Vec<_>>()

@@ -1,6 +1,7 @@
 //! The sensor domain: cameras (depth, RGB, semantic and instance
-//! segmentation) and a lidar that ray-cast the rapier world, an IMU and a
-//! GNSS receiver. Each writes its capture **directly into the loaned
+//! segmentation), lidars (plain and semantic) and a radar that ray-cast
+//! the rapier world, an IMU, a GNSS receiver, and the event sensors
+//! (collision, obstacle). Each writes its capture **directly into the loaned
 //! shared-memory sample** of its own iceoryx2 service — no intermediate
 //! buffer, no copy. The sensor service spawns, lists and destroys them; a
 //! sensor ends with its parent actor, its episode and the server, and its
@@ -11,12 +12,15 @@ mod capture;
 mod casts;
 mod culling;
 mod events;
+mod frame;
 mod gnss;
 mod ground;
 mod publish;
+mod radar;
+mod random;
 mod renderer;
 
-use publish::{publish, send_end};
+use publish::send_end;
 
 pub use renderer::RenderThreadsError;
 use renderer::Renderer;
@@ -46,12 +50,11 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
-use shared_types::scene::SceneName;
 use shared_types::{
     seconds_to_nanos, Bgra, CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint,
-    ObstacleDetection, ResponseStatus, SensorEnd, SensorHeader, SensorInfo, SensorKind,
-    SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec,
-    PROTOCOL_VERSION,
+    ObstacleDetection, RadarDetection, ResponseStatus, SemanticLidarPoint, SensorEnd, SensorHeader,
+    SensorInfo, SensorKind, SensorRefusal, SensorRequest, SensorRequestKind, SensorResponseHeader,
+    SensorSpec, PROTOCOL_VERSION,
 };
 use simbus_recording::RecordedSensor;
 use simbus_transport::Bus;
@@ -72,6 +75,8 @@ enum SensorPort {
     /// RGB, semantic and instance segmentation.
     Image(Port<Bgra>),
     Lidar(Port<LidarPoint>),
+    SemanticLidar(Port<SemanticLidarPoint>),
+    Radar(Port<RadarDetection>),
     Imu(Port<ImuMeasurement>),
     Gnss(Port<GnssMeasurement>),
     Collision(Port<CollisionEvent>),
@@ -91,8 +96,9 @@ struct Sensor {
     lidar_column: usize,
     /// Lidar: its ray directions, computed once.
     lidar_rays: capture::LidarRays,
-    /// GNSS: its error generator.
-    gnss_noise: gnss::GnssNoise,
+    /// GNSS: its error generator; radar: its rays' generator (seeded with
+    /// their `noise_seed`).
+    random: random::Random,
     captures: u64,
 }
 
@@ -251,6 +257,10 @@ impl Sensors {
                 open_port(transport, id, elements, limits).map(SensorPort::Image)
             }
             SensorKind::Lidar => open_port(transport, id, elements, limits).map(SensorPort::Lidar),
+            SensorKind::SemanticLidar => {
+                open_port(transport, id, elements, limits).map(SensorPort::SemanticLidar)
+            }
+            SensorKind::Radar => open_port(transport, id, elements, limits).map(SensorPort::Radar),
             SensorKind::Imu => open_port(transport, id, 1, limits).map(SensorPort::Imu),
             SensorKind::Gnss => open_port(transport, id, 1, limits).map(SensorPort::Gnss),
             SensorKind::Collision => {
@@ -281,12 +291,17 @@ impl Sensors {
             next_capture_ns,
             last_capture_ns: now_ns,
             lidar_column: 0,
-            lidar_rays: if kind == SensorKind::Lidar {
+            lidar_rays: if kind.is_lidar() {
                 capture::LidarRays::new(&spec)
             } else {
                 capture::LidarRays::default()
             },
-            gnss_noise: gnss::GnssNoise::new(spec.gnss_params().map_or(0, |g| g.seed)),
+            random: random::Random::new(u64::from(
+                spec.gnss_params()
+                    .map(|g| g.seed)
+                    .or(spec.radar_params().map(|r| r.seed))
+                    .unwrap_or(0),
+            )),
             captures: 0,
         };
         let info = sensor.info();
@@ -386,163 +401,6 @@ impl Sensors {
     pub(crate) fn rays(&self) -> u32 {
         u32::try_from(self.casts.rays).unwrap_or(u32::MAX)
     }
-
-    /// Captures and publishes every sensor due at this frame of `scene`; a
-    /// copy of each capture goes to `record` when it is given (a recording
-    /// with sensors).
-    pub(crate) fn capture(
-        &mut self,
-        world: &World,
-        scene: SceneName,
-        (frame, elapsed_ns, episode): (u64, u64, u64),
-        mut record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
-    ) {
-        let (renderer, casts) = (&self.renderer, &mut self.casts);
-        casts.plan(
-            self.list
-                .iter()
-                .filter(|s| elapsed_ns >= s.next_capture_ns)
-                .filter_map(|s| Some((&s.spec, s.spec.sensor_kind()?)))
-                .filter(|(_, kind)| kind.is_camera()),
-        );
-        for sensor in &mut self.list {
-            if elapsed_ns < sensor.next_capture_ns {
-                continue;
-            }
-            sensor.next_capture_ns = next_capture_after(elapsed_ns, &sensor.spec);
-            let since_last_ns = elapsed_ns - sensor.last_capture_ns.min(elapsed_ns);
-            sensor.last_capture_ns = elapsed_ns;
-            let Some(pose) = capture::sensor_pose(world, &sensor.spec) else {
-                debug!(id = sensor.id, "sensor's actor is gone; no capture");
-                continue;
-            };
-            // Event sensors publish only on frames where something happened.
-            let parent = sensor.spec.attach_to;
-            let obstacle = match &sensor.port {
-                SensorPort::Obstacle(_) => match events::obstacle(world, &sensor.spec, pose) {
-                    Some(seen) => Some(seen),
-                    None => continue,
-                },
-                SensorPort::Collision(_) if events::collisions(world, parent).next().is_none() => {
-                    continue
-                }
-                _ => None,
-            };
-            sensor.captures += 1;
-            let kind = sensor.spec.sensor_kind().expect("checked at spawn");
-            let mut header = SensorHeader::new(kind, sensor.id);
-            header.frame = frame;
-            header.elapsed_ns = elapsed_ns;
-            header.episode = episode;
-            header.sequence = sensor.captures;
-            header.position = pose.translation.to_array();
-            header.rotation = pose.rotation.to_array();
-            header.size = sensor.spec.sensor_params().map_or([0, 0], |p| p.size());
-            let published = match &sensor.port {
-                // SAFETY: depth_from writes one value per hit, and the
-                // slots past the hits are written here.
-                SensorPort::Depth(port) => unsafe {
-                    let hits = casts.hits(world, scene, &sensor.spec, pose, renderer);
-                    let camera = sensor.spec.camera().expect("checked at spawn");
-                    let intrinsics = camera::Intrinsics::of(&camera);
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        header.count = slots.len() as u32;
-                        let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
-                        renderer.run(|| camera::depth_from(hits, &intrinsics, camera.range, cast));
-                        for slot in rest {
-                            slot.write(camera.range);
-                        }
-                    })
-                },
-                // SAFETY: as the depth camera's, with image_from.
-                SensorPort::Image(port) => unsafe {
-                    let hits = casts.hits(world, scene, &sensor.spec, pose, renderer);
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        header.count = slots.len() as u32;
-                        let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
-                        renderer.run(|| camera::image_from(kind, hits, cast));
-                        for slot in rest {
-                            slot.write(Bgra::default());
-                        }
-                    })
-                },
-                SensorPort::Lidar(port) => {
-                    let sweep =
-                        capture::lidar_sweep(&sensor.spec, sensor.lidar_column, since_last_ns);
-                    let [channels, _] = header.size;
-                    casts.rays += sweep.columns as u64 * u64::from(channels);
-                    sensor.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel;
-                    // SAFETY: lidar_into writes the returns, then zeros in
-                    // every remaining slot.
-                    unsafe {
-                        publish(port, header, record.as_deref_mut(), |slots, header| {
-                            let (spec, rays) = (&sensor.spec, &mut sensor.lidar_rays);
-                            header.count = renderer
-                                .run(|| capture::lidar_into(world, spec, rays, pose, sweep, slots))
-                                as u32;
-                        })
-                    }
-                }
-                // SAFETY: an IMU capture has one slot, written here.
-                SensorPort::Imu(port) => unsafe {
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        header.count = 1;
-                        header.size = [1, 1];
-                        for slot in slots.iter_mut() {
-                            slot.write(capture::imu(world, &sensor.spec, pose));
-                        }
-                    })
-                },
-                // SAFETY: every slot is written: the events, then zeros.
-                SensorPort::Collision(port) => unsafe {
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        let mut events = events::collisions(world, parent);
-                        let mut count = 0;
-                        for slot in slots.iter_mut() {
-                            let event = events.next();
-                            count += u32::from(event.is_some());
-                            slot.write(event.unwrap_or_default());
-                        }
-                        let dropped = events.count();
-                        if dropped > 0 {
-                            warn!(
-                                id = sensor.id,
-                                frame, dropped, "more collisions than a capture holds"
-                            );
-                        }
-                        header.count = count;
-                        header.size = [count, 1];
-                    })
-                },
-                // SAFETY: an obstacle capture has one slot, written here.
-                SensorPort::Obstacle(port) => unsafe {
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        header.count = 1;
-                        header.size = [1, 1];
-                        for slot in slots.iter_mut() {
-                            slot.write(obstacle.unwrap_or_default());
-                        }
-                    })
-                },
-                // SAFETY: a GNSS capture has one slot, written here.
-                SensorPort::Gnss(port) => unsafe {
-                    let params = sensor.spec.gnss_params().unwrap_or_default();
-                    let noise = &mut sensor.gnss_noise;
-                    publish(port, header, record.as_deref_mut(), |slots, header| {
-                        header.count = 1;
-                        header.size = [1, 1];
-                        for slot in slots.iter_mut() {
-                            slot.write(gnss::reading(&params, pose, noise));
-                        }
-                    })
-                },
-            };
-            // A lost capture shows as a gap in the sequence; the world goes on.
-            if let Err(e) = published {
-                warn!(id = sensor.id, frame, "capture not published: {e}");
-            }
-        }
-    }
 }
 
 impl Sensor {
@@ -561,6 +419,8 @@ impl Sensor {
             SensorPort::Depth(port) => send_end(port, header),
             SensorPort::Image(port) => send_end(port, header),
             SensorPort::Lidar(port) => send_end(port, header),
+            SensorPort::SemanticLidar(port) => send_end(port, header),
+            SensorPort::Radar(port) => send_end(port, header),
             SensorPort::Imu(port) => send_end(port, header),
             SensorPort::Gnss(port) => send_end(port, header),
             SensorPort::Collision(port) => send_end(port, header),

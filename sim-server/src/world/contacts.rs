@@ -1,5 +1,12 @@
 //! Contacts that start during a step, as collisions between actors: what
 //! the recorder records and what collision sensors report.
+//!
+//! rapier starts a contact when two shapes come within its prediction
+//! distance, before they touch: a pair that starts without an impulse
+//! (a car bouncing back from a wall and coming close again) is held as
+//! pending and reported on the first step its contact pushes, or never if
+//! it stops first. So a contact starts once per touch, with the impulse
+//! of its first push.
 
 use std::sync::Mutex;
 
@@ -49,11 +56,29 @@ impl ContactStart {
     }
 }
 
+/// Whether `pair` is `(a, b)` in either order.
+fn same_pair(
+    pair: (ColliderHandle, ColliderHandle),
+    (a, b): (ColliderHandle, ColliderHandle),
+) -> bool {
+    pair == (a, b) || pair == (b, a)
+}
+
 impl World {
-    /// Adds the contacts between actors that started in the last physics
-    /// step to `out`, with the impulses the solver applied.
-    pub(super) fn collect_contacts(&self, started: &ContactStarts, out: &mut Vec<ContactStart>) {
-        let pairs = std::mem::take(&mut *started.pairs.lock().unwrap_or_else(|e| e.into_inner()));
+    /// Adds the contacts between actors that pushed for the first time in
+    /// the last physics step to `out`, with the impulses the solver
+    /// applied; those that started without pushing wait in `pending`.
+    pub(super) fn collect_contacts(
+        &self,
+        started: &ContactStarts,
+        pending: &mut Vec<(ColliderHandle, ColliderHandle)>,
+        out: &mut Vec<ContactStart>,
+    ) {
+        let stopped =
+            std::mem::take(&mut *started.stopped.lock().unwrap_or_else(|e| e.into_inner()));
+        pending.retain(|&p| !stopped.iter().any(|&s| same_pair(p, s)));
+        let mut pairs = std::mem::take(pending);
+        pairs.append(&mut started.pairs.lock().unwrap_or_else(|e| e.into_inner()));
         for (c1, c2) in pairs {
             let actor = |c: ColliderHandle| {
                 let body = self.physics.colliders.get(c)?.parent()?;
@@ -65,17 +90,21 @@ impl World {
                 continue;
             };
             let (a, b) = if a.0 <= b.0 { (a, b) } else { (b, a) };
-            let pair = self.physics.contact_pair(c1, c2);
-            let impulse = pair.map_or(0.0, |pair| pair.total_impulse_magnitude());
+            let Some(pair) = self.physics.contact_pair(c1, c2) else {
+                continue;
+            };
+            let impulse = pair.total_impulse_magnitude();
+            if impulse <= 0.0 {
+                pending.push((c1, c2));
+                continue;
+            }
             // The pair's normal points from its first collider to its
             // second: the impulse pushes the second along it.
-            let impulse_on_a = pair.map_or(Vector::ZERO, |pair| {
-                if pair.collider1 == a.2 {
-                    -pair.total_impulse()
-                } else {
-                    pair.total_impulse()
-                }
-            });
+            let impulse_on_a = if pair.collider1 == a.2 {
+                -pair.total_impulse()
+            } else {
+                pair.total_impulse()
+            };
             out.push(ContactStart {
                 a: (a.0, a.1),
                 b: (b.0, b.1),
@@ -86,10 +115,12 @@ impl World {
     }
 }
 
-/// Collects the collider pairs whose contact started during a step.
+/// Collects the collider pairs whose contact started, or stopped, during
+/// a step.
 #[derive(Default)]
 pub(super) struct ContactStarts {
     pairs: Mutex<Vec<(ColliderHandle, ColliderHandle)>>,
+    stopped: Mutex<Vec<(ColliderHandle, ColliderHandle)>>,
 }
 
 impl EventHandler for ContactStarts {
@@ -100,12 +131,13 @@ impl EventHandler for ContactStarts {
         event: CollisionEvent,
         _contact_pair: Option<&ContactPair>,
     ) {
-        if let CollisionEvent::Started(a, b, _) = event {
-            self.pairs
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push((a, b));
-        }
+        let list = match event {
+            CollisionEvent::Started(..) => &self.pairs,
+            CollisionEvent::Stopped(..) => &self.stopped,
+        };
+        list.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((event.collider1(), event.collider2()));
     }
 
     fn handle_contact_force_event(

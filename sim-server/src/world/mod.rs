@@ -53,6 +53,10 @@ pub struct World {
     /// Whether to keep [`World::contact_starts`].
     #[serde(skip)]
     pub(crate) watch_contacts: bool,
+    /// Contacts started within rapier's prediction distance that have not
+    /// pushed yet (`contacts::collect_contacts`).
+    #[serde(skip)]
+    pending_contacts: Vec<(ColliderHandle, ColliderHandle)>,
     /// The sun that lights RGB cameras (a weather's).
     #[serde(default)]
     pub(crate) sun: shared_types::Sun,
@@ -90,6 +94,7 @@ impl World {
             held: Vec::new(),
             contact_starts: Vec::new(),
             watch_contacts: false,
+            pending_contacts: Vec::new(),
             sun: shared_types::Sun::default(),
             first_id,
             next_id: first_id,
@@ -166,13 +171,18 @@ impl World {
     pub(crate) fn step_timed(
         &mut self,
         plan: &SubstepPlan,
-        mut collisions: Option<&mut Vec<RecordedCollision>>,
+        collisions: Option<&mut Vec<RecordedCollision>>,
         mut physics: Option<&mut Duration>,
     ) {
         self.physics.integration_parameters.dt = plan.substep_seconds;
         let started = ContactStarts::default();
         self.contact_starts.clear();
         let events = collisions.is_some() || self.watch_contacts;
+        if !events {
+            // Nobody watches: what was pending is forgotten, not reported
+            // late when somebody starts watching.
+            self.pending_contacts.clear();
+        }
         // The contacts of this frame (kept in `contact_starts`, which
         // collision sensors read, or taken for the recorder).
         let mut contacts = std::mem::take(&mut self.contact_starts);
@@ -195,10 +205,12 @@ impl World {
                 *total += clock.elapsed();
             }
             if events {
-                self.collect_contacts(&started, &mut contacts);
+                let mut pending = std::mem::take(&mut self.pending_contacts);
+                self.collect_contacts(&started, &mut pending, &mut contacts);
+                self.pending_contacts = pending;
             }
         }
-        if let Some(out) = collisions.as_deref_mut() {
+        if let Some(out) = collisions {
             out.extend(contacts.iter().map(ContactStart::recorded));
         }
         if self.watch_contacts {

@@ -94,6 +94,15 @@ impl World {
             })
     }
 
+    /// The velocity (world frame, m/s) of actor `id`'s body at world point
+    /// `point`: its linear velocity plus its spin's; zero for id 0 (the
+    /// world itself) and an actor that is gone.
+    pub(crate) fn velocity_at(&self, id: u64, point: Vector) -> Vector {
+        self.body_of(id)
+            .and_then(|body| self.physics.bodies.get(body))
+            .map_or(Vector::ZERO, |body| body.velocity_at_point(point))
+    }
+
     /// The nearest actor a sphere of `radius` swept from `origin` along
     /// `direction` (unit) meets within `max`, and how far the sphere
     /// travelled; `exclude`'s body left out, and fixed bodies too when

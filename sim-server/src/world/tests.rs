@@ -178,3 +178,39 @@ fn a_vehicle_drives_forward_with_throttle_and_turns_with_steer() {
         "steered: {moved:?} -> {turned:?}"
     );
 }
+
+#[test]
+fn a_contact_starts_when_it_first_pushes_not_when_shapes_come_near() {
+    let mut world = World::new(&Scene::Flat.placements(0), 1);
+    world.watch_contacts = true;
+    let ground = state_of(&world, 1);
+    let top = ground.position[1] + world.actors[0].extent[1];
+    // A box 1 cm above the ground, floating: within rapier's 2 cm
+    // prediction distance, so rapier starts the pair's contact, but
+    // nothing touches.
+    let spawned = world.apply(&Command::spawn_box([0.0, top + 0.51, 0.0], [0.5, 0.5, 0.5]));
+    let id = spawned.actor;
+    assert_eq!(
+        world.apply(&Command::set_gravity(id, false)).status,
+        CommandStatus::Ok as u32
+    );
+    let plan = fixed_plan(0.01);
+    for _ in 0..20 {
+        world.step(&plan);
+        assert!(
+            world.contact_starts.is_empty(),
+            "{:?}",
+            world.contact_starts
+        );
+    }
+    // Pushed down, it lands: one start, the ground's push up on it.
+    world.apply(&Command::apply_impulse(id, [0.0, -5.0, 0.0]));
+    let mut starts = Vec::new();
+    for _ in 0..20 {
+        world.step(&plan);
+        starts.extend(world.contact_starts.iter().filter_map(|c| c.seen_by(id)));
+    }
+    assert_eq!(starts.len(), 1, "{starts:?}");
+    assert_eq!(starts[0].0, 1);
+    assert!(starts[0].1.y > 0.0, "{starts:?}");
+}

@@ -1,4 +1,5 @@
-//! The cameras' blueprints: CARLA 0.9.16's attributes with their defaults.
+//! The cameras' blueprints: CARLA 0.9.16's attributes with their
+//! defaults.
 //! simbus's cameras are ray cast, so the size, field of view and
 //! `sensor_tick` shape the image; the lens, exposure and post-processing
 //! attributes are listed (scripts read and set them) and change nothing
@@ -6,7 +7,7 @@
 
 use super::{float, int, Attribute, Kind, ROLE_NAME};
 
-const fn text(id: &'static str, kind: Kind, default: &'static str) -> Attribute {
+pub(super) const fn text(id: &'static str, kind: Kind, default: &'static str) -> Attribute {
     Attribute {
         id,
         kind,

@@ -6,6 +6,7 @@
 mod cameras;
 mod catalog;
 mod library;
+mod sensors;
 
 use library::definition;
 pub(crate) use library::{library, scene_description, spawned_extent, vehicle_build};
@@ -13,8 +14,7 @@ pub(crate) use library::{library, scene_description, spawned_extent, vehicle_bui
 use std::collections::HashMap;
 
 use rmpv::Value;
-use shared_types::gnss::MAX_GNSS_SEED;
-use shared_types::{Command, Gnss, SensorKind, SensorSpec, SensorSpecError};
+use shared_types::{Command, SensorKind, SensorSpec};
 
 use crate::convert;
 use crate::error::BlueprintError;
@@ -139,22 +139,19 @@ const LIBRARY: &[Blueprint] = &[
         uid: 7,
         id: "sensor.lidar.ray_cast",
         tags: "sensor,lidar,ray_cast",
-        attributes: &[
-            ROLE_NAME,
-            int("channels", "32"),
-            int("points_per_second", "56000"),
-            float("range", "10.0"),
-            float("upper_fov", "10.0"),
-            float("lower_fov", "-30.0"),
-            float("rotation_frequency", "10.0"),
-            float("sensor_tick", "0.0"),
-            float("horizontal_fov", "360.0"),
-            float("noise_stddev", "0.0"),
-            float("dropoff_general_rate", "0.0"),
-            float("dropoff_intensity_limit", "0.0"),
-            float("dropoff_zero_intensity", "0.0"),
-            float("atmosphere_attenuation_rate", "0.0"),
-        ],
+        attributes: sensors::LIDAR,
+    },
+    Blueprint {
+        uid: 16,
+        id: "sensor.lidar.ray_cast_semantic",
+        tags: "sensor,lidar,ray_cast_semantic",
+        attributes: sensors::SEMANTIC_LIDAR,
+    },
+    Blueprint {
+        uid: 17,
+        id: "sensor.other.radar",
+        tags: "sensor,other,radar",
+        attributes: sensors::RADAR,
     },
     Blueprint {
         uid: 10,
@@ -171,6 +168,18 @@ const LIBRARY: &[Blueprint] = &[
             float("noise_lon_stddev", "0.0"),
             int("noise_seed", "0"),
         ],
+    },
+    Blueprint {
+        uid: 14,
+        id: "sensor.other.collision",
+        tags: "sensor,other,collision",
+        attributes: &[ROLE_NAME],
+    },
+    Blueprint {
+        uid: 15,
+        id: "sensor.other.obstacle",
+        tags: "sensor,other,obstacle",
+        attributes: sensors::OBSTACLE,
     },
     Blueprint {
         uid: 9,
@@ -369,9 +378,18 @@ impl Description {
             "sensor.camera.instance_segmentation" => {
                 self.camera(SensorKind::Instance, position, rotation)
             }
-            "sensor.lidar.ray_cast" => self.lidar(position, rotation),
+            "sensor.lidar.ray_cast" => self.lidar(SensorKind::Lidar, position, rotation),
+            "sensor.lidar.ray_cast_semantic" => {
+                self.lidar(SensorKind::SemanticLidar, position, rotation)
+            }
+            "sensor.other.radar" => self.radar(position, rotation),
             "sensor.other.lane_invasion" => Ok(Spawn::ClientSide(position, rotation)),
             "sensor.other.gnss" => self.gnss(position, rotation),
+            "sensor.other.collision" => {
+                let spec = SensorSpec::with_params(position, shared_types::Collision);
+                Ok(Spawn::Sensor(SensorSpec { rotation, ..spec }))
+            }
+            "sensor.other.obstacle" => self.obstacle(position, rotation),
             _ => {
                 self.zero(&[
                     "noise_accel_stddev_x",
@@ -409,60 +427,6 @@ impl Description {
         )
         .expect("a camera kind");
         self.sensor(spec, rotation)
-    }
-
-    /// A ray-cast lidar: CARLA's attributes as simbus's lidar.
-    fn lidar(&self, position: [f32; 3], rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
-        // No drop-off at zero intensity drops nothing whatever the limit
-        // (CARLA's "no drop-off" recipe sets the limit to 1.0).
-        self.zero(&[
-            "noise_stddev",
-            "dropoff_general_rate",
-            "dropoff_zero_intensity",
-            "atmosphere_attenuation_rate",
-        ])?;
-        if self.number("horizontal_fov")? != 360.0 {
-            return Err(BlueprintError::HorizontalFov(self.id.clone()));
-        }
-        let channels = self.number("channels")?;
-        let frequency = self.number("rotation_frequency")?;
-        if !(channels >= 1.0 && frequency > 0.0) {
-            return Err(BlueprintError::LidarRates(self.id.clone()));
-        }
-        // CARLA's points per second over all channels, as points per
-        // channel in one full turn.
-        let per_turn = (self.number("points_per_second")? / frequency / channels).round();
-        let spec = SensorSpec::lidar(
-            position,
-            channels as u32,
-            per_turn.max(1.0) as u32,
-            self.number("range")?,
-            self.number("upper_fov")?,
-            self.number("lower_fov")?,
-        )
-        .rotating(frequency);
-        self.sensor(spec, rotation)
-    }
-
-    /// A GNSS receiver: CARLA's noise attributes as simbus's.
-    fn gnss(&self, position: [f32; 3], rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {
-        let seed = self.number("noise_seed")?;
-        if !(0.0..=MAX_GNSS_SEED as f32).contains(&seed) || seed.fract() != 0.0 {
-            return Err(BlueprintError::Sensor {
-                blueprint: self.id.clone(),
-                source: SensorSpecError::GnssNoise,
-            });
-        }
-        let gnss = Gnss {
-            lat_bias: self.number("noise_lat_bias")?,
-            lat_stddev: self.number("noise_lat_stddev")?,
-            lon_bias: self.number("noise_lon_bias")?,
-            lon_stddev: self.number("noise_lon_stddev")?,
-            alt_bias: self.number("noise_alt_bias")?,
-            alt_stddev: self.number("noise_alt_stddev")?,
-            seed: seed as u32,
-        };
-        self.sensor(SensorSpec::with_params(position, gnss), rotation)
     }
 
     fn sensor(&self, spec: SensorSpec, rotation: [f32; 4]) -> Result<Spawn, BlueprintError> {

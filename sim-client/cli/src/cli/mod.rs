@@ -55,6 +55,7 @@ pub(crate) mod pictures;
 pub(crate) mod recorder;
 pub(crate) mod sensor;
 mod sensor_save;
+mod sensor_text;
 pub(crate) mod stall;
 pub(crate) mod status;
 pub(crate) mod tick;

@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use shared_types::LidarPoint;
+use shared_types::{LidarPoint, RadarDetection, SemanticLidarPoint};
 
 /// A grey image, one byte per pixel.
 struct Canvas {
@@ -247,18 +247,89 @@ pub(crate) fn save_image(
     Ok(())
 }
 
-pub(crate) fn save_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
+/// A point cloud as an ASCII PLY: each vertex's `properties` (PLY type
+/// and name, in order) and one row of values per vertex.
+pub(crate) fn save_ply(
+    path: &Path,
+    properties: &[(&str, &str)],
+    rows: impl ExactSizeIterator<Item = String>,
+) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(
-        out,
-        "ply\nformat ascii 1.0\nelement vertex {}",
-        points.len()
-    )?;
-    writeln!(out, "property float x\nproperty float y\nproperty float z\nproperty float intensity\nend_header")?;
-    for p in points {
-        writeln!(out, "{} {} {} {}", p.x, p.y, p.z, p.intensity)?;
+    writeln!(out, "ply\nformat ascii 1.0\nelement vertex {}", rows.len())?;
+    for (kind, name) in properties {
+        writeln!(out, "property {kind} {name}")?;
     }
+    writeln!(out, "end_header")?;
+    for row in rows {
+        writeln!(out, "{row}")?;
+    }
+    out.flush()?;
     Ok(())
+}
+
+/// A lidar's points as a PLY (x, y, z, intensity).
+pub(crate) fn save_lidar_ply(path: &Path, points: &[LidarPoint]) -> anyhow::Result<()> {
+    let properties = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "intensity"),
+    ];
+    let rows = points
+        .iter()
+        .map(|p| format!("{} {} {} {}", p.x, p.y, p.z, p.intensity));
+    save_ply(path, &properties, rows)
+}
+
+/// A semantic lidar's points as a PLY (x, y, z, the cosine of the
+/// incidence angle, the actor and tag met).
+pub(crate) fn save_semantic_ply(path: &Path, points: &[SemanticLidarPoint]) -> anyhow::Result<()> {
+    let properties = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "cos_inc_angle"),
+        ("uint", "object_idx"),
+        ("uint", "object_tag"),
+    ];
+    let rows = points.iter().map(|p| {
+        let (x, y, z, cos) = (p.x, p.y, p.z, p.cos_inc_angle);
+        format!("{x} {y} {z} {cos} {} {}", p.object_idx, p.object_tag)
+    });
+    save_ply(path, &properties, rows)
+}
+
+/// A radar's detections as a PLY: each where it was met (sensor frame, X
+/// forward, Y up, Z right) with its velocity, azimuth, altitude and depth.
+pub(crate) fn save_radar_ply(path: &Path, detections: &[RadarDetection]) -> anyhow::Result<()> {
+    let properties = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "velocity"),
+        ("float", "azimuth"),
+        ("float", "altitude"),
+        ("float", "depth"),
+    ];
+    let rows = detections.iter().map(|d| {
+        let (x, y, z) = radar_point(d);
+        format!(
+            "{x} {y} {z} {} {} {} {}",
+            d.velocity, d.azimuth, d.altitude, d.depth
+        )
+    });
+    save_ply(path, &properties, rows)
+}
+
+/// Where a radar detection was met, sensor frame (X forward, Y up, Z right).
+pub(crate) fn radar_point(d: &RadarDetection) -> (f32, f32, f32) {
+    let (sin_alt, cos_alt) = d.altitude.sin_cos();
+    let (sin_az, cos_az) = d.azimuth.sin_cos();
+    (
+        d.depth * cos_alt * cos_az,
+        d.depth * sin_alt,
+        d.depth * cos_alt * sin_az,
+    )
 }
 
 #[cfg(test)]

@@ -4,19 +4,17 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::{Args, Subcommand};
-use shared_types::{
-    Camera, GnssMeasurement, ImuMeasurement, SensorKind, SensorParams, SensorSpec, SensorSpecError,
-    WorldName,
-};
+use shared_types::{Camera, SensorKind, SensorParams, SensorSpec, SensorSpecError, WorldName};
 use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
 use simbus_input as input;
 
+use super::sensor_text::print_capture;
 use super::words::count;
 use crate::Failure;
-use simbus_pose::compass;
 
 /// Sensors: cameras (depth, RGB, semantic and instance segmentation),
-/// lidar, IMU and GNSS, read in place from shared memory.
+/// lidars (plain and semantic), radar, IMU, GNSS, collision and obstacle,
+/// read in place from shared memory.
 #[derive(Debug, Args)]
 pub(crate) struct SensorArgs {
     #[command(subcommand)]
@@ -26,14 +24,14 @@ pub(crate) struct SensorArgs {
 #[derive(Debug, Subcommand)]
 enum SensorCommand {
     /// Spawn a sensor and print its id.
-    Spawn(SpawnArgs),
+    Spawn(Box<SpawnArgs>),
     /// List the world's sensors.
     List(ListArgs),
     /// One line per capture of a sensor.
     Watch(WatchArgs),
     /// Write captures to files: cameras as PNG (semantic in CARLA's
-    /// CityScapes colours), lidar as PLY and a top-down PNG, IMU and GNSS
-    /// readings as JSON; `--raw` also writes each payload's bytes.
+    /// CityScapes colours), lidars as PLY and a top-down PNG, radar as PLY,
+    /// the other readings as JSON; `--raw` also writes each payload's bytes.
     Save(super::sensor_save::SaveArgs),
     /// Remove a sensor.
     Destroy {
@@ -46,8 +44,8 @@ enum SensorCommand {
 /// Axes everywhere: X forward, Y up, Z right (of the sensor, of the world).
 #[derive(Debug, Args)]
 struct SpawnArgs {
-    /// depth, rgb, semantic, instance, lidar, imu, gnss, collision or
-    /// obstacle.
+    /// depth, rgb, semantic, instance, lidar, semantic-lidar, radar, imu,
+    /// gnss, collision or obstacle.
     kind: String,
     /// Actor to ride on (default: fixed in the world). The sensor is
     /// destroyed with it.
@@ -84,25 +82,33 @@ struct SpawnArgs {
     /// Cameras: image width and height in pixels, each 1..=8192 [default: 640,480].
     #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = |s: &str| input::image_size(s).map(|_| s.to_owned()))]
     size: Option<String>,
-    /// Cameras: horizontal field of view in degrees, above 0 and below 180
-    /// [default: 90].
+    /// Cameras and radar: horizontal field of view in degrees, above 0 and
+    /// below 180 [default: cameras 90, radar 30].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = input::field_of_view)]
     fov: Option<f32>,
+    /// Radar: vertical field of view in degrees, above 0 and below 180
+    /// [default: 30].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = input::field_of_view)]
+    vertical_fov: Option<f32>,
+    /// Radar: rays per simulated second, 1..=1000000, spread at random
+    /// over the field of view; a frame of dt casts N × dt [default: 1500].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::radar_points_per_second)]
+    points_per_second: Option<u32>,
     /// Cameras: far range (the RGB, semantic and instance cameras see sky
-    /// beyond it); lidar: range, in metres, above 0 and at most 1e6
-    /// [default: depth 100, other cameras 1000, lidar 50].
+    /// beyond it); lidars and radar: range, in metres, above 0 and at most
+    /// 1e6 [default: depth 100, other cameras 1000, lidars 50, radar 100].
     #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = input::sensor_range)]
     range: Option<f32>,
-    /// Lidar: channels (rings), 1..=256 [default: 32].
+    /// Lidars: channels (rings), 1..=256 [default: 32].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_channels)]
     channels: Option<u32>,
-    /// Lidar: points per channel in a full turn, 1..=65536 [default: 512].
+    /// Lidars: points per channel in a full turn, 1..=65536 [default: 512].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::lidar_points)]
     points: Option<u32>,
-    /// Lidar: elevation of the top and bottom channels, degrees [default: 10,-30].
+    /// Lidars: elevation of the top and bottom channels, degrees [default: 10,-30].
     #[arg(long, value_name = "UPPER,LOWER", allow_hyphen_values = true)]
     fov_range: Option<String>,
-    /// Lidar: turns per simulated second; each capture covers hz × dt of a
+    /// Lidars: turns per simulated second; each capture covers hz × dt of a
     /// turn (0: a full turn every capture; at most 1e6) [default: 0].
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rotation_frequency)]
     rotation_frequency: Option<f32>,
@@ -116,13 +122,13 @@ struct SpawnArgs {
     noise_bias: Option<String>,
     /// Obstacle: the radius of the sphere swept ahead, metres, in (0, 100]
     /// (--range is how far ahead, in (0, 1000]) [default: 0.5, range 5].
-    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = input::hit_radius)]
     hit_radius: Option<f32>,
     /// Obstacle: only dynamic actors count (not the ground, ramps, buildings).
     #[arg(long)]
     only_dynamics: bool,
-    /// GNSS: the errors' seed, 0..=16777216 (the same seed, the same errors)
-    /// [default: 0].
+    /// GNSS: the errors' seed; radar: its rays' seed; 0..=16777216 (the
+    /// same seed, the same errors and rays) [default: 0].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::gnss_seed)]
     noise_seed: Option<u32>,
     /// Print {"id": N, ...}.
@@ -229,12 +235,12 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
 
 /// The spec `a` describes, checked.
 fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
-    use SensorKind::{Depth, Gnss, Instance, Lidar, Obstacle, Rgb, Semantic};
+    use SensorKind::{Depth, Gnss, Instance, Lidar, Obstacle, Radar, Rgb, Semantic, SemanticLidar};
     let at = super::numbers::<3>(&a.at, "--at")?;
     let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
     let Some(kind) = SensorKind::from_name(&a.kind) else {
         return Err(Failure::Refused(anyhow!(
-            "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, imu, gnss, collision or obstacle",
+            "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, semantic-lidar, radar, imu, gnss, collision or obstacle",
             a.kind
         )));
     };
@@ -246,25 +252,48 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
                 a.size.is_some(),
                 &[Depth, Rgb, Semantic, Instance],
             ),
-            ("--fov", a.fov.is_some(), &[Depth, Rgb, Semantic, Instance]),
+            (
+                "--fov",
+                a.fov.is_some(),
+                &[Depth, Rgb, Semantic, Instance, Radar],
+            ),
+            ("--vertical-fov", a.vertical_fov.is_some(), &[Radar]),
+            (
+                "--points-per-second",
+                a.points_per_second.is_some(),
+                &[Radar],
+            ),
             (
                 "--range",
                 a.range.is_some(),
-                &[Depth, Rgb, Semantic, Instance, Lidar, Obstacle],
+                &[
+                    Depth,
+                    Rgb,
+                    Semantic,
+                    Instance,
+                    Lidar,
+                    SemanticLidar,
+                    Radar,
+                    Obstacle,
+                ],
             ),
             ("--hit-radius", a.hit_radius.is_some(), &[Obstacle]),
             ("--only-dynamics", a.only_dynamics, &[Obstacle]),
-            ("--channels", a.channels.is_some(), &[Lidar]),
-            ("--points", a.points.is_some(), &[Lidar]),
-            ("--fov-range", a.fov_range.is_some(), &[Lidar]),
+            ("--channels", a.channels.is_some(), &[Lidar, SemanticLidar]),
+            ("--points", a.points.is_some(), &[Lidar, SemanticLidar]),
+            (
+                "--fov-range",
+                a.fov_range.is_some(),
+                &[Lidar, SemanticLidar],
+            ),
             (
                 "--rotation-frequency",
                 a.rotation_frequency.is_some(),
-                &[Lidar],
+                &[Lidar, SemanticLidar],
             ),
             ("--noise-stddev", a.noise_stddev.is_some(), &[Gnss]),
             ("--noise-bias", a.noise_bias.is_some(), &[Gnss]),
-            ("--noise-seed", a.noise_seed.is_some(), &[Gnss]),
+            ("--noise-seed", a.noise_seed.is_some(), &[Gnss, Radar]),
         ],
     )?;
     // The depth size as typed: the spec holds it as whole pixels, so a
@@ -286,18 +315,32 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
                 SensorParams::camera_of(kind, camera).expect("a camera kind"),
             )
         }
-        SensorKind::Lidar => {
-            let [upper, lower] =
+        SensorKind::Lidar | SensorKind::SemanticLidar => {
+            let [upper_fov, lower_fov] =
                 super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
-            SensorSpec::lidar(
-                at,
-                a.channels.unwrap_or(32),
-                a.points.unwrap_or(512),
-                a.range.unwrap_or(50.0),
-                upper,
-                lower,
-            )
-            .rotating(a.rotation_frequency.unwrap_or(0.0))
+            let lidar = shared_types::Lidar {
+                channels: a.channels.unwrap_or(32),
+                points: a.points.unwrap_or(512),
+                range: a.range.unwrap_or(50.0),
+                upper_fov,
+                lower_fov,
+                rotation_hz: a.rotation_frequency.unwrap_or(0.0),
+            };
+            match kind {
+                SensorKind::Lidar => SensorSpec::with_params(at, lidar),
+                _ => SensorSpec::semantic_lidar(at, lidar),
+            }
+        }
+        SensorKind::Radar => {
+            let defaults = shared_types::Radar::default();
+            let radar = shared_types::Radar {
+                horizontal_fov: a.fov.unwrap_or(defaults.horizontal_fov),
+                vertical_fov: a.vertical_fov.unwrap_or(defaults.vertical_fov),
+                range: a.range.unwrap_or(defaults.range),
+                points_per_second: a.points_per_second.unwrap_or(defaults.points_per_second),
+                seed: a.noise_seed.unwrap_or(defaults.seed),
+            };
+            SensorSpec::with_params(at, radar)
         }
         SensorKind::Imu => SensorSpec::imu(at),
         SensorKind::Gnss => SensorSpec::with_params(at, gnss_params(a)?),
@@ -388,101 +431,6 @@ fn seconds_text(seconds: f64) -> String {
         format!("{seconds:e}")
     } else {
         format!("{seconds}")
-    }
-}
-
-/// What `sensor watch --json` prints for a capture, and `sensor save`
-/// writes for an IMU's: the header, and an IMU's readings.
-pub(super) fn capture_json(capture: &Capture, missed: u64) -> serde_json::Value {
-    let h = capture.header();
-    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
-    let mut json = serde_json::json!({"sensor": h.sensor_id, "kind": kind, "frame": h.frame,
-        "elapsed_ns": h.elapsed_ns, "sequence": h.sequence, "count": h.count,
-        "bytes": capture.bytes().len(), "missed": missed,
-        "position": h.position});
-    if let (Some(imu), Some(object)) = (capture.imu(), json.as_object_mut()) {
-        object.insert("accelerometer".into(), imu.accelerometer.into());
-        object.insert("gyroscope".into(), imu.gyroscope.into());
-        object.insert("compass".into(), compass(h.rotation).into());
-    }
-    if let (Some(events), Some(object)) = (capture.collisions(), json.as_object_mut()) {
-        let events: Vec<_> = events
-            .iter()
-            .map(|e| serde_json::json!({"other_actor": e.other_actor, "normal_impulse": e.normal_impulse}))
-            .collect();
-        object.insert("collisions".into(), events.into());
-    }
-    if let (Some(seen), Some(object)) = (capture.obstacle(), json.as_object_mut()) {
-        object.insert("other_actor".into(), seen.other_actor.into());
-        object.insert("distance".into(), seen.distance.into());
-    }
-    if let (Some(gnss), Some(object)) = (capture.gnss(), json.as_object_mut()) {
-        object.insert("latitude".into(), gnss.latitude.into());
-        object.insert("longitude".into(), gnss.longitude.into());
-        object.insert("altitude".into(), gnss.altitude.into());
-    }
-    json
-}
-
-/// A GNSS reading as one readable phrase.
-pub(super) fn gnss_text(gnss: &GnssMeasurement) -> String {
-    format!(
-        "latitude {:.9}°  longitude {:.9}°  altitude {:.3} m",
-        gnss.latitude, gnss.longitude, gnss.altitude
-    )
-}
-
-/// An IMU's readings as one readable phrase.
-pub(super) fn imu_text(imu: &ImuMeasurement, rotation: [f32; 4]) -> String {
-    let [ax, ay, az] = imu.accelerometer;
-    let [gx, gy, gz] = imu.gyroscope;
-    format!(
-        "accelerometer ({ax:.3}, {ay:.3}, {az:.3}) m/s²  gyroscope ({gx:.3}, {gy:.3}, {gz:.3}) rad/s  compass {:.3} rad",
-        compass(rotation)
-    )
-}
-
-fn print_capture(capture: &Capture, missed: u64, json: bool) {
-    let h = capture.header();
-    let kind = SensorKind::from_u32(h.kind).map_or("?", |k| k.name());
-    if json {
-        println!("{}", capture_json(capture, missed));
-    } else {
-        let readings = capture
-            .imu()
-            .map(|imu| format!("  {}", imu_text(imu, h.rotation)))
-            .or_else(|| capture.gnss().map(|g| format!("  {}", gnss_text(g))))
-            .or_else(|| {
-                let seen = capture.obstacle()?;
-                Some(format!(
-                    "  actor {} ahead at {:.3} m",
-                    seen.other_actor, seen.distance
-                ))
-            })
-            .or_else(|| {
-                let events = capture.collisions()?;
-                let hits: Vec<String> = events
-                    .iter()
-                    .map(|e| {
-                        let [x, y, z] = e.normal_impulse;
-                        format!(
-                            "actor {} impulse ({x:.3}, {y:.3}, {z:.3}) N·s",
-                            e.other_actor
-                        )
-                    })
-                    .collect();
-                Some(format!("  hit {}", hits.join(", ")))
-            })
-            .unwrap_or_default();
-        println!(
-            "sensor {} {kind:<5} frame {:>7}  t = {:.6} s  #{}  {}  {}{readings}",
-            h.sensor_id,
-            h.frame,
-            h.elapsed_ns as f64 / 1e9,
-            h.sequence,
-            count(capture.bytes().len() as u64, "byte"),
-            count(h.count, "value")
-        );
     }
 }
 

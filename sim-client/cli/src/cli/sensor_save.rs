@@ -8,7 +8,8 @@ use shared_types::SensorKind;
 use sim_client::Client;
 use simbus_input as input;
 
-use super::sensor::{capture_json, failure, gnss_text, imu_text, next_capture};
+use super::sensor::{failure, next_capture};
+use super::sensor_text::{capture_json, gnss_text, imu_text};
 use super::words::count;
 use crate::Failure;
 
@@ -89,7 +90,7 @@ pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<()
             );
         } else if let Some(points) = capture.points() {
             let ply = stem.with_extension("ply");
-            super::pictures::save_ply(&ply, points)
+            super::pictures::save_lidar_ply(&ply, points)
                 .with_context(|| format!("writing {}", ply.display()))?;
             let png = stem.with_extension("png");
             super::pictures::save_lidar_top_down(&png, points, lidar_range)
@@ -99,6 +100,24 @@ pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<()
                 ply.display(),
                 png.display(),
                 count(points.len() as u64, "point")
+            );
+        } else if let Some(points) = capture.semantic_points() {
+            let ply = stem.with_extension("ply");
+            super::pictures::save_semantic_ply(&ply, points)
+                .with_context(|| format!("writing {}", ply.display()))?;
+            println!(
+                "wrote {} ({}, each with the actor and tag it met)",
+                ply.display(),
+                count(points.len() as u64, "point")
+            );
+        } else if let Some(detections) = capture.detections() {
+            let ply = stem.with_extension("ply");
+            super::pictures::save_radar_ply(&ply, detections)
+                .with_context(|| format!("writing {}", ply.display()))?;
+            println!(
+                "wrote {} ({}, each with its velocity along the ray)",
+                ply.display(),
+                count(detections.len() as u64, "detection")
             );
         } else if let Some(imu) = capture.imu() {
             // Nothing to draw: the readings, as `sensor watch --json` prints them.
@@ -111,12 +130,17 @@ pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<()
                 path.display(),
                 imu_text(imu, h.rotation)
             );
-        } else if let Some(gnss) = capture.gnss() {
+        } else {
+            // GNSS, collision and obstacle captures: as `sensor watch --json`
+            // prints them.
             let path = stem.with_extension("json");
             let mut text = capture_json(&capture, sensor.missed()).to_string();
             text.push('\n');
             std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-            println!("wrote {} (gnss: {})", path.display(), gnss_text(gnss));
+            match capture.gnss() {
+                Some(gnss) => println!("wrote {} (gnss: {})", path.display(), gnss_text(gnss)),
+                None => println!("wrote {}", path.display()),
+            }
         }
     }
     Ok(())

@@ -230,12 +230,22 @@ class Client:
         lower_fov: Optional[float] = None,
         rotation_frequency: Optional[float] = None,
         noise: Optional[Dict[str, float]] = None,
+        hit_radius: Optional[float] = None,
+        only_dynamics: Optional[bool] = None,
+        vertical_fov: Optional[float] = None,
+        points_per_second: Optional[float] = None,
     ) -> Sensor:
-        """Spawns a "depth", "rgb", "semantic", "instance", "lidar", "imu" or
-        "gnss" sensor and opens a reader of it. Cameras take width, height,
-        fov and range (depth 100 m, the others 1000 m); cameras of one
-        parent, pose, size, fov and range share one ray cast. A GNSS receiver's `noise`: CARLA's noise attributes without their
-        "noise_" prefix (lat_bias, lat_stddev, lon_bias, lon_stddev, alt_bias,
+        """Spawns a "depth", "rgb", "semantic", "instance", "lidar",
+        "semantic_lidar", "radar", "imu", "gnss", "collision" or "obstacle"
+        sensor and opens a reader of it. Cameras take width, height, fov and
+        range (depth 100 m, the others 1000 m); cameras of one parent, pose,
+        size, fov and range share one ray cast. Lidars take channels,
+        points, range, upper_fov, lower_fov and rotation_frequency. A radar
+        takes fov and vertical_fov (30 degrees each), range (100 m),
+        points_per_second (1500) and noise={"seed": N}. An obstacle detector
+        takes range (5 m), hit_radius (0.5 m) and only_dynamics. A GNSS
+        receiver's `noise`: CARLA's noise attributes without their "noise_"
+        prefix (lat_bias, lat_stddev, lon_bias, lon_stddev, alt_bias,
         alt_stddev, seed), each 0 unless given."""
     def sensor(self, id: int) -> Sensor:
         """Opens a reader of an existing sensor."""

@@ -9,8 +9,8 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PySlice, PyString, PyTuple};
 use shared_types::{
-    CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection, SensorHeader,
-    SensorKind,
+    CollisionEvent, GnssMeasurement, ImuMeasurement, LidarPoint, ObstacleDetection, RadarDetection,
+    SemanticLidarPoint, SensorHeader, SensorKind,
 };
 
 use super::kind_name;
@@ -90,6 +90,53 @@ fn obstacle_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
                 ("distance", "<f4", offset_of!(ObstacleDetection, distance)),
             ];
             structured_dtype(py, &fields, size_of::<ObstacleDetection>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// A semantic lidar capture's dtype: the wire layout of
+/// [`SemanticLidarPoint`] (CARLA's `SemanticLidarDetection`).
+fn semantic_lidar_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                ("x", "<f4", offset_of!(SemanticLidarPoint, x)),
+                ("y", "<f4", offset_of!(SemanticLidarPoint, y)),
+                ("z", "<f4", offset_of!(SemanticLidarPoint, z)),
+                (
+                    "cos_inc_angle",
+                    "<f4",
+                    offset_of!(SemanticLidarPoint, cos_inc_angle),
+                ),
+                (
+                    "object_idx",
+                    "<u4",
+                    offset_of!(SemanticLidarPoint, object_idx),
+                ),
+                (
+                    "object_tag",
+                    "<u4",
+                    offset_of!(SemanticLidarPoint, object_tag),
+                ),
+            ];
+            structured_dtype(py, &fields, size_of::<SemanticLidarPoint>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// A radar capture's dtype: the wire layout of [`RadarDetection`].
+fn radar_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                ("velocity", "<f4", offset_of!(RadarDetection, velocity)),
+                ("azimuth", "<f4", offset_of!(RadarDetection, azimuth)),
+                ("altitude", "<f4", offset_of!(RadarDetection, altitude)),
+                ("depth", "<f4", offset_of!(RadarDetection, depth)),
+            ];
+            structured_dtype(py, &fields, size_of::<RadarDetection>()).map(Bound::unbind)
         })
         .map(|dtype| dtype.bind(py))
 }
@@ -220,7 +267,8 @@ impl Capture {
         self.header.sensor_id
     }
 
-    /// `"depth"`, `"lidar"`, `"imu"` or `"gnss"`.
+    /// The sensor's kind, as `spawn_sensor` names it (`"depth"`,
+    /// `"semantic_lidar"`, `"radar"`, ...).
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.header.kind)
@@ -270,7 +318,10 @@ impl Capture {
     /// width)` metres; RGB, semantic and instance `uint8 (height, width,
     /// 4)` blue, green, red, alpha (semantic: the tag in red; instance:
     /// the tag in red, the actor id in green and blue); lidar `float32 (N, 4)` x, y, z, intensity for the N
-    /// returns; IMU one record (`accelerometer`, `gyroscope`); collision
+    /// returns; semantic lidar one record per return (`x`, `y`, `z`,
+    /// `cos_inc_angle`, `object_idx`, `object_tag`); radar one record per
+    /// detection (`velocity`, `azimuth`, `altitude`, `depth`); IMU one
+    /// record (`accelerometer`, `gyroscope`); collision
     /// one record per contact (`other_actor`, `normal_impulse`); obstacle
     /// one record (`other_actor`, `distance`).
     #[getter]
@@ -298,6 +349,16 @@ impl Capture {
             }
             Some(SensorKind::Gnss) => {
                 self.typed(loan, gnss_dtype(py)?, size_of::<GnssMeasurement>(), &[1])
+            }
+            Some(SensorKind::SemanticLidar) => {
+                let element = size_of::<SemanticLidarPoint>();
+                let n = self.header.count as usize;
+                self.typed(loan, semantic_lidar_dtype(py)?, element, &[n])
+            }
+            Some(SensorKind::Radar) => {
+                let element = size_of::<RadarDetection>();
+                let n = self.header.count as usize;
+                self.typed(loan, radar_dtype(py)?, element, &[n])
             }
             Some(SensorKind::Collision) => {
                 let element = size_of::<CollisionEvent>();

@@ -17,9 +17,9 @@ use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Bgra, CollisionEvent, Command, CommandResult,
     ControlRequest, ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint,
-    LockstepRequest, LockstepResponse, ObstacleDetection, RecorderRequest, RecorderResponse,
-    SensorHeader, SensorInfo, SensorKind, SensorRequest, SensorResponseHeader, ServiceNames,
-    TickRequest, TickResponse,
+    LockstepRequest, LockstepResponse, ObstacleDetection, RadarDetection, RecorderRequest,
+    RecorderResponse, SemanticLidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
+    SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -265,6 +265,8 @@ enum SensorPort {
     Collision(Publisher<Bus, [CollisionEvent], SensorHeader>),
     Obstacle(Publisher<Bus, [ObstacleDetection], SensorHeader>),
     Lidar(Publisher<Bus, [LidarPoint], SensorHeader>),
+    SemanticLidar(Publisher<Bus, [SemanticLidarPoint], SensorHeader>),
+    Radar(Publisher<Bus, [RadarDetection], SensorHeader>),
     Imu(Publisher<Bus, [ImuMeasurement], SensorHeader>),
     Gnss(Publisher<Bus, [GnssMeasurement], SensorHeader>),
 }
@@ -353,6 +355,12 @@ impl SensorPorts {
             Some(SensorKind::Lidar) => {
                 SensorPort::Lidar(sensor_publisher(node, names, id, elements, limits)?)
             }
+            Some(SensorKind::SemanticLidar) => {
+                SensorPort::SemanticLidar(sensor_publisher(node, names, id, elements, limits)?)
+            }
+            Some(SensorKind::Radar) => {
+                SensorPort::Radar(sensor_publisher(node, names, id, elements, limits)?)
+            }
             Some(SensorKind::Imu) => {
                 SensorPort::Imu(sensor_publisher(node, names, id, elements, limits)?)
             }
@@ -383,6 +391,8 @@ impl SensorPorts {
             SensorPort::Collision(p) => publish(p, header, payload),
             SensorPort::Obstacle(p) => publish(p, header, payload),
             SensorPort::Lidar(p) => publish(p, header, payload),
+            SensorPort::SemanticLidar(p) => publish(p, header, payload),
+            SensorPort::Radar(p) => publish(p, header, payload),
             SensorPort::Imu(p) => publish(p, header, payload),
             SensorPort::Gnss(p) => publish(p, header, payload),
         };

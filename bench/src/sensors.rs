@@ -9,7 +9,7 @@ use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use shared_types::{SensorKind, SensorSpec};
+use shared_types::{Collision, Lidar, Obstacle, Radar, SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 
 use crate::stats::{header, Latencies};
@@ -114,7 +114,8 @@ pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
 }
 
 /// The frame-time rows of one scene's cameras: none, an 800x600 RGB
-/// camera, then a semantic and a depth camera at its pose (one cast).
+/// camera, then a semantic and a depth camera at its pose (one cast);
+/// then a semantic lidar and radars, each alone.
 struct CameraRows {
     scene: &'static str,
     rows: Vec<(&'static str, Latencies)>,
@@ -149,7 +150,36 @@ fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<Camera
     let semantic = camera(SensorKind::Semantic)?;
     let depth = camera(SensorKind::Depth)?;
     rows.push(frame_time("+ semantic + depth, same pose")?);
-    drop((rgb, semantic, depth));
+    for sensor in [rgb, semantic, depth] {
+        client.destroy_sensor(sensor.id())?;
+    }
+    // The ranging sensors, each alone, at the cameras' place.
+    let lidar = Lidar {
+        channels: 64,
+        points: 1024,
+        range: 100.0,
+        upper_fov: 10.0,
+        lower_fov: -30.0,
+        rotation_hz: 0.0,
+    };
+    let semantic_lidar = client.spawn_sensor(SensorSpec::semantic_lidar(at, lidar))?;
+    rows.push(frame_time("semantic lidar 64x1024 alone")?);
+    client.destroy_sensor(semantic_lidar.id())?;
+    // 1500 points a second: 15 rays a 0.01 s frame; 100 000: 1000.
+    for (label, points_per_second) in [
+        ("radar 1500 points/s alone", 1500),
+        ("radar 100000 points/s alone", 100_000),
+    ] {
+        let radar = Radar {
+            points_per_second,
+            ..Radar::default()
+        };
+        let mut spec = SensorSpec::with_params(at, radar);
+        spec.rotation = simbus_pose::from_yaw_pitch_roll(90.0, 0.0, 0.0);
+        let radar = client.spawn_sensor(spec)?;
+        rows.push(frame_time(label)?);
+        client.destroy_sensor(radar.id())?;
+    }
     ticker.release()?;
     Ok(CameraRows { scene, rows })
 }
@@ -189,8 +219,9 @@ fn delivery_rows(args: &SensorsArgs) -> anyhow::Result<Vec<DeliveryRow>> {
     Ok(rows)
 }
 
-/// The tick round trip with no sensors, then with a GNSS receiver, then
-/// with a depth camera too, then with a lidar too.
+/// The tick round trip with no sensors, then with a GNSS receiver, a
+/// collision sensor, an obstacle detector, a depth camera and a lidar
+/// added one by one.
 fn frame_times(
     args: &SensorsArgs,
     client: &Client,
@@ -212,6 +243,14 @@ fn frame_times(
     let mut frames = vec![frame_time("no sensors")?];
     let gnss = client.spawn_sensor(SensorSpec::gnss([0.0, 2.0, 0.0]))?;
     frames.push(frame_time("+ gnss")?);
+    // The event sensors ride on the default scene's ramp (actor 2, which
+    // the sphere rolls down): contacts are watched, a sphere is swept
+    // every frame.
+    let on = |spec: SensorSpec| client.spawn_sensor(spec.attached_to(2));
+    let collision = on(SensorSpec::with_params([0.0; 3], Collision))?;
+    frames.push(frame_time("+ collision")?);
+    let obstacle = on(SensorSpec::with_params([0.0; 3], Obstacle::default()))?;
+    frames.push(frame_time("+ obstacle")?);
     let depth = client.spawn_sensor(SensorSpec::depth([-4.0, 3.0, 0.0], 640, 480, 90.0, 100.0))?;
     frames.push(frame_time("+ depth 640x480")?);
     let lidar = client.spawn_sensor(SensorSpec::lidar(
@@ -223,7 +262,7 @@ fn frame_times(
         -30.0,
     ))?;
     frames.push(frame_time("+ lidar 64x1024")?);
-    drop((gnss, depth, lidar));
+    drop((gnss, collision, obstacle, depth, lidar));
     Ok(frames)
 }
 
@@ -258,9 +297,11 @@ fn report(
     // Wall time per ray: what each sensor added to the frame, over its rays.
     let per_ray =
         |row: usize, rays: f64| (p50(&frames[row].1) - p50(&frames[row - 1].1)) * 1e3 / rays;
-    let (depth_ns, lidar_ns) = (per_ray(2, 640.0 * 480.0), per_ray(3, 64.0 * 1024.0));
-    // What one GNSS receiver adds to a frame (its reading and publication).
-    let gnss_us = p50(&frames[1].1) - p50(&frames[0].1);
+    let (depth_ns, lidar_ns) = (per_ray(4, 640.0 * 480.0), per_ray(5, 64.0 * 1024.0));
+    // What one GNSS receiver, collision sensor and obstacle detector each
+    // add to a frame (its reading or events, and its publication).
+    let added_us = |row: usize| p50(&frames[row].1) - p50(&frames[row - 1].1);
+    let (gnss_us, collision_us, obstacle_us) = (added_us(1), added_us(2), added_us(3));
     // What the cameras add to a frame: RGB alone, RGB + semantic + depth.
     let added_ms = |c: &CameraRows, row: usize| (p50(&c.rows[row].1) - p50(&c.rows[0].1)) / 1e3;
     if args.json {
@@ -285,7 +326,10 @@ fn report(
                     .collect();
                 serde_json::json!({"scene": c.scene, "rows": rows,
                     "rgb_added_ms_p50": added_ms(c, 1),
-                    "rgb_semantic_depth_added_ms_p50": added_ms(c, 2)})
+                    "rgb_semantic_depth_added_ms_p50": added_ms(c, 2),
+                    "semantic_lidar_added_ms_p50": added_ms(c, 3),
+                    "radar_1500_added_ms_p50": added_ms(c, 4),
+                    "radar_100000_added_ms_p50": added_ms(c, 5)})
             })
             .collect();
         println!(
@@ -293,7 +337,8 @@ fn report(
             serde_json::json!({"delivery": delivery, "frame_time": frame_json,
                 "delivery_render_threads": args.delivery_render_threads(),
                 "wall_ns_per_ray": {"depth": depth_ns, "lidar": lidar_ns},
-                "gnss_added_us_p50": gnss_us, "cameras": camera_json})
+                "gnss_added_us_p50": gnss_us, "collision_added_us_p50": collision_us,
+                "obstacle_added_us_p50": obstacle_us, "cameras": camera_json})
         );
         return;
     }
@@ -323,7 +368,7 @@ fn report(
         println!("{}", latencies.row(label));
     }
     println!("wall time per ray at p50 (2 cores): depth {depth_ns:.1} ns, lidar {lidar_ns:.1} ns");
-    println!("a GNSS receiver adds {gnss_us:.1} µs to a frame at p50 (the difference of the two rows' medians)");
+    println!("added to a frame at p50 (the difference of a row's median and the one above): a GNSS receiver {gnss_us:.1} µs, a collision sensor {collision_us:.1} µs, an obstacle detector {obstacle_us:.1} µs");
     for c in cameras {
         println!();
         println!(
@@ -335,9 +380,12 @@ fn report(
             println!("{}", latencies.row(label));
         }
         println!(
-            "an RGB camera adds {:.2} ms at p50; RGB + semantic + depth at one pose (one cast) {:.2} ms",
+            "added at p50: an RGB camera {:.2} ms; RGB + semantic + depth at one pose (one cast) {:.2} ms; a semantic lidar 64x1024 {:.2} ms; a radar of 1500 points/s {:.3} ms, of 100000 {:.3} ms",
             added_ms(c, 1),
-            added_ms(c, 2)
+            added_ms(c, 2),
+            added_ms(c, 3),
+            added_ms(c, 4),
+            added_ms(c, 5)
         );
     }
 }

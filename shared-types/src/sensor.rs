@@ -90,6 +90,19 @@ impl SensorKind {
         )
     }
 
+    /// `kinds`' names as a sentence lists them: `depth`, `depth or rgb`,
+    /// `depth, rgb or semantic`.
+    pub fn listed(kinds: &[Self]) -> String {
+        match kinds.split_last() {
+            None => String::new(),
+            Some((last, [])) => last.name().to_owned(),
+            Some((last, rest)) => {
+                let rest: Vec<&str> = rest.iter().map(|k| k.name()).collect();
+                format!("{} or {}", rest.join(", "), last.name())
+            }
+        }
+    }
+
     /// The kind named `name`.
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == name)

@@ -170,3 +170,15 @@ fn radars_are_checked_as_sent() {
     let message = bad.check().unwrap_err().to_string();
     assert!(message.contains("radar's fields of view"), "{message}");
 }
+
+#[test]
+fn kinds_are_listed_as_a_sentence_lists_them() {
+    use SensorKind::{Depth, Radar, Rgb, Semantic};
+    assert_eq!(SensorKind::listed(&[]), "");
+    assert_eq!(SensorKind::listed(&[Depth]), "depth");
+    assert_eq!(SensorKind::listed(&[Depth, Radar]), "depth or radar");
+    assert_eq!(
+        SensorKind::listed(&[Depth, Rgb, Semantic]),
+        "depth, rgb or semantic"
+    );
+}

@@ -119,8 +119,11 @@ def test_list_names_the_scenes_and_blueprints_filter(gateway):
     # -b 'sensor.*'
     _, world, _ = run(gateway)
     ids = sorted(bp.id for bp in world.get_blueprint_library().filter("sensor.*"))
-    assert ids == ["sensor.camera.depth", "sensor.lidar.ray_cast", "sensor.other.gnss",
-                   "sensor.other.imu", "sensor.other.lane_invasion"]
+    assert ids == ["sensor.camera.depth", "sensor.camera.instance_segmentation",
+                   "sensor.camera.rgb", "sensor.camera.semantic_segmentation",
+                   "sensor.lidar.ray_cast", "sensor.lidar.ray_cast_semantic",
+                   "sensor.other.collision", "sensor.other.gnss", "sensor.other.imu",
+                   "sensor.other.lane_invasion", "sensor.other.obstacle", "sensor.other.radar"]
     # -b '*'
     everything = {bp.id for bp in world.get_blueprint_library().filter("*")}
     assert set(ids) < everything and "static.prop.box" in everything

@@ -191,6 +191,64 @@ def test_camera_images_are_bgra_views_the_cli_saves_raw_and_the_recorder_keeps(w
     assert len(set(np.frombuffer(mine["rgb", frame], np.uint32))) > 10
 
 
+def test_semantic_lidar_and_radar_are_structured_views_the_cli_saves_raw_and_the_recorder_keeps(
+        world, client, tmp_path):
+    """A semantic lidar and a radar over the default scene: each capture
+    is a read-only structured array of CARLA's layout over its loan (24-
+    and 16-byte records, `count` of them), frame-exact; the bytes `sim-client
+    sensor save --raw` writes (what the Rust client reads) and the
+    recording holds start with the array's."""
+    mine = {}
+    recording = tmp_path / "ranging.mcap"
+    with client.ticker(delta_seconds=0.05) as ticker:
+        lidar = client.spawn_sensor("semantic_lidar", channels=16, points=256, range=40)
+        radar = client.spawn_sensor("radar", at=(-12.0, 1.0, 0.0), fov=40, vertical_fov=20,
+                                    points_per_second=2000, noise={"seed": 3})
+        assert (lidar.kind, radar.kind) == ("semantic_lidar", "radar")
+        sim_client(world, "recorder", "start", str(recording), "--sensors")
+        save = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "30",
+             "sensor", "save", str(lidar.id), "--raw", "--out", str(tmp_path)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        try:
+            for _ in range(100_000):
+                if save.poll() is not None:
+                    break
+                frame = ticker.tick()
+                for sensor in (lidar, radar):
+                    with sensor.read() as capture:
+                        assert capture.frame == frame
+                        array = capture.array
+                        assert not array.flags.writeable and array.shape == (capture.count,)
+                        mine[sensor.kind, frame] = (array.tobytes(), array.copy())
+                        del array
+        finally:
+            save.kill()
+            out, err = save.communicate(timeout=10)
+        sim_client(world, "recorder", "stop")
+    assert save.returncode == 0, out + err
+    [raw] = tmp_path.glob(f"sensor{lidar.id}-frame*.raw")
+    frame = int(raw.stem.rsplit("frame", 1)[1])
+    points_bytes, points = mine["semantic_lidar", frame]
+    assert raw.read_bytes()[:len(points_bytes)] == points_bytes
+    assert (tmp_path / f"sensor{lidar.id}-frame{frame}.ply").exists()
+    assert points.dtype.names == ("x", "y", "z", "cos_inc_angle", "object_idx", "object_tag")
+    assert points.dtype.itemsize == 24
+    # The ground (actor 1, tagged by its cover) and the scene's bodies
+    # (boxes, spheres, capsules: dynamic 21).
+    tags = set(points["object_tag"])
+    assert 1 in set(points["object_idx"]) and 21 in tags and tags & {1, 2, 10, 24, 25}
+    assert ((points["cos_inc_angle"] > 0) & (points["cos_inc_angle"] <= 1)).all()
+    detections_bytes, detections = mine["radar", frame]
+    assert detections.dtype.names == ("velocity", "azimuth", "altitude", "depth")
+    assert detections.dtype.itemsize == 16 and 0 < len(detections) <= 100
+    assert (abs(detections["azimuth"]) <= np.radians(20) + 1e-4).all()
+    assert (abs(detections["altitude"]) <= np.radians(10) + 1e-4).all()
+    recorded = recorded_captures(recording, radar.id)
+    assert recorded[frame][1][:len(detections_bytes)] == detections_bytes
+
+
 def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
     """A GNSS receiver 100 m along Z and 30 m along X of the origin, 2 m
     up: one record (latitude, longitude, altitude), float64, over the
@@ -209,8 +267,8 @@ def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
             assert record["longitude"][0] == pytest.approx(30.0 / 111274.955, abs=1e-7)
             assert record["altitude"][0] == pytest.approx(2.0, abs=1e-5)
             del record  # a view may not outlive the capture's loan
-    with pytest.raises(ValueError, match="'depth', 'lidar', 'imu' or 'gnss'"):
-        client.spawn_sensor("radar")
+    with pytest.raises(ValueError, match="unknown sensor kind 'sonar': expected 'depth'"):
+        client.spawn_sensor("sonar")
 
 
 def test_gnss_noise_repeats_with_its_seed_and_bad_noise_spawns_nothing(client):
@@ -231,7 +289,7 @@ def test_gnss_noise_repeats_with_its_seed_and_bad_noise_spawns_nothing(client):
                          ({"colour": 1.0}, "unknown noise setting 'colour'")]:
         with pytest.raises(ValueError, match=message):
             client.spawn_sensor("gnss", noise=bad)
-    with pytest.raises(ValueError, match="noise applies to gnss sensors, not to depth"):
+    with pytest.raises(ValueError, match="noise applies to gnss or radar sensors, not to depth"):
         client.spawn_sensor("depth", noise={"seed": 1})
     assert len(client.list_sensors()) == spawned
 
@@ -440,7 +498,16 @@ def test_reads_time_out_and_closed_readers_refuse(client):
         ("lidar", {"upper_fov": -40, "lower_fov": 10}, "lower_fov <= upper_fov"),
         ("imu", {"at": (float("inf"), 0, 0)}, "finite"),
         ("imu", {"sensor_tick": -1}, "sensor_tick"),
-        ("depth", {"channels": 4}, "channels applies to lidar sensors, not to depth"),
+        ("radar", {"points_per_second": 0}, "radar's fields of view"),
+        ("radar", {"points_per_second": 10.5}, "radar's fields of view"),
+        ("radar", {"vertical_fov": 180}, "radar's fields of view"),
+        ("radar", {"range": -1}, "radar's fields of view"),
+        ("radar", {"noise": {"seed": -1}}, "radar's fields of view"),
+        ("radar", {"noise": {"lat_bias": 1}}, "unknown noise setting 'lat_bias' for a radar"),
+        ("semantic_lidar", {"channels": 0}, "lidar channels"),
+        ("semantic_lidar", {"range": 0}, "lidar range"),
+        ("radar", {"channels": 4}, "channels applies to lidar or semantic_lidar sensors, not to radar"),
+        ("depth", {"channels": 4}, "channels applies to lidar or semantic_lidar sensors, not to depth"),
     ],
 )
 def test_bad_specs_are_refused_and_spawn_nothing(client, kind, arguments, error):

@@ -130,7 +130,8 @@ fn bad_noise_is_refused_before_anything_is_spawned() {
     let out = world.cli(&["sensor", "spawn", "depth", "--noise-seed", "3"]);
     out.assert_code(2);
     assert!(
-        out.stderr.contains("--noise-seed applies to gnss sensors"),
+        out.stderr
+            .contains("--noise-seed applies to gnss or radar sensors"),
         "{out}"
     );
     assert!(client.list_sensors().unwrap().is_empty(), "nothing spawned");

@@ -150,6 +150,27 @@ const FLAGS: &[Flag] = &[
     client_flag(&["sensor", "spawn", "depth"], "--fov", "{}", &[], NONE),
     client_flag(&["sensor", "spawn", "depth"], "--range", "{}", &[], NONE),
     client_flag(&["sensor", "spawn", "lidar"], "--channels", "{}", &[], NONE),
+    client_flag(
+        &["sensor", "spawn", "radar"],
+        "--vertical-fov",
+        "{}",
+        &[],
+        NONE,
+    ),
+    client_flag(
+        &["sensor", "spawn", "radar"],
+        "--points-per-second",
+        "{}",
+        &[],
+        NONE,
+    ),
+    client_flag(
+        &["sensor", "spawn", "obstacle"],
+        "--hit-radius",
+        "{}",
+        &[],
+        NONE,
+    ),
     client_flag(&["sensor", "spawn", "lidar"], "--points", "{}", &[], NONE),
     client_flag(
         &["sensor", "spawn", "lidar"],

@@ -178,8 +178,9 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
 
 /// One capture as CARLA's stream messages: one per capture, but one per
 /// event for a collision sensor (as CARLA sends them). `actor` gives the
-/// `rpc::Actor` of a CARLA id (an event names its sensor, `stream`, and
-/// the actor met).
+/// `rpc::Actor` of a CARLA id: an event names the actor its sensor rides
+/// on (CARLA's sensors report for their owner; the sensor itself, `stream`,
+/// when it rides on nothing) and the actor met.
 pub(crate) fn messages(
     capture: &Capture,
     spec: &SensorSpec,
@@ -196,7 +197,11 @@ pub(crate) fn messages(
     };
     // An event's two actors; an actor gone (or unknown to CARLA's ids)
     // drops the event.
-    let pair = |other: u64| Some((actor(stream)?, actor(u32::try_from(other).ok()?)?));
+    let owner = match spec.attach_to {
+        0 => stream,
+        parent => convert::actor_id(parent),
+    };
+    let pair = |other: u64| Some((actor(owner)?, actor(u32::try_from(other).ok()?)?));
     match capture {
         Capture::Collision(_) => {
             let events = capture.collisions()?;

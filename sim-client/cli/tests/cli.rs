@@ -58,7 +58,7 @@ fn huge_negative_and_odd_numbers_are_refused_with_exit_2_not_a_panic() {
         ),
         (
             &["sensor", "spawn", "imu", "--size", "4,4"],
-            "--size applies to depth sensors",
+            "--size applies to depth, rgb, semantic or instance sensors, not to imu",
         ),
         (
             &["sensor", "spawn", "depth", "--size", "8192,8192"],

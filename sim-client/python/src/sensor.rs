@@ -140,11 +140,11 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     ];
     for (name, present, kinds) in given {
         if present && !kinds.contains(&kind) {
-            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
             return Err(PyValueError::new_err(format!(
                 "{name} applies to {} sensors, not to {}",
-                names.join(" and "),
-                kind.name()
+                // Python's spelling: `semantic_lidar`.
+                SensorKind::listed(kinds).replace('-', "_"),
+                kind_name(kind as u32)
             )));
         }
     }

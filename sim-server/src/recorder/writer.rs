@@ -217,7 +217,7 @@ fn add_channels(mcap: &mut McapFile) -> McapResult<Channels> {
     let capture_schema = mcap.add_schema(
         CAPTURE_SCHEMA,
         WIRE_ENCODING,
-        b"#[repr(C)] simbus::SensorHeader/2 followed by the capture's elements (f32 depth, simbus::LidarPoint/1, simbus::ImuMeasurement/1 or simbus::GnssMeasurement/1)",
+        b"#[repr(C)] simbus::SensorHeader/2 followed by the capture's elements (f32 depth; simbus::Bgra for rgb, semantic and instance; simbus::LidarPoint/1, simbus::SemanticLidarPoint/1, simbus::RadarDetection/1, simbus::ImuMeasurement/1, simbus::GnssMeasurement/1, simbus::CollisionEvent/1 or simbus::ObstacleDetection/1)",
     )?;
     Ok(Channels {
         header,

@@ -222,10 +222,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
 fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(), Failure> {
     for (flag, present, kinds) in given {
         if *present && !kinds.contains(&kind) {
-            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
             return Err(Failure::Refused(anyhow!(
                 "{flag} applies to {} sensors, not to {}",
-                names.join(" and "),
+                SensorKind::listed(kinds),
                 kind.name()
             )));
         }

@@ -161,6 +161,7 @@ fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<Camera
         upper_fov: 10.0,
         lower_fov: -30.0,
         rotation_hz: 0.0,
+        noise: Default::default(),
     };
     let semantic_lidar = client.spawn_sensor(SensorSpec::semantic_lidar(at, lidar))?;
     rows.push(frame_time("semantic lidar 64x1024 alone")?);

@@ -83,10 +83,10 @@ pub use names::{Doorbell, ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,
     SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError,
-    MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
-    MAX_SENSOR_TICK_SECONDS,
+    LEGACY_SENSOR_PARAMS, MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
+    MAX_SENSOR_TICK_SECONDS, SENSOR_PARAMS,
 };
-pub use sensor_params::{Camera, Imu, Lidar, SensorParams};
+pub use sensor_params::{Camera, Imu, Lidar, LidarNoise, SensorParams};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,
     LONG_FRAME_SECONDS, LONG_SUBSTEP_NS, LONG_SUBSTEP_SECONDS, MAX_DELTA_SECONDS,
@@ -99,7 +99,7 @@ pub use wire::{Response, UnknownWireValue};
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// This process's id, read once: every request carries it, and asking the
 /// kernel for it on every request would be a syscall on the hot path.

@@ -113,7 +113,7 @@ impl SensorKind {
 /// (its rotation turns that into the parent's frame).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::SensorSpec/1")]
+#[type_name("simbus::SensorSpec/2")]
 pub struct SensorSpec {
     /// [`SensorKind`] as `u32`.
     pub kind: u32,
@@ -135,9 +135,16 @@ pub struct SensorSpec {
     /// [`SensorSpec::set_params`]). Depth: width, height, horizontal field of
     /// view (degrees), far range. Lidar: channels, points per channel,
     /// range, upper fov, lower fov (degrees), rotation frequency (Hz; 0 = a
-    /// full turn every capture).
-    pub params: [f32; 8],
+    /// full turn every capture), then its noise ([`crate::LidarNoise`]).
+    pub params: [f32; SENSOR_PARAMS],
 }
+
+/// How many `f32` parameters a [`SensorSpec`] carries (16 since protocol 4;
+/// [`crate::LEGACY_SENSOR_PARAMS`] before).
+pub const SENSOR_PARAMS: usize = 16;
+
+/// How many parameters a `simbus::SensorSpec/1` (protocol 3) carried.
+pub const LEGACY_SENSOR_PARAMS: usize = 8;
 
 /// Why a [`SensorSpec`] cannot build a sensor; each message states the
 /// limit that was broken.
@@ -184,6 +191,12 @@ pub enum SensorSpecError {
     /// seed a whole number in `0..=`[`crate::gnss::MAX_GNSS_SEED`].
     #[error("GNSS biases must be finite, deviations finite and >= 0, and the seed a whole number in 0..=16777216")]
     GnssNoise,
+    /// A lidar's noise deviation and attenuation rate must be finite and
+    /// not negative, its drop-off values in 0..=1 and its seed a whole
+    /// number in `0..=`[`crate::gnss::MAX_GNSS_SEED`]; a semantic lidar has
+    /// no noise or drop-off.
+    #[error("a lidar's noise_stddev and atmosphere_attenuation_rate must be finite and >= 0, its dropoff_general_rate, dropoff_intensity_limit and dropoff_zero_intensity in 0..=1 and its noise_seed a whole number in 0..=16777216; a semantic lidar has no noise or drop-off")]
+    LidarNoise,
     /// A radar's fields of view must be in (0, 180) degrees, its range in
     /// (0, 1e6] m and its points per second a whole number in
     /// `1..=`[`crate::ranging::MAX_RADAR_POINTS_PER_SECOND`], its seed in
@@ -231,6 +244,7 @@ impl SensorSpec {
             upper_fov,
             lower_fov,
             rotation_hz: 0.0,
+            noise: Default::default(),
         };
         Self::with_params(position, lidar)
     }
@@ -403,6 +417,11 @@ impl SensorSpec {
                 }
                 if l.rotation_hz < 0.0 {
                     return Err(SensorSpecError::LidarRotation);
+                }
+                let semantic = self.sensor_kind() == Some(SensorKind::SemanticLidar);
+                let noisy = l.noise != crate::LidarNoise::default();
+                if !l.noise.valid(p[11]) || (semantic && noisy) {
+                    return Err(SensorSpecError::LidarNoise);
                 }
             }
             Some(SensorParams::Imu(_)) => {}

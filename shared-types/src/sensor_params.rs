@@ -1,6 +1,6 @@
 //! Typed views of a [`SensorSpec`]'s parameters.
 //!
-//! On the wire a sensor's parameters are the eight `f32` of
+//! On the wire a sensor's parameters are the [`SENSOR_PARAMS`] `f32` of
 //! [`SensorSpec::params`], whose meaning depends on its kind; code reads and
 //! writes them through these views, never by index.
 //!
@@ -16,7 +16,7 @@
 use crate::events::{Collision, Obstacle};
 use crate::gnss::Gnss;
 use crate::ranging::Radar;
-use crate::{SensorKind, SensorSpec};
+use crate::{SensorKind, SensorSpec, SENSOR_PARAMS};
 
 /// A ray-cast camera's parameters: the depth camera's, and the RGB,
 /// semantic and instance segmentation cameras' (cameras of one parent,
@@ -49,6 +49,58 @@ pub struct Lidar {
     pub lower_fov: f32,
     /// Rotation frequency in Hz; 0 takes a full turn every capture.
     pub rotation_hz: f32,
+    /// Noise and drop-off (all zero: exact, simbus's default; a semantic
+    /// lidar has none, as in CARLA).
+    pub noise: LidarNoise,
+}
+
+/// A lidar's noise, drop-off and attenuation: CARLA's `sensor.lidar.ray_cast`
+/// attributes, applied as CARLA's `RayCastLidar.cpp` applies them. Every
+/// random draw comes from a generator seeded with `seed`, the capture and
+/// the ray, so the same seed gives the same points, run after run, on any
+/// number of render threads.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LidarNoise {
+    /// Standard deviation of a normal error added along each ray, metres.
+    pub noise_stddev: f32,
+    /// The share of rays dropped at random before they are cast, 0..=1.
+    pub dropoff_general_rate: f32,
+    /// Returns above this intensity are never dropped for it, 0..=1.
+    pub dropoff_intensity_limit: f32,
+    /// The chance a return of intensity 0 is dropped, 0..=1 (between 0 and
+    /// the limit it falls linearly to 0).
+    pub dropoff_zero_intensity: f32,
+    /// Intensity falls as `exp(-rate × distance)` (CARLA's); 0 keeps
+    /// simbus's `1 - distance / range`.
+    pub atmosphere_attenuation_rate: f32,
+    /// The generator's seed, `0..=`[`crate::gnss::MAX_GNSS_SEED`].
+    pub seed: u32,
+}
+
+impl LidarNoise {
+    /// Whether nothing is added or dropped (the intensity may still
+    /// follow the attenuation rate).
+    pub fn is_exact(&self) -> bool {
+        self.noise_stddev == 0.0
+            && self.dropoff_general_rate == 0.0
+            && (self.dropoff_zero_intensity == 0.0 || self.dropoff_intensity_limit == 0.0)
+    }
+
+    /// Whether every value is in range: a finite deviation and rate >= 0,
+    /// drop-off values in 0..=1, a whole seed in
+    /// `0..=`[`crate::gnss::MAX_GNSS_SEED`] (checked as sent:
+    /// `seed_on_wire`).
+    pub(crate) fn valid(&self, seed_on_wire: f32) -> bool {
+        let share = |v: f32| (0.0..=1.0).contains(&v);
+        let non_negative = |v: f32| v.is_finite() && v >= 0.0;
+        non_negative(self.noise_stddev)
+            && non_negative(self.atmosphere_attenuation_rate)
+            && share(self.dropoff_general_rate)
+            && share(self.dropoff_intensity_limit)
+            && share(self.dropoff_zero_intensity)
+            && (0.0..=crate::gnss::MAX_GNSS_SEED as f32).contains(&seed_on_wire)
+            && seed_on_wire.fract() == 0.0
+    }
 }
 
 /// An inertial measurement unit: it has no parameters.
@@ -138,51 +190,45 @@ impl SensorParams {
         }
     }
 
-    /// The wire form: the eight `f32` of [`SensorSpec::params`].
-    pub fn to_wire(&self) -> [f32; 8] {
-        match *self {
-            Self::Depth(d) | Self::Rgb(d) | Self::Semantic(d) | Self::Instance(d) => [
-                d.width as f32,
-                d.height as f32,
-                d.fov,
-                d.range,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-            ],
-            Self::Lidar(l) | Self::SemanticLidar(l) => [
-                l.channels as f32,
-                l.points as f32,
-                l.range,
-                l.upper_fov,
-                l.lower_fov,
-                l.rotation_hz,
-                0.0,
-                0.0,
-            ],
-            Self::Imu(Imu) | Self::Collision(Collision) => [0.0; 8],
-            Self::Radar(r) => [
+    /// The wire form: the [`SENSOR_PARAMS`] `f32` of [`SensorSpec::params`],
+    /// zeros past the kind's own.
+    pub fn to_wire(&self) -> [f32; SENSOR_PARAMS] {
+        let mut wire = [0.0; SENSOR_PARAMS];
+        let own: &[f32] = match *self {
+            Self::Depth(d) | Self::Rgb(d) | Self::Semantic(d) | Self::Instance(d) => {
+                &[d.width as f32, d.height as f32, d.fov, d.range]
+            }
+            Self::Lidar(l) | Self::SemanticLidar(l) => {
+                let n = l.noise;
+                &[
+                    l.channels as f32,
+                    l.points as f32,
+                    l.range,
+                    l.upper_fov,
+                    l.lower_fov,
+                    l.rotation_hz,
+                    n.noise_stddev,
+                    n.dropoff_general_rate,
+                    n.dropoff_intensity_limit,
+                    n.dropoff_zero_intensity,
+                    n.atmosphere_attenuation_rate,
+                    n.seed as f32,
+                ]
+            }
+            Self::Imu(Imu) | Self::Collision(Collision) => &[],
+            Self::Radar(r) => &[
                 r.horizontal_fov,
                 r.vertical_fov,
                 r.range,
                 r.points_per_second as f32,
                 r.seed as f32,
-                0.0,
-                0.0,
-                0.0,
             ],
-            Self::Obstacle(o) => [
+            Self::Obstacle(o) => &[
                 o.distance,
                 o.hit_radius,
                 if o.only_dynamics { 1.0 } else { 0.0 },
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
             ],
-            Self::Gnss(g) => [
+            Self::Gnss(g) => &[
                 g.lat_bias,
                 g.lat_stddev,
                 g.lon_bias,
@@ -190,15 +236,16 @@ impl SensorParams {
                 g.alt_bias,
                 g.alt_stddev,
                 g.seed as f32,
-                0.0,
             ],
-        }
+        };
+        wire[..own.len()].copy_from_slice(own);
+        wire
     }
 
     /// Reads the wire form of a sensor of `kind`. Sizes that are not whole
     /// numbers in `u32`'s range read truncated and saturated
     /// ([`SensorSpec::check`] refuses them).
-    pub fn from_wire(kind: SensorKind, p: [f32; 8]) -> Self {
+    pub fn from_wire(kind: SensorKind, p: [f32; SENSOR_PARAMS]) -> Self {
         match kind {
             SensorKind::Depth => Self::Depth(Camera::from_wire(p)),
             SensorKind::Rgb => Self::Rgb(Camera::from_wire(p)),
@@ -234,7 +281,7 @@ impl SensorParams {
 }
 
 impl Lidar {
-    fn from_wire(p: [f32; 8]) -> Self {
+    fn from_wire(p: [f32; SENSOR_PARAMS]) -> Self {
         Self {
             channels: p[0] as u32,
             points: p[1] as u32,
@@ -242,12 +289,20 @@ impl Lidar {
             upper_fov: p[3],
             lower_fov: p[4],
             rotation_hz: p[5],
+            noise: LidarNoise {
+                noise_stddev: p[6],
+                dropoff_general_rate: p[7],
+                dropoff_intensity_limit: p[8],
+                dropoff_zero_intensity: p[9],
+                atmosphere_attenuation_rate: p[10],
+                seed: p[11] as u32,
+            },
         }
     }
 }
 
 impl Camera {
-    fn from_wire(p: [f32; 8]) -> Self {
+    fn from_wire(p: [f32; SENSOR_PARAMS]) -> Self {
         Self {
             width: p[0] as u32,
             height: p[1] as u32,
@@ -370,7 +425,7 @@ mod tests {
     #[test]
     fn views_keep_the_wire_layout() {
         let depth = SensorSpec::depth([0.0; 3], 64, 48, 90.0, 50.0);
-        assert_eq!(depth.params, [64.0, 48.0, 90.0, 50.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(depth.params[..5], [64.0, 48.0, 90.0, 50.0, 0.0]);
         let camera = depth.camera().expect("a depth camera");
         assert_eq!((camera.width, camera.height), (64, 48));
         assert_eq!((camera.fov, camera.range), (90.0, 50.0));
@@ -378,8 +433,8 @@ mod tests {
 
         let lidar = SensorSpec::lidar([0.0; 3], 16, 500, 40.0, 10.0, -30.0).rotating(20.0);
         assert_eq!(
-            lidar.params,
-            [16.0, 500.0, 40.0, 10.0, -30.0, 20.0, 0.0, 0.0]
+            lidar.params[..7],
+            [16.0, 500.0, 40.0, 10.0, -30.0, 20.0, 0.0]
         );
         let view = lidar.lidar_params().expect("a lidar");
         assert_eq!(
@@ -399,7 +454,7 @@ mod tests {
             ..Gnss::default()
         };
         let spec = SensorSpec::with_params([0.0; 3], gnss);
-        assert_eq!(spec.params, [0.0, 1e-6, 0.0, 0.0, 0.0, 0.0, 42.0, 0.0]);
+        assert_eq!(spec.params[..8], [0.0, 1e-6, 0.0, 0.0, 0.0, 0.0, 42.0, 0.0]);
         assert_eq!(spec.gnss_params(), Some(gnss));
         assert_eq!(
             SensorSpec::gnss([0.0; 3]).gnss_params(),

@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use shared_types::{Command, Lidar, Radar, SemanticTag, SensorSpec, SensorSpecError};
+use shared_types::{Command, Lidar, LidarNoise, Radar, SemanticTag, SensorSpec, SensorSpecError};
 use sim_client::{Client, SensorError, Ticker};
 use simbus_tests::TestWorld;
 
@@ -42,6 +42,7 @@ fn semantic_lidar_points_on_a_box_name_the_box_and_its_tag() {
         upper_fov: 10.0,
         lower_fov: -30.0,
         rotation_hz: 0.0,
+        noise: Default::default(),
     };
     let mut sensor = client
         .spawn_sensor(SensorSpec::semantic_lidar([0.0, 3.0, 0.0], lidar))
@@ -158,6 +159,7 @@ fn hostile_radar_and_lidar_parameters_are_refused_and_spawn_nothing() {
             upper_fov: 10.0,
             lower_fov: -10.0,
             rotation_hz: 0.0,
+            noise: Default::default(),
         },
     );
     let mut cases = Vec::new();
@@ -173,7 +175,17 @@ fn hostile_radar_and_lidar_parameters_are_refused_and_spawn_nothing() {
         spec.params[slot] = value;
         cases.push(spec);
     }
-    for (slot, value) in [(0, 0.0), (1, 1e9), (2, -1.0), (3, f32::INFINITY)] {
+    // Sizes, range, field of view; noise (a semantic lidar has none), a
+    // drop-off share above 1, a fractional seed.
+    for (slot, value) in [
+        (0, 0.0),
+        (1, 1e9),
+        (2, -1.0),
+        (3, f32::INFINITY),
+        (6, 0.1),
+        (7, 1.5),
+        (11, 0.5),
+    ] {
         let mut spec = lidar;
         spec.params[slot] = value;
         cases.push(spec);
@@ -184,10 +196,85 @@ fn hostile_radar_and_lidar_parameters_are_refused_and_spawn_nothing() {
                 SensorSpecError::Radar
                 | SensorSpecError::NotFinite
                 | SensorSpecError::LidarSize
-                | SensorSpecError::LidarRange,
+                | SensorSpecError::LidarRange
+                | SensorSpecError::LidarNoise,
             )) => {}
             other => panic!("{:?}: {other:?}", spec.params),
         }
     }
     assert!(client.list_sensors().unwrap().is_empty());
+}
+
+/// One capture of a lidar with `noise` 3 m up in a flat world with a
+/// box ahead: its points.
+fn lidar_points(tag: &str, noise: LidarNoise) -> Vec<shared_types::LidarPoint> {
+    let (_server, client, mut ticker) = world(tag);
+    floating_box(&client, 10.0);
+    let lidar = Lidar {
+        channels: 16,
+        points: 512,
+        range: 40.0,
+        upper_fov: 10.0,
+        lower_fov: -30.0,
+        rotation_hz: 0.0,
+        noise,
+    };
+    let mut sensor = client
+        .spawn_sensor(SensorSpec::with_params([0.0, 3.0, 0.0], lidar))
+        .unwrap();
+    ticker.tick(T).unwrap();
+    let capture = sensor.recv(T).unwrap();
+    capture.points().expect("a lidar capture").to_vec()
+}
+
+#[test]
+fn a_lidar_drops_and_spreads_its_points_as_carla_the_same_way_for_the_same_seed() {
+    let exact = lidar_points("lidar-exact", LidarNoise::default());
+    // CARLA's defaults: 45 % dropped at random, then some of the faint
+    // returns; intensity exp(-0.004 d).
+    let carla = LidarNoise {
+        dropoff_general_rate: 0.45,
+        dropoff_intensity_limit: 0.8,
+        dropoff_zero_intensity: 0.4,
+        atmosphere_attenuation_rate: 0.004,
+        seed: 11,
+        ..LidarNoise::default()
+    };
+    let dropped = lidar_points("lidar-dropoff", carla);
+    let share = dropped.len() as f32 / exact.len() as f32;
+    assert!(
+        (0.45..0.6).contains(&share),
+        "{share}: {} of {}",
+        dropped.len(),
+        exact.len()
+    );
+    for p in &dropped {
+        let d = (p.x * p.x + p.y * p.y + p.z * p.z).sqrt();
+        assert!((p.intensity - (-0.004 * d).exp()).abs() < 1e-5, "{p:?}");
+        // Every kept point is one the exact lidar has.
+        assert!(exact.contains(p) || exact.iter().any(|e| e.x == p.x && e.y == p.y && e.z == p.z));
+    }
+    assert_eq!(dropped, lidar_points("lidar-dropoff-again", carla));
+    let other_seed = LidarNoise { seed: 12, ..carla };
+    assert_ne!(dropped, lidar_points("lidar-dropoff-other", other_seed));
+    // A normal error along each ray: the same directions, other distances.
+    let noisy = LidarNoise {
+        noise_stddev: 0.1,
+        seed: 5,
+        ..LidarNoise::default()
+    };
+    let spread = lidar_points("lidar-noise", noisy);
+    assert_eq!(spread.len(), exact.len());
+    let errors: Vec<f32> = spread
+        .iter()
+        .zip(&exact)
+        .map(|(n, e)| {
+            let (dn, de) = (n.x.hypot(n.y).hypot(n.z), e.x.hypot(e.y).hypot(e.z));
+            // Along the ray: the same direction.
+            assert!((n.x / dn - e.x / de).abs() < 1e-4, "{n:?} {e:?}");
+            dn - de
+        })
+        .collect();
+    let deviation = (errors.iter().map(|e| e * e).sum::<f32>() / errors.len() as f32).sqrt();
+    assert!((deviation - 0.1).abs() < 0.01, "{deviation}");
 }

@@ -376,6 +376,12 @@ pub fn radar_points_per_second(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(max)).map(|n| n as u32)
 }
 
+/// A lidar's atmosphere attenuation rate, per metre: 0 up to
+/// [`MAX_RATE_HZ`] (the intensity is `exp(-rate × distance)`).
+pub fn attenuation_rate(text: &str) -> Result<f32, InputError> {
+    real_in(text, 0.0..=MAX_RATE_HZ, " per metre").map(|rate| rate as f32)
+}
+
 /// An obstacle detector's hit radius, metres: above 0, at most 100.
 pub fn hit_radius(text: &str) -> Result<f32, InputError> {
     let radius = number(text)?;

@@ -15,7 +15,7 @@
 //! | `/simbus/commands` | `simbus::RecordedCommand/1` | one [`RecordedCommand`] |
 //! | `/simbus/events` | `simbus::RecordedEvent/1` (JSON) | one [`RecordedEvent`] |
 //! | `/simbus/collisions` | `simbus::RecordedCollision/1` | one [`RecordedCollision`] |
-//! | `/simbus/sensors` | `simbus::RecordedSensor/1` | one [`RecordedSensor`] (a sensor's spawn) |
+//! | `/simbus/sensors` | `simbus::RecordedSensor/2` | one [`RecordedSensor`] (a sensor's spawn) |
 //! | `/simbus/sensor/{id}` | `simbus::SensorHeader/2` | a [`SensorHeader`] then the capture's bytes |
 //! | `/simbus/keyframes` | `simbus::Keyframe/1` (msgpack) | the server's serialized world |
 //! | `/foxglove/scene` | `foxglove.SceneUpdate` (JSON) | a cube, sphere or capsule per actor |
@@ -40,7 +40,10 @@ pub use read::{Entry, RecordingReader};
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use shared_types::{Command, CommandResult, SensorSpec, SubstepRule, WireSettings, WorldSettings};
+use shared_types::{
+    Command, CommandResult, SensorSpec, SubstepRule, WireSettings, WorldSettings,
+    LEGACY_SENSOR_PARAMS, SENSOR_PARAMS,
+};
 
 /// The version of the recording format as a whole (the header's layout and
 /// the set of channels a replay needs).
@@ -86,7 +89,14 @@ pub const EVENT_SCHEMA: &str = "simbus::RecordedEvent/1";
 /// Schema of [`COLLISIONS_TOPIC`].
 pub const COLLISION_SCHEMA: &str = "simbus::RecordedCollision/1";
 /// Schema of [`SENSORS_TOPIC`].
-pub const SENSOR_SPAWN_SCHEMA: &str = "simbus::RecordedSensor/1";
+pub const SENSOR_SPAWN_SCHEMA: &str = "simbus::RecordedSensor/2";
+/// The sensor schema of recordings made before a spec carried
+/// [`shared_types::SENSOR_PARAMS`] parameters (protocol 3: eight): read
+/// with the later parameters zero.
+pub const LEGACY_SENSOR_SPAWN_SCHEMA: &str = "simbus::RecordedSensor/1";
+/// The size of a [`LEGACY_SENSOR_SPAWN_SCHEMA`] sensor, in bytes.
+pub const LEGACY_SENSOR_SPAWN_BYTES: usize =
+    std::mem::size_of::<RecordedSensor>() - 4 * (SENSOR_PARAMS - LEGACY_SENSOR_PARAMS);
 /// Schema of each sensor's captures: the capture header's own type name.
 pub const CAPTURE_SCHEMA: &str = "simbus::SensorHeader/2";
 /// Schema of [`KEYFRAMES_TOPIC`].
@@ -400,7 +410,8 @@ impl std::fmt::Display for NotMcap {
 /// at all (a later version's new channel, skipped), an error for a known
 /// schema of a newer version.
 pub fn check_schema(name: &str) -> Result<bool, &'static str> {
-    if SCHEMAS.contains(&name) || name == LEGACY_FRAME_SCHEMA {
+    if SCHEMAS.contains(&name) || [LEGACY_FRAME_SCHEMA, LEGACY_SENSOR_SPAWN_SCHEMA].contains(&name)
+    {
         return Ok(true);
     }
     let (base, version) = match name.rsplit_once('/') {
@@ -432,6 +443,12 @@ mod tests {
         assert_eq!(check_schema(LEGACY_FRAME_SCHEMA), Ok(true));
         assert_eq!(check_schema("simbus::Weather/1"), Ok(false));
         assert_eq!(check_schema("simbus::FrameHeader/1"), Ok(false));
+        assert_eq!(check_schema(LEGACY_SENSOR_SPAWN_SCHEMA), Ok(true));
+        assert_eq!(
+            check_schema("simbus::RecordedSensor/3"),
+            Err(SENSOR_SPAWN_SCHEMA)
+        );
+        assert_eq!(LEGACY_SENSOR_SPAWN_BYTES, 104);
     }
 
     #[test]

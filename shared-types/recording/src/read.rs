@@ -60,6 +60,8 @@ enum Channel {
     Events,
     Collisions,
     Sensors,
+    /// Sensors of [`super::LEGACY_SENSOR_SPAWN_SCHEMA`]: fewer parameters.
+    LegacySensors,
     Capture,
     Keyframes,
     Skipped,
@@ -236,6 +238,7 @@ impl RecordingReader {
                 (EVENTS_TOPIC, EVENT_SCHEMA) => Channel::Events,
                 (COLLISIONS_TOPIC, COLLISION_SCHEMA) => Channel::Collisions,
                 (SENSORS_TOPIC, SENSOR_SPAWN_SCHEMA) => Channel::Sensors,
+                (SENSORS_TOPIC, LEGACY_SENSOR_SPAWN_SCHEMA) => Channel::LegacySensors,
                 (topic, CAPTURE_SCHEMA) if topic.starts_with(SENSOR_TOPIC_PREFIX) => {
                     Channel::Capture
                 }
@@ -305,6 +308,10 @@ impl RecordingReader {
             Channel::Sensors => match exact_pod(data) {
                 Some(sensor) => Entry::Sensor(sensor),
                 None => return malformed("not one recorded sensor"),
+            },
+            Channel::LegacySensors => match padded_pod(data, LEGACY_SENSOR_SPAWN_BYTES) {
+                Some(sensor) => Entry::Sensor(sensor),
+                None => return malformed("not one recorded sensor of protocol 3"),
             },
             Channel::Events => match serde_json::from_slice(data) {
                 Ok(event) => Entry::Event(event),
@@ -443,6 +450,17 @@ fn split_legacy_header(data: &[u8]) -> Option<(FrameHeader, &[u8])> {
         bytemuck::pod_read_unaligned(&bytes),
         &data[LEGACY_FRAME_HEADER_BYTES..],
     ))
+}
+
+/// `data`, exactly `len` bytes, as a `T` whose later bytes are zero (an
+/// older, shorter layout of it).
+fn padded_pod<T: Pod>(data: &[u8], len: usize) -> Option<T> {
+    if data.len() != len || len > std::mem::size_of::<T>() {
+        return None;
+    }
+    let mut value = T::zeroed();
+    bytemuck::bytes_of_mut(&mut value)[..len].copy_from_slice(data);
+    Some(value)
 }
 
 /// `data` as exactly one `T`.

@@ -1,18 +1,21 @@
 //! Recordings made before frame headers carried `recorded_frame` (schema
-//! `simbus::FrameHeader/2`, a 96-byte header) still read: every frame with
-//! its actors, the new fields zero.
+//! `simbus::FrameHeader/2`, a 96-byte header) and before sensor specs
+//! carried 16 parameters (`simbus::RecordedSensor/1`, 104 bytes) still
+//! read: every frame with its actors and every sensor's spawn, the new
+//! fields zero.
 
 use std::io::BufWriter;
 
 use mcap::records::MessageHeader;
-use shared_types::{ActorState, FrameHeader, WorldSettings, PROTOCOL_VERSION};
+use shared_types::{ActorState, FrameHeader, Gnss, SensorSpec, WorldSettings, PROTOCOL_VERSION};
 use simbus_recording::{
-    Entry, RecordingHeader, RecordingReader, FRAMES_TOPIC, HEADER_SCHEMA, HEADER_TOPIC,
-    LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA, PROFILE, RECORDING_VERSION, WIRE_ENCODING,
+    Entry, RecordedSensor, RecordingHeader, RecordingReader, FRAMES_TOPIC, HEADER_SCHEMA,
+    HEADER_TOPIC, LEGACY_FRAME_HEADER_BYTES, LEGACY_FRAME_SCHEMA, LEGACY_SENSOR_SPAWN_BYTES,
+    LEGACY_SENSOR_SPAWN_SCHEMA, PROFILE, RECORDING_VERSION, SENSORS_TOPIC, WIRE_ENCODING,
 };
 
 #[test]
-fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {
+fn a_recording_of_older_frame_headers_and_sensor_specs_reads_with_the_new_fields_zero() {
     let dir = std::env::temp_dir().join(format!("simbus-legacy-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("legacy.mcap");
@@ -60,6 +63,19 @@ fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {
             (header, actors)
         })
         .collect();
+    let gnss = Gnss {
+        lat_stddev: 1e-6,
+        seed: 42,
+        ..Gnss::default()
+    };
+    let sensor = RecordedSensor {
+        frame: 7,
+        id: 3,
+        spec: SensorSpec::with_params([0.0, 2.0, 0.0], gnss).attached_to(2),
+    };
+    // What a protocol 3 writer cannot have written: must read as zero.
+    let mut written_sensor = sensor;
+    written_sensor.spec.params[8..].fill(99.0);
     {
         let file = std::fs::File::create(&path).unwrap();
         let mut mcap = mcap::WriteOptions::new()
@@ -87,6 +103,17 @@ fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {
             &serde_json::to_vec(&header).unwrap(),
         )
         .unwrap();
+        let schema = mcap
+            .add_schema(LEGACY_SENSOR_SPAWN_SCHEMA, WIRE_ENCODING, b"104 bytes")
+            .unwrap();
+        let sensor_channel = mcap
+            .add_channel(schema, SENSORS_TOPIC, WIRE_ENCODING, &Default::default())
+            .unwrap();
+        mcap.write_to_known_channel(
+            &message(sensor_channel, 0, 0),
+            &bytemuck::bytes_of(&written_sensor)[..LEGACY_SENSOR_SPAWN_BYTES],
+        )
+        .unwrap();
         for (i, (header, actors)) in frames.iter().enumerate() {
             let mut bytes = bytemuck::bytes_of(header)[..LEGACY_FRAME_HEADER_BYTES].to_vec();
             bytes.extend_from_slice(bytemuck::cast_slice(actors));
@@ -101,21 +128,22 @@ fn a_recording_with_version_2_frame_headers_reads_with_the_new_fields_zero() {
 
     let mut reader =
         RecordingReader::open(path.to_str().unwrap()).expect("a version 2 recording opens");
-    let mut read = Vec::new();
+    let (mut read, mut sensors) = (Vec::new(), Vec::new());
     while let Some(entry) = reader.next() {
-        if let Entry::Frame { header, actors, .. } = entry.expect("every message reads") {
-            read.push((header, actors));
+        match entry.expect("every message reads") {
+            Entry::Frame { header, actors, .. } => read.push((header, actors)),
+            Entry::Sensor(sensor) => sensors.push(sensor),
+            _ => {}
         }
     }
+    assert_eq!(sensors, [sensor]);
+    assert_eq!(sensors[0].spec.gnss_params(), Some(gnss));
     assert_eq!(read.len(), frames.len());
     for ((header, actors), (written, written_actors)) in read.iter().zip(&frames) {
         assert_eq!(header.timestamp, written.timestamp);
         assert_eq!((header.recorded_frame, header.recorded_elapsed_ns), (0, 0));
         assert_eq!(actors, written_actors);
     }
-    assert_ne!(
-        PROTOCOL_VERSION, 2,
-        "this build writes a newer frame header"
-    );
+    const { assert!(PROTOCOL_VERSION > 3, "this build writes newer layouts") };
     std::fs::remove_dir_all(&dir).unwrap();
 }

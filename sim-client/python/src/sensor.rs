@@ -17,8 +17,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use shared_types::gnss::MAX_GNSS_SEED;
 use shared_types::{
-    Camera, Gnss, Lidar, Radar, SensorInfo as Info, SensorKind, SensorParams, SensorRefusal,
-    SensorSpec, SensorSpecError,
+    Camera, Gnss, Lidar, LidarNoise, Radar, SensorInfo as Info, SensorKind, SensorParams,
+    SensorRefusal, SensorSpec, SensorSpecError,
 };
 use sim_client::{SensorError, WaitError};
 
@@ -136,7 +136,11 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
         ("upper_fov", p.upper_fov.is_some(), LIDARS),
         ("lower_fov", p.lower_fov.is_some(), LIDARS),
         ("rotation_frequency", p.rotation_frequency.is_some(), LIDARS),
-        ("noise", p.noise.is_some(), &[Kind::Gnss, Kind::Radar]),
+        (
+            "noise",
+            p.noise.is_some(),
+            &[Kind::Gnss, Kind::Lidar, Kind::Radar],
+        ),
     ];
     for (name, present, kinds) in given {
         if present && !kinds.contains(&kind) {
@@ -169,9 +173,16 @@ fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
                 upper_fov: p.upper_fov.unwrap_or(10.0) as f32,
                 lower_fov: p.lower_fov.unwrap_or(-30.0) as f32,
                 rotation_hz: p.rotation_frequency.unwrap_or(0.0) as f32,
+                noise: Default::default(),
             };
             match kind {
-                Kind::Lidar => SensorSpec::with_params(at, lidar),
+                Kind::Lidar => SensorSpec::with_params(
+                    at,
+                    Lidar {
+                        noise: lidar_noise(p.noise.as_ref())?,
+                        ..lidar
+                    },
+                ),
                 _ => SensorSpec::semantic_lidar(at, lidar),
             }
         }
@@ -223,6 +234,38 @@ fn gnss_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<Gnss> {
         *slot = value as f32;
     }
     Ok(gnss)
+}
+
+/// A lidar's `noise` keyword argument: CARLA's attribute names without
+/// their `noise_` prefix (`stddev`, `dropoff_general_rate`,
+/// `dropoff_intensity_limit`, `dropoff_zero_intensity`,
+/// `atmosphere_attenuation_rate`, `seed`), each 0 unless given.
+fn lidar_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<LidarNoise> {
+    let mut lidar = LidarNoise::default();
+    for (name, &value) in noise.into_iter().flatten() {
+        let slot = match name.as_str() {
+            "stddev" => &mut lidar.noise_stddev,
+            "dropoff_general_rate" => &mut lidar.dropoff_general_rate,
+            "dropoff_intensity_limit" => &mut lidar.dropoff_intensity_limit,
+            "dropoff_zero_intensity" => &mut lidar.dropoff_zero_intensity,
+            "atmosphere_attenuation_rate" => &mut lidar.atmosphere_attenuation_rate,
+            "seed" => {
+                let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
+                if !whole {
+                    return Err(sensor_error(SensorError::InvalidSpec(SensorSpecError::LidarNoise)));
+                }
+                lidar.seed = value as u32;
+                continue;
+            }
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown noise setting '{other}' for a lidar: expected stddev, dropoff_general_rate, dropoff_intensity_limit, dropoff_zero_intensity, atmosphere_attenuation_rate or seed"
+                )))
+            }
+        };
+        *slot = value as f32;
+    }
+    Ok(lidar)
 }
 
 /// A radar's parameters from `spawn_sensor`'s keyword arguments: `fov`
@@ -296,7 +339,11 @@ impl Client {
     /// in metres (depth 100, the others 1000). Lidars (plain and
     /// semantic): `channels` (32), `points` per channel in a turn (512),
     /// `range` (50), `upper_fov`/`lower_fov` in degrees (10/-30),
-    /// `rotation_frequency` in Hz (0: a full turn every capture). Radar:
+    /// `rotation_frequency` in Hz (0: a full turn every capture); a lidar's
+    /// `noise`: CARLA's attributes without their `noise_` prefix
+    /// (`stddev`, `dropoff_general_rate`, `dropoff_intensity_limit`,
+    /// `dropoff_zero_intensity`, `atmosphere_attenuation_rate`, `seed`; all
+    /// 0: exact). Radar:
     /// `fov` and `vertical_fov` in degrees (30/30), `range` (100),
     /// `points_per_second` (1500), `noise={"seed": N}` (0).
     /// Obstacle: `range` ahead (5 m), `hit_radius` (0.5 m),

@@ -192,7 +192,7 @@ fn add_channels(mcap: &mut McapFile) -> McapResult<Channels> {
     let sensors = wire_channel(
         mcap,
         SENSOR_SPAWN_SCHEMA,
-        "#[repr(C)] simbus::RecordedSensor/1: frame u64, id u64, simbus::SensorSpec",
+        "#[repr(C)] simbus::RecordedSensor/2: frame u64, id u64, simbus::SensorSpec/2",
         SENSORS_TOPIC,
     )?;
     let event_schema = json_schema(

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use shared_types::{ImuMeasurement, LidarPoint, SensorSpec};
 
 use super::culling;
+use super::lidar_noise::Effects;
 use crate::world::World;
 
 /// `q` as a unit rotation; all zeros means identity.
@@ -110,7 +111,8 @@ impl LidarRays {
 }
 
 /// What one lidar ray met: the direction in the sensor's frame and the
-/// world's, how far along it, and the target.
+/// world's, how far along it (its noise added), the target, and the
+/// return's intensity.
 pub(super) struct Return<'t, 'a> {
     /// Unit direction, sensor frame.
     pub(super) local: Vector,
@@ -118,34 +120,40 @@ pub(super) struct Return<'t, 'a> {
     pub(super) direction: Vector,
     pub(super) distance: f32,
     pub(super) target: &'t culling::Target<'a>,
+    pub(super) intensity: f32,
 }
 
-/// A plain lidar's point for `hit`: where, and an intensity falling from 1
-/// at the sensor to 0 at `range`.
-pub(super) fn lidar_point(hit: &Return, range: f32) -> LidarPoint {
+/// A plain lidar's point for `hit`.
+pub(super) fn lidar_point(hit: &Return) -> LidarPoint {
     let point = hit.local * hit.distance;
     LidarPoint {
         x: point.x,
         y: point.y,
         z: point.z,
-        intensity: 1.0 - hit.distance / range,
+        intensity: hit.intensity,
     }
 }
 
-/// Ray-casts `channels` × `sweep.columns` rays, channels in parallel, each
-/// writing its returns (`point` of each hit) at the start of its own
-/// stretch of the sample; the stretches are then closed up in channel
-/// order (the same points, in the same order, as one thread would write),
-/// and the rest zeroed. Returns how many returns there are.
+/// Ray-casts `channels` × `sweep.columns` rays of capture number
+/// `capture`, channels in parallel, each writing its returns (`point` of
+/// each hit, its noise and drop-off applied: `lidar_noise`) at the start of
+/// its own stretch of the sample; the stretches are then closed up in
+/// channel order (the same points, in the same order, as one thread would
+/// write), and the rest zeroed. Returns how many returns there are.
 pub(super) fn lidar_into<T: Copy + Default + Send>(
     world: &World,
     spec: &SensorSpec,
     rays: &mut LidarRays,
-    (pose, sweep): (Pose, Sweep),
+    (pose, sweep, capture): (Pose, Sweep, u64),
     slots: &mut [MaybeUninit<T>],
     point: impl Fn(&Return) -> T + Sync,
 ) -> usize {
-    let range = spec.lidar_params().map_or(0.0, |l| l.range);
+    let Some(lidar) = spec.lidar_params() else {
+        slots.fill(MaybeUninit::new(T::default()));
+        return 0;
+    };
+    let range = lidar.range;
+    let effects = Effects::new(lidar.noise, range, capture);
     let per_channel = sweep.per_channel;
     let exclude = world.body_of(spec.attach_to);
     let columns = sweep.columns.min(per_channel);
@@ -168,26 +176,35 @@ pub(super) fn lidar_into<T: Copy + Default + Send>(
             .par_chunks_mut(columns)
             .zip(directions.par_chunks(per_channel))
             .zip(faces.par_chunks(per_channel))
-            .map(|((stretch, directions), faces)| {
+            .enumerate()
+            .map(|(channel, ((stretch, directions), faces))| {
                 let mut hits = 0;
                 for column in sweep.start..sweep.start + columns {
-                    let (local, face) = (
-                        directions[column % per_channel],
-                        faces[column % per_channel],
-                    );
-                    let direction = pose.rotation * local;
-                    if let Some((distance, target)) =
-                        culling::nearest_target(cube.along(face), direction, range)
-                    {
-                        let hit = Return {
-                            local,
-                            direction,
-                            distance,
-                            target,
-                        };
-                        stretch[hits].write(point(&hit));
-                        hits += 1;
+                    let column = column % per_channel;
+                    let ray = (channel, column);
+                    if effects.drops_ray(ray) {
+                        continue;
                     }
+                    let (local, face) = (directions[column], faces[column]);
+                    let direction = pose.rotation * local;
+                    let Some((distance, target)) =
+                        culling::nearest_target(cube.along(face), direction, range)
+                    else {
+                        continue;
+                    };
+                    let intensity = effects.intensity(distance);
+                    if !effects.keeps(ray, intensity) {
+                        continue;
+                    }
+                    let hit = Return {
+                        local,
+                        direction,
+                        distance: (distance + effects.error(ray)).max(0.0),
+                        target,
+                        intensity,
+                    };
+                    stretch[hits].write(point(&hit));
+                    hits += 1;
                 }
                 hits
             }),
@@ -284,9 +301,14 @@ mod tests {
             per_channel,
         };
         let mut slots = vec![MaybeUninit::new(LidarPoint::default()); channels * per_channel];
-        let hits = lidar_into(world, &spec, &mut rays, (pose, sweep), &mut slots, |hit| {
-            lidar_point(hit, range)
-        });
+        let hits = lidar_into(
+            world,
+            &spec,
+            &mut rays,
+            (pose, sweep, 1),
+            &mut slots,
+            lidar_point,
+        );
         let mut expected = Vec::new();
         for c in 0..channels {
             for column in start..start + columns {

@@ -213,14 +213,13 @@ impl Sensor {
         casts.rays += sweep.columns as u64 * u64::from(channels);
         self.lidar_column = (sweep.start + sweep.columns) % sweep.per_channel.max(1);
         let (spec, rays) = (&self.spec, &mut self.lidar_rays);
-        let range = spec.lidar_params().map_or(0.0, |l| l.range);
-        let (world, at) = (shot.world, (shot.pose, sweep));
+        let (world, at) = (shot.world, (shot.pose, sweep, self.captures));
         match &self.port {
             // SAFETY: lidar_into writes the returns, then zeros in every
             // remaining slot.
             SensorPort::Lidar(port) => unsafe {
                 publish(port, header, record, |slots, header| {
-                    let point = |hit: &capture::Return| capture::lidar_point(hit, range);
+                    let point = capture::lidar_point;
                     let hits =
                         renderer.run(|| capture::lidar_into(world, spec, rays, at, slots, point));
                     header.count = hits as u32;

@@ -15,6 +15,7 @@ mod events;
 mod frame;
 mod gnss;
 mod ground;
+mod lidar_noise;
 mod publish;
 mod radar;
 mod random;

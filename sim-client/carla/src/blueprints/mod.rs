@@ -73,8 +73,9 @@ struct Blueprint {
 }
 
 /// The blueprints. Sizes are half extents and radii in metres; sensor
-/// attributes keep CARLA's names, units and defaults. Noise and drop-off
-/// attributes exist (scripts set them to 0) but simbus's sensors are exact:
+/// attributes keep CARLA's names, units and defaults. The lidar's noise
+/// and drop-off and the GNSS receiver's noise are CARLA's; the IMU's noise
+/// attributes exist (scripts set them to 0) but simbus's IMU is exact:
 /// other values are refused at spawn.
 const LIBRARY: &[Blueprint] = &[
     Blueprint {

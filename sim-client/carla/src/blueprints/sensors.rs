@@ -3,7 +3,9 @@
 //! defaults, and what each spawns in simbus.
 
 use shared_types::gnss::MAX_GNSS_SEED;
-use shared_types::{Gnss, Lidar, Radar, SensorKind, SensorParams, SensorSpec, SensorSpecError};
+use shared_types::{
+    Gnss, Lidar, LidarNoise, Radar, SensorKind, SensorParams, SensorSpec, SensorSpecError,
+};
 
 use super::cameras::text;
 use super::{float, int, Attribute, Description, Kind, Spawn, ROLE_NAME};
@@ -20,11 +22,14 @@ pub(super) const LIDAR: &[Attribute] = &[
     float("rotation_frequency", "10.0"),
     float("sensor_tick", "0.0"),
     float("horizontal_fov", "360.0"),
+    // CARLA's defaults: 45 % of the rays dropped at random, returns below
+    // 0.8 intensity dropped up to 40 %, intensity exp(-0.004 d).
     float("noise_stddev", "0.0"),
-    float("dropoff_general_rate", "0.0"),
-    float("dropoff_intensity_limit", "0.0"),
-    float("dropoff_zero_intensity", "0.0"),
-    float("atmosphere_attenuation_rate", "0.0"),
+    int("noise_seed", "0"),
+    float("dropoff_general_rate", "0.45"),
+    float("dropoff_intensity_limit", "0.8"),
+    float("dropoff_zero_intensity", "0.4"),
+    float("atmosphere_attenuation_rate", "0.004"),
 ];
 
 /// The semantic lidar's attributes (`sensor.lidar.ray_cast_semantic`):
@@ -72,14 +77,6 @@ impl Description {
         position: [f32; 3],
         rotation: [f32; 4],
     ) -> Result<Spawn, BlueprintError> {
-        // No drop-off at zero intensity drops nothing whatever the limit
-        // (CARLA's "no drop-off" recipe sets the limit to 1.0).
-        self.zero(&[
-            "noise_stddev",
-            "dropoff_general_rate",
-            "dropoff_zero_intensity",
-            "atmosphere_attenuation_rate",
-        ])?;
         if self.number("horizontal_fov")? != 360.0 {
             return Err(BlueprintError::HorizontalFov(self.id.clone()));
         }
@@ -98,12 +95,31 @@ impl Description {
             upper_fov: self.number("upper_fov")?,
             lower_fov: self.number("lower_fov")?,
             rotation_hz: frequency,
+            noise: Default::default(),
         };
         let params = match kind {
+            // CARLA's semantic lidar has no noise, drop-off or attenuation.
             SensorKind::SemanticLidar => SensorParams::SemanticLidar(lidar),
-            _ => SensorParams::Lidar(lidar),
+            _ => SensorParams::Lidar(Lidar {
+                noise: self.lidar_noise()?,
+                ..lidar
+            }),
         };
         self.sensor(SensorSpec::with_params(position, params), rotation)
+    }
+
+    /// A ray-cast lidar's noise, drop-off and attenuation: CARLA's
+    /// attributes as simbus's (which also honours `noise_seed`; CARLA
+    /// 0.9.16 seeds its lidar before reading it).
+    fn lidar_noise(&self) -> Result<LidarNoise, BlueprintError> {
+        Ok(LidarNoise {
+            noise_stddev: self.number("noise_stddev")?,
+            dropoff_general_rate: self.number("dropoff_general_rate")?,
+            dropoff_intensity_limit: self.number("dropoff_intensity_limit")?,
+            dropoff_zero_intensity: self.number("dropoff_zero_intensity")?,
+            atmosphere_attenuation_rate: self.number("atmosphere_attenuation_rate")?,
+            seed: self.seed(SensorSpecError::LidarNoise)?,
+        })
     }
 
     /// An obstacle detector: CARLA's distance, hit radius and

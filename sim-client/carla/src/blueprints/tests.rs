@@ -1,6 +1,7 @@
 //! The blueprints' tests.
 use super::library::definitions;
 use super::*;
+use shared_types::LidarNoise;
 
 fn description(id: &str, attributes: &[(&str, &str)]) -> Value {
     Value::Array(vec![
@@ -98,26 +99,52 @@ fn scene_actors_report_an_empty_role_name_and_fixed_attributes() {
 }
 
 #[test]
-fn a_lidar_takes_carlas_no_drop_off_recipe_and_refuses_a_drop_off() {
+fn a_lidar_takes_carlas_noise_and_drop_off_with_carlas_defaults() {
     let lidar = |attributes: &[(&str, &str)]| {
-        Description::parse(&description("sensor.lidar.ray_cast", attributes))
+        let spawned = Description::parse(&description("sensor.lidar.ray_cast", attributes))
             .unwrap()
-            .spawn(&CarlaTransform::default())
+            .spawn(&CarlaTransform::default());
+        spawned.map(|spawn| match spawn {
+            Spawn::Sensor(spec) => spec.lidar_params().expect("a lidar").noise,
+            _ => panic!("not a sensor"),
+        })
     };
-    // Nothing dropped at zero intensity: the limit changes nothing.
-    let no_drop_off = [
+    // CARLA 0.9.16's defaults.
+    let defaults = LidarNoise {
+        noise_stddev: 0.0,
+        dropoff_general_rate: 0.45,
+        dropoff_intensity_limit: 0.8,
+        dropoff_zero_intensity: 0.4,
+        atmosphere_attenuation_rate: 0.004,
+        seed: 0,
+    };
+    assert_eq!(lidar(&[]).unwrap(), defaults);
+    // CARLA's "no drop-off" recipe: nothing dropped.
+    let recipe = lidar(&[
         ("dropoff_general_rate", "0.0"),
         ("dropoff_intensity_limit", "1.0"),
         ("dropoff_zero_intensity", "0.0"),
-    ];
-    assert!(matches!(lidar(&no_drop_off), Ok(Spawn::Sensor(_))));
-    let e = lidar(&[
-        ("dropoff_intensity_limit", "0.8"),
-        ("dropoff_zero_intensity", "0.4"),
+        ("noise_stddev", "0.1"),
+        ("noise_seed", "249013"),
     ])
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("dropoff_zero_intensity must be 0"), "{e}");
+    .unwrap();
+    assert!(recipe.dropoff_general_rate == 0.0 && recipe.dropoff_zero_intensity == 0.0);
+    assert_eq!((recipe.noise_stddev, recipe.seed), (0.1, 249013));
+    for bad in [
+        ("dropoff_general_rate", "1.5"),
+        ("noise_stddev", "-1"),
+        ("atmosphere_attenuation_rate", "-0.1"),
+        ("noise_seed", "0.5"),
+    ] {
+        let e = lidar(&[bad]).unwrap_err().to_string();
+        assert!(e.contains("dropoff_general_rate"), "{bad:?}: {e}");
+    }
+    // The semantic lidar has none of them.
+    let d = Description::parse(&description("sensor.lidar.ray_cast_semantic", &[])).unwrap();
+    let Spawn::Sensor(spec) = d.spawn(&CarlaTransform::default()).unwrap() else {
+        panic!("not a sensor");
+    };
+    assert_eq!(spec.lidar_params().unwrap().noise, LidarNoise::default());
 }
 
 #[test]
@@ -153,12 +180,12 @@ fn unknown_blueprints_bad_numbers_and_noise_are_refused_by_name() {
     let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
     assert!(e.contains("radius"), "{e}");
     let d = Description::parse(&description(
-        "sensor.lidar.ray_cast",
-        &[("noise_stddev", "0.1")],
+        "sensor.other.imu",
+        &[("noise_accel_stddev_x", "0.1")],
     ))
     .unwrap();
     let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
-    assert!(e.contains("noise_stddev"), "{e}");
+    assert!(e.contains("noise_accel_stddev_x"), "{e}");
     let d = Description::parse(&description(
         "sensor.camera.depth",
         &[("image_size_x", "100000")],

@@ -113,9 +113,20 @@ struct SpawnArgs {
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = input::rotation_frequency)]
     rotation_frequency: Option<f32>,
     /// GNSS: standard deviations of the normal errors added to latitude,
-    /// longitude (degrees) and altitude (metres), each >= 0 [default: 0,0,0].
-    #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
+    /// longitude (degrees) and altitude (metres), each >= 0 [default:
+    /// 0,0,0]; lidar: one, of the error added along each ray, metres.
+    #[arg(long, value_name = "LAT,LON,ALT|M", allow_hyphen_values = true)]
     noise_stddev: Option<String>,
+    /// Lidar: CARLA's drop-off: the share of rays dropped at random, the
+    /// intensity below which returns may be dropped, and the chance a
+    /// return of intensity 0 is, each in 0..=1 (CARLA's defaults:
+    /// 0.45,0.8,0.4) [default: 0,0,0, nothing dropped].
+    #[arg(long, value_name = "GENERAL,LIMIT,ZERO", allow_hyphen_values = true)]
+    dropoff: Option<String>,
+    /// Lidar: intensity falls as exp(-RATE × distance), RATE >= 0 (CARLA's
+    /// default 0.004) [default: 0, intensity 1 - distance / range].
+    #[arg(long, value_name = "RATE", allow_negative_numbers = true, value_parser = input::attenuation_rate)]
+    attenuation: Option<f32>,
     /// GNSS: biases added to latitude, longitude (degrees) and altitude
     /// (metres) [default: 0,0,0].
     #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
@@ -127,8 +138,8 @@ struct SpawnArgs {
     /// Obstacle: only dynamic actors count (not the ground, ramps, buildings).
     #[arg(long)]
     only_dynamics: bool,
-    /// GNSS: the errors' seed; radar: its rays' seed; 0..=16777216 (the
-    /// same seed, the same errors and rays) [default: 0].
+    /// GNSS and lidar: the errors' seed; radar: its rays' seed;
+    /// 0..=16777216 (the same seed, the same errors and rays) [default: 0].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::gnss_seed)]
     noise_seed: Option<u32>,
     /// Print {"id": N, ...}.
@@ -290,9 +301,15 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
                 a.rotation_frequency.is_some(),
                 &[Lidar, SemanticLidar],
             ),
-            ("--noise-stddev", a.noise_stddev.is_some(), &[Gnss]),
+            ("--noise-stddev", a.noise_stddev.is_some(), &[Gnss, Lidar]),
             ("--noise-bias", a.noise_bias.is_some(), &[Gnss]),
-            ("--noise-seed", a.noise_seed.is_some(), &[Gnss, Radar]),
+            (
+                "--noise-seed",
+                a.noise_seed.is_some(),
+                &[Gnss, Lidar, Radar],
+            ),
+            ("--dropoff", a.dropoff.is_some(), &[Lidar]),
+            ("--attenuation", a.attenuation.is_some(), &[Lidar]),
         ],
     )?;
     // The depth size as typed: the spec holds it as whole pixels, so a
@@ -324,9 +341,16 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
                 upper_fov,
                 lower_fov,
                 rotation_hz: a.rotation_frequency.unwrap_or(0.0),
+                noise: Default::default(),
             };
             match kind {
-                SensorKind::Lidar => SensorSpec::with_params(at, lidar),
+                SensorKind::Lidar => SensorSpec::with_params(
+                    at,
+                    shared_types::Lidar {
+                        noise: lidar_noise(a)?,
+                        ..lidar
+                    },
+                ),
                 _ => SensorSpec::semantic_lidar(at, lidar),
             }
         }
@@ -360,6 +384,34 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     check_depth_size(&spec, typed_size)
         .map_err(|e| Failure::Refused(anyhow!("invalid {} sensor: {e}", kind.name())))?;
     Ok(spec)
+}
+
+/// A lidar's noise as `--noise-stddev`, `--dropoff`, `--attenuation` and
+/// `--noise-seed` give it (checked with the rest of the spec).
+fn lidar_noise(a: &SpawnArgs) -> Result<shared_types::LidarNoise, Failure> {
+    let [noise_stddev] =
+        super::numbers::<1>(a.noise_stddev.as_deref().unwrap_or("0"), "--noise-stddev")?;
+    if noise_stddev < 0.0 {
+        return Err(Failure::Refused(anyhow!(
+            "--noise-stddev takes a standard deviation >= 0, got '{noise_stddev}'"
+        )));
+    }
+    let dropoff = super::numbers::<3>(a.dropoff.as_deref().unwrap_or("0,0,0"), "--dropoff")?;
+    if dropoff.iter().any(|v| !(0.0..=1.0).contains(v)) {
+        return Err(Failure::Refused(anyhow!(
+            "--dropoff takes three shares in 0..=1 (GENERAL,LIMIT,ZERO), got '{}'",
+            a.dropoff.as_deref().unwrap_or_default()
+        )));
+    }
+    let [dropoff_general_rate, dropoff_intensity_limit, dropoff_zero_intensity] = dropoff;
+    Ok(shared_types::LidarNoise {
+        noise_stddev,
+        dropoff_general_rate,
+        dropoff_intensity_limit,
+        dropoff_zero_intensity,
+        atmosphere_attenuation_rate: a.attenuation.unwrap_or(0.0),
+        seed: a.noise_seed.unwrap_or(0),
+    })
 }
 
 /// A GNSS receiver's noise as `--noise-stddev`, `--noise-bias` and

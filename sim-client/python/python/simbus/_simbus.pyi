@@ -240,7 +240,10 @@ class Client:
         sensor and opens a reader of it. Cameras take width, height, fov and
         range (depth 100 m, the others 1000 m); cameras of one parent, pose,
         size, fov and range share one ray cast. Lidars take channels,
-        points, range, upper_fov, lower_fov and rotation_frequency. A radar
+        points, range, upper_fov, lower_fov and rotation_frequency; a lidar's
+        `noise`: stddev, dropoff_general_rate, dropoff_intensity_limit,
+        dropoff_zero_intensity, atmosphere_attenuation_rate and seed (CARLA's
+        attributes without "noise_"; all 0: exact). A radar
         takes fov and vertical_fov (30 degrees each), range (100 m),
         points_per_second (1500) and noise={"seed": N}. An obstacle detector
         takes range (5 m), hit_radius (0.5 m) and only_dynamics. A GNSS

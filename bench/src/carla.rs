@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use shared_types::{SensorKind, SensorSpec};
+use shared_types::{Lidar, Radar, SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 use simbus_process::ChildGuard;
 
@@ -226,10 +226,8 @@ struct Measured {
     carla_rpc: Latencies,
     native_wait: Latencies,
     carla_wait: Latencies,
-    native_fps: f64,
-    carla_fps: f64,
-    /// RGB 800x600 through `listen`: native, CARLA.
-    rgb_fps: (f64, f64),
+    /// Each sensor's frames per second, natively and through `listen`.
+    listen: Vec<(ListenCase, f64, f64)>,
     traffic: Traffic,
 }
 
@@ -295,8 +293,13 @@ fn measure(
     let (native_wait, carla_wait) =
         wait_for_tick(args.ticks, &server.world, &mut ticker, carla, timeout)?;
     ticker.release()?;
-    let (native_fps, carla_fps) = camera_fps(args.frames, &client, carla, "depth")?;
-    let rgb_fps = camera_fps(args.frames, &client, carla, "rgb")?;
+    let listen = ListenCase::all()
+        .into_iter()
+        .map(|case| {
+            let (native, carla) = sensor_fps(args.frames, &client, carla, &case)?;
+            Ok((case, native, carla))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let traffic = traffic(args, sim_client, python, script)?;
     report(
         args,
@@ -307,9 +310,7 @@ fn measure(
             carla_rpc,
             native_wait,
             carla_wait,
-            native_fps,
-            carla_fps,
-            rgb_fps,
+            listen,
             traffic,
         },
     );
@@ -398,25 +399,96 @@ pub(crate) fn wait_for_tick(
     Ok((native_wait, side_wait))
 }
 
-/// A camera's frames per second, `frames` of each: a native subscriber
-/// ticking (the ticker released before the script's turn), then
-/// `camera.listen` on the CARLA client. `kind`: depth 640x480 or rgb
-/// 800x600.
-pub(crate) fn camera_fps(
+/// A sensor measured natively and through CARLA's `listen`: its native
+/// spec and its CARLA blueprint with the attributes that make the same
+/// sensor.
+pub(crate) struct ListenCase {
+    /// What it is, as the report names it.
+    pub(crate) label: &'static str,
+    /// The report's JSON key.
+    key: &'static str,
+    spec: SensorSpec,
+    blueprint: &'static str,
+    attributes: &'static [&'static str],
+}
+
+impl ListenCase {
+    /// A depth camera of 640x480.
+    pub(crate) fn depth() -> Self {
+        let spec =
+            SensorSpec::camera_of(SensorKind::Depth, [0.0, 2.0, 0.0], (640, 480), 90.0, 1000.0)
+                .expect("a camera kind");
+        Self {
+            label: "depth 640x480",
+            key: "depth_640x480_fps",
+            spec,
+            blueprint: "sensor.camera.depth",
+            attributes: &["image_size_x=640", "image_size_y=480"],
+        }
+    }
+
+    /// Every sensor the report has: depth and RGB cameras, a semantic
+    /// lidar of 64 channels x 1024 points (a whole turn every 0.01 s
+    /// frame), a radar of 1500 points/s.
+    fn all() -> Vec<Self> {
+        let rgb = SensorSpec::camera_of(SensorKind::Rgb, [0.0, 2.0, 0.0], (800, 600), 90.0, 1000.0)
+            .expect("a camera kind");
+        let lidar = Lidar {
+            channels: 64,
+            points: 1024,
+            range: 100.0,
+            upper_fov: 10.0,
+            lower_fov: -30.0,
+            rotation_hz: 0.0,
+            noise: Default::default(),
+        };
+        vec![
+            Self::depth(),
+            Self {
+                label: "rgb 800x600",
+                key: "rgb_800x600_fps",
+                spec: rgb,
+                blueprint: "sensor.camera.rgb",
+                attributes: &["image_size_x=800", "image_size_y=600"],
+            },
+            Self {
+                label: "semantic lidar 64x1024",
+                key: "semantic_lidar_64x1024_fps",
+                spec: SensorSpec::semantic_lidar([0.0, 2.0, 0.0], lidar),
+                blueprint: "sensor.lidar.ray_cast_semantic",
+                // 64 x 1024 points a turn, a turn every 0.01 s.
+                attributes: &[
+                    "channels=64",
+                    "points_per_second=6553600",
+                    "rotation_frequency=100",
+                    "range=100",
+                    "upper_fov=10",
+                    "lower_fov=-30",
+                ],
+            },
+            Self {
+                label: "radar 1500 points/s",
+                key: "radar_1500_fps",
+                spec: SensorSpec::with_params([0.0, 2.0, 0.0], Radar::default()),
+                blueprint: "sensor.other.radar",
+                attributes: &[],
+            },
+        ]
+    }
+}
+
+/// A sensor's frames per second, `frames` of each: a native subscriber
+/// ticking (the ticker released before the script's turn), then `listen`
+/// on the CARLA client.
+pub(crate) fn sensor_fps(
     frames: usize,
     client: &Client,
     carla: ScriptSide<'_>,
-    kind: &str,
+    case: &ListenCase,
 ) -> anyhow::Result<(f64, f64)> {
     let timeout = Duration::from_secs(30);
     let mut ticker = sync_ticker(client, 0.01)?;
-    let (sensor_kind, blueprint, (w, h)) = match kind {
-        "rgb" => (SensorKind::Rgb, "sensor.camera.rgb", (800, 600)),
-        _ => (SensorKind::Depth, "sensor.camera.depth", (640, 480)),
-    };
-    let spec = SensorSpec::camera_of(sensor_kind, [0.0, 2.0, 0.0], (w, h), 90.0, 1000.0)
-        .context("a camera kind")?;
-    let mut sensor = client.spawn_sensor(spec)?;
+    let mut sensor = client.spawn_sensor(case.spec)?;
     for _ in 0..5 {
         ticker.tick(timeout)?;
         sensor.recv(timeout)?;
@@ -433,15 +505,10 @@ pub(crate) fn camera_fps(
     let native_fps = frames as f64 / start.elapsed().as_secs_f64();
     client.destroy_sensor(sensor.id())?;
     ticker.release()?;
-    let size = [w.to_string(), h.to_string()];
-    let args = [
-        frames.to_string(),
-        blueprint.to_string(),
-        size[0].clone(),
-        size[1].clone(),
-    ];
+    let mut args = vec![frames.to_string(), case.blueprint.to_string()];
+    args.extend(case.attributes.iter().map(|a| a.to_string()));
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let answer = script_side(carla, "camera", &args, |_| Ok(()))?;
+    let answer = script_side(carla, "sensor", &args, |_| Ok(()))?;
     let carla_fps = answer["fps"].as_f64().context("no fps")?;
     Ok((native_fps, carla_fps))
 }
@@ -455,14 +522,20 @@ fn report(args: &CarlaArgs, m: &Measured) {
         carla_rpc,
         native_wait,
         carla_wait,
-        native_fps,
-        carla_fps,
-        rgb_fps,
+        listen,
         traffic,
     } = m;
     let map_ms = traffic.map.quantile_us(0.5) / 1e3;
     let p50 = |l: &Latencies| l.quantile_us(0.5);
     if args.json {
+        let listen_json: serde_json::Map<String, serde_json::Value> = listen
+            .iter()
+            .map(|(case, native, carla)| {
+                let row = serde_json::json!({"native": native, "carla": carla,
+                    "native_over_carla": native / carla});
+                (case.key.to_string(), row)
+            })
+            .collect();
         println!(
             "{}",
             serde_json::json!({
@@ -473,9 +546,7 @@ fn report(args: &CarlaArgs, m: &Measured) {
                     "carla_over_version_rpc_p50": p50(carla_tick) / p50(carla_rpc)},
                 "wait_for_tick": {"native": native_wait.json(), "carla": carla_wait.json(),
                     "carla_over_native_p50": p50(carla_wait) / p50(native_wait)},
-                "depth_640x480_fps": {"native": native_fps, "carla": carla_fps,
-                    "native_over_carla": native_fps / carla_fps},
-                "rgb_800x600_fps": {"native": rgb_fps.0, "carla": rgb_fps.1},
+                "listen": listen_json,
                 "traffic_manager_ticks_per_s": {"vehicles_30": traffic.ticks_per_s_30,
                     "vehicles_100": traffic.ticks_per_s_100},
                 "get_map_generate_waypoints_ms_p50": map_ms,
@@ -500,14 +571,13 @@ fn report(args: &CarlaArgs, m: &Measured) {
         p50(carla_wait) / p50(native_wait),
         p50(carla_tick) / p50(carla_rpc)
     );
-    println!(
-        "depth 640x480, tick + image each frame: native {native_fps:.1} fps, CARLA camera.listen {carla_fps:.1} fps ({:.2}x)",
-        native_fps / carla_fps
-    );
-    println!(
-        "rgb 800x600, tick + image each frame: native {:.1} fps, CARLA camera.listen {:.1} fps (goal >= 100)",
-        rgb_fps.0, rgb_fps.1
-    );
+    for (case, native, carla) in listen {
+        println!(
+            "{}, tick + its capture each frame: native {native:.1} fps, CARLA listen {carla:.1} fps ({:.2}x)",
+            case.label,
+            native / carla
+        );
+    }
     println!(
         "CARLA's traffic manager on the town, synchronous, 0.05 s steps: {:.0} ticks/s with 30 vehicles, {:.0} with 100",
         traffic.ticks_per_s_30, traffic.ticks_per_s_100

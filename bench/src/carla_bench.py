@@ -4,8 +4,9 @@ against the gateway. Prints one JSON object on its last line.
     carla_bench.py tick PORT N     world.tick() round trips (this client ticks),
                                    and get_server_version() (no simbus) as the floor
     carla_bench.py wait PORT N     wait_for_tick: publish -> returned (another ticks)
-    carla_bench.py camera PORT N BLUEPRINT W H
-                                   W x H frames of a camera through camera.listen
+    carla_bench.py sensor PORT N BLUEPRINT [NAME=VALUE ...]
+                                   N captures of a sensor of BLUEPRINT (with
+                                   those attributes) through sensor.listen
     carla_bench.py traffic PORT N VEHICLES TM_PORT
                                    the traffic manager in synchronous mode on
                                    simbus's town: VEHICLES autopilot vehicles,
@@ -64,26 +65,26 @@ def main():
             received = time.time_ns()
             samples.append(received - int(snapshot.timestamp.platform_timestamp * 1e9))
         print(json.dumps({"ns": samples}))
-    elif mode == "camera":
+    elif mode == "sensor":
         sync(world, True)
-        width, height = int(sys.argv[5]), int(sys.argv[6])
         blueprint = world.get_blueprint_library().find(sys.argv[4])
-        blueprint.set_attribute("image_size_x", str(width))
-        blueprint.set_attribute("image_size_y", str(height))
-        camera = world.spawn_actor(blueprint, carla.Transform(carla.Location(z=2.0)))
-        images = queue.Queue()
-        camera.listen(images.put)
+        for attribute in sys.argv[5:]:
+            name, value = attribute.split("=", 1)
+            blueprint.set_attribute(name, value)
+        sensor = world.spawn_actor(blueprint, carla.Transform(carla.Location(z=2.0)))
+        captures = queue.Queue()
+        sensor.listen(captures.put)
         for _ in range(5):
             frame = world.tick()
-            assert images.get(timeout=30).frame == frame
+            assert captures.get(timeout=30).frame == frame
         start = time.perf_counter()
         for _ in range(n):
             frame = world.tick()
-            image = images.get(timeout=30)
-            assert image.frame == frame and len(image.raw_data) == width * height * 4
+            capture = captures.get(timeout=30)
+            assert capture.frame == frame
         elapsed = time.perf_counter() - start
-        camera.stop()
-        camera.destroy()
+        sensor.stop()
+        sensor.destroy()
         sync(world, False)
         print(json.dumps({"fps": n / elapsed}))
     elif mode == "traffic":

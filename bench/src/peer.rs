@@ -10,7 +10,8 @@ use sim_client::Client;
 /// The other end of the raw ping-pong and TCP baselines.
 #[derive(Debug, Args)]
 pub(crate) struct PeerArgs {
-    /// `iceoryx-spin`, `iceoryx-block` or `tcp`.
+    /// `iceoryx-spin`, `iceoryx-spin-step` (a physics step before each
+    /// answer), `iceoryx-block`, `iceoryx-bus-block` or `tcp`.
     #[arg(long)]
     kind: String,
     /// Service prefix for the iceoryx2 kinds.

@@ -357,7 +357,8 @@ fn capture_rows(
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     ticker.release()?;
-    let (rust_fps, carla_fps) = carla::camera_fps(args.frames, client, gateway, "depth")?;
+    let (rust_fps, carla_fps) =
+        carla::sensor_fps(args.frames, client, gateway, &carla::ListenCase::depth())?;
 
     let mut captures = Vec::new();
     let n = args.captures.to_string();

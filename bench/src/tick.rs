@@ -171,22 +171,36 @@ pub(crate) fn tcp_echo() -> anyhow::Result<()> {
 }
 
 /// The raw iceoryx2 baselines' other end (`iceoryx-spin`, `iceoryx-block`,
-/// `iceoryx-bus-block`): echoes every value until stopped.
+/// `iceoryx-bus-block`, and `iceoryx-spin-step`, which steps an empty
+/// rapier world before each answer): echoes every value until stopped.
 pub(crate) fn raw_peer(kind: &str, name: &str) -> anyhow::Result<()> {
     match kind {
-        "iceoryx-bus-block" => raw_echo(raw_ports::<Bus>(name, "pong", "ping")?, true),
+        "iceoryx-bus-block" => raw_echo(raw_ports::<Bus>(name, "pong", "ping")?, true, false),
         kind => raw_echo(
             raw_ports::<ipc::Service>(name, "pong", "ping")?,
             kind == "iceoryx-block",
+            kind == "iceoryx-spin-step",
         ),
     }
 }
 
-/// Echoes every value back until the other end stops.
-fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool) -> anyhow::Result<()> {
+/// Echoes every value back until the other end stops; with `step`, after
+/// a physics step of an empty world (what the server's frame costs rapier
+/// in the simbus rows: one 0.01 s substep).
+fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool, step: bool) -> anyhow::Result<()> {
+    use sim_server::{clock::SubstepPlan, world::World, Scene};
+    let mut world = World::new(&Scene::Empty.placements(0), 1);
+    let settings = shared_types::WorldSettings {
+        fixed_delta_seconds: Some(0.01),
+        ..Default::default()
+    };
+    let plan = SubstepPlan::new(10_000_000, &settings);
     println!("ready");
     loop {
         let value = ports.receive(block)?;
+        if step {
+            world.step(&plan);
+        }
         ports.send(value, block)?;
     }
 }
@@ -214,7 +228,7 @@ impl Row {
 /// `S`: iceoryx2's `ipc::Service` (its event a Unix datagram socket) or
 /// simbus's [`Bus`] (a futex); `kind` names the peer that runs the same.
 fn raw_row<S: Service + 'static>(name: &'static str, kind: &str) -> anyhow::Result<Row> {
-    let block = kind != "iceoryx-spin";
+    let block = !kind.starts_with("iceoryx-spin");
     let world = format!("bench-raw-{kind}-{}", std::process::id());
     let ports = raw_ports::<S>(&world, "ping", "pong")?;
     let (peer, _) = spawn_peer(kind, &world)?;
@@ -435,6 +449,7 @@ fn table(
 fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static str, Latencies)>> {
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
+        raw_row::<ipc::Service>("(a) raw iceoryx2 spin + rapier step", "iceoryx-spin-step")?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
         raw_row::<Bus>("(a) raw iceoryx2 futex event, block", "iceoryx-bus-block")?,
         futex_row()?,
@@ -477,8 +492,10 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         p50("(b) simbus, hybrid"),
         p50("(b) simbus, block"),
     );
+    let raw_step = p50("(a) raw iceoryx2 spin + rapier step");
     vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
+        ("b/a simbus all spin / raw + step", spin / raw_step),
         ("b/a simbus block / raw block", block / raw_block),
         ("b/f simbus block / futex floor", block / floor),
         ("b/f simbus hybrid / futex floor", hybrid / floor),

@@ -267,7 +267,7 @@ def test_a_gnss_reading_is_one_float64_record_of_the_place(client):
             assert record["longitude"][0] == pytest.approx(30.0 / 111274.955, abs=1e-7)
             assert record["altitude"][0] == pytest.approx(2.0, abs=1e-5)
             del record  # a view may not outlive the capture's loan
-    with pytest.raises(ValueError, match="unknown sensor kind 'sonar': expected 'depth'"):
+    with pytest.raises(ValueError, match="unknown sensor kind \"sonar\": expected 'depth'"):
         client.spawn_sensor("sonar")
 
 
@@ -289,7 +289,7 @@ def test_gnss_noise_repeats_with_its_seed_and_bad_noise_spawns_nothing(client):
                          ({"colour": 1.0}, "unknown noise setting 'colour'")]:
         with pytest.raises(ValueError, match=message):
             client.spawn_sensor("gnss", noise=bad)
-    with pytest.raises(ValueError, match="noise applies to gnss or radar sensors, not to depth"):
+    with pytest.raises(ValueError, match="noise applies to gnss, lidar or radar sensors, not to depth"):
         client.spawn_sensor("depth", noise={"seed": 1})
     assert len(client.list_sensors()) == spawned
 
@@ -505,6 +505,11 @@ def test_reads_time_out_and_closed_readers_refuse(client):
         ("radar", {"noise": {"seed": -1}}, "radar's fields of view"),
         ("radar", {"noise": {"lat_bias": 1}}, "unknown noise setting 'lat_bias' for a radar"),
         ("semantic_lidar", {"channels": 0}, "lidar channels"),
+        ("semantic_lidar", {"noise": {"seed": 1}}, "noise applies to gnss, lidar or radar sensors, not to semantic_lidar"),
+        ("lidar", {"noise": {"dropoff_general_rate": 2}}, "dropoff_general_rate"),
+        ("lidar", {"noise": {"stddev": -1}}, "noise_stddev"),
+        ("lidar", {"noise": {"seed": 0.5}}, "noise_seed"),
+        ("lidar", {"noise": {"colour": 1}}, "unknown noise setting 'colour' for a lidar"),
         ("semantic_lidar", {"range": 0}, "lidar range"),
         ("radar", {"channels": 4}, "channels applies to lidar or semantic_lidar sensors, not to radar"),
         ("depth", {"channels": 4}, "channels applies to lidar or semantic_lidar sensors, not to depth"),

@@ -20,7 +20,7 @@ from conftest import BIN, kill_all, wait_line, world_name
 DELTA_NS = 50_000_000
 FRAME_HEADER = 112
 ACTOR = 96
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 
 
 def free_port():

@@ -131,7 +131,7 @@ fn bad_noise_is_refused_before_anything_is_spawned() {
     out.assert_code(2);
     assert!(
         out.stderr
-            .contains("--noise-seed applies to gnss or radar sensors"),
+            .contains("--noise-seed applies to gnss, lidar or radar sensors"),
         "{out}"
     );
     assert!(client.list_sensors().unwrap().is_empty(), "nothing spawned");

@@ -171,6 +171,20 @@ const FLAGS: &[Flag] = &[
         &[],
         NONE,
     ),
+    client_flag(
+        &["sensor", "spawn", "lidar"],
+        "--dropoff",
+        "{},0,0",
+        &[],
+        ZERO,
+    ),
+    client_flag(
+        &["sensor", "spawn", "lidar"],
+        "--attenuation",
+        "{}",
+        &[],
+        ZERO,
+    ),
     client_flag(&["sensor", "spawn", "lidar"], "--points", "{}", &[], NONE),
     client_flag(
         &["sensor", "spawn", "lidar"],

@@ -121,20 +121,27 @@ struct CameraRows {
     rows: Vec<(&'static str, Latencies)>,
 }
 
+/// `frames` ticks of `ticker`, each timed: the row `label`.
+fn timed_ticks(
+    ticker: &mut Ticker,
+    frames: u64,
+    label: &'static str,
+) -> anyhow::Result<(&'static str, Latencies)> {
+    let timeout = Duration::from_secs(30);
+    let mut latencies = Latencies::new();
+    for _ in 0..frames {
+        let start = Instant::now();
+        ticker.tick(timeout)?;
+        latencies.record(start.elapsed().as_nanos() as u64);
+    }
+    Ok((label, latencies))
+}
+
 fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<CameraRows> {
     let server = BenchServer::start("sensor-cameras", &["--scene", scene])?;
     let client = Client::connect(&server.world, Duration::from_secs(10))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
-    let timeout = Duration::from_secs(30);
-    let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
-        let mut latencies = Latencies::new();
-        for _ in 0..args.frames {
-            let start = Instant::now();
-            ticker.tick(timeout)?;
-            latencies.record(start.elapsed().as_nanos() as u64);
-        }
-        Ok((label, latencies))
-    };
+    let mut frame_time = |label| timed_ticks(&mut ticker, args.frames, label);
     frame_time("warm-up")?;
     let mut rows = vec![frame_time("no sensors")?];
     // On a road of either scene, looking along it, 15 degrees down.
@@ -228,16 +235,7 @@ fn frame_times(
     client: &Client,
     ticker: &mut Ticker,
 ) -> anyhow::Result<Vec<(&'static str, Latencies)>> {
-    let timeout = Duration::from_secs(30);
-    let mut frame_time = |label: &'static str| -> anyhow::Result<(&'static str, Latencies)> {
-        let mut latencies = Latencies::new();
-        for _ in 0..args.frames {
-            let start = Instant::now();
-            ticker.tick(timeout)?;
-            latencies.record(start.elapsed().as_nanos() as u64);
-        }
-        Ok((label, latencies))
-    };
+    let mut frame_time = |label| timed_ticks(ticker, args.frames, label);
     // The first ticks pay for warming up (caches, the reader's port): not
     // a row.
     frame_time("warm-up")?;

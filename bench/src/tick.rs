@@ -449,7 +449,7 @@ fn table(
 fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static str, Latencies)>> {
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
-        raw_row::<ipc::Service>("(a) raw iceoryx2 spin + rapier step", "iceoryx-spin-step")?,
+        raw_row::<ipc::Service>("(a) raw iox2 spin + step", "iceoryx-spin-step")?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
         raw_row::<Bus>("(a) raw iceoryx2 futex event, block", "iceoryx-bus-block")?,
         futex_row()?,
@@ -492,7 +492,7 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         p50("(b) simbus, hybrid"),
         p50("(b) simbus, block"),
     );
-    let raw_step = p50("(a) raw iceoryx2 spin + rapier step");
+    let raw_step = p50("(a) raw iox2 spin + step");
     vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
         ("b/a simbus all spin / raw + step", spin / raw_step),

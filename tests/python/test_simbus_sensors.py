@@ -66,6 +66,26 @@ def drain_until_ended(sensor, reads=20):
     return ended.value
 
 
+def save_raw_while_ticking(world, sensor_id, out, ticker, each_frame):
+    """Runs `sim-client sensor save ID --raw` into `out` and ticks, calling
+    `each_frame(frame)` after every tick, until the CLI has subscribed,
+    taken a capture and written it; asserts it exited 0."""
+    save = subprocess.Popen(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "30",
+         "sensor", "save", str(sensor_id), "--raw", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        for _ in range(100_000):
+            if save.poll() is not None:
+                break
+            each_frame(ticker.tick())
+    finally:
+        save.kill()
+        stdout, stderr = save.communicate(timeout=10)
+    assert save.returncode == 0, stdout + stderr
+
+
 def recorded_captures(path, sensor_id):
     """{frame: (header fields, payload bytes)} of a sensor in a recording."""
     captures = {}
@@ -153,31 +173,19 @@ def test_camera_images_are_bgra_views_the_cli_saves_raw_and_the_recorder_keeps(w
                    for kind in ("rgb", "semantic", "instance")]
         rgb = cameras[0]
         sim_client(world, "recorder", "start", str(recording), "--sensors")
-        save = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "30",
-             "sensor", "save", str(rgb.id), "--raw", "--out", str(tmp_path)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )
-        try:
-            # Tick until the CLI has subscribed, taken a capture and written it.
-            for _ in range(100_000):
-                if save.poll() is not None:
-                    break
-                frame = ticker.tick()
-                for camera in cameras:
-                    with camera.read() as capture:
-                        assert capture.frame == frame
-                        array = capture.array
-                        assert array.dtype == np.uint8 and array.shape == (30, 40, 4)
-                        assert not array.flags.writeable
-                        assert (array[:, :, 3] == 255).all()
-                        mine[camera.kind, frame] = array.tobytes()
-                        del array
-        finally:
-            save.kill()
-            out, err = save.communicate(timeout=10)
+        def read_cameras(frame):
+            for camera in cameras:
+                with camera.read() as capture:
+                    assert capture.frame == frame
+                    array = capture.array
+                    assert array.dtype == np.uint8 and array.shape == (30, 40, 4)
+                    assert not array.flags.writeable
+                    assert (array[:, :, 3] == 255).all()
+                    mine[camera.kind, frame] = array.tobytes()
+                    del array
+
+        save_raw_while_ticking(world, rgb.id, tmp_path, ticker, read_cameras)
         sim_client(world, "recorder", "stop")
-    assert save.returncode == 0, out + err
     [raw] = tmp_path.glob(f"sensor{rgb.id}-frame*.raw")
     frame = int(raw.stem.rsplit("frame", 1)[1])
     assert raw.read_bytes() == mine["rgb", frame]
@@ -206,28 +214,17 @@ def test_semantic_lidar_and_radar_are_structured_views_the_cli_saves_raw_and_the
                                     points_per_second=2000, noise={"seed": 3})
         assert (lidar.kind, radar.kind) == ("semantic_lidar", "radar")
         sim_client(world, "recorder", "start", str(recording), "--sensors")
-        save = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "30",
-             "sensor", "save", str(lidar.id), "--raw", "--out", str(tmp_path)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )
-        try:
-            for _ in range(100_000):
-                if save.poll() is not None:
-                    break
-                frame = ticker.tick()
-                for sensor in (lidar, radar):
-                    with sensor.read() as capture:
-                        assert capture.frame == frame
-                        array = capture.array
-                        assert not array.flags.writeable and array.shape == (capture.count,)
-                        mine[sensor.kind, frame] = (array.tobytes(), array.copy())
-                        del array
-        finally:
-            save.kill()
-            out, err = save.communicate(timeout=10)
+        def read_both(frame):
+            for sensor in (lidar, radar):
+                with sensor.read() as capture:
+                    assert capture.frame == frame
+                    array = capture.array
+                    assert not array.flags.writeable and array.shape == (capture.count,)
+                    mine[sensor.kind, frame] = (array.tobytes(), array.copy())
+                    del array
+
+        save_raw_while_ticking(world, lidar.id, tmp_path, ticker, read_both)
         sim_client(world, "recorder", "stop")
-    assert save.returncode == 0, out + err
     [raw] = tmp_path.glob(f"sensor{lidar.id}-frame*.raw")
     frame = int(raw.stem.rsplit("frame", 1)[1])
     points_bytes, points = mine["semantic_lidar", frame]

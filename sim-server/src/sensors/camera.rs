@@ -144,10 +144,11 @@ fn daylight(sun: &Sun) -> f32 {
 
 /// The sky's colour along world direction `d`: a gradient from the
 /// horizon up.
-fn sky(d: Vector, sun: &Sun) -> [u8; 3] {
+/// `light` is the sun's [`daylight`] (worked out once per cast, not per
+/// pixel: it takes an arcsine).
+fn sky(d: Vector, light: f32) -> [u8; 3] {
     let (horizon, zenith) = ([206.0, 222.0, 236.0], [72.0, 124.0, 200.0]);
     let up = d.y.clamp(0.0, 1.0).sqrt();
-    let light = daylight(sun);
     std::array::from_fn(|i| ((horizon[i] + (zenith[i] - horizon[i]) * up) * light) as u8)
 }
 
@@ -194,7 +195,7 @@ pub(super) fn cast(
                 let Some((distance, target)) = culling::nearest_target(seen, direction, spec.far)
                 else {
                     if spec.lit {
-                        hit.colour = sky(direction, &sun);
+                        hit.colour = sky(direction, light);
                     }
                     continue;
                 };

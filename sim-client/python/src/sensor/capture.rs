@@ -17,128 +17,59 @@ use super::kind_name;
 use crate::errors::raise;
 use crate::loan::{bytes_of, give_back, structured_dtype, Lent, Loan};
 
-/// An IMU capture's dtype: the wire layout of [`ImuMeasurement`].
-fn imu_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                (
-                    "accelerometer",
-                    "(3,)<f4",
-                    offset_of!(ImuMeasurement, accelerometer),
-                ),
-                (
-                    "gyroscope",
-                    "(3,)<f4",
-                    offset_of!(ImuMeasurement, gyroscope),
-                ),
-            ];
-            structured_dtype(py, &fields, size_of::<ImuMeasurement>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+/// `fn $name(py)`: the numpy dtype of one `$record` (its wire layout:
+/// each field's name, numpy type and offset), made once per process.
+macro_rules! record_dtype {
+    ($(#[$doc:meta])* $name:ident: $record:ty { $($field:ident: $numpy:literal),* $(,)? }) => {
+        $(#[$doc])*
+        fn $name(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+            static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+            DTYPE
+                .get_or_try_init(py, || {
+                    let fields = [$((stringify!($field), $numpy, offset_of!($record, $field))),*];
+                    structured_dtype(py, &fields, size_of::<$record>()).map(Bound::unbind)
+                })
+                .map(|dtype| dtype.bind(py))
+        }
+    };
 }
 
-/// A GNSS capture's dtype: the wire layout of [`GnssMeasurement`].
-fn gnss_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                ("latitude", "<f8", offset_of!(GnssMeasurement, latitude)),
-                ("longitude", "<f8", offset_of!(GnssMeasurement, longitude)),
-                ("altitude", "<f8", offset_of!(GnssMeasurement, altitude)),
-            ];
-            structured_dtype(py, &fields, size_of::<GnssMeasurement>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+record_dtype! {
+    /// An IMU capture's dtype: the wire layout of [`ImuMeasurement`].
+    imu_dtype: ImuMeasurement { accelerometer: "(3,)<f4", gyroscope: "(3,)<f4" }
 }
 
-/// A collision capture's dtype: the wire layout of [`CollisionEvent`].
-fn collision_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                (
-                    "other_actor",
-                    "<u8",
-                    offset_of!(CollisionEvent, other_actor),
-                ),
-                (
-                    "normal_impulse",
-                    "(3,)<f4",
-                    offset_of!(CollisionEvent, normal_impulse),
-                ),
-            ];
-            structured_dtype(py, &fields, size_of::<CollisionEvent>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+record_dtype! {
+    /// A GNSS capture's dtype: the wire layout of [`GnssMeasurement`].
+    gnss_dtype: GnssMeasurement { latitude: "<f8", longitude: "<f8", altitude: "<f8" }
 }
 
-/// An obstacle capture's dtype: the wire layout of [`ObstacleDetection`].
-fn obstacle_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                (
-                    "other_actor",
-                    "<u8",
-                    offset_of!(ObstacleDetection, other_actor),
-                ),
-                ("distance", "<f4", offset_of!(ObstacleDetection, distance)),
-            ];
-            structured_dtype(py, &fields, size_of::<ObstacleDetection>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+record_dtype! {
+    /// A collision capture's dtype: the wire layout of [`CollisionEvent`].
+    collision_dtype: CollisionEvent { other_actor: "<u8", normal_impulse: "(3,)<f4" }
 }
 
-/// A semantic lidar capture's dtype: the wire layout of
-/// [`SemanticLidarPoint`] (CARLA's `SemanticLidarDetection`).
-fn semantic_lidar_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                ("x", "<f4", offset_of!(SemanticLidarPoint, x)),
-                ("y", "<f4", offset_of!(SemanticLidarPoint, y)),
-                ("z", "<f4", offset_of!(SemanticLidarPoint, z)),
-                (
-                    "cos_inc_angle",
-                    "<f4",
-                    offset_of!(SemanticLidarPoint, cos_inc_angle),
-                ),
-                (
-                    "object_idx",
-                    "<u4",
-                    offset_of!(SemanticLidarPoint, object_idx),
-                ),
-                (
-                    "object_tag",
-                    "<u4",
-                    offset_of!(SemanticLidarPoint, object_tag),
-                ),
-            ];
-            structured_dtype(py, &fields, size_of::<SemanticLidarPoint>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+record_dtype! {
+    /// An obstacle capture's dtype: the wire layout of [`ObstacleDetection`].
+    obstacle_dtype: ObstacleDetection { other_actor: "<u8", distance: "<f4" }
 }
 
-/// A radar capture's dtype: the wire layout of [`RadarDetection`].
-fn radar_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    DTYPE
-        .get_or_try_init(py, || {
-            let fields = [
-                ("velocity", "<f4", offset_of!(RadarDetection, velocity)),
-                ("azimuth", "<f4", offset_of!(RadarDetection, azimuth)),
-                ("altitude", "<f4", offset_of!(RadarDetection, altitude)),
-                ("depth", "<f4", offset_of!(RadarDetection, depth)),
-            ];
-            structured_dtype(py, &fields, size_of::<RadarDetection>()).map(Bound::unbind)
-        })
-        .map(|dtype| dtype.bind(py))
+record_dtype! {
+    /// A semantic lidar capture's dtype: the wire layout of
+    /// [`SemanticLidarPoint`] (CARLA's `SemanticLidarDetection`).
+    semantic_lidar_dtype: SemanticLidarPoint {
+        x: "<f4",
+        y: "<f4",
+        z: "<f4",
+        cos_inc_angle: "<f4",
+        object_idx: "<u4",
+        object_tag: "<u4",
+    }
+}
+
+record_dtype! {
+    /// A radar capture's dtype: the wire layout of [`RadarDetection`].
+    radar_dtype: RadarDetection { velocity: "<f4", azimuth: "<f4", altitude: "<f4", depth: "<f4" }
 }
 
 /// One capture: its header's values, and its data as a numpy array over

@@ -55,6 +55,7 @@ pub use gnss::{Gnss, GnssMeasurement};
 pub mod ranging;
 pub use ranging::{Radar, RadarDetection, SemanticLidarPoint};
 mod sensor;
+mod sensor_check;
 mod sensor_params;
 mod settings;
 mod settings_wire;
@@ -82,10 +83,11 @@ pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
 pub use names::{Doorbell, ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,
-    SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, SensorSpecError,
-    LEGACY_SENSOR_PARAMS, MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
+    SensorRequest, SensorRequestKind, SensorResponseHeader, SensorSpec, LEGACY_SENSOR_PARAMS,
+    MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS,
     MAX_SENSOR_TICK_SECONDS, SENSOR_PARAMS,
 };
+pub use sensor_check::SensorSpecError;
 pub use sensor_params::{Camera, Imu, Lidar, LidarNoise, SensorParams};
 pub use settings::{
     seconds_to_nanos, SettingsError, SettingsField, SettingsWarning, WorldSettings, LONG_FRAME_NS,

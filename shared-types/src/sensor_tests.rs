@@ -1,6 +1,7 @@
 //! The sensor wire types' rules: what a spec may be, and the kinds' names.
 
 use super::*;
+use crate::SensorSpecError;
 
 #[test]
 fn specs_are_checked() {

@@ -270,8 +270,8 @@ fn the_sensor_commands_spawn_list_watch_and_save_pictures() {
 
     for (args, message) in [
         (
-            &["sensor", "spawn", "radar"][..],
-            "unknown sensor kind 'radar'",
+            &["sensor", "spawn", "sonar"][..],
+            "unknown sensor kind 'sonar': expected depth, rgb, semantic, instance, lidar, semantic-lidar, radar",
         ),
         (
             &["sensor", "spawn", "depth", "--size", "0,10"][..],

@@ -7,13 +7,16 @@
 //! plane, and a ray is cast only against the shapes whose projection can
 //! hold it — with the same parry `Shape::cast_ray` the pipeline calls, the
 //! nearest hit kept, so the result is the pipeline's, bit for bit (the
-//! camera's and the lidar's tests hold it so).
+//! lidar's tests hold it so). The cameras meet boxes with the same slab
+//! test on rays added up per row (`slab`): the pipeline's surfaces, to
+//! within rounding (the camera's test holds it so).
 
 use std::ops::RangeInclusive;
 
 use rapier3d::prelude::{Aabb, Pose, Ray, RigidBodyHandle, Rotation, Shape, Vector};
 use shared_types::ActorKind;
 
+use super::slab::{self, Face, Grid, Slab};
 use crate::world::World;
 
 /// A pinhole view from the sensor's origin: a point `q` in the sensor frame
@@ -180,6 +183,26 @@ impl Target<'_> {
         Ray::new(self.origin, self.inverse * direction)
     }
 
+    /// Where the ray along unit `direction` (world frame) from the sensor
+    /// first meets this target within `max`: parry's solid cast.
+    pub(super) fn distance(&self, direction: Vector, max: f32) -> Option<f32> {
+        self.shape
+            .cast_local_ray(&self.local_ray(direction), max, true)
+    }
+
+    /// The slab test of this target for a camera rotated by `camera` with
+    /// focal length `focal`, if it is a box.
+    pub(super) fn slab(&self, camera: Rotation, focal: f32) -> Option<Slab> {
+        let cuboid = self.shape.as_cuboid()?;
+        let grid = Grid::new(self.inverse * camera, focal);
+        Some(Slab::new(cuboid.half_extents, self.origin, grid))
+    }
+
+    /// The unit normal (world frame) of a box target's `face`.
+    pub(super) fn face_normal(&self, face: Face) -> Vector {
+        self.inverse.inverse() * slab::normal(face)
+    }
+
     /// The outward unit normal (world frame) where the ray along
     /// `direction` meets this target at `distance`, or `None` if parry
     /// finds none there.
@@ -232,11 +255,7 @@ pub(super) fn nearest_target<'t, 'a: 't>(
     let mut nearest = far;
     let mut met = None;
     for target in targets {
-        if let Some(distance) =
-            target
-                .shape
-                .cast_local_ray(&target.local_ray(direction), nearest, true)
-        {
+        if let Some(distance) = target.distance(direction, nearest) {
             if distance < nearest || met.is_none() {
                 met = Some(target);
             }

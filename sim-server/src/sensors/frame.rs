@@ -116,11 +116,10 @@ impl Sensor {
             SensorPort::Depth(port) => unsafe {
                 let hits = casts.hits(world, shot.scene, &self.spec, pose, renderer);
                 let camera = self.spec.camera().expect("checked at spawn");
-                let intrinsics = camera::Intrinsics::of(&camera);
                 publish(port, header, record, |slots, header| {
                     header.count = slots.len() as u32;
                     let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
-                    renderer.run(|| camera::depth_from(hits, &intrinsics, camera.range, cast));
+                    renderer.run(|| camera::depth_from(hits, camera.range, cast));
                     rest.fill(MaybeUninit::new(camera.range));
                 })
             },

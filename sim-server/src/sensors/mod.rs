@@ -20,6 +20,7 @@ mod publish;
 mod radar;
 mod random;
 mod renderer;
+mod slab;
 
 use publish::send_end;
 

@@ -175,14 +175,19 @@ pub const REPORTED_PARTICIPANTS: usize = 8;
 /// One lockstep participant in a [`StatusReport`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ParticipantStatus/1")]
+#[type_name("simbus::ParticipantStatus/2")]
 pub struct ParticipantStatus {
     /// Its process (the joining port's).
     pub pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// Its window: how many frames the world may run ahead of its last
+    /// "done" (0: none, every frame waits for it).
+    pub window: u32,
     /// The last frame it reported done.
     pub done_frame: u64,
+    /// How many frames the world is ahead of its last "done" (the latest
+    /// published frame minus `done_frame`); [`ParticipantStatus::NOT_YET`]
+    /// before its first report in this episode.
+    pub lag: u64,
     /// How long after that frame's publication its "done" came: how long it
     /// made that frame's step wait at most. [`ParticipantStatus::NOT_YET`]
     /// before its first report (or when the report was for an older frame).
@@ -192,8 +197,15 @@ pub struct ParticipantStatus {
 }
 
 impl ParticipantStatus {
-    /// `done_after_ns` before a "done" for the current frame came.
+    /// `done_after_ns` before a "done" for the current frame came, and
+    /// `lag` before any "done" came.
     pub const NOT_YET: u64 = u64::MAX;
+
+    /// How many frames the world is ahead of its last "done", if it
+    /// reported one in this episode.
+    pub fn lag(&self) -> Option<u64> {
+        (self.lag != Self::NOT_YET).then_some(self.lag)
+    }
 
     /// How long it made its last frame wait, if it reported one.
     pub fn done_after(&self) -> Option<std::time::Duration> {
@@ -205,7 +217,7 @@ impl ParticipantStatus {
 /// The world's state as the server reports it.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::StatusReport/3")]
+#[type_name("simbus::StatusReport/4")]
 pub struct StatusReport {
     /// The latest published frame.
     pub frame: u64,
@@ -241,7 +253,7 @@ pub struct StatusReport {
 /// The server's answer to one [`ControlRequest`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlResponse/3")]
+#[type_name("simbus::ControlResponse/4")]
 pub struct ControlResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -312,9 +324,10 @@ mod tests {
     #[test]
     fn response_layout_is_fixed() {
         // The error fields at offset 16 as in ControlResponse/1; /3 adds the
-        // eight participant statuses (96 bytes each) at the report's end.
-        assert_eq!(std::mem::size_of::<ParticipantStatus>(), 96);
-        assert_eq!(std::mem::size_of::<ControlResponse>(), 288 + 8 * 96);
+        // eight participant statuses at the report's end (104 bytes each
+        // since /4: their window and lag).
+        assert_eq!(std::mem::size_of::<ParticipantStatus>(), 104);
+        assert_eq!(std::mem::size_of::<ControlResponse>(), 288 + 8 * 104);
         assert_eq!(std::mem::offset_of!(ControlResponse, settings_error), 16);
         assert_eq!(std::mem::offset_of!(ControlResponse, report), 48);
         assert_eq!(std::mem::offset_of!(StatusReport, lockstep), 240);

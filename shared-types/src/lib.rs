@@ -79,7 +79,7 @@ pub use control::{
     StatusReport, REPORTED_PARTICIPANTS,
 };
 pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
-pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse};
+pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse, MAX_LOCKSTEP_WINDOW};
 pub use names::{Doorbell, ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
     ImuMeasurement, LidarPoint, SensorEnd, SensorHeader, SensorInfo, SensorKind, SensorRefusal,

@@ -12,7 +12,8 @@ wire_enum! {
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]
     pub enum LockstepKind {
         /// Become a participant. The server then waits for its `Done` for the
-        /// current frame before stepping.
+        /// current frame before stepping (with a window of W frames: for the
+        /// frame W before the one it is to step past).
         Join = 1,
         /// Stop being a participant.
         Leave = 2,
@@ -24,7 +25,7 @@ wire_enum! {
 /// A request on the lockstep service.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::LockstepRequest/1")]
+#[type_name("simbus::LockstepRequest/2")]
 pub struct LockstepRequest {
     /// [`PROTOCOL_VERSION`] of the sender.
     pub protocol_version: u32,
@@ -33,8 +34,11 @@ pub struct LockstepRequest {
     /// The participant's process id, as it states it (the server watches
     /// the process of the sending port instead).
     pub pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// For `Join`: the participant's window, how many frames the world may
+    /// run ahead of its last `Done` — in synchronous mode the server steps
+    /// past frame N only when it is done with frame N − window. 0 (every
+    /// frame waits for it) up to [`MAX_LOCKSTEP_WINDOW`].
+    pub window: u32,
     /// For `Done`: the frame finished.
     pub frame: u64,
     /// For `Done`: the episode of that frame.
@@ -43,14 +47,17 @@ pub struct LockstepRequest {
     pub name: FixedText,
 }
 
+/// The largest lockstep window a participant may ask for, in frames.
+pub const MAX_LOCKSTEP_WINDOW: u32 = 1000;
+
 impl LockstepRequest {
-    /// A request of `kind` from this process.
+    /// A request of `kind` from this process (a window of 0).
     pub fn new(kind: LockstepKind, name: &str, episode: u64, frame: u64) -> Self {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
             pid: crate::this_process_id(),
-            reserved: 0,
+            window: 0,
             frame,
             episode,
             name: FixedText::new(name),

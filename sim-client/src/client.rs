@@ -436,7 +436,26 @@ impl Client {
     /// Joins the world's lockstep as `name`: in synchronous mode the server
     /// then waits for this participant's [`Participant::done`] every frame.
     pub fn join_lockstep(&self, name: &str) -> Result<Participant, RequestError> {
-        Participant::join(&self.world, self.server_pid, name, self.request_timeout)
+        self.join_lockstep_with_window(name, 0)
+    }
+
+    /// Joins the world's lockstep as `name` with a window of `window`
+    /// frames (CARLA's per-participant synchronous windows): in synchronous
+    /// mode the server steps past frame N only when this participant is
+    /// done with frame N − `window`, so it may fall up to `window` frames
+    /// behind without holding the ticker. 0 is [`Client::join_lockstep`];
+    /// at most [`shared_types::MAX_LOCKSTEP_WINDOW`].
+    pub fn join_lockstep_with_window(
+        &self,
+        name: &str,
+        window: u32,
+    ) -> Result<Participant, RequestError> {
+        Participant::join_with_window(
+            &self.world,
+            self.server_pid,
+            (name, window),
+            self.request_timeout,
+        )
     }
 
     /// The batch port, opened on first use.

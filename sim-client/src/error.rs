@@ -115,6 +115,14 @@ pub enum RequestError {
         /// The status, as a [`shared_types::ResponseStatus`] code.
         status: u32,
     },
+    /// A lockstep window larger than a participant may ask for.
+    #[error("a lockstep window of {window} frames is more than the {max} a participant may ask for; nothing was joined")]
+    WindowTooLarge {
+        /// The window asked for.
+        window: u32,
+        /// [`shared_types::MAX_LOCKSTEP_WINDOW`].
+        max: u32,
+    },
     /// This lockstep participant was dropped by the server.
     #[error("dropped from the lockstep of world '{world}': the server no longer waits for this participant (it kept a tick waiting past the server's --lockstep-timeout, or left); frames went on without it")]
     NotParticipant {

@@ -8,6 +8,7 @@ use std::cell::RefCell;
 use iceoryx2::prelude::*;
 use shared_types::{
     LockstepKind, LockstepRequest, LockstepResponse, ResponseStatus, ServiceNames, WorldName,
+    MAX_LOCKSTEP_WINDOW,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -21,8 +22,12 @@ type PendingDone = Pending<LockstepRequest, LockstepResponse>;
 
 /// Membership in a world's lockstep: in synchronous mode the server steps
 /// frame N+1 only when the tick has arrived **and** every participant has
-/// called [`Participant::done`] for frame N. A participant that dies is
-/// dropped by the server. Dropping the handle leaves.
+/// called [`Participant::done`] for frame N — or, for a participant that
+/// joined with a window of W frames ([`Client::join_lockstep_with_window`]),
+/// for frame N − W. A participant that dies is dropped by the server.
+/// Dropping the handle leaves.
+///
+/// [`Client::join_lockstep_with_window`]: crate::Client::join_lockstep_with_window
 ///
 /// ```no_run
 /// use std::time::Duration;
@@ -56,6 +61,7 @@ pub struct Participant {
     name: String,
     server_pid: u32,
     joined: (u64, u64),
+    window: u32,
     /// The answer to the last `done`, read at the next one: a participant
     /// the server dropped learns it there.
     last_done: RefCell<Option<PendingDone>>,
@@ -64,12 +70,19 @@ pub struct Participant {
 }
 
 impl Participant {
-    pub(crate) fn join(
+    /// Joins `world`'s lockstep as `name` with a window of `window` frames.
+    pub(crate) fn join_with_window(
         world: &WorldName,
         server_pid: u32,
-        name: &str,
+        (name, window): (&str, u32),
         timeout: Duration,
     ) -> Result<Self, RequestError> {
+        if window > MAX_LOCKSTEP_WINDOW {
+            return Err(RequestError::WindowTooLarge {
+                window,
+                max: MAX_LOCKSTEP_WINDOW,
+            });
+        }
         let names = ServiceNames::new(world);
         // Named after the participant, so node lists (`top`) say who it is
         // (plain "lockstep" for a name iceoryx2 cannot take).
@@ -106,13 +119,25 @@ impl Participant {
             name: name.to_owned(),
             server_pid,
             joined: (0, 0),
+            window,
             last_done: RefCell::new(None),
             _node: node,
         };
         let response = participant.request(LockstepKind::Join, 0, 0, timeout)?;
         participant.joined = (response.episode, response.frame);
-        info!(world = %participant.world, frame = response.frame, "joined the lockstep");
+        info!(
+            world = %participant.world,
+            frame = response.frame,
+            window,
+            "joined the lockstep"
+        );
         Ok(participant)
+    }
+
+    /// How many frames the world may run ahead of this participant's last
+    /// [`Participant::done`].
+    pub fn window(&self) -> u32 {
+        self.window
     }
 
     /// The (episode, frame) current when this participant joined: the first
@@ -170,8 +195,15 @@ impl Participant {
         episode: u64,
         frame: u64,
     ) -> Result<PendingDone, RequestError> {
-        self.port
-            .send(LockstepRequest::new(kind, &self.name, episode, frame))
+        self.port.send(self.message(kind, episode, frame))
+    }
+
+    /// A request of `kind` from this participant.
+    fn message(&self, kind: LockstepKind, episode: u64, frame: u64) -> LockstepRequest {
+        LockstepRequest {
+            window: self.window,
+            ..LockstepRequest::new(kind, &self.name, episode, frame)
+        }
     }
 
     /// Sends a request and waits up to `timeout` for its answer.
@@ -182,11 +214,15 @@ impl Participant {
         frame: u64,
         timeout: Duration,
     ) -> Result<LockstepResponse, RequestError> {
-        let response = self.port.request(
-            LockstepRequest::new(kind, &self.name, episode, frame),
-            timeout,
-            Wait::Backoff,
-        )?;
+        let response =
+            self.port
+                .request(self.message(kind, episode, frame), timeout, Wait::Backoff)?;
+        if response.status == ResponseStatus::Refused as u32 {
+            return Err(RequestError::WindowTooLarge {
+                window: self.window,
+                max: MAX_LOCKSTEP_WINDOW,
+            });
+        }
         if response.status != ResponseStatus::Ok as u32 {
             return Err(RequestError::UnknownAnswer {
                 status: response.status,
@@ -213,6 +249,7 @@ impl std::fmt::Debug for Participant {
             .field("name", &self.name)
             .field("server_pid", &self.server_pid)
             .field("joined", &self.joined)
+            .field("window", &self.window)
             .finish_non_exhaustive()
     }
 }

@@ -57,8 +57,15 @@ pub struct ParticipantStatus {
     pub name: String,
     /// Its process.
     pub pid: u32,
+    /// Its window: how many frames the world may run ahead of its last
+    /// "done" (0: every frame waits for it).
+    pub window: u32,
     /// The last frame it reported done.
     pub done_frame: u64,
+    /// How many frames the world is ahead of its last "done" (`None`
+    /// before its first report in this episode). A participant holds the
+    /// ticker when its lag would pass its window.
+    pub lag: Option<u64>,
     /// How long after that frame's publication its "done" came (how long
     /// it made that frame's step wait at most); `None` before its first
     /// report, or when the report was for an older frame.
@@ -93,7 +100,9 @@ impl From<&StatusReport> for Status {
                 .map(|p| ParticipantStatus {
                     name: p.name.to_string_lossy(),
                     pid: p.pid,
+                    window: p.window,
                     done_frame: p.done_frame,
+                    lag: p.lag(),
                     done_after: p.done_after(),
                 })
                 .collect(),

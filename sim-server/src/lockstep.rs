@@ -10,7 +10,7 @@ use iceoryx2::port::server::Server as RequestServer;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     FixedText, LockstepKind, LockstepRequest, LockstepResponse, ParticipantStatus, ResponseStatus,
-    PROTOCOL_VERSION, REPORTED_PARTICIPANTS,
+    MAX_LOCKSTEP_WINDOW, PROTOCOL_VERSION, REPORTED_PARTICIPANTS,
 };
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
@@ -67,7 +67,8 @@ impl Lockstep {
         self.participants.is_empty()
     }
 
-    /// Whether every participant is done with `frame` (the world may step).
+    /// Whether every participant is done far enough for the world to step
+    /// past `frame`: with frame `frame − window` (each its own window).
     pub(crate) fn all_done(&self, frame: u64) -> bool {
         self.participants.all_done(frame)
     }
@@ -94,10 +95,19 @@ impl Lockstep {
                 ResponseStatus::ProtocolMismatch
             } else {
                 match LockstepKind::from_u32(payload.kind) {
+                    Some(LockstepKind::Join) if payload.window > MAX_LOCKSTEP_WINDOW => {
+                        info!(
+                            pid,
+                            window = payload.window,
+                            "lockstep join refused: window too large"
+                        );
+                        ResponseStatus::Refused
+                    }
                     Some(LockstepKind::Join) => {
                         let name = payload.name.to_string_lossy();
-                        info!(pid, %name, frame = clock.frame(), "lockstep participant joined");
-                        self.participants.join(origin, pid, name);
+                        let (window, frame) = (payload.window, clock.frame());
+                        info!(pid, %name, frame, window, "lockstep participant joined");
+                        self.participants.join(origin, pid, name, window, frame);
                         ResponseStatus::Ok
                     }
                     Some(LockstepKind::Leave) => {
@@ -183,14 +193,18 @@ impl Lockstep {
         self.told = false;
     }
 
-    /// The first participants as the status report describes them.
-    pub(crate) fn statuses(&self) -> [ParticipantStatus; REPORTED_PARTICIPANTS] {
+    /// The first participants as the status report describes them, at
+    /// `frame` (the latest published).
+    pub(crate) fn statuses(&self, frame: u64) -> [ParticipantStatus; REPORTED_PARTICIPANTS] {
         let mut statuses = [ParticipantStatus::zeroed(); REPORTED_PARTICIPANTS];
         for (status, p) in statuses.iter_mut().zip(&self.participants.list) {
             *status = ParticipantStatus {
                 pid: p.pid,
-                reserved: 0,
+                window: p.window as u32,
                 done_frame: p.done.unwrap_or(0),
+                lag: p
+                    .done
+                    .map_or(ParticipantStatus::NOT_YET, |d| frame.saturating_sub(d)),
                 done_after_ns: p.done_after.map_or(ParticipantStatus::NOT_YET, |d| {
                     u64::try_from(d.as_nanos()).unwrap_or(u64::MAX - 1)
                 }),
@@ -227,11 +241,69 @@ pub(crate) struct Participant {
     pub pid: u32,
     /// Its name, for logs.
     pub name: String,
+    /// How many frames the world may run ahead of its last "done".
+    pub window: u64,
+    /// The frame current when it joined (0 from a new episode on): it is
+    /// done with every frame before it.
+    pub joined_at: u64,
     /// The last frame of the current episode it is done with.
     pub done: Option<u64>,
     /// How long after its frame's publication that "done" came, when it
     /// was for the frame then current.
     pub done_after: Option<Duration>,
+}
+
+impl Participant {
+    /// Whether the world may step past `frame` as far as this participant
+    /// goes (see [`lets_step_past`]).
+    fn lets_step_past(&self, frame: u64) -> bool {
+        lets_step_past(self.window, self.joined_at, self.done, frame)
+    }
+}
+
+/// Whether a participant with `window` that joined at frame `joined_at`
+/// and is `done` with that frame lets the world step past `frame`: it is
+/// done with frame `frame − window` (every frame before the one it joined
+/// at counts as done; with no such frame to be done with, it lets it).
+fn lets_step_past(window: u64, joined_at: u64, done: Option<u64>, frame: u64) -> bool {
+    let Some(needed) = frame.checked_sub(window) else {
+        return true;
+    };
+    let finished = done.or(joined_at.checked_sub(1));
+    finished.is_some_and(|f| f >= needed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lets_step_past;
+
+    #[test]
+    fn without_a_window_every_frame_waits_for_its_done() {
+        // Joined at 7: the step past 7 waits for done(7), and so on.
+        assert!(!lets_step_past(0, 7, None, 7));
+        assert!(lets_step_past(0, 7, Some(7), 7));
+        assert!(!lets_step_past(0, 7, Some(7), 8));
+        // A new episode: joined at 0, nothing done yet.
+        assert!(!lets_step_past(0, 0, None, 0));
+        assert!(lets_step_past(0, 0, Some(0), 0));
+    }
+
+    #[test]
+    fn a_window_of_three_lets_the_world_run_three_frames_past_its_last_done() {
+        // Done with 10: steps past 10, 11, 12 and 13 need nothing more; the
+        // step past 14 needs done(11).
+        for frame in 10..=13 {
+            assert!(lets_step_past(3, 5, Some(10), frame), "{frame}");
+        }
+        assert!(!lets_step_past(3, 5, Some(10), 14));
+        assert!(lets_step_past(3, 5, Some(11), 14));
+        // Joined at 20 with nothing done: done with 19 by joining.
+        assert!(lets_step_past(3, 20, None, 22));
+        assert!(!lets_step_past(3, 20, None, 23));
+        // From a new episode's frame 0: frames 0..=2 need nothing.
+        assert!(lets_step_past(3, 0, None, 2));
+        assert!(!lets_step_past(3, 0, None, 3));
+    }
 }
 
 /// Every participant of a world.
@@ -251,14 +323,24 @@ impl Participants {
         self.list.is_empty()
     }
 
-    /// Adds `client`; it must report done for the current frame before the
-    /// next step. Joining twice changes nothing.
-    pub(crate) fn join(&mut self, client: UniqueClientId, pid: u32, name: String) {
+    /// Adds `client` at `frame` with `window`: it must report done for
+    /// frame N − window before the world steps past N. Joining twice
+    /// changes nothing.
+    pub(crate) fn join(
+        &mut self,
+        client: UniqueClientId,
+        pid: u32,
+        name: String,
+        window: u32,
+        frame: u64,
+    ) {
         if !self.list.iter().any(|p| p.client == client) {
             self.list.push(Participant {
                 client,
                 pid,
                 name,
+                window: u64::from(window),
+                joined_at: frame,
                 done: None,
                 done_after: None,
             });
@@ -294,29 +376,27 @@ impl Participants {
         }
     }
 
-    /// Whether every participant is done with `frame`.
+    /// Whether every participant lets the world step past `frame`.
     pub(crate) fn all_done(&self, frame: u64) -> bool {
-        self.list.iter().all(|p| p.done.is_some_and(|d| d >= frame))
+        self.list.iter().all(|p| p.lets_step_past(frame))
     }
 
-    /// The first participant not yet done with `frame`.
+    /// The first participant that holds the world at `frame`.
     pub(crate) fn first_not_done(&self, frame: u64) -> Option<&Participant> {
-        self.list.iter().find(|p| p.done.is_none_or(|d| d < frame))
+        self.list.iter().find(|p| !p.lets_step_past(frame))
     }
 
     /// A new episode starts at frame 0: everyone must report it anew.
     pub(crate) fn new_episode(&mut self) {
         for p in &mut self.list {
             p.done = None;
+            p.joined_at = 0;
         }
     }
 
-    /// Removes and returns the participants not yet done with `frame`.
+    /// Removes and returns the participants that hold the world at `frame`.
     pub(crate) fn drop_not_done(&mut self, frame: u64) -> Vec<Participant> {
-        let (late, done) = self
-            .list
-            .drain(..)
-            .partition(|p| p.done.is_none_or(|d| d < frame));
+        let (late, done) = self.list.drain(..).partition(|p| !p.lets_step_past(frame));
         self.list = done;
         late
     }

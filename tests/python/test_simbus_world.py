@@ -209,6 +209,26 @@ def test_a_participant_holds_the_tick_until_it_is_done(server):
     assert not participant.active
 
 
+def test_a_participant_with_a_window_lets_the_world_run_that_far_ahead(server):
+    # Synchronous from the start: no frame before the ticker's first tick.
+    s = server("--sync", "--delta-seconds", "0.05", "--lockstep-timeout", "60")
+    client = s.client()
+    with pytest.raises(ValueError, match="more than the 1000"):
+        client.participant("py-greedy", window=1001)
+    assert client.status().participants == 0
+    with client.participant("py-windowed", window=2) as participant:
+        wait_for_participants(client, 1)
+        joined = client.status().frame
+        with client.ticker(delta_seconds=0.05) as ticker:
+            # Silent since it joined: two steps need nothing of it; the one
+            # past joined + 2 needs its done with `joined`.
+            assert ticker.tick(timeout=30) == joined + 1
+            assert ticker.tick(timeout=30) == joined + 2
+            participant.done(joined)
+            assert ticker.tick(timeout=30) == joined + 3
+        assert not any("a tick waits" in line for line in s.lines), "".join(s.lines)
+
+
 def test_a_participant_that_is_never_done_is_dropped_and_told(server):
     s = server("--lockstep-timeout", "1")
     client = s.client()

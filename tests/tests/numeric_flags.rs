@@ -98,6 +98,7 @@ const FLAGS: &[Flag] = &[
     client_flag(&[], "--timeout", "{}", &["status"], NONE),
     // watch, top, foxglove, bridge
     client_flag(&["watch"], "--frames", "{}", &[], NONE),
+    client_flag(&["watch", "--lockstep"], "--window", "{}", &[], ZERO),
     client_flag(&["top"], "--interval", "{}", &[], NONE),
     client_flag(&["foxglove"], "--port", "{}", &[], ZERO),
     client_flag(&["foxglove"], "--max-hz", "{}", &[], ZERO),

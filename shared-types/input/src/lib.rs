@@ -24,7 +24,8 @@ use std::ops::RangeInclusive;
 use std::time::Duration;
 
 use shared_types::limits::{
-    MAX_ACTOR_POSITION, MAX_MAX_CLIENTS, MAX_MAX_SENSOR_READERS, MAX_WAIT_SECONDS,
+    FRAME_SUBSCRIBER_BUFFER, MAX_ACTOR_POSITION, MAX_MAX_CLIENTS, MAX_MAX_SENSOR_READERS,
+    MAX_WAIT_SECONDS,
 };
 use shared_types::{
     WorldSettings, MAX_DELTA_SECONDS, MAX_KEYFRAME_SECONDS, MAX_SENSOR_TICK_SECONDS,
@@ -293,6 +294,13 @@ pub fn keyframe_seconds(text: &str) -> Result<f64, InputError> {
 /// `--captures`, `--every`: 0 would mean nothing).
 pub fn count(text: &str) -> Result<u64, InputError> {
     whole_in(text, 1..=u64::MAX)
+}
+
+/// `watch --window`: how many frames a lockstep watcher that prints every
+/// frame may fall behind, `0..=15`: its frame queue holds
+/// [`FRAME_SUBSCRIBER_BUFFER`] frames, the one it reads and 15 more.
+pub fn watch_window(text: &str) -> Result<u32, InputError> {
+    whole_in(text, 0..=FRAME_SUBSCRIBER_BUFFER as u64 - 1).map(|n| n as u32)
 }
 
 /// `--max-clients`: `1..=`[`MAX_MAX_CLIENTS`].

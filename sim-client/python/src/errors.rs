@@ -54,10 +54,13 @@ fn request_kind(error: &RequestError) -> &'static str {
 /// A request error as its exception; an interrupted wait raises what the
 /// signal handler raised (`KeyboardInterrupt`).
 pub(crate) fn request(error: RequestError) -> PyErr {
-    if let RequestError::Interrupted { .. } = error {
-        return interrupted();
+    match error {
+        RequestError::Interrupted { .. } => interrupted(),
+        RequestError::WindowTooLarge { .. } => {
+            pyo3::exceptions::PyValueError::new_err(message(&error))
+        }
+        _ => raise(request_kind(&error), message(&error)),
     }
-    raise(request_kind(&error), message(&error))
 }
 
 fn interrupted() -> PyErr {

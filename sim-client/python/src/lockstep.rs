@@ -131,10 +131,17 @@ impl Participant {
 #[pymethods]
 impl Client {
     /// Joins the world's lockstep as `name`: in synchronous mode the server
-    /// then waits for this participant's `done(frame)` every frame. Use it
-    /// as a context manager (leaving the block leaves the lockstep).
-    fn participant(&self, py: Python<'_>, name: &str) -> PyResult<Participant> {
-        let inner = detached(py, &self.inner, |c| c.join_lockstep(name)).map_err(request)?;
+    /// then waits for this participant's `done(frame)` every frame — with
+    /// `window=W`, for its `done` of the frame W before (CARLA's
+    /// per-participant windows: it may fall W frames behind without
+    /// holding the ticker). Use it as a context manager (leaving the block
+    /// leaves the lockstep).
+    #[pyo3(signature = (name, *, window = 0))]
+    fn participant(&self, py: Python<'_>, name: &str, window: u32) -> PyResult<Participant> {
+        let inner = detached(py, &self.inner, |c| {
+            c.join_lockstep_with_window(name, window)
+        })
+        .map_err(request)?;
         Ok(Participant {
             episode: inner.joined_at().0,
             inner: Some(inner),

@@ -31,7 +31,7 @@ impl Domains {
             max_clients: self.config.limits.max_clients as u32,
             max_sensor_readers: self.config.limits.max_sensor_readers as u32,
             reserved: 0,
-            lockstep: self.lockstep.statuses(),
+            lockstep: self.lockstep.statuses(self.clock.frame()),
         }
     }
 

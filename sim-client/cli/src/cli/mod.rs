@@ -195,6 +195,43 @@ pub(crate) fn numbers<const N: usize>(text: &str, flag: &str) -> Result<[f32; N]
     })
 }
 
+/// A lockstep participant as `status` and `top` print it: its window,
+/// how far behind the world it is, and how long it made its last frame
+/// wait.
+pub(crate) fn participant_line(p: &sim_client::ParticipantStatus) -> String {
+    let behind = match p.lag {
+        None => "no report in this episode yet".to_owned(),
+        Some(0) => format!("done with frame {}, the latest", p.done_frame),
+        Some(lag) => format!(
+            "done with frame {}, {} behind",
+            p.done_frame,
+            words::count(lag, "frame")
+        ),
+    };
+    let wait = p.done_after.map_or_else(String::new, |d| {
+        format!(" ({:.0} µs after it was published)", d.as_secs_f64() * 1e6)
+    });
+    format!(
+        "{} (pid {}): window {}, {behind}{wait}",
+        p.name, p.pid, p.window
+    )
+}
+
+/// A lockstep participant as `status --json` and `top --json` print it.
+pub(crate) fn participant_json(p: &sim_client::ParticipantStatus) -> serde_json::Value {
+    serde_json::json!({
+        "name": p.name,
+        "pid": p.pid,
+        "window": p.window,
+        "done_frame": p.done_frame,
+        // Frames the world is ahead of its last "done" (null: none yet).
+        "lag": p.lag,
+        // How long after that frame's publication its "done" came (µs):
+        // how long it made that step wait at most.
+        "done_after_us": p.done_after.map(|d| d.as_secs_f64() * 1e6),
+    })
+}
+
 /// The settings as the JSON object `status` and `config --json` print.
 pub(crate) fn settings_json(settings: &WorldSettings) -> serde_json::Value {
     serde_json::json!({

@@ -52,6 +52,9 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         "lockstep  {}",
         super::words::count(report.participants, "participant")
     );
+    for p in &report.lockstep {
+        println!("          {}", super::participant_line(p));
+    }
     if report.seed != 0 {
         println!("seed      {}", report.seed);
     }
@@ -75,6 +78,7 @@ pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Val
         "actors": report.actor_count,
         "server_pid": report.server_pid,
         "participants": report.participants,
+        "lockstep": report.lockstep.iter().map(super::participant_json).collect::<Vec<_>>(),
         "seed": report.seed,
         "ticker": report.ticker.as_ref().map(|t| serde_json::json!({
             "node": t.node_name,

@@ -42,18 +42,6 @@ struct SensorLine {
     readers: Vec<String>,
 }
 
-/// One lockstep participant's line.
-#[derive(Debug, Serialize)]
-struct ParticipantLine {
-    name: String,
-    pid: u32,
-    /// The last frame it reported done.
-    done_frame: u64,
-    /// How long after that frame's publication its "done" came (µs): how
-    /// long it made that step wait at most.
-    done_after_us: Option<f64>,
-}
-
 /// One refresh.
 #[derive(Debug, Serialize)]
 struct Screen {
@@ -70,13 +58,15 @@ struct Screen {
     ticker: Option<serde_json::Value>,
     /// Participants in all (the server describes the first eight).
     participant_count: u32,
-    participants: Vec<ParticipantLine>,
+    participants: Vec<serde_json::Value>,
     clients: Vec<Holder>,
     sensors: Vec<SensorLine>,
     shared_memory: SharedMemory,
     /// For the text screen.
     #[serde(skip)]
     world_settings: WorldSettings,
+    #[serde(skip)]
+    lockstep: Vec<sim_client::ParticipantStatus>,
     #[serde(skip)]
     ticker_line: String,
 }
@@ -146,7 +136,7 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
             serde_json::json!({"node": t.node_name, "pid": t.pid, "since_frame": t.since_frame})
         }),
         participant_count: report.participants,
-        participants: participant_lines(&report),
+        participants: report.lockstep.iter().map(super::participant_json).collect(),
         clients: clients
             .into_iter()
             .filter(|h| h.pid != report.server_pid)
@@ -154,6 +144,7 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
         sensors,
         shared_memory,
         world_settings: settings,
+        lockstep: report.lockstep.clone(),
         ticker_line: report
             .ticker
             .as_ref()
@@ -189,20 +180,6 @@ fn sensor_lines(
                 .get(&info.id)
                 .map_or(0.0, |&c| info.captures.saturating_sub(c) as f64 / wall),
             readers: holding(&format!("sensor/{}", info.id)),
-        })
-        .collect()
-}
-
-/// Each lockstep participant the server describes.
-fn participant_lines(report: &sim_client::Status) -> Vec<ParticipantLine> {
-    report
-        .lockstep
-        .iter()
-        .map(|p| ParticipantLine {
-            name: p.name.clone(),
-            pid: p.pid,
-            done_frame: p.done_frame,
-            done_after_us: p.done_after.map(|d| d.as_secs_f64() * 1e6),
         })
         .collect()
 }
@@ -256,12 +233,8 @@ fn render(screen: &Screen) -> String {
         "lockstep  {}",
         super::words::count(screen.participant_count, "participant")
     );
-    for p in &screen.participants {
-        let wait = p.done_after_us.map_or_else(
-            || "no report for the current frame yet".to_owned(),
-            |us| format!("done {us:.0} µs after frame {} was published", p.done_frame),
-        );
-        let _ = writeln!(out, "          {} (pid {}): {wait}", p.name, p.pid);
+    for p in &screen.lockstep {
+        let _ = writeln!(out, "          {}", super::participant_line(p));
     }
     let _ = writeln!(
         out,

@@ -44,6 +44,14 @@ pub(crate) struct WatchArgs {
     /// reading for longer than --lockstep-timeout) it says so and exits 1.
     #[arg(long)]
     lockstep: bool,
+
+    /// With --lockstep, a window of N frames (CARLA's per-participant
+    /// synchronous windows): the server may run up to N frames ahead of this
+    /// watcher before it holds the ticker, so a watcher that stalls for
+    /// fewer frames never slows the world; it still sees every frame
+    /// (0..=15: its frame queue holds 16). 0, the default, waits every frame.
+    #[arg(long, value_name = "N", requires = "lockstep", allow_negative_numbers = true, value_parser = simbus_input::watch_window)]
+    window: Option<u32>,
 }
 
 /// The JSON object of one frame.
@@ -119,7 +127,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     client.set_wait_mode(args.wait_mode);
     client.set_every_frame(args.every_frame);
     let participant = if args.lockstep {
-        Some(client.join_lockstep("watch")?)
+        Some(client.join_lockstep_with_window("watch", args.window.unwrap_or(0))?)
     } else {
         None
     };

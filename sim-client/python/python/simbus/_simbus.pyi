@@ -254,9 +254,11 @@ class Client:
         """Opens a reader of an existing sensor."""
     def list_sensors(self) -> List[SensorInfo]: ...
     def destroy_sensor(self, id: int) -> None: ...
-    def participant(self, name: str) -> Participant:
+    def participant(self, name: str, *, window: int = 0) -> Participant:
         """Joins the lockstep: in synchronous mode no frame is computed
-        before this participant says it is done with the previous one."""
+        before this participant says it is done with the previous one (with
+        `window=W`, with the frame W before: it may fall W frames behind
+        without holding the ticker; at most 1000)."""
     def start_recorder(self, path: Union[str, PathLike], *, sensors: bool = False) -> str:
         """Starts recording to an MCAP file; returns its absolute path."""
     def stop_recorder(self) -> RecorderStatus: ...

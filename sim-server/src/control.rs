@@ -14,7 +14,7 @@ use shared_types::{
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
-use crate::ports::Transport;
+use crate::ports::{sender_pid, Transport};
 use crate::{Scene, ServerError};
 
 /// Below this, waits are plain sleeps (event timeouts are this coarse).
@@ -152,7 +152,10 @@ impl Control {
             .receive()
             .map_err(|e| ServerError::transport("control receive", e))?
         {
-            let response = answer(decode(request.payload()));
+            // Who asks is the sending port's process as iceoryx2 recorded
+            // it, never the pid the request claims: a reset while a ticker
+            // holds the world is the ticker's alone.
+            let response = answer(decode(request.payload(), sender_pid(request.header())));
             if let Err(e) = request.send_copy(response) {
                 debug!("control response not delivered (client gone?): {e:?}");
             }
@@ -192,10 +195,12 @@ pub(crate) enum ControlCall {
     },
 }
 
-fn decode(request: &ControlRequest) -> ControlCall {
+/// `request` from process `pid` (the transport's word for it, not the
+/// request's `client_pid`, which is only logged).
+fn decode(request: &ControlRequest, pid: u32) -> ControlCall {
     if request.protocol_version != PROTOCOL_VERSION {
         warn!(
-            client_pid = request.client_pid,
+            client_pid = pid,
             client_version = request.protocol_version,
             "refused a request: protocol version {} is not the server's {PROTOCOL_VERSION}",
             request.protocol_version
@@ -204,18 +209,22 @@ fn decode(request: &ControlRequest) -> ControlCall {
     }
     match RequestKind::from_u32(request.kind) {
         Some(RequestKind::Hello) => {
-            debug!(client_pid = request.client_pid, "client connected");
+            debug!(
+                client_pid = pid,
+                claimed_pid = request.client_pid,
+                "client connected"
+            );
             ControlCall::Status
         }
         Some(RequestKind::GetSettings | RequestKind::Status) => ControlCall::Status,
         Some(RequestKind::ApplySettings) => match request.settings.settings() {
             Ok(settings) => ControlCall::ApplySettings {
                 settings: settings.normalized(),
-                pid: request.client_pid,
+                pid,
                 name: request.client_name,
             },
             Err(error) => {
-                info!(client_pid = request.client_pid, "refused settings: {error}");
+                info!(client_pid = pid, "refused settings: {error}");
                 ControlCall::RefuseSettings(error)
             }
         },
@@ -224,7 +233,7 @@ fn decode(request: &ControlRequest) -> ControlCall {
                 RequestKind::LoadWorld => match request.scene.to_string_lossy().parse() {
                     Ok(scene) => Some(scene),
                     Err(e) => {
-                        info!(client_pid = request.client_pid, "refused to load: {e}");
+                        info!(client_pid = pid, "refused to load: {e}");
                         return ControlCall::Refuse(ResponseStatus::UnknownScene);
                     }
                 },
@@ -233,7 +242,7 @@ fn decode(request: &ControlRequest) -> ControlCall {
             ControlCall::Load {
                 scene,
                 reset: request.flags & ControlRequest::RESET_SETTINGS != 0,
-                pid: request.client_pid,
+                pid,
             }
         }
         None => ControlCall::Refuse(ResponseStatus::UnknownRequest),

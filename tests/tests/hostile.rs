@@ -8,7 +8,8 @@
 //!   the garbage, and both publish the same digest frame after frame;
 //! - a ticking batch whose header names the ticker's pid, sent by another
 //!   process, is refused: ticking is authorised by the sending port's
-//!   process, not by what a client writes;
+//!   process, not by what a client writes; so is a settings reset whose
+//!   request names the ticker's pid;
 //! - a request with another protocol version is answered `ProtocolMismatch`
 //!   with the server's version;
 //! - a flood of requests leaves the server answering and a watcher of the
@@ -255,6 +256,35 @@ fn a_ticking_batch_is_authorised_by_its_port_not_by_the_pid_it_claims() {
         snapshot.find(2).is_some(),
         "actor 2 was destroyed by a refused batch"
     );
+    drop(ticker);
+}
+
+/// A settings reset while a ticker holds the world is the ticker's alone:
+/// a reload with `RESET_SETTINGS` from another process that writes the
+/// ticker's pid as its own is refused, and the world keeps its episode and
+/// its settings. (Before, the server took the pid the request wrote.)
+#[test]
+fn a_reset_is_authorised_by_its_port_not_by_the_pid_it_claims() {
+    let world = TestWorld::start("forged-reset", &["--scene", "default"]);
+    let ticker = world.spawn_cli(&["tick", "--json", "--rate", "20", "--delta-seconds", "0.02"]);
+    ticker.line(Duration::from_secs(20)).expect("a first tick");
+    let raw = RawPorts::open(&world);
+    let before = raw.control(ControlRequest::new(RequestKind::Status)).report;
+    let forged = ControlRequest {
+        client_pid: ticker.pid(),
+        flags: ControlRequest::RESET_SETTINGS,
+        ..ControlRequest::new(RequestKind::ReloadWorld)
+    };
+    let answer = raw.control(forged);
+    assert_eq!(
+        ResponseStatus::from_u32(answer.status),
+        Some(ResponseStatus::NotTicker),
+        "a reset from a process that is not the ticker was accepted"
+    );
+    let after = raw.control(ControlRequest::new(RequestKind::Status)).report;
+    assert_eq!(after.episode, before.episode, "the world was reloaded");
+    assert_eq!(after.settings, before.settings, "the settings were reset");
+    assert_eq!(after.settings.synchronous_mode, 1, "{after:?}");
     drop(ticker);
 }
 

@@ -17,7 +17,7 @@ use simbus_transport::Bus;
 use tracing::{debug, warn};
 
 use super::Refused;
-use crate::ports::Transport;
+use crate::ports::{sender_pid, Transport};
 use crate::replayer::ReplayRequest;
 use crate::ServerError;
 
@@ -92,7 +92,8 @@ impl RecorderPort {
             .map_err(|e| ServerError::transport("recorder receive", e))?
         {
             let payload = *request.payload();
-            match answer(decode(&payload), payload.client_pid) {
+            // Logged by the sending port's process, not the pid it claims.
+            match answer(decode(&payload), sender_pid(request.header())) {
                 Some(response) => respond(&request, response),
                 None => self.waiting = Some(request),
             }

@@ -10,6 +10,8 @@
 //!   process, is refused: ticking is authorised by the sending port's
 //!   process, not by what a client writes; so is a settings reset whose
 //!   request names the ticker's pid;
+//! - a participant and a ticker that write a living process's pid as their
+//!   own are dropped and freed when they die (`simbus-forger`);
 //! - a request with another protocol version is answered `ProtocolMismatch`
 //!   with the server's version;
 //! - a flood of requests leaves the server answering and a watcher of the
@@ -25,7 +27,7 @@ use shared_types::{
     WorldSettings, PROTOCOL_VERSION,
 };
 use simbus_tests::raw::RawPorts;
-use simbus_tests::{sync_world, TestWorld};
+use simbus_tests::{sync_world, Proc, TestWorld};
 
 /// Requests that must all be refused: out-of-range kinds, another protocol
 /// version, settings that break a rule, an unknown scene.
@@ -286,6 +288,56 @@ fn a_reset_is_authorised_by_its_port_not_by_the_pid_it_claims() {
     assert_eq!(after.settings, before.settings, "the settings were reset");
     assert_eq!(after.settings.synchronous_mode, 1, "{after:?}");
     drop(ticker);
+}
+
+/// A participant and a ticker that write another living process's pid
+/// (this test's) as their own: the server records the forger's process,
+/// so status names the forger, and its SIGKILL ends its membership and its
+/// ownership however long the process it named lives.
+#[test]
+fn a_forged_pid_keeps_neither_a_dead_participant_nor_a_dead_ticker() {
+    let world = TestWorld::start("forged-liveness", &["--sync", "--delta-seconds", "0.02"]);
+    let client = world.connect();
+    let me = std::process::id().to_string();
+    let forger = |mode| Proc::spawn("simbus-forger", &[world.name(), &me, mode]);
+
+    let mut participant = forger("participant");
+    let joined = participant.line(Duration::from_secs(20)).expect("joined");
+    assert_eq!(joined, format!("joined {}", ResponseStatus::Ok as u32));
+    let status = client.status().unwrap();
+    assert_eq!(
+        status.lockstep[0].pid,
+        participant.pid(),
+        "the port's process"
+    );
+    participant.guard.kill().unwrap();
+    wait_until(
+        || client.status().unwrap().participants == 0,
+        "participant dropped",
+    );
+
+    let mut ticker = forger("ticker");
+    let claimed = ticker.line(Duration::from_secs(20)).expect("claimed");
+    assert_eq!(claimed, format!("claimed {}", ResponseStatus::Ok as u32));
+    let owner = client.status().unwrap().ticker.expect("an owner");
+    assert_eq!(owner.pid, ticker.pid(), "the port's process, not {me}");
+    ticker.guard.kill().unwrap();
+    wait_until(
+        || client.status().unwrap().ticker.is_none(),
+        "ownership freed",
+    );
+    let mut mine = client.claim_ticker().expect("the world is free again");
+    mine.tick(Duration::from_secs(10)).expect("and ticks");
+}
+
+/// Waits (at most 20 s) until `done` holds; each check is a status round
+/// trip (a death has no event of its own here).
+fn wait_until(mut done: impl FnMut() -> bool, what: &str) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while !done() {
+        assert!(std::time::Instant::now() < deadline, "never: {what}");
+        std::thread::yield_now();
+    }
 }
 
 #[test]

@@ -224,8 +224,11 @@ def test_a_participant_with_a_window_lets_the_world_run_that_far_ahead(server):
             # past joined + 2 needs its done with `joined`.
             assert ticker.tick(timeout=30) == joined + 1
             assert ticker.tick(timeout=30) == joined + 2
+            (windowed,) = client.status().lockstep
+            assert (windowed.name, windowed.window, windowed.lag) == ("py-windowed", 2, None)
             participant.done(joined)
             assert ticker.tick(timeout=30) == joined + 3
+            assert client.status().lockstep[0].lag == 3  # done with `joined`
         assert not any("a tick waits" in line for line in s.lines), "".join(s.lines)
 
 

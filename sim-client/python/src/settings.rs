@@ -120,6 +120,33 @@ impl TickerInfo {
     }
 }
 
+/// One lockstep participant in a [`Status`].
+#[pyclass(module = "simbus", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub(crate) struct ParticipantStatus {
+    /// Its name.
+    name: String,
+    /// Its process (the joining port's).
+    pid: u32,
+    /// How many frames the world may run ahead of its last `done`.
+    window: u32,
+    /// The last frame it reported done.
+    done_frame: u64,
+    /// How many frames the world is ahead of that (`None` before its first
+    /// report in this episode).
+    lag: Option<u64>,
+}
+
+#[pymethods]
+impl ParticipantStatus {
+    fn __repr__(&self) -> String {
+        format!(
+            "ParticipantStatus(name={:?}, pid={}, window={}, done_frame={}, lag={:?})",
+            self.name, self.pid, self.window, self.done_frame, self.lag
+        )
+    }
+}
+
 /// The world's state when the server answered.
 #[pyclass(module = "simbus", frozen, get_all)]
 #[derive(Debug)]
@@ -146,6 +173,8 @@ pub(crate) struct Status {
     seed: u64,
     /// Lockstep participants the server waits for.
     participants: u32,
+    /// The first eight of them, in joining order.
+    lockstep: Vec<ParticipantStatus>,
 }
 
 impl From<sim_client::Status> for Status {
@@ -166,6 +195,17 @@ impl From<sim_client::Status> for Status {
             }),
             seed: s.seed,
             participants: s.participants,
+            lockstep: s
+                .lockstep
+                .into_iter()
+                .map(|p| ParticipantStatus {
+                    name: p.name,
+                    pid: p.pid,
+                    window: p.window,
+                    done_frame: p.done_frame,
+                    lag: p.lag,
+                })
+                .collect(),
         }
     }
 }

@@ -50,6 +50,22 @@ class TickerInfo:
     @property
     def since_frame(self) -> int: ...
 
+class ParticipantStatus:
+    """One lockstep participant, as the server reports it."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def pid(self) -> int: ...
+    @property
+    def window(self) -> int: ...
+    @property
+    def done_frame(self) -> int: ...
+    @property
+    def lag(self) -> Optional[int]:
+        """Frames the world is ahead of its last `done` (None before its
+        first report in this episode)."""
+
 class Status:
     """The world's state when the server answered."""
 
@@ -75,6 +91,9 @@ class Status:
     def seed(self) -> int: ...
     @property
     def participants(self) -> int: ...
+    @property
+    def lockstep(self) -> List[ParticipantStatus]:
+        """The first eight participants, in joining order."""
 
 class Loan:
     """A sample the server lent: the base object of arrays over shared memory."""

@@ -8,7 +8,6 @@ use shared_types::Command;
 use crate::blueprints::Description;
 use crate::convert;
 use crate::error::CallError;
-use crate::sensors;
 use crate::stream::ActorInfo;
 use crate::wire::{CarlaTransform, CarlaVehicleControl};
 
@@ -81,7 +80,7 @@ impl Op {
     /// The simbus command doing `self` to CARLA actor `id`, whose last
     /// state is `last` (for the parts a CARLA command leaves as they are).
     pub(crate) fn command(self, id: u32, last: Option<&ActorInfo>) -> Result<Command, CallError> {
-        if sensors::is_sensor(id) && self != Op::Destroy {
+        if crate::wire::is_sensor(id) && self != Op::Destroy {
             return Err(CallError::IsASensor(id));
         }
         let actor = u64::from(id);

@@ -17,7 +17,7 @@ use crate::error::{CallError, Source};
 use crate::locks::lock;
 use crate::session::record_of;
 use crate::stream::Hub;
-use crate::wire::{self as carla, CLIENT_SIDE_SENSOR_BASE, SENSOR_ID_BASE};
+use crate::wire as carla;
 
 /// A forwarder's wait for a capture while no token is pending: none in
 /// effect (it ends with a capture, the sensor, the server or its
@@ -28,31 +28,6 @@ const NO_DEADLINE: Duration = Duration::from_secs(24 * 60 * 60);
 /// first (see [`Hub::after_world_state`]); past it, it goes anyway (the
 /// world stream lags, or lost its server).
 const WORLD_STATE_FIRST: Duration = Duration::from_millis(200);
-
-/// The CARLA actor id (and stream id) of simbus sensor `id`.
-pub(crate) fn carla_id(simbus_id: u64) -> Option<u32> {
-    u32::try_from(simbus_id)
-        .ok()
-        .and_then(|n| n.checked_add(SENSOR_ID_BASE))
-}
-
-/// The simbus sensor behind CARLA actor `id`, if it names one.
-pub(crate) fn simbus_id(id: u32) -> Option<u64> {
-    id.checked_sub(SENSOR_ID_BASE)
-        .filter(|&n| n > 0 && id < CLIENT_SIDE_SENSOR_BASE)
-        .map(u64::from)
-}
-
-/// Whether CARLA actor `id` names a sensor: simbus's, or one CARLA's
-/// client computes itself.
-pub(crate) fn is_sensor(id: u32) -> bool {
-    id > SENSOR_ID_BASE
-}
-
-/// The CARLA actor id of the `n`th client-side sensor (from 0), if in range.
-pub(crate) fn client_side_id(n: u32) -> Option<u32> {
-    CLIENT_SIDE_SENSOR_BASE.checked_add(n)
-}
 
 /// A client will connect to sensor stream `stream` (it asked for its
 /// token): make sure a forwarder feeds it, subscribed before this returns,
@@ -392,24 +367,4 @@ fn gnss(out: &mut Vec<u8>, capture: &Capture) -> Option<()> {
         Value::F64(g.altitude),
     ]);
     rmpv::encode::write_value(out, &payload).ok()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sensor_ids_map_both_ways_and_stay_apart_from_actors() {
-        assert_eq!(carla_id(3), Some(SENSOR_ID_BASE + 3));
-        assert_eq!(simbus_id(SENSOR_ID_BASE + 3), Some(3));
-        assert_eq!(simbus_id(42), None);
-        assert_eq!(simbus_id(SENSOR_ID_BASE), None);
-        assert_eq!(carla_id(u64::MAX), None);
-        // Client-side sensors are sensors, but no simbus sensor is behind them.
-        let lane_invasion = client_side_id(0).unwrap();
-        assert!(is_sensor(lane_invasion) && is_sensor(SENSOR_ID_BASE + 3));
-        assert!(!is_sensor(42) && !is_sensor(SENSOR_ID_BASE));
-        assert_eq!(simbus_id(lane_invasion), None);
-        assert_eq!(client_side_id(u32::MAX), None);
-    }
 }

@@ -91,7 +91,7 @@ pub(crate) struct Registry {
     pub(crate) descriptions: HashMap<u32, Value>,
     pub(crate) sensors: HashMap<u32, SensorEntry>,
     pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
-    /// Client-side sensors numbered so far ([`crate::sensors::client_side_id`]).
+    /// Client-side sensors numbered so far ([`crate::wire::client_side_id`]).
     pub(crate) client_side: u32,
 }
 

@@ -74,6 +74,31 @@ pub fn world_stream_after(previous: u32) -> u32 {
 /// itself (the lane-invasion sensor): the gateway numbers them, simbus has
 /// no sensor behind them.
 pub const CLIENT_SIDE_SENSOR_BASE: u32 = 3_000_000_000;
+
+/// The CARLA actor id (and stream id) of simbus sensor `id`.
+pub fn carla_id(simbus_id: u64) -> Option<u32> {
+    u32::try_from(simbus_id)
+        .ok()
+        .and_then(|n| n.checked_add(SENSOR_ID_BASE))
+}
+
+/// The simbus sensor behind CARLA actor `id`, if it names one.
+pub fn simbus_id(id: u32) -> Option<u64> {
+    id.checked_sub(SENSOR_ID_BASE)
+        .filter(|&n| n > 0 && id < CLIENT_SIDE_SENSOR_BASE)
+        .map(u64::from)
+}
+
+/// Whether CARLA actor `id` names a sensor: simbus's, or one CARLA's
+/// client computes itself.
+pub fn is_sensor(id: u32) -> bool {
+    id > SENSOR_ID_BASE
+}
+
+/// The CARLA actor id of the `n`th client-side sensor (from 0), if in range.
+pub fn client_side_id(n: u32) -> Option<u32> {
+    CLIENT_SIDE_SENSOR_BASE.checked_add(n)
+}
 /// The CARLA actor id of the world's spectator: `SENSOR_ID_BASE` itself,
 /// sensor 0, which simbus never numbers (its sensors count from 1), and
 /// above every simbus actor id CARLA can name.
@@ -286,6 +311,21 @@ pub const CLEAR_NOON: Weather = [
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sensor_ids_map_both_ways_and_stay_apart_from_actors() {
+        assert_eq!(carla_id(3), Some(SENSOR_ID_BASE + 3));
+        assert_eq!(simbus_id(SENSOR_ID_BASE + 3), Some(3));
+        assert_eq!(simbus_id(42), None);
+        assert_eq!(simbus_id(SENSOR_ID_BASE), None);
+        assert_eq!(carla_id(u64::MAX), None);
+        // Client-side sensors are sensors, but no simbus sensor is behind them.
+        let lane_invasion = client_side_id(0).unwrap();
+        assert!(is_sensor(lane_invasion) && is_sensor(SENSOR_ID_BASE + 3));
+        assert!(!is_sensor(42) && !is_sensor(SENSOR_ID_BASE));
+        assert_eq!(simbus_id(lane_invasion), None);
+        assert_eq!(client_side_id(u32::MAX), None);
+    }
 
     #[test]
     fn a_dying_actor_is_pending_kill_an_alive_one_active() {

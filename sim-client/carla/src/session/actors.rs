@@ -12,7 +12,6 @@ use crate::commands::{self, BatchCommand, Op};
 use crate::error::CallError;
 use crate::locks::lock;
 use crate::rpc::Answer;
-use crate::sensors;
 use crate::stream::SensorEntry;
 use crate::wire::{token, CarlaTransform, SPECTATOR_ID};
 
@@ -243,7 +242,7 @@ impl Session {
         parent: Option<u32>,
     ) -> Result<u32, CallError> {
         let parent = parent.unwrap_or(0);
-        if sensors::is_sensor(parent) {
+        if crate::wire::is_sensor(parent) {
             return Err(CallError::SensorOnSensor(parent));
         }
         let spec = spec.attached_to(u64::from(parent));
@@ -251,7 +250,7 @@ impl Session {
             .client()?
             .create_sensor(spec)
             .map_err(CallError::simbus)?;
-        let id = sensors::carla_id(info.id).ok_or(CallError::SensorIdRange(info.id))?;
+        let id = crate::wire::carla_id(info.id).ok_or(CallError::SensorIdRange(info.id))?;
         lock(&self.hub.registry).sensors.insert(
             id,
             SensorEntry::new(info.id, spec, description.record(), parent),
@@ -269,7 +268,7 @@ impl Session {
         parent: Option<u32>,
     ) -> Result<u32, CallError> {
         let parent = parent.unwrap_or(0);
-        if sensors::is_sensor(parent) {
+        if crate::wire::is_sensor(parent) {
             return Err(CallError::SensorOnSensor(parent));
         }
         // simbus checks a simbus sensor's parent; this one is the gateway's.
@@ -283,7 +282,7 @@ impl Session {
             ..shared_types::SensorSpec::default()
         };
         let mut registry = lock(&self.hub.registry);
-        let id = sensors::client_side_id(registry.client_side)
+        let id = crate::wire::client_side_id(registry.client_side)
             .ok_or(CallError::SensorIdRange(u64::from(registry.client_side)))?;
         registry.client_side += 1;
         registry
@@ -354,7 +353,7 @@ impl Session {
                 },
                 Ok(BatchCommand::Autopilot(id)) => self.autopilot_target(id),
                 Ok(BatchCommand::Actor(SPECTATOR_ID, op)) => self.move_spectator(op),
-                Ok(BatchCommand::Actor(id, Op::Destroy)) if sensors::is_sensor(id) => {
+                Ok(BatchCommand::Actor(id, Op::Destroy)) if crate::wire::is_sensor(id) => {
                     self.destroy_sensor(id)
                 }
                 Ok(BatchCommand::Actor(id, op)) => {
@@ -454,7 +453,7 @@ impl Session {
             return Ok(id);
         }
         drop(registry);
-        let simbus_id = sensors::simbus_id(id).ok_or(CallError::NotASensor(id))?;
+        let simbus_id = crate::wire::simbus_id(id).ok_or(CallError::NotASensor(id))?;
         self.client()?
             .destroy_sensor(simbus_id)
             .map_err(CallError::simbus)?;

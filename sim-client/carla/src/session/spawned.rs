@@ -56,7 +56,7 @@ impl Session {
     pub(super) fn show_spawned(&mut self, spawned: &[u32]) {
         let bodies: Vec<u64> = spawned
             .iter()
-            .filter(|&&id| !crate::sensors::is_sensor(id))
+            .filter(|&&id| !crate::wire::is_sensor(id))
             .map(|&id| u64::from(id))
             .collect();
         if bodies.is_empty() || self.ticker.is_some() {

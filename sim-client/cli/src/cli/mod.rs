@@ -54,6 +54,7 @@ pub(crate) mod output;
 pub(crate) mod pictures;
 pub(crate) mod recorder;
 pub(crate) mod sensor;
+mod sensor_capture;
 mod sensor_save;
 mod sensor_text;
 pub(crate) mod stall;

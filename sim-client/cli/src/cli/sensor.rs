@@ -5,9 +5,10 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use shared_types::{Camera, SensorKind, SensorParams, SensorSpec, SensorSpecError, WorldName};
-use sim_client::{Capture, Client, Sensor, SensorError, WaitError};
+use sim_client::Client;
 use simbus_input as input;
 
+use super::sensor_capture::{failure, next_capture};
 use super::sensor_text::print_capture;
 use super::words::count;
 use crate::Failure;
@@ -170,13 +171,6 @@ struct WatchArgs {
     /// reader every frame, so it never misses a capture however slow it is.
     #[arg(long)]
     lockstep: bool,
-}
-
-pub(super) fn failure(e: SensorError) -> Failure {
-    match e {
-        SensorError::Refused(_) | SensorError::UnknownSensor { .. } => Failure::Refused(e.into()),
-        e => Failure::Runtime(e.into()),
-    }
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
@@ -516,12 +510,4 @@ fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure
         seen += 1;
     }
     Ok(())
-}
-
-/// The next capture within `timeout`; `None` when interrupted.
-pub(super) fn next_capture(
-    sensor: &mut Sensor,
-    timeout: Duration,
-) -> Result<Option<Capture>, WaitError> {
-    super::in_slices(timeout, |slice| sensor.recv(slice))
 }

@@ -8,7 +8,7 @@ use shared_types::SensorKind;
 use sim_client::Client;
 use simbus_input as input;
 
-use super::sensor::{failure, next_capture};
+use super::sensor_capture::{failure, next_capture};
 use super::sensor_text::{capture_json, gnss_text, imu_text};
 use super::words::count;
 use crate::Failure;

@@ -3,7 +3,8 @@
 //! In one run, on one machine, each between two processes:
 //! (a) raw iceoryx2 ping-pong (u64 there, u64 back) — the floor;
 //! (b) simbus: `Ticker::tick` sent → that frame's snapshot received, on an
-//!     empty scene, spinning and blocking;
+//!     empty scene, spinning and blocking; and spinning with the tick
+//!     answered by its frame (`Ticker::tick_and_read`: one message each way);
 //! (c) the same exchange (an 8-byte tick, a frame header back) over TCP
 //!     loopback, the transport CARLA uses.
 
@@ -315,6 +316,40 @@ fn simbus_row(name: &'static str, server: &[&str], mode: WaitMode) -> anyhow::Re
     })
 }
 
+/// The spinning simbus row with the tick answered by its frame
+/// ([`sim_client::Ticker::tick_and_read`]): one message each way.
+fn simbus_by_frame_row(name: &'static str) -> anyhow::Result<Row> {
+    let server_args = [
+        "--scene",
+        "empty",
+        "--fixed-delta-seconds",
+        "0.01",
+        "--wait-mode",
+        "spin",
+    ];
+    let server = BenchServer::start("tick-by-frame", &server_args)?;
+    let (mut client, mut ticker) = crate::support::ticking_client(&server.world, WaitMode::Spin)?;
+    let timeout = Duration::from_secs(10);
+    let mut last: Option<u64> = None;
+    Ok(Row {
+        name,
+        peers: vec![server.pid()],
+        _guards: Vec::new(),
+        _server: Some(server),
+        round_trip: Box::new(move || {
+            let snapshot = ticker.tick_and_read(&mut client, timeout)?;
+            anyhow::ensure!(
+                last.is_none_or(|last| snapshot.frame() == last + 1),
+                "frame {} after frame {last:?}",
+                snapshot.frame()
+            );
+            last = Some(snapshot.frame());
+            Ok(())
+        }),
+        latencies: Latencies::new(),
+    })
+}
+
 /// The two hops of a tick round trip, from the frame's platform timestamp
 /// (taken as the server publishes it).
 fn hops(mode: WaitMode, n: u64, machine: &str) -> anyhow::Result<()> {
@@ -458,6 +493,7 @@ fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static st
             &["--wait-mode", "spin"],
             WaitMode::Spin,
         )?,
+        simbus_by_frame_row("(b) simbus, spin, by frame")?,
         simbus_row("(b) simbus, hybrid", &[], WaitMode::Hybrid)?,
         simbus_row(
             "(b) simbus, block",
@@ -496,6 +532,10 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
     vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
         ("b/a simbus all spin / raw + step", spin / raw_step),
+        (
+            "b/a spin by frame / raw spin",
+            p50("(b) simbus, spin, by frame") / raw_spin,
+        ),
         ("b/a simbus block / raw block", block / raw_block),
         ("b/f simbus block / futex floor", block / floor),
         ("b/f simbus hybrid / futex floor", hybrid / floor),

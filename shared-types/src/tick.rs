@@ -94,7 +94,7 @@ pub struct TickRequest {
     /// Process id of the ticker, as it states it (ownership is given to
     /// the process of the sending port instead).
     pub pid: u32,
-    /// [`TickRequest::ON_BEHALF`], or zero.
+    /// [`TickRequest::ON_BEHALF`], [`TickRequest::BY_FRAME`], or zero.
     pub flags: u32,
     /// Settings for [`TickRequestKind::ApplySettings`].
     pub settings: WireSettings,
@@ -107,6 +107,13 @@ impl TickRequest {
     /// and `node_name`. The bridge's own process holds the ownership (its
     /// death ends it); the world reports the remote ticker as the owner.
     pub const ON_BEHALF: u32 = 1;
+    /// Flag on a tick: answered by its frame alone. Once the frame is
+    /// published in synchronous mode the server sends this tick no answer;
+    /// the ticker reads the frame itself (one wait, on the frame, and one
+    /// message less each way). A refusal, a revocation, a held-up notice
+    /// and a tick of an asynchronous world (whose frames come whatever
+    /// ticks) are still answered.
+    pub const BY_FRAME: u32 = 2;
 
     /// A request of `kind` from this process.
     pub fn new(kind: TickRequestKind, node_name: &str) -> Self {

@@ -323,6 +323,9 @@ pub enum TickError {
     /// The request failed (timeout, server gone, protocol).
     #[error(transparent)]
     Request(#[from] RequestError),
+    /// Reading the ticked frame failed ([`crate::Ticker::tick_and_read`]).
+    #[error(transparent)]
+    Frame(#[from] WaitError),
 }
 
 impl TickError {

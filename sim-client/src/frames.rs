@@ -132,6 +132,50 @@ impl FrameStream {
         }
     }
 
+    /// Hands out and drops every frame queued now, so that the next one
+    /// handed out is published later (the frame of a tick sent after this).
+    pub(crate) fn skip_queued(&mut self) -> Result<(), WaitError> {
+        while self.try_next()?.is_some() {}
+        Ok(())
+    }
+
+    /// The next snapshot already queued (in asynchronous mode the newest),
+    /// without waiting.
+    pub(crate) fn try_next(&mut self) -> Result<Option<FrameView>, WaitError> {
+        Poller {
+            subscriber: &self.subscriber,
+            stash: &mut self.stash,
+            last: &mut self.last,
+            every_frame: self.every_frame,
+        }
+        .next()
+    }
+
+    /// Waits until `deadline` for the next snapshot or for `other` to give
+    /// something, whichever comes first (a frame, when both have), as the
+    /// stream's wait mode says: for a wait whose end the server announces
+    /// on the frame-ready event either way.
+    pub(crate) fn next_or<T, E: From<WaitError>>(
+        &mut self,
+        deadline: Instant,
+        server_pid: u32,
+        mut other: impl FnMut() -> Result<Option<T>, E>,
+    ) -> Result<FrameOr<T>, Stop<E>> {
+        let wait = Wait::for_mode(self.mode, &self.ready);
+        let mut poll = Poller {
+            subscriber: &self.subscriber,
+            stash: &mut self.stash,
+            last: &mut self.last,
+            every_frame: self.every_frame,
+        };
+        wait::until(deadline, server_pid, wait, || {
+            if let Some(frame) = poll.next()? {
+                return Ok(Some(FrameOr::Frame(frame)));
+            }
+            Ok(other()?.map(FrameOr::Other))
+        })
+    }
+
     /// Waits up to `timeout` for the next snapshot. With a `server_pid`,
     /// a dead server ends the wait with [`WaitError::ServerGone`].
     pub(crate) fn next(
@@ -168,6 +212,14 @@ impl FrameStream {
             },
         )
     }
+}
+
+/// What ended a [`FrameStream::next_or`] wait.
+pub(crate) enum FrameOr<T> {
+    /// The next frame.
+    Frame(FrameView),
+    /// What the other source gave.
+    Other(T),
 }
 
 /// The parts of a [`FrameStream`] that taking the next frame changes, apart

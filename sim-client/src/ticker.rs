@@ -240,12 +240,7 @@ impl Ticker {
                 {
                     Err(RequestError::Timeout { .. }) if waiting_for.is_some() => {
                         let participant = waiting_for.unwrap_or_else(TickerInfo::none);
-                        return Err(TickError::HeldUp {
-                            world: self.world.to_string(),
-                            participant: participant.node_name.to_string_lossy(),
-                            pid: participant.pid,
-                            waited: started.elapsed(),
-                        });
+                        return Err(self.held_up(participant, started));
                     }
                     Err(RequestError::Timeout { world, .. }) => {
                         return Err(RequestError::Timeout { world, timeout }.into())
@@ -253,19 +248,8 @@ impl Ticker {
                     other => other?,
                 };
             if response.status == ResponseStatus::WaitingForParticipants as u32 {
-                let participant = response.waiting_for;
-                let patience = Duration::from_nanos(response.lockstep_timeout_ns)
-                    .saturating_add(PARTICIPANT_DROP_MARGIN);
-                warn!(
-                    world = %self.world,
-                    frame = participant.since_frame,
-                    "the tick waits for lockstep participant {} (pid {}); the server drops it after {:?}",
-                    participant.node_name.to_string_lossy(),
-                    participant.pid,
-                    Duration::from_nanos(response.lockstep_timeout_ns),
-                );
-                deadline = deadline.max(Instant::now() + patience);
-                waiting_for = Some(participant);
+                deadline = deadline.max(self.told_held_up(&response));
+                waiting_for = Some(response.waiting_for);
                 continue;
             }
             let response = self.expect_ok(response)?;
@@ -273,6 +257,131 @@ impl Ticker {
             stamps::stamp_wake(Stage::ClientWake, response.frame);
             self.last = Some((response.frame, response.elapsed_ns));
             return Ok(response.frame);
+        }
+    }
+
+    /// Asks for the next frame and returns it, read in place from
+    /// `client`'s subscription: in synchronous mode, one wait, on the frame
+    /// itself. The server sends this tick no answer once its frame is
+    /// published ([`TickRequest::BY_FRAME`]), so a round trip is one
+    /// message each way where [`Ticker::tick`] and a read take two; a
+    /// refusal, a revocation and a lockstep participant holding the tick
+    /// are answered and end or stretch the wait as for [`Ticker::tick`]. In
+    /// asynchronous mode, whose frames come whatever ticks, it waits for
+    /// the answer and returns the newest frame then. Frames `client` had
+    /// queued before the tick are skipped (its next frame after this one
+    /// counts none missed). Waits as `client`'s wait mode says.
+    pub fn tick_and_read(
+        &mut self,
+        client: &mut crate::Client,
+        timeout: Duration,
+    ) -> Result<crate::FrameView, TickError> {
+        use crate::frames::FrameOr;
+        use crate::wait::Stop;
+        let started = Instant::now();
+        client.frames.skip_queued()?;
+        let sent = stamps::began();
+        let request = TickRequest {
+            flags: self.tick_request.flags | TickRequest::BY_FRAME,
+            ..self.tick_request
+        };
+        let pending = self.port.send(request)?;
+        let mut deadline = started + timeout;
+        let mut waiting_for = None;
+        // An asynchronous world's newest frame, returned once answered.
+        let mut newest = None;
+        let mut answered = false;
+        loop {
+            if answered {
+                if let Some(frame) = client.frames.try_next()?.or(newest.take()) {
+                    return Ok(self.took(frame, sent));
+                }
+            }
+            let outcome = client.frames.next_or(deadline, self.server_pid, || {
+                self.port.try_answer(&pending).map_err(TickError::from)
+            });
+            let response = match outcome {
+                Ok(FrameOr::Frame(frame)) if frame.settings().synchronous_mode => {
+                    return Ok(self.took(frame, sent));
+                }
+                Ok(FrameOr::Frame(frame)) => {
+                    newest = Some(frame);
+                    continue;
+                }
+                Ok(FrameOr::Other(response)) => response,
+                Err(Stop::Failed(e)) => return Err(e),
+                Err(Stop::TimedOut) => {
+                    return Err(match waiting_for {
+                        Some(participant) => self.held_up(participant, started),
+                        None => RequestError::Timeout {
+                            world: self.world.to_string(),
+                            timeout,
+                        }
+                        .into(),
+                    })
+                }
+                Err(Stop::ServerGone) => {
+                    return Err(RequestError::ServerGone {
+                        world: self.world.to_string(),
+                        pid: self.server_pid,
+                    }
+                    .into())
+                }
+                Err(Stop::Interrupted) => {
+                    return Err(RequestError::Interrupted {
+                        world: self.world.to_string(),
+                    }
+                    .into())
+                }
+                Err(Stop::Event(e)) => return Err(TickError::transport("frame-ready wait", e)),
+            };
+            if response.status == ResponseStatus::WaitingForParticipants as u32 {
+                deadline = deadline.max(self.told_held_up(&response));
+                waiting_for = Some(response.waiting_for);
+                continue;
+            }
+            // Refused or revoked; an `Ok` (an asynchronous world's) comes
+            // after the tick's frame was published.
+            self.expect_ok(response)?;
+            answered = true;
+        }
+    }
+
+    /// `frame`, the one a tick sent at `sent` produced, as this ticker's
+    /// last.
+    fn took(&mut self, frame: crate::FrameView, sent: u64) -> crate::FrameView {
+        let t = frame.timestamp();
+        stamps::stamp_at(Stage::ClientSend, t.frame, sent);
+        stamps::stamp_wake(Stage::ClientWake, t.frame);
+        self.last = Some((t.frame, t.elapsed_ns));
+        frame
+    }
+
+    /// The deadline a tick told it waits for a participant (`response`)
+    /// waits until: the server's lockstep timeout and a margin from now.
+    fn told_held_up(&self, response: &TickResponse) -> Instant {
+        let participant = response.waiting_for;
+        let patience = Duration::from_nanos(response.lockstep_timeout_ns)
+            .saturating_add(PARTICIPANT_DROP_MARGIN);
+        warn!(
+            world = %self.world,
+            frame = participant.since_frame,
+            "the tick waits for lockstep participant {} (pid {}); the server drops it after {:?}",
+            participant.node_name.to_string_lossy(),
+            participant.pid,
+            Duration::from_nanos(response.lockstep_timeout_ns),
+        );
+        Instant::now() + patience
+    }
+
+    /// The error of a tick that waited since `started` for `participant`
+    /// and got no answer.
+    fn held_up(&self, participant: TickerInfo, started: Instant) -> TickError {
+        TickError::HeldUp {
+            world: self.world.to_string(),
+            participant: participant.node_name.to_string_lossy(),
+            pid: participant.pid,
+            waited: started.elapsed(),
         }
     }
 

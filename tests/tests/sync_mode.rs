@@ -329,3 +329,70 @@ fn the_tick_command_refuses_a_variable_step_unless_allowed() {
     out.assert_success();
     assert!(out.stderr.contains("warning"), "{}", out.stderr);
 }
+
+/// `Ticker::tick_and_read`, the tick answered by its frame: in every wait
+/// mode it returns the snapshot of the frame it ticked (the next id, the
+/// ticker's last frame, none missed), frames queued before it are skipped,
+/// a tick held by a lockstep participant waits for it, a revoked ticker
+/// gets its error, not a timeout, and in an asynchronous world the tick is
+/// answered and the newest frame returned.
+#[test]
+fn a_tick_answered_by_its_frame_returns_that_frame_or_the_refusal() {
+    let (world, mut client, mut ticker) =
+        simbus_tests::sync_world("by-frame", &["--lockstep-timeout", "60"]);
+    // Ticked the usual way and never read: queued, then skipped.
+    let first = ticker.tick(T).unwrap();
+    let mut expected = first + 1;
+    for mode in [WaitMode::Spin, WaitMode::Hybrid, WaitMode::Block] {
+        client.set_wait_mode(mode);
+        for _ in 0..10 {
+            let frame = ticker.tick_and_read(&mut client, T).unwrap();
+            assert_eq!(frame.frame(), expected, "{mode:?}");
+            assert_eq!(frame.missed(), 0, "{mode:?}");
+            assert_eq!(ticker.last_frame().map(|(f, _)| f), Some(expected));
+            expected += 1;
+        }
+    }
+
+    // Held by a participant until its done, past the tick's own timeout.
+    let (name, server) = (world.name(), &world.server);
+    std::thread::scope(|scope| {
+        let (joined_tx, joined_rx) = std::sync::mpsc::channel();
+        let participant = scope.spawn(move || {
+            let client = Client::connect(name, T).unwrap();
+            let participant = client.join_lockstep("slow").unwrap();
+            joined_tx.send(()).unwrap();
+            server.wait_stderr("a tick waits for a lockstep participant", T);
+            let (episode, frame) = participant.joined_at();
+            participant.done(episode, frame).unwrap();
+        });
+        joined_rx.recv_timeout(T).unwrap();
+        let held = ticker
+            .tick_and_read(&mut client, Duration::from_millis(500))
+            .expect("the tick waits for the participant's done");
+        assert_eq!(held.frame(), expected);
+        participant.join().unwrap();
+    });
+
+    // Another client leaves synchronous mode: the ticker is told why.
+    let other = Client::connect(world.name(), T).unwrap();
+    let settings = WorldSettings {
+        synchronous_mode: false,
+        ..other.get_settings().unwrap()
+    };
+    other.apply_settings(settings).unwrap();
+    let refused = ticker.tick_and_read(&mut client, T).unwrap_err();
+    assert!(matches!(refused, TickError::Revoked { .. }), "{refused}");
+
+    // An asynchronous world: its tick is answered, and the newest frame
+    // after the answer comes back.
+    drop(ticker);
+    let mut ticker = client.claim_ticker().unwrap();
+    let frame = ticker.tick_and_read(&mut client, T).unwrap();
+    assert!(!frame.settings().synchronous_mode);
+    assert!(
+        frame.frame() > expected,
+        "{} after {expected}",
+        frame.frame()
+    );
+}

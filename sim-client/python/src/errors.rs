@@ -130,6 +130,7 @@ pub(crate) fn holds_all_it_may(source: &(dyn std::error::Error + 'static)) -> bo
 pub(crate) fn tick(error: TickError) -> PyErr {
     match error {
         TickError::Request(e) => request(e),
+        TickError::Frame(e) => wait(e),
         TickError::NotTicker { .. } | TickError::Revoked { .. } => {
             raise("NotTickerError", message(&error))
         }

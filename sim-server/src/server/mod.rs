@@ -318,7 +318,8 @@ impl Domains {
         };
         self.publish(plan.count, flags)?;
         stamps::stamp(Stage::Published, frame);
-        self.ticker.answer_stepped(ticks, &self.clock);
+        self.ticker
+            .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
         stamps::stamp(Stage::Answered, frame);
         self.frames.notify()?;
         stamps::stamp(Stage::Notified, frame);

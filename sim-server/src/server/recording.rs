@@ -251,7 +251,8 @@ impl Domains {
         let Some(frame) = self.replayer.next_frame(&mut self.world, delta_ns) else {
             // Nothing more to replay.
             self.leave_replay(self.replayer.keep_actors)?;
-            self.ticker.answer_stepped(ticks, &self.clock);
+            self.ticker
+                .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
             return Ok(());
         };
         if frame.new_episode {
@@ -312,7 +313,8 @@ impl Domains {
         };
         self.frames.publish_states(header, &frame.actors)?;
         self.recorder.published(&header);
-        self.ticker.answer_stepped(ticks, &self.clock);
+        self.ticker
+            .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
         self.frames.notify()?;
         if frame.last {
             info!(

@@ -277,13 +277,19 @@ impl Ticker {
         }
     }
 
-    /// Answers the first `count` waiting steps with the frame just published.
-    pub(crate) fn answer_stepped(&mut self, count: usize, clock: &Clock) {
+    /// Answers the first `count` waiting steps with the frame just published
+    /// (`synchronous`: in synchronous mode, where a tick answered by its
+    /// frame gets no other answer; an asynchronous world's frames come
+    /// whatever ticks, so there every tick is answered).
+    pub(crate) fn answer_stepped(&mut self, count: usize, clock: &Clock, synchronous: bool) {
         for _ in 0..count {
             let Some(step) = self.pending.pop_front() else {
                 break;
             };
             match step {
+                // Answered by its frame, published already: no answer.
+                PendingStep::Tick(tick)
+                    if synchronous && tick.payload().flags & TickRequest::BY_FRAME != 0 => {}
                 PendingStep::Tick(tick) => {
                     let response = self.response(ResponseStatus::Ok, clock);
                     if let Err(e) = tick.send_copy(response) {

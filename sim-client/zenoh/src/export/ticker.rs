@@ -91,6 +91,10 @@ impl RemoteTickers {
             )));
         }
         request.flags |= TickRequest::ON_BEHALF;
+        // Across hosts every tick is answered: the relay waits for the
+        // answer it carries back, and the remote ticker's frame arrives
+        // through the mirror whenever it does.
+        request.flags &= !TickRequest::BY_FRAME;
         if kind == Some(TickRequestKind::Claim) && !self.claimants.contains(&me) {
             // The server's answer says whether it became the owner.
             if self.claimants.len() >= MAX_CLAIMANTS {

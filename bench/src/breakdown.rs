@@ -65,6 +65,8 @@ const SPANS: [(Stage, Stage, &str); 9] = [
 /// One mode's breakdown.
 pub(crate) struct Breakdown {
     mode: WaitMode,
+    /// Ticks answered by their frame (`Ticker::tick_and_read`).
+    by_frame: bool,
     /// Median of each span, µs, in [`SPANS`] order.
     spans: Vec<f64>,
     /// Median whole round trip (client sends -> holds the frame), µs.
@@ -84,15 +86,36 @@ struct PerfCounts {
     migrations: f64,
 }
 
-/// Measures `n` round trips in each wait mode under `placement`.
+/// Measures `n` round trips in each wait mode under `placement`, then
+/// spinning with the tick answered by its frame.
 pub(crate) fn measure(n: u64, placement: Placement) -> anyhow::Result<Vec<Breakdown>> {
-    [WaitMode::Spin, WaitMode::Hybrid, WaitMode::Block]
-        .into_iter()
-        .map(|mode| one_mode(mode, n, placement))
-        .collect()
+    [
+        (WaitMode::Spin, false),
+        (WaitMode::Spin, true),
+        (WaitMode::Hybrid, false),
+        (WaitMode::Block, false),
+    ]
+    .into_iter()
+    .map(|(mode, by_frame)| one_mode((mode, by_frame), n, placement))
+    .collect()
 }
 
-fn one_mode(mode: WaitMode, n: u64, placement: Placement) -> anyhow::Result<Breakdown> {
+impl Breakdown {
+    /// Its column's name.
+    fn name(&self) -> &'static str {
+        if self.by_frame {
+            "by frame"
+        } else {
+            self.mode.name()
+        }
+    }
+}
+
+fn one_mode(
+    (mode, by_frame): (WaitMode, bool),
+    n: u64,
+    placement: Placement,
+) -> anyhow::Result<Breakdown> {
     let file = std::env::temp_dir().join(format!(
         "simbus-stamps-{}-{}",
         std::process::id(),
@@ -122,10 +145,15 @@ fn one_mode(mode: WaitMode, n: u64, placement: Placement) -> anyhow::Result<Brea
     let before = (sleeps(server_pid), sleeps(me));
     let perf = Perf::start(server_pid, me);
     for _ in 0..n {
-        let frame = ticker.tick(timeout)?;
-        let snapshot = client.wait_for_tick(timeout)?;
-        stamps::stamp(Stage::ClientHolds, snapshot.frame());
-        anyhow::ensure!(snapshot.frame() == frame, "snapshot out of order");
+        let held = if by_frame {
+            ticker.tick_and_read(&mut client, timeout)?.frame()
+        } else {
+            let frame = ticker.tick(timeout)?;
+            let snapshot = client.wait_for_tick(timeout)?;
+            anyhow::ensure!(snapshot.frame() == frame, "snapshot out of order");
+            frame
+        };
+        stamps::stamp(Stage::ClientHolds, held);
     }
     let perf = perf.map(|p| p.finish(n));
     let after = (sleeps(server_pid), sleeps(me));
@@ -139,6 +167,7 @@ fn one_mode(mode: WaitMode, n: u64, placement: Placement) -> anyhow::Result<Brea
     let (spans, whole) = medians(&mine, &theirs)?;
     Ok(Breakdown {
         mode,
+        by_frame,
         spans,
         whole,
         sleeps: (per_trip(before.0, after.0), per_trip(before.1, after.1)),
@@ -259,7 +288,7 @@ pub(crate) fn print(
         "round_trips": n,
         "machine": machine,
         "modes": rows.iter().map(|b| serde_json::json!({
-            "mode": b.mode.name(),
+            "mode": b.name(),
             "spans_us": SPANS.iter().zip(&b.spans)
                 .map(|((_, _, name), us)| (name.to_string(), serde_json::json!(us)))
                 .collect::<serde_json::Map<_, _>>(),
@@ -281,7 +310,7 @@ pub(crate) fn print(
     println!("machine: {machine}");
     let mut head = format!("{:<34}", "stage");
     for b in rows {
-        head += &format!(" {:>9}", b.mode.name());
+        head += &format!(" {:>9}", b.name());
     }
     println!("{head}");
     for (i, (_, _, name)) in SPANS.iter().enumerate() {

@@ -90,6 +90,11 @@ impl FrameHeader {
     /// only `max_substeps * max_substep_delta_time`, less than the frame's
     /// delta ([`FrameHeader::physics_ns`] says how much).
     pub const PHYSICS_CLAMPED: u32 = 4;
+    /// Flag: the frame was stepped — computed or replayed, in synchronous
+    /// mode one per tick. A frame that a load, a reload or the end of a
+    /// replay publishes at once has none (a tick answered by its frame
+    /// takes only a stepped one).
+    pub const STEPPED: u32 = 8;
 
     /// Whether physics advanced less than the frame's delta (the substep
     /// rule `clamp`, CARLA's).

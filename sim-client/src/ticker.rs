@@ -5,8 +5,8 @@ use std::time::{Duration, Instant};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 use shared_types::{
-    ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse, TickerInfo,
-    WorldName, WorldSettings,
+    FrameHeader, ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse,
+    TickerInfo, WorldName, WorldSettings,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::stamps::{self, Stage};
@@ -266,7 +266,9 @@ impl Ticker {
     /// published ([`TickRequest::BY_FRAME`]), so a round trip is one
     /// message each way where [`Ticker::tick`] and a read take two; a
     /// refusal, a revocation and a lockstep participant holding the tick
-    /// are answered and end or stretch the wait as for [`Ticker::tick`]. In
+    /// are answered and end or stretch the wait as for [`Ticker::tick`]; a
+    /// frame another client's load or reload publishes meanwhile is not the
+    /// tick's ([`FrameHeader::STEPPED`]) and is passed over. In
     /// asynchronous mode, whose frames come whatever ticks, it waits for
     /// the answer and returns the newest frame then. Frames `client` had
     /// queued before the tick are skipped (its next frame after this one
@@ -301,13 +303,16 @@ impl Ticker {
                 self.port.try_answer(&pending).map_err(TickError::from)
             });
             let response = match outcome {
-                Ok(FrameOr::Frame(frame)) if frame.settings().synchronous_mode => {
-                    return Ok(self.took(frame, sent));
-                }
-                Ok(FrameOr::Frame(frame)) => {
+                Ok(FrameOr::Frame(frame)) if !frame.settings().synchronous_mode => {
                     newest = Some(frame);
                     continue;
                 }
+                Ok(FrameOr::Frame(frame)) if frame.header().flags & FrameHeader::STEPPED != 0 => {
+                    return Ok(self.took(frame, sent));
+                }
+                // Published by another client's load or reload while the
+                // tick was on its way: not the tick's.
+                Ok(FrameOr::Frame(_)) => continue,
                 Ok(FrameOr::Other(response)) => response,
                 Err(Stop::Failed(e)) => return Err(e),
                 Err(Stop::TimedOut) => {

@@ -374,6 +374,32 @@ fn a_tick_answered_by_its_frame_returns_that_frame_or_the_refusal() {
         participant.join().unwrap();
     });
 
+    // Another client reloads while the tick waits: the reload's frame (0
+    // of the next episode) is not the tick's; the stepped frame 1 is.
+    let episode = client.status().unwrap().episode;
+    std::thread::scope(|scope| {
+        let (joined_tx, joined_rx) = std::sync::mpsc::channel();
+        let participant = scope.spawn(move || {
+            let client = Client::connect(name, T).unwrap();
+            let participant = client.join_lockstep("reloading").unwrap();
+            joined_tx.send(()).unwrap();
+            let held = format!(
+                "a tick waits for a lockstep participant pid={} name=reloading",
+                std::process::id()
+            );
+            server.wait_stderr(&held, T);
+            client.reload_world(false).unwrap();
+            participant.done(episode + 1, 0).unwrap();
+        });
+        joined_rx.recv_timeout(T).unwrap();
+        let stepped = ticker
+            .tick_and_read(&mut client, Duration::from_millis(500))
+            .unwrap();
+        assert_eq!((stepped.episode(), stepped.frame()), (episode + 1, 1));
+        participant.join().unwrap();
+    });
+    expected = 2;
+
     // Another client leaves synchronous mode: the ticker is told why.
     let other = Client::connect(world.name(), T).unwrap();
     let settings = WorldSettings {

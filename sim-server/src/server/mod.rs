@@ -307,15 +307,17 @@ impl Domains {
             ),
             self.recorder.captures(),
         );
-        let flags = if plan.capped {
-            FrameHeader::SUBSTEPS_CAPPED
-        } else {
-            0
-        } | if plan.clamped {
-            FrameHeader::PHYSICS_CLAMPED
-        } else {
-            0
-        };
+        let flags = FrameHeader::STEPPED
+            | if plan.capped {
+                FrameHeader::SUBSTEPS_CAPPED
+            } else {
+                0
+            }
+            | if plan.clamped {
+                FrameHeader::PHYSICS_CLAMPED
+            } else {
+                0
+            };
         self.publish(plan.count, flags)?;
         stamps::stamp(Stage::Published, frame);
         self.ticker

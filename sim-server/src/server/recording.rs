@@ -296,7 +296,7 @@ impl Domains {
             // A recording of an older protocol replays as this one's frames.
             protocol_version: PROTOCOL_VERSION,
             sensor_rays: self.sensors.rays(),
-            flags: frame.header.flags | FrameHeader::REPLAY,
+            flags: frame.header.flags | FrameHeader::REPLAY | FrameHeader::STEPPED,
             server_pid: shared_types::this_process_id(),
             timestamp: shared_types::Timestamp {
                 frame: self.clock.frame(),

@@ -100,6 +100,17 @@ def test_every_wait_mode_ticks_and_reads_the_same_frames(server, mode):
                 assert (seen.frame, seen.missed) == (frame, 0)
 
 
+@pytest.mark.parametrize("mode", ["block", "hybrid", "spin"])
+def test_a_tick_answered_by_its_frame_returns_that_frame(server, mode):
+    client = server().client(wait_mode=mode)
+    with client.ticker(delta_seconds=0.05) as ticker:
+        first = ticker.tick()  # never read: skipped by the next call
+        for n in range(1, 51):
+            with ticker.tick_and_read(client) as frame:
+                assert (frame.frame, frame.missed) == (first + n, 0)
+            assert ticker.last_frame == first + n
+
+
 def test_a_ticker_puts_back_settings_it_changed_itself(server):
     client = server().client()
     before = client.settings()

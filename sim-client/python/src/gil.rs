@@ -32,6 +32,7 @@ thread_bound!(
     &sim_client::Client,
     &mut sim_client::Client,
     &mut sim_client::Ticker,
+    (&mut sim_client::Ticker, &mut sim_client::Client),
     sim_client::Ticker,
     &mut sim_client::Sensor,
 );

@@ -5,6 +5,7 @@ use shared_types::WorldSettings;
 
 use crate::args::seconds;
 use crate::errors;
+use crate::frame::Frame;
 use crate::gil::detached;
 use crate::settings::{Changes, Settings};
 
@@ -95,6 +96,30 @@ impl Ticker {
         };
         let ticker = self.held()?;
         detached(py, ticker, |t| t.tick(timeout)).map_err(errors::tick)
+    }
+
+    /// Computes the next frame and returns it, read in place from
+    /// `client`'s frames: one wait, on the frame itself (in synchronous
+    /// mode the server sends the tick no other answer). Frames `client` had
+    /// queued are skipped. Release it (`with`) as any `Frame`.
+    #[pyo3(signature = (client, timeout = None))]
+    fn tick_and_read(
+        &mut self,
+        py: Python<'_>,
+        client: &Bound<'_, crate::client::Client>,
+        timeout: Option<f64>,
+    ) -> PyResult<Frame> {
+        let timeout = match timeout {
+            Some(t) => seconds("timeout", t)?,
+            None => self.timeout,
+        };
+        let mut client = client.try_borrow_mut()?;
+        let ticker = self.held()?;
+        let view = detached(py, (ticker, &mut client.inner), |(t, c)| {
+            t.tick_and_read(c, timeout)
+        })
+        .map_err(errors::tick)?;
+        Frame::lent(py, view)
     }
 
     /// The last frame this ticker produced (or saw when claiming).

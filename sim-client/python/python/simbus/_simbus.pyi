@@ -156,6 +156,9 @@ class Ticker:
 
     def tick(self, timeout: Optional[float] = None) -> int:
         """Computes the next frame; returns its id once it is published."""
+    def tick_and_read(self, client: Client, timeout: Optional[float] = None) -> Frame:
+        """Computes the next frame and returns it, read in place from
+        `client`'s frames (one wait, on the frame itself)."""
     @property
     def last_frame(self) -> Optional[int]: ...
     @property

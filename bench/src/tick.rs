@@ -219,6 +219,22 @@ struct Row {
 }
 
 impl Row {
+    /// A row whose peer is `server`, measuring `round_trip`.
+    fn on_server(
+        name: &'static str,
+        server: BenchServer,
+        round_trip: impl FnMut() -> anyhow::Result<()> + 'static,
+    ) -> Self {
+        Row {
+            name,
+            peers: vec![server.pid()],
+            _guards: Vec::new(),
+            _server: Some(server),
+            round_trip: Box::new(round_trip),
+            latencies: Latencies::new(),
+        }
+    }
+
     fn signal(&self, signal: i32) {
         for &pid in &self.peers {
             let _ = simbus_process::send_signal(pid, signal);
@@ -292,62 +308,52 @@ fn tcp_row() -> anyhow::Result<Row> {
 /// `server`: extra server flags (how it waits for ticks); `mode`: how the
 /// ticker and the subscriber wait.
 fn simbus_row(name: &'static str, server: &[&str], mode: WaitMode) -> anyhow::Result<Row> {
+    let (server, mut client, mut ticker) = simbus_world(&format!("tick-{mode:?}"), server, mode)?;
+    let timeout = Duration::from_secs(10);
+    Ok(Row::on_server(name, server, move || {
+        let frame = ticker.tick(timeout)?;
+        let snapshot = client.wait_for_tick(timeout)?;
+        anyhow::ensure!(
+            snapshot.frame() == frame,
+            "snapshot of frame {} after tick {frame}",
+            snapshot.frame()
+        );
+        Ok(())
+    }))
+}
+
+/// A server on the empty scene ticked every 0.01 s (and `server` flags)
+/// and its ticking client, both waiting as `mode` says.
+fn simbus_world(
+    tag: &str,
+    server: &[&str],
+    mode: WaitMode,
+) -> anyhow::Result<(BenchServer, sim_client::Client, sim_client::Ticker)> {
     let mut server_args = vec!["--scene", "empty", "--fixed-delta-seconds", "0.01"];
     server_args.extend_from_slice(server);
-    let server = BenchServer::start(&format!("tick-{mode:?}"), &server_args)?;
-    let (mut client, mut ticker) = crate::support::ticking_client(&server.world, mode)?;
-    let timeout = Duration::from_secs(10);
-    Ok(Row {
-        name,
-        peers: vec![server.pid()],
-        _guards: Vec::new(),
-        _server: Some(server),
-        round_trip: Box::new(move || {
-            let frame = ticker.tick(timeout)?;
-            let snapshot = client.wait_for_tick(timeout)?;
-            anyhow::ensure!(
-                snapshot.frame() == frame,
-                "snapshot of frame {} after tick {frame}",
-                snapshot.frame()
-            );
-            Ok(())
-        }),
-        latencies: Latencies::new(),
-    })
+    let server = BenchServer::start(tag, &server_args)?;
+    let (client, ticker) = crate::support::ticking_client(&server.world, mode)?;
+    Ok((server, client, ticker))
 }
 
 /// The spinning simbus row with the tick answered by its frame
 /// ([`sim_client::Ticker::tick_and_read`]): one message each way.
 fn simbus_by_frame_row(name: &'static str) -> anyhow::Result<Row> {
-    let server_args = [
-        "--scene",
-        "empty",
-        "--fixed-delta-seconds",
-        "0.01",
-        "--wait-mode",
-        "spin",
-    ];
-    let server = BenchServer::start("tick-by-frame", &server_args)?;
-    let (mut client, mut ticker) = crate::support::ticking_client(&server.world, WaitMode::Spin)?;
+    let server_args = ["--wait-mode", "spin"];
+    let (server, mut client, mut ticker) =
+        simbus_world("tick-by-frame", &server_args, WaitMode::Spin)?;
     let timeout = Duration::from_secs(10);
     let mut last: Option<u64> = None;
-    Ok(Row {
-        name,
-        peers: vec![server.pid()],
-        _guards: Vec::new(),
-        _server: Some(server),
-        round_trip: Box::new(move || {
-            let snapshot = ticker.tick_and_read(&mut client, timeout)?;
-            anyhow::ensure!(
-                last.is_none_or(|last| snapshot.frame() == last + 1),
-                "frame {} after frame {last:?}",
-                snapshot.frame()
-            );
-            last = Some(snapshot.frame());
-            Ok(())
-        }),
-        latencies: Latencies::new(),
-    })
+    Ok(Row::on_server(name, server, move || {
+        let snapshot = ticker.tick_and_read(&mut client, timeout)?;
+        anyhow::ensure!(
+            last.is_none_or(|last| snapshot.frame() == last + 1),
+            "frame {} after frame {last:?}",
+            snapshot.frame()
+        );
+        last = Some(snapshot.frame());
+        Ok(())
+    }))
 }
 
 /// The two hops of a tick round trip, from the frame's platform timestamp

@@ -7,7 +7,6 @@ use crate::args::seconds;
 use crate::frame::Frame;
 use crate::gil::detached;
 use crate::settings::{Changes, Settings, Status};
-use crate::ticker::Ticker;
 use crate::{args, errors};
 
 /// Connects to the server of `world`, waiting up to `timeout` seconds for
@@ -145,23 +144,6 @@ impl Client {
             client: slf,
             timeout,
         })
-    }
-
-    /// Claims tick ownership (`simbus.NotTickerError` names the owner when
-    /// another client ticks) and, with `delta_seconds`, enters synchronous
-    /// mode with that fixed step. Leaving the `with` block (or `release()`)
-    /// puts the world's settings back as they were, asynchronous, and
-    /// gives the world back.
-    #[pyo3(signature = (delta_seconds = None, *, synchronous_mode = true, timeout = 5.0))]
-    fn ticker(
-        &self,
-        py: Python<'_>,
-        delta_seconds: Option<f64>,
-        synchronous_mode: bool,
-        timeout: f64,
-    ) -> PyResult<Ticker> {
-        let claimed = (&self.inner, self.wait_mode);
-        Ticker::claim(py, claimed, delta_seconds, synchronous_mode, timeout)
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

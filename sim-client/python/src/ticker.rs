@@ -4,6 +4,7 @@ use pyo3::prelude::*;
 use shared_types::WorldSettings;
 
 use crate::args::seconds;
+use crate::client::Client;
 use crate::errors;
 use crate::frame::Frame;
 use crate::gil::detached;
@@ -106,7 +107,7 @@ impl Ticker {
     fn tick_and_read(
         &mut self,
         py: Python<'_>,
-        client: &Bound<'_, crate::client::Client>,
+        client: &Bound<'_, Client>,
         timeout: Option<f64>,
     ) -> PyResult<Frame> {
         let timeout = match timeout {
@@ -212,5 +213,25 @@ impl Drop for Ticker {
                 let _ = ticker.apply_settings(self.restore);
             }
         }
+    }
+}
+
+#[pymethods]
+impl Client {
+    /// Claims tick ownership (`simbus.NotTickerError` names the owner when
+    /// another client ticks) and, with `delta_seconds`, enters synchronous
+    /// mode with that fixed step. Leaving the `with` block (or `release()`)
+    /// puts the world's settings back as they were, asynchronous, and
+    /// gives the world back.
+    #[pyo3(signature = (delta_seconds = None, *, synchronous_mode = true, timeout = 5.0))]
+    fn ticker(
+        &self,
+        py: Python<'_>,
+        delta_seconds: Option<f64>,
+        synchronous_mode: bool,
+        timeout: f64,
+    ) -> PyResult<Ticker> {
+        let claimed = (&self.inner, self.wait_mode);
+        Ticker::claim(py, claimed, delta_seconds, synchronous_mode, timeout)
     }
 }

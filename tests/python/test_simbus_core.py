@@ -20,9 +20,11 @@ from simbus_support import server, unique_world  # noqa: F401 (a fixture)
 
 def python_child(code, world):
     """A Python process running `code` (with `world` and simbus imported),
-    its stdout a pipe."""
+    its stdout a pipe. Ctrl-C raises KeyboardInterrupt in it whatever its
+    parent ignored (a shell's background job inherits SIGINT ignored)."""
+    prelude = "import signal, simbus, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
     return subprocess.Popen(
-        [sys.executable, "-c", f"import simbus, sys\nworld = {world!r}\n{code}"],
+        [sys.executable, "-c", f"{prelude}world = {world!r}\n{code}"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
     )
 

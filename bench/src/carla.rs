@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use shared_types::{Lidar, Radar, SensorKind, SensorSpec};
+use shared_types::{Radar, SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 use simbus_process::ChildGuard;
 
@@ -433,15 +433,7 @@ impl ListenCase {
     fn all() -> Vec<Self> {
         let rgb = SensorSpec::camera_of(SensorKind::Rgb, [0.0, 2.0, 0.0], (800, 600), 90.0, 1000.0)
             .expect("a camera kind");
-        let lidar = Lidar {
-            channels: 64,
-            points: 1024,
-            range: 100.0,
-            upper_fov: 10.0,
-            lower_fov: -30.0,
-            rotation_hz: 0.0,
-            noise: Default::default(),
-        };
+        let lidar = crate::support::lidar_64x1024();
         vec![
             Self::depth(),
             Self {

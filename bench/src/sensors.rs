@@ -9,7 +9,7 @@ use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use shared_types::{Collision, Lidar, Obstacle, Radar, SensorKind, SensorSpec};
+use shared_types::{Collision, Obstacle, Radar, SensorKind, SensorSpec};
 use sim_client::{Client, Ticker};
 
 use crate::stats::{header, Latencies};
@@ -161,15 +161,7 @@ fn camera_rows(args: &SensorsArgs, scene: &'static str) -> anyhow::Result<Camera
         client.destroy_sensor(sensor.id())?;
     }
     // The ranging sensors, each alone, at the cameras' place.
-    let lidar = Lidar {
-        channels: 64,
-        points: 1024,
-        range: 100.0,
-        upper_fov: 10.0,
-        lower_fov: -30.0,
-        rotation_hz: 0.0,
-        noise: Default::default(),
-    };
+    let lidar = crate::support::lidar_64x1024();
     let semantic_lidar = client.spawn_sensor(SensorSpec::semantic_lidar(at, lidar))?;
     rows.push(frame_time("semantic lidar 64x1024 alone")?);
     client.destroy_sensor(semantic_lidar.id())?;

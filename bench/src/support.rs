@@ -40,6 +40,20 @@ pub(crate) fn ticking_client(world: &str, mode: WaitMode) -> anyhow::Result<(Cli
     Ok((client, ticker))
 }
 
+/// The benchmarks' lidar: 64 channels x 1024 points, 100 m, +10° to −30°,
+/// a whole turn every frame (no rotation rate), no noise.
+pub(crate) fn lidar_64x1024() -> shared_types::Lidar {
+    shared_types::Lidar {
+        channels: 64,
+        points: 1024,
+        range: 100.0,
+        upper_fov: 10.0,
+        lower_fov: -30.0,
+        rotation_hz: 0.0,
+        noise: Default::default(),
+    }
+}
+
 /// A binary of the workspace built beside this one (`target/<profile>/`),
 /// or an error saying how to build it.
 pub(crate) fn sibling(name: &str) -> anyhow::Result<std::path::PathBuf> {

@@ -312,7 +312,7 @@ pub(super) fn cast(
         .filter_map(|t| InView::new(t, &camera, pose.rotation, lighting))
         .collect();
     let rays = Grid::new(pose.rotation, camera.focal);
-    let sky = Sky::new(lighting.map_or(0.0, |l| l.daylight));
+    let sky = lighting.map(|l| Sky::new(l.daylight));
     hits.par_chunks_mut(camera.width)
         .enumerate()
         .for_each_init(Vec::new, |row_view, (v, row)| {
@@ -341,7 +341,7 @@ pub(super) fn cast(
                 }
                 let Some((t, face)) = met.filter(|_| nearest < spec.far) else {
                     *hit = Hit::NOTHING;
-                    if lighting.is_some() {
+                    if let Some(sky) = &sky {
                         hit.colour = sky.along(unit);
                     }
                     continue;

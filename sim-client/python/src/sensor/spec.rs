@@ -144,6 +144,16 @@ pub(super) fn spec_for(kind: &str, p: &SpawnParams) -> PyResult<SensorSpec> {
     Ok(spec.attached_to(p.parent.unwrap_or(0)).every(p.sensor_tick))
 }
 
+/// A noise `seed` given as a number: a whole one in `0..=`[`MAX_GNSS_SEED`],
+/// else `error`.
+fn noise_seed(value: f64, error: SensorSpecError) -> PyResult<u32> {
+    if value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value) {
+        Ok(value as u32)
+    } else {
+        Err(sensor_error(SensorError::InvalidSpec(error)))
+    }
+}
+
 /// A GNSS receiver's `noise` keyword argument: CARLA's attribute names
 /// without their `noise_` prefix (`lat_bias`, `lat_stddev`, `lon_bias`,
 /// `lon_stddev`, `alt_bias`, `alt_stddev`, `seed`), each 0 unless given.
@@ -158,11 +168,7 @@ fn gnss_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<Gnss> {
             "alt_bias" => &mut gnss.alt_bias,
             "alt_stddev" => &mut gnss.alt_stddev,
             "seed" => {
-                let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
-                if !whole {
-                    return Err(sensor_error(SensorError::InvalidSpec(SensorSpecError::GnssNoise)));
-                }
-                gnss.seed = value as u32;
+                gnss.seed = noise_seed(value, SensorSpecError::GnssNoise)?;
                 continue;
             }
             other => {
@@ -190,11 +196,7 @@ fn lidar_noise(noise: Option<&HashMap<String, f64>>) -> PyResult<LidarNoise> {
             "dropoff_zero_intensity" => &mut lidar.dropoff_zero_intensity,
             "atmosphere_attenuation_rate" => &mut lidar.atmosphere_attenuation_rate,
             "seed" => {
-                let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
-                if !whole {
-                    return Err(sensor_error(SensorError::InvalidSpec(SensorSpecError::LidarNoise)));
-                }
-                lidar.seed = value as u32;
+                lidar.seed = noise_seed(value, SensorSpecError::LidarNoise)?;
                 continue;
             }
             other => {
@@ -215,14 +217,8 @@ fn radar(p: &SpawnParams) -> PyResult<Radar> {
     let defaults = Radar::default();
     let mut seed = defaults.seed;
     for (name, &value) in p.noise.iter().flatten() {
-        let whole = value.fract() == 0.0 && (0.0..=f64::from(MAX_GNSS_SEED)).contains(&value);
         match name.as_str() {
-            "seed" if whole => seed = value as u32,
-            "seed" => {
-                return Err(sensor_error(SensorError::InvalidSpec(
-                    SensorSpecError::Radar,
-                )))
-            }
+            "seed" => seed = noise_seed(value, SensorSpecError::Radar)?,
             other => {
                 return Err(PyValueError::new_err(format!(
                     "unknown noise setting '{other}' for a radar: expected seed"

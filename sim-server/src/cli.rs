@@ -25,14 +25,48 @@ use sim_server::{OnTickerLoss, Scene, Server, ServerConfig, ServerError};
 /// with --realtime. Stop it with Ctrl-C (or SIGTERM).
 #[derive(Debug, Parser)]
 #[command(name = "sim-server", version)]
+#[command(group = clap::ArgGroup::new("journal_or_resume").args(["journal", "resume"]).multiple(true))]
 pub(crate) struct ServerArgs {
-    /// World name: prefixes every service, so worlds never meet.
-    #[arg(long, env = "SIMBUS_WORLD", default_value = "default")]
-    pub(crate) world: WorldName,
+    /// World name: prefixes every service, so worlds never meet [default:
+    /// default; with --resume: the journal's world].
+    #[arg(long, env = "SIMBUS_WORLD")]
+    pub(crate) world: Option<WorldName>,
 
     /// Scene to load: default, empty, town (roads with 144 spawn points), flat (a 4 km ground) or boxes:N (N in 1..=100000).
     #[arg(long, default_value = "default")]
     pub(crate) scene: Scene,
+
+    /// Journal the run into DIR (created if missing; it must hold no
+    /// journal yet): frames, commands, episodes, sensors and a keyframe
+    /// every --keyframe-seconds, so that after a crash `--resume DIR`
+    /// goes on from the last durable frame. Each run writes a segment
+    /// DIR/journal-NNNNNN.mcap, an MCAP recording any tool reads.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) journal: Option<std::path::PathBuf>,
+
+    /// How often the journal is made durable (end the chunk, flush,
+    /// fdatasync), before the frame's tick is answered: frames:N, at least
+    /// every N frames. A crash then loses at most the frames after the last
+    /// sync; with frames:1 never a frame a ticker was told of. Default:
+    /// frames:1 in synchronous mode, frames:50 in asynchronous mode.
+    #[arg(long, value_name = "frames:N", requires = "journal_or_resume")]
+    pub(crate) journal_sync: Option<sim_server::JournalSync>,
+
+    /// Resume the world journaled in DIR after a crash: its last keyframe,
+    /// then the journaled commands re-simulated (each frame checked against
+    /// the journal) up to the last complete frame, served live from the
+    /// next frame with the same world name, actor and sensor ids, episode
+    /// and settings. The journal goes on in DIR (a new segment). The
+    /// scene, settings and seed are the journal's.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["scene", "fixed_delta_seconds", "fps", "sync", "seed", "no_substepping"])]
+    pub(crate) resume: Option<std::path::PathBuf>,
+
+    /// With --resume: fork a new world from journaled frame FRAME (the
+    /// nearest keyframe before it, then the journaled commands up to it)
+    /// instead of the last one; name it with --world. The original
+    /// journal is left untouched (journal the fork with --journal NEWDIR).
+    #[arg(long, value_name = "FRAME", requires = "resume")]
+    pub(crate) at: Option<u64>,
 
     /// Fixed time-step in seconds: 1e-6..=3600 (0 = variable step). Also
     /// spelled --fixed-delta-seconds, CARLA's name.
@@ -267,8 +301,29 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
         .context("installing the SIGINT/SIGTERM handler")
         .map_err(RunError::Failed)?;
 
+    let world = match (&args.world, &args.resume) {
+        (Some(world), _) => world.clone(),
+        (None, Some(dir)) => journal_world(dir).map_err(RunError::Refused)?,
+        (None, None) => WorldName::new("default").map_err(|e| RunError::Refused(e.into()))?,
+    };
+    if args.at.is_some() && args.world.is_none() {
+        return Err(RunError::Refused(anyhow::anyhow!(
+            "--at forks a new world: name it with --world NEW"
+        )));
+    }
+    let journal = match (&args.journal, &args.resume, args.at) {
+        (Some(dir), _, _) => Some(dir.clone()),
+        // A resume goes on journaling where it left off; a fork only when asked.
+        (None, Some(dir), None) => Some(dir.clone()),
+        _ => None,
+    }
+    .map(|dir| sim_server::JournalOptions {
+        dir,
+        sync: args.journal_sync.unwrap_or_default(),
+    });
     let config = ServerConfig {
-        world: args.world.clone(),
+        world: world.clone(),
+        journal,
         scene: args.scene,
         settings,
         realtime: args.realtime,
@@ -286,8 +341,24 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
     // `SIMBUS_STAMPS=FILE`: the tick path's stamps, written on exit
     // (`simbus-bench tick --breakdown` reads them).
     let stamps_file = simbus_transport::stamps::enable_from_env();
-    let mut server = Server::start(config).map_err(|e| match e {
-        ServerError::Settings(e) => RunError::Refused(e.into()),
+    let started = match &args.resume {
+        Some(dir) => Server::resume(
+            config,
+            &sim_server::ResumeOptions {
+                dir: dir.clone(),
+                at: args.at,
+            },
+        ),
+        None => Server::start(config),
+    };
+    let mut server = started.map_err(|e| match e {
+        ServerError::Settings(_)
+        | ServerError::Resume(_)
+        | ServerError::OtherWorld { .. }
+        | ServerError::ForkIntoOriginal { .. }
+        | ServerError::Journal(sim_server::JournalError::NotEmpty { .. }) => {
+            RunError::Refused(e.into())
+        }
         e => RunError::Failed(e.into()),
     })?;
     let summary = server
@@ -303,7 +374,7 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
         println!(
             "{}",
             serde_json::json!({
-                "world": args.world.as_str(),
+                "world": world.as_str(),
                 "scene": args.scene.to_string(),
                 "frames": summary.frames,
                 "wall_seconds": summary.wall_seconds,
@@ -313,4 +384,20 @@ fn run(args: ServerArgs) -> Result<(), RunError> {
         );
     }
     Ok(())
+}
+
+/// The world a journal was written by (its newest segment's header).
+fn journal_world(dir: &std::path::Path) -> anyhow::Result<WorldName> {
+    let segments = sim_server::journal::segments(dir)
+        .with_context(|| format!("reading the journal directory {}", dir.display()))?;
+    let newest = segments.iter().rev().find_map(|(_, path)| {
+        simbus_recording::RecordingReader::open(&path.to_string_lossy()).ok()
+    });
+    match newest {
+        Some(reader) => Ok(WorldName::new(&reader.header().world)?),
+        None => anyhow::bail!(
+            "{} holds no readable journal (no journal-NNNNNN.mcap)",
+            dir.display()
+        ),
+    }
 }

@@ -47,6 +47,8 @@ pub struct ServerConfig {
     /// one per CPU). Fewer than the CPUs leave one to a reader spinning on
     /// a capture.
     pub render_threads: Option<NonZeroUsize>,
+    /// Journal the run into a directory (`None`: no journal).
+    pub journal: Option<crate::JournalOptions>,
 }
 
 impl ServerConfig {
@@ -69,6 +71,7 @@ impl ServerConfig {
             limits: WorldLimits::default(),
             keyframe_seconds: None,
             render_threads: None,
+            journal: None,
         }
     }
 }

@@ -61,6 +61,7 @@ pub(crate) mod commands;
 pub(crate) mod config;
 pub(crate) mod control;
 pub(crate) mod frames;
+pub mod journal;
 pub(crate) mod liveness;
 pub(crate) mod lockstep;
 pub(crate) mod ports;
@@ -76,6 +77,8 @@ pub(crate) mod vehicles;
 pub mod world;
 
 pub use config::ServerConfig;
+pub use journal::resume::{ResumeError, ResumeOptions};
+pub use journal::{JournalError, JournalOptions, JournalSync};
 pub use scene::{Scene, SceneError};
 pub use sensors::RenderThreadsError;
 pub use server::{RunSummary, Server};
@@ -113,6 +116,28 @@ pub enum ServerError {
     /// The render threads (`--render-threads`) could not be started.
     #[error(transparent)]
     RenderThreads(RenderThreadsError),
+    /// The journal could not be started.
+    #[error(transparent)]
+    Journal(#[from] journal::JournalError),
+    /// The journal could not be resumed.
+    #[error(transparent)]
+    Resume(#[from] journal::resume::ResumeError),
+    /// A fork was asked to journal into the journal it forks.
+    #[error("a fork leaves its journal untouched: journal it into another directory than {dir}")]
+    ForkIntoOriginal {
+        /// The original journal.
+        dir: std::path::PathBuf,
+    },
+    /// A resume named another world than its journal's.
+    #[error("the journal in {dir} is world '{journal}', not '{asked}': resume it under its own name, or fork it under a new one with --at FRAME --world NEW")]
+    OtherWorld {
+        /// The journal.
+        dir: std::path::PathBuf,
+        /// Its world.
+        journal: String,
+        /// The world asked for.
+        asked: String,
+    },
     /// iceoryx2 refused an operation.
     #[error("shared-memory transport failed at {what}")]
     Transport {

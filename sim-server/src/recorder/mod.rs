@@ -234,6 +234,31 @@ impl Recorder {
         }
     }
 
+    /// Makes everything recorded so far durable, waiting for the disk (the
+    /// writer ends its chunk, flushes and syncs the file). A failure ends
+    /// the recording, and says why.
+    pub(crate) fn sync(&mut self) -> Result<(), String> {
+        if self.active.is_none() {
+            return Err("nothing is being recorded".to_string());
+        }
+        let (done, synced) = sync_channel(1);
+        self.send(Item::Sync { done });
+        let failed = match synced.recv() {
+            Ok(Ok(())) => return Ok(()),
+            Ok(Err(reason)) => reason,
+            Err(_) => "the writer stopped".to_string(),
+        };
+        self.stop("sync failed", 0);
+        Err(self.last.error.clone().unwrap_or(failed))
+    }
+
+    /// Makes the next recorded frame carry a keyframe.
+    pub(crate) fn keyframe_next(&mut self) {
+        if let Some(active) = &mut self.active {
+            active.next_keyframe_ns = 0;
+        }
+    }
+
     /// Where the world's step puts the contacts that start (only while recording).
     pub(crate) fn collisions(&mut self) -> Option<&mut Vec<RecordedCollision>> {
         self.active.as_ref()?;

@@ -55,6 +55,11 @@ pub(crate) enum Item {
         frame: u64,
         data: Vec<u8>,
     },
+    /// Make everything handed over so far durable (end the chunk, flush,
+    /// `fdatasync`), then say so on `done`: how a journal keeps its promise.
+    Sync {
+        done: std::sync::mpsc::SyncSender<Result<(), String>>,
+    },
 }
 
 /// What a finished recording holds.
@@ -78,6 +83,8 @@ struct Writer {
     captures: HashMap<u64, u16>,
     written: Written,
     scratch: Vec<u8>,
+    /// The file again, to sync it (the MCAP writer owns the other handle).
+    file: File,
 }
 
 type McapResult<T> = Result<T, mcap::McapError>;
@@ -87,14 +94,18 @@ type McapFile = mcap::Writer<BufWriter<File>>;
 /// A path that cannot be created is refused with the file system's reason.
 pub(crate) fn create(path: &str, header: &RecordingHeader) -> Result<WriterHandle, StartError> {
     let file = create_file(path)?;
-    begin(file, header).map_err(|error| StartError::Header {
+    let sync_handle = file.try_clone().map_err(|error| StartError::Header {
+        path: path.to_string(),
+        error: mcap::McapError::Io(error),
+    })?;
+    begin(file, sync_handle, header).map_err(|error| StartError::Header {
         path: path.to_string(),
         error,
     })
 }
 
 /// Writes the header into the created `file`.
-fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
+fn begin(file: File, sync_handle: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
     let mut mcap = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("simbus {}", env!("CARGO_PKG_VERSION")))
@@ -138,6 +149,7 @@ fn begin(file: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
         captures: HashMap::new(),
         written: Written::default(),
         scratch: Vec::new(),
+        file: sync_handle,
     }))
 }
 
@@ -250,6 +262,19 @@ pub(crate) fn run(
 ) -> Result<Written, WriteError> {
     let mut writer = handle.0;
     while let Ok(item) = items.recv() {
+        if let Item::Sync { done } = item {
+            let synced = writer.sync();
+            let failed = synced.as_ref().err().map(describe);
+            let _ = done.send(synced.map_err(|e| describe(&e)));
+            if let Some(reason) = failed {
+                warn!(path, "journal sync failed: {reason}");
+                return Err(WriteError::Write {
+                    path,
+                    error: mcap::McapError::Io(std::io::Error::other(reason)),
+                });
+            }
+            continue;
+        }
         if let Err(e) = writer.write(item) {
             warn!(path, "recording failed: {e}");
             // Dropping the receiver tells the frame loop at its next send.
@@ -327,6 +352,12 @@ impl std::fmt::Display for CloseCause {
 }
 
 impl Writer {
+    /// Ends the chunk being gathered and makes the file durable.
+    fn sync(&mut self) -> McapResult<()> {
+        self.mcap.flush()?;
+        self.file.sync_data().map_err(mcap::McapError::Io)
+    }
+
     fn message(
         &mut self,
         channel_id: u16,
@@ -396,6 +427,7 @@ impl Writer {
             } => {
                 self.message(self.keyframes, frame, log_ns, log_ns, &data)?;
             }
+            Item::Sync { .. } => self.sync()?,
         }
         Ok(())
     }

@@ -316,6 +316,28 @@ impl Sensors {
         Ok(info)
     }
 
+    /// [`Sensors::spawn`] under a given `id` (a journaled sensor coming
+    /// back after a resume).
+    pub(crate) fn respawn(
+        &mut self,
+        transport: &Transport,
+        id: u64,
+        spec: SensorSpec,
+        world: &World,
+        clock: &Clock,
+    ) -> Result<SensorInfo, SensorRefusal> {
+        let next = self.next_id;
+        self.next_id = id.saturating_sub(1);
+        let spawned = self.spawn(transport, spec, world, clock);
+        self.next_id = next.max(self.next_id);
+        spawned
+    }
+
+    /// New sensors get ids after `last` (a resumed journal's highest).
+    pub(crate) fn go_on_after(&mut self, last: u64) {
+        self.next_id = self.next_id.max(last);
+    }
+
     /// Removes sensor `id`, telling its readers; `false` if there is none.
     pub(crate) fn destroy(&mut self, id: u64, frame: u64, episode: u64) -> bool {
         let Some(index) = self.list.iter().position(|s| s.id == id) else {

@@ -26,6 +26,8 @@ use crate::batches::Batches;
 use crate::clock::{platform_timestamp, Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
+use crate::journal::resume::{resume, ResumeOptions, Resumed};
+use crate::journal::Journal;
 use crate::liveness::{LiveProcesses, PidWatch};
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
@@ -105,6 +107,8 @@ struct Domains {
     recorder: Recorder,
     replayer: Replayer,
     timers: Timers,
+    /// The journal, when the server keeps one.
+    journal: Option<Journal>,
     /// Fast death notice of the ticker and the lockstep participants.
     pidwatch: PidWatch,
     /// Per-frame timings, only when a benchmark asked ([`Server::time_frames`]).
@@ -140,15 +144,58 @@ fn check_keyframe_seconds(seconds: Option<f64>) -> Result<(), ServerError> {
 
 impl Server {
     /// Validates the settings, loads the scene, opens the world's services
-    /// (cleaning up after a crashed predecessor) and publishes frame 0.
+    /// (cleaning up after a crashed predecessor) and publishes frame 0;
+    /// starts the journal when the config asks for one.
     pub fn start(config: ServerConfig) -> Result<Self, ServerError> {
+        Self::open(config, None)
+    }
+
+    /// Rebuilds the world a journal describes (its last complete frame, or
+    /// `options.at`'s frame for a fork) and serves it live from the next
+    /// frame: the same world name (unless forked under another), actor and
+    /// sensor ids, episode and settings; frame ids go on. The journal
+    /// continues into `config.journal` when set. A journal that cannot be
+    /// resumed is refused, and nothing starts.
+    pub fn resume(mut config: ServerConfig, options: &ResumeOptions) -> Result<Self, ServerError> {
+        if let Some(journal) = &config.journal {
+            if options.at.is_some() && journal.dir == options.dir {
+                return Err(ServerError::ForkIntoOriginal {
+                    dir: options.dir.clone(),
+                });
+            }
+        }
+        let resumed = resume(options)?;
+        if options.at.is_none() && resumed.header.world != config.world.as_str() {
+            return Err(ServerError::OtherWorld {
+                dir: options.dir.clone(),
+                journal: resumed.header.world.clone(),
+                asked: config.world.to_string(),
+            });
+        }
+        config.seed = resumed.header.seed;
+        config.scene = resumed.scene;
+        config.settings = resumed.settings;
+        Self::open(config, Some(resumed))
+    }
+
+    fn open(config: ServerConfig, mut resumed: Option<Resumed>) -> Result<Self, ServerError> {
         let settings = config.settings.normalized();
         settings.validate()?;
         check_keyframe_seconds(config.keyframe_seconds)?;
         for warning in settings.warnings() {
             warn!("{warning}");
         }
-        let world = World::new(&config.scene.placements(config.seed), 1);
+        let now = Instant::now();
+        let taken = resumed
+            .as_mut()
+            .and_then(|r| r.world.take().map(|world| (world, r.clock.clone())));
+        let (world, clock) = match taken {
+            Some(taken) => taken,
+            None => (
+                World::new(&config.scene.placements(config.seed), 1),
+                Clock::new(now),
+            ),
+        };
         let transport = Transport::open(&config.world)?;
         let limits = config.limits;
         // Control first: it refuses a second live server on the world.
@@ -159,12 +206,15 @@ impl Server {
         let lockstep = Lockstep::open(&transport, &limits)?;
         let sensors = Sensors::open(&transport, &limits, config.render_threads)?;
         let recorder = RecorderPort::open(&transport, &limits)?;
-        let now = Instant::now();
-        let domains = Domains {
-            runtime: Runtime::new(&config, settings),
+        let mut runtime = Runtime::new(&config, settings);
+        if let Some(r) = &resumed {
+            runtime.episode = r.episode;
+        }
+        let mut domains = Domains {
+            runtime,
             transport,
             world,
-            clock: Clock::new(now),
+            clock,
             frames,
             ticker,
             batches,
@@ -179,18 +229,43 @@ impl Server {
                 connections: now,
                 probe: now,
             },
+            journal: None,
             pidwatch: PidWatch::default(),
             timings: None,
             config,
         };
-        let mut domains = domains;
+        if let Some(r) = &resumed {
+            domains.resume_sensors(r);
+        }
         domains.publish(0, 0)?;
         domains.frames.notify()?;
+        if let Some(options) = domains.config.journal.clone() {
+            // A resumed journal goes on in its directory; any other is new.
+            let fresh = resumed
+                .as_ref()
+                .is_none_or(|r| r.segment.parent() != Some(options.dir.as_path()));
+            let header = domains.recording_header(false);
+            let frame = domains.frame_header(0, 0);
+            let sensors = domains.sensors.recorded_spawns(domains.clock.frame());
+            let scene = domains.runtime.scene.to_string();
+            let journal = Journal::start(
+                &options,
+                fresh,
+                header,
+                sensors,
+                (&frame, &domains.world),
+                scene,
+            )?;
+            domains.journal = Some(journal);
+        }
         info!(
             world = %domains.config.world,
             scene = %domains.runtime.scene,
             actors = domains.world.actor_count(),
-            "server up: {}",
+            frame = domains.clock.frame(),
+            episode = domains.runtime.episode,
+            "server up{}: {}",
+            if resumed.is_some() { " (resumed from its journal)" } else { "" },
             domains.runtime.settings
         );
         Ok(Self {
@@ -238,14 +313,15 @@ impl Server {
             }
         }
         let d = &mut self.domains;
-        d.recorder.stop(
-            if shutdown.load(Ordering::Relaxed) {
-                "server stopped by a signal"
-            } else {
-                "server stopped"
-            },
-            d.clock.frame(),
-        );
+        let reason = if shutdown.load(Ordering::Relaxed) {
+            "server stopped by a signal"
+        } else {
+            "server stopped"
+        };
+        d.recorder.stop(reason, d.clock.frame());
+        if let Some(journal) = &mut d.journal {
+            journal.close(reason, d.clock.frame());
+        }
         // Readers of the sensors learn why their stream ended.
         d.sensors
             .end_all(SensorEnd::ServerStopped, d.clock.frame(), d.runtime.episode);
@@ -337,7 +413,25 @@ impl Domains {
             let scene = self.runtime.scene.to_string();
             self.recorder.frame(&header, &self.world, scene);
         }
+        if let Some(journal) = &mut self.journal {
+            // Durable (as the policy says) before any tick is answered.
+            let scene = self.runtime.scene.to_string();
+            journal.frame(&header, &self.world, scene, &self.runtime.settings);
+        }
         Ok(())
+    }
+
+    /// Hands the sensors' spawns and ends since last asked to the
+    /// recording and the journal.
+    fn note_sensors(&mut self) {
+        let notes: Vec<_> = self.sensors.take_journal().collect();
+        if notes.is_empty() {
+            return;
+        }
+        if let Some(journal) = &mut self.journal {
+            journal.recorder().sensor_notes(notes.iter().copied());
+        }
+        self.recorder.sensor_notes(notes);
     }
 
     /// The header of the current frame.
@@ -389,7 +483,7 @@ impl Domains {
             self.clock.frame(),
             self.runtime.episode,
         );
-        self.recorder.sensor_notes(self.sensors.take_journal());
+        self.note_sensors();
         let first_id = self.world.next_id();
         self.world = World::new(&scene.placements(self.config.seed), first_id);
         self.runtime.scene = scene;

@@ -127,24 +127,7 @@ impl Domains {
             return Err(Refused::ReplayRuns);
         }
         let path = path?;
-        let header = RecordingHeader {
-            recording_version: RECORDING_VERSION,
-            simbus_version: env!("CARGO_PKG_VERSION").to_string(),
-            protocol_version: PROTOCOL_VERSION,
-            world: self.config.world.to_string(),
-            scene: self.runtime.scene.to_string(),
-            seed: self.config.seed,
-            settings: self.runtime.settings.into(),
-            start_frame: self.clock.frame(),
-            start_elapsed_ns: self.clock.elapsed_ns(),
-            episode: self.runtime.episode,
-            start_platform_timestamp: platform_timestamp(),
-            sensors,
-            keyframe_seconds: self
-                .config
-                .keyframe_seconds
-                .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
-        };
+        let header = self.recording_header(sensors);
         // The current frame as it was published (its substeps, flags and
         // time), with the actors the world holds now.
         let now = self.frame_header(0, 0);
@@ -165,6 +148,44 @@ impl Domains {
         self.recorder
             .start(&path, header, sensors, (&frame, &self.world), scene)
             .map_err(Refused::CannotWrite)
+    }
+
+    /// The header of a recording (or a journal segment) starting now.
+    pub(super) fn recording_header(&self, sensors: bool) -> RecordingHeader {
+        RecordingHeader {
+            recording_version: RECORDING_VERSION,
+            simbus_version: env!("CARGO_PKG_VERSION").to_string(),
+            protocol_version: PROTOCOL_VERSION,
+            world: self.config.world.to_string(),
+            scene: self.runtime.scene.to_string(),
+            seed: self.config.seed,
+            settings: self.runtime.settings.into(),
+            start_frame: self.clock.frame(),
+            start_elapsed_ns: self.clock.elapsed_ns(),
+            episode: self.runtime.episode,
+            start_platform_timestamp: platform_timestamp(),
+            sensors,
+            keyframe_seconds: self
+                .config
+                .keyframe_seconds
+                .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
+        }
+    }
+
+    /// Spawns the sensors a journal left alive again, under their ids.
+    pub(super) fn resume_sensors(&mut self, resumed: &crate::journal::resume::Resumed) {
+        for (id, spec) in &resumed.sensors {
+            match self
+                .sensors
+                .respawn(&self.transport, *id, *spec, &self.world, &self.clock)
+            {
+                Ok(_) => info!(id, "journaled sensor spawned again"),
+                Err(refusal) => warn!(id, "journaled sensor not resumed: {refusal}"),
+            }
+        }
+        self.sensors.go_on_after(resumed.last_sensor_id);
+        // Their spawns go into the journal's next segment with its start.
+        self.sensors.take_journal().for_each(drop);
     }
 
     /// Replaces the world with the one the
@@ -235,6 +256,7 @@ impl Domains {
         );
         self.runtime.episode += 1;
         self.runtime.pacer.reset();
+        self.journal_episode(None);
         info!(
             keep_actors,
             episode = self.runtime.episode,
@@ -416,11 +438,25 @@ impl Domains {
 
     /// Records that a new episode began (load or reload).
     pub(super) fn record_episode(&mut self, reset_settings: bool) {
-        self.recorder.event(RecordedEvent::Episode {
+        let event = RecordedEvent::Episode {
             episode: self.runtime.episode,
             scene: self.runtime.scene.to_string(),
             first_actor_id: self.world.first_id(),
             reset_settings,
-        });
+        };
+        self.journal_episode(Some(event.clone()));
+        self.recorder.event(event);
+    }
+
+    /// A new episode began: the journal notes it (when it is a load or a
+    /// reload) and keyframes its first frame, so a resume never needs to
+    /// re-simulate across it.
+    pub(super) fn journal_episode(&mut self, event: Option<RecordedEvent>) {
+        if let Some(journal) = &mut self.journal {
+            if let Some(event) = event {
+                journal.recorder().event(event);
+            }
+            journal.recorder().keyframe_next();
+        }
     }
 }

@@ -22,6 +22,7 @@ impl Domains {
         let (frame, episode) = (self.clock.frame(), self.runtime.episode);
         let ticker_pid = self.ticker.owner_pid();
         let (recorder, ticker) = (&mut self.recorder, &mut self.ticker);
+        let journal = &mut self.journal;
         let applied =
             self.batches.handle(
                 &mut self.world,
@@ -29,7 +30,12 @@ impl Domains {
                 &self.clock,
                 |effect| match effect {
                     BatchEffect::Applied(command, result) => {
-                        recorder.command(frame + 1, episode, command, result)
+                        recorder.command(frame + 1, episode, command, result);
+                        if let Some(journal) = journal {
+                            journal
+                                .recorder()
+                                .command(frame + 1, episode, command, result);
+                        }
                     }
                     BatchEffect::Tick(request, results) => ticker.queue_batch(request, results),
                 },
@@ -86,7 +92,7 @@ impl Server {
             d.sensors
                 .handle(&d.transport, &d.world, &d.clock, d.runtime.episode, follow)?;
         }
-        d.recorder.sensor_notes(d.sensors.take_journal());
+        d.note_sensors();
         if rung.has(Doorbell::Tick) {
             d.ticker.handle(&mut d.runtime, &d.clock)?;
         }

@@ -1,0 +1,244 @@
+//! The journal: the recorder's format, written continuously into a
+//! directory of segments with a stated durability, so that a killed
+//! server can be resumed ([`resume`]) from its last keyframe and the
+//! commands after it.
+//!
+//! Each server run writes one segment, `journal-NNNNNN.mcap`: its header,
+//! the frame it starts from, a keyframe, then every frame, applied
+//! command, episode, settings change and sensor, and a keyframe every
+//! `--keyframe-seconds`. A segment is complete from its first keyframe
+//! on, so a resume reads only the newest one it can use.
+//!
+//! Durability: every `frames:N` frames the frame loop hands the writer a
+//! sync (end the chunk, flush, `fdatasync`) and waits for it, before the
+//! frame's tick is answered. With N = 1 no ticker is ever told of a frame
+//! that a crash can take back; with N > 1 at most N frames are lost.
+
+pub(crate) mod resume;
+
+use std::num::NonZeroU64;
+use std::path::{Path, PathBuf};
+
+use shared_types::{FrameHeader, WorldSettings};
+use simbus_recording::RecordingHeader;
+use tracing::{info, warn};
+
+use crate::recorder::{Recorder, SensorNote};
+use crate::world::World;
+
+/// How often the journal is made durable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum JournalSync {
+    /// Every frame in synchronous mode, every 50 frames in asynchronous mode.
+    #[default]
+    Default,
+    /// At least every N frames.
+    Frames(NonZeroU64),
+}
+
+impl JournalSync {
+    /// Frames between two syncs under `settings`.
+    fn every(self, settings: &WorldSettings) -> u64 {
+        match self {
+            Self::Frames(n) => n.get(),
+            Self::Default if settings.synchronous_mode => 1,
+            Self::Default => 50,
+        }
+    }
+}
+
+impl std::fmt::Display for JournalSync {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Default => f.write_str("frames:1 (synchronous) / frames:50 (asynchronous)"),
+            Self::Frames(n) => write!(f, "frames:{n}"),
+        }
+    }
+}
+
+impl std::str::FromStr for JournalSync {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let n = text
+            .strip_prefix("frames:")
+            .ok_or_else(|| format!("'{text}' is not a sync policy: write frames:N (N >= 1)"))?;
+        n.parse::<NonZeroU64>()
+            .map(Self::Frames)
+            .map_err(|_| format!("'{n}' in '{text}' is not a whole number of frames >= 1"))
+    }
+}
+
+/// Where and how a server journals.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct JournalOptions {
+    /// The directory of segments.
+    pub dir: PathBuf,
+    /// How often it is made durable.
+    pub sync: JournalSync,
+}
+
+/// The name of segment `index` in `dir`.
+pub(crate) fn segment_path(dir: &Path, index: u32) -> PathBuf {
+    dir.join(format!("journal-{index:06}.mcap"))
+}
+
+/// The segments (`journal-NNNNNN.mcap`) in `dir`, oldest first.
+pub fn segments(dir: &Path) -> std::io::Result<Vec<(u32, PathBuf)>> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let Some(index) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("journal-"))
+            .and_then(|n| n.strip_suffix(".mcap"))
+            .and_then(|n| n.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        found.push((index, entry.path()));
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// Why a journal could not be started.
+#[derive(Debug, thiserror::Error)]
+pub enum JournalError {
+    /// The directory could not be made or read.
+    #[error("cannot use the journal directory {dir}: {source}")]
+    Directory {
+        /// The directory.
+        dir: PathBuf,
+        /// What the file system said.
+        source: std::io::Error,
+    },
+    /// A fresh journal was asked for where one already is.
+    #[error("{dir} already holds a journal ({segments} segment(s)): resume it with --resume {dir}, or journal into an empty directory")]
+    NotEmpty {
+        /// The directory.
+        dir: PathBuf,
+        /// Its segments.
+        segments: usize,
+    },
+    /// The segment could not be created.
+    #[error("cannot start the journal: {0}")]
+    Start(String),
+}
+
+/// The journal being written.
+#[derive(Debug)]
+pub(crate) struct Journal {
+    recorder: Recorder,
+    options: JournalOptions,
+    segment: PathBuf,
+    /// Frames recorded since the last sync.
+    unsynced: u64,
+    /// The last frame made durable: (episode, frame).
+    pub(crate) durable: Option<(u64, u64)>,
+    /// Why the journal stopped, if it did (the world runs on).
+    pub(crate) stopped: Option<String>,
+}
+
+impl Journal {
+    /// Opens the next segment of `options.dir` (`fresh`: the directory
+    /// must hold none yet) and records `frame` of `world` and the living
+    /// `sensors` into it, with a keyframe, durably.
+    pub(crate) fn start(
+        options: &JournalOptions,
+        fresh: bool,
+        header: RecordingHeader,
+        sensors: Vec<SensorNote>,
+        frame: (&FrameHeader, &World),
+        scene: String,
+    ) -> Result<Self, JournalError> {
+        let dir = &options.dir;
+        let directory = |source| JournalError::Directory {
+            dir: dir.clone(),
+            source,
+        };
+        std::fs::create_dir_all(dir).map_err(directory)?;
+        let existing = segments(dir).map_err(directory)?;
+        if fresh && !existing.is_empty() {
+            return Err(JournalError::NotEmpty {
+                dir: dir.clone(),
+                segments: existing.len(),
+            });
+        }
+        let index = existing.last().map_or(1, |(i, _)| i + 1);
+        let segment = segment_path(dir, index);
+        let mut recorder = Recorder::default();
+        let path = segment.to_string_lossy().into_owned();
+        recorder
+            .start(&path, header, sensors, frame, scene)
+            .map_err(|e| JournalError::Start(crate::message(&e)))?;
+        recorder.sync().map_err(JournalError::Start)?;
+        // The directory entry of the new segment is durable too.
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+        info!(segment = %segment.display(), sync = %options.sync, "journal started");
+        Ok(Self {
+            recorder,
+            options: options.clone(),
+            segment,
+            unsynced: 0,
+            durable: Some((frame.0.episode, frame.0.timestamp.frame)),
+            stopped: None,
+        })
+    }
+
+    /// The recorder writing the segment (frames, commands, events, sensors).
+    pub(crate) fn recorder(&mut self) -> &mut Recorder {
+        &mut self.recorder
+    }
+
+    /// Records a published frame and, when the policy says so, waits until
+    /// it (and everything before it) is on disk.
+    pub(crate) fn frame(
+        &mut self,
+        header: &FrameHeader,
+        world: &World,
+        scene: String,
+        settings: &WorldSettings,
+    ) {
+        if self.stopped.is_some() {
+            return;
+        }
+        self.recorder.frame(header, world, scene);
+        if !self.recorder.is_recording() {
+            let reason = self.recorder.last.error.clone();
+            self.stop(reason.unwrap_or_else(|| "the writer stopped".to_string()));
+            return;
+        }
+        self.unsynced += 1;
+        if self.unsynced < self.options.sync.every(settings) {
+            return;
+        }
+        self.unsynced = 0;
+        match self.recorder.sync() {
+            Ok(()) => self.durable = Some((header.episode, header.timestamp.frame)),
+            Err(reason) => self.stop(reason),
+        }
+    }
+
+    /// The journal stops (the disk is full, the file cannot be written);
+    /// the world runs on, and status and log say why.
+    fn stop(&mut self, reason: String) {
+        let (episode, frame) = self.durable.unwrap_or_default();
+        warn!(
+            segment = %self.segment.display(),
+            durable_episode = episode,
+            durable_frame = frame,
+            "the journal stopped: {reason}; the world runs on without it, and a resume starts from frame {frame}"
+        );
+        self.recorder.stop("journal failed", 0);
+        self.stopped = Some(reason);
+    }
+
+    /// Closes the segment (the server stops).
+    pub(crate) fn close(&mut self, reason: &str, frame: u64) {
+        self.recorder.stop(reason, frame);
+    }
+}

@@ -208,6 +208,22 @@ pub enum WaitError {
         /// The server's process id.
         pid: u32,
     },
+    /// The server exited and none came back on the world within the
+    /// timeout ([`crate::Client::next_event`]).
+    #[error(
+        "the server of world '{world}' (pid {pid}) exited and none came back within {timeout:?}"
+    )]
+    NotBack {
+        /// The world.
+        world: String,
+        /// The process id of the server that exited.
+        pid: u32,
+        /// How long the client waited in all.
+        timeout: Duration,
+    },
+    /// A server came back, but connecting to it failed.
+    #[error("reconnecting after a server restart failed: {0}")]
+    Reconnect(Box<ConnectError>),
     /// No capture from a sensor within the timeout.
     #[error("no capture from sensor {sensor} of world '{world}' within {timeout:?}{}", last_frame.map(|f| format!(" (last capture: frame {f})")).unwrap_or_else(|| " (none yet; is the world ticking, and is the sensor's period shorter than that?)".to_owned()))]
     NoCapture {
@@ -326,6 +342,12 @@ pub enum TickError {
     /// Reading the ticked frame failed ([`crate::Ticker::tick_and_read`]).
     #[error(transparent)]
     Frame(#[from] WaitError),
+    /// The server exited and another came back on the world; this ticker
+    /// claimed it ([`crate::Ticker::set_follow_restarts`]). Whether the
+    /// tick that noticed was computed is not known: the world resumed at
+    /// `resumed_at`, and the next tick computes the frame after it.
+    #[error("{0}; this ticker claimed the world again")]
+    Restarted(crate::Reconnected),
 }
 
 impl TickError {

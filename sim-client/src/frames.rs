@@ -100,6 +100,12 @@ impl FrameStream {
         &self.ready
     }
 
+    /// The header of the frame kept by [`FrameStream::first_header`], not
+    /// yet handed out.
+    pub(crate) fn stashed_header(&self) -> Option<FrameHeader> {
+        self.stash.as_ref().map(|sample| *sample.user_header())
+    }
+
     /// The last frame handed out.
     pub(crate) fn last_frame(&self) -> Option<u64> {
         self.last.map(|(_, frame)| frame)

@@ -40,6 +40,7 @@ mod lockstep;
 mod on_tick;
 mod open;
 mod recorder;
+mod restart;
 mod rpc;
 mod sensor;
 mod snapshot;
@@ -61,6 +62,7 @@ pub use on_tick::CallbackId;
 pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };
+pub use restart::{Event, Reconnected};
 pub use sensor::{Listening, Sensor, SensorError};
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};

@@ -15,7 +15,7 @@ use tracing::{debug, info, warn};
 
 use crate::open::{frame_ready_listener, wake_notifier};
 use crate::rpc::{open_service, Pending, RequestPort, Wait};
-use crate::{ApplySettingsError, RequestError, TickError, WaitMode};
+use crate::{ApplySettingsError, RequestError, TickError, WaitError, WaitMode};
 
 /// How much longer than the server's lockstep timeout a held-up tick
 /// waits, for the server to drop the participant and step.
@@ -75,18 +75,20 @@ const PARTICIPANT_DROP_MARGIN: Duration = Duration::from_secs(2);
 /// # }
 /// ```
 pub struct Ticker {
-    world: WorldName,
+    pub(crate) world: WorldName,
     port: RequestPort<TickRequest, TickResponse>,
     ready: Listener<Bus>,
-    server_pid: u32,
-    node_name: String,
+    pub(crate) server_pid: u32,
+    pub(crate) node_name: String,
     /// The tick request, built once: a tick in a tight loop copies 100
     /// bytes into shared memory and builds nothing.
     tick_request: TickRequest,
-    mode: WaitMode,
+    pub(crate) mode: WaitMode,
     request_timeout: Duration,
-    last: Option<(u64, u64)>,
-    released: bool,
+    pub(crate) last: Option<(u64, u64)>,
+    pub(crate) released: bool,
+    /// How long to wait for a server coming back ([`Ticker::set_follow_restarts`]).
+    pub(crate) follow_restarts: Option<Duration>,
     // Declared last: ports drop before their node.
     _node: Node<Bus>,
 }
@@ -172,6 +174,7 @@ impl Ticker {
             request_timeout,
             last: None,
             released: false,
+            follow_restarts: None,
             _node: node,
         })
     }
@@ -206,6 +209,11 @@ impl Ticker {
         self.mode = mode;
     }
 
+    /// The process id of the server this ticker ticks.
+    pub fn server_pid(&self) -> u32 {
+        self.server_pid
+    }
+
     /// The world ticked.
     pub fn world(&self) -> &WorldName {
         &self.world
@@ -225,7 +233,15 @@ impl Ticker {
     /// A tick held up by a lockstep participant is told so by the server
     /// (which drops a participant after its `--lockstep-timeout`); it then
     /// waits that long too, whatever `timeout` says, so the two never race.
+    ///
+    /// With [`Ticker::set_follow_restarts`], a server that exits while the
+    /// tick waits ends it with [`TickError::Restarted`] once another came
+    /// back and this ticker claimed it.
     pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
+        self.tick_once(timeout).map_err(|e| self.ride_through(e))
+    }
+
+    fn tick_once(&mut self, timeout: Duration) -> Result<u64, TickError> {
         let started = Instant::now();
         let sent = stamps::began();
         let pending = self.port.send(self.tick_request)?;
@@ -273,7 +289,33 @@ impl Ticker {
     /// the answer and returns the newest frame then. Frames `client` had
     /// queued before the tick are skipped (its next frame after this one
     /// counts none missed). Waits as `client`'s wait mode says.
+    ///
+    /// With [`Ticker::set_follow_restarts`], a server that exits ends the
+    /// tick with [`TickError::Restarted`] once another came back, this
+    /// ticker claimed it and `client` reconnected to it.
     pub fn tick_and_read(
+        &mut self,
+        client: &mut crate::Client,
+        timeout: Duration,
+    ) -> Result<crate::FrameView, TickError> {
+        match self.tick_and_read_once(client, timeout) {
+            Ok(view) => Ok(view),
+            Err(e) => match self.ride_through(e) {
+                TickError::Restarted(reconnected) => {
+                    let wait = self.follow_restarts.unwrap_or(timeout);
+                    if client.server_pid() != reconnected.server_pid {
+                        client
+                            .reconnect(wait)
+                            .map_err(|e| TickError::Frame(WaitError::Reconnect(Box::new(e))))?;
+                    }
+                    Err(TickError::Restarted(reconnected))
+                }
+                e => Err(e),
+            },
+        }
+    }
+
+    fn tick_and_read_once(
         &mut self,
         client: &mut crate::Client,
         timeout: Duration,

@@ -552,3 +552,29 @@ pub fn wait_for_participants(client: &sim_client::Client, count: u32) {
         std::thread::yield_now();
     }
 }
+
+/// Rewrites `from` into `to` through the `mcap` crate, renaming schema
+/// `rename.0` to `rename.1`.
+pub fn rewrite(from: &std::path::Path, to: &std::path::Path, rename: (&str, &str)) {
+    let bytes = std::fs::read(from).unwrap();
+    let mut writer =
+        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        let mut channel = (*message.channel).clone();
+        if let Some(schema) = &channel.schema {
+            if schema.name == rename.0 {
+                let mut schema = (**schema).clone();
+                schema.name = rename.1.to_string();
+                channel.schema = Some(std::sync::Arc::new(schema));
+            }
+        }
+        writer
+            .write(&mcap::Message {
+                channel: std::sync::Arc::new(channel),
+                ..message
+            })
+            .unwrap();
+    }
+    writer.finish().unwrap();
+}

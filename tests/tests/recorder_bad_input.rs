@@ -13,7 +13,7 @@ use shared_types::RecorderRefusal;
 use sim_client::{Client, RecorderError, ReplayOptions, Ticker};
 use simbus_recording::inspect;
 use simbus_recording::FRAME_SCHEMA;
-use simbus_tests::{Scratch, TestWorld};
+use simbus_tests::{rewrite, Scratch, TestWorld};
 
 const T: Duration = Duration::from_secs(20);
 
@@ -37,32 +37,6 @@ fn refused<T: std::fmt::Debug>(result: Result<T, RecorderError>) -> (RecorderRef
         Err(RecorderError::Refused { refusal, message }) => (refusal, message),
         other => panic!("expected a refusal, got {other:?}"),
     }
-}
-
-/// Rewrites `from` into `to` through the `mcap` crate, renaming schema
-/// `rename.0` to `rename.1`.
-fn rewrite(from: &Path, to: &Path, rename: (&str, &str)) {
-    let bytes = std::fs::read(from).unwrap();
-    let mut writer =
-        mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(to).unwrap())).unwrap();
-    for message in mcap::MessageStream::new(&bytes).unwrap() {
-        let message = message.unwrap();
-        let mut channel = (*message.channel).clone();
-        if let Some(schema) = &channel.schema {
-            if schema.name == rename.0 {
-                let mut schema = (**schema).clone();
-                schema.name = rename.1.to_string();
-                channel.schema = Some(std::sync::Arc::new(schema));
-            }
-        }
-        writer
-            .write(&mcap::Message {
-                channel: std::sync::Arc::new(channel),
-                ..message
-            })
-            .unwrap();
-    }
-    writer.finish().unwrap();
 }
 
 #[test]

@@ -52,6 +52,31 @@ pub(crate) struct WatchArgs {
     /// (0..=15: its frame queue holds 16). 0, the default, waits every frame.
     #[arg(long, value_name = "N", requires = "lockstep", allow_negative_numbers = true, value_parser = simbus_input::watch_window)]
     window: Option<u32>,
+
+    /// Ride through a server restart (`sim-server --resume DIR`): when the
+    /// server exits, wait up to --timeout for one to come back on the
+    /// world, print a `restarted` line marking the gap (JSON: an object
+    /// with "event": "restarted"), and go on with its frames (rejoining
+    /// the lockstep with --lockstep). Without it, a server that exits ends
+    /// the watch with an error.
+    #[arg(long)]
+    follow_restarts: bool,
+}
+
+/// The line (or JSON object) that marks a restart in a watch.
+pub(crate) fn restarted_line(r: &sim_client::Reconnected, json: bool) -> String {
+    if json {
+        serde_json::json!({
+            "event": "restarted",
+            "resumed_at": r.resumed_at,
+            "episode": r.episode,
+            "server_pid": r.server_pid,
+            "previous_pid": r.previous_pid,
+        })
+        .to_string()
+    } else {
+        format!("restarted: {r}")
+    }
 }
 
 /// The JSON object of one frame.
@@ -126,15 +151,25 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     client.set_request_timeout(timeout);
     client.set_wait_mode(args.wait_mode);
     client.set_every_frame(args.every_frame);
-    let participant = if args.lockstep {
-        Some(client.join_lockstep_with_window("watch", args.window.unwrap_or(0))?)
-    } else {
-        None
+    let join = |client: &Client| {
+        args.lockstep
+            .then(|| client.join_lockstep_with_window("watch", args.window.unwrap_or(0)))
+            .transpose()
     };
+    let mut participant = join(&client)?;
     let (mut seen, mut missed) = (0, 0);
     while args.frames.is_none_or(|n| seen < n) {
-        let Some(snapshot) = next_frame(&mut client, timeout)? else {
-            break;
+        let snapshot = match next_frame(&mut client, timeout) {
+            Ok(Some(snapshot)) => snapshot,
+            Ok(None) => break,
+            Err(WaitError::ServerGone { .. }) if args.follow_restarts => {
+                drop(participant.take());
+                let restarted = client.reconnect(timeout)?;
+                println!("{}", restarted_line(&restarted, args.json));
+                participant = join(&client)?;
+                continue;
+            }
+            Err(e) => return Err(e.into()),
         };
         seen += 1;
         missed += snapshot.missed();

@@ -1,0 +1,346 @@
+//! A crash loses nothing: a server killed with SIGKILL and resumed from
+//! its journal (`sim-server --resume DIR`) goes on bit-identically, its
+//! ticker and watchers ride through the restart without being restarted,
+//! and with `--journal-sync frames:1` no ticker was ever told of a frame
+//! the crash took back. A journal that cannot be resumed is refused with
+//! its reason, and nothing starts.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::Value;
+use simbus_tests::*;
+
+/// Steps of the scenario (a reload at step 1000).
+const STEPS: u64 = 2000;
+/// The server killed this many times in the interrupted run.
+const KILLS: usize = 10;
+
+/// Runs the scenario driver to its end against a world started with
+/// `server_args`; returns its lines.
+fn uninterrupted(scratch: &Scratch) -> Vec<Value> {
+    let journal = scratch.file("straight");
+    let world = TestWorld::start(
+        "journal-straight",
+        &[
+            "--sync",
+            "--fps",
+            "20",
+            "--journal",
+            journal.to_str().unwrap(),
+        ],
+    );
+    let driver = Proc::spawn("simbus-scenario", &[world.name(), &STEPS.to_string(), "11"]);
+    let done = driver.finish(Duration::from_secs(300));
+    done.assert_success();
+    done.json()
+}
+
+/// (episode, frame) of a driver line.
+fn at(line: &Value) -> (u64, u64) {
+    (
+        line["episode"].as_u64().unwrap(),
+        line["frame"].as_u64().unwrap(),
+    )
+}
+
+#[test]
+fn a_killed_server_resumed_from_its_journal_goes_on_bit_identically_and_its_clients_ride_through() {
+    let scratch = Scratch::new("journal-crash-loop");
+    let straight: BTreeMap<(u64, u64), Value> = uninterrupted(&scratch)
+        .into_iter()
+        .filter(|l| l.get("digest").is_some())
+        .map(|l| (at(&l), l))
+        .collect();
+
+    let journal = scratch.file("killed");
+    let dir = journal.to_str().unwrap();
+    let name = unique_world("journal-killed");
+    let mut server = server(&name, &["--sync", "--fps", "20", "--journal", dir]);
+    let driver = Proc::spawn("simbus-scenario", &[&name, &STEPS.to_string(), "11"]);
+    let watcher = Proc::spawn(
+        "sim-client",
+        &[
+            "--world",
+            &name,
+            "--timeout",
+            "60",
+            "watch",
+            "--follow-restarts",
+            "--json",
+        ],
+    );
+    // Ten kills at seeded random steps, each once the driver has read
+    // that step's frame.
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut kills: Vec<u64> = (0..KILLS)
+        .map(|_| rng.random_range(20..STEPS - 20))
+        .collect();
+    kills.sort_unstable();
+    let mut lines: Vec<Value> = Vec::new();
+    let read = |until: &dyn Fn(&Value) -> bool, lines: &mut Vec<Value>| {
+        let deadline = Instant::now() + Duration::from_secs(120);
+        loop {
+            let line = driver
+                .line(deadline.saturating_duration_since(Instant::now()))
+                .unwrap_or_else(|| panic!("the driver stopped; stderr:\n{}", driver.stderr()));
+            let line: Value = serde_json::from_str(&line).expect("a JSON line");
+            let stop = until(&line);
+            lines.push(line);
+            if stop {
+                return;
+            }
+        }
+    };
+    let mut last_answered = Vec::new();
+    for &kill in &kills {
+        read(
+            &|l: &Value| l["step"].as_u64().is_some_and(|s| s >= kill),
+            &mut lines,
+        );
+        server.guard.kill().expect("SIGKILL the server");
+        let before = lines
+            .iter()
+            .rev()
+            .find(|l| l.get("digest").is_some())
+            .map(at);
+        last_answered.push(before.expect("a frame before the kill"));
+        server = Proc::spawn("sim-server", &["--resume", dir]);
+        wait_until_up(&name, &server);
+    }
+    read(&|l: &Value| l["step"].as_u64() == Some(STEPS), &mut lines);
+    let done = driver.finish(Duration::from_secs(120));
+    done.assert_success();
+    lines.extend(done.json());
+
+    // Every frame the driver read equals the uninterrupted run's, bit for
+    // bit, and so does every sensor capture of a frame that was stepped.
+    let mut seen = std::collections::BTreeSet::new();
+    let mut compared = 0;
+    for line in lines.iter().filter(|l| l.get("digest").is_some()) {
+        let key = at(line);
+        let expected = straight
+            .get(&key)
+            .unwrap_or_else(|| panic!("frame {key:?} is not in the uninterrupted run"));
+        assert_eq!(line["digest"], expected["digest"], "frame {key:?}");
+        for (got, want) in line["captures"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(expected["captures"].as_array().unwrap())
+        {
+            // "-": the resumed server's re-publication of the frame it
+            // resumed at, which computed (and captured) nothing.
+            if got != "-" {
+                assert_eq!(got, want, "a capture of frame {key:?}");
+                compared += 1;
+            }
+        }
+        seen.insert(key);
+    }
+    // Two sensors, a capture each per stepped frame.
+    assert!(
+        compared >= 2 * (STEPS - 10),
+        "only {compared} captures compared"
+    );
+    let missing: Vec<_> = straight.keys().filter(|k| !seen.contains(k)).collect();
+    assert!(
+        missing.is_empty(),
+        "frames never read after the restarts: {missing:?}"
+    );
+
+    // frames:1 (synchronous mode's default): each restart resumed at or
+    // after the last frame the ticker had been answered for.
+    let restarts: Vec<&Value> = lines
+        .iter()
+        .filter(|l| l.get("restarted").is_some())
+        .collect();
+    assert_eq!(
+        restarts.len(),
+        KILLS,
+        "the driver rode through every restart"
+    );
+    for (restart, answered) in restarts.iter().zip(&last_answered) {
+        let resumed = (
+            restart["episode"].as_u64().unwrap(),
+            restart["restarted"].as_u64().unwrap(),
+        );
+        assert!(
+            resumed >= *answered,
+            "resumed at {resumed:?}, behind the answered {answered:?}"
+        );
+    }
+
+    // The watcher went on through every restart, marking each gap.
+    simbus_process::send_signal(watcher.pid(), libc::SIGINT).unwrap();
+    let watched = watcher.finish(Duration::from_secs(30));
+    watched.assert_success();
+    let marks = watched
+        .json()
+        .into_iter()
+        .filter(|l| l["event"] == "restarted")
+        .count();
+    assert_eq!(marks, KILLS, "{watched}");
+}
+
+/// `sim-server --resume DIR` with `args`, which must be refused (exit 2)
+/// with `reason` in its message.
+fn refused(args: &[&str], reason: &str) {
+    let out = Proc::spawn("sim-server", args).finish(Duration::from_secs(60));
+    assert_eq!(out.status.code(), Some(2), "{out}");
+    assert!(out.stderr.contains(reason), "wanted '{reason}': {out}");
+}
+
+/// A journal of `frames` synchronous frames of a fresh world, the server
+/// stopped cleanly; returns the world's name.
+fn journal_of(dir: &std::path::Path, frames: u32) -> String {
+    let world = TestWorld::start(
+        "journal-short",
+        &[
+            "--sync",
+            "--fps",
+            "20",
+            "--journal",
+            dir.to_str().unwrap(),
+            "--keyframe-seconds",
+            "1",
+        ],
+    );
+    world
+        .cli(&["tick", "--count", &frames.to_string(), "--leave-sync"])
+        .assert_success();
+    world.name().to_owned()
+}
+
+#[test]
+fn journals_that_cannot_be_resumed_are_refused_with_their_reason() {
+    let scratch = Scratch::new("journal-damaged");
+    let empty = scratch.file("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    refused(
+        &["--resume", empty.to_str().unwrap(), "--world", "x"],
+        "holds no journal",
+    );
+
+    let good = scratch.file("good");
+    let world = journal_of(&good, 60);
+    let good_dir = good.to_str().unwrap();
+    refused(
+        &["--resume", good_dir, "--world", "another-world"],
+        &format!("is world '{world}', not 'another-world'"),
+    );
+    refused(
+        &[
+            "--resume",
+            good_dir,
+            "--at",
+            "30",
+            "--world",
+            "fork",
+            "--journal",
+            good_dir,
+        ],
+        "a fork leaves its journal untouched",
+    );
+    refused(
+        &["--resume", good_dir, "--at", "100000", "--world", "fork"],
+        "holds no frame 100000",
+    );
+
+    // A journal from a newer format: its schema names a later version.
+    let newer = scratch.file("newer");
+    std::fs::create_dir_all(&newer).unwrap();
+    rewrite(
+        &good.join("journal-000001.mcap"),
+        &newer.join("journal-000001.mcap"),
+        (simbus_recording::FRAME_SCHEMA, "simbus::FrameHeader/9"),
+    );
+    refused(
+        &["--resume", newer.to_str().unwrap(), "--world", "x"],
+        "simbus::FrameHeader/9",
+    );
+
+    // Garbage where the segment should be.
+    let garbage = scratch.file("garbage");
+    std::fs::create_dir_all(&garbage).unwrap();
+    std::fs::write(garbage.join("journal-000001.mcap"), b"not a journal at all").unwrap();
+    refused(
+        &["--resume", garbage.to_str().unwrap(), "--world", "x"],
+        "no segment",
+    );
+}
+
+/// Starts `sim-server --resume` with `args` and returns the frame it
+/// resumed at and what it logged, stopping it.
+fn resumed_at(args: &[&str], world: &str) -> (u64, String) {
+    let server = Proc::spawn("sim-server", args);
+    wait_until_up(world, &server);
+    let mut client = sim_client::Client::connect(world, Duration::from_secs(10)).unwrap();
+    let frame = client
+        .wait_for_tick(Duration::from_secs(10))
+        .unwrap()
+        .frame();
+    (frame, server.stderr())
+}
+
+#[test]
+fn damage_after_a_keyframe_resumes_from_the_last_good_frame_and_says_which() {
+    let scratch = Scratch::new("journal-truncated");
+    let dir = scratch.file("j");
+    let world = journal_of(&dir, 100);
+    let segment = dir.join("journal-000001.mcap");
+    let whole = std::fs::read(&segment).unwrap();
+    // Cut mid-chunk: a server killed while writing.
+    std::fs::write(&segment, &whole[..whole.len() * 2 / 3]).unwrap();
+    let (frame, log) = resumed_at(&["--resume", dir.to_str().unwrap()], &world);
+    assert!((20..100).contains(&frame), "resumed at {frame}");
+    assert!(
+        log.contains(&format!("is damaged or unfinished after frame {frame}")),
+        "{log}"
+    );
+    // A flipped byte in the last chunks (the last keyframe's): the resume
+    // goes back to the frames before the damage.
+    let mut flipped = whole.clone();
+    let at = whole.len() * 9 / 10;
+    flipped[at] ^= 0x10;
+    let copy = scratch.file("flipped");
+    std::fs::create_dir_all(&copy).unwrap();
+    std::fs::write(copy.join("journal-000001.mcap"), &flipped).unwrap();
+    let (frame, log) = resumed_at(&["--resume", copy.to_str().unwrap()], &world);
+    assert!((20..100).contains(&frame), "resumed at {frame}");
+    assert!(
+        log.contains(&format!("is damaged or unfinished after frame {frame}")),
+        "{log}"
+    );
+}
+
+#[test]
+fn a_fork_starts_a_new_world_at_a_journaled_frame_and_leaves_the_journal_untouched() {
+    let scratch = Scratch::new("journal-fork");
+    let dir = scratch.file("j");
+    let _world = journal_of(&dir, 100);
+    let before: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let fork = unique_world("journal-fork-new");
+    let (frame, _) = resumed_at(
+        &[
+            "--resume",
+            dir.to_str().unwrap(),
+            "--at",
+            "50",
+            "--world",
+            &fork,
+        ],
+        &fork,
+    );
+    assert_eq!(frame, 50);
+    let after: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(before, after, "the fork wrote into the original journal");
+}

@@ -53,6 +53,7 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
         limits: Default::default(),
         keyframe_seconds: None,
         render_threads: None,
+        journal: None,
     };
     let summary = Server::start(config)?.run(&AtomicBool::new(false))?;
     Ok((

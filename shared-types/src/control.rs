@@ -25,6 +25,15 @@ wire_enum! {
         LoadWorld = 5,
         /// Restores the current scene's initial state as a new episode.
         ReloadWorld = 6,
+        /// Saves the whole world in the server's memory; the answer's
+        /// [`ControlResponse::snapshot`] is its id.
+        SaveSnapshot = 7,
+        /// Restores snapshot [`ControlRequest::snapshot`] as a new episode.
+        RestoreSnapshot = 8,
+        /// Lists the snapshots ([`ControlResponse::snapshots`]).
+        ListSnapshots = 9,
+        /// Forgets snapshot [`ControlRequest::snapshot`].
+        DropSnapshot = 10,
     }
 }
 
@@ -69,13 +78,18 @@ wire_enum! {
         /// cannot reach now (the link is down or the exporting bridge is
         /// gone); nothing was done.
         Unreachable = 13,
+        /// No snapshot has the id asked for; nothing changed.
+        UnknownSnapshot = 14,
+        /// The server holds as many snapshots as it keeps
+        /// ([`MAX_SNAPSHOTS`]); drop one first. Nothing changed.
+        SnapshotsFull = 15,
     }
 }
 
 /// A request to the world's server.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlRequest/2")]
+#[type_name("simbus::ControlRequest/3")]
 pub struct ControlRequest {
     /// [`PROTOCOL_VERSION`] of the sender.
     pub protocol_version: u32,
@@ -92,6 +106,8 @@ pub struct ControlRequest {
     /// The sender's name (its executable), for logs and for telling a
     /// ticker who ended synchronous mode.
     pub client_name: FixedText,
+    /// The snapshot to restore or drop.
+    pub snapshot: u64,
 }
 
 impl ControlRequest {
@@ -105,6 +121,15 @@ impl ControlRequest {
             settings: WorldSettings::default().into(),
             scene: FixedText::new(""),
             client_name: FixedText::new(""),
+            snapshot: 0,
+        }
+    }
+
+    /// A request of `kind` about snapshot `id`.
+    pub fn snapshot(kind: RequestKind, id: u64) -> Self {
+        Self {
+            snapshot: id,
+            ..Self::new(kind)
         }
     }
 
@@ -217,7 +242,7 @@ impl ParticipantStatus {
 /// The world's state as the server reports it.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::StatusReport/4")]
+#[type_name("simbus::StatusReport/5")]
 pub struct StatusReport {
     /// The latest published frame.
     pub frame: u64,
@@ -243,6 +268,15 @@ pub struct StatusReport {
     pub max_clients: u32,
     /// Readers each sensor admits (`--max-sensor-readers`).
     pub max_sensor_readers: u32,
+    /// The journal: [`StatusReport::NO_JOURNAL`], [`StatusReport::JOURNALING`]
+    /// or [`StatusReport::JOURNAL_STOPPED`] (`journal_note` says why).
+    pub journal: u32,
+    /// The last frame the journal made durable.
+    pub journal_durable_frame: u64,
+    /// The journal's directory, or why it stopped.
+    pub journal_note: FixedText,
+    /// Snapshots held in the server's memory.
+    pub snapshots: u32,
     /// Zero.
     pub reserved: u32,
     /// The first [`REPORTED_PARTICIPANTS`] participants in joining order
@@ -250,10 +284,65 @@ pub struct StatusReport {
     pub lockstep: [ParticipantStatus; REPORTED_PARTICIPANTS],
 }
 
+impl StatusReport {
+    /// [`StatusReport::journal`]: the server keeps no journal.
+    pub const NO_JOURNAL: u32 = 0;
+    /// [`StatusReport::journal`]: the journal is being written.
+    pub const JOURNALING: u32 = 1;
+    /// [`StatusReport::journal`]: the journal stopped (the disk is full,
+    /// the file cannot be written); the world runs on.
+    pub const JOURNAL_STOPPED: u32 = 2;
+}
+
+/// Snapshots a server keeps in memory at most.
+pub const MAX_SNAPSHOTS: usize = 16;
+
+/// One snapshot a server holds.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SnapshotInfo/1")]
+pub struct SnapshotInfo {
+    /// Its id (from 1, never reused within a server's life).
+    pub id: u64,
+    /// The frame it was saved at.
+    pub frame: u64,
+    /// The frame's id in its own line (the same unless the world was
+    /// itself restored from a snapshot since its episode began).
+    pub source_frame: u64,
+    /// The episode it was saved in.
+    pub episode: u64,
+    /// The simulation time it was saved at.
+    pub elapsed_ns: u64,
+    /// Its actors.
+    pub actors: u32,
+    /// Its sensors.
+    pub sensors: u32,
+}
+
+/// The snapshots a [`ControlResponse`] lists.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::SnapshotList/1")]
+pub struct SnapshotList {
+    /// How many of `items` are filled.
+    pub count: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The snapshots, oldest first.
+    pub items: [SnapshotInfo; MAX_SNAPSHOTS],
+}
+
+impl SnapshotList {
+    /// The filled items (a count from another process is bounded).
+    pub fn as_slice(&self) -> &[SnapshotInfo] {
+        &self.items[..(self.count as usize).min(MAX_SNAPSHOTS)]
+    }
+}
+
 /// The server's answer to one [`ControlRequest`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::ControlResponse/4")]
+#[type_name("simbus::ControlResponse/5")]
 pub struct ControlResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
@@ -267,6 +356,10 @@ pub struct ControlResponse {
     pub settings_error: WireSettingsError,
     /// The world's state after the request.
     pub report: StatusReport,
+    /// The snapshot saved or restored (its id), 0 otherwise.
+    pub snapshot: u64,
+    /// For [`RequestKind::ListSnapshots`]: the snapshots.
+    pub snapshots: SnapshotList,
 }
 
 impl ControlResponse {
@@ -278,6 +371,8 @@ impl ControlResponse {
             effective_frame: 0,
             settings_error: WireSettingsError::NONE,
             report,
+            snapshot: 0,
+            snapshots: SnapshotList::zeroed(),
         }
     }
 
@@ -327,10 +422,14 @@ mod tests {
         // eight participant statuses at the report's end (104 bytes each
         // since /4: their window and lag).
         assert_eq!(std::mem::size_of::<ParticipantStatus>(), 104);
-        assert_eq!(std::mem::size_of::<ControlResponse>(), 288 + 8 * 104);
+        // /5: the journal's state and the snapshots.
+        assert_eq!(
+            std::mem::size_of::<ControlResponse>(),
+            288 + 8 * 104 + 88 + 8 + 8 + 16 * 48
+        );
         assert_eq!(std::mem::offset_of!(ControlResponse, settings_error), 16);
         assert_eq!(std::mem::offset_of!(ControlResponse, report), 48);
-        assert_eq!(std::mem::offset_of!(StatusReport, lockstep), 240);
+        assert_eq!(std::mem::offset_of!(StatusReport, lockstep), 328);
     }
 
     #[test]

@@ -95,6 +95,12 @@ impl FrameHeader {
     /// replay publishes at once has none (a tick answered by its frame
     /// takes only a stepped one).
     pub const STEPPED: u32 = 8;
+    /// Flag: the frame goes on from a restored snapshot, whose line of
+    /// frames it continues: `recorded_frame` is its id in that line (the
+    /// frame after the snapshot's is the snapshot's frame plus one),
+    /// `recorded_elapsed_ns` its time. It digests like the frame of the
+    /// same id after the save.
+    pub const RESTORED: u32 = 16;
 
     /// Whether physics advanced less than the frame's delta (the substep
     /// rule `clamp`, CARLA's).
@@ -131,10 +137,12 @@ impl FrameHeader {
     }
 
     /// The frame's own identity: for a replayed frame the frame id and
-    /// simulation time it had in the recording, for a live one its
-    /// timestamp's. A replay digests like the frames it replays.
+    /// simulation time it had in the recording, for one that goes on from
+    /// a restored snapshot its id in the snapshot's line, for a live one
+    /// its timestamp's. A replay digests like the frames it replays, a
+    /// restored world like the one saved.
     pub fn source_timestamp(&self) -> Timestamp {
-        if self.is_replay() {
+        if self.is_replay() || self.flags & Self::RESTORED != 0 {
             Timestamp {
                 frame: self.recorded_frame,
                 elapsed_ns: self.recorded_elapsed_ns,

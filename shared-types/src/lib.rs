@@ -76,7 +76,7 @@ pub use command::{
 };
 pub use control::{
     ControlRequest, ControlResponse, FixedText, ParticipantStatus, RequestKind, ResponseStatus,
-    StatusReport, REPORTED_PARTICIPANTS,
+    SnapshotInfo, SnapshotList, StatusReport, MAX_SNAPSHOTS, REPORTED_PARTICIPANTS,
 };
 pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse, MAX_LOCKSTEP_WINDOW};
@@ -101,7 +101,7 @@ pub use wire::{Response, UnknownWireValue};
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// This process's id, read once: every request carries it, and asking the
 /// kernel for it on every request would be a syscall on the hot path.

@@ -363,7 +363,7 @@ impl Client {
             .next(timeout, self.world.as_str(), Some(self.server_pid))
     }
 
-    fn request(&self, request: ControlRequest) -> Result<ControlResponse, RequestError> {
+    pub(crate) fn request(&self, request: ControlRequest) -> Result<ControlResponse, RequestError> {
         self.request_within(request, self.request_timeout)
     }
 

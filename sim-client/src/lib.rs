@@ -42,6 +42,7 @@ mod open;
 mod recorder;
 mod restart;
 mod rpc;
+mod saves;
 mod sensor;
 mod snapshot;
 mod standby;
@@ -63,7 +64,9 @@ pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };
 pub use restart::{Event, Reconnected};
+pub use saves::{SnapshotError, SnapshotId};
 pub use sensor::{Listening, Sensor, SensorError};
+pub use shared_types::SnapshotInfo;
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
 pub use standby::{StandbyTicker, TakeOver};

@@ -184,6 +184,27 @@ pub(crate) enum ControlCall {
         /// The client's name.
         name: FixedText,
     },
+    /// Save the world in memory (from `pid`).
+    SaveSnapshot {
+        /// The client's process.
+        pid: u32,
+    },
+    /// Restore snapshot `id` as a new episode (from `pid`).
+    RestoreSnapshot {
+        /// The snapshot.
+        id: u64,
+        /// The client's process.
+        pid: u32,
+    },
+    /// List the snapshots.
+    ListSnapshots,
+    /// Forget snapshot `id` (from `pid`).
+    DropSnapshot {
+        /// The snapshot.
+        id: u64,
+        /// The client's process.
+        pid: u32,
+    },
     /// Load `scene` (`None`: reload the current one) as a new episode.
     Load {
         /// The scene to load; `None` for a reload.
@@ -245,6 +266,16 @@ fn decode(request: &ControlRequest, pid: u32) -> ControlCall {
                 pid,
             }
         }
+        Some(RequestKind::SaveSnapshot) => ControlCall::SaveSnapshot { pid },
+        Some(RequestKind::RestoreSnapshot) => ControlCall::RestoreSnapshot {
+            id: request.snapshot,
+            pid,
+        },
+        Some(RequestKind::ListSnapshots) => ControlCall::ListSnapshots,
+        Some(RequestKind::DropSnapshot) => ControlCall::DropSnapshot {
+            id: request.snapshot,
+            pid,
+        },
         None => ControlCall::Refuse(ResponseStatus::UnknownRequest),
     }
 }

@@ -70,6 +70,7 @@ pub(crate) mod replayer;
 pub mod scene;
 pub(crate) mod sensors;
 pub(crate) mod server;
+pub(crate) mod snapshots;
 pub(crate) mod state;
 pub(crate) mod ticker;
 pub mod timing;

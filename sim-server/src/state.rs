@@ -37,6 +37,9 @@ pub(crate) struct Runtime {
     pub pacer: Pacer,
     /// Frames computed since start (all episodes).
     pub frames_computed: u64,
+    /// After a snapshot was restored in this episode: the current frame id
+    /// minus its id in the snapshot's line of frames.
+    pub source_offset: Option<u64>,
     last_warning: Option<Instant>,
 }
 
@@ -49,6 +52,7 @@ impl Runtime {
             episode: 1,
             pacer: Pacer::new(config.realtime, config.max_fps),
             frames_computed: 0,
+            source_offset: None,
             last_warning: None,
         }
     }

@@ -193,9 +193,10 @@ fn refused(args: &[&str], reason: &str) {
     assert!(out.stderr.contains(reason), "wanted '{reason}': {out}");
 }
 
-/// A journal of `frames` synchronous frames of a fresh world, the server
-/// stopped cleanly; returns the world's name.
-fn journal_of(dir: &std::path::Path, frames: u32) -> String {
+/// A journal of `frames` synchronous frames of a fresh world (a box
+/// pushed every 7th frame), the server stopped cleanly; returns the
+/// world's name and each frame's digest.
+fn journal_of(dir: &std::path::Path, frames: u64) -> (String, BTreeMap<u64, u64>) {
     let world = TestWorld::start(
         "journal-short",
         &[
@@ -208,10 +209,26 @@ fn journal_of(dir: &std::path::Path, frames: u32) -> String {
             "1",
         ],
     );
-    world
-        .cli(&["tick", "--count", &frames.to_string(), "--leave-sync"])
-        .assert_success();
-    world.name().to_owned()
+    let mut client = world.connect();
+    let mut ticker = client.claim_ticker().unwrap();
+    let mut digests = BTreeMap::new();
+    let first = client.wait_for_tick(Duration::from_secs(10)).unwrap();
+    let pushed = first
+        .actors
+        .iter()
+        .find(|a| a.kind == shared_types::ActorKind::Box as u32)
+        .unwrap()
+        .id;
+    for i in 0..frames {
+        if i.is_multiple_of(7) {
+            let push = shared_types::Command::apply_impulse(pushed, [0.4, 1.5, 0.0]);
+            client.apply_batch_sync(&[push], false).unwrap();
+        }
+        ticker.tick(Duration::from_secs(10)).unwrap();
+        let frame = client.wait_for_tick(Duration::from_secs(10)).unwrap();
+        digests.insert(frame.frame(), frame.digest());
+    }
+    (world.name().to_owned(), digests)
 }
 
 #[test]
@@ -225,7 +242,7 @@ fn journals_that_cannot_be_resumed_are_refused_with_their_reason() {
     );
 
     let good = scratch.file("good");
-    let world = journal_of(&good, 60);
+    let (world, _) = journal_of(&good, 60);
     let good_dir = good.to_str().unwrap();
     refused(
         &["--resume", good_dir, "--world", "another-world"],
@@ -289,7 +306,7 @@ fn resumed_at(args: &[&str], world: &str) -> (u64, String) {
 fn damage_after_a_keyframe_resumes_from_the_last_good_frame_and_says_which() {
     let scratch = Scratch::new("journal-truncated");
     let dir = scratch.file("j");
-    let world = journal_of(&dir, 100);
+    let (world, _) = journal_of(&dir, 100);
     let segment = dir.join("journal-000001.mcap");
     let whole = std::fs::read(&segment).unwrap();
     // Cut mid-chunk: a server killed while writing.
@@ -320,13 +337,22 @@ fn damage_after_a_keyframe_resumes_from_the_last_good_frame_and_says_which() {
 fn a_fork_starts_a_new_world_at_a_journaled_frame_and_leaves_the_journal_untouched() {
     let scratch = Scratch::new("journal-fork");
     let dir = scratch.file("j");
-    let _world = journal_of(&dir, 100);
-    let before: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
+    let (_, original) = journal_of(&dir, 100);
+    let listing = |dir: &std::path::Path| -> Vec<(std::path::PathBuf, u64)> {
+        let mut files: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                (e.path(), e.metadata().unwrap().len())
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let before = listing(&dir);
     let fork = unique_world("journal-fork-new");
-    let (frame, _) = resumed_at(
+    let server = Proc::spawn(
+        "sim-server",
         &[
             "--resume",
             dir.to_str().unwrap(),
@@ -335,12 +361,27 @@ fn a_fork_starts_a_new_world_at_a_journaled_frame_and_leaves_the_journal_untouch
             "--world",
             &fork,
         ],
-        &fork,
     );
-    assert_eq!(frame, 50);
-    let after: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    assert_eq!(before, after, "the fork wrote into the original journal");
+    wait_until_up(&fork, &server);
+    let mut client = sim_client::Client::connect(&fork, Duration::from_secs(10)).unwrap();
+    assert_eq!(
+        client
+            .wait_for_tick(Duration::from_secs(10))
+            .unwrap()
+            .frame(),
+        50
+    );
+    // From 51 on, the original run's digests, up to the frame before the
+    // original's next push (its commands went into frame 57).
+    let mut ticker = client.claim_ticker().unwrap();
+    for frame in 51..=56 {
+        assert_eq!(ticker.tick(Duration::from_secs(10)).unwrap(), frame);
+        let got = client.wait_for_tick(Duration::from_secs(10)).unwrap();
+        assert_eq!(got.digest(), original[&frame], "frame {frame} of the fork");
+    }
+    assert_eq!(
+        before,
+        listing(&dir),
+        "the fork wrote into the original journal"
+    );
 }

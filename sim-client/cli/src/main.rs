@@ -127,6 +127,13 @@ enum Command {
     Recorder(cli::recorder::RecorderArgs),
     /// Replay a recording: exact, interpolated, or re-simulated and verified.
     Replay(cli::recorder::ReplayArgs),
+    /// Save the whole world in the server's memory and restore it later as
+    /// a new episode from exactly that state (save, restore, list, drop).
+    ///
+    /// While a ticker holds the world only its process saves and restores
+    /// (this command is then refused, naming it); the Rust and Python
+    /// clients have the same calls for the ticker's own program.
+    Snapshot(cli::snapshot::SnapshotArgs),
     /// Serve the world to CARLA's own Python client (`import carla`).
     ///
     /// Speaks CARLA 0.9.16's RPC and streaming protocols on --port and
@@ -199,6 +206,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cli::demo::run(args.world, timeout, a),
         Command::Recorder(a) => cli::recorder::run(world, timeout, a),
         Command::Replay(a) => cli::recorder::replay(world, timeout, a),
+        Command::Snapshot(a) => cli::snapshot::run(world, timeout, a),
         #[cfg(feature = "carla")]
         Command::CarlaGateway(a) => cli::carla::run(world, timeout, a),
     };

@@ -102,7 +102,7 @@ pub(crate) fn wait(error: WaitError) -> PyErr {
     let kind = match &error {
         WaitError::Interrupted { .. } => return interrupted(),
         WaitError::Timeout { .. } | WaitError::NoCapture { .. } => "TimeoutError",
-        WaitError::ServerGone { .. } => "ServerGone",
+        WaitError::ServerGone { .. } | WaitError::NotBack { .. } => "ServerGone",
         WaitError::ProtocolMismatch { .. } => "ProtocolMismatch",
         WaitError::SensorEnded { reason, .. } => {
             let (text, word) = (message(&error), end_word(*reason));
@@ -138,6 +138,16 @@ pub(crate) fn tick(error: TickError) -> PyErr {
             raise("TimeoutError", message(&error))
         }
         TickError::StandbyFull { .. } => raise("Full", message(&error)),
+        TickError::Restarted(r) => {
+            let text = message(&error);
+            Python::attach(|py| match class(py, "Restarted") {
+                Ok(class) => PyErr::from_type(
+                    class,
+                    (text, r.resumed_at, r.episode, r.server_pid, r.previous_pid),
+                ),
+                Err(e) => e,
+            })
+        }
     }
 }
 

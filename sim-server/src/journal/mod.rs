@@ -189,6 +189,11 @@ impl Journal {
         })
     }
 
+    /// The journal's directory.
+    pub(crate) fn dir(&self) -> &Path {
+        &self.options.dir
+    }
+
     /// The recorder writing the segment (frames, commands, events, sensors).
     pub(crate) fn recorder(&mut self) -> &mut Recorder {
         &mut self.recorder

@@ -333,6 +333,11 @@ impl Sensors {
         spawned
     }
 
+    /// Every living sensor's id and spec.
+    pub(crate) fn alive(&self) -> Vec<(u64, SensorSpec)> {
+        self.list.iter().map(|s| (s.id, s.spec)).collect()
+    }
+
     /// New sensors get ids after `last` (a resumed journal's highest).
     pub(crate) fn go_on_after(&mut self, last: u64) {
         self.next_id = self.next_id.max(last);

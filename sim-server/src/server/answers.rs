@@ -30,6 +30,22 @@ impl Domains {
             participants: self.lockstep.len() as u32,
             max_clients: self.config.limits.max_clients as u32,
             max_sensor_readers: self.config.limits.max_sensor_readers as u32,
+            journal: match &self.journal {
+                None => StatusReport::NO_JOURNAL,
+                Some(j) if j.stopped.is_some() => StatusReport::JOURNAL_STOPPED,
+                Some(_) => StatusReport::JOURNALING,
+            },
+            journal_durable_frame: self
+                .journal
+                .as_ref()
+                .and_then(|j| j.durable)
+                .map_or(0, |(_, frame)| frame),
+            journal_note: FixedText::new(&self.journal.as_ref().map_or(String::new(), |j| {
+                j.stopped
+                    .clone()
+                    .unwrap_or_else(|| j.dir().display().to_string())
+            })),
+            snapshots: self.snapshots.len() as u32,
             reserved: 0,
             lockstep: self.lockstep.statuses(self.clock.frame()),
         }
@@ -48,6 +64,23 @@ impl Domains {
                 pid,
                 name,
             } => self.apply_settings(settings, pid, name),
+            ControlCall::SaveSnapshot { pid } => self.save_snapshot(pid),
+            ControlCall::RestoreSnapshot { id, pid } => self.restore_snapshot(id, pid),
+            ControlCall::ListSnapshots => ControlResponse {
+                snapshots: self.snapshots.list(),
+                ..ControlResponse::ok(self.report())
+            },
+            ControlCall::DropSnapshot { id, pid } => {
+                if self.ticker.owner_pid().is_some_and(|t| t != pid) {
+                    return ControlResponse::refused(ResponseStatus::NotTicker, self.report());
+                }
+                if self.snapshots.forget(id) {
+                    info!(client_pid = pid, id, "snapshot dropped");
+                    ControlResponse::ok(self.report())
+                } else {
+                    ControlResponse::refused(ResponseStatus::UnknownSnapshot, self.report())
+                }
+            }
             ControlCall::Load { scene, reset, pid } => {
                 let scene = scene.unwrap_or(self.runtime.scene);
                 let ticker = self.ticker.owner_pid();

@@ -13,6 +13,7 @@
 
 mod answers;
 mod recording;
+mod snapshots;
 mod turn;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -109,6 +110,8 @@ struct Domains {
     timers: Timers,
     /// The journal, when the server keeps one.
     journal: Option<Journal>,
+    /// The snapshots saved in memory.
+    snapshots: crate::snapshots::Snapshots,
     /// Fast death notice of the ticker and the lockstep participants.
     pidwatch: PidWatch,
     /// Per-frame timings, only when a benchmark asked ([`Server::time_frames`]).
@@ -209,6 +212,14 @@ impl Server {
         let mut runtime = Runtime::new(&config, settings);
         if let Some(r) = &resumed {
             runtime.episode = r.episode;
+            if r.frame.flags & FrameHeader::RESTORED != 0 {
+                runtime.source_offset = Some(
+                    r.frame
+                        .timestamp
+                        .frame
+                        .saturating_sub(r.frame.recorded_frame),
+                );
+            }
         }
         let mut domains = Domains {
             runtime,
@@ -230,6 +241,7 @@ impl Server {
                 probe: now,
             },
             journal: None,
+            snapshots: Default::default(),
             pidwatch: PidWatch::default(),
             timings: None,
             config,
@@ -436,7 +448,7 @@ impl Domains {
 
     /// The header of the current frame.
     fn frame_header(&self, physics_substeps: u32, flags: u32) -> FrameHeader {
-        FrameHeader {
+        let mut header = FrameHeader {
             protocol_version: PROTOCOL_VERSION,
             actor_count: self.world.actor_count() as u32,
             episode: self.runtime.episode,
@@ -454,7 +466,9 @@ impl Domains {
             sensor_rays: self.sensors.rays(),
             recorded_frame: 0,
             recorded_elapsed_ns: 0,
-        }
+        };
+        self.restored_fields(&mut header);
+        header
     }
 
     /// Replaces the world with `scene`'s initial state as a new episode,
@@ -489,6 +503,7 @@ impl Domains {
         self.runtime.scene = scene;
         self.clock = Clock::new(now);
         self.runtime.episode += 1;
+        self.runtime.source_offset = None;
         self.runtime.pacer.reset();
         self.lockstep.new_episode();
         if reset {

@@ -174,18 +174,23 @@ impl Domains {
 
     /// Spawns the sensors a journal left alive again, under their ids.
     pub(super) fn resume_sensors(&mut self, resumed: &crate::journal::resume::Resumed) {
-        for (id, spec) in &resumed.sensors {
+        self.respawn_sensors(&resumed.sensors);
+        self.sensors.go_on_after(resumed.last_sensor_id);
+        // Their spawns go into the journal's next segment with its start.
+        self.sensors.take_journal().for_each(drop);
+    }
+
+    /// Spawns `sensors` again under their ids (a resume, a restore).
+    pub(super) fn respawn_sensors(&mut self, sensors: &[(u64, shared_types::SensorSpec)]) {
+        for (id, spec) in sensors {
             match self
                 .sensors
                 .respawn(&self.transport, *id, *spec, &self.world, &self.clock)
             {
-                Ok(_) => info!(id, "journaled sensor spawned again"),
-                Err(refusal) => warn!(id, "journaled sensor not resumed: {refusal}"),
+                Ok(_) => info!(id, "sensor spawned again"),
+                Err(refusal) => warn!(id, "sensor not spawned again: {refusal}"),
             }
         }
-        self.sensors.go_on_after(resumed.last_sensor_id);
-        // Their spawns go into the journal's next segment with its start.
-        self.sensors.take_journal().for_each(drop);
     }
 
     /// Replaces the world with the one the
@@ -255,6 +260,7 @@ impl Domains {
             Instant::now(),
         );
         self.runtime.episode += 1;
+        self.runtime.source_offset = None;
         self.runtime.pacer.reset();
         self.journal_episode(None);
         info!(

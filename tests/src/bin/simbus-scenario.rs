@@ -143,7 +143,7 @@ fn commands(now: &WorldSnapshot, seed: u64, step: u64) -> Vec<Command> {
             commands.push(Command::apply_impulse(actor.id, push));
         }
     }
-    if step % 20 == 0 {
+    if step.is_multiple_of(20) {
         if let Some(vehicle) = now
             .actors
             .iter()

@@ -57,6 +57,7 @@ pub(crate) mod sensor;
 mod sensor_capture;
 mod sensor_save;
 mod sensor_text;
+pub(crate) mod snapshot;
 pub(crate) mod stall;
 pub(crate) mod status;
 pub(crate) mod tick;

@@ -18,6 +18,20 @@ class ServerGone(Error):
     """The world's server process has exited."""
 
 
+class Restarted(Error):
+    """The server exited and another came back on the world (``sim-server
+    --resume``); the ticker that raised it claimed the resumed world. The
+    world resumed at frame ``resumed_at`` of ``episode``: the next tick
+    computes the frame after it."""
+
+    def __init__(self, message, resumed_at=0, episode=0, server_pid=0, previous_pid=0):
+        super().__init__(message)
+        self.resumed_at = resumed_at
+        self.episode = episode
+        self.server_pid = server_pid
+        self.previous_pid = previous_pid
+
+
 class ProtocolMismatch(Error):
     """The server speaks another protocol version than this package."""
 

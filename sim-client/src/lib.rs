@@ -70,7 +70,7 @@ pub use shared_types::SnapshotInfo;
 pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
 pub use standby::{StandbyTicker, TakeOver};
-pub use status::{ParticipantStatus, Status, TickerStatus};
+pub use status::{JournalStatus, ParticipantStatus, Status, TickerStatus};
 pub use ticker::Ticker;
 pub use wait::{process_alive, set_interrupt_check};
 

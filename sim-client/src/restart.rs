@@ -146,7 +146,9 @@ impl Ticker {
         let Some(timeout) = self.follow_restarts else {
             return error;
         };
-        if !error.is_server_gone() {
+        // A server that came back may answer first (refusing a port it
+        // does not know): what counts is that this ticker's server is gone.
+        if !error.is_server_gone() && crate::process_alive(self.server_pid) {
             return error;
         }
         match self.reclaim(timeout) {

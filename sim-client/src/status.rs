@@ -37,6 +37,30 @@ pub struct Status {
     /// The first [`shared_types::REPORTED_PARTICIPANTS`] participants, in
     /// joining order.
     pub lockstep: Vec<ParticipantStatus>,
+    /// The server's journal (`sim-server --journal DIR`), if it keeps one.
+    pub journal: Option<JournalStatus>,
+    /// Snapshots held in the server's memory.
+    pub snapshots: u32,
+}
+
+/// The state of a server's journal.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum JournalStatus {
+    /// Being written into this directory.
+    Writing {
+        /// The journal's directory.
+        dir: String,
+        /// The last frame made durable.
+        durable_frame: u64,
+    },
+    /// Stopped (the disk is full, the file cannot be written); the world
+    /// runs on, and a resume starts from `durable_frame`.
+    Stopped {
+        /// Why.
+        reason: String,
+        /// The last frame made durable.
+        durable_frame: u64,
+    },
 }
 
 /// The client that holds tick ownership.
@@ -106,6 +130,18 @@ impl From<&StatusReport> for Status {
                     done_after: p.done_after(),
                 })
                 .collect(),
+            journal: match report.journal {
+                StatusReport::JOURNALING => Some(JournalStatus::Writing {
+                    dir: report.journal_note.to_string_lossy(),
+                    durable_frame: report.journal_durable_frame,
+                }),
+                StatusReport::JOURNAL_STOPPED => Some(JournalStatus::Stopped {
+                    reason: report.journal_note.to_string_lossy(),
+                    durable_frame: report.journal_durable_frame,
+                }),
+                _ => None,
+            },
+            snapshots: report.snapshots,
         }
     }
 }

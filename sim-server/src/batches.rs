@@ -4,12 +4,14 @@
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
+use iceoryx2::service::port_factory::PortFactory as _;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     BatchHeader, BatchResponseHeader, Command, CommandResult, CommandStatus, ResponseStatus,
     PROTOCOL_VERSION,
 };
 use simbus_transport::Bus;
+use simbus_transport::EarlierClients;
 use tracing::{debug, warn};
 
 use crate::clock::Clock;
@@ -37,6 +39,8 @@ pub(crate) enum BatchEffect<'a> {
 #[derive(Debug)]
 pub(crate) struct Batches {
     port: BatchServer,
+    /// The previous server's clients (their requests are dropped).
+    earlier: EarlierClients,
 }
 
 impl Batches {
@@ -47,10 +51,11 @@ impl Batches {
         let service = spec
             .open_or_create(&transport.node, limits)
             .map_err(|e| ServerError::transport("batch service", e))?;
+        let earlier = EarlierClients::of(service.dynamic_config());
         let port = spec
             .server(&service)
             .map_err(|e| ServerError::transport("batch server", e))?;
-        Ok(Self { port })
+        Ok(Self { port, earlier })
     }
 
     /// Applies every pending batch, in arrival order, at this frame
@@ -71,6 +76,10 @@ impl Batches {
             .receive()
             .map_err(|e| ServerError::transport("batch receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             let header = *request.user_header();
             let next_frame = clock.frame() + 1;
             if header.protocol_version != PROTOCOL_VERSION {
@@ -110,6 +119,10 @@ impl Batches {
             .receive()
             .map_err(|e| ServerError::transport("batch receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             debug!(
                 pid = sender_pid(request.header()),
                 "refused a batch: a replay runs"

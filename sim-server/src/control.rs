@@ -2,6 +2,7 @@
 //! reload) and the wake-up event clients notify after any request — the
 //! one place the server loop sleeps.
 
+use iceoryx2::service::port_factory::PortFactory as _;
 use std::time::Duration;
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -26,6 +27,8 @@ type ControlServer = RequestServer<Bus, ControlRequest, (), ControlResponse, ()>
 #[derive(Debug)]
 pub(crate) struct Control {
     port: ControlServer,
+    /// The previous server's clients (their requests are dropped).
+    earlier: simbus_transport::EarlierClients,
     wake: Listener<Bus>,
     /// The doorbells rung since [`Control::take_rung`].
     rung: Rung,
@@ -71,18 +74,17 @@ impl Control {
     ) -> Result<Self, ServerError> {
         use iceoryx2::service::port_factory::server::ServerCreateError;
         let (node, services) = (&transport.node, &transport.services);
-        let port = services
+        let service = services
             .control
             .open_or_create(node, limits)
-            .map_err(|e| ServerError::transport("control service", e))?
-            .server_builder()
-            .create()
-            .map_err(|e| match e {
-                ServerCreateError::ExceedsMaxSupportedServers => ServerError::AlreadyRunning {
-                    world: world.to_string(),
-                },
-                e => ServerError::transport("control server", e),
-            })?;
+            .map_err(|e| ServerError::transport("control service", e))?;
+        let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
+        let port = service.server_builder().create().map_err(|e| match e {
+            ServerCreateError::ExceedsMaxSupportedServers => ServerError::AlreadyRunning {
+                world: world.to_string(),
+            },
+            e => ServerError::transport("control server", e),
+        })?;
         let wake = services
             .control_wake
             .open_or_create(node, limits)
@@ -92,6 +94,7 @@ impl Control {
             .map_err(|e| ServerError::transport("control wake-up listener", e))?;
         Ok(Self {
             port,
+            earlier,
             wake,
             rung: Rung::default(),
         })
@@ -152,6 +155,10 @@ impl Control {
             .receive()
             .map_err(|e| ServerError::transport("control receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             // Who asks is the sending port's process as iceoryx2 recorded
             // it, never the pid the request claims: a reset while a ticker
             // holds the world is the ticker's alone.

@@ -2,6 +2,8 @@
 //! in synchronous mode (CARLA's Traffic Manager, kept in step by the bus),
 //! their service, and what happens to one that dies or hangs.
 
+use iceoryx2::service::port_factory::PortFactory as _;
+use simbus_transport::EarlierClients;
 use std::time::{Duration, Instant};
 
 use bytemuck::Zeroable;
@@ -31,6 +33,8 @@ type LockstepServer = RequestServer<Bus, LockstepRequest, (), LockstepResponse, 
 #[derive(Debug)]
 pub(crate) struct Lockstep {
     port: LockstepServer,
+    /// The previous server's clients (their requests are dropped).
+    earlier: EarlierClients,
     participants: Participants,
     /// Since when a tick waits for participants.
     waiting_since: Option<Instant>,
@@ -41,16 +45,19 @@ pub(crate) struct Lockstep {
 impl Lockstep {
     /// Opens the lockstep service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
-        let port = transport
+        let service = transport
             .services
             .lockstep
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("lockstep service", e))?
+            .map_err(|e| ServerError::transport("lockstep service", e))?;
+        let earlier = EarlierClients::of(service.dynamic_config());
+        let port = service
             .server_builder()
             .create()
             .map_err(|e| ServerError::transport("lockstep server", e))?;
         Ok(Self {
             port,
+            earlier,
             participants: Participants::default(),
             waiting_since: None,
             told: false,
@@ -87,6 +94,10 @@ impl Lockstep {
             .receive()
             .map_err(|e| ServerError::transport("lockstep receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             let payload: LockstepRequest = *request.payload();
             let origin = request.origin();
             // Watched for liveness: the port's process, not the payload's word.

@@ -109,6 +109,7 @@ mod tests {
             start_platform_timestamp: 1.5,
             sensors: true,
             keyframe_seconds,
+            journal_sync_frames: 0,
         }
     }
 

@@ -152,6 +152,11 @@ pub struct RecordingHeader {
     /// Simulation seconds between keyframes.
     #[serde(with = "json_f64")]
     pub keyframe_seconds: f64,
+    /// A journal's segment: how many frames at most lie between two syncs
+    /// (`--journal-sync frames:N`), so a resume can say what a crash may
+    /// have lost. 0: a recording, not a journal.
+    #[serde(default)]
+    pub journal_sync_frames: u64,
 }
 
 /// [`WorldSettings`] as JSON.

@@ -101,6 +101,7 @@ impl RecordingHeader {
             start_platform_timestamp: 0.0,
             sensors: false,
             keyframe_seconds: 0.0,
+            journal_sync_frames: 0,
         }
     }
 }

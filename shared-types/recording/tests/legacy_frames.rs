@@ -33,6 +33,7 @@ fn a_recording_of_older_frame_headers_and_sensor_specs_reads_with_the_new_fields
         start_platform_timestamp: 1.0,
         sensors: false,
         keyframe_seconds: 10.0,
+        journal_sync_frames: 0,
     };
     let frames: Vec<(FrameHeader, Vec<ActorState>)> = (0..3u64)
         .map(|i| {

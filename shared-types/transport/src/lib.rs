@@ -115,3 +115,36 @@ pub fn sender_pid(header: &iceoryx2::service::header::request_response::RequestH
         .pid::<Bus>()
         .map_or(0, |pid| u32::try_from(pid.value()).unwrap_or(0))
 }
+
+/// The client ports a request-response service already had when a server
+/// opened it: a service outlives its server while clients hold it open,
+/// so after a crash and a resume these are the previous server's clients.
+/// Their requests were meant for a server that is gone (a batch of
+/// commands for its frame, a tick it was to step), so the new server
+/// drops them unanswered, and their senders learn that their server is
+/// gone as they would had it died before reading them: a client that
+/// follows the restart reconnects with new ports.
+#[derive(Debug, Default)]
+pub struct EarlierClients(Vec<iceoryx2::identifiers::UniqueClientId>);
+
+impl EarlierClients {
+    /// The clients `service` has now.
+    pub fn of<B: iceoryx2_cal::bag::BagFamily>(
+        service: &iceoryx2::service::dynamic_config::request_response::DynamicConfig<B>,
+    ) -> Self {
+        let mut ids = Vec::new();
+        service.list_clients(|client| {
+            ids.push(client.client_id);
+            iceoryx2::prelude::CallbackProgression::Continue
+        });
+        Self(ids)
+    }
+
+    /// Whether the request with `header` comes from one of them.
+    pub fn sent(
+        &self,
+        header: &iceoryx2::service::header::request_response::RequestHeader,
+    ) -> bool {
+        !self.0.is_empty() && self.0.contains(&header.client_id())
+    }
+}

@@ -24,6 +24,7 @@ fn header() -> RecordingHeader {
         start_platform_timestamp: 1_700_000_000.0,
         sensors: false,
         keyframe_seconds: 10.0,
+        journal_sync_frames: 0,
     }
 }
 

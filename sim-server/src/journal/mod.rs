@@ -167,6 +167,8 @@ impl Journal {
             });
         }
         let index = existing.last().map_or(1, |(i, _)| i + 1);
+        let mut header = header;
+        header.journal_sync_frames = options.sync.every(&header.settings.into());
         let segment = segment_path(dir, index);
         let mut recorder = Recorder::default();
         let path = segment.to_string_lossy().into_owned();
@@ -239,7 +241,9 @@ impl Journal {
             "the journal stopped: {reason}; the world runs on without it, and a resume starts from frame {frame}"
         );
         self.recorder.stop("journal failed", 0);
-        self.stopped = Some(reason);
+        // Status has room for the cause, not for the path before it.
+        let cause = reason.rsplit(": ").next().unwrap_or(&reason);
+        self.stopped = Some(cause.to_string());
     }
 
     /// Closes the segment (the server stops).

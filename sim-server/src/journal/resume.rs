@@ -220,6 +220,13 @@ pub(crate) fn resume(options: &ResumeOptions) -> Result<Resumed, ResumeError> {
                             resumed.frame.timestamp.frame
                         ));
                     }
+                    let every = resumed.header.journal_sync_frames;
+                    if every > 1 {
+                        resumed.notes.push(format!(
+                            "the journal was made durable every {every} frames: up to {every} frame(s) published after frame {} before the crash may be lost, and are computed again from here",
+                            resumed.frame.timestamp.frame
+                        ));
+                    }
                     for note in &resumed.notes {
                         warn!("{note}");
                     }

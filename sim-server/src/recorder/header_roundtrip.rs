@@ -84,6 +84,7 @@ fn any_header() -> impl Strategy<Value = RecordingHeader> {
                 start_platform_timestamp,
                 sensors,
                 keyframe_seconds,
+                journal_sync_frames: 0,
             },
         )
 }
@@ -214,6 +215,7 @@ fn the_issue_24_header_reads_back() {
         start_platform_timestamp: 1.7e9,
         sensors: false,
         keyframe_seconds: f64::NAN,
+        journal_sync_frames: 0,
     };
     write_and_read(&header, 0).unwrap();
 }

@@ -8,6 +8,7 @@
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::server::Server as RequestServer;
+use iceoryx2::service::port_factory::PortFactory as _;
 use shared_types::limits::WorldLimits;
 use shared_types::{
     PathText, RecorderKind, RecorderRequest, RecorderResponse, ReplayMode, ResponseStatus,
@@ -29,6 +30,8 @@ type Request = ActiveRequest<Bus, RecorderRequest, (), RecorderResponse, ()>;
 #[derive(Debug)]
 pub(crate) struct RecorderPort {
     port: Port,
+    /// The previous server's clients (their requests are dropped).
+    earlier: simbus_transport::EarlierClients,
     waiting: Option<Request>,
 }
 
@@ -65,16 +68,19 @@ pub(crate) enum RecorderCall {
 impl RecorderPort {
     /// Opens the recorder service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
-        let port = transport
+        let service = transport
             .services
             .recorder
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("recorder service", e))?
+            .map_err(|e| ServerError::transport("recorder service", e))?;
+        let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
+        let port = service
             .server_builder()
             .create()
             .map_err(|e| ServerError::transport("recorder server", e))?;
         Ok(Self {
             port,
+            earlier,
             waiting: None,
         })
     }
@@ -91,6 +97,10 @@ impl RecorderPort {
             .receive()
             .map_err(|e| ServerError::transport("recorder receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                tracing::debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             let payload = *request.payload();
             // Logged by the sending port's process, not the pid it claims.
             match answer(decode(&payload), sender_pid(request.header())) {

@@ -22,6 +22,7 @@ mod random;
 mod renderer;
 mod slab;
 
+use iceoryx2::service::port_factory::PortFactory as _;
 use publish::send_end;
 
 pub use renderer::RenderThreadsError;
@@ -107,6 +108,8 @@ struct Sensor {
 /// Every sensor of a world, and the service that manages them.
 pub(crate) struct Sensors {
     port: SensorServer,
+    /// The previous server's clients (their requests are dropped).
+    earlier: simbus_transport::EarlierClients,
     list: Vec<Sensor>,
     next_id: u64,
     /// The world's limits (each sensor admits `--max-sensor-readers`).
@@ -158,11 +161,13 @@ impl Sensors {
         let service = spec
             .open_or_create(&transport.node, limits)
             .map_err(|e| ServerError::transport("sensor service", e))?;
+        let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
         let port = spec
             .server(&service)
             .map_err(|e| ServerError::transport("sensor server", e))?;
         Ok(Self {
             port,
+            earlier,
             list: Vec::new(),
             next_id: 0,
             limits: *limits,
@@ -188,6 +193,10 @@ impl Sensors {
             .receive()
             .map_err(|e| ServerError::transport("sensor receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             let payload = *request.payload();
             let (status, error, infos): (ResponseStatus, u32, Vec<SensorInfo>) = if payload
                 .protocol_version

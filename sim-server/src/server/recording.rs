@@ -169,6 +169,7 @@ impl Domains {
                 .config
                 .keyframe_seconds
                 .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
+            journal_sync_frames: 0,
         }
     }
 

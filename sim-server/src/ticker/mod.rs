@@ -5,6 +5,8 @@
 mod ownership;
 mod standby;
 
+use iceoryx2::service::port_factory::PortFactory as _;
+use simbus_transport::EarlierClients;
 use std::collections::VecDeque;
 use std::time::Duration;
 
@@ -56,6 +58,8 @@ pub(crate) enum PendingStep {
 #[derive(Debug)]
 pub(crate) struct Ticker {
     port: TickServer,
+    /// The previous server's clients (their requests are dropped).
+    earlier: EarlierClients,
     ownership: TickOwnership,
     pending: VecDeque<PendingStep>,
     /// Claims waiting for the world to be free.
@@ -65,16 +69,19 @@ pub(crate) struct Ticker {
 impl Ticker {
     /// Opens the tick service.
     pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
-        let port = transport
+        let service = transport
             .services
             .tick
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("tick service", e))?
+            .map_err(|e| ServerError::transport("tick service", e))?;
+        let earlier = EarlierClients::of(service.dynamic_config());
+        let port = service
             .server_builder()
             .create()
             .map_err(|e| ServerError::transport("tick server", e))?;
         Ok(Self {
             port,
+            earlier,
             ownership: TickOwnership::default(),
             pending: VecDeque::new(),
             standbys: Standbys::default(),
@@ -147,6 +154,10 @@ impl Ticker {
             .receive()
             .map_err(|e| ServerError::transport("tick receive", e))?
         {
+            if self.earlier.sent(request.header()) {
+                debug!("dropped a request from a client of the previous server");
+                continue;
+            }
             if let Some((request, response)) = self.answer(request, runtime, clock) {
                 if let Err(e) = request.send_copy(response) {
                     debug!("tick response not delivered (ticker gone?): {e:?}");

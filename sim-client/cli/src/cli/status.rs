@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use clap::Args;
 use shared_types::{Timestamp, WorldName};
-use sim_client::{Client, Status};
+use sim_client::{Client, JournalStatus, Status};
 
 use crate::Failure;
 
@@ -58,6 +58,24 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
     if report.seed != 0 {
         println!("seed      {}", report.seed);
     }
+    match &report.journal {
+        Some(JournalStatus::Writing { dir, durable_frame }) => {
+            println!("journal   {dir} (durable through frame {durable_frame})")
+        }
+        Some(JournalStatus::Stopped {
+            reason,
+            durable_frame,
+        }) => println!(
+            "journal   STOPPED: {reason} (durable through frame {durable_frame}; the world runs on)"
+        ),
+        None => {}
+    }
+    if report.snapshots > 0 {
+        println!(
+            "snapshots {} (`sim-client snapshot list`)",
+            report.snapshots
+        );
+    }
     Ok(())
 }
 
@@ -80,6 +98,15 @@ pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Val
         "participants": report.participants,
         "lockstep": report.lockstep.iter().map(super::participant_json).collect::<Vec<_>>(),
         "seed": report.seed,
+        "snapshots": report.snapshots,
+        "journal": report.journal.as_ref().map(|j| match j {
+            JournalStatus::Writing { dir, durable_frame } => serde_json::json!({
+                "state": "writing", "dir": dir, "durable_frame": durable_frame,
+            }),
+            JournalStatus::Stopped { reason, durable_frame } => serde_json::json!({
+                "state": "stopped", "reason": reason, "durable_frame": durable_frame,
+            }),
+        }),
         "ticker": report.ticker.as_ref().map(|t| serde_json::json!({
             "node": t.node_name,
             "pid": t.pid,

@@ -25,6 +25,7 @@ mod failover;
 mod fanout;
 mod frames;
 mod futex;
+mod journal;
 mod peer;
 mod plot;
 mod python;

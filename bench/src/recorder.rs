@@ -35,6 +35,12 @@ pub(crate) struct RecorderArgs {
     /// Print one JSON object instead of tables.
     #[arg(long)]
     json: bool,
+    /// Simulated minutes of the journal the resume row resumes from.
+    #[arg(long, default_value_t = 10.0)]
+    resume_minutes: f64,
+    /// Leave out the journal, resume and snapshot rows.
+    #[arg(long)]
+    no_journal: bool,
 }
 
 /// Seconds per frame of `frames` ticks (each tick waits for its frame).
@@ -218,6 +224,20 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
         measure("boxes:1000", (args.frames / 5).max(10), &args.dir)?,
     ];
     let big = args.big_gib.map(|gib| big(gib, &args.dir)).transpose()?;
+    let durability = if args.no_journal {
+        serde_json::Value::Null
+    } else {
+        let journal = [
+            crate::journal::journal_row("default", args.frames, &args.dir)?,
+            crate::journal::journal_row("boxes:1000", (args.frames / 5).max(10), &args.dir)?,
+        ];
+        let resume = crate::journal::resume_time(args.resume_minutes, &args.dir)?;
+        let snapshots = [10, 1000, 10000]
+            .into_iter()
+            .map(crate::journal::snapshot_row)
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        serde_json::json!({"journal": journal, "resume": resume, "snapshots": snapshots})
+    };
     if args.json {
         let rows: Vec<_> = scenes
             .iter()
@@ -237,7 +257,7 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
             .collect();
         println!(
             "{}",
-            serde_json::json!({"load_average_before": load_before, "load_average_after": load_average(), "scenes": rows, "big": big})
+            serde_json::json!({"load_average_before": load_before, "load_average_after": load_average(), "scenes": rows, "big": big, "durability": durability})
         );
         return Ok(());
     }
@@ -286,5 +306,48 @@ pub(crate) fn run(args: RecorderArgs) -> anyhow::Result<()> {
     if let Some(big) = big {
         println!("big recording: {big}");
     }
+    if !durability.is_null() {
+        print_durability(&durability);
+    }
     Ok(())
+}
+
+/// The journal, resume and snapshot rows as tables.
+fn print_durability(d: &serde_json::Value) {
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    println!("journal (sync, 20 FPS, µs per ticked frame; best of two alternating rounds)");
+    println!(
+        "{:<12} {:>10} {:>12} {:>8} {:>12} {:>8}",
+        "scene", "none µs", "frames:50 µs", "+%", "frames:1 µs", "+%"
+    );
+    for row in d["journal"].as_array().into_iter().flatten() {
+        println!(
+            "{:<12} {:>10.1} {:>12.1} {:>7.1}% {:>12.1} {:>7.1}%",
+            row["scene"].as_str().unwrap_or(""),
+            f(row, "no_journal_frame_us"),
+            f(row, "frames_50_frame_us"),
+            f(row, "frames_50_overhead") * 100.0,
+            f(row, "frames_1_frame_us"),
+            f(row, "frames_1_overhead") * 100.0,
+        );
+    }
+    let r = &d["resume"];
+    println!(
+        "resume after SIGKILL from a {:.0}-minute journal ({} frames, {:.1} MB, keyframe every 10 s): {:.3} s to the first frame (resumed at frame {})",
+        f(r, "simulated_minutes"),
+        r["frames"],
+        f(r, "journal_bytes") / 1e6,
+        f(r, "resume_seconds"),
+        r["resumed_at"]
+    );
+    println!("snapshots (median of 7, request round trip included)");
+    for row in d["snapshots"].as_array().into_iter().flatten() {
+        println!(
+            "{:<12} {:>6} actors  save {:>8.2} ms  restore {:>8.2} ms",
+            row["scene"].as_str().unwrap_or(""),
+            row["actors"],
+            f(row, "save_ms"),
+            f(row, "restore_ms")
+        );
+    }
 }

@@ -111,6 +111,30 @@ impl BenchServer {
         })
     }
 
+    /// `sim-server --resume <journal>` for `world` (killed before), once it
+    /// answers.
+    pub(crate) fn resume(world: &str, journal: &str) -> anyhow::Result<Self> {
+        let child = Command::new(sibling("sim-server")?)
+            .args(["--resume", journal])
+            .env("RUST_LOG", "error")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .spawn()
+            .context("resuming the benchmark server")?;
+        let guard = ChildGuard::new(child, Duration::from_secs(5));
+        Client::connect(world, Duration::from_secs(60)).context("resumed benchmark server")?;
+        Ok(Self {
+            world: world.to_owned(),
+            _guard: guard,
+        })
+    }
+
+    /// Kills the server (SIGKILL: a crash) and reaps it.
+    pub(crate) fn kill(mut self) -> anyhow::Result<()> {
+        self._guard.kill()?;
+        Ok(())
+    }
+
     /// Stops the server (SIGTERM) and waits until it has exited.
     pub(crate) fn stop(mut self) -> anyhow::Result<()> {
         let status = self._guard.stop()?;

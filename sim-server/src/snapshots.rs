@@ -12,9 +12,9 @@ use crate::Scene;
 #[derive(Debug)]
 pub(crate) struct Snapshot {
     pub(crate) info: SnapshotInfo,
-    /// The world as a keyframe (msgpack): decoded anew on every restore,
-    /// so a snapshot restores any number of times.
-    pub(crate) world: Vec<u8>,
+    /// The world, copied again on every restore, so a snapshot restores
+    /// any number of times.
+    pub(crate) world: crate::world::World,
     pub(crate) scene: Scene,
     pub(crate) settings: WorldSettings,
     pub(crate) delta_ns: u64,

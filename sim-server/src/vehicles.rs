@@ -7,7 +7,7 @@ use rapier3d::prelude::*;
 use shared_types::{VehicleSpec, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS};
 
 /// A vehicle's controller and the control it holds until told otherwise.
-#[derive(Debug, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Vehicle {
     actor: u64,
     controller: DynamicRayCastVehicleController,
@@ -50,7 +50,7 @@ impl Vehicle {
 }
 
 /// Every vehicle of a world.
-#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Vehicles {
     list: Vec<Vehicle>,
 }

@@ -23,7 +23,7 @@ use shared_types::{FrameHeader, WorldSettings};
 use simbus_recording::RecordingHeader;
 use tracing::{info, warn};
 
-use crate::recorder::{Recorder, SensorNote};
+use crate::recorder::{Recorder, SensorNote, Synced};
 use crate::world::World;
 
 /// How often the journal is made durable.
@@ -133,8 +133,10 @@ pub(crate) struct Journal {
     recorder: Recorder,
     options: JournalOptions,
     segment: PathBuf,
-    /// Frames recorded since the last sync.
+    /// Frames recorded since the last sync was asked for.
     unsynced: u64,
+    /// The sync asked for and not waited for yet, and the frame it covers.
+    in_flight: Option<(Synced, (u64, u64))>,
     /// The last frame made durable: (episode, frame).
     pub(crate) durable: Option<(u64, u64)>,
     /// Why the journal stopped, if it did (the world runs on).
@@ -171,6 +173,7 @@ impl Journal {
         header.journal_sync_frames = options.sync.every(&header.settings.into());
         let segment = segment_path(dir, index);
         let mut recorder = Recorder::default();
+        recorder.journal = true;
         let path = segment.to_string_lossy().into_owned();
         recorder
             .start(&path, header, sensors, frame, scene)
@@ -186,6 +189,7 @@ impl Journal {
             options: options.clone(),
             segment,
             unsynced: 0,
+            in_flight: None,
             durable: Some((frame.0.episode, frame.0.timestamp.frame)),
             stopped: None,
         })
@@ -220,12 +224,33 @@ impl Journal {
             return;
         }
         self.unsynced += 1;
-        if self.unsynced < self.options.sync.every(settings) {
+        let every = self.options.sync.every(settings);
+        let at = (header.episode, header.timestamp.frame);
+        if every == 1 {
+            // The frame is durable before its tick is answered.
+            self.unsynced = 0;
+            match self.recorder.sync() {
+                Ok(()) => self.durable = Some(at),
+                Err(reason) => self.stop(reason),
+            }
+            return;
+        }
+        // Every half period: wait for the sync asked for half a period ago
+        // (done by now unless the disk is slower than the world), then ask
+        // for the next, so the frame loop never waits for the writer's
+        // backlog and at most `every` frames are not yet durable.
+        if self.unsynced < every.div_ceil(2) {
             return;
         }
         self.unsynced = 0;
-        match self.recorder.sync() {
-            Ok(()) => self.durable = Some((header.episode, header.timestamp.frame)),
+        if let Some((synced, covers)) = self.in_flight.take() {
+            match self.recorder.synced(&synced) {
+                Ok(()) => self.durable = Some(covers),
+                Err(reason) => return self.stop(reason),
+            }
+        }
+        match self.recorder.request_sync() {
+            Ok(synced) => self.in_flight = Some((synced, at)),
             Err(reason) => self.stop(reason),
         }
     }

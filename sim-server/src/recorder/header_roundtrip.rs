@@ -118,7 +118,8 @@ fn write_and_read(header: &RecordingHeader, case: u32) -> Result<(), TestCaseErr
         std::process::id()
     ));
     let path_text = path.to_string_lossy().into_owned();
-    let handle = create(&path_text, header).map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let handle =
+        create(&path_text, header, false).map_err(|e| TestCaseError::fail(e.to_string()))?;
     let (items, receiver) = sync_channel(4);
     let events = [
         RecordedEvent::Settings {

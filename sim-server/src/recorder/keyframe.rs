@@ -100,6 +100,32 @@ mod tests {
         }
     }
 
+    /// A snapshot's copy of a world steps bit for bit as the original:
+    /// what a restore rests on.
+    #[test]
+    fn a_duplicated_world_steps_exactly_as_the_original() {
+        let settings = WorldSettings {
+            fixed_delta_seconds: Some(0.05),
+            ..Default::default()
+        };
+        let plan = SubstepPlan::new(50_000_000, &settings);
+        let mut world = World::new(&Scene::Default.placements(3), 1);
+        let vehicle = world.apply(&Command::spawn_vehicle([0.0, 1.0, -6.0])).actor;
+        for _ in 0..30 {
+            world.step(&plan);
+        }
+        world.apply(&Command::vehicle_control(vehicle, 0.6, -0.2, 0.0, false));
+        let mut copy = world.duplicate();
+        let mut again = copy.duplicate();
+        for frame in 0..120 {
+            world.step(&plan);
+            copy.step(&plan);
+            again.step(&plan);
+            assert_eq!(world.states(), copy.states(), "frame {frame}");
+            assert_eq!(world.states(), again.states(), "frame {frame}");
+        }
+    }
+
     #[test]
     fn garbage_is_an_error_not_a_panic() {
         assert!(Keyframe::decode(b"not msgpack").is_err());

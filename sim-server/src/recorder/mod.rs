@@ -22,7 +22,7 @@ pub(crate) use keyframe::{Keyframe, KeyframeError};
 pub(crate) use refusal::Refused;
 pub(crate) use service::{RecorderCall, RecorderPort};
 
-use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
 use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
@@ -34,8 +34,13 @@ use tracing::{info, warn};
 use crate::world::World;
 use writer::{Item, WriteError, Written};
 
+/// The answer to a [`Recorder::request_sync`].
+pub(crate) type Synced = Receiver<Result<(), String>>;
+
 /// Items in flight to the writer before the frame loop waits for it.
 const QUEUE: usize = 256;
+/// A journal's items gathered before they are handed over without a sync.
+const BATCH: usize = 256;
 
 /// A sensor spawned or ended (the sensors domain notes them; the recorder
 /// writes them when recording).
@@ -83,6 +88,11 @@ pub(crate) struct Recorder {
     /// The header of the last frame published: a recording starts with
     /// that frame as it was sent (its substeps, flags and time).
     published: Option<FrameHeader>,
+    /// This recorder writes a journal: no Foxglove scene, uncompressed
+    /// chunks, items handed over in batches.
+    pub(crate) journal: bool,
+    /// A journal's items not handed over yet.
+    batch: Vec<Item>,
 }
 
 impl Drop for Recorder {
@@ -125,7 +135,7 @@ impl Recorder {
         frame: (&FrameHeader, &World),
         scene: String,
     ) -> Result<(), StartError> {
-        let handle = writer::create(path, &header)?;
+        let handle = writer::create(path, &header, self.journal)?;
         let (items, receiver) = sync_channel(QUEUE);
         let thread_path = path.to_string();
         let thread = std::thread::Builder::new()
@@ -161,6 +171,10 @@ impl Recorder {
     /// Stops the recording (if one runs), finishing the file; `reason` and
     /// `frame` go into its last event.
     pub(crate) fn stop(&mut self, reason: &str, frame: u64) -> Option<&LastRecording> {
+        if !self.batch.is_empty() {
+            let batch = std::mem::take(&mut self.batch);
+            self.hand_over(Item::Batch(batch));
+        }
         let active = self.active.take()?;
         let log_ns = active.log_ns;
         let _ = active.items.send(Item::Event {
@@ -202,6 +216,27 @@ impl Recorder {
 
     /// Hands `item` to the writer; waits when its queue is full (never drops).
     fn send(&mut self, item: Item) {
+        if self.journal && !matches!(item, Item::Sync { .. }) {
+            // A journal hands its items over in batches, at each sync (or
+            // every BATCH items): one wake-up of the writer per batch, not
+            // several per frame on a machine whose CPUs the ticker and the
+            // server already keep busy.
+            self.batch.push(item);
+            if self.batch.len() < BATCH {
+                return;
+            }
+            let batch = std::mem::take(&mut self.batch);
+            return self.hand_over(Item::Batch(batch));
+        }
+        if self.journal && !self.batch.is_empty() {
+            let batch = std::mem::take(&mut self.batch);
+            self.hand_over(Item::Batch(batch));
+        }
+        self.hand_over(item);
+    }
+
+    /// Hands `item` to the writer; waits when its queue is full (never drops).
+    fn hand_over(&mut self, item: Item) {
         let Some(active) = &mut self.active else {
             return;
         };
@@ -238,11 +273,23 @@ impl Recorder {
     /// writer ends its chunk, flushes and syncs the file). A failure ends
     /// the recording, and says why.
     pub(crate) fn sync(&mut self) -> Result<(), String> {
+        let synced = self.request_sync()?;
+        self.synced(&synced)
+    }
+
+    /// Asks the writer to make everything recorded so far durable, without
+    /// waiting: [`Recorder::synced`] waits for the answer.
+    pub(crate) fn request_sync(&mut self) -> Result<Synced, String> {
         if self.active.is_none() {
             return Err("nothing is being recorded".to_string());
         }
         let (done, synced) = sync_channel(1);
         self.send(Item::Sync { done });
+        Ok(synced)
+    }
+
+    /// Waits for the answer to a [`Recorder::request_sync`].
+    pub(crate) fn synced(&mut self, synced: &Synced) -> Result<(), String> {
         let failed = match synced.recv() {
             Ok(Ok(())) => return Ok(()),
             Ok(Err(reason)) => reason,

@@ -55,6 +55,8 @@ pub(crate) enum Item {
         frame: u64,
         data: Vec<u8>,
     },
+    /// A journal's items, in order.
+    Batch(Vec<Item>),
     /// Make everything handed over so far durable (end the chunk, flush,
     /// `fdatasync`), then say so on `done`: how a journal keeps its promise.
     Sync {
@@ -85,6 +87,9 @@ struct Writer {
     scratch: Vec<u8>,
     /// The file again, to sync it (the MCAP writer owns the other handle).
     file: File,
+    /// Write each frame as a Foxglove scene too (a recording: yes; a
+    /// journal, which only a resume reads: no).
+    pub(crate) scene_updates: bool,
 }
 
 type McapResult<T> = Result<T, mcap::McapError>;
@@ -92,24 +97,36 @@ type McapFile = mcap::Writer<BufWriter<File>>;
 
 /// Creates `path` and writes the header; the file is ready for [`run`].
 /// A path that cannot be created is refused with the file system's reason.
-pub(crate) fn create(path: &str, header: &RecordingHeader) -> Result<WriterHandle, StartError> {
+pub(crate) fn create(
+    path: &str,
+    header: &RecordingHeader,
+    journal: bool,
+) -> Result<WriterHandle, StartError> {
     let file = create_file(path)?;
     let sync_handle = file.try_clone().map_err(|error| StartError::Header {
         path: path.to_string(),
         error: mcap::McapError::Io(error),
     })?;
-    begin(file, sync_handle, header).map_err(|error| StartError::Header {
+    begin(file, sync_handle, header, journal).map_err(|error| StartError::Header {
         path: path.to_string(),
         error,
     })
 }
 
 /// Writes the header into the created `file`.
-fn begin(file: File, sync_handle: File, header: &RecordingHeader) -> McapResult<WriterHandle> {
+fn begin(
+    file: File,
+    sync_handle: File,
+    header: &RecordingHeader,
+    journal: bool,
+) -> McapResult<WriterHandle> {
     let mut mcap = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("simbus {}", env!("CARGO_PKG_VERSION")))
-        .compression(Some(mcap::Compression::Zstd))
+        // A journal's chunks go uncompressed: each sync ends a chunk of a
+        // few frames, and compressing them cost the frame loop more than
+        // the disk saves (`simbus-bench recorder`'s journal rows).
+        .compression((!journal).then_some(mcap::Compression::Zstd))
         .chunk_size(Some(CHUNK_BYTES))
         .create(BufWriter::new(file))?;
     let header_json = serde_json::to_vec(header).unwrap_or_default();
@@ -150,6 +167,8 @@ fn begin(file: File, sync_handle: File, header: &RecordingHeader) -> McapResult<
         written: Written::default(),
         scratch: Vec::new(),
         file: sync_handle,
+        // A journal is read by a resume, not by Foxglove.
+        scene_updates: !journal,
     }))
 }
 
@@ -428,6 +447,11 @@ impl Writer {
                 self.message(self.keyframes, frame, log_ns, log_ns, &data)?;
             }
             Item::Sync { .. } => self.sync()?,
+            Item::Batch(items) => {
+                for item in items {
+                    self.write(item)?;
+                }
+            }
         }
         Ok(())
     }
@@ -447,12 +471,15 @@ impl Writer {
         let t = &header.timestamp;
         self.message(self.frames, t.frame, log_ns, t.elapsed_ns, &bytes)?;
         self.scratch = bytes;
+        self.written.frames += 1;
+        if !self.scene_updates {
+            return Ok(());
+        }
         let mut scene = std::mem::take(&mut self.scratch);
         scene.clear();
         scene_update(&mut scene, header, actors, log_ns);
         self.message(self.scene, t.frame, log_ns, t.elapsed_ns, &scene)?;
         self.scratch = scene;
-        self.written.frames += 1;
         Ok(())
     }
 

@@ -9,7 +9,6 @@ use tracing::{info, warn};
 
 use super::Domains;
 use crate::clock::Clock;
-use crate::recorder::Keyframe;
 use crate::snapshots::Snapshot;
 
 impl Domains {
@@ -44,7 +43,6 @@ impl Domains {
             return ControlResponse::refused(ResponseStatus::SnapshotsFull, self.report());
         }
         let header = self.frame_header(0, 0);
-        let scene = self.runtime.scene.to_string();
         let sensors = self.sensors.alive();
         let info = SnapshotInfo {
             id: 0,
@@ -57,7 +55,7 @@ impl Domains {
         };
         let snapshot = Snapshot {
             info,
-            world: Keyframe::of(&self.world, &header, scene).encode(),
+            world: self.world.duplicate(),
             scene: self.runtime.scene,
             settings: self.runtime.settings,
             delta_ns: self.clock.delta_ns(),
@@ -87,13 +85,7 @@ impl Domains {
         let Some(snapshot) = self.snapshots.get(id) else {
             return ControlResponse::refused(ResponseStatus::UnknownSnapshot, self.report());
         };
-        let world = match Keyframe::decode(&snapshot.world) {
-            Ok(keyframe) => keyframe.world,
-            Err(e) => {
-                warn!(id, "snapshot cannot be restored: {e}");
-                return ControlResponse::refused(ResponseStatus::LoadFailed, self.report());
-            }
-        };
+        let world = snapshot.world.duplicate();
         let (info, scene, delta_ns) = (snapshot.info, snapshot.scene, snapshot.delta_ns);
         let settings = WorldSettings {
             synchronous_mode: self.runtime.settings.synchronous_mode,

@@ -5,7 +5,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use shared_types::{Camera, SensorKind, SensorParams, SensorSpec, SensorSpecError, WorldName};
-use sim_client::Client;
+use sim_client::{Client, WaitError};
 use simbus_input as input;
 
 use super::sensor_capture::{failure, next_capture};
@@ -171,6 +171,12 @@ struct WatchArgs {
     /// reader every frame, so it never misses a capture however slow it is.
     #[arg(long)]
     lockstep: bool,
+    /// Ride through a server restart (`sim-server --resume DIR`): when the
+    /// server exits, wait up to --timeout for one to come back, print a
+    /// `restarted` line marking the gap (JSON: "event": "restarted"), and go
+    /// on reading the sensor, which comes back with the journal under its id.
+    #[arg(long, conflicts_with = "lockstep")]
+    follow_restarts: bool,
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Result<(), Failure> {
@@ -213,7 +219,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
             }
             Ok(())
         }
-        SensorCommand::Watch(a) => watch(&client, a, timeout),
+        SensorCommand::Watch(a) => watch(&mut client, a, timeout),
         SensorCommand::Save(a) => super::sensor_save::save(&client, a, timeout),
         SensorCommand::Destroy { id } => {
             client.destroy_sensor(id).map_err(failure)?;
@@ -481,7 +487,7 @@ fn seconds_text(seconds: f64) -> String {
 
 /// Every wait of `sensor watch` honours --timeout: no capture (or frame)
 /// within it is an error, and so is the sensor's end.
-fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure> {
+fn watch(client: &mut Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure> {
     let interrupted = super::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     let running = || !interrupted.load(std::sync::atomic::Ordering::Relaxed);
@@ -503,8 +509,16 @@ fn watch(client: &Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure
         return Ok(());
     }
     while a.captures.is_none_or(|n| seen < n) && running() {
-        let Some(capture) = next_capture(&mut sensor, timeout)? else {
-            break;
+        let capture = match next_capture(&mut sensor, timeout) {
+            Ok(Some(capture)) => capture,
+            Ok(None) => break,
+            Err(WaitError::ServerGone { .. }) if a.follow_restarts => {
+                let restarted = client.reconnect(timeout)?;
+                println!("{}", super::watch::restarted_line(&restarted, a.json));
+                sensor = client.sensor(a.id).map_err(failure)?;
+                continue;
+            }
+            Err(e) => return Err(e.into()),
         };
         print_capture(&capture, sensor.missed(), a.json);
         seen += 1;

@@ -97,6 +97,11 @@ struct ReadmeExamples;
 #[doc = include_str!("../../docs/src/guide.md")]
 struct GuideExamples;
 
+/// The Rust examples of the book's durability chapter (`docs/src/durability.md`).
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/src/durability.md")]
+struct DurabilityExamples;
+
 /// The Rust examples of the book's sensors chapter (`docs/src/sensors.md`).
 #[cfg(doctest)]
 #[doc = include_str!("../../docs/src/sensors.md")]

@@ -23,8 +23,8 @@ class SimbusServer:
     """A sim-server on a world of its own whose log lines are kept (to wait
     for one); killed and reaped by `stop`."""
 
-    def __init__(self, *args, tag="server"):
-        self.world = unique_world(tag)
+    def __init__(self, *args, tag="server", world=None):
+        self.world = world or unique_world(tag)
         self.proc = subprocess.Popen(
             [os.path.join(BIN, "sim-server"), "--world", self.world, *args],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
@@ -72,8 +72,8 @@ def server(request):
     started = []
     tag = request.node.name[:20].replace("[", "-").replace("]", "")
 
-    def start(*args):
-        started.append(SimbusServer(*args, tag=tag))
+    def start(*args, world=None):
+        started.append(SimbusServer(*args, tag=tag, world=world))
         return started[-1]
 
     yield start

@@ -13,6 +13,7 @@ use pyo3::prelude::*;
 
 mod args;
 mod client;
+mod durability;
 mod errors;
 mod frame;
 mod gil;
@@ -41,6 +42,7 @@ fn _simbus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<loan::Loan>()?;
     sensor::register(m)?;
     world::register(m)?;
+    durability::register(m)?;
     lockstep::register(m)?;
     recorder::register(m)?;
     m.add("PROTOCOL_VERSION", shared_types::PROTOCOL_VERSION)?;

@@ -89,6 +89,18 @@ impl Ticker {
     /// published (a `wait_for_frame` after it sees it). Waits up to
     /// `timeout` seconds (the claim's by default); a tick held up by a
     /// lockstep participant waits for the server to drop it.
+    /// When the server exits, wait up to `timeout` seconds for one to
+    /// come back on the world (`sim-server --resume`) and claim it again:
+    /// the tick that noticed raises `simbus.Restarted` (saying where the
+    /// world resumed) and the next tick computes the frame after it.
+    /// `None` (the default): a server that exits ends the ticker.
+    #[pyo3(signature = (timeout = 30.0))]
+    fn follow_restarts(&mut self, timeout: Option<f64>) -> PyResult<()> {
+        let timeout = timeout.map(|t| seconds("timeout", t)).transpose()?;
+        self.held()?.set_follow_restarts(timeout);
+        Ok(())
+    }
+
     #[pyo3(signature = (timeout = None))]
     fn tick(&mut self, py: Python<'_>, timeout: Option<f64>) -> PyResult<u64> {
         let timeout = match timeout {

@@ -159,6 +159,10 @@ class Ticker:
     def tick_and_read(self, client: Client, timeout: Optional[float] = None) -> Frame:
         """Computes the next frame and returns it, read in place from
         `client`'s frames (one wait, on the frame itself)."""
+    def follow_restarts(self, timeout: Optional[float] = 30.0) -> None:
+        """When the server exits, wait up to `timeout` s for one to come back
+        (`sim-server --resume`) and claim it: the tick that noticed raises
+        `simbus.Restarted`, the next computes the frame after `resumed_at`."""
     @property
     def last_frame(self) -> Optional[int]: ...
     @property
@@ -301,6 +305,17 @@ class Client:
         (None: exact for a fixed step, interpolate otherwise)."""
     def set_replayer_time_factor(self, factor: float) -> RecorderStatus: ...
     def stop_replayer(self, keep_actors: bool = False) -> RecorderStatus: ...
+    def reconnect(self, timeout: float = 30.0) -> Reconnected:
+        """Talks to the server that came back on this world after its
+        predecessor exited; raises `simbus.ServerGone` if none did in time."""
+    def next_event(self, timeout: float = 5.0) -> Union[Frame, Reconnected]:
+        """The next frame, or a `Reconnected` when the server restarted."""
+    def save_snapshot(self) -> int:
+        """Saves the whole world in the server's memory; returns its id."""
+    def restore_snapshot(self, id: int) -> int:
+        """Restores a snapshot as a new episode; returns the frame published."""
+    def drop_snapshot(self, id: int) -> None: ...
+    def snapshots(self) -> List[SnapshotInfo]: ...
     def __enter__(self) -> Client: ...
     def __exit__(
         self,
@@ -675,3 +690,34 @@ class RecordingInfo:
 
 def recording_info(path: Union[str, PathLike], show_all: bool = False) -> RecordingInfo:
     """What a recording holds, without a server (simbus.recording.info)."""
+
+
+class Reconnected:
+    """The server exited and another came back on the world."""
+
+    @property
+    def resumed_at(self) -> int: ...
+    @property
+    def episode(self) -> int: ...
+    @property
+    def server_pid(self) -> int: ...
+    @property
+    def previous_pid(self) -> int: ...
+
+class SnapshotInfo:
+    """A snapshot the server holds."""
+
+    @property
+    def id(self) -> int: ...
+    @property
+    def frame(self) -> int: ...
+    @property
+    def source_frame(self) -> int: ...
+    @property
+    def episode(self) -> int: ...
+    @property
+    def elapsed_seconds(self) -> float: ...
+    @property
+    def actors(self) -> int: ...
+    @property
+    def sensors(self) -> int: ...

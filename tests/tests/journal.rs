@@ -525,3 +525,54 @@ fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last
         "the resume starts from the last durable frame"
     );
 }
+
+#[test]
+fn a_sensor_watch_follows_a_restart_and_reads_the_sensor_that_came_back() {
+    let scratch = Scratch::new("journal-sensor");
+    let dir = scratch.file("j");
+    let world = TestWorld::start(
+        "journal-sensor",
+        &["--sync", "--fps", "20", "--journal", dir.to_str().unwrap()],
+    );
+    let client = world.connect();
+    let sensor = client
+        .spawn_sensor(shared_types::SensorSpec::depth(
+            [0.0, 3.0, -12.0],
+            16,
+            12,
+            70.0,
+            50.0,
+        ))
+        .unwrap();
+    let id = sensor.id().to_string();
+    let watch = world.spawn_cli(&[
+        "--timeout",
+        "30",
+        "sensor",
+        "watch",
+        &id,
+        "--follow-restarts",
+        "--json",
+    ]);
+    let mut ticker = client.claim_ticker().unwrap();
+    ticker.set_follow_restarts(Some(Duration::from_secs(30)));
+    for _ in 0..10 {
+        ticker.tick(Duration::from_secs(10)).unwrap();
+    }
+    watch.wait_line("\"frame\":10", Duration::from_secs(30));
+    let name = world.name().to_owned();
+    let mut world = world;
+    world.server.guard.kill().unwrap();
+    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
+    wait_until_up(&name, &resumed);
+    let restarted = ticker.tick(Duration::from_secs(10)).unwrap_err();
+    assert!(
+        matches!(restarted, sim_client::TickError::Restarted(r) if r.resumed_at == 10),
+        "{restarted}"
+    );
+    for _ in 0..3 {
+        ticker.tick(Duration::from_secs(10)).unwrap();
+    }
+    watch.wait_line("\"event\":\"restarted\"", Duration::from_secs(30));
+    watch.wait_line("\"frame\":13", Duration::from_secs(30));
+}

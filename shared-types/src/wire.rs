@@ -156,7 +156,11 @@ mod tests {
             ResponseStatus::from_u32(13),
             Some(ResponseStatus::Unreachable)
         );
-        assert_eq!(ResponseStatus::from_u32(14), None);
+        assert_eq!(
+            ResponseStatus::from_u32(15),
+            Some(ResponseStatus::SnapshotsFull)
+        );
+        assert_eq!(ResponseStatus::from_u32(16), None);
     }
 }
 

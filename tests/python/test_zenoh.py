@@ -12,6 +12,7 @@ import subprocess
 import threading
 import time
 
+import simbus
 import zenoh
 from rosbags.typesys import Stores, get_typestore
 
@@ -20,7 +21,7 @@ from conftest import BIN, kill_all, wait_line, world_name
 DELTA_NS = 50_000_000
 FRAME_HEADER = 112
 ACTOR = 96
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = simbus.PROTOCOL_VERSION
 
 
 def free_port():

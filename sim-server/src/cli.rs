@@ -61,11 +61,12 @@ pub(crate) struct ServerArgs {
     #[arg(long, value_name = "DIR", conflicts_with_all = ["scene", "fixed_delta_seconds", "fps", "sync", "seed", "no_substepping"])]
     pub(crate) resume: Option<std::path::PathBuf>,
 
-    /// With --resume: fork a new world from journaled frame FRAME (the
-    /// nearest keyframe before it, then the journaled commands up to it)
-    /// instead of the last one; name it with --world. The original
+    /// With --resume: fork a new world from journaled frame FRAME (>= 1;
+    /// the nearest keyframe before it, then the journaled commands up to
+    /// it) instead of the last one; name it with --world. The original
     /// journal is left untouched (journal the fork with --journal NEWDIR).
-    #[arg(long, value_name = "FRAME", requires = "resume")]
+    /// A world at frame 0 is a fresh server's with the same scene and seed.
+    #[arg(long, value_name = "FRAME", requires = "resume", allow_negative_numbers = true, value_parser = input::count)]
     pub(crate) at: Option<u64>,
 
     /// Fixed time-step in seconds: 1e-6..=3600 (0 = variable step). Also

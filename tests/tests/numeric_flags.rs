@@ -94,6 +94,15 @@ const FLAGS: &[Flag] = &[
         template: "boxes:{}",
         ..server_flag("--scene", NONE)
     },
+    Flag {
+        template: "frames:{}",
+        before: &["--journal", "/nonexistent-simbus-numeric-flags/journal"],
+        ..server_flag("--journal-sync", NONE)
+    },
+    Flag {
+        before: &["--resume", "/nonexistent-simbus-numeric-flags/journal"],
+        ..server_flag("--at", NONE)
+    },
     // sim-client, global
     client_flag(&[], "--timeout", "{}", &["status"], NONE),
     // watch, top, foxglove, bridge
@@ -284,6 +293,8 @@ const FLAGS: &[Flag] = &[
 /// Options and arguments that take a value but not a number.
 const NOT_NUMERIC: &[&str] = &[
     "--world",
+    "--journal",
+    "--resume",
     "--wait-mode",
     "--substep-rule",
     "--on-ticker-loss",

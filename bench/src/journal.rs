@@ -9,21 +9,9 @@ use std::time::{Duration, Instant};
 
 use sim_client::Client;
 
-use crate::support::BenchServer;
+use crate::support::{ticked, BenchServer};
 
 const T: Duration = Duration::from_secs(60);
-
-/// Seconds per ticked frame of `frames` ticks.
-fn ticked(client: &Client, frames: u64) -> anyhow::Result<f64> {
-    let mut ticker = client.claim_ticker()?;
-    let started = Instant::now();
-    for _ in 0..frames {
-        ticker.tick(T)?;
-    }
-    let seconds = started.elapsed().as_secs_f64() / frames as f64;
-    ticker.release()?;
-    Ok(seconds)
-}
 
 /// One scene's journal row: µs per frame without a journal, with
 /// `frames:50` and with `frames:1` (best of two alternating rounds).

@@ -17,7 +17,7 @@ use shared_types::ReplayMode;
 use sim_client::{Client, ReplayOptions};
 use simbus_recording::inspect;
 
-use crate::support::{load_average, BenchServer};
+use crate::support::{load_average, ticked, BenchServer};
 
 const T: Duration = Duration::from_secs(60);
 
@@ -41,18 +41,6 @@ pub(crate) struct RecorderArgs {
     /// Leave out the journal, resume and snapshot rows.
     #[arg(long)]
     no_journal: bool,
-}
-
-/// Seconds per frame of `frames` ticks (each tick waits for its frame).
-fn ticked(client: &Client, frames: u64) -> anyhow::Result<f64> {
-    let mut ticker = client.claim_ticker()?;
-    let started = Instant::now();
-    for _ in 0..frames {
-        ticker.tick(T)?;
-    }
-    let seconds = started.elapsed().as_secs_f64() / frames as f64;
-    ticker.release()?;
-    Ok(seconds)
 }
 
 /// Ticks until the replay started on `client` ends; seconds per frame.

@@ -2,7 +2,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use shared_types::WorldSettings;
@@ -333,4 +333,16 @@ pub(crate) fn spawn_peer(kind: &str, name: &str) -> anyhow::Result<(ChildGuard, 
     let mut line = String::new();
     BufReader::new(stdout).read_line(&mut line)?;
     Ok((guard, line.trim().to_owned()))
+}
+
+/// Seconds per frame of `frames` ticks (each tick waits for its frame).
+pub(crate) fn ticked(client: &Client, frames: u64) -> anyhow::Result<f64> {
+    let mut ticker = client.claim_ticker()?;
+    let started = Instant::now();
+    for _ in 0..frames {
+        ticker.tick(Duration::from_secs(60))?;
+    }
+    let seconds = started.elapsed().as_secs_f64() / frames as f64;
+    ticker.release()?;
+    Ok(seconds)
 }

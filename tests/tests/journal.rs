@@ -16,20 +16,18 @@ use simbus_tests::*;
 /// Steps of the scenario (a reload at step 1000).
 const STEPS: u64 = 2000;
 
+/// A synchronous 20 FPS world journaling into `dir` (with `extra` flags).
+fn journaling(tag: &str, dir: &std::path::Path, extra: &[&str]) -> TestWorld {
+    let mut args = vec!["--sync", "--fps", "20", "--journal", dir.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    TestWorld::start(tag, &args)
+}
+
 /// Runs the scenario driver to its end against a world started with
 /// `server_args`; returns its lines.
 fn uninterrupted(scratch: &Scratch) -> Vec<Value> {
     let journal = scratch.file("straight");
-    let world = TestWorld::start(
-        "journal-straight",
-        &[
-            "--sync",
-            "--fps",
-            "20",
-            "--journal",
-            journal.to_str().unwrap(),
-        ],
-    );
+    let world = journaling("journal-straight", &journal, &[]);
     let driver = Proc::spawn("simbus-scenario", &[world.name(), &STEPS.to_string(), "11"]);
     let done = driver.finish(Duration::from_secs(300));
     done.assert_success();
@@ -209,18 +207,7 @@ fn refused(args: &[&str], reason: &str) {
 /// pushed every 7th frame), the server stopped cleanly; returns the
 /// world's name and each frame's digest.
 fn journal_of(dir: &std::path::Path, frames: u64) -> (String, BTreeMap<u64, u64>) {
-    let world = TestWorld::start(
-        "journal-short",
-        &[
-            "--sync",
-            "--fps",
-            "20",
-            "--journal",
-            dir.to_str().unwrap(),
-            "--keyframe-seconds",
-            "1",
-        ],
-    );
+    let world = journaling("journal-short", dir, &["--keyframe-seconds", "1"]);
     let mut client = world.connect();
     let mut ticker = client.claim_ticker().unwrap();
     let mut digests = BTreeMap::new();
@@ -402,18 +389,7 @@ fn a_fork_starts_a_new_world_at_a_journaled_frame_and_leaves_the_journal_untouch
 fn with_frames_50_a_crash_loses_at_most_50_frames_and_the_resume_says_so() {
     let scratch = Scratch::new("journal-fifty");
     let dir = scratch.file("j");
-    let world = TestWorld::start(
-        "journal-fifty",
-        &[
-            "--sync",
-            "--fps",
-            "20",
-            "--journal",
-            dir.to_str().unwrap(),
-            "--journal-sync",
-            "frames:50",
-        ],
-    );
+    let world = journaling("journal-fifty", &dir, &["--journal-sync", "frames:50"]);
     let client = world.connect();
     let mut ticker = client.claim_ticker().unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(50);
@@ -463,18 +439,7 @@ fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last
     let scratch = Scratch::new("journal-full");
     let disk = Tmpfs::mount(scratch.file("small"), "192k");
     let dir = disk.0.join("j");
-    let world = TestWorld::start(
-        "journal-full",
-        &[
-            "--sync",
-            "--fps",
-            "20",
-            "--journal",
-            dir.to_str().unwrap(),
-            "--keyframe-seconds",
-            "1",
-        ],
-    );
+    let world = journaling("journal-full", &dir, &["--keyframe-seconds", "1"]);
     let client = world.connect();
     let mut ticker = client.claim_ticker().unwrap();
     let mut stopped = None;
@@ -530,10 +495,7 @@ fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last
 fn a_sensor_watch_follows_a_restart_and_reads_the_sensor_that_came_back() {
     let scratch = Scratch::new("journal-sensor");
     let dir = scratch.file("j");
-    let world = TestWorld::start(
-        "journal-sensor",
-        &["--sync", "--fps", "20", "--journal", dir.to_str().unwrap()],
-    );
+    let world = journaling("journal-sensor", &dir, &[]);
     let client = world.connect();
     let sensor = client
         .spawn_sensor(shared_types::SensorSpec::depth(

@@ -12,6 +12,7 @@
 //! one; while a recording runs, every published frame is recorded.
 
 mod answers;
+mod open;
 mod recording;
 mod snapshots;
 mod turn;
@@ -21,13 +22,12 @@ use std::time::{Duration, Instant};
 
 use shared_types::{FrameHeader, SensorEnd, Timestamp, WorldSettings, PROTOCOL_VERSION};
 use simbus_transport::stamps::{self, Stage};
-use tracing::{debug_span, info, warn};
+use tracing::{debug_span, info};
 
 use crate::batches::Batches;
 use crate::clock::{platform_timestamp, Clock, SubstepPlan};
 use crate::control::Control;
 use crate::frames::Frames;
-use crate::journal::resume::{resume, ResumeOptions, Resumed};
 use crate::journal::Journal;
 use crate::liveness::{LiveProcesses, PidWatch};
 use crate::lockstep::Lockstep;
@@ -146,147 +146,6 @@ fn check_keyframe_seconds(seconds: Option<f64>) -> Result<(), ServerError> {
 }
 
 impl Server {
-    /// Validates the settings, loads the scene, opens the world's services
-    /// (cleaning up after a crashed predecessor) and publishes frame 0;
-    /// starts the journal when the config asks for one.
-    pub fn start(config: ServerConfig) -> Result<Self, ServerError> {
-        Self::open(config, None)
-    }
-
-    /// Rebuilds the world a journal describes (its last complete frame, or
-    /// `options.at`'s frame for a fork) and serves it live from the next
-    /// frame: the same world name (unless forked under another), actor and
-    /// sensor ids, episode and settings; frame ids go on. The journal
-    /// continues into `config.journal` when set. A journal that cannot be
-    /// resumed is refused, and nothing starts.
-    pub fn resume(mut config: ServerConfig, options: &ResumeOptions) -> Result<Self, ServerError> {
-        if let Some(journal) = &config.journal {
-            if options.at.is_some() && journal.dir == options.dir {
-                return Err(ServerError::ForkIntoOriginal {
-                    dir: options.dir.clone(),
-                });
-            }
-        }
-        let resumed = resume(options)?;
-        if options.at.is_none() && resumed.header.world != config.world.as_str() {
-            return Err(ServerError::OtherWorld {
-                dir: options.dir.clone(),
-                journal: resumed.header.world.clone(),
-                asked: config.world.to_string(),
-            });
-        }
-        config.seed = resumed.header.seed;
-        config.scene = resumed.scene;
-        config.settings = resumed.settings;
-        Self::open(config, Some(resumed))
-    }
-
-    fn open(config: ServerConfig, mut resumed: Option<Resumed>) -> Result<Self, ServerError> {
-        let settings = config.settings.normalized();
-        settings.validate()?;
-        check_keyframe_seconds(config.keyframe_seconds)?;
-        for warning in settings.warnings() {
-            warn!("{warning}");
-        }
-        let now = Instant::now();
-        let taken = resumed
-            .as_mut()
-            .and_then(|r| r.world.take().map(|world| (world, r.clock.clone())));
-        let (world, clock) = match taken {
-            Some(taken) => taken,
-            None => (
-                World::new(&config.scene.placements(config.seed), 1),
-                Clock::new(now),
-            ),
-        };
-        let transport = Transport::open(&config.world)?;
-        let limits = config.limits;
-        // Control first: it refuses a second live server on the world.
-        let control = Control::open(&transport, &config.world, &limits)?;
-        let frames = Frames::open(&transport, world.actor_count(), &limits)?;
-        let ticker = Ticker::open(&transport, &limits)?;
-        let batches = Batches::open(&transport, &limits)?;
-        let lockstep = Lockstep::open(&transport, &limits)?;
-        let sensors = Sensors::open(&transport, &limits, config.render_threads)?;
-        let recorder = RecorderPort::open(&transport, &limits)?;
-        let mut runtime = Runtime::new(&config, settings);
-        if let Some(r) = &resumed {
-            runtime.episode = r.episode;
-            if r.frame.flags & FrameHeader::RESTORED != 0 {
-                runtime.source_offset = Some(
-                    r.frame
-                        .timestamp
-                        .frame
-                        .saturating_sub(r.frame.recorded_frame),
-                );
-            }
-        }
-        let mut domains = Domains {
-            runtime,
-            transport,
-            world,
-            clock,
-            frames,
-            ticker,
-            batches,
-            lockstep,
-            sensors,
-            recorder: Recorder::default(),
-            replayer: Replayer::default(),
-            timers: Timers {
-                full_pass: now,
-                cleanup: now,
-                liveness: now,
-                connections: now,
-                probe: now,
-            },
-            journal: None,
-            snapshots: Default::default(),
-            pidwatch: PidWatch::default(),
-            timings: None,
-            config,
-        };
-        if let Some(r) = &resumed {
-            domains.resume_sensors(r);
-        }
-        domains.publish(0, 0)?;
-        domains.frames.notify()?;
-        if let Some(options) = domains.config.journal.clone() {
-            // A resumed journal goes on in its directory; any other is new.
-            let fresh = resumed
-                .as_ref()
-                .is_none_or(|r| r.segment.parent() != Some(options.dir.as_path()));
-            let header = domains.recording_header(false);
-            let frame = domains.frame_header(0, 0);
-            let sensors = domains.sensors.recorded_spawns(domains.clock.frame());
-            let scene = domains.runtime.scene.to_string();
-            let journal = Journal::start(
-                &options,
-                fresh,
-                header,
-                sensors,
-                (&frame, &domains.world),
-                scene,
-            )?;
-            domains.journal = Some(journal);
-        }
-        info!(
-            world = %domains.config.world,
-            scene = %domains.runtime.scene,
-            actors = domains.world.actor_count(),
-            frame = domains.clock.frame(),
-            episode = domains.runtime.episode,
-            "server up{}: {}",
-            if resumed.is_some() { " (resumed from its journal)" } else { "" },
-            domains.runtime.settings
-        );
-        Ok(Self {
-            control,
-            recorder,
-            domains,
-        })
-    }
-
     /// From now on, times each computed frame, up to `capacity` frames (the
     /// room is reserved now): rapier's own step and the whole frame. For
     /// benchmarks; a server never asked reads no clock for it.

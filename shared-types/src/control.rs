@@ -277,8 +277,12 @@ pub struct StatusReport {
     pub journal_note: FixedText,
     /// Snapshots held in the server's memory.
     pub snapshots: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The run this server continues: the process id of the server that
+    /// began it, its own unless it resumed a journal (`sim-server
+    /// --resume DIR`: the pid the journal names). A client that follows a
+    /// restart keys what it built on the world by it (the CARLA gateway's
+    /// episode ids); zero from a server that does not say.
+    pub run_pid: u32,
     /// The first [`REPORTED_PARTICIPANTS`] participants in joining order
     /// (`participants` says how many of these are filled, at most all).
     pub lockstep: [ParticipantStatus; REPORTED_PARTICIPANTS],

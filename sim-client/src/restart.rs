@@ -49,33 +49,42 @@ pub enum Event {
 /// How often a client looks for a server coming back.
 const RETRY: Duration = Duration::from_millis(20);
 
-/// Connects to the next server of `world`: a live one whose pid is not
-/// `old_pid`, waiting until `deadline`.
-fn next_server(world: &str, old_pid: u32, deadline: Instant) -> Result<Client, ConnectError> {
-    let started = Instant::now();
-    loop {
-        let remaining = deadline.saturating_duration_since(Instant::now());
-        let attempt = Client::connect(world, remaining.max(RETRY));
-        match attempt {
-            Ok(client)
-                if client.server_pid != old_pid && crate::process_alive(client.server_pid) =>
-            {
-                return Ok(client)
-            }
-            Ok(_) | Err(ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. }) => {}
-            Err(e) => return Err(e),
-        }
-        if Instant::now() >= deadline {
-            return Err(ConnectError::NoServer {
-                world: world.to_owned(),
-                timeout: started.elapsed(),
-            });
-        }
-        std::thread::sleep(RETRY);
-    }
-}
-
 impl Client {
+    /// Connects to the next server of `world` after the one with pid
+    /// `previous_pid` exited: a live server whose pid is not that one,
+    /// waiting up to `timeout` for it to come (a resume: `sim-server
+    /// --resume DIR`). Fails with [`ConnectError::NoServer`] when none came
+    /// in time. [`Client::reconnect`] does this for a client that is
+    /// already connected.
+    pub fn connect_next(
+        world: &str,
+        previous_pid: u32,
+        timeout: Duration,
+    ) -> Result<Client, ConnectError> {
+        let started = Instant::now();
+        let deadline = started + timeout;
+        loop {
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            match Client::connect(world, remaining.max(RETRY)) {
+                Ok(client)
+                    if client.server_pid != previous_pid
+                        && crate::process_alive(client.server_pid) =>
+                {
+                    return Ok(client)
+                }
+                Ok(_) | Err(ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. }) => {}
+                Err(e) => return Err(e),
+            }
+            if Instant::now() >= deadline {
+                return Err(ConnectError::NoServer {
+                    world: world.to_owned(),
+                    timeout: started.elapsed(),
+                });
+            }
+            std::thread::sleep(RETRY);
+        }
+    }
+
     /// Waits up to `timeout` for a server to come back on this client's
     /// world after the one it knew exited (a resume: `sim-server --resume
     /// DIR`), and talks to it from now on: its frames, and its ports opened
@@ -83,9 +92,8 @@ impl Client {
     /// timeout stay as set. Fails with [`ConnectError::NoServer`] when none
     /// came back in time.
     pub fn reconnect(&mut self, timeout: Duration) -> Result<Reconnected, ConnectError> {
-        let deadline = Instant::now() + timeout;
         let previous_pid = self.server_pid;
-        let mut next = next_server(self.world.as_str(), previous_pid, deadline)?;
+        let mut next = Client::connect_next(self.world.as_str(), previous_pid, timeout)?;
         next.frames.mode = self.frames.mode;
         next.frames.every_frame = self.frames.every_frame;
         next.request_timeout = self.request_timeout;
@@ -163,19 +171,19 @@ impl Ticker {
     /// [`Ticker::set_follow_restarts`] does when a tick notices, for a
     /// program that noticed first (a request failed with the server gone).
     pub fn reclaim(&mut self, timeout: Duration) -> Result<Reconnected, TickError> {
-        let deadline = Instant::now() + timeout;
         let previous_pid = self.server_pid;
         // Nothing to release on a server that is gone.
         self.released = true;
-        let client =
-            next_server(self.world.as_str(), previous_pid, deadline).map_err(|e| match e {
+        let client = Client::connect_next(self.world.as_str(), previous_pid, timeout).map_err(
+            |e| match e {
                 ConnectError::NoServer { .. } => TickError::Frame(WaitError::NotBack {
                     world: self.world.to_string(),
                     pid: previous_pid,
                     timeout,
                 }),
                 e => TickError::Frame(WaitError::Reconnect(Box::new(e))),
-            })?;
+            },
+        )?;
         let mut fresh = client.claim_ticker_as(&self.node_name)?;
         fresh.mode = self.mode;
         fresh.follow_restarts = self.follow_restarts;

@@ -17,6 +17,9 @@ pub struct Status {
     pub episode: u64,
     /// The server's process id.
     pub server_pid: u32,
+    /// The run the server continues: the pid of the server that began it,
+    /// `server_pid` unless it resumed a journal (then the first server's).
+    pub run_pid: u32,
     /// Actors in the world.
     pub actor_count: u32,
     /// The settings in force for the next frame.
@@ -111,6 +114,10 @@ impl From<&StatusReport> for Status {
             elapsed_ns: report.elapsed_ns,
             episode: report.episode,
             server_pid: report.server_pid,
+            run_pid: match report.run_pid {
+                0 => report.server_pid,
+                run => run,
+            },
             actor_count: report.actor_count,
             settings: report.settings.into(),
             scene: report.scene.to_string_lossy(),

@@ -40,6 +40,9 @@ pub(crate) struct Runtime {
     /// After a snapshot was restored in this episode: the current frame id
     /// minus its id in the snapshot's line of frames.
     pub source_offset: Option<u64>,
+    /// The run this server continues ([`shared_types::StatusReport::run_pid`]):
+    /// its own pid, or the resumed journal's.
+    pub run_pid: u32,
     last_warning: Option<Instant>,
 }
 
@@ -53,6 +56,7 @@ impl Runtime {
             pacer: Pacer::new(config.realtime, config.max_fps),
             frames_computed: 0,
             source_offset: None,
+            run_pid: shared_types::this_process_id(),
             last_warning: None,
         }
     }

@@ -6,8 +6,11 @@ import hashlib
 import json
 import os
 import signal
+import socket
 import subprocess
 import time
+
+import msgpack
 
 import pytest
 
@@ -33,6 +36,27 @@ class Gateway:
             [os.path.join(BIN, "sim-client"), "--world", self.world, *args],
             capture_output=True, text=True, timeout=60,
         )
+
+
+class Raw:
+    """A raw msgpack-RPC connection, for what the carla module never sends."""
+
+    def __init__(self, port):
+        self.sock = socket.create_connection(("127.0.0.1", port))
+        self.sock.settimeout(10)
+        self.unpacker = msgpack.Unpacker(raw=False)
+        self.msgid = 0
+
+    def call(self, method, *args):
+        self.msgid += 1
+        self.sock.sendall(msgpack.packb([0, self.msgid, method, [[False], *args]]))
+        while True:
+            for message in self.unpacker:
+                assert message[0] == 1 and message[1] == self.msgid, message
+                return message[3]
+            data = self.sock.recv(65536)
+            assert data, "the gateway closed the connection"
+            self.unpacker.feed(data)
 
 
 def synced(gateway, delta=0.05):

@@ -9,8 +9,9 @@ import queue
 import socket
 
 import carla
-import msgpack
 import pytest
+
+from conftest import Raw
 
 
 def sync(world, delta=0.05):
@@ -365,27 +366,6 @@ def test_the_determinism_recipe_gives_identical_transforms_on_two_servers(gatewa
     assert frame_a == frame_b
     assert len(poses_a) > 12
     assert poses_a == poses_b
-
-
-class Raw:
-    """A raw msgpack-RPC connection, for what the carla module never sends."""
-
-    def __init__(self, port):
-        self.sock = socket.create_connection(("127.0.0.1", port))
-        self.sock.settimeout(10)
-        self.unpacker = msgpack.Unpacker(raw=False)
-        self.msgid = 0
-
-    def call(self, method, *args):
-        self.msgid += 1
-        self.sock.sendall(msgpack.packb([0, self.msgid, method, [[False], *args]]))
-        while True:
-            for message in self.unpacker:
-                assert message[0] == 1 and message[1] == self.msgid, message
-                return message[3]
-            data = self.sock.recv(65536)
-            assert data, "the gateway closed the connection"
-            self.unpacker.feed(data)
 
 
 def error_of(result):

@@ -2,7 +2,8 @@
 of the run after its save, a client reads on through a server killed with
 SIGKILL and resumed from its journal (`next_event` hands out a
 `simbus.Reconnected`), and a ticker that follows restarts claims the
-resumed world itself (`simbus.Restarted`)."""
+resumed world itself (`simbus.Restarted`); the status names the journal
+and the run the resumed server continues."""
 
 import pytest
 
@@ -52,6 +53,11 @@ def test_clients_ride_through_a_killed_and_resumed_server(server, tmp_path):
     journal = str(tmp_path / "journal")
     first = server("--sync", "--fps", "20", "--journal", journal)
     client = first.client()
+    status = client.status()
+    assert status.run_pid == status.server_pid == first.proc.pid
+    # (The status has room for the directory's first 64 bytes.)
+    assert status.journal.writing and journal.startswith(status.journal.dir)
+    assert status.snapshots == 0
     with client.ticker(delta_seconds=0.05) as ticker:
         ticker.follow_restarts(30.0)
         for _ in range(25):
@@ -73,3 +79,6 @@ def test_clients_ride_through_a_killed_and_resumed_server(server, tmp_path):
         assert ticker.tick() == 26
         with client.next_event(timeout=10) as frame:
             assert frame.frame == 26
+        resumed = client.status()
+        assert (resumed.server_pid, resumed.run_pid) == (second.proc.pid, first.proc.pid)
+        assert resumed.journal.durable_frame == 26

@@ -292,3 +292,51 @@ fn a_mirror_of_a_world_nobody_exports_says_so() {
         .finish(LONG);
     lease.assert_code(2);
 }
+
+#[test]
+fn the_export_goes_on_with_a_server_resumed_from_its_journal_and_the_remote_ticker_keeps_the_world()
+{
+    let hosts = TwoHosts::new("zr");
+    let world = unique_world("zr");
+    let scratch = simbus_tests::Scratch::new("zr");
+    let journal = scratch.file("journal");
+    let journal = journal.to_str().expect("a UTF-8 path");
+    let mut bridge = hosts.mirrored(
+        &world,
+        &["--sync", "--delta-seconds", "0.05", "--journal", journal],
+        &[],
+    );
+    // A remote ticker holds the world and ticks every 4 s: the restart
+    // comes and goes between two of its ticks.
+    let holder = hosts.b.client(
+        &world,
+        "20",
+        &["tick", "--rate", "0.25", "--count", "3", "--json"],
+    );
+    let first: serde_json::Value =
+        serde_json::from_str(&holder.wait_line("\"frame\"", LONG)).expect("a tick line");
+    let first = first["frame"].as_u64().expect("frame");
+    let watch = hosts.b.client(&world, "20", &["watch", "--json"]);
+    watch.wait_line(&format!("\"frame\":{first}"), LONG);
+
+    bridge.server.guard.kill().expect("killing the server");
+    let _resumed = hosts.a.spawn("sim-server", &["--resume", journal]);
+    bridge.exporter.wait_line(
+        &format!("resumed at frame {first}; exporting goes on"),
+        LONG,
+    );
+    bridge.mirror.wait_line("link up", LONG);
+
+    // The same ticker ticks on: the exporter claimed the resumed world
+    // again for it, and the mirror's clients read on.
+    let ticked = holder.finish(LONG);
+    ticked.assert_success();
+    let frames: Vec<u64> = ticked
+        .json()
+        .iter()
+        .map(|t| t["frame"].as_u64().expect("frame"))
+        .collect();
+    // (Its first tick's line was read above.)
+    assert_eq!(frames, vec![first + 1, first + 2], "{ticked}");
+    watch.wait_line(&format!("\"frame\":{}", first + 2), LONG);
+}

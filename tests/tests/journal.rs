@@ -531,9 +531,22 @@ fn a_sensor_watch_follows_a_restart_and_reads_the_sensor_that_came_back() {
     watch.wait_line(&format!("\"frame\":{frame}"), Duration::from_secs(30));
     let name = world.name().to_owned();
     let mut world = world;
+    let first_pid = world.server.pid();
     world.server.guard.kill().unwrap();
     let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
     wait_until_up(&name, &resumed);
+    // The resumed server continues the run, and says so.
+    let status = simbus_tests::status(&name);
+    assert_eq!(status["server_pid"], resumed.pid(), "{status}");
+    assert_eq!(status["run_pid"], first_pid, "{status}");
+    let said = simbus_tests::client(&name, &["status"]);
+    said.assert_success();
+    assert!(
+        said.stdout
+            .iter()
+            .any(|l| l.contains(&format!("resumed the run of pid {first_pid}"))),
+        "{said}"
+    );
     let restarted = ticker.tick(Duration::from_secs(10)).unwrap_err();
     assert!(
         matches!(restarted, sim_client::TickError::Restarted(r) if r.resumed_at == frame),

@@ -110,6 +110,7 @@ mod tests {
             sensors: true,
             keyframe_seconds,
             journal_sync_frames: 0,
+            run_pid: 0,
         }
     }
 

@@ -157,6 +157,12 @@ pub struct RecordingHeader {
     /// have lost. 0: a recording, not a journal.
     #[serde(default)]
     pub journal_sync_frames: u64,
+    /// The process id of the server that began the run this recording is
+    /// part of: a journal resumed (`--resume DIR`) goes on under it, so
+    /// clients that follow the restart see the same run. 0: not known
+    /// (written before it was recorded).
+    #[serde(default)]
+    pub run_pid: u32,
 }
 
 /// [`WorldSettings`] as JSON.

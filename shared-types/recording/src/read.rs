@@ -102,6 +102,7 @@ impl RecordingHeader {
             sensors: false,
             keyframe_seconds: 0.0,
             journal_sync_frames: 0,
+            run_pid: 0,
         }
     }
 }

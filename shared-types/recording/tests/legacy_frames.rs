@@ -34,6 +34,7 @@ fn a_recording_of_older_frame_headers_and_sensor_specs_reads_with_the_new_fields
         sensors: false,
         keyframe_seconds: 10.0,
         journal_sync_frames: 0,
+        run_pid: 0,
     };
     let frames: Vec<(FrameHeader, Vec<ActorState>)> = (0..3u64)
         .map(|i| {

@@ -111,7 +111,8 @@ impl EpisodeMap {
     }
 }
 
-/// (server pid, episode): one episode of one server.
+/// (run pid, episode): one episode of one run of the world (a server and
+/// those resumed from its journal).
 type EpisodeKey = (u32, u64);
 
 /// The maps the gateway gave episodes, and whether CARLA's towns may be
@@ -164,14 +165,15 @@ impl Maps {
         }
     }
 
-    /// The map of episode `episode` of server `pid`, whose scene is `scene`.
+    /// The map of episode `episode` of run `run_pid`, whose scene is
+    /// `scene`.
     pub(crate) fn answer(
         &self,
-        pid: u32,
+        run_pid: u32,
         episode: u64,
         scene: &str,
     ) -> Result<MapAnswer, MapError> {
-        let given = self.given((pid, episode));
+        let given = self.given((run_pid, episode));
         let network = || scene.parse::<SceneName>().map(roads::network);
         match given {
             Some(EpisodeMap {
@@ -200,9 +202,10 @@ impl Maps {
         }
     }
 
-    /// Gives episode `episode` of server `pid` its map (`None`: its scene's).
-    pub(crate) fn give(&self, pid: u32, episode: u64, map: Option<EpisodeMap>) {
-        lock(&self.state).given = map.map(|map| ((pid, episode), map));
+    /// Gives episode `episode` of run `run_pid` its map (`None`: its
+    /// scene's).
+    pub(crate) fn give(&self, run_pid: u32, episode: u64, map: Option<EpisodeMap>) {
+        lock(&self.state).given = map.map(|map| ((run_pid, episode), map));
     }
 
     /// The scene to load for CARLA's `town`, or the refusal under

@@ -25,6 +25,7 @@ fn header() -> RecordingHeader {
         sensors: false,
         keyframe_seconds: 10.0,
         journal_sync_frames: 0,
+        run_pid: 0,
     }
 }
 

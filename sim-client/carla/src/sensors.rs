@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::{SensorKind, SensorSpec};
-use sim_client::{Capture, Client, WaitError};
+use sim_client::{Capture, Client, Sensor, WaitError};
 use tracing::{debug, info};
 
 use crate::convert;
@@ -31,7 +31,10 @@ const WORLD_STATE_FIRST: Duration = Duration::from_millis(200);
 
 /// A client will connect to sensor stream `stream` (it asked for its
 /// token): make sure a forwarder feeds it, subscribed before this returns,
-/// so that every capture from now on reaches the listener.
+/// so that every capture from now on reaches the listener. The forwarder
+/// follows a server restart: when the server exits and one resumed from
+/// its journal comes back within `timeout`, it reads the same sensor from
+/// it (a resume brings sensors back under their ids).
 pub(crate) fn expect(
     hub: &Arc<Hub>,
     (world, streaming_port): (&str, u16),
@@ -59,6 +62,7 @@ pub(crate) fn expect(
         simbus_id,
         spec,
         streaming_port,
+        follow: timeout,
     };
     std::thread::spawn(move || forward(&hub2, &world, source, &ready));
     match started.recv_timeout(timeout) {
@@ -82,6 +86,52 @@ struct Forwarded {
     spec: SensorSpec,
     /// Where CARLA's clients read streams (an event's actors carry tokens).
     streaming_port: u16,
+    /// How long it waits for a server to come back after its own exited.
+    follow: Duration,
+}
+
+/// The world's client, its run ([`sim_client::Status::run_pid`]) and
+/// sensor `simbus_id` read from it.
+fn open_sensor(world: &str, simbus_id: u64) -> Result<(Client, u32, Sensor), Source> {
+    let client =
+        Client::connect(world, Duration::from_secs(5)).map_err(|e| Arc::new(e) as Source)?;
+    let run_pid = client.status().map_err(|e| Arc::new(e) as Source)?.run_pid;
+    let sensor = client
+        .sensor(simbus_id)
+        .map_err(|e| Arc::new(e) as Source)?;
+    Ok((client, run_pid, sensor))
+}
+
+/// After `client`'s server exited: the same sensor from the server that
+/// came back within `timeout` to go on with run `run_pid` (resumed from
+/// its journal), or `None` when none came, or a fresh run did.
+fn follow_restart(
+    client: &mut Client,
+    run_pid: u32,
+    simbus_id: u64,
+    timeout: Duration,
+) -> Option<Sensor> {
+    let restarted = client
+        .reconnect(timeout)
+        .map_err(|e| debug!(sensor = simbus_id, "no server came back: {e}"))
+        .ok()?;
+    let run = client.status().ok()?.run_pid;
+    if run != run_pid {
+        debug!(
+            sensor = simbus_id,
+            "a new run began on the world: the sensor is gone"
+        );
+        return None;
+    }
+    let sensor = client
+        .sensor(simbus_id)
+        .map_err(|e| debug!(sensor = simbus_id, "not back with the resumed server: {e}"))
+        .ok()?;
+    info!(
+        sensor = simbus_id,
+        "{restarted}; forwarding the sensor goes on"
+    );
+    Some(sensor)
 }
 
 fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Result<(), CallError>>) {
@@ -90,16 +140,9 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
         simbus_id,
         spec,
         streaming_port,
+        follow,
     } = source;
-    let opened = Client::connect(world, Duration::from_secs(5))
-        .map_err(|e| Arc::new(e) as Source)
-        .and_then(|client| {
-            let sensor = client
-                .sensor(simbus_id)
-                .map_err(|e| Arc::new(e) as Source)?;
-            Ok((client.server_pid(), sensor))
-        });
-    let (server_pid, mut sensor) = match opened {
+    let (mut client, run_pid, mut sensor) = match open_sensor(world, simbus_id) {
         Ok(opened) => opened,
         Err(e) => {
             let _ = ready.send(Err(CallError::SensorOpen {
@@ -118,12 +161,12 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
         match sensor.recv(patience) {
             Ok(capture) => {
                 let h = capture.header();
-                hub.after_world_state(server_pid, h.episode, h.frame, WORLD_STATE_FIRST);
+                hub.after_world_state(run_pid, h.episode, h.frame, WORLD_STATE_FIRST);
                 let actor = |id: u32| record_of(hub, id, streaming_port);
                 let sent = messages(&capture, &spec, stream, actor).is_some_and(|messages| {
                     messages
                         .iter()
-                        .all(|m| hub.send_capture(stream, server_pid, h.episode, m))
+                        .all(|m| hub.send_capture(stream, run_pid, h.episode, m))
                 });
                 if !sent {
                     debug!(
@@ -134,13 +177,18 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
                 }
             }
             Err(WaitError::NoCapture { .. }) => {}
+            Err(WaitError::ServerGone { .. }) => {
+                match follow_restart(&mut client, run_pid, simbus_id, follow) {
+                    Some(back) => sensor = back,
+                    None => {
+                        end_stream(hub, stream);
+                        return;
+                    }
+                }
+            }
             Err(e) => {
                 debug!(sensor = simbus_id, "sensor stream ended: {e}");
-                // Dying until a client destroys it (or its episode ends).
-                if let Some(sensor) = lock(&hub.registry).sensors.get_mut(&stream) {
-                    sensor.gone = true;
-                }
-                hub.end(stream);
+                end_stream(hub, stream);
                 return;
             }
         }
@@ -149,6 +197,15 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
             return;
         }
     }
+}
+
+/// Sensor stream `stream` ended with its sensor: it is dying until a client
+/// destroys it (or its episode ends).
+fn end_stream(hub: &Hub, stream: u32) {
+    if let Some(sensor) = lock(&hub.registry).sensors.get_mut(&stream) {
+        sensor.gone = true;
+    }
+    hub.end(stream);
 }
 
 /// One capture as CARLA's stream messages: one per capture, but one per

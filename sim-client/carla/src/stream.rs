@@ -107,12 +107,12 @@ pub(crate) struct EpisodeChange {
 }
 
 impl EpisodeChange {
-    /// The load began episode `episode` of the server `server_pid`: from
+    /// The load began episode `episode` of the run `run_pid`: from
     /// the return on, no message of an older episode goes out, captures of
     /// this one flow again, and the world stream waits for the loading
     /// client to subscribe to it again.
-    pub(crate) fn begun(mut self, server_pid: u32, episode: u64) {
-        self.began = Some((server_pid, episode));
+    pub(crate) fn begun(mut self, run_pid: u32, episode: u64) {
+        self.began = Some((run_pid, episode));
     }
 }
 
@@ -130,7 +130,7 @@ pub(crate) struct Hub {
     /// The actors of the last frame.
     pub(crate) actors: Mutex<HashMap<u32, ActorInfo>>,
     pub(crate) registry: Mutex<Registry>,
-    /// (server pid, episode, frame) of the last world state sent.
+    /// (run pid, episode, frame) of the last world state sent.
     sent: Mutex<Sent>,
     sent_changed: Condvar,
     /// The `EpisodeSettings` fields simbus does not have, as last set.
@@ -166,7 +166,7 @@ impl Default for Hub {
     }
 }
 
-/// (server pid, episode, frame) of a world state.
+/// (run pid, episode, frame) of a world state.
 type Sent = (u32, u64, u64);
 
 impl Hub {
@@ -188,18 +188,18 @@ impl Hub {
         carla::world_stream_after(previous)
     }
 
-    /// Sends `message`, a capture of `episode` (of the server `server_pid`),
+    /// Sends `message`, a capture of `episode` (of the run `run_pid`),
     /// to every reader of sensor stream `stream`, unless a world load is in
     /// flight or a newer episode began (the sensor is gone with its
     /// episode). Returns whether it went out (or waits for its reader).
     pub(crate) fn send_capture(
         &self,
         stream: u32,
-        server_pid: u32,
+        run_pid: u32,
         episode: u64,
         message: &[u8],
     ) -> bool {
-        lock(&self.streams).send_capture(stream, (server_pid, episode), message)
+        lock(&self.streams).send_capture(stream, (run_pid, episode), message)
     }
 
     /// A world load or reload is about to be asked for (CARLA's
@@ -226,7 +226,7 @@ impl Hub {
     /// would block the thread that must read it.
     pub(crate) fn after_world_state(
         &self,
-        server_pid: u32,
+        run_pid: u32,
         episode: u64,
         frame: u64,
         timeout: Duration,
@@ -235,7 +235,7 @@ impl Hub {
         let _ = self
             .sent_changed
             .wait_timeout_while(sent, timeout, |&mut (p, e, f)| {
-                p == server_pid && e == episode && f < frame
+                p == run_pid && e == episode && f < frame
             });
     }
 
@@ -313,7 +313,7 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
 /// their parents in `actors`, and the spectator at `spectator`.
 fn world_state(
     frame: &FrameView,
-    server_pid: u32,
+    run_pid: u32,
     actors: &HashMap<u32, ActorInfo>,
     registry: &Registry,
     spectator: CarlaTransform,
@@ -333,7 +333,7 @@ fn world_state(
     );
     carla::episode_header(
         &mut out,
-        carla::episode_id(server_pid, frame.episode()),
+        carla::episode_id(run_pid, frame.episode()),
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
@@ -388,7 +388,9 @@ fn sensor_pose(
 }
 
 /// Streams every frame of `world` as a world state until the process ends;
-/// reconnects when the server comes back.
+/// reconnects when the server comes back. A server resumed from its
+/// journal continues its run (the same run pid): CARLA's clients see the
+/// same episode go on, from the frame after the last one they were sent.
 pub(crate) fn pump(world: String, hub: Arc<Hub>) {
     loop {
         let mut client = match Client::connect(&world, SERVER_WAIT) {
@@ -402,10 +404,17 @@ pub(crate) fn pump(world: String, hub: Arc<Hub>) {
             }
         };
         client.set_every_frame(true);
+        let run_pid = match client.status() {
+            Ok(status) => status.run_pid,
+            Err(e) => {
+                debug!("world stream waits for the server: {e}");
+                continue;
+            }
+        };
         info!(world, "streaming the world's frames to CARLA clients");
         loop {
             match client.wait_for_frame(Duration::from_secs(1)) {
-                Ok(frame) => publish(&hub, &frame, client.server_pid()),
+                Ok(frame) => publish(&hub, &frame, run_pid),
                 Err(sim_client::WaitError::Timeout { .. }) => {}
                 Err(e) => {
                     warn!("world stream lost the server: {e}");
@@ -426,15 +435,18 @@ fn waited_for_the_server(e: &ConnectError) -> bool {
     )
 }
 
-/// Sends the world state of `frame` (of the server `server_pid`) unless a
-/// newer one went out: the pump sends every frame, and a CARLA ticker's
-/// session sends the frame it stepped at once, saving the pump's wake-up.
-pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
+/// Sends the world state of `frame` (of the run `run_pid`: the server's,
+/// or the journal's it resumed) unless a newer one went out: the pump
+/// sends every frame, and a CARLA ticker's session sends the frame it
+/// stepped at once, saving the pump's wake-up. Frames a resumed server
+/// computes again (those after its journal's last durable one) are not
+/// sent again, as CARLA's client keeps no state older than its newest.
+pub(crate) fn publish(hub: &Hub, frame: &FrameView, run_pid: u32) {
     let episode = frame.episode();
     let mut sent = lock(&hub.sent);
     let (p, e, f) = *sent;
-    let stale = readers::older((server_pid, episode), (p, e));
-    if stale || (p == server_pid && e == episode && f >= frame.frame()) {
+    let stale = readers::older((run_pid, episode), (p, e));
+    if stale || (p == run_pid && e == episode && f >= frame.frame()) {
         return;
     }
     let actors: HashMap<u32, ActorInfo> = frame
@@ -454,8 +466,9 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
         .collect();
     let message = {
         let mut registry = lock(&hub.registry);
-        if (p, e) != (server_pid, episode) {
-            // A new episode (or server) ended every sensor.
+        if (p, e) != (run_pid, episode) {
+            // A new episode (or run) ended every sensor (a server resumed
+            // from its journal goes on with the run, and its sensors).
             registry.sensors.clear();
         }
         // A sensor whose parent is gone went with it; it stays, dying,
@@ -467,15 +480,15 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, server_pid: u32) {
             }
         }
         let spectator = *lock(&hub.spectator);
-        world_state(frame, server_pid, &actors, &registry, spectator)
+        world_state(frame, run_pid, &actors, &registry, spectator)
     };
     // A frame of an episode older than one begun (its reload answered
     // before the world stream's pump saw it) is not news.
-    if !lock(&hub.streams).send_world_state((server_pid, episode), &message) {
+    if !lock(&hub.streams).send_world_state((run_pid, episode), &message) {
         return;
     }
     *lock(&hub.actors) = actors;
-    *sent = (server_pid, episode, frame.frame());
+    *sent = (run_pid, episode, frame.frame());
     drop(sent);
     hub.sent_changed.notify_all();
 }

@@ -106,12 +106,14 @@ pub const SPECTATOR_ID: u32 = SENSOR_ID_BASE;
 /// The version the gateway reports (`client.get_server_version()`).
 pub const CARLA_VERSION: &str = "0.9.16";
 
-/// CARLA's episode id of simbus episode `episode` of the server with
-/// process id `server_pid`: a server that restarts on the same world starts
-/// a new CARLA episode (CARLA's client resets its state when the id
-/// changes; simbus numbers episodes from 1 in each server).
-pub fn episode_id(server_pid: u32, episode: u64) -> u64 {
-    (u64::from(server_pid) << 32) | (episode & 0xFFFF_FFFF)
+/// CARLA's episode id of simbus episode `episode` of the run `run_pid`
+/// (the pid of the server that began it, which a server resumed from its
+/// journal goes on with): a fresh server on the same world starts a new
+/// CARLA episode (CARLA's client resets its state when the id changes;
+/// simbus numbers episodes from 1 in each run), a resumed one goes on with
+/// the episode its clients had.
+pub fn episode_id(run_pid: u32, episode: u64) -> u64 {
+    (u64::from(run_pid) << 32) | (episode & 0xFFFF_FFFF)
 }
 
 /// A stream token: where (TCP, `port`, the RPC host) to subscribe to

@@ -37,6 +37,7 @@ fn _simbus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<settings::Status>()?;
     m.add_class::<settings::TickerInfo>()?;
     m.add_class::<settings::ParticipantStatus>()?;
+    m.add_class::<settings::JournalStatus>()?;
     m.add_class::<frame::Frame>()?;
     m.add_class::<ticker::Ticker>()?;
     m.add_class::<loan::Loan>()?;

@@ -161,6 +161,9 @@ pub(crate) struct Status {
     episode: u64,
     /// The server's process id.
     server_pid: u32,
+    /// The pid of the server that began this run: `server_pid` unless the
+    /// server resumed a journal.
+    run_pid: u32,
     /// Actors in the world.
     actor_count: u32,
     /// The settings in force for the next frame.
@@ -175,6 +178,64 @@ pub(crate) struct Status {
     participants: u32,
     /// The first eight of them, in joining order.
     lockstep: Vec<ParticipantStatus>,
+    /// The server's journal, or `None` when it keeps none.
+    journal: Option<JournalStatus>,
+    /// Snapshots held in the server's memory.
+    snapshots: u32,
+}
+
+/// A server's journal (`sim-server --journal DIR`).
+#[pyclass(module = "simbus", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub(crate) struct JournalStatus {
+    /// Whether it is being written (`False`: it stopped, `reason` says why;
+    /// the world runs on).
+    writing: bool,
+    /// Its directory while it is written.
+    dir: Option<String>,
+    /// Why it stopped (a full disk...).
+    reason: Option<String>,
+    /// The last frame it made durable: where a resume would start.
+    durable_frame: u64,
+}
+
+#[pymethods]
+impl JournalStatus {
+    fn __repr__(&self) -> String {
+        match (&self.dir, &self.reason) {
+            (Some(dir), _) => format!(
+                "JournalStatus(writing=True, dir={dir:?}, durable_frame={})",
+                self.durable_frame
+            ),
+            (None, reason) => format!(
+                "JournalStatus(writing=False, reason={:?}, durable_frame={})",
+                reason.as_deref().unwrap_or(""),
+                self.durable_frame
+            ),
+        }
+    }
+}
+
+impl From<sim_client::JournalStatus> for JournalStatus {
+    fn from(j: sim_client::JournalStatus) -> Self {
+        match j {
+            sim_client::JournalStatus::Writing { dir, durable_frame } => Self {
+                writing: true,
+                dir: Some(dir),
+                reason: None,
+                durable_frame,
+            },
+            sim_client::JournalStatus::Stopped {
+                reason,
+                durable_frame,
+            } => Self {
+                writing: false,
+                dir: None,
+                reason: Some(reason),
+                durable_frame,
+            },
+        }
+    }
 }
 
 impl From<sim_client::Status> for Status {
@@ -185,6 +246,7 @@ impl From<sim_client::Status> for Status {
             elapsed_seconds: s.elapsed_seconds(),
             episode: s.episode,
             server_pid: s.server_pid,
+            run_pid: s.run_pid,
             actor_count: s.actor_count,
             settings: s.settings.into(),
             scene: s.scene,
@@ -206,6 +268,8 @@ impl From<sim_client::Status> for Status {
                     lag: p.lag,
                 })
                 .collect(),
+            journal: s.journal.map(JournalStatus::from),
+            snapshots: s.snapshots,
         }
     }
 }

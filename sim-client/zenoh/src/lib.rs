@@ -17,7 +17,9 @@
 //! The single-ticker rule holds across hosts: a remote ticker claims
 //! through its mirror; the exporting bridge holds the world's tick
 //! ownership on its behalf (the server reports the remote ticker's node and
-//! pid) and refuses every other claimant. Each bridge declares a Zenoh
+//! pid) and refuses every other claimant; when the server exits and one
+//! resumed from its journal comes back, the exporter goes on with it and
+//! claims the world again for that ticker. Each bridge declares a Zenoh
 //! liveliness token; when a mirror's token goes (its link dropped or it
 //! died) the exporter releases the ownership it held for it, and when the
 //! exporter's goes, the mirror answers every request with
@@ -130,6 +132,18 @@ pub enum Notice {
         /// The frame current when it started.
         frame: u64,
     },
+    /// The exporter goes on with a server resumed from its journal after
+    /// the world's server exited (`sim-server --resume DIR`).
+    Resumed {
+        /// The world.
+        world: WorldName,
+        /// The resumed server's pid.
+        server_pid: u32,
+        /// The pid of the server that exited.
+        previous_pid: u32,
+        /// The frame the world resumed at.
+        frame: u64,
+    },
     /// The mirror reaches the exporting bridge again.
     LinkUp,
     /// The mirror lost the exporting bridge: requests are answered
@@ -138,7 +152,8 @@ pub enum Notice {
 }
 
 /// Runs a bridge of `world` as `role` says until `stop` is set (or, when
-/// exporting, the server is gone), calling `notice` with what the user
+/// exporting, the server is gone and no server resumed from its journal
+/// came back within `timeout`), calling `notice` with what the user
 /// should know. `timeout` bounds connecting to the world (exporting) or
 /// waiting for the exporter (mirroring).
 pub fn run(

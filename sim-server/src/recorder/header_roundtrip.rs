@@ -85,6 +85,7 @@ fn any_header() -> impl Strategy<Value = RecordingHeader> {
                 sensors,
                 keyframe_seconds,
                 journal_sync_frames: 0,
+                run_pid: 0,
             },
         )
 }
@@ -217,6 +218,7 @@ fn the_issue_24_header_reads_back() {
         sensors: false,
         keyframe_seconds: f64::NAN,
         journal_sync_frames: 0,
+        run_pid: 0,
     };
     write_and_read(&header, 0).unwrap();
 }

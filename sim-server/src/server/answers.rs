@@ -46,7 +46,7 @@ impl Domains {
                     .unwrap_or_else(|| j.dir().display().to_string())
             })),
             snapshots: self.snapshots.len() as u32,
-            reserved: 0,
+            run_pid: self.runtime.run_pid,
             lockstep: self.lockstep.statuses(self.clock.frame()),
         }
     }

@@ -47,7 +47,11 @@ impl Server {
                 });
             }
         }
-        let resumed = resume(options)?;
+        let mut resumed = resume(options)?;
+        if options.at.is_some() {
+            // A fork begins a run of its own.
+            resumed.header.run_pid = 0;
+        }
         if options.at.is_none() && resumed.header.world != config.world.as_str() {
             return Err(ServerError::OtherWorld {
                 dir: options.dir.clone(),
@@ -92,6 +96,9 @@ impl Server {
         let mut runtime = Runtime::new(&config, settings);
         if let Some(r) = &resumed {
             runtime.episode = r.episode;
+            if r.header.run_pid != 0 {
+                runtime.run_pid = r.header.run_pid;
+            }
             if r.frame.flags & FrameHeader::RESTORED != 0 {
                 runtime.source_offset = Some(
                     r.frame

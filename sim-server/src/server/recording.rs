@@ -170,6 +170,7 @@ impl Domains {
                 .keyframe_seconds
                 .unwrap_or(DEFAULT_KEYFRAME_SECONDS),
             journal_sync_frames: 0,
+            run_pid: self.runtime.run_pid,
         }
     }
 

@@ -48,6 +48,10 @@ const VOID_CALLS: &[&str] = &[
 
 /// How long a call waits for the world's server to answer a (re)connection.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a CARLA ticker waits for its server to come back after it
+/// exited (a resume: `sim-server --resume DIR`) before its call fails with
+/// simbus's error; as short as a connection's wait, for the same reason.
+pub(super) const RESTART_PATIENCE: Duration = CONNECT_TIMEOUT;
 /// How long a client that stops reading its answers may block one.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -109,6 +113,10 @@ pub(crate) struct Session {
     streaming_port: u16,
     hub: Arc<Hub>,
     client: Option<Client>,
+    /// The run `client`'s server continues
+    /// ([`sim_client::Status::run_pid`]): CARLA's episode ids are built
+    /// from it, so a server resumed from its journal keeps them.
+    run_pid: u32,
     ticker: Option<Ticker>,
     /// The factor of the last `set_replayer_time_factor`, applied to every
     /// later `replay_file` (CARLA's replayer keeps it; 1 until set).
@@ -139,6 +147,7 @@ impl Session {
             streaming_port,
             hub,
             client: None,
+            run_pid: 0,
             ticker: None,
             replay_time_factor: 1.0,
         }
@@ -219,18 +228,30 @@ impl Session {
     /// The simbus client, connected on first use and again after the
     /// server came back.
     fn client(&mut self) -> Result<&mut Client, CallError> {
+        self.forget_a_dead_server();
         if self.client.is_none() {
-            // A dead server's world fails fast, well inside CARLA's timeout.
+            // A world with no server fails fast, well inside CARLA's
+            // timeout; a server resumed from its journal within it is
+            // served.
             let connect = self.timeout.min(CONNECT_TIMEOUT);
             let mut client = Client::connect(&self.world, connect).map_err(CallError::simbus)?;
             client.set_request_timeout(self.timeout);
+            self.run_pid = client.status().map_err(CallError::simbus)?.run_pid;
             self.client = Some(client);
         }
         self.client.as_mut().ok_or(CallError::NoConnection)
     }
 
+    /// The run of the server this session talks to (connecting first).
+    fn run_pid(&mut self) -> Result<u32, CallError> {
+        self.client()?;
+        Ok(self.run_pid)
+    }
+
     /// Forgets the connection once its server is gone (the next call
-    /// connects again, to the server that came back on the world).
+    /// connects again, to the server that came back on the world). The
+    /// ticker stays: its next tick claims the world again from a server
+    /// resumed from its journal ([`Ticker::set_follow_restarts`]).
     fn forget_a_dead_server(&mut self) {
         let gone = self
             .client
@@ -238,7 +259,6 @@ impl Session {
             .is_some_and(|c| !sim_client::process_alive(c.server_pid()));
         if gone {
             info!(peer = %self.peer, world = self.world, "the simbus server is gone; the next call connects again");
-            self.ticker = None;
             self.client = None;
         }
     }

@@ -5,12 +5,13 @@ use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::WaitMode;
+use sim_client::{TickError, Ticker};
 use tracing::{info, warn};
 
 use super::settings::{
     carla_substep_warning, default_other_fields, episode_settings, other_fields, parse_settings,
 };
-use super::{arg_flag, arg_str, arg_u64, Session};
+use super::{arg_flag, arg_str, arg_u64, Session, RESTART_PATIENCE};
 use crate::error::CallError;
 use crate::locks::lock;
 use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
@@ -32,7 +33,7 @@ impl Session {
     /// own ([`crate::stream::Hub::next_world_stream`]).
     pub(super) fn on_get_episode_info(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         let episode = self.client()?.status().map_err(CallError::simbus)?.episode;
-        let episode = wire::episode_id(self.client()?.server_pid(), episode);
+        let episode = wire::episode_id(self.run_pid()?, episode);
         Ok(Answer::Value(Value::Array(vec![
             Value::from(episode),
             Value::Array(vec![Value::Binary(
@@ -75,17 +76,11 @@ impl Session {
         if let Some(warning) = carla_substep_warning(&settings) {
             warn!(peer = %self.peer, "{warning}");
         }
-        if settings.synchronous_mode && self.ticker.is_none() {
-            let name = self.ticker_name();
-            let mut ticker = self
-                .client()?
-                .claim_ticker_as(&name)
-                .map_err(CallError::simbus)?;
+        if settings.synchronous_mode && self.live_ticker()?.is_none() {
+            self.claim()?;
             info!(peer = %self.peer, "a CARLA connection is the ticker");
-            ticker.set_wait_mode(WaitMode::Hybrid);
-            self.ticker = Some(ticker);
         }
-        let applied = match &mut self.ticker {
+        let applied = match self.live_ticker()? {
             Some(ticker) => ticker.apply_settings(settings),
             None => self.client()?.apply_settings(settings),
         };
@@ -141,7 +136,7 @@ impl Session {
         let status = self.client()?.status().map_err(CallError::simbus)?;
         self.hub
             .maps
-            .answer(status.server_pid, status.episode, &status.scene)
+            .answer(status.run_pid, status.episode, &status.scene)
             .map_err(CallError::simbus)
     }
 
@@ -164,7 +159,7 @@ impl Session {
         let (scene, map) = match &request {
             MapRequest::Reload => {
                 let status = self.client()?.status().map_err(CallError::simbus)?;
-                ("", self.hub.maps.given((status.server_pid, status.episode)))
+                ("", self.hub.maps.given((status.run_pid, status.episode)))
             }
             MapRequest::Scene(scene) => (scene.as_str(), None),
             MapRequest::CarlaTown(town) => {
@@ -187,8 +182,8 @@ impl Session {
             client.load_world(scene, reset)
         };
         let status = loaded.map_err(CallError::simbus)?;
-        change.begun(status.server_pid, status.episode);
-        self.hub.maps.give(status.server_pid, status.episode, map);
+        change.begun(status.run_pid, status.episode);
+        self.hub.maps.give(status.run_pid, status.episode, map);
         if let MapRequest::CarlaTown(town) = &request {
             info!(peer = %self.peer, "CARLA's map {town} is not in simbus: loading simbus's {TOWN} instead");
         }
@@ -202,41 +197,92 @@ impl Session {
     /// mode anyone may wait for the next one; in synchronous mode another
     /// client's tick is refused naming the owner.
     pub(super) fn tick(&mut self) -> Result<Answer, CallError> {
-        if let Some(ticker) = &mut self.ticker {
-            let frame = ticker.tick(self.timeout).map_err(CallError::simbus)?;
-            self.publish(frame);
-            return Ok(Answer::Value(Value::from(frame)));
+        if self.live_ticker()?.is_none() {
+            let settings = self.client()?.get_settings().map_err(CallError::simbus)?;
+            if !settings.synchronous_mode {
+                let next = self.hub.last_frame() + 1;
+                return Ok(Answer::Value(Value::from(next)));
+            }
+            // Synchronous and not ours: take it if free, else say who has it.
+            self.claim()?;
         }
-        let settings = self.client()?.get_settings().map_err(CallError::simbus)?;
-        if !settings.synchronous_mode {
-            let next = self.hub.last_frame() + 1;
-            return Ok(Answer::Value(Value::from(next)));
-        }
-        // Synchronous and not ours: take it if free, else say who has it.
+        let frame = self.ticked()?;
+        self.publish(frame);
+        Ok(Answer::Value(Value::from(frame)))
+    }
+
+    /// Claims the world for this connection. Its ticker follows a server
+    /// restart: when the server exits and one resumed from its journal
+    /// comes back within [`RESTART_PATIENCE`], it claims that one and
+    /// ticks on.
+    fn claim(&mut self) -> Result<(), CallError> {
         let name = self.ticker_name();
         let mut ticker = self
             .client()?
             .claim_ticker_as(&name)
             .map_err(CallError::simbus)?;
         ticker.set_wait_mode(WaitMode::Hybrid);
-        let frame = ticker.tick(self.timeout).map_err(CallError::simbus)?;
+        ticker.set_follow_restarts(Some(RESTART_PATIENCE.min(self.timeout)));
         self.ticker = Some(ticker);
-        self.publish(frame);
-        Ok(Answer::Value(Value::from(frame)))
+        Ok(())
+    }
+
+    /// A tick of this connection's ticker: the frame it stepped. A tick
+    /// that met a server restart claimed the resumed server and steps the
+    /// frame after the one the world resumed at, so CARLA's `world.tick()`
+    /// only takes longer.
+    fn ticked(&mut self) -> Result<u64, CallError> {
+        let ticker = self.ticker.as_mut().ok_or(CallError::NoConnection)?;
+        match ticker.tick(self.timeout) {
+            Err(TickError::Restarted(restarted)) => {
+                info!(peer = %self.peer, "{restarted}; the CARLA ticker ticks on");
+                let frame = ticker.tick(self.timeout).map_err(CallError::simbus);
+                self.client = None;
+                frame
+            }
+            ticked => ticked.map_err(CallError::simbus),
+        }
+    }
+
+    /// This connection's ticker, if it holds one, claimed again from the
+    /// server that came back when its own exited (a resume). When none
+    /// came back within [`RESTART_PATIENCE`] the ticker is dropped and the
+    /// error says so.
+    pub(super) fn live_ticker(&mut self) -> Result<Option<&mut Ticker>, CallError> {
+        let gone = self
+            .ticker
+            .as_ref()
+            .is_some_and(|t| !sim_client::process_alive(t.server_pid()));
+        if let Some(ticker) = self.ticker.as_mut().filter(|_| gone) {
+            match ticker.reclaim(RESTART_PATIENCE.min(self.timeout)) {
+                Ok(restarted) => {
+                    info!(peer = %self.peer, "{restarted}; the CARLA ticker claimed it again");
+                    self.client = None;
+                }
+                Err(e) => {
+                    warn!(peer = %self.peer, "the CARLA ticker's server is gone: {e}");
+                    self.ticker = None;
+                    return Err(CallError::simbus(e));
+                }
+            }
+        }
+        Ok(self.ticker.as_mut())
     }
 
     /// Sends the world state of `frame`, just stepped, to the CARLA clients
     /// now (the pump would send it after its own wake-up).
     fn publish(&mut self, frame: u64) {
+        let Ok(run_pid) = self.run_pid() else {
+            return;
+        };
         let Some(client) = self.client.as_mut() else {
             return;
         };
-        let pid = client.server_pid();
         // The frame is in shared memory already: older queued ones are
         // skipped without waiting.
         while let Ok(view) = client.wait_for_frame(STEPPED_FRAME) {
             if view.frame() >= frame {
-                crate::stream::publish(&self.hub, &view, pid);
+                crate::stream::publish(&self.hub, &view, run_pid);
                 return;
             }
         }

@@ -48,12 +48,14 @@ const LINGER_STACK: usize = 64 * 1024;
 /// calls): then the clients that did not load get world states again.
 const WORLD_HOLD_AT_MOST: Duration = Duration::from_secs(1);
 
-/// (server pid, episode): the episode a message belongs to.
+/// (run pid, episode): the episode a message belongs to. The run is the
+/// server's ([`sim_client::Status::run_pid`]): a server resumed from its
+/// journal continues it, and its episodes.
 pub(super) type EpisodeKey = (u32, u64);
 
-/// Whether `key` names an episode older than `than`: the same server, an
-/// earlier episode (a server's episodes only grow; another server's
-/// episode is never older, it replaces the world).
+/// Whether `key` names an episode older than `than`: the same run, an
+/// earlier episode (a run's episodes only grow; another run's episode is
+/// never older, it replaces the world).
 pub(super) fn older(key: EpisodeKey, than: EpisodeKey) -> bool {
     key.0 == than.0 && key.1 < than.1
 }
@@ -107,7 +109,7 @@ impl Streams {
         }
         if key != self.episode {
             debug!(
-                server_pid = key.0,
+                run_pid = key.0,
                 episode = key.1,
                 "the streams carry a new episode"
             );

@@ -33,6 +33,12 @@ enum Protocol {
     ///
     /// Mirror: every local simbus client of the world works as if its server
     /// ran here.
+    ///
+    /// The export follows a server restart: when the server exits and
+    /// `sim-server --resume DIR` brings the world back within --timeout,
+    /// it goes on with the resumed server (mirrors see the link drop and
+    /// come back; a remote ticker keeps the world). A server that does not
+    /// come back, or a fresh one, ends the export.
     Zenoh(ZenohArgs),
 }
 
@@ -112,6 +118,14 @@ fn say(notice: Notice) {
             frame,
         } => println!(
             "mirroring world '{world}' from {endpoint} (server pid {server_pid} there, frame {frame}); local clients connect as usual"
+        ),
+        Notice::Resumed {
+            world,
+            server_pid,
+            previous_pid,
+            frame,
+        } => println!(
+            "the server of world '{world}' restarted (pid {previous_pid} -> {server_pid}): resumed at frame {frame}; exporting goes on"
         ),
         Notice::LinkUp => println!("link up: the exporting bridge is reachable again"),
         Notice::LinkDown => println!("link down: the exporting bridge is out of reach"),

@@ -31,7 +31,14 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         println!("{json}");
         return Ok(());
     }
-    println!("world     {world} (server pid {})", report.server_pid);
+    if report.run_pid == report.server_pid {
+        println!("world     {world} (server pid {})", report.server_pid);
+    } else {
+        println!(
+            "world     {world} (server pid {}, resumed the run of pid {})",
+            report.server_pid, report.run_pid
+        );
+    }
     println!(
         "scene     {} ({})",
         report.scene,
@@ -95,6 +102,7 @@ pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Val
         "scene": report.scene,
         "actors": report.actor_count,
         "server_pid": report.server_pid,
+        "run_pid": report.run_pid,
         "participants": report.participants,
         "lockstep": report.lockstep.iter().map(super::participant_json).collect::<Vec<_>>(),
         "seed": report.seed,

@@ -80,6 +80,9 @@ class Status:
     @property
     def server_pid(self) -> int: ...
     @property
+    def run_pid(self) -> int:
+        """The pid of the server that began this run: `server_pid` unless the server resumed a journal."""
+    @property
     def actor_count(self) -> int: ...
     @property
     def settings(self) -> Settings: ...
@@ -94,6 +97,27 @@ class Status:
     @property
     def lockstep(self) -> List[ParticipantStatus]:
         """The first eight participants, in joining order."""
+    @property
+    def journal(self) -> Optional[JournalStatus]:
+        """The server's journal (`sim-server --journal DIR`), or None."""
+    @property
+    def snapshots(self) -> int:
+        """Snapshots held in the server's memory."""
+
+class JournalStatus:
+    """A server's journal: being written, or stopped (the world runs on)."""
+
+    @property
+    def writing(self) -> bool: ...
+    @property
+    def dir(self) -> Optional[str]:
+        """Its directory while it is written."""
+    @property
+    def reason(self) -> Optional[str]:
+        """Why it stopped (a full disk...)."""
+    @property
+    def durable_frame(self) -> int:
+        """The last frame made durable: where a resume would start."""
 
 class Loan:
     """A sample the server lent: the base object of arrays over shared memory."""

@@ -29,6 +29,7 @@ use zenoh::query::Query;
 use zenoh::{Session, Wait as _};
 
 use super::events::Event;
+use super::ticker::RemoteTicker;
 use super::ticks::Ticks;
 use crate::error::{FramesError, LocalError};
 use crate::ports;
@@ -155,16 +156,28 @@ impl<'a> FrameForwarder<'a> {
     /// Forwards frames and ticks until `stopping` says so or the server
     /// is gone, then releases the ownership held for a remote ticker;
     /// `tell` hears of the first frame ([`Event::Forwarded`]) and then of
-    /// every ring while the main thread awaits answers.
+    /// every ring while the main thread awaits answers. When the server is
+    /// gone, the remote ticker that owned the world comes back with the
+    /// error, to claim it again from a resumed server.
     pub(super) fn run(
         mut self,
         orders: &Receiver<Order>,
         stopping: impl Fn() -> bool,
         tell: impl Fn(Event),
-    ) -> Result<(), FramesError> {
+    ) -> (Result<(), FramesError>, Option<RemoteTicker>) {
         let result = self.serve(orders, stopping, tell);
+        let owner = match &result {
+            Err(FramesError::Wait(WaitError::ServerGone { .. })) => self.ticks.take_owner(),
+            _ => None,
+        };
         self.ticks.finish();
-        result
+        (result, owner)
+    }
+
+    /// Claims the world again for `owner`, the remote ticker that held it
+    /// when the previous server exited.
+    pub(super) fn claim_again(&mut self, owner: RemoteTicker) {
+        self.ticks.claim_again(owner);
     }
 
     fn serve(

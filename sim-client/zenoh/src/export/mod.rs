@@ -38,7 +38,7 @@ use shared_types::{
 use sim_client::Client;
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
-use tracing::info;
+use tracing::{info, warn};
 use zenoh::query::Query;
 
 use self::declare::{declare, Routes};
@@ -48,7 +48,8 @@ use self::relay::{
     mirror_of, Answer, BatchRelay, Dropped, FixedRelay, Refusal, Refused, SensorRelay,
 };
 use self::ticker::LockstepRelay;
-use crate::error::{ExportError, LocalError};
+use self::ticker::RemoteTicker;
+use crate::error::{ExportError, FramesError, LocalError};
 use crate::ports;
 use crate::wire::{BridgeKeys, Forwarded};
 use crate::{JsonViews, Notice, Side};
@@ -68,11 +69,109 @@ impl Drop for SetOnDrop<'_> {
     }
 }
 
-/// Exports `world` on `session` until `stop` or the server is gone.
-pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
+/// How one export of a server ended.
+enum Ended {
+    /// `stop` was set, or the export failed.
+    Done(Result<(), ExportError>),
+    /// The server exited.
+    ServerGone {
+        error: ExportError,
+        server_pid: u32,
+        run_pid: u32,
+        /// The remote ticker that owned the world then.
+        owner: Option<RemoteTicker>,
+    },
+}
+
+/// Exports `world` on `session` until `stop`. When the server exits and
+/// one resumed from its journal (`sim-server --resume DIR`: the same run)
+/// comes back within the timeout, the export goes on with it: its
+/// liveliness token goes and comes back (a mirror answers its local
+/// clients `Unreachable` in between, as when the link drops), the remote
+/// ticker that owned the world owns it again, and frames go on from the
+/// frame the world resumed at. A server that does not come back, or a new
+/// run, ends the export.
+pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
     let mut client = Client::connect(side.world.as_str(), side.timeout)?;
+    let mut claim_for = None;
+    let mut first = true;
+    loop {
+        let (error, server_pid, run_pid, owner) =
+            match export_once(&mut side, client, claim_for.take(), first) {
+                Ended::Done(result) => return result,
+                Ended::ServerGone {
+                    error,
+                    server_pid,
+                    run_pid,
+                    owner,
+                } => (error, server_pid, run_pid, owner),
+            };
+        first = false;
+        info!(world = %side.world, server_pid, timeout = ?side.timeout, "the server exited; waiting for it to resume");
+        let Ok(next) = Client::connect_next(side.world.as_str(), server_pid, side.timeout) else {
+            return Err(error);
+        };
+        let resumed = next.status()?;
+        if resumed.run_pid != run_pid {
+            warn!(world = %side.world, server_pid = resumed.server_pid, "a new run began on the world (not resumed from the journal): the export ends");
+            return Err(error);
+        }
+        (side.notice)(Notice::Resumed {
+            world: side.world.clone(),
+            server_pid: resumed.server_pid,
+            previous_pid: server_pid,
+            frame: resumed.frame,
+        });
+        client = next;
+        claim_for = owner;
+    }
+}
+
+/// Exports the server `client` is connected to until `stop` or the
+/// server is gone, claiming the world first for `claim_for` (the remote
+/// ticker that owned it when the previous server exited). The first
+/// export says so ([`Notice::Exporting`]).
+fn export_once(
+    side: &mut Side<'_>,
+    mut client: Client,
+    claim_for: Option<RemoteTicker>,
+    first: bool,
+) -> Ended {
     client.set_request_timeout(side.timeout);
-    let status = client.status()?;
+    let status = match client.status() {
+        Ok(status) => status,
+        Err(e) => return Ended::Done(Err(e.into())),
+    };
+    let (server_pid, run_pid) = (status.server_pid, status.run_pid);
+    let mut owner = None;
+    let result = export_server(side, client, &status, claim_for, first, &mut owner);
+    match result {
+        Err(ExportError::FramesEnded(e)) if is_server_gone(&e) => Ended::ServerGone {
+            error: ExportError::FramesEnded(e),
+            server_pid,
+            run_pid,
+            owner,
+        },
+        result => Ended::Done(result),
+    }
+}
+
+/// Whether the frame thread ended because the server is gone.
+fn is_server_gone(e: &FramesError) -> bool {
+    matches!(
+        e,
+        FramesError::Wait(sim_client::WaitError::ServerGone { .. })
+    )
+}
+
+fn export_server(
+    side: &mut Side<'_>,
+    client: Client,
+    status: &sim_client::Status,
+    claim_for: Option<RemoteTicker>,
+    first: bool,
+    owner: &mut Option<RemoteTicker>,
+) -> Result<(), ExportError> {
     let keys = BridgeKeys::new(side.world);
     let (events, incoming) = mpsc::channel::<Event>();
     let shared = Arc::new(Shared::default());
@@ -86,31 +185,34 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
     };
     let _declared = declare(&side.session, &keys, routes)?;
     let done = AtomicBool::new(false);
+    let (world, timeout, stop, ros2_clock) =
+        (side.world, side.timeout, side.stop, side.options.ros2_clock);
     std::thread::scope(|scope| {
         let _stop_frames = SetOnDrop(&done);
         let (session, keys, forwarded, done) = (&side.session, &keys, shared.clone(), &done);
         let to_main = events.clone();
-        std::thread::Builder::new()
+        let frames = std::thread::Builder::new()
             .name("frames".into())
             .spawn_scoped(scope, move || {
-                let ended = FrameForwarder::new(
-                    side.world,
-                    side.timeout,
-                    session,
-                    keys,
-                    side.options.ros2_clock,
-                    forwarded,
-                )
-                .and_then(|forwarder| {
-                    forwarder.run(
-                        &ordered,
-                        || frames::either(side.stop, done),
-                        |event| {
-                            let _ = to_main.send(event);
-                        },
-                    )
-                });
+                let mut owner = None;
+                let ended =
+                    FrameForwarder::new(world, timeout, session, keys, ros2_clock, forwarded)
+                        .and_then(|mut forwarder| {
+                            if let Some(claim_for) = claim_for {
+                                forwarder.claim_again(claim_for);
+                            }
+                            let (ended, held) = forwarder.run(
+                                &ordered,
+                                || frames::either(stop, done),
+                                |event| {
+                                    let _ = to_main.send(event);
+                                },
+                            );
+                            owner = held;
+                            ended
+                        });
                 let _ = to_main.send(Event::FramesEnded(ended.err()));
+                owner
             })
             .map_err(ExportError::Thread)?;
         let mut exporter = Exporter::open(
@@ -121,15 +223,22 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), ExportError> {
             orders,
         )?;
         exporter.await_first_frame(&incoming, side.timeout)?;
-        (side.notice)(Notice::Exporting {
-            world: side.world.clone(),
-            endpoint: side.endpoint.to_owned(),
-            server_pid: status.server_pid,
-            frame: status.frame,
-        });
+        if first {
+            (side.notice)(Notice::Exporting {
+                world: side.world.clone(),
+                endpoint: side.endpoint.to_owned(),
+                server_pid: status.server_pid,
+                frame: status.frame,
+            });
+        }
         info!(world = %side.world, zid = %session.zid(), "exporting");
         let result = exporter.serve(&incoming, side.stop);
         exporter.finish();
+        drop(exporter);
+        done.store(true, Ordering::Relaxed);
+        if let Ok(held) = frames.join() {
+            *owner = held;
+        }
         result
     })
 }

@@ -23,7 +23,7 @@ pub(super) type LockstepRelay = FixedRelay<LockstepRequest, LockstepResponse>;
 
 /// A ticker on another host, as its mirror named it.
 #[derive(Debug, Clone, PartialEq)]
-struct RemoteTicker {
+pub(crate) struct RemoteTicker {
     mirror: String,
     pid: u32,
     node_name: String,
@@ -116,6 +116,40 @@ impl RemoteTickers {
                 .find(|c| c.pid == ticker.pid && c.node_name == name)
                 .cloned()
         });
+    }
+
+    /// The remote ticker that owns the world, taken: its server is gone,
+    /// and the export goes on with the server resumed from its journal
+    /// ([`RemoteTickers::claim_again`]).
+    pub(super) fn take_owner(&mut self) -> Option<RemoteTicker> {
+        self.claimants.clear();
+        self.owner.take()
+    }
+
+    /// Claims the world again for `owner`, the remote ticker that owned it
+    /// when its server exited, from the server resumed from its journal:
+    /// its next tick goes on as if nothing happened. The answer is not
+    /// awaited; the server's word in the next tick answer settles who owns
+    /// the world ([`RemoteTickers::answered`]).
+    pub(super) fn claim_again(&mut self, owner: RemoteTicker, port: &mut TickRelay) {
+        let mut request = TickRequest::new(TickRequestKind::Claim, &owner.node_name);
+        request.flags |= TickRequest::ON_BEHALF;
+        request.pid = owner.pid;
+        match port.send_detached(request) {
+            Ok(()) => {
+                info!(
+                    pid = owner.pid,
+                    node = %owner.node_name,
+                    "claimed the world again for the remote ticker that held it"
+                );
+                self.claimants.push(owner.clone());
+                self.owner = Some(owner);
+            }
+            Err(e) => warn!(
+                "claiming the world again for the remote ticker: {}",
+                Chain(&e)
+            ),
+        }
     }
 
     /// Mirror `zid` is gone: the ownership held for its ticker is released.

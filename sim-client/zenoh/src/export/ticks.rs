@@ -25,7 +25,7 @@ use zenoh::query::Query;
 use zenoh::Wait as _;
 
 use super::relay::{self, mirror_of, Answer, Dropped, Pending, Refusal, ANSWER_TIMEOUT};
-use super::ticker::{RemoteTickers, TickRelay};
+use super::ticker::{RemoteTicker, RemoteTickers, TickRelay};
 use crate::error::LocalError;
 use crate::{ports, tagged, wire};
 
@@ -278,6 +278,17 @@ impl Ticks {
     /// Mirror `zid` is gone: the ownership held for its ticker is released.
     pub(super) fn mirror_left(&mut self, zid: &str) {
         self.tickers.mirror_left(zid, &mut self.port);
+    }
+
+    /// The server is gone: the remote ticker that owned the world, to
+    /// claim it again from a resumed server.
+    pub(super) fn take_owner(&mut self) -> Option<RemoteTicker> {
+        self.tickers.take_owner()
+    }
+
+    /// Claims the world again for `owner` ([`RemoteTickers::claim_again`]).
+    pub(super) fn claim_again(&mut self, owner: RemoteTicker) {
+        self.tickers.claim_again(owner, &mut self.port);
     }
 
     /// The export ends: the ownership held for a remote ticker goes back.

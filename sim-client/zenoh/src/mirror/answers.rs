@@ -171,7 +171,9 @@ pub(super) fn answer_local(
 }
 
 /// A tick's answer: a claim's names the local ticker, a release's clears
-/// it; an OK tick's waits for its frame.
+/// it; an OK tick's names it too (after a link drop, when the exporter
+/// claimed the world again for it from a resumed server) and waits for
+/// its frame.
 fn answer_tick(
     active: &Active<TickRequest, TickResponse>,
     request: &TickRequest,
@@ -184,7 +186,12 @@ fn answer_tick(
             *local_ticker = Some((request.pid, request.node_name.to_string_lossy()));
         }
         Some(TickRequestKind::Release) if ok => *local_ticker = None,
-        Some(TickRequestKind::Tick) if ok => return Answered::AfterFrame(Box::new(answer)),
+        Some(TickRequestKind::Tick) if ok => {
+            if local_ticker.is_none() {
+                *local_ticker = Some((request.pid, request.node_name.to_string_lossy()));
+            }
+            return Answered::AfterFrame(Box::new(answer));
+        }
         _ => {}
     }
     sent(active.send_copy(answer).map(drop))

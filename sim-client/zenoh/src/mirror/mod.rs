@@ -460,7 +460,8 @@ impl<'a> Mirror<'a> {
         for (active, _, _) in self.held.drain(..) {
             let _ = active.send_copy(status_answer(ResponseStatus::Unreachable));
         }
-        // The exporter releases the ownership it held for us.
+        // The exporter releases the ownership it held for us (or claims it
+        // again from a resumed server: the ticker's next tick names it).
         self.local_ticker = None;
         self.local.notify();
     }

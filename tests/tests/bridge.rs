@@ -29,6 +29,19 @@ fn digests(lines: &[String]) -> BTreeMap<u64, String> {
         .collect()
 }
 
+/// A `tick --json` run that succeeded within `timeout`, and the frames of
+/// the lines it printed (those not read yet).
+fn ticked_frames(ticker: Proc, timeout: Duration) -> (simbus_tests::Finished, Vec<u64>) {
+    let ticked = ticker.finish(timeout);
+    ticked.assert_success();
+    let frames = ticked
+        .json()
+        .iter()
+        .map(|t| t["frame"].as_u64().expect("frame"))
+        .collect();
+    (ticked, frames)
+}
+
 /// The ticker the world's status names, as `(node, pid)`.
 fn status_ticker(hosts: &TwoHosts, world: &str) -> Option<(String, u64)> {
     let status = hosts
@@ -97,13 +110,7 @@ fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
             "--json",
         ],
     );
-    let ticked = ticker.finish(LONG * 2);
-    ticked.assert_success();
-    let frames: Vec<u64> = ticked
-        .json()
-        .iter()
-        .map(|t| t["frame"].as_u64().expect("frame"))
-        .collect();
+    let (ticked, frames) = ticked_frames(ticker, LONG * 2);
     assert_eq!(frames, (1..=500).collect::<Vec<_>>(), "{ticked}");
     let (seen_a, seen_b) = (watch_a.finish(LONG), watch_b.finish(LONG));
     seen_a.assert_success();
@@ -329,13 +336,7 @@ fn the_export_goes_on_with_a_server_resumed_from_its_journal_and_the_remote_tick
 
     // The same ticker ticks on: the exporter claimed the resumed world
     // again for it, and the mirror's clients read on.
-    let ticked = holder.finish(LONG);
-    ticked.assert_success();
-    let frames: Vec<u64> = ticked
-        .json()
-        .iter()
-        .map(|t| t["frame"].as_u64().expect("frame"))
-        .collect();
+    let (ticked, frames) = ticked_frames(holder, LONG);
     // (Its first tick's line was read above.)
     assert_eq!(frames, vec![first + 1, first + 2], "{ticked}");
     watch.wait_line(&format!("\"frame\":{}", first + 2), LONG);

@@ -37,7 +37,7 @@ const WORLD_STATE_FIRST: Duration = Duration::from_millis(200);
 /// it (a resume brings sensors back under their ids).
 pub(crate) fn expect(
     hub: &Arc<Hub>,
-    (world, streaming_port): (&str, u16),
+    (world, run_pid, streaming_port): (&str, u32, u16),
     stream: u32,
     timeout: Duration,
 ) -> Result<(), CallError> {
@@ -62,6 +62,7 @@ pub(crate) fn expect(
         simbus_id,
         spec,
         streaming_port,
+        run_pid,
         follow: timeout,
     };
     std::thread::spawn(move || forward(&hub2, &world, source, &ready));
@@ -86,20 +87,20 @@ struct Forwarded {
     spec: SensorSpec,
     /// Where CARLA's clients read streams (an event's actors carry tokens).
     streaming_port: u16,
+    /// The run of the world's server ([`sim_client::Status::run_pid`]).
+    run_pid: u32,
     /// How long it waits for a server to come back after its own exited.
     follow: Duration,
 }
 
-/// The world's client, its run ([`sim_client::Status::run_pid`]) and
-/// sensor `simbus_id` read from it.
-fn open_sensor(world: &str, simbus_id: u64) -> Result<(Client, u32, Sensor), Source> {
+/// The world's client and sensor `simbus_id` read from it.
+fn open_sensor(world: &str, simbus_id: u64) -> Result<(Client, Sensor), Source> {
     let client =
         Client::connect(world, Duration::from_secs(5)).map_err(|e| Arc::new(e) as Source)?;
-    let run_pid = client.status().map_err(|e| Arc::new(e) as Source)?.run_pid;
     let sensor = client
         .sensor(simbus_id)
         .map_err(|e| Arc::new(e) as Source)?;
-    Ok((client, run_pid, sensor))
+    Ok((client, sensor))
 }
 
 /// After `client`'s server exited: the same sensor from the server that
@@ -140,9 +141,10 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
         simbus_id,
         spec,
         streaming_port,
+        run_pid,
         follow,
     } = source;
-    let (mut client, run_pid, mut sensor) = match open_sensor(world, simbus_id) {
+    let (mut client, mut sensor) = match open_sensor(world, simbus_id) {
         Ok(opened) => opened,
         Err(e) => {
             let _ = ready.send(Err(CallError::SensorOpen {

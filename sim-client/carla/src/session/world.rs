@@ -47,9 +47,10 @@ impl Session {
         let stream = arg_u64(args, 0, "get_sensor_token")?;
         let stream = u32::try_from(stream).map_err(|_| CallError::NoStream(stream))?;
         if !wire::is_world_stream(stream) {
+            let run_pid = self.run_pid()?;
             sensors::expect(
                 &self.hub,
-                (&self.world, self.streaming_port),
+                (&self.world, run_pid, self.streaming_port),
                 stream,
                 self.timeout,
             )?;

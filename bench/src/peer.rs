@@ -17,7 +17,8 @@ pub(crate) struct PeerArgs {
     /// Service prefix for the iceoryx2 kinds.
     #[arg(long, default_value = "bench")]
     name: String,
-    /// Frames the `frame-reader` reads before it reports.
+    /// Frames the `frame-reader` (blobs the `blob-reader`) reads before it
+    /// reports.
     #[arg(long, default_value_t = 200)]
     samples: u64,
 }
@@ -27,6 +28,7 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
     match args.kind.as_str() {
         "participant" => crate::commands::participant(&args.name),
         "tcp-blob" => crate::sensors::tcp_blob_peer(),
+        "blob-reader" => crate::blob::reader(&args.name, args.samples),
         "futex" => crate::futex::peer(&args.name),
         "burn" => crate::support::burn(),
         "frame-reader" => crate::scaling::reader(&args.name, args.samples),

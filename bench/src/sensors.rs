@@ -90,9 +90,15 @@ fn tcp_latency(bytes: usize, samples: u64) -> anyhow::Result<Latencies> {
     Ok(latencies)
 }
 
-/// One delivery row: the size's label, its bytes, and the latencies over
-/// simbus and over TCP.
-type DeliveryRow = (&'static str, usize, Latencies, Latencies);
+/// One delivery row: a capture size and its latencies.
+struct DeliveryRow {
+    label: &'static str,
+    bytes: usize,
+    simbus: Latencies,
+    /// Raw iceoryx2 moving a blob of the same size (`blob::floor`).
+    raw: Latencies,
+    tcp: Latencies,
+}
 
 pub(crate) fn run(args: SensorsArgs) -> anyhow::Result<()> {
     let rows = delivery_rows(&args)?;
@@ -211,7 +217,13 @@ fn delivery_rows(args: &SensorsArgs) -> anyhow::Result<Vec<DeliveryRow>> {
         anyhow::ensure!(lost == 0, "the reader lost {lost} captures");
         client.destroy_sensor(sensor.id())?;
         let bytes = (width * height * 4) as usize;
-        rows.push((label, bytes, latencies, tcp_latency(bytes, args.samples)?));
+        rows.push(DeliveryRow {
+            label,
+            bytes,
+            simbus: latencies,
+            raw: crate::blob::floor(bytes, args.samples, Duration::from_millis(2))?,
+            tcp: tcp_latency(bytes, args.samples)?,
+        });
     }
     ticker.release()?;
     drop(client);
@@ -259,15 +271,19 @@ fn frame_times(
 
 /// The delivery distributions, simbus and TCP per size, into `path`.
 fn plot_delivery(path: &std::path::Path, rows: &[DeliveryRow]) -> anyhow::Result<()> {
-    let names: Vec<(String, String)> = rows
+    let names: Vec<[String; 3]> = rows
         .iter()
-        .map(|(label, ..)| (format!("simbus {label}"), format!("TCP {label}")))
+        .map(|r| ["simbus", "raw iceoryx2", "TCP"].map(|by| format!("{by} {}", r.label)))
         .collect();
     let series: Vec<(&str, &Latencies)> = names
         .iter()
         .zip(rows)
-        .flat_map(|((simbus_name, tcp_name), (_, _, simbus, tcp))| {
-            [(simbus_name.as_str(), simbus), (tcp_name.as_str(), tcp)]
+        .flat_map(|([simbus, raw, tcp], r)| {
+            [
+                (simbus.as_str(), &r.simbus),
+                (raw.as_str(), &r.raw),
+                (tcp.as_str(), &r.tcp),
+            ]
         })
         .collect();
     crate::plot::percentiles(
@@ -298,9 +314,11 @@ fn report(
     if args.json {
         let delivery: Vec<_> = rows
             .iter()
-            .map(|(label, bytes, simbus, tcp)| {
-                serde_json::json!({"size": label, "bytes": bytes, "simbus": simbus.json(), "tcp": tcp.json(),
-                    "tcp_over_simbus_p50": p50(tcp) / p50(simbus)})
+            .map(|r| {
+                serde_json::json!({"size": r.label, "bytes": r.bytes, "simbus": r.simbus.json(),
+                    "raw_iceoryx2": r.raw.json(), "tcp": r.tcp.json(),
+                    "tcp_over_simbus_p50": p50(&r.tcp) / p50(&r.simbus),
+                    "simbus_over_raw_p50": p50(&r.simbus) / p50(&r.raw)})
             })
             .collect();
         let frame_json: Vec<_> = frames
@@ -338,18 +356,29 @@ fn report(
         args.samples,
         args.delivery_render_threads()
     );
+    println!("raw iceoryx2: the same size written whole, then sent on a sensor's service type and settings (the floor)");
     println!(
-        "{:<8} {:>14} {:>14} {:>14} {:>14} {:>10}",
-        "size", "simbus p50 µs", "simbus p99 µs", "TCP p50 µs", "TCP p99 µs", "TCP/simbus"
+        "{:<8} {:>14} {:>14} {:>11} {:>11} {:>11} {:>11} {:>10}",
+        "size",
+        "simbus p50 µs",
+        "simbus p99 µs",
+        "raw p50 µs",
+        "raw p99 µs",
+        "TCP p50 µs",
+        "TCP p99 µs",
+        "TCP/simbus"
     );
-    for (label, _, simbus, tcp) in rows {
+    for r in rows {
         println!(
-            "{label:<8} {:>14.1} {:>14.1} {:>14.1} {:>14.1} {:>9.1}x",
-            p50(simbus),
-            simbus.quantile_us(0.99),
-            p50(tcp),
-            tcp.quantile_us(0.99),
-            p50(tcp) / p50(simbus)
+            "{:<8} {:>14.1} {:>14.1} {:>11.1} {:>11.1} {:>11.1} {:>11.1} {:>9.1}x",
+            r.label,
+            p50(&r.simbus),
+            r.simbus.quantile_us(0.99),
+            p50(&r.raw),
+            r.raw.quantile_us(0.99),
+            p50(&r.tcp),
+            r.tcp.quantile_us(0.99),
+            p50(&r.tcp) / p50(&r.simbus)
         );
     }
     println!();

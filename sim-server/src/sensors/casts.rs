@@ -54,6 +54,8 @@ struct Slot {
     key: CastKey,
     /// An RGB camera reads it: colours and light are worked out.
     lit: bool,
+    /// The cameras that read it this frame.
+    cameras: usize,
     /// Cast this frame already.
     done: bool,
     hits: Vec<Hit>,
@@ -82,11 +84,13 @@ impl Casts {
             let lit = kind == SensorKind::Rgb;
             if let Some(slot) = self.slots[..self.used].iter_mut().find(|s| s.key == key) {
                 slot.lit |= lit;
+                slot.cameras += 1;
                 continue;
             }
             let slot = Slot {
                 key,
                 lit,
+                cameras: 1,
                 done: false,
                 hits: Vec::new(),
             };
@@ -114,6 +118,42 @@ impl Casts {
     pub(super) fn ground(&mut self, scene: SceneName) -> &GroundMap {
         self.paint(scene);
         &self.ground.as_ref().expect("painted above").1
+    }
+
+    /// Casts depth camera `spec` at `pose` straight into `slots` if no
+    /// other camera reads its cast this frame (then no hits are kept);
+    /// false, and nothing written, otherwise.
+    pub(super) fn depth_alone(
+        &mut self,
+        (world, scene): (&World, SceneName),
+        spec: &SensorSpec,
+        pose: Pose,
+        renderer: &Renderer,
+        slots: &mut [std::mem::MaybeUninit<f32>],
+    ) -> bool {
+        let key = CastKey::of(spec);
+        let Some(index) = self.slots[..self.used].iter().position(|s| s.key == key) else {
+            return false;
+        };
+        let (Some(camera), slot) = (spec.camera(), &self.slots[index]) else {
+            return false;
+        };
+        let pixels = camera.width as usize * camera.height as usize;
+        if slot.cameras != 1 || slot.done || slots.len() < pixels {
+            return false;
+        }
+        self.paint(scene);
+        let ground = &self.ground.as_ref().expect("painted above").1;
+        let cast = CastSpec {
+            intrinsics: Intrinsics::of(&camera),
+            far: camera.range,
+            exclude: seen_from_inside(world, spec, pose),
+            lit: false,
+        };
+        renderer.run(|| camera::cast_depth(world, &cast, pose, ground, slots));
+        self.slots[index].done = true;
+        self.rays += pixels as u64;
+        true
     }
 
     /// The hits of camera `spec` at `pose`: cast now unless a camera of

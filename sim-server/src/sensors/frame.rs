@@ -111,16 +111,24 @@ impl Sensor {
     ) -> Result<(), ServerError> {
         let (world, pose) = (shot.world, shot.pose);
         match &self.port {
-            // SAFETY: depth_from writes one value per hit, and the slots
-            // past the hits are written here.
+            // SAFETY: the cast (straight into the slots, or through the
+            // hits, depth_from writing one value per hit) writes the
+            // image's slots, and the slots past the image are written here.
             SensorPort::Depth(port) => unsafe {
-                let hits = casts.hits(world, shot.scene, &self.spec, pose, renderer);
                 let camera = self.spec.camera().expect("checked at spawn");
+                let spec = &self.spec;
                 publish(port, header, record, |slots, header| {
                     header.count = slots.len() as u32;
-                    let (cast, rest) = slots.split_at_mut(hits.len().min(slots.len()));
-                    renderer.run(|| camera::depth_from(hits, camera.range, cast));
-                    rest.fill(MaybeUninit::new(camera.range));
+                    let alone = (world, shot.scene);
+                    let written = if casts.depth_alone(alone, spec, pose, renderer, slots) {
+                        camera.width as usize * camera.height as usize
+                    } else {
+                        let hits = casts.hits(world, shot.scene, spec, pose, renderer);
+                        let n = hits.len().min(slots.len());
+                        renderer.run(|| camera::depth_from(hits, camera.range, &mut slots[..n]));
+                        n
+                    };
+                    slots[written..].fill(MaybeUninit::new(camera.range));
                 })
             },
             // SAFETY: as the depth camera's, with image_from.

@@ -147,10 +147,11 @@ pub(crate) struct ServerArgs {
     #[arg(long, value_name = "S", default_value = "10", allow_negative_numbers = true, value_parser = input::timeout)]
     pub(crate) lockstep_timeout: Duration,
 
-    /// Threads that render cameras and lidars (1..=1024; default: one per
-    /// CPU). A reader spinning on a capture wants a CPU of its own: on a
-    /// machine with N CPUs, `--render-threads N-1` leaves it one (rendering
-    /// then takes longer).
+    /// Threads that render cameras and lidars, the server's loop thread the
+    /// first of them (1..=1024; default: rayon's pool, one per CPU, while
+    /// the loop waits). A reader spinning on a capture wants a CPU of its
+    /// own: on a machine with N CPUs, `--render-threads N-1` leaves it one
+    /// (rendering then takes longer); 1 renders on the loop's thread alone.
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = input::render_threads)]
     pub(crate) render_threads: Option<std::num::NonZeroUsize>,
 

@@ -8,6 +8,7 @@ server continues, not by the server's pid), the vehicle and the camera
 keep their ids, and the camera's listener goes on receiving images.
 A fresh server on the world (no resume) is a new episode, as in CARLA."""
 
+import json
 import os
 import queue
 import signal
@@ -84,19 +85,50 @@ def episode_id(raw):
     return result[0][1][0]
 
 
+def restart_fresh(gateway, procs):
+    """Kills the gateway's server and starts a fresh one on its world (no
+    resume); returns it once it answers."""
+    kill(procs[0])
+    fresh = subprocess.Popen(
+        [os.path.join(BIN, "sim-server"), "--world", gateway.world],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    procs.append(fresh)
+    up = gateway.sim_client("--timeout", "30", "status")
+    assert up.returncode == 0, up.stderr
+    return fresh
+
+
 def test_a_fresh_server_on_the_world_is_a_new_carla_episode(request):
     procs = []
     try:
         gateway = start(world_name(request), [], procs)
         raw = Raw(gateway.port)
         before = episode_id(raw)
-        kill(procs[0])
-        fresh = subprocess.Popen(
-            [os.path.join(BIN, "sim-server"), "--world", gateway.world],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-        procs.append(fresh)
-        up = gateway.sim_client("--timeout", "30", "status")
-        assert up.returncode == 0, up.stderr
+        fresh = restart_fresh(gateway, procs)
         assert episode_id(raw) == (fresh.pid << 32) | 1 != before
+    finally:
+        kill_all(procs)
+
+
+def test_a_ticker_gives_back_a_fresh_servers_world_and_says_why(request):
+    """A fresh server is not the run the script ticked: `world.tick()`
+    fails naming the restart, and the fresh world is left without a
+    ticker (the gateway's ticker claimed it on its way back and gave it
+    back), so another client may tick it."""
+    procs = []
+    try:
+        gateway = start(world_name(request), [], procs)
+        client, world = synced(gateway)
+        ticked = [world.tick() for _ in range(3)]
+        restart_fresh(gateway, procs)
+        try:
+            frame = world.tick()
+        except RuntimeError as e:
+            assert "without resuming the world from its journal" in str(e), e
+        else:
+            raise AssertionError(f"ticked frame {frame} of a fresh server after {ticked}")
+        status = gateway.sim_client("status", "--json")
+        assert status.returncode == 0, status.stderr
+        assert json.loads(status.stdout)["ticker"] is None, status.stdout
     finally:
         kill_all(procs)

@@ -119,6 +119,15 @@ pub(crate) enum CallError {
         #[source]
         source: BlueprintError,
     },
+    /// The ticker's server exited and a server that did not resume its
+    /// run came back (a fresh start, not `--resume`): a new episode, which
+    /// this connection's ticker gave back.
+    #[error(
+        "simbus: the server restarted (pid {previous} -> {server}) without resuming the world \
+         from its journal: a new episode, not the one this client ticked; the world was given \
+         back (connect again, or resume the server with --resume)"
+    )]
+    NewRun { previous: u32, server: u32 },
     /// A CARLA call simbus does not serve.
     #[error(
         "simbus: CARLA's `{0}` is not supported by simbus (its CARLA gateway serves the world, \

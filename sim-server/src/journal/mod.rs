@@ -211,7 +211,7 @@ impl Journal {
         &mut self,
         header: &FrameHeader,
         world: &World,
-        scene: String,
+        scene: &dyn std::fmt::Display,
         settings: &WorldSettings,
     ) {
         if self.stopped.is_some() {

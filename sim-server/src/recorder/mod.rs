@@ -22,6 +22,7 @@ pub(crate) use keyframe::{Keyframe, KeyframeError};
 pub(crate) use refusal::Refused;
 pub(crate) use service::{RecorderCall, RecorderPort};
 
+use std::fmt::Display;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
@@ -164,7 +165,7 @@ impl Recorder {
         self.collisions.clear();
         self.captures.clear();
         self.sensor_notes(sensors);
-        self.record_frame(frame.0, frame.1, scene, true);
+        self.record_frame(frame.0, frame.1, &scene, true);
         Ok(())
     }
 
@@ -321,13 +322,20 @@ impl Recorder {
 
     /// Records a published frame, the collisions and captures of its step,
     /// and a keyframe when one is due.
-    pub(crate) fn frame(&mut self, header: &FrameHeader, world: &World, scene: String) {
+    /// `scene` is named in a keyframe only (formatted when one is due).
+    pub(crate) fn frame(&mut self, header: &FrameHeader, world: &World, scene: &dyn Display) {
         if self.active.is_some() {
             self.record_frame(header, world, scene, false);
         }
     }
 
-    fn record_frame(&mut self, header: &FrameHeader, world: &World, scene: String, first: bool) {
+    fn record_frame(
+        &mut self,
+        header: &FrameHeader,
+        world: &World,
+        scene: &dyn Display,
+        first: bool,
+    ) {
         let Some(active) = &mut self.active else {
             return;
         };
@@ -373,7 +381,7 @@ impl Recorder {
             });
         }
         if keyframe_due {
-            let data = Keyframe::of(world, header, scene).encode();
+            let data = Keyframe::of(world, header, scene.to_string()).encode();
             self.send(Item::Keyframe {
                 log_ns,
                 frame: header.timestamp.frame,

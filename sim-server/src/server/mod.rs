@@ -281,13 +281,17 @@ impl Domains {
         self.frames.publish(header, &self.world)?;
         self.recorder.published(&header);
         if self.recorder.is_recording() {
-            let scene = self.runtime.scene.to_string();
-            self.recorder.frame(&header, &self.world, scene);
+            self.recorder
+                .frame(&header, &self.world, &self.runtime.scene);
         }
         if let Some(journal) = &mut self.journal {
             // Durable (as the policy says) before any tick is answered.
-            let scene = self.runtime.scene.to_string();
-            journal.frame(&header, &self.world, scene, &self.runtime.settings);
+            journal.frame(
+                &header,
+                &self.world,
+                &self.runtime.scene,
+                &self.runtime.settings,
+            );
         }
         Ok(())
     }

@@ -118,6 +118,9 @@ pub(crate) struct Session {
     /// from it, so a server resumed from its journal keeps them.
     run_pid: u32,
     ticker: Option<Ticker>,
+    /// The run `ticker` was claimed in: a server that comes back to it
+    /// must continue that run (a resume), or the ticker gives it back.
+    ticker_run: u32,
     /// The factor of the last `set_replayer_time_factor`, applied to every
     /// later `replay_file` (CARLA's replayer keeps it; 1 until set).
     replay_time_factor: f64,
@@ -149,6 +152,7 @@ impl Session {
             client: None,
             run_pid: 0,
             ticker: None,
+            ticker_run: 0,
             replay_time_factor: 1.0,
         }
     }

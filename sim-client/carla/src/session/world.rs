@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use rmpv::Value;
 use shared_types::WaitMode;
-use sim_client::{TickError, Ticker};
+use sim_client::{Reconnected, TickError, Ticker};
 use tracing::{info, warn};
 
 use super::settings::{
@@ -225,7 +225,29 @@ impl Session {
         ticker.set_wait_mode(WaitMode::Hybrid);
         ticker.set_follow_restarts(Some(RESTART_PATIENCE.min(self.timeout)));
         self.ticker = Some(ticker);
+        self.ticker_run = self.run_pid;
         Ok(())
+    }
+
+    /// After this connection's ticker claimed a server that came back:
+    /// keeps it when that server resumed the run the ticker was claimed
+    /// in; a fresh server is a new episode, so the world is given back
+    /// and the error says so.
+    fn same_run(&mut self, restarted: &Reconnected) -> Result<(), CallError> {
+        self.client = None;
+        if self.run_pid()? == self.ticker_run {
+            return Ok(());
+        }
+        if let Some(ticker) = self.ticker.take() {
+            if let Err(e) = ticker.release() {
+                warn!(peer = %self.peer, "giving back a fresh server's world: {e}");
+            }
+        }
+        warn!(peer = %self.peer, "{restarted}, a fresh server: the CARLA ticker gave the world back");
+        Err(CallError::NewRun {
+            previous: restarted.previous_pid,
+            server: restarted.server_pid,
+        })
     }
 
     /// A tick of this connection's ticker: the frame it stepped. A tick
@@ -236,10 +258,10 @@ impl Session {
         let ticker = self.ticker.as_mut().ok_or(CallError::NoConnection)?;
         match ticker.tick(self.timeout) {
             Err(TickError::Restarted(restarted)) => {
+                self.same_run(&restarted)?;
                 info!(peer = %self.peer, "{restarted}; the CARLA ticker ticks on");
-                let frame = ticker.tick(self.timeout).map_err(CallError::simbus);
-                self.client = None;
-                frame
+                let ticker = self.ticker.as_mut().ok_or(CallError::NoConnection)?;
+                ticker.tick(self.timeout).map_err(CallError::simbus)
             }
             ticked => ticked.map_err(CallError::simbus),
         }
@@ -254,18 +276,23 @@ impl Session {
             .ticker
             .as_ref()
             .is_some_and(|t| !sim_client::process_alive(t.server_pid()));
-        if let Some(ticker) = self.ticker.as_mut().filter(|_| gone) {
-            match ticker.reclaim(RESTART_PATIENCE.min(self.timeout)) {
-                Ok(restarted) => {
-                    info!(peer = %self.peer, "{restarted}; the CARLA ticker claimed it again");
-                    self.client = None;
-                }
-                Err(e) => {
-                    warn!(peer = %self.peer, "the CARLA ticker's server is gone: {e}");
-                    self.ticker = None;
-                    return Err(CallError::simbus(e));
-                }
+        let patience = RESTART_PATIENCE.min(self.timeout);
+        let reclaimed = self
+            .ticker
+            .as_mut()
+            .filter(|_| gone)
+            .map(|ticker| ticker.reclaim(patience));
+        match reclaimed {
+            Some(Ok(restarted)) => {
+                self.same_run(&restarted)?;
+                info!(peer = %self.peer, "{restarted}; the CARLA ticker claimed it again");
             }
+            Some(Err(e)) => {
+                warn!(peer = %self.peer, "the CARLA ticker's server is gone: {e}");
+                self.ticker = None;
+                return Err(CallError::simbus(e));
+            }
+            None => {}
         }
         Ok(self.ticker.as_mut())
     }

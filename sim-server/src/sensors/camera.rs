@@ -302,9 +302,8 @@ pub(super) fn cast(
 
 /// A depth camera's image cast straight into `slots` (width × height,
 /// planar depth, `far` where nothing was met), when no other camera reads
-/// its cast: no [`Hit`] buffer, so a large image touches its own memory
-/// only (a 2048x1024 image went through 32 MiB of hits, which pushed the
-/// sample's port out of the caches just before it was sent).
+/// its cast: no [`Hit`] buffer and no second pass, so an image touches
+/// its own memory only (a 2048x1024 image went through 32 MiB of hits).
 pub(super) fn cast_depth(
     world: &World,
     spec: &CastSpec,

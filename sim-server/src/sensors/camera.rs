@@ -544,10 +544,10 @@ mod tests {
             let mut alone = vec![MaybeUninit::new(f32::NAN); 160 * 120];
             cast_depth(&world, &cast_spec, pose, &ground, &mut alone);
             let pixels = (params.width * params.height) as usize;
-            // SAFETY: every slot started initialised.
             let bits = |slots: &[MaybeUninit<f32>]| -> Vec<u32> {
                 slots
                     .iter()
+                    // SAFETY: every slot started initialised.
                     .map(|s| unsafe { s.assume_init() }.to_bits())
                     .collect()
             };

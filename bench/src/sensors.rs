@@ -27,7 +27,7 @@ pub(crate) struct SensorsArgs {
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     json: bool,
-    /// Also draw the delivery distributions, simbus and TCP per size
+    /// Also draw the delivery distributions, simbus, raw iceoryx2 and TCP per size
     /// (percentile plot, log µs), into this PNG.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<std::path::PathBuf>,
@@ -269,7 +269,8 @@ fn frame_times(
     Ok(frames)
 }
 
-/// The delivery distributions, simbus and TCP per size, into `path`.
+/// The delivery distributions, simbus, raw iceoryx2 and TCP per size, into
+/// `path`.
 fn plot_delivery(path: &std::path::Path, rows: &[DeliveryRow]) -> anyhow::Result<()> {
     let names: Vec<[String; 3]> = rows
         .iter()

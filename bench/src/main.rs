@@ -33,6 +33,7 @@ mod python;
 mod recorder;
 mod scaling;
 mod sensors;
+mod shapes;
 mod stats;
 mod substeps;
 mod support;

@@ -47,6 +47,9 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
             }
         }
         "tcp" => crate::tick::tcp_echo(),
-        kind => crate::tick::raw_peer(kind, &args.name),
+        kind => match crate::shapes::Shape::of_peer(kind) {
+            Some(shape) => crate::shapes::peer(&args.name, shape),
+            None => crate::tick::raw_peer(kind, &args.name),
+        },
     }
 }

@@ -1,7 +1,8 @@
 //! `tick`: the synchronous tick round trip against its floor and against TCP.
 //!
 //! In one run, on one machine, each between two processes:
-//! (a) raw iceoryx2 ping-pong (u64 there, u64 back) — the floor;
+//! (a) raw iceoryx2 ping-pong (u64 there, u64 back) — the floor — and
+//!     raw iceoryx2 in the tick's message shapes (`crate::shapes`);
 //! (b) simbus: `Ticker::tick` sent → that frame's snapshot received, on an
 //!     empty scene, spinning and blocking; and spinning with the tick
 //!     answered by its frame (`Ticker::tick_and_read`: one message each way);
@@ -265,6 +266,21 @@ fn raw_row<S: Service + 'static>(name: &'static str, kind: &str) -> anyhow::Resu
     })
 }
 
+/// Raw iceoryx2 in one of the tick's message shapes (`crate::shapes`).
+fn shape_row(name: &'static str, shape: crate::shapes::Shape) -> anyhow::Result<Row> {
+    let world = format!("bench-shape-{}-{}", shape.peer_kind(), std::process::id());
+    let (peer, _) = spawn_peer(shape.peer_kind(), &world)?;
+    let mut ticking = crate::shapes::Ticking::open(&world, shape)?;
+    Ok(Row {
+        name,
+        peers: vec![peer.id()],
+        _guards: vec![peer],
+        _server: None,
+        round_trip: Box::new(move || ticking.round_trip()),
+        latencies: Latencies::new(),
+    })
+}
+
 fn futex_row() -> anyhow::Result<Row> {
     let (peer, round_trip) = crate::futex::exchange()?;
     Ok(Row {
@@ -491,6 +507,18 @@ fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static st
     let mut rows = vec![
         raw_row::<ipc::Service>("(a) raw iceoryx2, spin", "iceoryx-spin")?,
         raw_row::<ipc::Service>("(a) raw iox2 spin + step", "iceoryx-spin-step")?,
+        shape_row(
+            "(a) iox2 tick as request + step",
+            crate::shapes::Shape::Request,
+        )?,
+        shape_row(
+            "(a) iox2 same, frames no history",
+            crate::shapes::Shape::RequestNoHistory,
+        )?,
+        shape_row(
+            "(a) iox2 tick published + step",
+            crate::shapes::Shape::Publish,
+        )?,
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
         raw_row::<Bus>("(a) raw iceoryx2 futex event, block", "iceoryx-bus-block")?,
         futex_row()?,
@@ -535,13 +563,18 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         p50("(b) simbus, block"),
     );
     let raw_step = p50("(a) raw iox2 spin + step");
+    let (request, published) = (
+        p50("(a) iox2 tick as request"),
+        p50("(a) iox2 tick published"),
+    );
+    let by_frame = p50("(b) simbus, spin, by frame");
     vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
         ("b/a simbus all spin / raw + step", spin / raw_step),
-        (
-            "b/a spin by frame / raw spin",
-            p50("(b) simbus, spin, by frame") / raw_spin,
-        ),
+        ("b/a spin by frame / raw spin", by_frame / raw_spin),
+        ("a/a tick request + step / raw spin", request / raw_spin),
+        ("a/a tick published + step / raw spin", published / raw_spin),
+        ("b/a spin by frame / tick request", by_frame / request),
         ("b/a simbus block / raw block", block / raw_block),
         ("b/f simbus block / futex floor", block / floor),
         ("b/f simbus hybrid / futex floor", hybrid / floor),
@@ -577,7 +610,7 @@ fn report(
     }
     println!();
     for (name, ratio) in ratios {
-        println!("{name:<32} {ratio:>6.2}x");
+        println!("{name:<38} {ratio:>6.2}x");
     }
     println!();
 }

@@ -1,0 +1,278 @@
+//! The floors of the tick's two message shapes: raw iceoryx2 carrying a
+//! tick and its frame between two spinning processes, with an empty
+//! world's step in between, and no simbus server or client.
+//!
+//! - `request`: simbus's shape. The tick is a request on the world's tick
+//!   service (its description, `WorldServices::tick`), its doorbell rung;
+//!   the answer is the frame, published on the frames service (history 1,
+//!   as every new subscriber gets the current frame) with the frame-ready
+//!   event rung; the request is dropped unanswered, as a tick sent
+//!   [`TickRequest::BY_FRAME`] is.
+//! - `publish`: the tick as a sample on a publish-subscribe service with
+//!   one publisher, the frame on a frames service without history, no
+//!   events rung.
+//!
+//! Against the raw ping-pong of a `u64` with a step (the tick table's
+//! `raw iox2 spin + step`), the two rows say what the message shape costs
+//! and what simbus's own code adds on top (`simbus, spin, by frame`).
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::pending_response::PendingResponse;
+use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use shared_types::limits::WorldLimits;
+use shared_types::{
+    ActorState, Doorbell, FrameHeader, ServiceNames, TickRequest, TickRequestKind, TickResponse,
+    WorldName,
+};
+use simbus_transport::spec::WorldServices;
+use simbus_transport::Bus;
+
+/// Which shape a row and its peer use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Shape {
+    /// A request on the tick service, the frame published with history.
+    Request,
+    /// A request on the tick service, the frame published without history.
+    RequestNoHistory,
+    /// A tick sample on its own publish-subscribe service, the frame
+    /// published without history.
+    Publish,
+}
+
+impl Shape {
+    /// The peer kind (`peer --kind`) that answers this shape.
+    pub(crate) fn peer_kind(self) -> &'static str {
+        match self {
+            Self::Request => "shape-request",
+            Self::RequestNoHistory => "shape-request-no-history",
+            Self::Publish => "shape-publish",
+        }
+    }
+
+    /// The shape a peer kind answers.
+    pub(crate) fn of_peer(kind: &str) -> Option<Self> {
+        [Self::Request, Self::RequestNoHistory, Self::Publish]
+            .into_iter()
+            .find(|s| s.peer_kind() == kind)
+    }
+}
+
+fn err(e: impl std::fmt::Debug) -> anyhow::Error {
+    anyhow::anyhow!("{e:?}")
+}
+
+/// The world's service descriptions; in the `publish` shape, the frames
+/// without history.
+fn services(world: &str, shape: Shape) -> anyhow::Result<WorldServices> {
+    let names = ServiceNames::new(&WorldName::new(world)?);
+    let mut services = WorldServices::new(&names)?;
+    if shape != Shape::Request {
+        services.frames.history = 0;
+    }
+    Ok(services)
+}
+
+/// The publish-subscribe service of the `publish` shape's ticks.
+fn tick_topic(
+    node: &Node<Bus>,
+    world: &str,
+) -> anyhow::Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Bus, TickRequest, ()>,
+> {
+    node.service_builder(&ServiceName::new(&format!("{world}/tick-topic")).map_err(err)?)
+        .publish_subscribe::<TickRequest>()
+        .max_publishers(1)
+        .history_size(0)
+        .subscriber_max_buffer_size(4)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(err)
+}
+
+/// How a tick goes out in each shape.
+enum TickPort {
+    Request {
+        client: RequestClient<Bus, TickRequest, (), TickResponse, ()>,
+        wake: Notifier<Bus>,
+    },
+    Publish(Publisher<Bus, TickRequest, ()>),
+}
+
+/// The ticking end of a shape row: one round trip per call.
+pub(crate) struct Ticking {
+    tick: TickPort,
+    frames: Subscriber<Bus, [ActorState], FrameHeader>,
+    request: TickRequest,
+    frame: u64,
+    _node: Node<Bus>,
+}
+
+impl Ticking {
+    /// Opens the ticking end of `shape` on `world` (the peer must be up).
+    pub(crate) fn open(world: &str, shape: Shape) -> anyhow::Result<Self> {
+        let services = services(world, shape)?;
+        let node = simbus_transport::node("simbus-bench-shape").map_err(err)?;
+        let limits = WorldLimits::default();
+        let tick = match shape {
+            Shape::Request | Shape::RequestNoHistory => TickPort::Request {
+                client: services
+                    .tick
+                    .open_or_create(&node, &limits)
+                    .map_err(err)?
+                    .client_builder()
+                    .create()
+                    .map_err(err)?,
+                wake: services
+                    .control_wake
+                    .open_or_create(&node, &limits)
+                    .map_err(err)?
+                    .notifier_builder()
+                    .create()
+                    .map_err(err)?,
+            },
+            Shape::Publish => TickPort::Publish(
+                tick_topic(&node, world)?
+                    .publisher_builder()
+                    .create()
+                    .map_err(err)?,
+            ),
+        };
+        let frames = services
+            .frames
+            .open_or_create(&node, &limits)
+            .map_err(err)?;
+        let frames = services.frames.subscriber(&frames).map_err(err)?;
+        Ok(Self {
+            tick,
+            frames,
+            request: TickRequest::new(TickRequestKind::Tick, "simbus-bench-shape"),
+            frame: 0,
+            _node: node,
+        })
+    }
+
+    /// Sends a tick and spins until its frame is held.
+    pub(crate) fn round_trip(&mut self) -> anyhow::Result<()> {
+        let request = TickRequest {
+            flags: TickRequest::BY_FRAME,
+            ..self.request
+        };
+        let _pending: Option<PendingResponse<Bus, TickRequest, (), TickResponse, ()>> =
+            match &self.tick {
+                TickPort::Request { client, wake } => {
+                    let pending = client.send_copy(request).map_err(err)?;
+                    wake.notify_with_custom_event_id(EventId::new(Doorbell::Tick.event_id()))
+                        .map_err(err)?;
+                    Some(pending)
+                }
+                TickPort::Publish(publisher) => {
+                    publisher.send_copy(request).map_err(err)?;
+                    None
+                }
+            };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(sample) = self.frames.receive().map_err(err)? {
+                let frame = sample.user_header().timestamp.frame;
+                if frame > self.frame {
+                    self.frame = frame;
+                    return Ok(());
+                }
+                continue;
+            }
+            anyhow::ensure!(
+                Instant::now() < deadline,
+                "the shape peer stopped answering"
+            );
+            std::hint::spin_loop();
+        }
+    }
+}
+
+/// The answering end (`peer --kind shape-request|shape-publish`): steps an
+/// empty world for every tick and publishes its frame, until stopped.
+pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
+    use sim_server::{clock::SubstepPlan, world::World, Scene};
+    let services = services(world, shape)?;
+    let node = simbus_transport::node("simbus-bench-shape-peer").map_err(err)?;
+    let limits = WorldLimits::default();
+    let mut world_state = World::new(&Scene::Empty.placements(0), 1);
+    let settings = shared_types::WorldSettings {
+        fixed_delta_seconds: Some(0.01),
+        ..Default::default()
+    };
+    let plan = SubstepPlan::new(10_000_000, &settings);
+    let frames = services
+        .frames
+        .open_or_create(&node, &limits)
+        .map_err(err)?;
+    let publisher = services
+        .frames
+        .publisher(&frames, world_state.actor_count())
+        .map_err(err)?;
+    let ready = services
+        .frame_ready
+        .open_or_create(&node, &limits)
+        .map_err(err)?
+        .notifier_builder()
+        .create()
+        .map_err(err)?;
+    let mut frame = 0u64;
+    let publish = |frame: u64, world_state: &mut World| -> anyhow::Result<()> {
+        world_state.step(&plan);
+        let mut sample = publisher
+            .loan_slice_uninit(world_state.actor_count())
+            .map_err(err)?;
+        let mut header = FrameHeader::default();
+        header.timestamp.frame = frame;
+        header.actor_count = world_state.actor_count() as u32;
+        *sample.user_header_mut() = header;
+        sample
+            .write_from_fn(|i| world_state.actor_state(i))
+            .send()
+            .map_err(err)?;
+        Ok(())
+    };
+    match shape {
+        Shape::Request | Shape::RequestNoHistory => {
+            let server = services
+                .tick
+                .open_or_create(&node, &limits)
+                .map_err(err)?
+                .server_builder()
+                .create()
+                .map_err(err)?;
+            println!("ready");
+            loop {
+                let Some(request) = server.receive().map_err(err)? else {
+                    std::hint::spin_loop();
+                    continue;
+                };
+                frame += 1;
+                publish(frame, &mut world_state)?;
+                ready.notify().map_err(err)?;
+                drop(request);
+            }
+        }
+        Shape::Publish => {
+            let ticks = tick_topic(&node, world)?
+                .subscriber_builder()
+                .create()
+                .map_err(err)?;
+            println!("ready");
+            loop {
+                if ticks.receive().map_err(err)?.is_none() {
+                    std::hint::spin_loop();
+                    continue;
+                }
+                frame += 1;
+                publish(frame, &mut world_state)?;
+            }
+        }
+    }
+}

@@ -353,11 +353,15 @@ fn simbus_world(
 }
 
 /// The spinning simbus row with the tick answered by its frame
-/// ([`sim_client::Ticker::tick_and_read`]): one message each way.
-fn simbus_by_frame_row(name: &'static str) -> anyhow::Result<Row> {
-    let server_args = ["--wait-mode", "spin"];
-    let (server, mut client, mut ticker) =
-        simbus_world("tick-by-frame", &server_args, WaitMode::Spin)?;
+/// ([`sim_client::Ticker::tick_and_read`]): one message each way; the
+/// server with `--max-clients max_clients` (None: its default).
+fn simbus_by_frame_row(name: &'static str, max_clients: Option<&str>) -> anyhow::Result<Row> {
+    let mut server_args = vec!["--wait-mode", "spin"];
+    if let Some(max) = max_clients {
+        server_args.extend(["--max-clients", max]);
+    }
+    let tag = format!("tick-by-frame-{}", max_clients.unwrap_or("default"));
+    let (server, mut client, mut ticker) = simbus_world(&tag, &server_args, WaitMode::Spin)?;
     let timeout = Duration::from_secs(10);
     let mut last: Option<u64> = None;
     Ok(Row::on_server(name, server, move || {
@@ -527,7 +531,8 @@ fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static st
             &["--wait-mode", "spin"],
             WaitMode::Spin,
         )?,
-        simbus_by_frame_row("(b) simbus, spin, by frame")?,
+        simbus_by_frame_row("(b) simbus, spin, by frame", None)?,
+        simbus_by_frame_row("(b) by frame, --max-clients 4", Some("4"))?,
         simbus_row("(b) simbus, hybrid", &[], WaitMode::Hybrid)?,
         simbus_row(
             "(b) simbus, block",
@@ -575,6 +580,10 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         ("a/a tick request + step / raw spin", request / raw_spin),
         ("a/a tick published + step / raw spin", published / raw_spin),
         ("b/a spin by frame / tick request", by_frame / request),
+        (
+            "b/b by frame: 4 clients / 64",
+            p50("(b) by frame, --max-clients 4") / by_frame,
+        ),
         ("b/a simbus block / raw block", block / raw_block),
         ("b/f simbus block / futex floor", block / floor),
         ("b/f simbus hybrid / futex floor", hybrid / floor),

@@ -82,15 +82,18 @@ def wait_line(proc, needle, timeout=30):
     raise RuntimeError(f"{proc.args} never said {needle!r}")
 
 
-def start(world, server_args, procs, gateway_args=(), log=subprocess.DEVNULL, env=None):
+def start(world, server_args, procs, gateway_args=(), log=subprocess.DEVNULL, env=None,
+          server_log=subprocess.DEVNULL):
     """Starts a sim-server on `world` and a gateway in front of it (with
     `gateway_args`, its log to `log`: a file, or subprocess.STDOUT to read
     it with the ports), on two free ports the gateway picks and prints; both
     are appended to `procs` (killed by the caller). The gateway's process
-    is the Gateway's `proc`."""
+    is the Gateway's `proc`. The server logs to `server_log` (a file);
+    `env` is added to both processes' environment."""
     server = subprocess.Popen(
         [os.path.join(BIN, "sim-server"), "--world", world, *server_args],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=server_log, start_new_session=True,
+        env=None if env is None else {**os.environ, **env},
     )
     procs.append(server)
     gateway = subprocess.Popen(
@@ -131,6 +134,42 @@ def gateway(request):
         yield start(world_name(request), getattr(request, "param", []), procs)
     finally:
         kill_all(procs)
+
+
+class Logs:
+    """The server's and the gateway's logs of a test, in its tmp_path."""
+
+    def __init__(self, directory):
+        self.server = directory / "sim-server.log"
+        self.gateway = directory / "carla-gateway.log"
+
+    def tails(self, lines=60):
+        """The last `lines` lines of each log, for a failure's message."""
+        parts = []
+        for path in (self.server, self.gateway):
+            text = path.read_text(errors="replace").splitlines() if path.exists() else []
+            parts.append(f"--- {path.name} (last {lines} of {len(text)} lines)\n"
+                         + "\n".join(text[-lines:]))
+        return "\n".join(parts)
+
+
+@pytest.fixture
+def logged_gateway(request, tmp_path):
+    """A `gateway` whose server and gateway log (`RUST_LOG=debug`, no
+    colour) into the test's tmp_path: `gateway.logs.tails()` for the
+    failure message of a test that fails seldom, so it says where the
+    time went."""
+    procs = []
+    logs = Logs(tmp_path)
+    env = {"RUST_LOG": "debug", "NO_COLOR": "1"}
+    with open(logs.server, "w") as server_log, open(logs.gateway, "w") as gateway_log:
+        try:
+            started = start(world_name(request), getattr(request, "param", []), procs,
+                            log=gateway_log, env=env, server_log=server_log)
+            started.logs = logs
+            yield started
+        finally:
+            kill_all(procs)
 
 
 @pytest.fixture

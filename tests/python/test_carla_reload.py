@@ -41,6 +41,7 @@ return code (-6, -11) here rather than the end of pytest; it prints a JSON
 summary of the captures each reload's sensors delivered. This file is
 that script too (`python test_carla_reload.py PORT RELOADS [load]`)."""
 
+import datetime
 import json
 import os
 import subprocess
@@ -87,11 +88,13 @@ def test_100_load_worlds_in_asynchronous_mode_on_a_busy_machine(gateway):
     assert summary["map"].startswith("simbus/town"), summary["map"]
 
 
-def test_50_reloads_with_two_sensors_listening_on_a_busy_machine(gateway):
+def test_50_reloads_with_two_sensors_listening_on_a_busy_machine(logged_gateway):
+    gateway = logged_gateway
     run = run_busy(gateway, str(RELOADS))
     assert run.returncode == 0, (
         f"CARLA's client exited with {run.returncode}\n"
-        f"stdout: {run.stdout[-2000:]}\nstderr: {run.stderr[-4000:]}"
+        f"stdout: {run.stdout[-2000:]}\nstderr: {run.stderr[-4000:]}\n"
+        f"{gateway.logs.tails()}"
     )
     summary = json.loads(run.stdout.strip().splitlines()[-1])
     assert summary["reloads"] == RELOADS
@@ -182,6 +185,13 @@ def end_quietly(world, spawned):
     return frame, last
 
 
+def progress(what):
+    """A line on stderr stamped like the servers' logs (UTC), so a failure
+    shows which call the time went to, beside the logs."""
+    now = datetime.datetime.now(datetime.timezone.utc)
+    print(f"{now.strftime('%Y-%m-%dT%H:%M:%S.%f')}Z client: {what}", file=sys.stderr, flush=True)
+
+
 def main(port, reloads):
     import carla
 
@@ -190,10 +200,12 @@ def main(port, reloads):
     world = client.get_world()
     spawned = spawn_listening(world)
     delivered = [first_captures(spawned)]
-    for _ in range(reloads):
+    for n in range(reloads):
         # The reload ends the sensors (as CARLA's does); the new episode's
         # are spawned after it.
+        progress(f"reload {n + 1} asked")
         world = client.reload_world()
+        progress(f"reload {n + 1} answered")
         spawned = spawn_listening(world)
         delivered.append(first_captures(spawned))
     frame, last = end_quietly(world, spawned)

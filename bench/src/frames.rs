@@ -10,7 +10,7 @@ use sim_client::{Client, WaitMode};
 use sim_server::{Scene, Server, ServerConfig};
 
 use crate::stats::{header, Latencies};
-use crate::support::{now_ns, BenchServer};
+use crate::support::{now_ns, BenchServer, Placement};
 
 #[derive(Debug, Args)]
 pub(crate) struct FramesArgs {
@@ -30,6 +30,50 @@ pub(crate) struct FramesArgs {
     /// Scaling rows: frames the reader process reads in place per world.
     #[arg(long, default_value_t = 200)]
     scale_reads: u64,
+    /// Where the wait_for_tick rows run: `same` (server, client and the
+    /// floor's peer on CPU 0), `split` (the client on CPU 0, the server and
+    /// the floor's peer on CPU 1) or `unpinned`. Without it: each in
+    /// turn, each against the futex floor measured under it.
+    #[arg(long, value_enum)]
+    placement: Option<Placement>,
+}
+
+/// The wait_for_tick rows under one placement.
+struct Delivery {
+    placement: Placement,
+    block: Latencies,
+    /// None on one CPU: a spinning client leaves the server no CPU.
+    spin: Option<Latencies>,
+    /// A futex round trip every millisecond under the same placement.
+    floor: Latencies,
+}
+
+impl Delivery {
+    /// Blocking `wait_for_tick` over one futex hop (half the floor's round
+    /// trip), at p50.
+    fn block_over_hop(&self) -> f64 {
+        self.block.quantile_us(0.5) / (self.floor.quantile_us(0.5) / 2.0)
+    }
+}
+
+/// The wait_for_tick rows against the 1 kHz server `server`, pinned as
+/// `placement` says.
+fn delivery(server: &BenchServer, placement: Placement, samples: u64) -> anyhow::Result<Delivery> {
+    placement.apply(&[server.pid()])?;
+    let block = delivery_latency(&server.world, WaitMode::Block, samples)?;
+    let spin = match placement {
+        Placement::Same => None,
+        _ => Some(delivery_latency(&server.world, WaitMode::Spin, samples)?),
+    };
+    Placement::Unpinned.apply(&[server.pid()])?;
+    // The floor under the same conditions: a round trip every millisecond.
+    let floor = crate::futex::floor_placed(samples, Duration::from_millis(1), placement)?;
+    Ok(Delivery {
+        placement,
+        block,
+        spin,
+        floor,
+    })
 }
 
 /// Frames per second of an unpaced async fixed-step server (0.01 s) with no
@@ -101,11 +145,12 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
             "--realtime",
         ],
     )?;
-    let block = delivery_latency(&server.world, WaitMode::Block, args.samples)?;
-    let spin = delivery_latency(&server.world, WaitMode::Spin, args.samples)?;
-    // The floor under the same conditions: a round trip every millisecond.
-    let floor = crate::futex::floor(args.samples, Duration::from_millis(1))?;
-    let hop = floor.quantile_us(0.5) / 2.0;
+    let deliveries: Vec<Delivery> = args
+        .placement
+        .map_or(Placement::ALL.to_vec(), |p| vec![p])
+        .into_iter()
+        .map(|placement| delivery(&server, placement, args.samples))
+        .collect::<anyhow::Result<_>>()?;
     let load = crate::support::load_average();
     let scaling = crate::scaling::rows(&args.scale_boxes, args.scale_frames, args.scale_reads)?;
 
@@ -120,9 +165,13 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({
                 "server_fps": fps_json,
-                "wait_for_tick": {"block": block.json(), "spin": spin.json()},
-                "futex_round_trip_every_ms": floor.json(),
-                "block_over_futex_hop_p50": block.quantile_us(0.5) / hop,
+                "wait_for_tick": deliveries.iter().map(|d| serde_json::json!({
+                    "placement": d.placement.name(),
+                    "block": d.block.json(),
+                    "spin": d.spin.as_ref().map(Latencies::json),
+                    "futex_round_trip_every_ms": d.floor.json(),
+                    "block_over_futex_hop_p50": d.block_over_hop(),
+                })).collect::<Vec<_>>(),
                 "scaling": crate::scaling::json(&scaling),
                 "load_average": load,
             })
@@ -145,16 +194,24 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
         "wait_for_tick latency: frame published -> snapshot in the client ({} samples each, 1 kHz server, empty scene)",
         args.samples
     );
-    println!("{}", header("wait mode"));
-    println!("{}", block.row("block (frame-ready event)"));
-    println!("{}", spin.row("spin"));
-    println!("{}", floor.row("futex round trip, one per ms"));
-    println!(
-        "block / spin at p50: {:.1}x; block / one futex hop (half the round trip) at p50: {:.2}x",
-        block.quantile_us(0.5) / spin.quantile_us(0.5).max(0.001),
-        block.quantile_us(0.5) / hop
-    );
-    println!();
+    for d in &deliveries {
+        println!("placement: {}", d.placement.name());
+        println!("{}", header("wait mode"));
+        println!("{}", d.block.row("block (frame-ready event)"));
+        match &d.spin {
+            Some(spin) => println!("{}", spin.row("spin")),
+            None => println!(
+                "{:<28} (not on one CPU: the server would get no time)",
+                "spin"
+            ),
+        }
+        println!("{}", d.floor.row("futex round trip, one per ms"));
+        println!(
+            "block / one futex hop (half the round trip) at p50: {:.2}x",
+            d.block_over_hop()
+        );
+        println!();
+    }
     crate::scaling::print(&scaling, args.scale_frames);
     println!("load average before the scaling rows: {load}");
     Ok(())

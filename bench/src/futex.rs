@@ -11,7 +11,7 @@ use simbus_process::ChildGuard;
 
 use crate::stats::Latencies;
 
-use crate::support::spawn_peer;
+use crate::support::{spawn_peer, Placement};
 
 /// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
 struct SharedWords {
@@ -140,7 +140,29 @@ pub(crate) fn exchange() -> anyhow::Result<(ChildGuard, impl FnMut() -> anyhow::
 /// `iterations` futex round trips, one every `pace` (zero: back to back),
 /// as the floor beside another benchmark's rows.
 pub(crate) fn floor(iterations: u64, pace: std::time::Duration) -> anyhow::Result<Latencies> {
-    let (_peer, mut round_trip) = exchange()?;
+    floor_placed(iterations, pace, Placement::Unpinned)
+}
+
+/// [`floor`] with this process and the peer pinned as `placement` says
+/// (unpinned again after).
+pub(crate) fn floor_placed(
+    iterations: u64,
+    pace: std::time::Duration,
+    placement: Placement,
+) -> anyhow::Result<Latencies> {
+    let (peer, round_trip) = exchange()?;
+    placement.apply(&[peer.id()])?;
+    let measured = paced(iterations, pace, round_trip);
+    Placement::Unpinned.apply(&[])?;
+    drop(peer);
+    measured
+}
+
+fn paced(
+    iterations: u64,
+    pace: std::time::Duration,
+    mut round_trip: impl FnMut() -> anyhow::Result<()>,
+) -> anyhow::Result<Latencies> {
     for _ in 0..iterations / 10 {
         round_trip()?;
     }

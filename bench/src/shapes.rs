@@ -94,10 +94,11 @@ fn tick_topic(
         .map_err(err)
 }
 
-/// How a tick goes out in each shape.
+/// How a tick goes out in each shape (the request port boxed: it is
+/// large beside a publisher).
 enum TickPort {
     Request {
-        client: RequestClient<Bus, TickRequest, (), TickResponse, ()>,
+        client: Box<RequestClient<Bus, TickRequest, (), TickResponse, ()>>,
         wake: Notifier<Bus>,
     },
     Publish(Publisher<Bus, TickRequest, ()>),
@@ -120,13 +121,15 @@ impl Ticking {
         let limits = WorldLimits::default();
         let tick = match shape {
             Shape::Request | Shape::RequestNoHistory => TickPort::Request {
-                client: services
-                    .tick
-                    .open_or_create(&node, &limits)
-                    .map_err(err)?
-                    .client_builder()
-                    .create()
-                    .map_err(err)?,
+                client: Box::new(
+                    services
+                        .tick
+                        .open_or_create(&node, &limits)
+                        .map_err(err)?
+                        .client_builder()
+                        .create()
+                        .map_err(err)?,
+                ),
                 wake: services
                     .control_wake
                     .open_or_create(&node, &limits)

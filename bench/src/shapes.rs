@@ -94,12 +94,12 @@ fn tick_topic(
         .map_err(err)
 }
 
-/// How a tick goes out in each shape (the request port boxed: it is
+/// How a tick goes out in each shape (the request's ports boxed: they are
 /// large beside a publisher).
 enum TickPort {
     Request {
         client: Box<RequestClient<Bus, TickRequest, (), TickResponse, ()>>,
-        wake: Notifier<Bus>,
+        wake: Box<Notifier<Bus>>,
     },
     Publish(Publisher<Bus, TickRequest, ()>),
 }
@@ -130,13 +130,15 @@ impl Ticking {
                         .create()
                         .map_err(err)?,
                 ),
-                wake: services
-                    .control_wake
-                    .open_or_create(&node, &limits)
-                    .map_err(err)?
-                    .notifier_builder()
-                    .create()
-                    .map_err(err)?,
+                wake: Box::new(
+                    services
+                        .control_wake
+                        .open_or_create(&node, &limits)
+                        .map_err(err)?
+                        .notifier_builder()
+                        .create()
+                        .map_err(err)?,
+                ),
             },
             Shape::Publish => TickPort::Publish(
                 tick_topic(&node, world)?

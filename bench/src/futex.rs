@@ -158,6 +158,8 @@ pub(crate) fn floor_placed(
     measured
 }
 
+/// `iterations` of `round_trip`, one every `pace`, after a tenth as many
+/// not counted.
 fn paced(
     iterations: u64,
     pace: std::time::Duration,

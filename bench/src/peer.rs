@@ -11,7 +11,9 @@ use sim_client::Client;
 #[derive(Debug, Args)]
 pub(crate) struct PeerArgs {
     /// `iceoryx-spin`, `iceoryx-spin-step` (a physics step before each
-    /// answer), `iceoryx-block`, `iceoryx-bus-block` or `tcp`.
+    /// answer), `iceoryx-block`, `iceoryx-bus-block`, `tcp`, or a tick
+    /// shape's answering end: `shape-request`, `shape-request-no-history`,
+    /// `shape-publish`.
     #[arg(long)]
     kind: String,
     /// Service prefix for the iceoryx2 kinds.

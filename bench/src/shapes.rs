@@ -1,20 +1,22 @@
-//! The floors of the tick's two message shapes: raw iceoryx2 carrying a
-//! tick and its frame between two spinning processes, with an empty
-//! world's step in between, and no simbus server or client.
+//! The floors of the tick's message shapes: raw iceoryx2 carrying a tick
+//! and its frame between two spinning processes, with an empty world's
+//! step in between, and no simbus server or client.
 //!
-//! - `request`: simbus's shape. The tick is a request on the world's tick
-//!   service (its description, `WorldServices::tick`), its doorbell rung;
-//!   the answer is the frame, published on the frames service (history 1,
-//!   as every new subscriber gets the current frame) with the frame-ready
-//!   event rung; the request is dropped unanswered, as a tick sent
-//!   [`TickRequest::BY_FRAME`] is.
-//! - `publish`: the tick as a sample on a publish-subscribe service with
-//!   one publisher, the frame on a frames service without history, no
-//!   events rung.
+//! - [`Shape::Request`]: simbus's shape. The tick is a request on the
+//!   world's tick service (its description, `WorldServices::tick`), its
+//!   doorbell rung; the answer is the frame, published on the frames
+//!   service (history 1, as every new subscriber gets the current frame)
+//!   with the frame-ready event rung; the request is dropped unanswered,
+//!   as a tick sent [`TickRequest::BY_FRAME`] is.
+//! - [`Shape::RequestNoHistory`]: the same, the frames without history.
+//! - [`Shape::Publish`]: the tick as a sample on a publish-subscribe
+//!   service with one publisher, the frame on a frames service without
+//!   history, no events rung.
 //!
 //! Against the raw ping-pong of a `u64` with a step (the tick table's
-//! `raw iox2 spin + step`), the two rows say what the message shape costs
-//! and what simbus's own code adds on top (`simbus, spin, by frame`).
+//! `raw iox2 spin + step`), the rows say what each part of the message
+//! shape costs and what simbus's own code adds on top (`simbus, spin, by
+//! frame`).
 
 use std::time::{Duration, Instant};
 
@@ -66,8 +68,8 @@ fn err(e: impl std::fmt::Debug) -> anyhow::Error {
     anyhow::anyhow!("{e:?}")
 }
 
-/// The world's service descriptions; in the `publish` shape, the frames
-/// without history.
+/// The world's service descriptions, the frames without history in every
+/// shape but [`Shape::Request`].
 fn services(world: &str, shape: Shape) -> anyhow::Result<WorldServices> {
     let names = ServiceNames::new(&WorldName::new(world)?);
     let mut services = WorldServices::new(&names)?;
@@ -199,19 +201,14 @@ impl Ticking {
     }
 }
 
-/// The answering end (`peer --kind shape-request|shape-publish`): steps an
-/// empty world for every tick and publishes its frame, until stopped.
+/// The answering end (`peer --kind` [`Shape::peer_kind`]): steps an empty
+/// world for every tick and publishes its frame, until stopped.
 pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
-    use sim_server::{clock::SubstepPlan, world::World, Scene};
+    use sim_server::world::World;
     let services = services(world, shape)?;
     let node = simbus_transport::node("simbus-bench-shape-peer").map_err(err)?;
     let limits = WorldLimits::default();
-    let mut world_state = World::new(&Scene::Empty.placements(0), 1);
-    let settings = shared_types::WorldSettings {
-        fixed_delta_seconds: Some(0.01),
-        ..Default::default()
-    };
-    let plan = SubstepPlan::new(10_000_000, &settings);
+    let (mut world_state, plan) = crate::tick::empty_world();
     let frames = services
         .frames
         .open_or_create(&node, &limits)

@@ -186,17 +186,23 @@ pub(crate) fn raw_peer(kind: &str, name: &str) -> anyhow::Result<()> {
     }
 }
 
-/// Echoes every value back until the other end stops; with `step`, after
-/// a physics step of an empty world (what the server's frame costs rapier
-/// in the simbus rows: one 0.01 s substep).
-fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool, step: bool) -> anyhow::Result<()> {
+/// The empty scene's world and the plan of one 0.01 s frame (one substep):
+/// what a raw peer steps to stand for the simbus rows' server.
+pub(crate) fn empty_world() -> (sim_server::world::World, sim_server::clock::SubstepPlan) {
     use sim_server::{clock::SubstepPlan, world::World, Scene};
-    let mut world = World::new(&Scene::Empty.placements(0), 1);
+    let world = World::new(&Scene::Empty.placements(0), 1);
     let settings = shared_types::WorldSettings {
         fixed_delta_seconds: Some(0.01),
         ..Default::default()
     };
-    let plan = SubstepPlan::new(10_000_000, &settings);
+    (world, SubstepPlan::new(10_000_000, &settings))
+}
+
+/// Echoes every value back until the other end stops; with `step`, after
+/// a physics step of an empty world (what the server's frame costs rapier
+/// in the simbus rows: one 0.01 s substep).
+fn raw_echo<S: Service>(ports: RawPorts<S>, block: bool, step: bool) -> anyhow::Result<()> {
+    let (mut world, plan) = empty_world();
     println!("ready");
     loop {
         let value = ports.receive(block)?;

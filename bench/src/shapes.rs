@@ -208,7 +208,7 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
     let services = services(world, shape)?;
     let node = simbus_transport::node("simbus-bench-shape-peer").map_err(err)?;
     let limits = WorldLimits::default();
-    let (mut world_state, plan) = crate::tick::empty_world();
+    let (mut world_state, plan) = crate::support::empty_world();
     let frames = services
         .frames
         .open_or_create(&node, &limits)

@@ -346,3 +346,15 @@ pub(crate) fn ticked(client: &Client, frames: u64) -> anyhow::Result<f64> {
     ticker.release()?;
     Ok(seconds)
 }
+
+/// The empty scene's world and the plan of one 0.01 s frame (one substep):
+/// what a raw peer steps to stand for the simbus rows' server.
+pub(crate) fn empty_world() -> (sim_server::world::World, sim_server::clock::SubstepPlan) {
+    use sim_server::{clock::SubstepPlan, world::World, Scene};
+    let world = World::new(&Scene::Empty.placements(0), 1);
+    let settings = shared_types::WorldSettings {
+        fixed_delta_seconds: Some(0.01),
+        ..Default::default()
+    };
+    (world, SubstepPlan::new(10_000_000, &settings))
+}

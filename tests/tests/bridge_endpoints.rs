@@ -4,8 +4,9 @@
 //! mirror waits the whole `--timeout` for its exporter, so one started
 //! first mirrors the world once the exporter is up (it gave up after
 //! Zenoh's first failed connection, half a second, whatever `--timeout`
-//! said); and Zenoh's own warnings stay off the user's stderr unless
-//! asked for (RUST_LOG, -v).
+//! said); Zenoh's own warnings stay off the user's stderr unless
+//! asked for (RUST_LOG, -v); and an exporter still waiting for its
+//! world's server stops on Ctrl-C (it waited out its whole `--timeout`).
 
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -120,4 +121,31 @@ fn a_mirror_started_before_its_exporter_mirrors_the_world_once_it_is_up() {
         )),
         "{line}"
     );
+}
+
+#[test]
+fn an_exporter_waiting_for_its_server_stops_on_ctrl_c() {
+    let world = unique_world("zenoh-export-wait");
+    let port = idle_port().to_string();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    // Nothing serves the world: the exporter would wait ten minutes.
+    let exporter = simbus_tests::Proc::spawn_env(
+        "sim-client",
+        &[
+            "--world",
+            &world,
+            "--timeout",
+            "600",
+            "bridge",
+            "zenoh",
+            "--listen",
+            &endpoint,
+        ],
+        &[("RUST_LOG", std::ffi::OsStr::new("simbus_zenoh=info"))],
+    );
+    exporter.wait_stderr("waiting for the world's server", LONG);
+    simbus_tests::send_signal(exporter.pid(), libc::SIGINT).expect("signalling the exporter");
+    let out = exporter.finish(LONG);
+    out.assert_code(0);
+    assert!(!out.stderr.contains("panicked"), "{out}");
 }

@@ -92,7 +92,14 @@ enum Ended {
 /// frame the world resumed at. A server that does not come back, or a new
 /// run, ends the export.
 pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
-    let mut client = Client::connect(side.world.as_str(), side.timeout)?;
+    info!(world = %side.world, timeout = ?side.timeout, "waiting for the world's server");
+    let world = side.world.as_str();
+    let Some(mut client) = until_stopped(side.timeout, side.stop, |slice| {
+        Client::connect(world, slice)
+    })?
+    else {
+        return Ok(());
+    };
     let mut claim_for = None;
     let mut first = true;
     loop {
@@ -108,8 +115,14 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
             };
         first = false;
         info!(world = %side.world, server_pid, timeout = ?side.timeout, "the server exited; waiting for it to resume");
-        let Ok(next) = Client::connect_next(side.world.as_str(), server_pid, side.timeout) else {
-            return Err(error);
+        let world = side.world.as_str();
+        let next = until_stopped(side.timeout, side.stop, |slice| {
+            Client::connect_next(world, server_pid, slice)
+        });
+        let next = match next {
+            Ok(Some(next)) => next,
+            Ok(None) => return Ok(()),
+            Err(_) => return Err(error),
         };
         let resumed = next.status()?;
         if resumed.run_pid != run_pid {
@@ -124,6 +137,42 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
         });
         client = next;
         claim_for = owner;
+    }
+}
+
+/// How long one attempt to reach a server waits before the stop flag is
+/// looked at again (Ctrl-C while the export waits for its server).
+const STOP_CHECK: Duration = Duration::from_millis(200);
+
+/// `connect`, given at most [`STOP_CHECK`] per attempt, until it reaches a
+/// server, `timeout` has passed (then its last error, with the whole
+/// `timeout` in it) or `stop` is set (`None`).
+fn until_stopped(
+    timeout: Duration,
+    stop: &AtomicBool,
+    mut connect: impl FnMut(Duration) -> Result<Client, sim_client::ConnectError>,
+) -> Result<Option<Client>, sim_client::ConnectError> {
+    use sim_client::ConnectError;
+    let deadline = Instant::now() + timeout;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(STOP_CHECK);
+        match connect(slice) {
+            Ok(client) => return Ok(Some(client)),
+            Err(ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. })
+                if Instant::now() < deadline => {}
+            Err(ConnectError::NoServer { world, .. }) => {
+                return Err(ConnectError::NoServer { world, timeout })
+            }
+            Err(ConnectError::NotAnswering { world, .. }) => {
+                return Err(ConnectError::NotAnswering { world, timeout })
+            }
+            Err(e) => return Err(e),
+        }
     }
 }
 

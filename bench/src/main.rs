@@ -18,6 +18,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod baselines;
 mod blob;
 mod breakdown;
 mod carla;

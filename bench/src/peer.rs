@@ -48,10 +48,10 @@ pub(crate) fn peer(args: PeerArgs) -> anyhow::Result<()> {
                 std::thread::sleep(Duration::from_millis(1));
             }
         }
-        "tcp" => crate::tick::tcp_echo(),
+        "tcp" => crate::baselines::tcp_echo(),
         kind => match crate::shapes::Shape::of_peer(kind) {
             Some(shape) => crate::shapes::peer(&args.name, shape),
-            None => crate::tick::raw_peer(kind, &args.name),
+            None => crate::baselines::raw_peer(kind, &args.name),
         },
     }
 }

@@ -174,7 +174,7 @@ fn latencies(json: &serde_json::Value, key: &str) -> Latencies {
 /// The TCP loopback exchange CARLA's client makes per tick (a request, a
 /// frame header back), timed.
 fn tcp_round_trips(ticks: u64) -> anyhow::Result<Latencies> {
-    let (_peer, mut exchange) = crate::tick::tcp_exchange()?;
+    let (_peer, mut exchange) = crate::baselines::tcp_exchange()?;
     let mut latencies = Latencies::new();
     for i in 0..ticks + ticks / 10 {
         let start = Instant::now();

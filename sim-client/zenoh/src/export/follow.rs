@@ -22,9 +22,10 @@ use crate::{Notice, Side};
 /// run, ends the export.
 pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
     info!(world = %side.world, timeout = ?side.timeout, "waiting for the world's server");
-    let world = side.world.as_str();
+    // Its own copy: `side` is lent mutably to each export below.
+    let world = side.world.clone();
     let Some(mut client) = until_stopped(side.timeout, side.stop, |slice| {
-        Client::connect(world, slice)
+        Client::connect(world.as_str(), slice)
     })?
     else {
         return Ok(());
@@ -44,9 +45,8 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
             };
         first = false;
         info!(world = %side.world, server_pid, timeout = ?side.timeout, "the server exited; waiting for it to resume");
-        let world = side.world.as_str();
         let next = until_stopped(side.timeout, side.stop, |slice| {
-            Client::connect_next(world, server_pid, slice)
+            Client::connect_next(world.as_str(), server_pid, slice)
         });
         let next = match next {
             Ok(Some(next)) => next,

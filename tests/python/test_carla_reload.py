@@ -24,6 +24,11 @@ reconnects, closing the socket it may be closing itself) and kept
 writing world states while the client stopped its old world stream. The
 gateway now holds captures and world states across a load and never
 closes a stream socket its client still reads (`stream/readers.rs`).
+Captures written just before the load may still wait in the client for
+an io thread: two of them running in the swap built two more episodes,
+each waiting 10 s for a world state on both io threads of a 2-core
+machine (an abort in 3 of 10 CI runs). The gateway answers a load
+only once its last capture had 100 ms to reach the client's callback.
 
 The same with `load_world` in asynchronous mode, straight after
 `get_world`, as the seeds' determinism example begins: world states flow

@@ -114,6 +114,21 @@ impl EpisodeChange {
     pub(crate) fn begun(mut self, run_pid: u32, episode: u64) {
         self.began = Some((run_pid, episode));
     }
+
+    /// Waits, before the load is answered, until the captures written
+    /// before it had [`readers::CAPTURES_LAND`] to reach the client's
+    /// sensor callbacks (none goes out meanwhile): a callback still to
+    /// run when CARLA's client swaps its episode builds one of its own.
+    pub(crate) fn let_captures_land(&self) {
+        let wait = lock(&self.hub.streams).captures_land_in();
+        if !wait.is_zero() {
+            debug!(
+                wait_ms = wait.as_millis() as u64,
+                "letting the last captures reach the client before answering the load"
+            );
+            std::thread::sleep(wait);
+        }
+    }
 }
 
 impl Drop for EpisodeChange {

@@ -183,6 +183,7 @@ impl Session {
             client.load_world(scene, reset)
         };
         let status = loaded.map_err(CallError::simbus)?;
+        change.let_captures_land();
         change.begun(status.run_pid, status.episode);
         self.hub.maps.give(status.run_pid, status.episode, map);
         if let MapRequest::CarlaTown(town) = &request {

@@ -10,6 +10,12 @@
 //!   sensor callback): a use-after-free, a 10 s wait thrown out of a
 //!   `noexcept` function (`terminate`), or two subscriptions of the world
 //!   stream stopping each other's socket (`close: Bad file descriptor`).
+//!   Captures written just before the load's request may still wait in
+//!   the client for an io thread (on a busy machine, or behind Python's
+//!   GIL): the load is answered only once the last capture written had
+//!   [`CAPTURES_LAND`] to reach its callback. Two such callbacks in the
+//!   swap took both io threads of a 2-core machine into a 10 s wait for a
+//!   world state that only an io thread could read.
 //! - The world stream is quiet while the client swaps its subscription:
 //!   from a load's request until a world reader subscribes again, world
 //!   states are held (the latest goes out then). The client stops its old
@@ -47,6 +53,11 @@ const LINGER_STACK: usize = 64 * 1024;
 /// client subscribes to it again (the loading client does, within a few
 /// calls): then the clients that did not load get world states again.
 const WORLD_HOLD_AT_MOST: Duration = Duration::from_secs(1);
+/// How long a capture written before a world load is given to reach the
+/// client's sensor callback before the load is answered (see the module's
+/// first rule). CARLA's own server answers a load and then loads for
+/// seconds; this is the part of that quiet the client's race needs.
+pub(super) const CAPTURES_LAND: Duration = Duration::from_millis(100);
 
 /// (run pid, episode): the episode a message belongs to. The run is the
 /// server's ([`sim_client::Status::run_pid`]): a server resumed from its
@@ -98,6 +109,8 @@ pub(super) struct Streams {
     /// World loads in flight: while any is, no sensor capture is written.
     changing: usize,
     world_hold: Option<WorldHold>,
+    /// When a capture was last written to a reader.
+    last_capture: Option<Instant>,
 }
 
 impl Streams {
@@ -156,8 +169,19 @@ impl Streams {
         if self.changing > 0 || older(key, self.episode) {
             return false;
         }
-        self.send(stream, message);
+        if self.send(stream, message) {
+            self.last_capture = Some(Instant::now());
+        }
         true
+    }
+
+    /// How long a world load's answer must still wait for the captures
+    /// written before it to reach the client's callbacks
+    /// ([`CAPTURES_LAND`] after the last one).
+    pub(super) fn captures_land_in(&self) -> Duration {
+        self.last_capture.map_or(Duration::ZERO, |at| {
+            CAPTURES_LAND.saturating_sub(at.elapsed())
+        })
     }
 
     /// Sends world state `message` of episode `key` unless a newer episode
@@ -191,9 +215,10 @@ impl Streams {
 
     /// Sends `message` to every reader of `stream`; a reader that fails is
     /// dropped. With no reader yet but one expected, the message waits.
-    fn send(&mut self, stream: u32, message: &[u8]) {
+    /// Returns whether it was written to a reader.
+    fn send(&mut self, stream: u32, message: &[u8]) -> bool {
         let Some(s) = self.by_id.get_mut(&stream) else {
-            return;
+            return false;
         };
         if s.readers.is_empty() {
             if s.expecting() {
@@ -202,10 +227,11 @@ impl Streams {
                 }
                 s.backlog.push(message.to_vec());
             }
-            return;
+            return false;
         }
         s.readers
             .retain_mut(|reader| write_message(reader, message, stream));
+        true
     }
 
     /// How long a forwarder of `stream` may wait before it must look again
@@ -276,6 +302,9 @@ impl Streams {
             Entry::Vacant(_) => return Some(socket),
         };
         s.pending.pop();
+        if !s.backlog.is_empty() && stream != WORLD_STREAM_ID {
+            self.last_capture = Some(Instant::now());
+        }
         for message in s.backlog.drain(..) {
             if !write_message(&mut socket, &message, stream) {
                 return None;
@@ -386,6 +415,30 @@ mod tests {
         assert!(!streams.send_capture(SENSOR, (7, 1), b"old episode"));
         assert!(streams.send_capture(SENSOR, (7, 2), b"new episode"));
         assert_eq!(read_message(&mut client), b"new episode");
+    }
+
+    #[test]
+    fn a_load_waits_for_captures_written_to_a_reader_not_for_held_ones() {
+        let mut streams = Streams::default();
+        streams.admit((7, 1));
+        assert_eq!(streams.captures_land_in(), Duration::ZERO, "nothing sent");
+        let (world, _world_client) = pair();
+        assert!(streams.subscribe(WORLD_STREAM_ID, world).is_none());
+        assert!(streams.send_world_state((7, 1), b"frame 1"));
+        assert_eq!(streams.captures_land_in(), Duration::ZERO, "a world state");
+
+        streams.expect(SENSOR);
+        assert!(streams.send_capture(SENSOR, (7, 1), b"backlog"));
+        assert_eq!(streams.captures_land_in(), Duration::ZERO, "kept, unsent");
+        let (gateway, mut client) = pair();
+        assert!(streams.subscribe(SENSOR, gateway).is_none());
+        assert_eq!(read_message(&mut client), b"backlog");
+        let after_backlog = streams.captures_land_in();
+        assert!(after_backlog > Duration::ZERO && after_backlog <= CAPTURES_LAND);
+
+        assert!(streams.send_capture(SENSOR, (7, 1), b"capture"));
+        assert_eq!(read_message(&mut client), b"capture");
+        assert!(streams.captures_land_in() > Duration::ZERO);
     }
 
     #[test]

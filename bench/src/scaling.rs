@@ -12,6 +12,17 @@
 //! (the hidden `peer --kind frame-reader`) that, for each frame it gets,
 //! reads every actor's pose in place in shared memory and times it from
 //! holding the sample to done.
+//!
+//! Two floors for that read, in the same reader on the same frames: the
+//! same poses read again straight after (the frame now in the reader's
+//! cache: what the additions cost), and, on every other frame, one word
+//! of every cache line of the actors (what bringing the frame's bytes to
+//! the reader's core costs, with nothing added). The pose read touches
+//! most of those lines (a 28-byte pose every 96 bytes) and never more, so
+//! the line floor moves at least its bytes. A third floor, on a third of
+//! the frames, touches only the lines the same poses would fill packed
+//! (28 of every 96 bytes, as a layout with the poses apart from the rest
+//! of the actors' state would hold them): what such a layout would move.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
@@ -19,7 +30,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use shared_types::{WorldName, WorldSettings};
+use shared_types::{ActorState, WorldName, WorldSettings};
 use sim_client::{Client, WaitMode};
 use sim_server::{FrameTime, Scene, Server, ServerConfig};
 use simbus_process::ChildGuard;
@@ -87,8 +98,49 @@ pub(crate) struct Row {
     actors: usize,
     alone: Timed,
     with_reader: Timed,
-    /// The reader's time from holding a frame to having read every pose.
+    /// What its reader measured.
+    reader: ReaderReport,
+}
+
+/// What the reader peer measured (ns each), on frames as fresh from the
+/// server as each other.
+struct ReaderReport {
+    /// From holding a frame to having read every pose.
     reads: Latencies,
+    /// The same read again straight after, the frame in cache.
+    warm: Latencies,
+    /// One word of every cache line of a frame's actors (other frames).
+    lines: Latencies,
+    /// One word of every line of the first 28/96 of a frame's actors: the
+    /// bytes of its poses, were they packed (other frames again).
+    packed: Latencies,
+}
+
+impl ReaderReport {
+    /// The report's lines, in the order the reader prints them.
+    fn parse(lines: &[String]) -> anyhow::Result<Self> {
+        let [reads, warm, lines, packed] = lines else {
+            anyhow::bail!("the frame reader's report ended early");
+        };
+        let parse = |line: &str| -> anyhow::Result<Latencies> {
+            let mut latencies = Latencies::new();
+            for item in line.split_whitespace() {
+                latencies.record(item.parse()?);
+            }
+            Ok(latencies)
+        };
+        Ok(Self {
+            reads: parse(reads)?,
+            warm: parse(warm)?,
+            lines: parse(lines)?,
+            packed: parse(packed)?,
+        })
+    }
+
+    /// The pose read's p50 over the line floor's.
+    fn read_over_lines(&self) -> f64 {
+        self.reads.quantile_us(0.5) / self.lines.quantile_us(0.5).max(0.001)
+    }
 }
 
 /// The configuration of a timed run: `boxes:n`, async, fixed step 0.01 s
@@ -126,7 +178,7 @@ fn alone(n: u32, frames: usize) -> anyhow::Result<(usize, Timed)> {
 }
 
 /// `boxes:n` with one reader process, until it has read `reads` frames.
-fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, Latencies)> {
+fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, ReaderReport)> {
     let config = config(n, "reader", None)?;
     let world = config.world.to_string();
     let mut server = Server::start(config)?;
@@ -148,7 +200,7 @@ fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, Latencies)> {
                 .next()
                 .filter(|l| l == "ready")
                 .map(|_| Instant::now());
-            let report = lines.next();
+            let report: Vec<String> = lines.by_ref().take(4).collect();
             shutdown.store(true, Ordering::Relaxed);
             (ready, report)
         });
@@ -158,18 +210,14 @@ fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, Latencies)> {
     })?;
     drop(guard);
     let ready = ready.context("the frame reader did not start")?;
-    let report = report.context("the frame reader's report")?;
-    let mut latencies = Latencies::new();
-    for item in report.split_whitespace() {
-        latencies.record(item.parse()?);
-    }
+    let report = ReaderReport::parse(&report)?;
     let timed: Vec<FrameTime> = server
         .frame_timings()
         .context("frame timings")?
         .frames()
         .filter(|f| f.started >= ready)
         .collect();
-    Ok((Timed::of(&timed)?, latencies))
+    Ok((Timed::of(&timed)?, report))
 }
 
 /// Every row, one per actor count.
@@ -178,12 +226,12 @@ pub(crate) fn rows(boxes: &[u32], frames: usize, reads: u64) -> anyhow::Result<V
         .iter()
         .map(|&n| {
             let (actors, quiet) = alone(n, frames)?;
-            let (read, read_times) = with_reader(n, reads)?;
+            let (read, reader) = with_reader(n, reads)?;
             Ok(Row {
                 actors,
                 alone: quiet,
                 with_reader: read,
-                reads: read_times,
+                reader,
             })
         })
         .collect()
@@ -198,7 +246,11 @@ pub(crate) fn json(rows: &[Row]) -> serde_json::Value {
                 "actors": r.actors,
                 "no_subscriber": r.alone.json(),
                 "one_reader": r.with_reader.json(),
-                "reader_reads_frame_in_place": r.reads.json(),
+                "reader_reads_frame_in_place": r.reader.reads.json(),
+                "reader_reads_it_again_warm": r.reader.warm.json(),
+                "reader_touches_every_line": r.reader.lines.json(),
+                "reader_touches_packed_poses_lines": r.reader.packed.json(),
+                "read_over_line_floor_p50": r.reader.read_over_lines(),
             })
         })
         .collect();
@@ -213,7 +265,7 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         WARMUP_FRAMES + 1
     );
     println!(
-        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11}",
+        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} {:>6}",
         "actors",
         "rapier step µs",
         "server frame µs",
@@ -223,10 +275,14 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         "bus, 1 reader",
         "over-",
         "p50",
-        "reader µs"
+        "reader µs",
+        "warm",
+        "lines",
+        "read /",
+        "packed"
     );
     println!(
-        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11}",
+        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} {:>6}",
         "",
         "p50 / p99",
         "p50 / p99",
@@ -236,12 +292,16 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         "p50 / p99",
         "head",
         "ratio",
-        "p50 / p99"
+        "p50 / p99",
+        "p50",
+        "p50",
+        "lines",
+        "p50"
     );
     let pair = |l: &Latencies| format!("{:.1} / {:.1}", l.quantile_us(0.5), l.quantile_us(0.99));
     for r in rows {
         println!(
-            "{:>6} {:>17} {:>17} {:>13} {:>5.1}% {:>5.1}% | {:>13} {:>5.1}% {:>5.1}% | {:>11}",
+            "{:>6} {:>17} {:>17} {:>13} {:>5.1}% {:>5.1}% | {:>13} {:>5.1}% {:>5.1}% | {:>11} {:>6.1} {:>6.1} {:>5.2}x {:>6.1}",
             r.actors,
             pair(&r.alone.physics),
             pair(&r.alone.whole),
@@ -251,47 +311,97 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
             pair(&r.with_reader.bus),
             r.with_reader.overhead * 100.0,
             r.with_reader.p50_ratio() * 100.0,
-            pair(&r.reads)
+            pair(&r.reader.reads),
+            r.reader.warm.quantile_us(0.5),
+            r.reader.lines.quantile_us(0.5),
+            r.reader.read_over_lines(),
+            r.reader.packed.quantile_us(0.5)
         );
     }
     println!(
         "bus: server frame − rapier step, per frame; overhead: Σ bus / Σ rapier step; p50 ratio: \
          bus p50 / rapier step p50; reader: one subscriber process sums every actor's position \
-         and rotation in place, timed from holding the frame to done"
+         and rotation in place, timed from holding the frame to done; warm: the same read again \
+         straight after; lines: one word of every cache line of the actors, on other frames \
+         (the memory floor of the read); packed: one word of every line the poses alone would \
+         fill (28 of each 96 bytes), on other frames again"
     );
 }
 
-/// The `frame-reader` peer: prints `ready`, then for `samples` frames reads
-/// every actor's pose in place, and prints each read's nanoseconds on one
-/// line (fewer if frames stop coming for 5 s).
+/// The `frame-reader` peer: prints `ready`, then reads frames until it
+/// has read `samples` frames' poses, and prints four lines of
+/// nanoseconds: each pose read, each warm re-read of the same frame
+/// straight after, each line touch and each packed-poses touch. The three
+/// kinds take turns frame by frame, so each reads frames as fresh from the
+/// server as the others'. Fewer if frames stop coming for 5 s.
 pub(crate) fn reader(world: &str, samples: u64) -> anyhow::Result<()> {
     let mut client = Client::connect(world, Duration::from_secs(30))?;
     client.set_wait_mode(WaitMode::Block);
     println!("ready");
-    let mut reads = Vec::with_capacity(samples as usize);
+    let capacity = samples as usize;
+    let [mut reads, mut warm, mut lines, mut packed] =
+        std::array::from_fn::<Vec<u64>, 4, _>(|_| Vec::with_capacity(capacity));
     let mut total = [0.0f32; 7];
+    let mut touched = 0u64;
     while (reads.len() as u64) < samples {
         let Ok(view) = client.wait_for_frame(Duration::from_secs(5)) else {
             break;
         };
         let held = Instant::now();
-        // Seven independent sums: the read is bound by memory, not by one
-        // chain of dependent additions.
-        let mut sum = [0.0f32; 7];
-        for actor in view.actors() {
-            let (p, q) = (actor.position, actor.rotation);
-            for (s, v) in sum.iter_mut().zip(p.iter().chain(&q)) {
-                *s += v;
+        let actors = view.actors();
+        if lines.len() < reads.len() {
+            touched = touched.wrapping_add(touch_every_line(actors));
+            lines.push(held.elapsed().as_nanos() as u64);
+        } else if packed.len() < reads.len() {
+            let poses_bytes = actors.len() * POSE_BYTES / std::mem::size_of::<ActorState>();
+            touched = touched.wrapping_add(touch_every_line(&actors[..poses_bytes]));
+            packed.push(held.elapsed().as_nanos() as u64);
+        } else {
+            let sum = sum_poses(actors);
+            reads.push(held.elapsed().as_nanos() as u64);
+            let again = Instant::now();
+            let sum_again = sum_poses(actors);
+            warm.push(again.elapsed().as_nanos() as u64);
+            for ((t, s), a) in total.iter_mut().zip(sum).zip(sum_again) {
+                *t += s + a;
             }
         }
-        let sum = std::hint::black_box(sum);
-        reads.push(held.elapsed().as_nanos() as u64);
-        for (t, s) in total.iter_mut().zip(sum) {
-            *t += s;
+    }
+    std::hint::black_box((total, touched));
+    for timings in [reads, warm, lines, packed] {
+        let line: Vec<String> = timings.iter().map(u64::to_string).collect();
+        println!("{}", line.join(" "));
+    }
+    Ok(())
+}
+
+/// A pose's bytes: position and rotation, seven `f32`.
+const POSE_BYTES: usize = 7 * 4;
+
+/// Every actor's position and rotation, summed: seven independent sums,
+/// so the read is bound by memory, not by one chain of dependent additions.
+fn sum_poses(actors: &[ActorState]) -> [f32; 7] {
+    let mut sum = [0.0f32; 7];
+    for actor in actors {
+        let (p, q) = (actor.position, actor.rotation);
+        for (s, v) in sum.iter_mut().zip(p.iter().chain(&q)) {
+            *s += v;
         }
     }
-    std::hint::black_box(total);
-    let line: Vec<String> = reads.iter().map(u64::to_string).collect();
-    println!("{}", line.join(" "));
-    Ok(())
+    std::hint::black_box(sum)
+}
+
+/// One word of every 64-byte line the actors span, and nothing else:
+/// each 96-byte record's id (offset 0), `rotation[1]` (32) and
+/// `angular_velocity[2]` (64) are 32 bytes apart, so at least one falls in
+/// every line, wherever the frame begins.
+fn touch_every_line(actors: &[ActorState]) -> u64 {
+    let mut acc = 0u64;
+    for actor in actors {
+        acc = acc
+            .wrapping_add(actor.id)
+            .wrapping_add(u64::from(actor.rotation[1].to_bits()))
+            .wrapping_add(u64::from(actor.angular_velocity[2].to_bits()));
+    }
+    std::hint::black_box(acc)
 }

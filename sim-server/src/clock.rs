@@ -180,6 +180,16 @@ impl Pacer {
         self.anchor = None;
     }
 
+    /// Whether frames under `settings` wait for their time
+    /// ([`Pacer::next_frame_at`] gives one), so the loop sleeps between
+    /// them.
+    pub fn paces(&self, settings: &WorldSettings) -> bool {
+        match settings.fixed_delta_nanos() {
+            Some(_) => self.realtime,
+            None => self.max_fps > 0.0,
+        }
+    }
+
     /// When the next frame of `clock` is due under `settings`; `None` for now.
     pub fn next_frame_at(
         &mut self,
@@ -311,6 +321,29 @@ mod tests {
         assert_eq!((plan.count, plan.capped), (16, false));
         let plan = SubstepPlan::new(3_000_000, &settings(true, 0.001, 1));
         assert_eq!((plan.count, plan.capped), (1, true));
+    }
+
+    #[test]
+    fn a_pacer_paces_exactly_when_it_gives_the_next_frame_a_time() {
+        let now = Instant::now();
+        let clock = Clock::new(now);
+        let fixed = WorldSettings {
+            fixed_delta_seconds: Some(0.01),
+            ..Default::default()
+        };
+        let variable = WorldSettings::default();
+        for (realtime, max_fps) in [(false, 0.0), (true, 0.0), (false, 60.0), (true, 60.0)] {
+            for settings in [&fixed, &variable] {
+                let mut pacer = Pacer::new(realtime, max_fps);
+                assert_eq!(
+                    pacer.paces(settings),
+                    pacer.next_frame_at(&clock, settings, now).is_some(),
+                    "realtime {realtime}, max fps {max_fps}, {settings:?}"
+                );
+            }
+        }
+        assert!(Pacer::new(true, 0.0).paces(&fixed));
+        assert!(Pacer::new(false, 60.0).paces(&variable));
     }
 
     #[test]

@@ -42,6 +42,8 @@ pub(crate) struct FramesArgs {
 struct Delivery {
     placement: Placement,
     block: Latencies,
+    /// Blocking `wait_for_frame`: the same frame held in place, no copy.
+    block_in_place: Latencies,
     /// None on one CPU: a spinning client leaves the server no CPU.
     spin: Option<Latencies>,
     /// A futex round trip every millisecond under the same placement.
@@ -60,10 +62,16 @@ impl Delivery {
 /// `placement` says.
 fn delivery(server: &BenchServer, placement: Placement, samples: u64) -> anyhow::Result<Delivery> {
     placement.apply(&[server.pid()])?;
-    let block = delivery_latency(&server.world, WaitMode::Block, samples)?;
+    let block = delivery_latency(&server.world, WaitMode::Block, Read::Copy, samples)?;
+    let block_in_place = delivery_latency(&server.world, WaitMode::Block, Read::InPlace, samples)?;
     let spin = match placement {
         Placement::Same => None,
-        _ => Some(delivery_latency(&server.world, WaitMode::Spin, samples)?),
+        _ => Some(delivery_latency(
+            &server.world,
+            WaitMode::Spin,
+            Read::Copy,
+            samples,
+        )?),
     };
     Placement::Unpinned.apply(&[server.pid()])?;
     // The floor under the same conditions: a round trip every millisecond.
@@ -71,6 +79,7 @@ fn delivery(server: &BenchServer, placement: Placement, samples: u64) -> anyhow:
     Ok(Delivery {
         placement,
         block,
+        block_in_place,
         spin,
         floor,
     })
@@ -107,18 +116,43 @@ fn server_fps(scene: Scene, frames: u64) -> anyhow::Result<(u64, f64, f64)> {
     ))
 }
 
-/// Publish → `wait_for_tick` returned, against a 1 kHz realtime server.
-fn delivery_latency(world: &str, mode: WaitMode, samples: u64) -> anyhow::Result<Latencies> {
+/// How a delivery row takes each frame.
+#[derive(Clone, Copy)]
+enum Read {
+    /// `wait_for_tick`: an owned `WorldSnapshot`.
+    Copy,
+    /// `wait_for_frame`: the frame held in place in shared memory.
+    InPlace,
+}
+
+/// Publish → `wait_for_tick` (or `wait_for_frame`) returned, against a
+/// 1 kHz realtime server.
+fn delivery_latency(
+    world: &str,
+    mode: WaitMode,
+    read: Read,
+    samples: u64,
+) -> anyhow::Result<Latencies> {
     let mut client = Client::connect(world, Duration::from_secs(10))?;
     client.set_wait_mode(mode);
     client.wait_for_tick(Duration::from_secs(5))?;
+    let wait = Duration::from_secs(5);
     let mut latencies = Latencies::new();
     while latencies.len() < samples {
-        let snapshot = client.wait_for_tick(Duration::from_secs(5))?;
-        let received = now_ns();
-        let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
-        if snapshot.missed == 0 {
-            latencies.record(received.saturating_sub(published));
+        // (when it was received, when it was published, frames missed)
+        let (received, published, missed) = match read {
+            Read::Copy => {
+                let snapshot = client.wait_for_tick(wait)?;
+                let t = snapshot.timestamp().platform_timestamp;
+                (now_ns(), t, snapshot.missed)
+            }
+            Read::InPlace => {
+                let view = client.wait_for_frame(wait)?;
+                (now_ns(), view.timestamp().platform_timestamp, view.missed())
+            }
+        };
+        if missed == 0 {
+            latencies.record(received.saturating_sub((published * 1e9) as u64));
         }
     }
     Ok(latencies)
@@ -168,6 +202,7 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
                 "wait_for_tick": deliveries.iter().map(|d| serde_json::json!({
                     "placement": d.placement.name(),
                     "block": d.block.json(),
+                    "block_in_place": d.block_in_place.json(),
                     "spin": d.spin.as_ref().map(Latencies::json),
                     "futex_round_trip_every_ms": d.floor.json(),
                     "block_over_futex_hop_p50": d.block_over_hop(),
@@ -191,13 +226,14 @@ pub(crate) fn run(args: FramesArgs) -> anyhow::Result<()> {
     }
     println!();
     println!(
-        "wait_for_tick latency: frame published -> snapshot in the client ({} samples each, 1 kHz server, empty scene)",
+        "wait_for_tick latency: frame published -> snapshot in the client ({} samples each, 1 kHz server, empty scene; in place: wait_for_frame, no copy)",
         args.samples
     );
     for d in &deliveries {
         println!("placement: {}", d.placement.name());
         println!("{}", header("wait mode"));
         println!("{}", d.block.row("block (frame-ready event)"));
+        println!("{}", d.block_in_place.row("block, in place"));
         match &d.spin {
             Some(spin) => println!("{}", spin.row("spin")),
             None => println!(

@@ -3,9 +3,10 @@
 //! inside the flag's documented range, and accepted, or refused with exit
 //! 2 and the flag named, before anything starts or changes.
 //!
-//! The table below lists them all; a second test reads every `--help` and
-//! fails on an option or argument that takes a value and is in neither the
-//! table nor the list of non-numeric ones, so a new flag cannot skip it.
+//! The table (`numeric_flags/table.rs`) lists them all; a second test
+//! reads every `--help` and fails on an option or argument that takes a
+//! value and is in neither the table nor the list of non-numeric ones, so a
+//! new flag cannot skip it.
 
 use std::collections::BTreeSet;
 use std::process::Command;

@@ -425,20 +425,27 @@ mod tests {
         let (world, _world_client) = pair();
         assert!(streams.subscribe(WORLD_STREAM_ID, world).is_none());
         assert!(streams.send_world_state((7, 1), b"frame 1"));
-        assert_eq!(streams.captures_land_in(), Duration::ZERO, "a world state");
+        assert_eq!(streams.last_capture, None, "a world state");
 
         streams.expect(SENSOR);
         assert!(streams.send_capture(SENSOR, (7, 1), b"backlog"));
-        assert_eq!(streams.captures_land_in(), Duration::ZERO, "kept, unsent");
+        assert_eq!(streams.last_capture, None, "kept, unsent");
+        let before = Instant::now();
         let (gateway, mut client) = pair();
         assert!(streams.subscribe(SENSOR, gateway).is_none());
         assert_eq!(read_message(&mut client), b"backlog");
-        let after_backlog = streams.captures_land_in();
-        assert!(after_backlog > Duration::ZERO && after_backlog <= CAPTURES_LAND);
+        let flushed = streams.last_capture.expect("the backlog went out");
+        assert!(flushed >= before);
 
         assert!(streams.send_capture(SENSOR, (7, 1), b"capture"));
         assert_eq!(read_message(&mut client), b"capture");
-        assert!(streams.captures_land_in() > Duration::ZERO);
+        assert!(streams.last_capture.unwrap() >= flushed);
+
+        // The wait is what is left of CAPTURES_LAND since the last one.
+        streams.last_capture = Some(Instant::now() + Duration::from_secs(3600));
+        assert_eq!(streams.captures_land_in(), CAPTURES_LAND);
+        streams.last_capture = Instant::now().checked_sub(CAPTURES_LAND * 2);
+        assert_eq!(streams.captures_land_in(), Duration::ZERO);
     }
 
     #[test]

@@ -107,7 +107,6 @@ impl Proc {
         };
         let mut child = command
             .args(args)
-            .envs(env.iter().copied())
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -115,6 +114,8 @@ impl Proc {
                 "RUST_LOG",
                 std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
             )
+            // After the default: a caller's RUST_LOG wins.
+            .envs(env.iter().copied())
             .spawn()
             .unwrap_or_else(|e| panic!("starting {program}: {e}"));
         let command = format!("{program} {}", args.join(" "));

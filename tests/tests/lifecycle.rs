@@ -1,7 +1,7 @@
-//! Process lifecycle: no server is a clear error within the timeout; a server
-//! killed with SIGKILL is replaced cleanly on the same world; a second live
-//! server on a world is refused; two worlds run side by side unaware of each
-//! other.
+//! Process lifecycle: no server is a clear error within the timeout, and
+//! Ctrl-C ends the wait for one; a server killed with SIGKILL is replaced
+//! cleanly on the same world; a second live server on a world is refused;
+//! two worlds run side by side unaware of each other.
 
 use std::time::Duration;
 
@@ -12,6 +12,32 @@ fn a_client_without_a_server_fails_clearly_within_its_timeout() {
     let world = unique_world("nobody");
     assert_fails_without_server(&world, &["status"]);
     assert_fails_without_server(&world, &["watch", "--frames", "1"]);
+}
+
+#[test]
+fn a_command_waiting_for_its_worlds_server_stops_on_ctrl_c() {
+    let world = unique_world("ctrl-c-wait");
+    let commands: [&[&str]; 3] = [&["status"], &["tick", "--count", "1"], &["watch"]];
+    for command in commands {
+        // Nothing serves the world: each would wait ten minutes.
+        let mut args = vec!["--world", world.as_str(), "--timeout", "600"];
+        args.extend(command);
+        let waiting = Proc::spawn_env(
+            "sim-client",
+            &args,
+            &[("RUST_LOG", std::ffi::OsStr::new("sim_client::cli=debug"))],
+        );
+        waiting.wait_stderr("waiting for the world's server", Duration::from_secs(30));
+        simbus_tests::send_signal(waiting.pid(), libc::SIGINT).expect("signalling");
+        let out = waiting.finish(Duration::from_secs(30));
+        out.assert_code(130);
+        assert!(
+            out.stderr.contains(&format!(
+                "sim-client: interrupted: before the server of world '{world}' answered"
+            )),
+            "{command:?}: {out}"
+        );
+    }
 }
 
 #[test]

@@ -145,13 +145,19 @@ enum Command {
 }
 
 /// How a command failed, for the exit code: 1 for a runtime failure,
-/// 2 for input that was refused.
+/// 2 for input that was refused, 130 for Ctrl-C or SIGTERM before the
+/// command began.
 #[derive(Debug)]
 pub enum Failure {
     /// Something went wrong talking to the world.
     Runtime(anyhow::Error),
     /// The input was refused (invalid settings, bad flags); nothing changed.
     Refused(anyhow::Error),
+    /// Ctrl-C or SIGTERM came while the command waited to begin (for its
+    /// world's server); nothing changed. Once a command runs, a signal
+    /// ends it as its own help says (most exit 0 after putting back what
+    /// they changed).
+    Interrupted(anyhow::Error),
 }
 
 impl<E: Into<anyhow::Error>> From<E> for Failure {
@@ -228,6 +234,10 @@ fn main() -> ExitCode {
         Err(Failure::Refused(e)) => {
             eprintln!("sim-client: refused: {e:#}");
             ExitCode::from(2)
+        }
+        Err(Failure::Interrupted(e)) => {
+            eprintln!("sim-client: interrupted: {e:#}");
+            ExitCode::from(130)
         }
     }
 }

@@ -6,7 +6,7 @@ use anyhow::anyhow;
 use clap::Args;
 use shared_types::limits::MAX_ACTOR_POSITION;
 use shared_types::{ActorKind, Command, WorldName};
-use sim_client::{BatchError, Client, CommandError, LoadWorldError};
+use sim_client::{BatchError, CommandError, LoadWorldError};
 
 use crate::Failure;
 
@@ -95,7 +95,7 @@ pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Re
             )))
         }
     };
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let response = client
         .apply_batch_sync(&[command], false)
@@ -127,7 +127,7 @@ pub(crate) fn destroy(
     timeout: Duration,
     args: DestroyArgs,
 ) -> Result<(), Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     client.destroy(args.id).map_err(command_failure)?;
     println!("destroyed actor {}", args.id);
@@ -166,13 +166,13 @@ pub(crate) fn reload(
     timeout: Duration,
     args: ReloadArgs,
 ) -> Result<(), Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(client.reload_world(args.reset_settings), args.json)
 }
 
 pub(crate) fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(
         client.load_world(&args.scene, args.reset_settings),

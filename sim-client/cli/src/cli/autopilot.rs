@@ -9,7 +9,7 @@ use clap::Args;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use shared_types::{ActorKind, Command, WorldName};
-use sim_client::{BatchError, Client, WaitError};
+use sim_client::{BatchError, WaitError};
 
 use crate::Failure;
 
@@ -37,7 +37,7 @@ pub(crate) fn run(
         return Err(Failure::Refused(anyhow!("--every must be at least 1")));
     }
     let interrupted = super::interrupted();
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let participant = client.join_lockstep("autopilot")?;
     let (episode, frame) = participant.joined_at();

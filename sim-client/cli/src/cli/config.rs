@@ -5,7 +5,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, ValueEnum};
 use shared_types::{SubstepRule, WorldName, WorldSettings};
-use sim_client::{ApplySettingsError, Client};
+use sim_client::ApplySettingsError;
 use simbus_input as input;
 use simbus_input::Readable;
 
@@ -166,7 +166,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
             ApplySettingsError::SyncNeedsTicker
         )));
     }
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let current = client.get_settings()?;
     let mut effective_frame = None;
@@ -195,7 +195,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
                     return failure;
                 }
                 // Two requests: the first one (leaving synchronous mode) holds.
-                let (Failure::Refused(e) | Failure::Runtime(e)) = failure;
+                let (Failure::Refused(e) | Failure::Runtime(e) | Failure::Interrupted(e)) = failure;
                 Failure::Runtime(e.context(
                     "the world left synchronous mode, but the other changes were not applied",
                 ))

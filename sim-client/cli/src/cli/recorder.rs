@@ -173,7 +173,7 @@ fn refused_or_runtime(e: RecorderError) -> Failure {
 }
 
 fn connect(world: &WorldName, timeout: Duration) -> Result<Client, Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     Ok(client)
 }

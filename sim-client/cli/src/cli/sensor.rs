@@ -185,7 +185,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
         SensorCommand::Spawn(a) => Some(spec(a)?),
         _ => None,
     };
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     match args.command {
         SensorCommand::Spawn(a) => match spawning {
@@ -494,7 +494,7 @@ fn watch(client: &mut Client, a: WatchArgs, timeout: Duration) -> Result<(), Fai
     let mut seen = 0;
     if a.lockstep {
         // Follow every frame: read its captures, then report it done.
-        let mut frames = Client::connect(client.world().as_str(), timeout)?;
+        let mut frames = super::connect(client.world().as_str(), timeout)?;
         let participant = frames.join_lockstep("sensor-watch")?;
         while a.captures.is_none_or(|n| seen < n) && running() {
             let Some(snapshot) = super::watch::next_frame(&mut frames, timeout)? else {

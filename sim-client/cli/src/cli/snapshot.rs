@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use clap::{Args, Subcommand};
 use shared_types::WorldName;
-use sim_client::{Client, SnapshotError, SnapshotId};
+use sim_client::{SnapshotError, SnapshotId};
 
 use crate::Failure;
 
@@ -49,7 +49,7 @@ fn refused(error: SnapshotError) -> Failure {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: SnapshotArgs) -> Result<(), Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     match args.action {
         Action::Save => {

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use clap::Args;
 use shared_types::{Timestamp, WorldName};
-use sim_client::{Client, JournalStatus, Status};
+use sim_client::{JournalStatus, Status};
 
 use crate::Failure;
 
@@ -17,7 +17,7 @@ pub(crate) struct StatusArgs {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(), Failure> {
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let report = client.status()?;
     let settings = report.settings;

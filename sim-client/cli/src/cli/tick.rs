@@ -112,7 +112,7 @@ impl TickArgs {
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
     let interrupted = super::interrupted();
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let current = client.get_settings()?;
     let delta = args.delta(&current)?;

@@ -299,7 +299,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TopArgs) -> Result
     }
     let interval = Duration::from_secs_f64(args.interval);
     let stop = super::interrupted();
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loop {
         let screen = measure(&client, interval)?;

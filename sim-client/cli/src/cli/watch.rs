@@ -147,7 +147,7 @@ pub(crate) fn next_frame(
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
     super::interrupted();
-    let mut client = Client::connect(world.as_str(), timeout)?;
+    let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     client.set_wait_mode(args.wait_mode);
     client.set_every_frame(args.every_frame);

@@ -60,6 +60,7 @@ pub use error::{
 };
 pub use lockstep::Participant;
 pub use on_tick::CallbackId;
+pub use open::connect_until_stopped;
 pub use recorder::{
     Mismatch, RecorderError, RecorderStatus, ReplayOptions, ReplayStatus, REPLAY_READ_TIMEOUT,
 };

@@ -1,6 +1,7 @@
 //! Opening a world's services from a client, waiting while the server is
 //! still creating them.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::Listener;
@@ -14,7 +15,50 @@ use simbus_transport::spec::{EventSpec, WorldServices};
 use simbus_transport::Bus;
 
 use crate::error::TransportError;
-use crate::{ConnectError, RequestError};
+use crate::{Client, ConnectError, RequestError};
+
+/// How long one attempt of [`connect_until_stopped`] waits before the stop
+/// flag is looked at again.
+const STOP_CHECK: Duration = Duration::from_millis(200);
+
+/// `connect` (e.g. `|slice| Client::connect(world, slice)`), given at most
+/// 200 ms per attempt, until it reaches a server, `timeout` has passed
+/// (then its last error, with the whole `timeout` in it) or `stop` is set
+/// (`Ok(None)`): a wait for a world's server that Ctrl-C ends, for a
+/// program whose signal handler sets `stop`.
+pub fn connect_until_stopped(
+    timeout: Duration,
+    stop: &AtomicBool,
+    mut connect: impl FnMut(Duration) -> Result<Client, ConnectError>,
+) -> Result<Option<Client>, ConnectError> {
+    let deadline = Instant::now() + timeout;
+    let mut said = false;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(STOP_CHECK);
+        match connect(slice) {
+            Ok(client) => return Ok(Some(client)),
+            Err(
+                ConnectError::NoServer { world, .. } | ConnectError::NotAnswering { world, .. },
+            ) if Instant::now() < deadline => {
+                if !std::mem::replace(&mut said, true) {
+                    tracing::debug!(world, ?timeout, "waiting for the world's server");
+                }
+            }
+            Err(ConnectError::NoServer { world, .. }) => {
+                return Err(ConnectError::NoServer { world, timeout })
+            }
+            Err(ConnectError::NotAnswering { world, .. }) => {
+                return Err(ConnectError::NotAnswering { world, timeout })
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
 
 /// Opens a service, retrying while `is_missing` says it does not exist yet,
 /// until `deadline` or the interrupt check ([`crate::set_interrupt_check`])
@@ -172,4 +216,46 @@ fn open_event(
 pub(crate) fn client_node() -> Result<Node<Bus>, ConnectError> {
     simbus_transport::environment::prepare().map_err(ConnectError::SharedDirectory)?;
     simbus_transport::node("sim-client").map_err(|e| ConnectError::transport("node", e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn no_server(slice: Duration) -> Result<Client, ConnectError> {
+        Err(ConnectError::NoServer {
+            world: "w".into(),
+            timeout: slice,
+        })
+    }
+
+    #[test]
+    fn a_stop_ends_the_wait_before_another_attempt() {
+        let mut attempts = 0;
+        let stopped =
+            connect_until_stopped(Duration::from_secs(600), &AtomicBool::new(true), |s| {
+                attempts += 1;
+                no_server(s)
+            });
+        assert!(matches!(stopped, Ok(None)));
+        assert_eq!(attempts, 0);
+    }
+
+    #[test]
+    fn a_timeout_names_the_whole_wait_not_the_last_attempt() {
+        let timeout = Duration::from_millis(450);
+        let mut slices = Vec::new();
+        let failed = connect_until_stopped(timeout, &AtomicBool::new(false), |s| {
+            slices.push(s);
+            std::thread::sleep(s);
+            no_server(s)
+        });
+        match failed {
+            Err(ConnectError::NoServer { timeout: t, .. }) => assert_eq!(t, timeout),
+            other => panic!("{other:?}"),
+        }
+        // Each attempt gets at most STOP_CHECK, the first all of it.
+        assert_eq!(slices.first(), Some(&STOP_CHECK), "{slices:?}");
+        assert!(slices.iter().all(|s| *s <= STOP_CHECK), "{slices:?}");
+    }
 }

@@ -25,7 +25,7 @@ fn a_command_waiting_for_its_worlds_server_stops_on_ctrl_c() {
         let waiting = Proc::spawn_env(
             "sim-client",
             &args,
-            &[("RUST_LOG", std::ffi::OsStr::new("sim_client::cli=debug"))],
+            &[("RUST_LOG", std::ffi::OsStr::new("sim_client::open=debug"))],
         );
         waiting.wait_stderr("waiting for the world's server", Duration::from_secs(30));
         simbus_tests::send_signal(waiting.pid(), libc::SIGINT).expect("signalling");

@@ -165,46 +165,17 @@ pub(crate) fn in_slices<T>(
 }
 
 /// [`sim_client::Client::connect`] that Ctrl-C and SIGTERM end
-/// ([`Failure::Interrupted`]): it connects in slices of at most 200 ms and
-/// looks at [`interrupted`] between them (a world whose server is not up
-/// used to hold the command for its whole `--timeout`, whatever the user
-/// pressed). A timeout's error names the whole `timeout`.
+/// ([`Failure::Interrupted`]; [`sim_client::connect_until_stopped`] looks
+/// at [`interrupted`] every 200 ms): a world whose server is not up used to
+/// hold the command for its whole `--timeout`, whatever the user pressed.
 pub(crate) fn connect(
     world: &str,
     timeout: std::time::Duration,
 ) -> Result<sim_client::Client, Failure> {
-    use sim_client::{Client, ConnectError};
-    use std::time::{Duration, Instant};
-    let stop = interrupted();
-    let deadline = Instant::now() + timeout;
-    let mut said = false;
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            return Err(Failure::Interrupted(anyhow!(
-                "before the server of world '{world}' answered"
-            )));
-        }
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(Duration::from_millis(200));
-        match Client::connect(world, slice) {
-            Ok(client) => return Ok(client),
-            Err(ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. })
-                if Instant::now() < deadline =>
-            {
-                if !std::mem::replace(&mut said, true) {
-                    tracing::debug!(world, ?timeout, "waiting for the world's server");
-                }
-            }
-            Err(ConnectError::NoServer { world, .. }) => {
-                return Err(ConnectError::NoServer { world, timeout }.into())
-            }
-            Err(ConnectError::NotAnswering { world, .. }) => {
-                return Err(ConnectError::NotAnswering { world, timeout }.into())
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
+    sim_client::connect_until_stopped(timeout, interrupted(), |slice| {
+        sim_client::Client::connect(world, slice)
+    })?
+    .ok_or_else(|| Failure::Interrupted(anyhow!("before the server of world '{world}' answered")))
 }
 
 /// A settings refusal is refused input (exit 2); a failed request is a

@@ -2,9 +2,6 @@
 //! world's server (Ctrl-C ends the wait), exports it, and goes on with a
 //! server resumed from the same journal when one comes back in time.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
-
 use sim_client::Client;
 use tracing::{info, warn};
 
@@ -24,7 +21,7 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
     info!(world = %side.world, timeout = ?side.timeout, "waiting for the world's server");
     // Its own copy: `side` is lent mutably to each export below.
     let world = side.world.clone();
-    let Some(mut client) = until_stopped(side.timeout, side.stop, |slice| {
+    let Some(mut client) = sim_client::connect_until_stopped(side.timeout, side.stop, |slice| {
         Client::connect(world.as_str(), slice)
     })?
     else {
@@ -45,7 +42,7 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
             };
         first = false;
         info!(world = %side.world, server_pid, timeout = ?side.timeout, "the server exited; waiting for it to resume");
-        let next = until_stopped(side.timeout, side.stop, |slice| {
+        let next = sim_client::connect_until_stopped(side.timeout, side.stop, |slice| {
             Client::connect_next(world.as_str(), server_pid, slice)
         });
         let next = match next {
@@ -66,41 +63,5 @@ pub(crate) fn run(mut side: Side<'_>) -> Result<(), ExportError> {
         });
         client = next;
         claim_for = owner;
-    }
-}
-
-/// How long one attempt to reach a server waits before the stop flag is
-/// looked at again (Ctrl-C while the export waits for its server).
-const STOP_CHECK: Duration = Duration::from_millis(200);
-
-/// `connect`, given at most [`STOP_CHECK`] per attempt, until it reaches a
-/// server, `timeout` has passed (then its last error, with the whole
-/// `timeout` in it) or `stop` is set (`None`).
-fn until_stopped(
-    timeout: Duration,
-    stop: &AtomicBool,
-    mut connect: impl FnMut(Duration) -> Result<Client, sim_client::ConnectError>,
-) -> Result<Option<Client>, sim_client::ConnectError> {
-    use sim_client::ConnectError;
-    let deadline = Instant::now() + timeout;
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(STOP_CHECK);
-        match connect(slice) {
-            Ok(client) => return Ok(Some(client)),
-            Err(ConnectError::NoServer { .. } | ConnectError::NotAnswering { .. })
-                if Instant::now() < deadline => {}
-            Err(ConnectError::NoServer { world, .. }) => {
-                return Err(ConnectError::NoServer { world, timeout })
-            }
-            Err(ConnectError::NotAnswering { world, .. }) => {
-                return Err(ConnectError::NotAnswering { world, timeout })
-            }
-            Err(e) => return Err(e),
-        }
     }
 }

@@ -27,8 +27,9 @@ pub(crate) struct FramesArgs {
     /// Scaling rows: frames timed per world (0.01 s each: falling, then resting).
     #[arg(long, default_value_t = 300)]
     scale_frames: usize,
-    /// Scaling rows: frames the reader process reads in place per world.
-    #[arg(long, default_value_t = 200)]
+    /// Scaling rows: frames the reader process reads in place per world
+    /// (its four kinds of read take turns: a quarter each).
+    #[arg(long, default_value_t = 600)]
     scale_reads: u64,
     /// Where the wait_for_tick rows run: `same` (server, client and the
     /// floor's peer on CPU 0), `split` (the client on CPU 0, the server and

@@ -11,18 +11,17 @@
 //! the same simulated seconds for every N), and with one subscriber process
 //! (the hidden `peer --kind frame-reader`) that, for each frame it gets,
 //! reads every actor's pose in place in shared memory and times it from
-//! holding the sample to done.
+//! holding the sample to done: from the frame's packed poses
+//! (`FrameView::poses`, 48 bytes an actor), the read a reader of where
+//! things are makes, and on other frames from the actors' whole 96-byte
+//! records (`FrameView::actors`), the read of a reader of everything.
 //!
-//! Two floors for that read, in the same reader on the same frames: the
-//! same poses read again straight after (the frame now in the reader's
-//! cache: what the additions cost), and, on every other frame, one word
-//! of every cache line of the actors (what bringing the frame's bytes to
-//! the reader's core costs, with nothing added). The pose read touches
-//! most of those lines (a 28-byte pose every 96 bytes) and never more, so
-//! the line floor moves at least its bytes. A third floor, on a third of
-//! the frames, touches only the lines the same poses would fill packed
-//! (28 of every 96 bytes, as a layout with the poses apart from the rest
-//! of the actors' state would hold them): what such a layout would move.
+//! Each read has its floor in the same reader on the same frames: one word
+//! of every cache line it spans and nothing else (what bringing its bytes
+//! to the reader's core costs, with nothing added), on other frames. The
+//! packed read is also repeated straight after (the frame now in the
+//! reader's cache: what the additions cost). The kinds take turns frame by
+//! frame, so each reads frames as fresh from the server as the others'.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
@@ -30,7 +29,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use shared_types::{ActorState, WorldName, WorldSettings};
+use shared_types::{WorldName, WorldSettings};
 use sim_client::{Client, WaitMode};
 use sim_server::{FrameTime, Scene, Server, ServerConfig};
 use simbus_process::ChildGuard;
@@ -105,21 +104,23 @@ pub(crate) struct Row {
 /// What the reader peer measured (ns each), on frames as fresh from the
 /// server as each other.
 struct ReaderReport {
-    /// From holding a frame to having read every pose.
-    reads: Latencies,
+    /// From holding a frame to having read every packed pose.
+    poses: Latencies,
     /// The same read again straight after, the frame in cache.
     warm: Latencies,
-    /// One word of every cache line of a frame's actors (other frames).
-    lines: Latencies,
-    /// One word of every line of the first 28/96 of a frame's actors: the
-    /// bytes of its poses, were they packed (other frames again).
-    packed: Latencies,
+    /// One word of every cache line of a frame's packed poses.
+    poses_floor: Latencies,
+    /// From holding a frame to having read every pose from the actors'
+    /// whole records.
+    records: Latencies,
+    /// One word of every cache line of a frame's actors.
+    records_floor: Latencies,
 }
 
 impl ReaderReport {
     /// The report's lines, in the order the reader prints them.
     fn parse(lines: &[String]) -> anyhow::Result<Self> {
-        let [reads, warm, lines, packed] = lines else {
+        let [poses, warm, poses_floor, records, records_floor] = lines else {
             anyhow::bail!("the frame reader's report ended early");
         };
         let parse = |line: &str| -> anyhow::Result<Latencies> {
@@ -130,16 +131,17 @@ impl ReaderReport {
             Ok(latencies)
         };
         Ok(Self {
-            reads: parse(reads)?,
+            poses: parse(poses)?,
             warm: parse(warm)?,
-            lines: parse(lines)?,
-            packed: parse(packed)?,
+            poses_floor: parse(poses_floor)?,
+            records: parse(records)?,
+            records_floor: parse(records_floor)?,
         })
     }
 
-    /// The pose read's p50 over the line floor's.
-    fn read_over_lines(&self) -> f64 {
-        self.reads.quantile_us(0.5) / self.lines.quantile_us(0.5).max(0.001)
+    /// A read's p50 over its floor's.
+    fn over_floor(read: &Latencies, floor: &Latencies) -> f64 {
+        read.quantile_us(0.5) / floor.quantile_us(0.5).max(0.001)
     }
 }
 
@@ -200,7 +202,7 @@ fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, ReaderReport)> {
                 .next()
                 .filter(|l| l == "ready")
                 .map(|_| Instant::now());
-            let report: Vec<String> = lines.by_ref().take(4).collect();
+            let report: Vec<String> = lines.by_ref().take(5).collect();
             shutdown.store(true, Ordering::Relaxed);
             (ready, report)
         });
@@ -246,11 +248,13 @@ pub(crate) fn json(rows: &[Row]) -> serde_json::Value {
                 "actors": r.actors,
                 "no_subscriber": r.alone.json(),
                 "one_reader": r.with_reader.json(),
-                "reader_reads_frame_in_place": r.reader.reads.json(),
-                "reader_reads_it_again_warm": r.reader.warm.json(),
-                "reader_touches_every_line": r.reader.lines.json(),
-                "reader_touches_packed_poses_lines": r.reader.packed.json(),
-                "read_over_line_floor_p50": r.reader.read_over_lines(),
+                "reader_reads_poses_in_place": r.reader.poses.json(),
+                "reader_reads_them_again_warm": r.reader.warm.json(),
+                "reader_touches_every_line_of_the_poses": r.reader.poses_floor.json(),
+                "poses_over_floor_p50": ReaderReport::over_floor(&r.reader.poses, &r.reader.poses_floor),
+                "reader_reads_poses_from_the_records": r.reader.records.json(),
+                "reader_touches_every_line_of_the_records": r.reader.records_floor.json(),
+                "records_over_floor_p50": ReaderReport::over_floor(&r.reader.records, &r.reader.records_floor),
             })
         })
         .collect();
@@ -265,7 +269,7 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         WARMUP_FRAMES + 1
     );
     println!(
-        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} {:>6}",
+        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} | {:>7} {:>6} {:>6}",
         "actors",
         "rapier step µs",
         "server frame µs",
@@ -275,14 +279,16 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         "bus, 1 reader",
         "over-",
         "p50",
-        "reader µs",
-        "warm",
-        "lines",
+        "poses µs",
+        "floor",
         "read /",
-        "packed"
+        "warm",
+        "records",
+        "floor",
+        "read /"
     );
     println!(
-        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} {:>6}",
+        "{:>6} {:>17} {:>17} {:>13} {:>6} {:>6} | {:>13} {:>6} {:>6} | {:>11} {:>6} {:>6} {:>6} | {:>7} {:>6} {:>6}",
         "",
         "p50 / p99",
         "p50 / p99",
@@ -294,14 +300,17 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
         "ratio",
         "p50 / p99",
         "p50",
+        "floor",
         "p50",
-        "lines",
-        "p50"
+        "p50",
+        "p50",
+        "floor"
     );
     let pair = |l: &Latencies| format!("{:.1} / {:.1}", l.quantile_us(0.5), l.quantile_us(0.99));
     for r in rows {
+        let reader = &r.reader;
         println!(
-            "{:>6} {:>17} {:>17} {:>13} {:>5.1}% {:>5.1}% | {:>13} {:>5.1}% {:>5.1}% | {:>11} {:>6.1} {:>6.1} {:>5.2}x {:>6.1}",
+            "{:>6} {:>17} {:>17} {:>13} {:>5.1}% {:>5.1}% | {:>13} {:>5.1}% {:>5.1}% | {:>11} {:>6.1} {:>5.2}x {:>6.1} | {:>7.1} {:>6.1} {:>5.2}x",
             r.actors,
             pair(&r.alone.physics),
             pair(&r.alone.whole),
@@ -311,79 +320,98 @@ pub(crate) fn print(rows: &[Row], frames: usize) {
             pair(&r.with_reader.bus),
             r.with_reader.overhead * 100.0,
             r.with_reader.p50_ratio() * 100.0,
-            pair(&r.reader.reads),
-            r.reader.warm.quantile_us(0.5),
-            r.reader.lines.quantile_us(0.5),
-            r.reader.read_over_lines(),
-            r.reader.packed.quantile_us(0.5)
+            pair(&reader.poses),
+            reader.poses_floor.quantile_us(0.5),
+            ReaderReport::over_floor(&reader.poses, &reader.poses_floor),
+            reader.warm.quantile_us(0.5),
+            reader.records.quantile_us(0.5),
+            reader.records_floor.quantile_us(0.5),
+            ReaderReport::over_floor(&reader.records, &reader.records_floor),
         );
     }
     println!(
         "bus: server frame − rapier step, per frame; overhead: Σ bus / Σ rapier step; p50 ratio: \
-         bus p50 / rapier step p50; reader: one subscriber process sums every actor's position \
-         and rotation in place, timed from holding the frame to done; warm: the same read again \
-         straight after; lines: one word of every cache line of the actors, on other frames \
-         (the memory floor of the read); packed: one word of every line the poses alone would \
-         fill (28 of each 96 bytes), on other frames again"
+         bus p50 / rapier step p50; poses: one subscriber process sums every actor's position \
+         and rotation from the frame's packed poses in place, timed from holding the frame to \
+         done; floor: one word of every cache line the read spans, on other frames (what \
+         moving its bytes costs); warm: the same read again straight after; records: the same \
+         sums from the actors' whole records, on other frames again"
     );
 }
 
-/// The `frame-reader` peer: prints `ready`, then reads frames until it
-/// has read `samples` frames' poses, and prints four lines of
-/// nanoseconds: each pose read, each warm re-read of the same frame
-/// straight after, each line touch and each packed-poses touch. The three
-/// kinds take turns frame by frame, so each reads frames as fresh from the
-/// server as the others'. Fewer if frames stop coming for 5 s.
+/// The `frame-reader` peer: prints `ready`, then reads `samples` frames,
+/// and prints five lines of
+/// nanoseconds: each packed read, each warm re-read of the same frame
+/// straight after, each touch of the poses' lines, each read from the
+/// whole records, each touch of the records' lines. The kinds take turns
+/// frame by frame, so each reads frames as fresh from the server as the
+/// others'. Fewer if frames stop coming for 5 s.
 pub(crate) fn reader(world: &str, samples: u64) -> anyhow::Result<()> {
     let mut client = Client::connect(world, Duration::from_secs(30))?;
     client.set_wait_mode(WaitMode::Block);
     println!("ready");
-    let capacity = samples as usize;
-    let [mut reads, mut warm, mut lines, mut packed] =
-        std::array::from_fn::<Vec<u64>, 4, _>(|_| Vec::with_capacity(capacity));
+    let capacity = samples as usize / 4 + 1;
+    let [mut poses, mut warm, mut poses_floor, mut records, mut records_floor] =
+        std::array::from_fn::<Vec<u64>, 5, _>(|_| Vec::with_capacity(capacity));
     let mut total = [0.0f32; 7];
     let mut touched = 0u64;
-    while (reads.len() as u64) < samples {
+    let mut turn = 0usize;
+    while (turn as u64) < samples {
         let Ok(view) = client.wait_for_frame(Duration::from_secs(5)) else {
             break;
         };
         let held = Instant::now();
-        let actors = view.actors();
-        if lines.len() < reads.len() {
-            touched = touched.wrapping_add(touch_every_line(actors));
-            lines.push(held.elapsed().as_nanos() as u64);
-        } else if packed.len() < reads.len() {
-            let poses_bytes = actors.len() * POSE_BYTES / std::mem::size_of::<ActorState>();
-            touched = touched.wrapping_add(touch_every_line(&actors[..poses_bytes]));
-            packed.push(held.elapsed().as_nanos() as u64);
-        } else {
-            let sum = sum_poses(actors);
-            reads.push(held.elapsed().as_nanos() as u64);
-            let again = Instant::now();
-            let sum_again = sum_poses(actors);
-            warm.push(again.elapsed().as_nanos() as u64);
-            for ((t, s), a) in total.iter_mut().zip(sum).zip(sum_again) {
-                *t += s + a;
+        match turn % 4 {
+            0 => {
+                let sum = sum_poses(view.poses(), |p| (p.position, p.rotation));
+                poses.push(held.elapsed().as_nanos() as u64);
+                let again = Instant::now();
+                let sum_again = sum_poses(view.poses(), |p| (p.position, p.rotation));
+                warm.push(again.elapsed().as_nanos() as u64);
+                for ((t, s), a) in total.iter_mut().zip(sum).zip(sum_again) {
+                    *t += s + a;
+                }
+            }
+            1 => {
+                touched = touched.wrapping_add(touch_every_line(view.poses(), |p| {
+                    [p.id, u64::from(p.rotation[1].to_bits())]
+                }));
+                poses_floor.push(held.elapsed().as_nanos() as u64);
+            }
+            2 => {
+                let sum = sum_poses(view.actors(), |a| (a.position, a.rotation));
+                records.push(held.elapsed().as_nanos() as u64);
+                for (t, s) in total.iter_mut().zip(sum) {
+                    *t += s;
+                }
+            }
+            _ => {
+                touched = touched.wrapping_add(touch_every_line(view.actors(), |a| {
+                    [
+                        a.id,
+                        u64::from(a.rotation[1].to_bits()),
+                        u64::from(a.angular_velocity[2].to_bits()),
+                    ]
+                }));
+                records_floor.push(held.elapsed().as_nanos() as u64);
             }
         }
+        turn += 1;
     }
     std::hint::black_box((total, touched));
-    for timings in [reads, warm, lines, packed] {
+    for timings in [poses, warm, poses_floor, records, records_floor] {
         let line: Vec<String> = timings.iter().map(u64::to_string).collect();
         println!("{}", line.join(" "));
     }
     Ok(())
 }
 
-/// A pose's bytes: position and rotation, seven `f32`.
-const POSE_BYTES: usize = 7 * 4;
-
-/// Every actor's position and rotation, summed: seven independent sums,
+/// Every item's position and rotation, summed: seven independent sums,
 /// so the read is bound by memory, not by one chain of dependent additions.
-fn sum_poses(actors: &[ActorState]) -> [f32; 7] {
+fn sum_poses<T>(items: &[T], pose: impl Fn(&T) -> ([f32; 3], [f32; 4])) -> [f32; 7] {
     let mut sum = [0.0f32; 7];
-    for actor in actors {
-        let (p, q) = (actor.position, actor.rotation);
+    for item in items {
+        let (p, q) = pose(item);
         for (s, v) in sum.iter_mut().zip(p.iter().chain(&q)) {
             *s += v;
         }
@@ -391,17 +419,18 @@ fn sum_poses(actors: &[ActorState]) -> [f32; 7] {
     std::hint::black_box(sum)
 }
 
-/// One word of every 64-byte line the actors span, and nothing else:
-/// each 96-byte record's id (offset 0), `rotation[1]` (32) and
-/// `angular_velocity[2]` (64) are 32 bytes apart, so at least one falls in
-/// every line, wherever the frame begins.
-fn touch_every_line(actors: &[ActorState]) -> u64 {
+/// One word of every 64-byte line `items` span, and nothing else: `words`
+/// gives words of an item no more than 32 bytes apart (an `ActorState`'s
+/// id at 0, `rotation[1]` at 32 and `angular_velocity[2]` at 64; an
+/// `ActorPose`'s id at 0 and `rotation[1]` at 32, the next pose's id 16
+/// bytes later), so at least one falls in every line, wherever the frame
+/// begins.
+fn touch_every_line<T, const N: usize>(items: &[T], words: impl Fn(&T) -> [u64; N]) -> u64 {
     let mut acc = 0u64;
-    for actor in actors {
-        acc = acc
-            .wrapping_add(actor.id)
-            .wrapping_add(u64::from(actor.rotation[1].to_bits()))
-            .wrapping_add(u64::from(actor.angular_velocity[2].to_bits()));
+    for item in items {
+        for word in words(item) {
+            acc = acc.wrapping_add(word);
+        }
     }
     std::hint::black_box(acc)
 }

@@ -28,9 +28,10 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use shared_types::limits::WorldLimits;
 use shared_types::{
-    ActorState, Doorbell, FrameHeader, ServiceNames, TickRequest, TickRequestKind, TickResponse,
-    WorldName,
+    frame_slice_len, ActorState, Doorbell, FrameHeader, ServiceNames, TickRequest, TickRequestKind,
+    TickResponse, WorldName,
 };
+use simbus_transport::frames::send_frame;
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 
@@ -215,7 +216,7 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
         .map_err(err)?;
     let publisher = services
         .frames
-        .publisher(&frames, world_state.actor_count())
+        .publisher(&frames, frame_slice_len(world_state.actor_count()))
         .map_err(err)?;
     let ready = services
         .frame_ready
@@ -227,17 +228,12 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
     let mut frame = 0u64;
     let publish = |frame: u64, world_state: &mut World| -> anyhow::Result<()> {
         world_state.step(&plan);
-        let mut sample = publisher
-            .loan_slice_uninit(world_state.actor_count())
-            .map_err(err)?;
         let mut header = FrameHeader::default();
         header.timestamp.frame = frame;
-        header.actor_count = world_state.actor_count() as u32;
-        *sample.user_header_mut() = header;
-        sample
-            .write_from_fn(|i| world_state.actor_state(i))
-            .send()
-            .map_err(err)?;
+        let state = &*world_state;
+        send_frame(&publisher, header, state.actor_count(), |i| {
+            state.actor_state(i)
+        })?;
         Ok(())
     };
     match shape {

@@ -1,4 +1,8 @@
-//! The frame snapshot: a [`FrameHeader`] user header and a slice of [`ActorState`].
+//! The frame snapshot: a [`FrameHeader`] user header and a slice of
+//! [`ActorState`]: the actors, then the same actors' [`ActorPose`]s packed
+//! (see [`frame_slice_len`]).
+
+use std::mem::MaybeUninit;
 
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
@@ -228,6 +232,105 @@ impl ActorState {
     }
 }
 
+/// Who, what and where an actor is, packed: the first 44 bytes of its
+/// [`ActorState`] (id, kind, flags, position, rotation), 48 bytes in all.
+/// Every frame sample carries its actors' poses after the actors, in the
+/// same order, so a reader that wants only where things are moves half the
+/// bytes (see [`frame_slice_len`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::ActorPose/1")]
+pub struct ActorPose {
+    /// [`ActorState::id`].
+    pub id: u64,
+    /// [`ActorState::kind`].
+    pub kind: u32,
+    /// [`ActorState::flags`].
+    pub flags: u32,
+    /// [`ActorState::position`].
+    pub position: [f32; 3],
+    /// [`ActorState::rotation`].
+    pub rotation: [f32; 4],
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl From<&ActorState> for ActorPose {
+    fn from(a: &ActorState) -> Self {
+        Self {
+            id: a.id,
+            kind: a.kind,
+            flags: a.flags,
+            position: a.position,
+            rotation: a.rotation,
+            reserved: 0,
+        }
+    }
+}
+
+impl ActorPose {
+    /// The actor's kind, if this version knows it.
+    pub fn actor_kind(&self) -> Option<ActorKind> {
+        ActorKind::from_u32(self.kind)
+    }
+}
+
+/// Poses packed into one [`ActorState`]-sized element of a frame's slice.
+const POSES_PER_ELEMENT: usize =
+    std::mem::size_of::<ActorState>() / std::mem::size_of::<ActorPose>();
+
+/// The length of a frame sample's slice for `actor_count` actors: the
+/// actors, then their poses, two [`ActorPose`]s to each further element
+/// (the last one's second pose zero when the count is odd). Readers of the
+/// actors take the first `actor_count` elements and never see the poses.
+pub const fn frame_slice_len(actor_count: usize) -> usize {
+    actor_count + actor_count.div_ceil(POSES_PER_ELEMENT)
+}
+
+/// Fills a frame sample's slice of [`frame_slice_len`]`(actor_count)`
+/// elements with `actor(0..actor_count)`, then their poses, each actor
+/// made once. Returns whether every element was written: false (and
+/// nothing written) when `slice` has another length.
+pub fn fill_frame_slice(
+    slice: &mut [MaybeUninit<ActorState>],
+    actor_count: usize,
+    mut actor: impl FnMut(usize) -> ActorState,
+) -> bool {
+    if slice.len() != frame_slice_len(actor_count) {
+        return false;
+    }
+    let (actors, poses) = slice.split_at_mut(actor_count);
+    let mut pair = [ActorPose::default(); POSES_PER_ELEMENT];
+    for (i, element) in actors.iter_mut().enumerate() {
+        let state = element.write(actor(i));
+        pair[i % POSES_PER_ELEMENT] = ActorPose::from(&*state);
+        if i % POSES_PER_ELEMENT == POSES_PER_ELEMENT - 1 {
+            poses[i / POSES_PER_ELEMENT].write(bytemuck::cast(pair));
+        }
+    }
+    if !actor_count.is_multiple_of(POSES_PER_ELEMENT) {
+        pair[actor_count % POSES_PER_ELEMENT..].fill(ActorPose::default());
+        poses[actor_count / POSES_PER_ELEMENT].write(bytemuck::cast(pair));
+    }
+    true
+}
+
+/// A frame sample's slice read as its two parts: the first
+/// `actor_count` elements are the actors; the poses after them, if the
+/// slice holds them all (else none). Never reads past the slice.
+pub fn frame_parts(slice: &[ActorState], actor_count: u32) -> (&[ActorState], &[ActorPose]) {
+    let count = (actor_count as usize).min(slice.len());
+    let (actors, rest) = slice.split_at(count);
+    let pose_elements = frame_slice_len(count) - count;
+    let poses = match rest.get(..pose_elements) {
+        Some(elements) if count == actor_count as usize => {
+            &bytemuck::cast_slice::<ActorState, ActorPose>(elements)[..count]
+        }
+        _ => &[],
+    };
+    (actors, poses)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -238,6 +341,65 @@ mod tests {
         assert_eq!(std::mem::size_of::<Timestamp>(), 32);
         assert_eq!(std::mem::size_of::<FrameHeader>(), 112);
         assert_eq!(std::mem::size_of::<ActorState>(), 96);
+        assert_eq!(std::mem::size_of::<ActorPose>(), 48);
+    }
+
+    fn actor(i: usize) -> ActorState {
+        let f = i as f32;
+        ActorState {
+            id: 100 + i as u64,
+            kind: ActorKind::Box as u32,
+            flags: (i % 2) as u32,
+            position: [f, f + 0.5, -f],
+            rotation: [0.0, f, 0.0, 1.0],
+            linear_velocity: [f; 3],
+            angular_velocity: [2.0 * f; 3],
+            acceleration: [3.0 * f; 3],
+            extent: [0.5; 3],
+            reserved: 0,
+        }
+    }
+
+    #[test]
+    fn a_frame_slice_holds_the_actors_then_their_poses_in_order() {
+        for n in [0usize, 1, 2, 3, 10, 11] {
+            let mut slice = vec![MaybeUninit::<ActorState>::uninit(); frame_slice_len(n)];
+            assert!(fill_frame_slice(&mut slice, n, actor));
+            let slice = written(slice);
+            let (actors, poses) = frame_parts(&slice, n as u32);
+            let expected: Vec<ActorState> = (0..n).map(actor).collect();
+            assert_eq!(actors, expected.as_slice(), "{n} actors");
+            let expected: Vec<ActorPose> = expected.iter().map(ActorPose::from).collect();
+            assert_eq!(poses, expected.as_slice(), "{n} poses");
+            assert_eq!(slice.len() * 96, n * 96 + n.div_ceil(2) * 96);
+        }
+    }
+
+    /// The slice `fill_frame_slice` filled, as values.
+    #[allow(unsafe_code)]
+    fn written(slice: Vec<MaybeUninit<ActorState>>) -> Vec<ActorState> {
+        // SAFETY: `fill_frame_slice` returned true, so it wrote every element.
+        slice
+            .into_iter()
+            .map(|e| unsafe { e.assume_init() })
+            .collect()
+    }
+
+    #[test]
+    fn a_slice_of_another_length_is_refused_and_left_alone() {
+        let mut slice = vec![MaybeUninit::<ActorState>::uninit(); 3];
+        assert!(!fill_frame_slice(&mut slice, 3, |_| unreachable!(
+            "nothing is made"
+        )));
+    }
+
+    #[test]
+    fn a_slice_short_of_its_poses_reads_its_actors_and_no_poses() {
+        let full: Vec<ActorState> = (0..4).map(actor).collect();
+        let (actors, poses) = frame_parts(&full, 4);
+        assert_eq!((actors.len(), poses.len()), (4, 0));
+        let (actors, poses) = frame_parts(&full[..2], 4);
+        assert_eq!((actors.len(), poses.len()), (2, 0));
     }
 
     #[test]

@@ -78,7 +78,10 @@ pub use control::{
     ControlRequest, ControlResponse, FixedText, ParticipantStatus, RequestKind, ResponseStatus,
     SnapshotInfo, SnapshotList, StatusReport, MAX_SNAPSHOTS, REPORTED_PARTICIPANTS,
 };
-pub use frame::{nanos_to_seconds, ActorKind, ActorState, FrameHeader, Timestamp};
+pub use frame::{
+    fill_frame_slice, frame_parts, frame_slice_len, nanos_to_seconds, ActorKind, ActorPose,
+    ActorState, FrameHeader, Timestamp,
+};
 pub use lockstep::{LockstepKind, LockstepRequest, LockstepResponse, MAX_LOCKSTEP_WINDOW};
 pub use names::{Doorbell, ServiceNames, WorldName, WorldNameError};
 pub use sensor::{
@@ -101,7 +104,7 @@ pub use wire::{Response, UnknownWireValue};
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 5;
+pub const PROTOCOL_VERSION: u32 = 6;
 
 /// This process's id, read once: every request carries it, and asking the
 /// kernel for it on every request would be a syscall on the hot path.

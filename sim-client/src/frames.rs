@@ -307,10 +307,10 @@ fn missed_between(previous: Option<(u64, u64)>, next: (u64, u64)) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use iceoryx2::port::publisher::Publisher;
     use iceoryx2::port::update_connections::UpdateConnections;
     use shared_types::limits::WorldLimits;
     use shared_types::WorldName;
+    use simbus_transport::frames::{send_frame, FramePublisher};
 
     const T: Duration = Duration::from_secs(5);
 
@@ -332,9 +332,8 @@ mod tests {
     }
 
     /// Publishes asynchronous-mode frame `frame` of episode 1, no actors.
-    fn publish(publisher: &Publisher<Bus, [ActorState], FrameHeader>, frame: u64) {
-        let mut sample = publisher.loan_slice_uninit(0).unwrap();
-        *sample.user_header_mut() = FrameHeader {
+    fn publish(publisher: &FramePublisher, frame: u64) {
+        let header = FrameHeader {
             protocol_version: PROTOCOL_VERSION,
             episode: 1,
             timestamp: shared_types::Timestamp {
@@ -343,10 +342,7 @@ mod tests {
             },
             ..Default::default()
         };
-        sample
-            .write_from_fn(|_| ActorState::default())
-            .send()
-            .unwrap();
+        send_frame(publisher, header, 0, |_| ActorState::default()).unwrap();
     }
 
     /// A receive that fails after a frame was taken off the queue (here:

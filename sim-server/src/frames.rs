@@ -1,11 +1,12 @@
-//! Publishing frames: each frame's snapshot is written straight into loaned
-//! shared memory, then every client blocked on the frame-ready event wakes.
+//! Publishing frames: each frame's snapshot (the actors, then their packed
+//! poses) is written straight into loaned shared memory, then every client
+//! blocked on the frame-ready event wakes.
 
 use iceoryx2::port::notifier::Notifier;
-use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::update_connections::UpdateConnections;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
-use shared_types::{ActorState, FrameHeader};
+use shared_types::{frame_slice_len, ActorState, FrameHeader};
+use simbus_transport::frames::{send_frame, FramePublisher};
 use simbus_transport::Bus;
 use tracing::debug;
 
@@ -16,7 +17,7 @@ use crate::ServerError;
 /// The frame publisher and the frame-ready notifier.
 #[derive(Debug)]
 pub(crate) struct Frames {
-    publisher: Publisher<Bus, [ActorState], FrameHeader>,
+    publisher: FramePublisher,
     ready: Notifier<Bus>,
 }
 
@@ -35,7 +36,10 @@ impl Frames {
             .map_err(|e| ServerError::transport("frames service", e))?;
         let publisher = services
             .frames
-            .publisher(&frames, initial_actors.max(INITIAL_MAX_ACTORS))
+            .publisher(
+                &frames,
+                frame_slice_len(initial_actors.max(INITIAL_MAX_ACTORS)),
+            )
             .map_err(|e| ServerError::transport("frames publisher", e))?;
         let ready = services
             .frame_ready
@@ -47,20 +51,13 @@ impl Frames {
         Ok(Self { publisher, ready })
     }
 
-    /// Writes `header` and every actor of `world` straight into a loaned
-    /// sample and sends it. No copy, no allocation.
+    /// Writes `header`, every actor of `world` and their poses straight
+    /// into a loaned sample and sends it. No copy, no allocation.
     pub(crate) fn publish(&self, header: FrameHeader, world: &World) -> Result<(), ServerError> {
-        let sample = self
-            .publisher
-            .loan_slice_uninit(world.actor_count())
-            .map_err(|e| ServerError::transport("frame loan", e))?;
-        let mut sample = sample;
-        *sample.user_header_mut() = header;
-        let sample = sample.write_from_fn(|i| world.actor_state(i));
-        sample
-            .send()
-            .map_err(|e| ServerError::transport("frame send", e))?;
-        Ok(())
+        send_frame(&self.publisher, header, world.actor_count(), |i| {
+            world.actor_state(i)
+        })
+        .map_err(|e| ServerError::transport("frame send", e))
     }
 
     /// Sends `header` with `actors` (a replayed frame).
@@ -69,16 +66,8 @@ impl Frames {
         header: FrameHeader,
         actors: &[ActorState],
     ) -> Result<(), ServerError> {
-        let mut sample = self
-            .publisher
-            .loan_slice_uninit(actors.len())
-            .map_err(|e| ServerError::transport("frame loan", e))?;
-        *sample.user_header_mut() = header;
-        sample
-            .write_from_slice(actors)
-            .send()
-            .map_err(|e| ServerError::transport("frame send", e))?;
-        Ok(())
+        send_frame(&self.publisher, header, actors.len(), |i| actors[i])
+            .map_err(|e| ServerError::transport("frame send", e))
     }
 
     /// Wakes every client blocked on the frame-ready event.

@@ -239,6 +239,51 @@ def test_an_array_never_outlives_its_frame(server):
     assert kept.held
 
 
+def assert_poses_are_the_actors(frame):
+    """`frame.poses` holds every actor's id, kind, flags, position and
+    rotation, in the actors' order, read-only, in half their bytes."""
+    actors, poses = frame.actors, frame.poses
+    assert len(poses) == len(actors) > 0
+    assert poses.dtype.itemsize * 2 == actors.dtype.itemsize
+    for field in ("id", "kind", "flags", "position", "rotation"):
+        assert (poses[field] == actors[field]).all(), field
+    assert poses.flags.writeable is False
+
+
+def test_poses_are_every_actors_pose_packed_in_the_same_frame(server):
+    client = server().client()
+    with client.ticker(delta_seconds=0.05) as ticker:
+        ticker.tick()
+        counts = set()
+        for at in ((20.0, 5.0, 20.0), (-20.0, 5.0, 20.0)):
+            client.spawn("box", at=at)
+            frame_id = ticker.tick()
+            frame = client.wait_for_frame()
+            while frame.frame < frame_id:
+                frame.release()
+                frame = client.wait_for_frame()
+            with frame:
+                assert frame.frame == frame_id
+                assert_poses_are_the_actors(frame)
+                counts.add(len(frame.poses) % 2)
+                # The box spawned in the air has fallen: this frame's poses.
+                y = frame.poses["position"][frame.poses["id"] == frame.actors["id"].max()][0][1]
+                assert 0 < y < 5
+        assert counts == {0, 1}, "an odd and an even number of actors"
+        ticker.tick()
+        frame = client.wait_for_frame()
+        poses = frame.poses
+        with pytest.raises(BufferError, match="still view"):
+            frame.release()
+        kept = frame.copy()
+        del poses
+        frame.release()
+        with pytest.raises(simbus.ReleasedError):
+            frame.poses
+        assert (kept.poses["id"] == kept.actors["id"]).all()
+        assert (kept.poses["position"] == kept.actors["position"]).all()
+
+
 def test_an_array_over_shared_memory_is_read_only(server):
     client = server().client()
     with client.wait_for_frame() as frame:

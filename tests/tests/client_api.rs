@@ -1,11 +1,12 @@
 //! The client library against a real server: `wait_for_tick` blocking and
-//! spinning, `on_tick` / `remove_on_tick`, and a clear error when the server
-//! dies while a client waits.
+//! spinning, `on_tick` / `remove_on_tick`, every frame's packed poses, and a
+//! clear error when the server dies while a client waits.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use shared_types::{ActorPose, Command};
 use sim_client::{Client, RequestError, Status, WaitError, WaitMode};
 use simbus_tests::{server, unique_world, TestWorld};
 
@@ -23,6 +24,44 @@ fn wait_for_tick_blocks_or_spins_and_returns_newer_frames() {
             last = next;
         }
     }
+}
+
+/// Every frame carries its actors' poses, packed after them in the same
+/// sample: each one the pose of the actor at its index, for an odd and an
+/// even number of actors, and for frames of a body in motion.
+#[test]
+fn every_frame_holds_each_actors_pose_packed_after_the_actors() {
+    let world = TestWorld::start("poses", &["--fixed-delta-seconds", "0.01", "--realtime"]);
+    let mut client = Client::connect(&world, Duration::from_secs(10)).unwrap();
+    let check = |client: &mut Client, actors: usize| -> Vec<f32> {
+        (0..20)
+            .map(|_| {
+                let view = client.wait_for_frame(Duration::from_secs(5)).unwrap();
+                assert_eq!(view.actors().len(), actors);
+                let expected: Vec<ActorPose> = view.actors().iter().map(ActorPose::from).collect();
+                assert_eq!(view.poses(), expected.as_slice(), "frame {}", view.frame());
+                assert!(view.payload_bytes().len() >= actors * (96 + 48));
+                view.poses().last().map_or(0.0, |p| p.position[1])
+            })
+            .collect()
+    };
+    check(&mut client, 17);
+    let spawned = client
+        .spawn_actor(Command::spawn_box([3.0, 8.0, 3.0], [0.5; 3]))
+        .unwrap();
+    // Frames until the spawned box (the newest id: the last actor) is in one.
+    while client
+        .wait_for_frame(Duration::from_secs(5))
+        .unwrap()
+        .actors()
+        .len()
+        != 18
+    {}
+    let heights = check(&mut client, 18);
+    assert!(
+        heights.windows(2).all(|h| h[1] <= h[0]) && heights[19] < heights[0],
+        "actor {spawned}'s poses fall frame by frame: {heights:?}"
+    );
 }
 
 #[test]

@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod environment;
+pub mod frames;
 pub mod futex;
 pub mod spec;
 pub mod stamps;

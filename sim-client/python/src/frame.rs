@@ -1,11 +1,11 @@
-//! [`Frame`]: one frame of the world, its actors a numpy structured array
-//! over the frame's shared memory.
+//! [`Frame`]: one frame of the world, its actors and their packed poses
+//! numpy structured arrays over the frame's shared memory.
 
 use std::mem::{offset_of, size_of};
 
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use shared_types::{ActorState, FrameHeader};
+use shared_types::{ActorPose, ActorState, FrameHeader};
 
 use crate::errors::raise;
 use crate::loan::{give_back, structured_dtype, view_as, Lent, Loan};
@@ -43,6 +43,30 @@ pub(crate) fn actor_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
         .map(|dtype| dtype.bind(py))
 }
 
+/// The poses' dtype: the wire layout of [`ActorPose`], field by field.
+pub(crate) fn pose_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static DTYPE: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    DTYPE
+        .get_or_try_init(py, || {
+            let fields = [
+                ("id", "<u8", offset_of!(ActorPose, id)),
+                ("kind", "<u4", offset_of!(ActorPose, kind)),
+                ("flags", "<u4", offset_of!(ActorPose, flags)),
+                ("position", "(3,)<f4", offset_of!(ActorPose, position)),
+                ("rotation", "(4,)<f4", offset_of!(ActorPose, rotation)),
+            ];
+            structured_dtype(py, &fields, size_of::<ActorPose>()).map(Bound::unbind)
+        })
+        .map(|dtype| dtype.bind(py))
+}
+
+/// A frame's arrays, copied (a frame from `copy()`).
+#[derive(Debug)]
+struct Owned {
+    actors: Py<PyAny>,
+    poses: Py<PyAny>,
+}
+
 /// One frame: its header's values, and its actors over shared memory
 /// while the frame is held (`release()`, the end of a `with` block, or
 /// `copy()` to keep them).
@@ -54,8 +78,15 @@ pub(crate) struct Frame {
     digest: u64,
     /// The sample, while held; `None` once released.
     loan: Option<Py<Loan>>,
-    /// The actors, copied (a frame from `copy()`).
-    owned: Option<Py<PyAny>>,
+    /// The arrays, copied (a frame from `copy()`).
+    owned: Option<Owned>,
+}
+
+/// A part of a frame's payload.
+#[derive(Debug, Clone, Copy)]
+enum Part {
+    Actors,
+    Poses,
 }
 
 impl Frame {
@@ -75,6 +106,27 @@ impl Frame {
             loan: Some(loan),
             owned: None,
         })
+    }
+
+    /// `part` of the held frame as a numpy array over shared memory.
+    fn view_part<'py>(&self, py: Python<'py>, part: Part) -> PyResult<Bound<'py, PyAny>> {
+        let Some(loan) = &self.loan else {
+            return Err(released(self.frame()));
+        };
+        let loan = loan.bind(py);
+        let (actors, poses) = match &loan.borrow().sample {
+            Lent::Frame(view) => (view.actors().len(), view.poses().len()),
+            Lent::Capture(_) => (0, 0),
+        };
+        let actor_bytes = actors * size_of::<ActorState>();
+        match part {
+            Part::Actors => view_as(loan, 0..actor_bytes, actor_dtype(py)?),
+            Part::Poses => view_as(
+                loan,
+                actor_bytes..actor_bytes + poses * size_of::<ActorPose>(),
+                pose_dtype(py)?,
+            ),
+        }
     }
 }
 
@@ -150,17 +202,22 @@ impl Frame {
     #[getter]
     fn actors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         if let Some(owned) = &self.owned {
-            return Ok(owned.bind(py).clone());
+            return Ok(owned.actors.bind(py).clone());
         }
-        let Some(loan) = &self.loan else {
-            return Err(released(self.frame()));
-        };
-        let loan = loan.bind(py);
-        let count = match &loan.borrow().sample {
-            Lent::Frame(view) => view.actors().len(),
-            Lent::Capture(_) => 0,
-        };
-        view_as(loan, actor_dtype(py)?, &[count])
+        self.view_part(py, Part::Actors)
+    }
+
+    /// The actors' poses, in the order of `actors`, packed: a read-only
+    /// numpy structured array (`id`, `kind`, `flags`, `position`,
+    /// `rotation`) over the frame's shared memory, half the bytes of
+    /// `actors` (what a reader that needs only where things are should
+    /// read). It keeps the frame lent while it lives.
+    #[getter]
+    fn poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(owned) = &self.owned {
+            return Ok(owned.poses.bind(py).clone());
+        }
+        self.view_part(py, Part::Poses)
     }
 
     /// Whether the frame's shared memory is still lent to this frame.
@@ -172,13 +229,14 @@ impl Frame {
     /// A frame with the same values and its own copy of the actors: it
     /// holds no shared memory.
     fn copy(&self, py: Python<'_>) -> PyResult<Frame> {
-        let actors = self.actors(py)?.call_method0("copy")?;
+        let actors = self.actors(py)?.call_method0("copy")?.unbind();
+        let poses = self.poses(py)?.call_method0("copy")?.unbind();
         Ok(Frame {
             header: self.header,
             missed: self.missed,
             digest: self.digest,
             loan: None,
-            owned: Some(actors.unbind()),
+            owned: Some(Owned { actors, poses }),
         })
     }
 

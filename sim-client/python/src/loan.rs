@@ -4,10 +4,12 @@
 //! array never reads memory that went back to the server. The arrays are
 //! read-only: the server's samples are mapped read-only in a client.
 
+use std::ops::Range;
+
 use numpy::ndarray::ArrayView1;
 use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 
 /// A sample lent by the server: what numpy arrays over shared memory keep
 /// alive. Bound to the thread that received it (iceoryx2's samples are).
@@ -44,7 +46,7 @@ impl Loan {
     /// The bytes of the sample's payload.
     fn bytes(&self) -> &[u8] {
         match &self.sample {
-            Lent::Frame(view) => bytemuck::cast_slice(view.actors()),
+            Lent::Frame(view) => view.payload_bytes(),
             Lent::Capture(capture) => capture.bytes(),
         }
     }
@@ -73,8 +75,18 @@ pub(crate) fn give_back(
 
 /// A read-only `uint8` array over `loan`'s payload, its base the loan.
 pub(crate) fn bytes_of<'py>(loan: &Bound<'py, Loan>) -> PyResult<Bound<'py, PyArray1<u8>>> {
+    let len = loan.borrow().bytes().len();
+    part_of(loan, 0..len)
+}
+
+/// A read-only `uint8` array over `range` of `loan`'s payload (empty where
+/// the payload is shorter), its base the loan.
+fn part_of<'py>(
+    loan: &Bound<'py, Loan>,
+    range: Range<usize>,
+) -> PyResult<Bound<'py, PyArray1<u8>>> {
     let borrowed = loan.borrow();
-    let bytes = borrowed.bytes();
+    let bytes = borrowed.bytes().get(range).unwrap_or_default();
     let view = ArrayView1::from(bytes);
     // SAFETY: the array views memory the loan owns (the sample's payload in
     // shared memory, mapped for as long as the sample lives); the loan is
@@ -87,16 +99,14 @@ pub(crate) fn bytes_of<'py>(loan: &Bound<'py, Loan>) -> PyResult<Bound<'py, PyAr
     Ok(array)
 }
 
-/// A read-only array over `loan`'s payload as `dtype` elements, shaped
-/// `shape` (its base chain ends at the loan).
+/// A read-only one-dimensional array of `dtype` elements over `range` of
+/// `loan`'s payload (its base chain ends at the loan).
 pub(crate) fn view_as<'py>(
     loan: &Bound<'py, Loan>,
+    range: Range<usize>,
     dtype: &Bound<'py, PyAny>,
-    shape: &[usize],
 ) -> PyResult<Bound<'py, PyAny>> {
-    let bytes = bytes_of(loan)?;
-    let typed = bytes.call_method1("view", (dtype,))?;
-    typed.call_method1("reshape", (PyList::new(loan.py(), shape)?,))
+    part_of(loan, range)?.call_method1("view", (dtype,))
 }
 
 /// A numpy structured dtype from `(name, format, offset)` fields and the

@@ -123,7 +123,7 @@ class Loan:
     """A sample the server lent: the base object of arrays over shared memory."""
 
 class Frame:
-    """One frame; its actors view shared memory until it is released."""
+    """One frame; its actors and poses view shared memory until it is released."""
 
     @property
     def frame(self) -> int: ...
@@ -156,9 +156,15 @@ class Frame:
         kind, flags, position, rotation, linear_velocity, angular_velocity,
         acceleration, extent. Raises simbus.ReleasedError once released."""
     @property
+    def poses(self) -> npt.NDArray[np.void]:
+        """The actors' poses in the order of ``actors``, packed: a read-only
+        structured array over the frame's shared memory (id, kind, flags,
+        position, rotation), half the bytes of ``actors``. Raises
+        simbus.ReleasedError once released."""
+    @property
     def held(self) -> bool: ...
     def copy(self) -> Frame:
-        """A frame with its own copy of the actors (no shared memory)."""
+        """A frame with its own copy of the actors and poses (no shared memory)."""
     def release(self) -> None:
         """Gives the memory back; BufferError while arrays still view it."""
     def __enter__(self) -> Frame: ...

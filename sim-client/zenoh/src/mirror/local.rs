@@ -15,12 +15,13 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{
-    ActorState, BatchHeader, BatchResponseHeader, Bgra, CollisionEvent, Command, CommandResult,
-    ControlRequest, ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement, LidarPoint,
-    LockstepRequest, LockstepResponse, ObstacleDetection, RadarDetection, RecorderRequest,
-    RecorderResponse, SemanticLidarPoint, SensorHeader, SensorInfo, SensorKind, SensorRequest,
-    SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
+    frame_slice_len, ActorState, BatchHeader, BatchResponseHeader, Bgra, CollisionEvent, Command,
+    CommandResult, ControlRequest, ControlResponse, FrameHeader, GnssMeasurement, ImuMeasurement,
+    LidarPoint, LockstepRequest, LockstepResponse, ObstacleDetection, RadarDetection,
+    RecorderRequest, RecorderResponse, SemanticLidarPoint, SensorHeader, SensorInfo, SensorKind,
+    SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
+use simbus_transport::frames::{send_frame, FramePublisher};
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 
@@ -45,7 +46,6 @@ pub(super) enum Local {
 }
 
 type FixedServer<Req, Resp> = Server<Bus, Req, (), Resp, ()>;
-type FramePublisher = Publisher<Bus, [ActorState], FrameHeader>;
 type BatchServer = Server<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 type SensorServer = Server<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 
@@ -103,7 +103,7 @@ fn world_ports(
     let frames = specs.frames.create(node, limits).map_err(create_failed)?;
     let frames = specs
         .frames
-        .publisher(&frames, INITIAL_MAX_ACTORS)
+        .publisher(&frames, frame_slice_len(INITIAL_MAX_ACTORS))
         .map_err(create_failed)?;
     let ready = specs
         .frame_ready
@@ -178,35 +178,20 @@ impl LocalServices {
         header: &FrameHeader,
         actors: &[ActorState],
     ) -> Result<(), LocalError> {
-        let mut sample = self
-            .frames
-            .loan_slice_uninit(actors.len())
-            .map_err(|e| LocalError::transport("frame loan", e))?;
-        *sample.user_header_mut() = *header;
-        sample
-            .write_from_slice(actors)
-            .send()
-            .map_err(|e| LocalError::transport("frame send", e))?;
-        Ok(())
+        send_frame(&self.frames, *header, actors.len(), |i| actors[i])
+            .map_err(|e| LocalError::transport("frame send", e))
     }
 
     /// Publishes a frame whose actors `actor` gives, one by one, straight
-    /// into the loaned sample (kept as the one new subscribers get first).
+    /// into the loaned sample, their poses after them (kept as the one new
+    /// subscribers get first).
     pub(super) fn publish_frame_with(
         &self,
         header: &FrameHeader,
         actor: impl FnMut(usize) -> ActorState,
     ) -> Result<(), LocalError> {
-        let mut sample = self
-            .frames
-            .loan_slice_uninit(header.actor_count as usize)
-            .map_err(|e| LocalError::transport("frame loan", e))?;
-        *sample.user_header_mut() = *header;
-        sample
-            .write_from_fn(actor)
-            .send()
-            .map_err(|e| LocalError::transport("frame send", e))?;
-        Ok(())
+        send_frame(&self.frames, *header, header.actor_count as usize, actor)
+            .map_err(|e| LocalError::transport("frame send", e))
     }
 
     /// Wakes every local client blocked on the frame-ready event, after a

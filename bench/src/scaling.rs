@@ -219,6 +219,11 @@ fn with_reader(n: u32, reads: u64) -> anyhow::Result<(Timed, ReaderReport)> {
         .frames()
         .filter(|f| f.started >= ready)
         .collect();
+    anyhow::ensure!(
+        !timed.is_empty(),
+        "the reader read its {reads} frames of boxes:{n} before the server timed a frame after \
+         the reader was ready: give --scale-reads more frames"
+    );
     Ok((Timed::of(&timed)?, report))
 }
 

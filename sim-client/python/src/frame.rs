@@ -67,7 +67,7 @@ struct Owned {
     poses: Py<PyAny>,
 }
 
-/// One frame: its header's values, and its actors over shared memory
+/// One frame: its header's values, and its actors and poses over shared memory
 /// while the frame is held (`release()`, the end of a `with` block, or
 /// `copy()` to keep them).
 #[pyclass(module = "simbus", unsendable)]
@@ -226,8 +226,8 @@ impl Frame {
         self.loan.is_some() || self.owned.is_some()
     }
 
-    /// A frame with the same values and its own copy of the actors: it
-    /// holds no shared memory.
+    /// A frame with the same values and its own copy of the actors and
+    /// poses: it holds no shared memory.
     fn copy(&self, py: Python<'_>) -> PyResult<Frame> {
         let actors = self.actors(py)?.call_method0("copy")?.unbind();
         let poses = self.poses(py)?.call_method0("copy")?.unbind();

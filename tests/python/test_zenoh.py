@@ -9,6 +9,7 @@ import os
 import re
 import struct
 import subprocess
+import sys
 import threading
 import time
 
@@ -284,3 +285,51 @@ def test_a_mirror_refuses_an_exporter_of_another_protocol_version(request):
         token.undeclare()
         queryable.undeclare()
         s.close()
+
+
+def test_a_mirrors_frames_carry_their_actors_poses(request, tmp_path):
+    """The mirror writes each frame it receives (the header and the actors:
+    the packed poses do not travel) with the actors' poses after them, as a
+    server does: a Python client on the mirror's side, ticking through it,
+    reads the same poses from `frame.poses` as from `frame.actors`."""
+    world = world_name(request)
+    procs = []
+    try:
+        endpoint, _ = start_export(world, procs)
+        config = tmp_path / "iox2.toml"
+        config.write_text(f'[global]\nroot-path = "{tmp_path}/iox2/"\nprefix = "iox2_pp{os.getpid()}_"\n')
+        mirror_env = dict(os.environ, SIMBUS_IOX2_CONFIG=str(config))
+        mirror = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
+             "bridge", "zenoh", "--connect", endpoint],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            start_new_session=True, env=mirror_env,
+        )
+        procs.append(mirror)
+        wait_line(mirror, "mirroring world")
+        code = f"""
+import simbus
+client = simbus.connect({world!r}, timeout=20)
+counts = []
+with client.ticker() as ticker:
+    for _ in range(5):
+        ticked = ticker.tick()
+        frame = client.wait_for_frame(timeout=10)
+        while frame.frame < ticked:
+            frame.release()
+            frame = client.wait_for_frame(timeout=10)
+        with frame:
+            actors, poses = frame.actors, frame.poses
+            assert len(poses) == len(actors) > 0, (len(poses), len(actors))
+            for field in ("id", "kind", "flags", "position", "rotation"):
+                assert (poses[field] == actors[field]).all(), field
+            counts.append(len(poses))
+            del actors, poses
+print("poses", counts)
+"""
+        child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                               timeout=120, env=mirror_env)
+        assert child.returncode == 0, child.stderr
+        assert child.stdout.strip() == "poses [17, 17, 17, 17, 17]", child.stdout
+    finally:
+        kill_all(procs)

@@ -65,6 +65,24 @@ def start_export(world, procs, *extra):
     return endpoint, exporter
 
 
+def start_mirror(world, endpoint, tmp_path, procs):
+    """A mirror of `world` from `endpoint` on this machine, in an iceoryx2
+    root of its own under `tmp_path` (another host's shared memory), once it
+    mirrors; the mirror and the environment that reaches its root."""
+    config = tmp_path / "iox2.toml"
+    config.write_text(f'[global]\nroot-path = "{tmp_path}/iox2/"\nprefix = "iox2_py{os.getpid()}_"\n')
+    env = dict(os.environ, SIMBUS_IOX2_CONFIG=str(config))
+    mirror = subprocess.Popen(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
+         "bridge", "zenoh", "--connect", endpoint],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, env=env,
+    )
+    procs.append(mirror)
+    wait_line(mirror, "mirroring world")
+    return mirror, env
+
+
 def replies(s, selector, payload=None, timeout=10.0):
     """Every reply to one query: ("ok", bytes) or ("err", text)."""
     out = []
@@ -159,18 +177,7 @@ def test_garbage_wrong_versions_and_a_tick_flood_change_nothing(request, tmp_pat
     procs = []
     try:
         endpoint, exporter = start_export(world, procs)
-        # A mirror on this machine, in its own iceoryx2 root.
-        config = tmp_path / "iox2.toml"
-        config.write_text(f'[global]\nroot-path = "{tmp_path}/iox2/"\nprefix = "iox2_py{os.getpid()}_"\n')
-        mirror_env = dict(os.environ, SIMBUS_IOX2_CONFIG=str(config))
-        mirror = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
-             "bridge", "zenoh", "--connect", endpoint],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            start_new_session=True, env=mirror_env,
-        )
-        procs.append(mirror)
-        wait_line(mirror, "mirroring world")
+        mirror, mirror_env = start_mirror(world, endpoint, tmp_path, procs)
         s = session(endpoint)
 
         # Garbage frames: the mirror drops and counts them (put until it
@@ -296,17 +303,7 @@ def test_a_mirrors_frames_carry_their_actors_poses(request, tmp_path):
     procs = []
     try:
         endpoint, _ = start_export(world, procs)
-        config = tmp_path / "iox2.toml"
-        config.write_text(f'[global]\nroot-path = "{tmp_path}/iox2/"\nprefix = "iox2_pp{os.getpid()}_"\n')
-        mirror_env = dict(os.environ, SIMBUS_IOX2_CONFIG=str(config))
-        mirror = subprocess.Popen(
-            [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
-             "bridge", "zenoh", "--connect", endpoint],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            start_new_session=True, env=mirror_env,
-        )
-        procs.append(mirror)
-        wait_line(mirror, "mirroring world")
+        _, mirror_env = start_mirror(world, endpoint, tmp_path, procs)
         code = f"""
 import simbus
 client = simbus.connect({world!r}, timeout=20)

@@ -178,31 +178,47 @@ fn one_mode(
 /// The median of each span and of the whole round trip, µs, over the
 /// frames the client stamped.
 fn medians(client: &[Stamp], server: &[Stamp]) -> anyhow::Result<(Vec<f64>, f64)> {
+    span_medians(&[("client", client), ("server", server)], &SPANS)
+}
+
+/// The median, µs, of each of `spans` and of the whole round trip (the
+/// first span's start to the last span's end) over the frames whose every
+/// stage of `spans` was stamped; `sets` are the stamps of each process
+/// (named for the error), joined by frame id.
+pub(crate) fn span_medians(
+    sets: &[(&str, &[Stamp])],
+    spans: &[(Stage, Stage, &str)],
+) -> anyhow::Result<(Vec<f64>, f64)> {
     let mut frames: BTreeMap<u64, [Option<u64>; Stage::ALL.len()]> = BTreeMap::new();
-    for s in client {
-        frames.entry(s.frame).or_default()[s.stage as usize] = Some(s.ns);
-    }
-    for s in server {
-        if let Some(stages) = frames.get_mut(&s.frame) {
-            stages[s.stage as usize] = Some(s.ns);
+    for (_, stamps) in sets {
+        for s in *stamps {
+            frames.entry(s.frame).or_default()[s.stage as usize] = Some(s.ns);
         }
     }
+    let needed: Vec<usize> = spans
+        .iter()
+        .flat_map(|(from, to, _)| [*from as usize, *to as usize])
+        .collect();
     let complete: Vec<_> = frames
         .values()
-        .filter(|stages| stages.iter().all(Option::is_some))
+        .filter(|stages| needed.iter().all(|&i| stages[i].is_some()))
         .map(|stages| stages.map(|s| s.unwrap_or(0) as i64))
         .collect();
-    anyhow::ensure!(
-        !complete.is_empty(),
-        "no round trip has every stage stamped ({} client, {} server stamps)",
-        client.len(),
-        server.len()
-    );
+    if complete.is_empty() {
+        let counts: Vec<String> = sets
+            .iter()
+            .map(|(name, stamps)| format!("{} {name}", stamps.len()))
+            .collect();
+        anyhow::bail!(
+            "no round trip has every stage stamped ({} stamps)",
+            counts.join(", ")
+        );
+    }
     let median = |mut v: Vec<i64>| {
         v.sort_unstable();
         v[v.len() / 2] as f64 / 1000.0
     };
-    let spans = SPANS
+    let spans_us = spans
         .iter()
         .map(|(from, to, _)| {
             median(
@@ -213,13 +229,9 @@ fn medians(client: &[Stamp], server: &[Stamp]) -> anyhow::Result<(Vec<f64>, f64)
             )
         })
         .collect();
-    let whole = median(
-        complete
-            .iter()
-            .map(|s| s[Stage::ClientHolds as usize] - s[Stage::ClientSend as usize])
-            .collect(),
-    );
-    Ok((spans, whole))
+    let (first, last) = (spans[0].0 as usize, spans[spans.len() - 1].1 as usize);
+    let whole = median(complete.iter().map(|s| s[last] - s[first]).collect());
+    Ok((spans_us, whole))
 }
 
 /// `perf stat` on both sides of the exchange, while it runs.

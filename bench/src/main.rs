@@ -40,6 +40,7 @@ mod substeps;
 mod support;
 mod tick;
 mod zenoh;
+mod zenoh_breakdown;
 mod zenoh_peer;
 
 /// simbus benchmarks. Each prints a table (or --json) of figures measured in

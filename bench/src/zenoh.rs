@@ -25,7 +25,7 @@ use crate::zenoh_peer::zenoh_session;
 pub(crate) struct ZenohArgs {
     /// Ticks per latency row.
     #[arg(long, default_value_t = 2000)]
-    ticks: u64,
+    pub(crate) ticks: u64,
     /// Captures per sensor row.
     #[arg(long, default_value_t = 100)]
     captures: u64,
@@ -39,30 +39,56 @@ pub(crate) struct ZenohArgs {
     /// ownership release).
     #[arg(long)]
     ticks_only: bool,
+    /// Where a mirrored tick's time goes: every process stamps each tick
+    /// (`SIMBUS_STAMPS`) and the median of each hop is printed, beside
+    /// Zenoh's own round trip (loopback only; nothing else is measured).
+    #[arg(long)]
+    breakdown: bool,
+    /// The scene of the tick rows' server: an empty world by default, as
+    /// in `tick` (a step of the demo scene, `default`, is ~20 µs of the
+    /// world's physics on each tick, not the bridge's).
+    #[arg(long, default_value = "empty")]
+    pub(crate) scene: String,
+    /// The bridges' `--poll-us` (0: they sleep at once).
+    #[arg(long, default_value_t = 100)]
+    pub(crate) poll_us: u64,
     /// One JSON object instead of tables.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
+}
+
+/// How a setup's processes run.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Launch<'a> {
+    /// Arguments added to the server's.
+    pub server_args: &'a [&'a str],
+    /// The bridges' `--poll-us`.
+    pub poll_us: u64,
+    /// With a directory, each process keeps the stamps of the ticks it
+    /// serves and writes them on exit to `server`, `exporter` and
+    /// `mirror` there.
+    pub stamps: Option<&'a std::path::Path>,
 }
 
 /// A server with an exporting bridge, and a mirror (or none).
-struct Setup {
-    world: String,
+pub(crate) struct Setup {
+    pub(crate) world: String,
     /// Runs a process on the server's host.
     server_host: Host,
     /// Runs a process on the mirror's host.
-    mirror_host: Host,
-    _procs: Vec<Proc>,
+    pub(crate) mirror_host: Host,
+    procs: Vec<Proc>,
 }
 
 /// Where a process runs: a root, and a network namespace or none.
 #[derive(Clone)]
-struct Host {
+pub(crate) struct Host {
     env: Vec<(String, std::ffi::OsString)>,
     namespace: Option<String>,
 }
 
 impl Host {
-    fn of_root(root: &PrivateRoot, namespace: Option<&str>) -> Self {
+    pub(crate) fn of_root(root: &PrivateRoot, namespace: Option<&str>) -> Self {
         Self {
             env: root
                 .env()
@@ -85,8 +111,16 @@ impl Host {
         }
     }
 
+    /// This host, with `key=value` added to its processes' environment.
+    pub(crate) fn with_env(&self, key: &str, value: &std::path::Path) -> Self {
+        let mut host = self.clone();
+        host.env
+            .push((key.to_owned(), value.as_os_str().to_owned()));
+        host
+    }
+
     /// Runs the measuring client here and parses its line.
-    fn measure(&self, world: &str, args: &[&str]) -> anyhow::Result<serde_json::Value> {
+    pub(crate) fn measure(&self, world: &str, args: &[&str]) -> anyhow::Result<serde_json::Value> {
         let mut all = vec!["zenoh-peer", "--world", world];
         all.extend_from_slice(args);
         let done = self
@@ -112,15 +146,19 @@ fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
 }
 
 impl Setup {
-    /// Server (`server_args`) and exporter on `server_host`, a mirror on
-    /// `mirror_host` (none when both are the same).
-    fn start(
+    /// Server and exporter on `server_host`, a mirror on `mirror_host`
+    /// (none when both are the same), run as `launch` says.
+    pub(crate) fn start(
         tag: &str,
         server_host: Host,
         mirror_host: Option<Host>,
         address: &str,
-        server_args: &[&str],
+        launch: Launch<'_>,
     ) -> anyhow::Result<Self> {
+        let stamped = |host: &Host, name: &str| match launch.stamps {
+            Some(dir) => host.with_env(simbus_transport::stamps::SIMBUS_STAMPS, &dir.join(name)),
+            None => host.clone(),
+        };
         static PORTS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
         let n = PORTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let world = format!("bench-zenoh-{tag}-{}", std::process::id());
@@ -129,8 +167,9 @@ impl Setup {
             17_000 + (std::process::id() % 1000) * 20 + n
         );
         let mut args = vec!["--world", &world, "--sync", "--delta-seconds", "0.01"];
-        args.extend_from_slice(server_args);
-        let server = server_host.spawn("sim-server", &args);
+        args.extend_from_slice(launch.server_args);
+        let poll_us = launch.poll_us.to_string();
+        let server = stamped(&server_host, "server").spawn("sim-server", &args);
         let bridge = |host: &Host, flag: &str| {
             host.spawn(
                 "sim-client",
@@ -143,14 +182,16 @@ impl Setup {
                     "zenoh",
                     flag,
                     &endpoint,
+                    "--poll-us",
+                    &poll_us,
                 ],
             )
         };
-        let exporter = bridge(&server_host, "--listen");
+        let exporter = bridge(&stamped(&server_host, "exporter"), "--listen");
         wait_line(&exporter, "exporting world")?;
         let mut procs = vec![server, exporter];
         if let Some(host) = &mirror_host {
-            let mirror = bridge(host, "--connect");
+            let mirror = bridge(&stamped(host, "mirror"), "--connect");
             wait_line(&mirror, "mirroring world")?;
             procs.push(mirror);
         }
@@ -158,32 +199,33 @@ impl Setup {
             world,
             mirror_host: mirror_host.unwrap_or_else(|| server_host.clone()),
             server_host,
-            _procs: procs,
+            procs,
         })
+    }
+
+    /// Interrupts the mirror, the exporter and the server, in that order,
+    /// and waits for each to exit (so each writes its stamps).
+    pub(crate) fn stop(mut self) -> anyhow::Result<()> {
+        while let Some(proc) = self.procs.pop() {
+            simbus_process::send_signal(proc.pid(), libc::SIGINT)?;
+            let done = proc.finish(Duration::from_secs(20));
+            anyhow::ensure!(done.status.success(), "{done}");
+        }
+        Ok(())
     }
 }
 
-fn latencies(json: &serde_json::Value, key: &str) -> Latencies {
+pub(crate) fn latencies(json: &serde_json::Value, key: &str) -> Latencies {
     let mut latencies = Latencies::new();
-    for sample in json[key].as_array().into_iter().flatten() {
-        latencies.record(sample.as_u64().unwrap_or(0));
-    }
+    add_latencies(json, key, &mut latencies);
     latencies
 }
 
-/// The TCP loopback exchange CARLA's client makes per tick (a request, a
-/// frame header back), timed.
-fn tcp_round_trips(ticks: u64) -> anyhow::Result<Latencies> {
-    let (_peer, mut exchange) = crate::baselines::tcp_exchange()?;
-    let mut latencies = Latencies::new();
-    for i in 0..ticks + ticks / 10 {
-        let start = Instant::now();
-        exchange()?;
-        if i >= ticks / 10 {
-            latencies.record(start.elapsed().as_nanos() as u64);
-        }
+/// Records the samples (ns) of the peer's `key` in `latencies`.
+fn add_latencies(json: &serde_json::Value, key: &str, latencies: &mut Latencies) {
+    for sample in json[key].as_array().into_iter().flatten() {
+        latencies.record(sample.as_u64().unwrap_or(0));
     }
-    Ok(latencies)
 }
 
 struct Figures {
@@ -202,6 +244,9 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
         .to_path_buf();
     std::env::set_var("SIMBUS_BIN_DIR", &dir);
     let state = machine_state(Duration::from_secs(2));
+    if args.breakdown {
+        return crate::zenoh_breakdown::run(&args, &state);
+    }
     let mut figures = Figures {
         rows: Vec::new(),
         captures: Vec::new(),
@@ -215,16 +260,30 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     } else {
         Some(TwoHosts::new("bzv"))
     };
-    let setups = start_setups("", (&a, &b), hosts.as_ref(), &[])?;
+    let launch = |server_args| Launch {
+        server_args,
+        poll_us: args.poll_us,
+        stamps: None,
+    };
+    let scene = ["--scene", args.scene.as_str()];
+    let setups = start_setups("", (&a, &b), hosts.as_ref(), launch(&scene))?;
     tick_rows(&args, &setups, &mut figures)?;
+    drop(setups);
     if args.ticks_only {
         report(&args, &state, &figures);
         return Ok(());
     }
-    capture_rows(&args, &setups, &mut figures)?;
-    drop(setups);
+    // The captures see the demo scene.
+    let capture_setups = start_setups("c", (&a, &b), hosts.as_ref(), launch(&[]))?;
+    capture_rows(&args, &capture_setups, &mut figures)?;
+    drop(capture_setups);
     // 1000 actors: ticks per second a ticker sustains here and through mirrors.
-    let rate_setups = start_setups("r", (&a, &b), hosts.as_ref(), &["--scene", "boxes:1000"])?;
+    let rate_setups = start_setups(
+        "r",
+        (&a, &b),
+        hosts.as_ref(),
+        launch(&["--scene", "boxes:1000"]),
+    )?;
     for (name, setup) in &rate_setups {
         let json = setup
             .mirror_host
@@ -236,7 +295,7 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     }
     drop(rate_setups);
     if let Some(hosts) = &hosts {
-        figures.release = Some(release_bound(hosts, args.release_trials)?);
+        figures.release = Some(release_bound(hosts, args.release_trials, args.poll_us)?);
     }
     report(&args, &state, &figures);
     Ok(())
@@ -249,18 +308,12 @@ fn start_setups(
     tag: &str,
     (a, b): (&Host, &Host),
     hosts: Option<&TwoHosts>,
-    server_args: &[&str],
+    launch: Launch<'_>,
 ) -> anyhow::Result<Vec<(&'static str, Setup)>> {
     let mut setups = vec![
         (
             "local (shared memory)",
-            Setup::start(
-                &format!("{tag}local"),
-                a.clone(),
-                None,
-                "127.0.0.1",
-                server_args,
-            )?,
+            Setup::start(&format!("{tag}local"), a.clone(), None, "127.0.0.1", launch)?,
         ),
         (
             "mirror, loopback",
@@ -269,7 +322,7 @@ fn start_setups(
                 a.clone(),
                 Some(b.clone()),
                 "127.0.0.1",
-                server_args,
+                launch,
             )?,
         ),
     ];
@@ -285,42 +338,60 @@ fn start_setups(
                 va,
                 Some(vb),
                 hosts.a.address(),
-                server_args,
+                launch,
             )?,
         ));
     }
     Ok(setups)
 }
 
-/// The tick round trip (and frame latency) of every setup, then TCP's and
-/// Zenoh's own round trips.
+/// How many slices each tick row is cut into: the rows take turns, slice
+/// by slice, so that all of them see the same machine (this VM's speed
+/// changes within a minute).
+const ROUNDS: u64 = 10;
+
+/// The tick round trip (and frame latency) of every setup, TCP's and
+/// Zenoh's own round trips, interleaved: [`ROUNDS`] rounds, each row a
+/// slice of its ticks in each.
 fn tick_rows(
     args: &ZenohArgs,
     setups: &[(&str, Setup)],
     figures: &mut Figures,
 ) -> anyhow::Result<()> {
-    let ticks = args.ticks.to_string();
-    for (name, setup) in setups {
-        let json = setup
-            .mirror_host
-            .measure(&setup.world, &["--mode", "tick", "--count", &ticks])?;
-        figures.rows.push((
-            name.to_string(),
-            latencies(&json, "round_trip"),
-            latencies(&json, "frame"),
-        ));
-        eprintln!("zenoh: {name} done");
+    let slice = (args.ticks / ROUNDS).max(1);
+    let count = slice.to_string();
+    let mut rows: Vec<(String, Latencies, Latencies)> = setups
+        .iter()
+        .map(|(name, _)| (name.to_string(), Latencies::new(), Latencies::new()))
+        .collect();
+    let (_tcp_peer, mut tcp_exchange) = crate::baselines::tcp_exchange()?;
+    let (mut tcp, mut zenoh) = (Latencies::new(), Latencies::new());
+    let mut floor = ZenohFloor::start()?;
+    for round in 0..ROUNDS {
+        for ((_, setup), (_, round_trips, frames)) in setups.iter().zip(rows.iter_mut()) {
+            let json = setup
+                .mirror_host
+                .measure(&setup.world, &["--mode", "tick", "--count", &count])?;
+            add_latencies(&json, "round_trip", round_trips);
+            add_latencies(&json, "frame", frames);
+        }
+        for i in 0..slice + slice / 10 {
+            let start = Instant::now();
+            tcp_exchange()?;
+            if i >= slice / 10 {
+                tcp.record(start.elapsed().as_nanos() as u64);
+            }
+        }
+        floor.measure(slice, &mut zenoh)?;
+        eprintln!("zenoh: round {} of {ROUNDS} done", round + 1);
     }
-    figures.rows.push((
-        "TCP loopback (CARLA-style)".into(),
-        tcp_round_trips(args.ticks)?,
-        Latencies::new(),
-    ));
-    figures.rows.push((
-        "Zenoh put/echo, loopback".into(),
-        zenoh_floor(args.ticks)?,
-        Latencies::new(),
-    ));
+    figures.rows.extend(rows);
+    figures
+        .rows
+        .push(("TCP loopback (CARLA-style)".into(), tcp, Latencies::new()));
+    figures
+        .rows
+        .push(("Zenoh put/echo, loopback".into(), zenoh, Latencies::new()));
     Ok(())
 }
 
@@ -349,7 +420,7 @@ fn capture_rows(
 
 /// Link down under a remote ticker, until the server's status names no
 /// ticker (polled with `sim-client status`, ~10 ms resolution).
-fn release_bound(hosts: &TwoHosts, trials: u32) -> anyhow::Result<Latencies> {
+fn release_bound(hosts: &TwoHosts, trials: u32, poll_us: u64) -> anyhow::Result<Latencies> {
     let (va, vb) = (
         Host::of_root(&hosts.a.root, Some(hosts.a.namespace())),
         Host::of_root(&hosts.b.root, Some(hosts.b.namespace())),
@@ -361,7 +432,11 @@ fn release_bound(hosts: &TwoHosts, trials: u32) -> anyhow::Result<Latencies> {
             va.clone(),
             Some(vb.clone()),
             hosts.a.address(),
-            &[],
+            Launch {
+                server_args: &[],
+                poll_us,
+                stamps: None,
+            },
         )?;
         let holder = setup.mirror_host.spawn(
             "sim-client",
@@ -464,61 +539,84 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
 
 /// Zenoh's own round trip between two processes on loopback (a put and
 /// the echo's put back, express): the floor under a mirror's tick.
-fn zenoh_floor(ticks: u64) -> anyhow::Result<Latencies> {
-    use zenoh::Wait as _;
-    let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
-    let echo = Host {
-        env: Vec::new(),
-        namespace: None,
-    }
-    .spawn(
-        "simbus-bench",
-        &[
-            "zenoh-peer",
-            "--world",
-            "floor",
-            "--mode",
-            "echo",
-            "--count",
-            "0",
-            "--endpoint",
-            &endpoint,
-        ],
-    );
-    wait_line(&echo, "ready")?;
-    let session = zenoh_session("connect/endpoints", &endpoint)?;
-    let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let ping = session
-        .declare_publisher("bench/ping")
-        .express(true)
-        .wait()
-        .map_err(error)?;
-    let pong = session
-        .declare_subscriber("bench/pong")
-        .wait()
-        .map_err(error)?;
-    // Until the echo's subscription has reached us and answers.
-    let deadline = Instant::now() + Duration::from_secs(20);
-    loop {
-        ping.put(vec![0u8; 8]).wait().map_err(error)?;
-        if pong
-            .recv_timeout(Duration::from_millis(100))
-            .map_err(error)?
-            .is_some()
-        {
-            break;
+/// Zenoh's own round trip, the floor under a mirrored tick: a put on
+/// `bench/ping` and an echo process's put back on `bench/pong`, express.
+pub(crate) struct ZenohFloor {
+    _echo: Proc,
+    _session: zenoh::Session,
+    ping: zenoh::pubsub::Publisher<'static>,
+    pong: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+}
+
+impl ZenohFloor {
+    /// Starts the echo and waits until it answers.
+    pub(crate) fn start() -> anyhow::Result<Self> {
+        use zenoh::Wait as _;
+        let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
+        let echo = Host {
+            env: Vec::new(),
+            namespace: None,
         }
-        anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
-    }
-    while pong.try_recv().map_err(error)?.is_some() {}
-    let mut latencies = Latencies::new();
-    for i in 0..ticks + ticks / 10 {
-        let start = Instant::now();
-        ping.put(vec![0u8; 8]).wait().map_err(error)?;
-        pong.recv().map_err(error)?;
-        if i >= ticks / 10 {
-            latencies.record(start.elapsed().as_nanos() as u64);
+        .spawn(
+            "simbus-bench",
+            &[
+                "zenoh-peer",
+                "--world",
+                "floor",
+                "--mode",
+                "echo",
+                "--count",
+                "0",
+                "--endpoint",
+                &endpoint,
+            ],
+        );
+        wait_line(&echo, "ready")?;
+        let session = zenoh_session("connect/endpoints", &endpoint)?;
+        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        let ping = session
+            .declare_publisher("bench/ping")
+            .express(true)
+            .wait()
+            .map_err(error)?;
+        let pong = session
+            .declare_subscriber("bench/pong")
+            .wait()
+            .map_err(error)?;
+        // Until the echo's subscription has reached us and answers.
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            ping.put(vec![0u8; 8]).wait().map_err(error)?;
+            if pong
+                .recv_timeout(Duration::from_millis(100))
+                .map_err(error)?
+                .is_some()
+            {
+                break;
+            }
+            anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
         }
+        while pong.try_recv().map_err(error)?.is_some() {}
+        Ok(Self {
+            _echo: echo,
+            _session: session,
+            ping,
+            pong,
+        })
     }
-    Ok(latencies)
+
+    /// Records `n` round trips (after n / 10 not recorded) in `latencies`.
+    pub(crate) fn measure(&mut self, n: u64, latencies: &mut Latencies) -> anyhow::Result<()> {
+        use zenoh::Wait as _;
+        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        for i in 0..n + n / 10 {
+            let start = Instant::now();
+            self.ping.put(vec![0u8; 8]).wait().map_err(error)?;
+            self.pong.recv().map_err(error)?;
+            if i >= n / 10 {
+                latencies.record(start.elapsed().as_nanos() as u64);
+            }
+        }
+        Ok(())
+    }
 }

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use shared_types::SensorSpec;
 use sim_client::Client;
+use simbus_transport::stamps::{self, Stage};
 
 use crate::support::{now_ns, sync_ticker};
 
@@ -36,6 +37,9 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
     if args.mode == "echo" {
         return zenoh_echo(&args.endpoint);
     }
+    // `SIMBUS_STAMPS=FILE`: this side's stamps of each tick, written at
+    // the end (`simbus-bench zenoh --breakdown`).
+    let stamps_file = stamps::enable_from_env();
     let mut client = Client::connect(&args.world, Duration::from_secs(20))?;
     let mut ticker = sync_ticker(&client, 0.01)?;
     let timeout = Duration::from_secs(30);
@@ -61,6 +65,7 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
                     snapshot.frame()
                 );
                 last = frame;
+                stamps::stamp(Stage::ClientHolds, frame);
                 let published = (snapshot.timestamp().platform_timestamp * 1e9) as u64;
                 if i >= warmup {
                     round_trips.push(round_trip);
@@ -102,6 +107,9 @@ pub(crate) fn peer(args: ZenohPeerArgs) -> anyhow::Result<()> {
         mode => anyhow::bail!("unknown mode {mode}"),
     }
     ticker.release()?;
+    if let Some(path) = stamps_file {
+        stamps::write(&path, &stamps::take())?;
+    }
     Ok(())
 }
 

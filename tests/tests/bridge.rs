@@ -63,7 +63,13 @@ fn status_ticker(hosts: &TwoHosts, world: &str) -> Option<(String, u64)> {
 fn a_mirrored_world_ticks_in_step_keeps_one_ticker_and_survives_its_link() {
     let hosts = TwoHosts::new("zb");
     let world = unique_world("zb");
-    let bridge = hosts.mirrored(&world, &["--sync", "--delta-seconds", "0.05"], &[]);
+    // This mirror sleeps at once between events (`--poll-us 0`); the other
+    // tests' mirrors look for a tick's next event first (the default).
+    let bridge = hosts.mirrored(
+        &world,
+        &["--sync", "--delta-seconds", "0.05"],
+        &["--poll-us", "0"],
+    );
 
     // A watcher on each host, then 500 ticks from the second host.
     let watch = ["watch", "--digest", "--frames", "501"];

@@ -25,6 +25,7 @@
 pub mod environment;
 pub mod frames;
 pub mod futex;
+pub mod hybrid;
 pub mod spec;
 pub mod stamps;
 

@@ -29,10 +29,20 @@ use std::sync::Mutex;
 pub const SIMBUS_STAMPS: &str = "SIMBUS_STAMPS";
 
 /// A stage of the synchronous tick round trip, in the order they happen.
+/// The `Mirror…` and `Export…` stages are those of a tick through the
+/// Zenoh bridges (a ticker on the mirror's host).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Stage {
     /// The client is about to send the tick request.
     ClientSend,
+    /// The mirror took the local ticker's request.
+    MirrorTakes,
+    /// The mirror's Zenoh publication of the tick returned.
+    MirrorAsked,
+    /// The exporter's Zenoh callback has the tick.
+    ExportGets,
+    /// The exporter's frame thread sent the tick to the server.
+    ExportSends,
     /// The server's loop woke from its sleep (or, spinning, found the tick).
     ServerWake,
     /// The server's ticker domain took the tick request.
@@ -47,6 +57,17 @@ pub enum Stage {
     Answered,
     /// The frame-ready event is notified (waiting clients wake now).
     Notified,
+    /// The exporter's frame thread took the server's answer.
+    ExportTakes,
+    /// The exporter's Zenoh publication of the frame (the answer attached)
+    /// returned.
+    ExportPuts,
+    /// The mirror's Zenoh callback has the frame.
+    MirrorGets,
+    /// The mirror published the frame in its host's shared memory.
+    MirrorPublishes,
+    /// The mirror sent the local ticker its answer.
+    MirrorAnswers,
     /// The client's wait returned (woken, or its poll found the answer).
     ClientWake,
     /// The client holds the frame's snapshot.
@@ -55,8 +76,12 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in order.
-    pub const ALL: [Stage; 10] = [
+    pub const ALL: [Stage; 19] = [
         Stage::ClientSend,
+        Stage::MirrorTakes,
+        Stage::MirrorAsked,
+        Stage::ExportGets,
+        Stage::ExportSends,
         Stage::ServerWake,
         Stage::ServerTick,
         Stage::StepBegin,
@@ -64,6 +89,11 @@ impl Stage {
         Stage::Published,
         Stage::Answered,
         Stage::Notified,
+        Stage::ExportTakes,
+        Stage::ExportPuts,
+        Stage::MirrorGets,
+        Stage::MirrorPublishes,
+        Stage::MirrorAnswers,
         Stage::ClientWake,
         Stage::ClientHolds,
     ];
@@ -72,6 +102,10 @@ impl Stage {
     pub fn name(self) -> &'static str {
         match self {
             Stage::ClientSend => "client_send",
+            Stage::MirrorTakes => "mirror_takes",
+            Stage::MirrorAsked => "mirror_asked",
+            Stage::ExportGets => "export_gets",
+            Stage::ExportSends => "export_sends",
             Stage::ServerWake => "server_wake",
             Stage::ServerTick => "server_tick",
             Stage::StepBegin => "step_begin",
@@ -79,6 +113,11 @@ impl Stage {
             Stage::Published => "published",
             Stage::Answered => "answered",
             Stage::Notified => "notified",
+            Stage::ExportTakes => "export_takes",
+            Stage::ExportPuts => "export_puts",
+            Stage::MirrorGets => "mirror_gets",
+            Stage::MirrorPublishes => "mirror_publishes",
+            Stage::MirrorAnswers => "mirror_answers",
             Stage::ClientWake => "client_wake",
             Stage::ClientHolds => "client_holds",
         }
@@ -108,6 +147,9 @@ static LAST_WAKE: AtomicU64 = AtomicU64::new(0);
 /// When this process last began waiting for a round trip's next stage: a
 /// client when it sent, a server when it notified.
 static LAST_START: AtomicU64 = AtomicU64::new(0);
+/// The frame this process's next round trip computes, for a thread that
+/// cannot know it (a Zenoh callback): see [`expect`].
+static EXPECTED: AtomicU64 = AtomicU64::new(0);
 
 /// `CLOCK_MONOTONIC` now, in nanoseconds.
 pub fn now_ns() -> u64 {
@@ -142,6 +184,23 @@ pub fn enabled() -> bool {
 pub fn stamp(stage: Stage, frame: u64) {
     if enabled() {
         stamp_at(stage, frame, now_ns());
+    }
+}
+
+/// Notes that the next round trip this process takes part in computes
+/// `frame`, for [`stamp_expected`] on a thread that cannot know it.
+#[inline]
+pub fn expect(frame: u64) {
+    if enabled() {
+        EXPECTED.store(frame, Ordering::Relaxed);
+    }
+}
+
+/// Keeps `stage` as happening now, for the frame last [`expect`]ed.
+#[inline]
+pub fn stamp_expected(stage: Stage) {
+    if enabled() {
+        stamp_at(stage, EXPECTED.load(Ordering::Relaxed), now_ns());
     }
 }
 
@@ -275,5 +334,24 @@ mod tests {
         for stage in Stage::ALL {
             assert_eq!(Stage::from_name(stage.name()), Some(stage));
         }
+    }
+
+    #[test]
+    fn a_stamp_for_the_expected_frame_is_kept_under_that_frame_and_only_when_on() {
+        // Off: nothing is kept, whatever was expected.
+        expect(41);
+        stamp_expected(Stage::MirrorGets);
+        assert!(take().is_empty());
+        enable(4);
+        expect(42);
+        stamp_expected(Stage::MirrorGets);
+        stamp(Stage::MirrorPublishes, 42);
+        let kept = take();
+        let kept: Vec<_> = kept.iter().map(|s| (s.stage, s.frame)).collect();
+        assert_eq!(
+            kept,
+            [(Stage::MirrorGets, 42), (Stage::MirrorPublishes, 42)],
+            "the callback's stamp lands on the frame the main thread expected"
+        );
     }
 }

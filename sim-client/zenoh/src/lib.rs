@@ -102,6 +102,12 @@ pub struct Options {
     pub lease_ms: u64,
     /// Mirroring: how long a forwarded request may wait for its answer.
     pub request_timeout: Duration,
+    /// How long the bridge looks for a tick's next event, yielding the
+    /// CPU, before it sleeps: the exporter while the server has a remote
+    /// tick (its answer is coming), the mirror after it answered one (the
+    /// ticker's next tick is coming). Each event found within it saves a
+    /// wake-up; zero sleeps at once (no CPU spent).
+    pub poll: Duration,
     /// Exporting: the JSON of the `status` and `settings` queries.
     pub json: JsonViews,
 }

@@ -102,6 +102,7 @@ pub(crate) const FLAGS: &[Flag] = &[
     client_flag(&["foxglove"], "--max-hz", "{}", &[], ZERO),
     client_flag(LISTEN, "--lease-ms", "{}", &[], NONE),
     client_flag(LISTEN, "--request-timeout", "{}", &[], NONE),
+    client_flag(LISTEN, "--poll-us", "{}", &[], ZERO),
     // config
     client_flag(&["config"], "--delta-seconds", "{}", &[], ZERO),
     client_flag(&["config"], "--fps", "{}", &[], ZERO),

@@ -7,6 +7,7 @@ use std::sync::mpsc::Sender;
 use std::sync::Arc;
 
 use shared_types::ServiceNames;
+use simbus_transport::stamps::{self, Stage};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::query::Queryable;
@@ -111,6 +112,7 @@ fn tick_asks(
     session
         .declare_subscriber(keys.tick_asks())
         .callback(move |sample| {
+            stamps::stamp_expected(Stage::ExportGets);
             if to_frames
                 .send(Order::TickPut(sample.payload().clone()))
                 .is_ok()

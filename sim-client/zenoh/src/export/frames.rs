@@ -17,10 +17,11 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use iceoryx2::node::Node;
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::listener::Listener;
 use shared_types::{ServiceNames, WorldName};
 use sim_client::{Capture, Client, FrameView, WaitError};
-use simbus_transport::Bus;
+use simbus_transport::stamps::{self, Stage};
+use simbus_transport::{hybrid, Bus};
 use tracing::{info, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::pubsub::Publisher;
@@ -98,6 +99,8 @@ pub(super) struct FrameForwarder<'a> {
     forwarded: u64,
     /// Whether the main thread heard of the first frame.
     told_first: bool,
+    /// How long a ring is looked for while a tick is with the server.
+    poll_window: Duration,
 }
 
 /// A publisher that sends each message at once, in order, none batched.
@@ -111,13 +114,14 @@ fn express(session: &Session, key: String) -> Result<Publisher<'static>, FramesE
 }
 
 impl<'a> FrameForwarder<'a> {
-    /// Connects to `world` and declares the frame (and clock) publishers.
+    /// Connects to `world` and declares the frame (and clock, with
+    /// `ros2_clock`) publishers; `poll` is the bridge's poll window.
     pub(super) fn new(
         world: &WorldName,
         timeout: Duration,
         session: &'a Session,
         keys: &'a BridgeKeys,
-        ros2_clock: bool,
+        (ros2_clock, poll): (bool, Duration),
         shared: Arc<Shared>,
     ) -> Result<Self, FramesError> {
         let client = Client::connect(world.as_str(), timeout)?;
@@ -150,6 +154,7 @@ impl<'a> FrameForwarder<'a> {
             shared,
             forwarded: 0,
             told_first: false,
+            poll_window: poll,
         })
     }
 
@@ -218,13 +223,17 @@ impl<'a> FrameForwarder<'a> {
     }
 
     /// The one wait point: whether the server rang within [`LIVENESS`].
+    /// While a tick is with the server, its ring is looked for, yielding,
+    /// for the bridge's poll window before the thread sleeps: the default
+    /// wait of a local ticker, and a wake-up fewer per remote tick.
     fn wait(&self) -> Result<bool, FramesError> {
-        let mut rang = false;
-        match self.ready.timed_wait(|_| rang = true, LIVENESS) {
-            Ok(n) => Ok(rang || n > 0),
-            Err(ListenerWaitError::InterruptSignal) => Ok(rang),
-            Err(e) => Err(LocalError::transport("frame-ready wait", e).into()),
-        }
+        let poll_for = if self.ticks.awaiting_server() {
+            self.poll_window
+        } else {
+            Duration::ZERO
+        };
+        hybrid::wait(&self.ready, poll_for, LIVENESS)
+            .map_err(|e| LocalError::transport("frame-ready wait", e).into())
     }
 
     /// Publishes every frame queued; whether there was one.
@@ -298,6 +307,8 @@ impl<'a> FrameForwarder<'a> {
             .attachment(self.ticks.attachment(number))
             .wait()
             .map_err(FramesError::zenoh("publishing a frame"))?;
+        stamps::stamp(Stage::ExportPuts, number);
+        stamps::expect(number + 1);
         if let Some(clock) = &self.clock {
             clock
                 .put(wire::ros2_clock_cdr(elapsed_ns).as_slice())

@@ -144,8 +144,8 @@ fn export_server(
     };
     let _declared = declare(&side.session, &keys, routes)?;
     let done = AtomicBool::new(false);
-    let (world, timeout, stop, ros2_clock) =
-        (side.world, side.timeout, side.stop, side.options.ros2_clock);
+    let (world, timeout, stop) = (side.world, side.timeout, side.stop);
+    let (ros2_clock, poll) = (side.options.ros2_clock, side.options.poll);
     std::thread::scope(|scope| {
         let _stop_frames = SetOnDrop(&done);
         let (session, keys, forwarded, done) = (&side.session, &keys, shared.clone(), &done);
@@ -154,22 +154,28 @@ fn export_server(
             .name("frames".into())
             .spawn_scoped(scope, move || {
                 let mut owner = None;
-                let ended =
-                    FrameForwarder::new(world, timeout, session, keys, ros2_clock, forwarded)
-                        .and_then(|mut forwarder| {
-                            if let Some(claim_for) = claim_for {
-                                forwarder.claim_again(claim_for);
-                            }
-                            let (ended, held) = forwarder.run(
-                                &ordered,
-                                || frames::either(stop, done),
-                                |event| {
-                                    let _ = to_main.send(event);
-                                },
-                            );
-                            owner = held;
-                            ended
-                        });
+                let ended = FrameForwarder::new(
+                    world,
+                    timeout,
+                    session,
+                    keys,
+                    (ros2_clock, poll),
+                    forwarded,
+                )
+                .and_then(|mut forwarder| {
+                    if let Some(claim_for) = claim_for {
+                        forwarder.claim_again(claim_for);
+                    }
+                    let (ended, held) = forwarder.run(
+                        &ordered,
+                        || frames::either(stop, done),
+                        |event| {
+                            let _ = to_main.send(event);
+                        },
+                    );
+                    owner = held;
+                    ended
+                });
                 let _ = to_main.send(Event::FramesEnded(ended.err()));
                 owner
             })

@@ -17,6 +17,7 @@ use iceoryx2::node::Node;
 use iceoryx2::port::notifier::Notifier;
 use shared_types::{ResponseStatus, TickRequest, TickResponse, TickerInfo};
 use simbus_transport::spec::WorldServices;
+use simbus_transport::stamps::{self, Stage};
 use simbus_transport::Bus;
 use tracing::{debug, info};
 use zenoh::bytes::ZBytes;
@@ -160,6 +161,7 @@ impl Ticks {
             };
             match self.port.send_pending(request) {
                 Ok(pending) => {
+                    stamps::stamp(Stage::ExportSends, forwarded + 1);
                     self.puts.push(PutFlight {
                         pending,
                         mirror,
@@ -201,6 +203,12 @@ impl Ticks {
         self.take_puts();
     }
 
+    /// Whether a tick was sent to the server and its answer has not come:
+    /// the frame thread then looks for the server's ring before it sleeps.
+    pub(super) fn awaiting_server(&self) -> bool {
+        !self.puts.is_empty() || self.port.in_flight() > 0
+    }
+
     /// The answers to tick publications that came; a request whose server
     /// is gone or silent for too long is answered `Refused`.
     fn take_puts(&mut self) {
@@ -226,6 +234,7 @@ impl Ticks {
                 publish(&self.answers, &flight.mirror, flight.id, &answer);
                 continue;
             }
+            stamps::stamp(Stage::ExportTakes, answer.frame);
             let PutFlight { mirror, id, .. } = self.puts.swap_remove(i);
             self.tickers.answered(&answer);
             self.held.push(Held {

@@ -163,11 +163,11 @@ impl LocalServices {
         })
     }
 
-    /// Sleeps until a local client sends a request or [`wake`] is called,
-    /// at most `timeout`.
-    pub(super) fn wait(&self, timeout: Duration) -> Result<(), LocalError> {
-        self.wake
-            .timed_wait(|_| {}, timeout)
+    /// Waits until a local client sends a request or [`wake`] is called,
+    /// at most `timeout`: looking for it, yielding the CPU, for the first
+    /// `poll_for`, then asleep.
+    pub(super) fn wait(&self, poll_for: Duration, timeout: Duration) -> Result<(), LocalError> {
+        simbus_transport::hybrid::wait(&self.wake, poll_for, timeout)
             .map(drop)
             .map_err(|e| LocalError::transport("waiting for local requests", e))
     }

@@ -29,6 +29,7 @@ use shared_types::limits::WorldLimits;
 use shared_types::{
     FixedText, ResponseStatus, ServiceNames, TickRequest, TickRequestKind, TickResponse,
 };
+use simbus_transport::stamps::{self, Stage};
 use tracing::{info, warn};
 use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
@@ -122,6 +123,7 @@ fn declare(
         _subscribers: [
             exporter,
             subscriber(keys.frames(), |s| {
+                stamps::stamp_expected(Stage::MirrorGets);
                 Event::Frame(s.payload().clone(), s.attachment().cloned())
             })?,
             subscriber(keys.sensors(), |s| Event::Capture(s.payload().clone()))?,
@@ -181,6 +183,7 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
         zid: &zid,
         events,
         timeout: side.options.request_timeout,
+        poll: side.options.poll,
         asks,
     };
     let mut mirror = Mirror::new(
@@ -213,12 +216,16 @@ struct Mirror<'a> {
     /// The local ticker (pid, name as forwarded), released if it dies.
     local_ticker: Option<(u32, String)>,
     next_liveness_check: Instant,
+    /// Until when the mirror looks for events before it sleeps.
+    poll_until: Instant,
+    poll_window: Duration,
     dropped: u64,
     requests: Vec<Local>,
 }
 
 impl<'a> Mirror<'a> {
     fn new(link: Link<'a>, local: LocalServices, limits: WorldLimits, last: (u64, u64)) -> Self {
+        let poll_window = link.poll;
         Self {
             link,
             local,
@@ -232,6 +239,8 @@ impl<'a> Mirror<'a> {
             linked: true,
             local_ticker: None,
             next_liveness_check: Instant::now(),
+            poll_until: Instant::now(),
+            poll_window,
             dropped: 0,
             requests: Vec::new(),
         }
@@ -247,15 +256,26 @@ impl<'a> Mirror<'a> {
         while !stop.load(Ordering::Relaxed) {
             loop {
                 match incoming.try_recv() {
+                    // Local clients are rung as soon as the frame is out
+                    // (their wake-up overlaps the answers' sending) and
+                    // again once the answers it carries are sent.
                     Ok(Event::Frame(bytes, attached)) => {
                         self.on_frame(&bytes)?;
+                        self.local.notify();
                         if let Some(attached) = attached {
                             self.on_tick_answers(&attached.to_bytes());
+                            self.local.notify();
                         }
                     }
                     Ok(Event::Capture(bytes)) => self.on_capture(&bytes.to_bytes()),
-                    Ok(Event::TickAnswers(bytes)) => self.on_tick_answers(&bytes.to_bytes()),
-                    Ok(Event::Reply(id, reply)) => self.on_reply(id, reply),
+                    Ok(Event::TickAnswers(bytes)) => {
+                        self.on_tick_answers(&bytes.to_bytes());
+                        self.local.notify();
+                    }
+                    Ok(Event::Reply(id, reply)) => {
+                        self.on_reply(id, reply);
+                        self.local.notify();
+                    }
                     Ok(Event::Done(id)) => self.on_done(id),
                     Ok(Event::Exporter(alive)) => self.on_exporter(alive, notice),
                     Err(TryRecvError::Empty) => break,
@@ -270,16 +290,17 @@ impl<'a> Mirror<'a> {
             // The one wait point: local clients and Zenoh's callbacks (after
             // queueing an event) ring the wake-up listener (see
             // `local::wake`); a ring that came meanwhile ends it at once.
-            let left = self
-                .next_liveness_check
-                .saturating_duration_since(Instant::now());
-            self.local.wait(left)?;
+            let now = Instant::now();
+            let left = self.next_liveness_check.saturating_duration_since(now);
+            let poll_for = self.poll_until.saturating_duration_since(now);
+            self.local.wait(poll_for, left)?;
         }
         Ok(())
     }
 
     /// A frame from the exporter, read straight from Zenoh's payload into
-    /// a loaned sample and published here; the tick answers held for it go.
+    /// a loaned sample and published here; the tick answers held for it go
+    /// (the caller rings local clients).
     fn on_frame(&mut self, payload: &ZBytes) -> Result<(), MirrorError> {
         let mut reader = wire::Slices::new(payload.slices());
         let mut header = match wire::frame_header(&mut reader, payload.len()) {
@@ -310,6 +331,8 @@ impl<'a> Mirror<'a> {
         self.local.publish_frame_with(&header, |_| {
             reader.read().unwrap_or_else(bytemuck::Zeroable::zeroed)
         })?;
+        stamps::stamp(Stage::MirrorPublishes, key.1);
+        let held = self.held.len();
         self.held.retain(|(active, answer, _)| {
             if answer.frame > key.1 {
                 return true;
@@ -317,7 +340,10 @@ impl<'a> Mirror<'a> {
             send_tick(active, *answer);
             false
         });
-        self.local.notify();
+        if self.held.len() < held {
+            stamps::stamp(Stage::MirrorAnswers, key.1);
+            self.answered_tick();
+        }
         Ok(())
     }
 
@@ -325,6 +351,7 @@ impl<'a> Mirror<'a> {
     /// just published here): each of this mirror's in-flight requests
     /// named is answered as a reply would be; a final answer ends it (a
     /// query's own reply, which may follow, then finds nothing in flight).
+    /// The caller rings local clients.
     fn on_tick_answers(&mut self, bytes: &[u8]) {
         let entries = match tagged::decode::<TickResponse>(bytes, "tick answers") {
             Ok(entries) => entries,
@@ -379,7 +406,8 @@ impl<'a> Mirror<'a> {
     }
 
     /// The exporter's reply to forwarded request `id`, sent to its local
-    /// client (a tick's once its frame is published here).
+    /// client (a tick's once its frame is published here); the caller
+    /// rings local clients.
     fn on_reply(&mut self, id: u64, reply: Result<ZBytes, QueryError>) {
         let Some(flight) = self.in_flight.get_mut(&id) else {
             return;
@@ -419,13 +447,14 @@ impl<'a> Mirror<'a> {
                 {
                     if answer.frame <= self.last.1 {
                         send_tick(&active, *answer);
+                        stamps::stamp(Stage::MirrorAnswers, answer.frame);
+                        self.answered_tick();
                     } else {
                         self.held.push((active, *answer, Instant::now()));
                     }
                 }
             }
         }
-        self.local.notify();
     }
 
     /// Forwarded request `id` gets no more replies: without any, the
@@ -488,8 +517,12 @@ impl<'a> Mirror<'a> {
                 Local::Tick(_, payload)
                     if TickRequestKind::from_u32(payload.kind) == Some(TickRequestKind::Tick) =>
                 {
+                    let frame = self.last.1 + 1;
+                    stamps::stamp(Stage::MirrorTakes, frame);
+                    stamps::expect(frame);
                     self.next_id += 1;
                     self.link.ask_tick(payload, self.next_id);
+                    stamps::stamp(Stage::MirrorAsked, frame);
                     Some(Instant::now())
                 }
                 _ => {
@@ -509,6 +542,13 @@ impl<'a> Mirror<'a> {
         }
         self.requests = requests;
         Ok(())
+    }
+
+    /// A tick's answer went to the local ticker: its next tick, which a
+    /// ticker in a loop sends at once, is looked for before the mirror
+    /// sleeps (the server's hybrid window after a frame, here).
+    fn answered_tick(&mut self) {
+        self.poll_until = Instant::now() + self.poll_window;
     }
 
     /// Forwards `bytes` to `service` under a new id, returned.

@@ -39,6 +39,8 @@ pub(super) struct Link<'a> {
     pub events: Sender<Event>,
     /// How long a forwarded request may wait for its answer.
     pub timeout: Duration,
+    /// How long the mirror looks for a tick's next event before it sleeps.
+    pub poll: Duration,
     /// Publishes tick requests on `tick/ask`.
     pub asks: Publisher<'static>,
 }

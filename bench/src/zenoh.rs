@@ -18,7 +18,7 @@ use simbus_tests::{PrivateRoot, Proc, TwoHosts};
 
 use crate::stats::{header, Latencies};
 use crate::support::machine_state;
-use crate::zenoh_peer::zenoh_session;
+use crate::zenoh_peer::ZenohFloor;
 
 /// Options of `simbus-bench zenoh`.
 #[derive(Debug, Args)]
@@ -81,7 +81,7 @@ pub(crate) struct Setup {
 }
 
 /// Where a process runs: a root, and a network namespace or none.
-#[derive(Clone)]
+#[derive(Clone, Default)]
 pub(crate) struct Host {
     env: Vec<(String, std::ffi::OsString)>,
     namespace: Option<String>,
@@ -99,7 +99,7 @@ impl Host {
         }
     }
 
-    fn spawn(&self, program: &str, args: &[&str]) -> Proc {
+    pub(crate) fn spawn(&self, program: &str, args: &[&str]) -> Proc {
         let env: Vec<(&str, &std::ffi::OsStr)> = self
             .env
             .iter()
@@ -132,7 +132,7 @@ impl Host {
     }
 }
 
-fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
+pub(crate) fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
     let deadline = Instant::now() + Duration::from_secs(60);
     while Instant::now() < deadline {
         if proc
@@ -534,89 +534,5 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
     if let Some(release) = &figures.release {
         println!("\nownership released after the link drops (lease 1000 ms), ms");
         println!("{}", release.row_ms("veth link down"));
-    }
-}
-
-/// Zenoh's own round trip between two processes on loopback (a put and
-/// the echo's put back, express): the floor under a mirror's tick.
-/// Zenoh's own round trip, the floor under a mirrored tick: a put on
-/// `bench/ping` and an echo process's put back on `bench/pong`, express.
-pub(crate) struct ZenohFloor {
-    _echo: Proc,
-    _session: zenoh::Session,
-    ping: zenoh::pubsub::Publisher<'static>,
-    pong: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-}
-
-impl ZenohFloor {
-    /// Starts the echo and waits until it answers.
-    pub(crate) fn start() -> anyhow::Result<Self> {
-        use zenoh::Wait as _;
-        let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
-        let echo = Host {
-            env: Vec::new(),
-            namespace: None,
-        }
-        .spawn(
-            "simbus-bench",
-            &[
-                "zenoh-peer",
-                "--world",
-                "floor",
-                "--mode",
-                "echo",
-                "--count",
-                "0",
-                "--endpoint",
-                &endpoint,
-            ],
-        );
-        wait_line(&echo, "ready")?;
-        let session = zenoh_session("connect/endpoints", &endpoint)?;
-        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-        let ping = session
-            .declare_publisher("bench/ping")
-            .express(true)
-            .wait()
-            .map_err(error)?;
-        let pong = session
-            .declare_subscriber("bench/pong")
-            .wait()
-            .map_err(error)?;
-        // Until the echo's subscription has reached us and answers.
-        let deadline = Instant::now() + Duration::from_secs(20);
-        loop {
-            ping.put(vec![0u8; 8]).wait().map_err(error)?;
-            if pong
-                .recv_timeout(Duration::from_millis(100))
-                .map_err(error)?
-                .is_some()
-            {
-                break;
-            }
-            anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
-        }
-        while pong.try_recv().map_err(error)?.is_some() {}
-        Ok(Self {
-            _echo: echo,
-            _session: session,
-            ping,
-            pong,
-        })
-    }
-
-    /// Records `n` round trips (after n / 10 not recorded) in `latencies`.
-    pub(crate) fn measure(&mut self, n: u64, latencies: &mut Latencies) -> anyhow::Result<()> {
-        use zenoh::Wait as _;
-        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-        for i in 0..n + n / 10 {
-            let start = Instant::now();
-            self.ping.put(vec![0u8; 8]).wait().map_err(error)?;
-            self.pong.recv().map_err(error)?;
-            if i >= n / 10 {
-                latencies.record(start.elapsed().as_nanos() as u64);
-            }
-        }
-        Ok(())
     }
 }

@@ -12,7 +12,8 @@ use simbus_transport::stamps::{self, Stage};
 
 use crate::breakdown::span_medians;
 use crate::stats::Latencies;
-use crate::zenoh::{latencies, Host, Launch, Setup, ZenohArgs, ZenohFloor};
+use crate::zenoh::{latencies, Host, Launch, Setup, ZenohArgs};
+use crate::zenoh_peer::ZenohFloor;
 
 /// The hops of a mirrored tick, in order.
 const HOPS: [(Stage, Stage, &str); 16] = [

@@ -9,7 +9,11 @@ use shared_types::SensorSpec;
 use sim_client::Client;
 use simbus_transport::stamps::{self, Stage};
 
+use simbus_tests::Proc;
+
+use crate::stats::Latencies;
 use crate::support::{now_ns, sync_ticker};
+use crate::zenoh::{wait_line, Host};
 
 /// Options of the measuring client (run in the host it measures from).
 #[derive(Debug, Args)]
@@ -147,4 +151,82 @@ fn zenoh_echo(endpoint: &str) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("{e}"))?;
     }
     Ok(())
+}
+
+/// Zenoh's own round trip, the floor under a mirrored tick: a put on
+/// `bench/ping` and an echo process's put back on `bench/pong`, express.
+pub(crate) struct ZenohFloor {
+    _echo: Proc,
+    _session: zenoh::Session,
+    ping: zenoh::pubsub::Publisher<'static>,
+    pong: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+}
+
+impl ZenohFloor {
+    /// Starts the echo and waits until it answers.
+    pub(crate) fn start() -> anyhow::Result<Self> {
+        use zenoh::Wait as _;
+        let endpoint = format!("tcp/127.0.0.1:{}", 16_000 + std::process::id() % 1000);
+        let echo = Host::default().spawn(
+            "simbus-bench",
+            &[
+                "zenoh-peer",
+                "--world",
+                "floor",
+                "--mode",
+                "echo",
+                "--count",
+                "0",
+                "--endpoint",
+                &endpoint,
+            ],
+        );
+        wait_line(&echo, "ready")?;
+        let session = zenoh_session("connect/endpoints", &endpoint)?;
+        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        let ping = session
+            .declare_publisher("bench/ping")
+            .express(true)
+            .wait()
+            .map_err(error)?;
+        let pong = session
+            .declare_subscriber("bench/pong")
+            .wait()
+            .map_err(error)?;
+        // Until the echo's subscription has reached us and answers.
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            ping.put(vec![0u8; 8]).wait().map_err(error)?;
+            if pong
+                .recv_timeout(Duration::from_millis(100))
+                .map_err(error)?
+                .is_some()
+            {
+                break;
+            }
+            anyhow::ensure!(Instant::now() < deadline, "the Zenoh echo never answered");
+        }
+        while pong.try_recv().map_err(error)?.is_some() {}
+        Ok(Self {
+            _echo: echo,
+            _session: session,
+            ping,
+            pong,
+        })
+    }
+
+    /// Records `n` round trips (after n / 10 not recorded) in `latencies`.
+    pub(crate) fn measure(&mut self, n: u64, latencies: &mut Latencies) -> anyhow::Result<()> {
+        use zenoh::Wait as _;
+        let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        for i in 0..n + n / 10 {
+            let start = Instant::now();
+            self.ping.put(vec![0u8; 8]).wait().map_err(error)?;
+            self.pong.recv().map_err(error)?;
+            if i >= n / 10 {
+                latencies.record(start.elapsed().as_nanos() as u64);
+            }
+        }
+        Ok(())
+    }
 }

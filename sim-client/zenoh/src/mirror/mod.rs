@@ -218,14 +218,12 @@ struct Mirror<'a> {
     next_liveness_check: Instant,
     /// Until when the mirror looks for events before it sleeps.
     poll_until: Instant,
-    poll_window: Duration,
     dropped: u64,
     requests: Vec<Local>,
 }
 
 impl<'a> Mirror<'a> {
     fn new(link: Link<'a>, local: LocalServices, limits: WorldLimits, last: (u64, u64)) -> Self {
-        let poll_window = link.poll;
         Self {
             link,
             local,
@@ -240,7 +238,6 @@ impl<'a> Mirror<'a> {
             local_ticker: None,
             next_liveness_check: Instant::now(),
             poll_until: Instant::now(),
-            poll_window,
             dropped: 0,
             requests: Vec::new(),
         }
@@ -548,7 +545,7 @@ impl<'a> Mirror<'a> {
     /// ticker in a loop sends at once, is looked for before the mirror
     /// sleeps (the server's hybrid window after a frame, here).
     fn answered_tick(&mut self) {
-        self.poll_until = Instant::now() + self.poll_window;
+        self.poll_until = Instant::now() + self.link.poll;
     }
 
     /// Forwards `bytes` to `service` under a new id, returned.

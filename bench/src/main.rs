@@ -41,6 +41,7 @@ mod support;
 mod tick;
 mod zenoh;
 mod zenoh_breakdown;
+mod zenoh_hosts;
 mod zenoh_peer;
 
 /// simbus benchmarks. Each prints a table (or --json) of figures measured in

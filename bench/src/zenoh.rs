@@ -14,10 +14,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
-use simbus_tests::{PrivateRoot, Proc, TwoHosts};
+use simbus_tests::{PrivateRoot, TwoHosts};
 
 use crate::stats::{header, Latencies};
 use crate::support::machine_state;
+use crate::zenoh_hosts::{add_latencies, latencies, wait_line, Host, Launch, Setup};
 use crate::zenoh_peer::ZenohFloor;
 
 /// Options of `simbus-bench zenoh`.
@@ -25,7 +26,7 @@ use crate::zenoh_peer::ZenohFloor;
 pub(crate) struct ZenohArgs {
     /// Ticks per latency row.
     #[arg(long, default_value_t = 2000)]
-    pub(crate) ticks: u64,
+    ticks: u64,
     /// Captures per sensor row.
     #[arg(long, default_value_t = 100)]
     captures: u64,
@@ -48,184 +49,13 @@ pub(crate) struct ZenohArgs {
     /// in `tick` (a step of the demo scene, `default`, is ~20 µs of the
     /// world's physics on each tick, not the bridge's).
     #[arg(long, default_value = "empty")]
-    pub(crate) scene: String,
+    scene: String,
     /// The bridges' `--poll-us` (0: they sleep at once).
     #[arg(long, default_value_t = 100)]
-    pub(crate) poll_us: u64,
+    poll_us: u64,
     /// One JSON object instead of tables.
     #[arg(long)]
-    pub(crate) json: bool,
-}
-
-/// How a setup's processes run.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Launch<'a> {
-    /// Arguments added to the server's.
-    pub server_args: &'a [&'a str],
-    /// The bridges' `--poll-us`.
-    pub poll_us: u64,
-    /// With a directory, each process keeps the stamps of the ticks it
-    /// serves and writes them on exit to `server`, `exporter` and
-    /// `mirror` there.
-    pub stamps: Option<&'a std::path::Path>,
-}
-
-/// A server with an exporting bridge, and a mirror (or none).
-pub(crate) struct Setup {
-    pub(crate) world: String,
-    /// Runs a process on the server's host.
-    server_host: Host,
-    /// Runs a process on the mirror's host.
-    pub(crate) mirror_host: Host,
-    procs: Vec<Proc>,
-}
-
-/// Where a process runs: a root, and a network namespace or none.
-#[derive(Clone, Default)]
-pub(crate) struct Host {
-    env: Vec<(String, std::ffi::OsString)>,
-    namespace: Option<String>,
-}
-
-impl Host {
-    pub(crate) fn of_root(root: &PrivateRoot, namespace: Option<&str>) -> Self {
-        Self {
-            env: root
-                .env()
-                .iter()
-                .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
-                .collect(),
-            namespace: namespace.map(str::to_owned),
-        }
-    }
-
-    pub(crate) fn spawn(&self, program: &str, args: &[&str]) -> Proc {
-        let env: Vec<(&str, &std::ffi::OsStr)> = self
-            .env
-            .iter()
-            .map(|(k, v)| (k.as_str(), v.as_os_str()))
-            .collect();
-        match &self.namespace {
-            Some(ns) => Proc::spawn_wrapped(&["ip", "netns", "exec", ns], program, args, &env),
-            None => Proc::spawn_env(program, args, &env),
-        }
-    }
-
-    /// This host, with `key=value` added to its processes' environment.
-    pub(crate) fn with_env(&self, key: &str, value: &std::path::Path) -> Self {
-        let mut host = self.clone();
-        host.env
-            .push((key.to_owned(), value.as_os_str().to_owned()));
-        host
-    }
-
-    /// Runs the measuring client here and parses its line.
-    pub(crate) fn measure(&self, world: &str, args: &[&str]) -> anyhow::Result<serde_json::Value> {
-        let mut all = vec!["zenoh-peer", "--world", world];
-        all.extend_from_slice(args);
-        let done = self
-            .spawn("simbus-bench", &all)
-            .finish(Duration::from_secs(600));
-        anyhow::ensure!(done.status.success(), "{done}");
-        let line = done.stdout.last().context("the peer printed nothing")?;
-        Ok(serde_json::from_str(line)?)
-    }
-}
-
-pub(crate) fn wait_line(proc: &Proc, needle: &str) -> anyhow::Result<()> {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while Instant::now() < deadline {
-        if proc
-            .line(Duration::from_millis(200))
-            .is_some_and(|l| l.contains(needle))
-        {
-            return Ok(());
-        }
-    }
-    anyhow::bail!("no '{needle}' line; stderr:\n{}", proc.stderr())
-}
-
-impl Setup {
-    /// Server and exporter on `server_host`, a mirror on `mirror_host`
-    /// (none when both are the same), run as `launch` says.
-    pub(crate) fn start(
-        tag: &str,
-        server_host: Host,
-        mirror_host: Option<Host>,
-        address: &str,
-        launch: Launch<'_>,
-    ) -> anyhow::Result<Self> {
-        let stamped = |host: &Host, name: &str| match launch.stamps {
-            Some(dir) => host.with_env(simbus_transport::stamps::SIMBUS_STAMPS, &dir.join(name)),
-            None => host.clone(),
-        };
-        static PORTS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-        let n = PORTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let world = format!("bench-zenoh-{tag}-{}", std::process::id());
-        let endpoint = format!(
-            "tcp/{address}:{}",
-            17_000 + (std::process::id() % 1000) * 20 + n
-        );
-        let mut args = vec!["--world", &world, "--sync", "--delta-seconds", "0.01"];
-        args.extend_from_slice(launch.server_args);
-        let poll_us = launch.poll_us.to_string();
-        let server = stamped(&server_host, "server").spawn("sim-server", &args);
-        let bridge = |host: &Host, flag: &str| {
-            host.spawn(
-                "sim-client",
-                &[
-                    "--world",
-                    &world,
-                    "--timeout",
-                    "30",
-                    "bridge",
-                    "zenoh",
-                    flag,
-                    &endpoint,
-                    "--poll-us",
-                    &poll_us,
-                ],
-            )
-        };
-        let exporter = bridge(&stamped(&server_host, "exporter"), "--listen");
-        wait_line(&exporter, "exporting world")?;
-        let mut procs = vec![server, exporter];
-        if let Some(host) = &mirror_host {
-            let mirror = bridge(&stamped(host, "mirror"), "--connect");
-            wait_line(&mirror, "mirroring world")?;
-            procs.push(mirror);
-        }
-        Ok(Self {
-            world,
-            mirror_host: mirror_host.unwrap_or_else(|| server_host.clone()),
-            server_host,
-            procs,
-        })
-    }
-
-    /// Interrupts the mirror, the exporter and the server, in that order,
-    /// and waits for each to exit (so each writes its stamps).
-    pub(crate) fn stop(mut self) -> anyhow::Result<()> {
-        while let Some(proc) = self.procs.pop() {
-            simbus_process::send_signal(proc.pid(), libc::SIGINT)?;
-            let done = proc.finish(Duration::from_secs(20));
-            anyhow::ensure!(done.status.success(), "{done}");
-        }
-        Ok(())
-    }
-}
-
-pub(crate) fn latencies(json: &serde_json::Value, key: &str) -> Latencies {
-    let mut latencies = Latencies::new();
-    add_latencies(json, key, &mut latencies);
-    latencies
-}
-
-/// Records the samples (ns) of the peer's `key` in `latencies`.
-fn add_latencies(json: &serde_json::Value, key: &str, latencies: &mut Latencies) {
-    for sample in json[key].as_array().into_iter().flatten() {
-        latencies.record(sample.as_u64().unwrap_or(0));
-    }
+    json: bool,
 }
 
 struct Figures {
@@ -245,7 +75,12 @@ pub(crate) fn run(args: ZenohArgs) -> anyhow::Result<()> {
     std::env::set_var("SIMBUS_BIN_DIR", &dir);
     let state = machine_state(Duration::from_secs(2));
     if args.breakdown {
-        return crate::zenoh_breakdown::run(&args, &state);
+        let launch = Launch {
+            server_args: &["--scene", args.scene.as_str()],
+            poll_us: args.poll_us,
+            stamps: None,
+        };
+        return crate::zenoh_breakdown::run(args.ticks, launch, args.json, &state);
     }
     let mut figures = Figures {
         rows: Vec::new(),
@@ -483,6 +318,8 @@ fn report(args: &ZenohArgs, state: &str, figures: &Figures) {
     if args.json {
         let json = serde_json::json!({
             "machine": state,
+            "scene": args.scene,
+            "poll_us": args.poll_us,
             "ticks": figures.rows.iter().map(|(n, rt, f)| serde_json::json!({"path": n, "round_trip": rt.json(), "frame": f.json()})).collect::<Vec<_>>(),
             "captures": figures.captures.iter().map(|(n, l)| serde_json::json!({"row": n, "latency": l.json()})).collect::<Vec<_>>(),
             "ticks_per_second_1000_actors": figures.rates.iter().map(|(n, r)| serde_json::json!({"path": n, "rate": r})).collect::<Vec<_>>(),

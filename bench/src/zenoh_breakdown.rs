@@ -12,7 +12,7 @@ use simbus_transport::stamps::{self, Stage};
 
 use crate::breakdown::span_medians;
 use crate::stats::Latencies;
-use crate::zenoh::{latencies, Host, Launch, Setup, ZenohArgs};
+use crate::zenoh_hosts::{latencies, Host, Launch, Setup};
 use crate::zenoh_peer::ZenohFloor;
 
 /// The hops of a mirrored tick, in order.
@@ -96,17 +96,17 @@ const HOPS: [(Stage, Stage, &str); 16] = [
 ];
 
 /// Measures `ticks` mirrored ticks with every process stamping, then
-/// Zenoh's own round trip; prints the hops (or returns them as JSON).
-pub(crate) fn run(args: &ZenohArgs, machine: &str) -> anyhow::Result<()> {
-    let (ticks, json) = (args.ticks, args.json);
+/// Zenoh's own round trip; prints the hops (or one JSON line).
+/// `launch` says how the processes run (its stamps directory is this
+/// run's own).
+pub(crate) fn run(ticks: u64, launch: Launch<'_>, json: bool, machine: &str) -> anyhow::Result<()> {
     let dir = std::env::temp_dir().join(format!("simbus-zenoh-stamps-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let (root_a, root_b) = (PrivateRoot::new("bka"), PrivateRoot::new("bkb"));
     let (a, b) = (Host::of_root(&root_a, None), Host::of_root(&root_b, None));
     let launch = Launch {
-        server_args: &["--scene", args.scene.as_str()],
-        poll_us: args.poll_us,
         stamps: Some(&dir),
+        ..launch
     };
     let setup = Setup::start("brk", a, Some(b), "127.0.0.1", launch)?;
     let ticker = dir.join("ticker");
@@ -137,8 +137,8 @@ pub(crate) fn run(args: &ZenohArgs, machine: &str) -> anyhow::Result<()> {
         let value = serde_json::json!({
             "machine": machine,
             "ticks": ticks,
-            "scene": args.scene,
-            "poll_us": args.poll_us,
+            "server_args": launch.server_args,
+            "poll_us": launch.poll_us,
             "hops_us": HOPS.iter().zip(&hops)
                 .map(|((_, _, name), us)| (name.to_string(), serde_json::json!(us)))
                 .collect::<serde_json::Map<_, _>>(),
@@ -150,8 +150,9 @@ pub(crate) fn run(args: &ZenohArgs, machine: &str) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "a tick through the mirror, hop by hop ({ticks} ticks, loopback, scene {}, bridges' poll {} µs), median µs",
-        args.scene, args.poll_us
+        "a tick through the mirror, hop by hop ({ticks} ticks, loopback, server {}, bridges' poll {} µs), median µs",
+        launch.server_args.join(" "),
+        launch.poll_us
     );
     println!("machine: {machine}");
     for ((_, _, name), us) in HOPS.iter().zip(&hops) {

@@ -13,7 +13,7 @@ use simbus_tests::Proc;
 
 use crate::stats::Latencies;
 use crate::support::{now_ns, sync_ticker};
-use crate::zenoh::{wait_line, Host};
+use crate::zenoh_hosts::{wait_line, Host};
 
 /// Options of the measuring client (run in the host it measures from).
 #[derive(Debug, Args)]

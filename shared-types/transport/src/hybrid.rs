@@ -4,11 +4,10 @@
 //!
 //! A wake-up of a sleeping process costs a `futex` call on each side and,
 //! on an idle CPU, the time the CPU takes to come out of its idle state
-//! (10–25 µs on a virtual machine); an answer that comes within the window
+//! (5–25 µs on a virtual machine); an answer that comes within the window
 //! costs neither. Between looks the waiter yields (`sched_yield`), so a
 //! peer that shares its CPU still runs: the same rule as a client's
-//! `WaitMode::Hybrid` and the server's
-//! `--hybrid-window-us`.
+//! `WaitMode::Hybrid` and the server's `--hybrid-window-us`.
 //!
 //! ```
 //! use std::time::Duration;

@@ -139,9 +139,10 @@ pub(crate) fn run(ticks: u64, launch: Launch<'_>, json: bool, machine: &str) -> 
             "ticks": ticks,
             "server_args": launch.server_args,
             "poll_us": launch.poll_us,
-            "hops_us": HOPS.iter().zip(&hops)
-                .map(|((_, _, name), us)| (name.to_string(), serde_json::json!(us)))
-                .collect::<serde_json::Map<_, _>>(),
+            // In the order they happen (a JSON object's keys have none).
+            "hops": HOPS.iter().zip(&hops)
+                .map(|((_, _, name), us)| serde_json::json!({"hop": name, "median_us": us}))
+                .collect::<Vec<_>>(),
             "stamped_round_trip_us": whole,
             "round_trip_p50_us": round_trip,
             "zenoh_round_trip_p50_us": floor,

@@ -22,7 +22,7 @@ mod query;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use shared_types::limits::WorldLimits;
@@ -32,11 +32,9 @@ use shared_types::{
 use simbus_transport::stamps::{self, Stage};
 use tracing::{info, warn};
 use zenoh::bytes::ZBytes;
-use zenoh::liveliness::LivelinessToken;
-use zenoh::pubsub::Subscriber;
 use zenoh::qos::CongestionControl;
-use zenoh::sample::{Locality, Sample, SampleKind};
-use zenoh::{Session, Wait as _};
+use zenoh::sample::Locality;
+use zenoh::Wait as _;
 
 use self::answers::{
     answer_local, refuse_local, request_bytes, send_tick, sender_pid, status_answer,
@@ -75,65 +73,6 @@ fn host_name() -> String {
         .unwrap_or_else(|| "mirror".to_owned())
 }
 
-/// What the mirror declared on Zenoh, undeclared when dropped.
-struct Declared {
-    _token: LivelinessToken,
-    _subscribers: [Subscriber<()>; 4],
-}
-
-/// Declares the mirror's liveliness token and its subscribers (the
-/// exporter's token, frames, captures); each event wakes the mirror.
-fn declare(
-    session: &Session,
-    keys: &BridgeKeys,
-    names: &ServiceNames,
-    events: &Sender<Event>,
-) -> Result<Declared, MirrorError> {
-    let token = session
-        .liveliness()
-        .declare_token(keys.mirror(&session.zid().to_string()))
-        .wait()
-        .map_err(MirrorError::zenoh(
-            "declaring the mirror's liveliness token",
-        ))?;
-    let (to_main, wake_names) = (events.clone(), names.clone());
-    let exporter = session
-        .liveliness()
-        .declare_subscriber(keys.exporter())
-        .history(true)
-        .callback(move |sample| {
-            let _ = to_main.send(Event::Exporter(sample.kind() == SampleKind::Put));
-            local::wake(&wake_names);
-        })
-        .wait()
-        .map_err(MirrorError::zenoh("watching the exporter's liveliness"))?;
-    let subscriber = |key: String, event: fn(&Sample) -> Event| {
-        let (to_main, wake_names) = (events.clone(), names.clone());
-        session
-            .declare_subscriber(key)
-            .callback(move |sample| {
-                let _ = to_main.send(event(&sample));
-                local::wake(&wake_names);
-            })
-            .wait()
-            .map_err(MirrorError::zenoh("declaring a subscriber"))
-    };
-    Ok(Declared {
-        _token: token,
-        _subscribers: [
-            exporter,
-            subscriber(keys.frames(), |s| {
-                stamps::stamp_expected(Stage::MirrorGets);
-                Event::Frame(s.payload().clone(), s.attachment().cloned())
-            })?,
-            subscriber(keys.sensors(), |s| Event::Capture(s.payload().clone()))?,
-            subscriber(keys.tick_answers(), |s| {
-                Event::TickAnswers(s.payload().clone())
-            })?,
-        ],
-    })
-}
-
 /// Mirrors `world`, exported at `endpoint`, into this host's shared memory
 /// until `stop`.
 pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
@@ -160,7 +99,7 @@ pub(crate) fn run(side: Side<'_>) -> Result<(), MirrorError> {
     header.server_pid = std::process::id();
     local.publish_frame(&header, &actors)?;
     let (events, incoming) = mpsc::channel::<Event>();
-    let _declared = declare(&side.session, &keys, &names, &events)?;
+    let _declared = events::declare(&side.session, &keys, &names, &events)?;
     (side.notice)(Notice::Mirroring {
         world: side.world.clone(),
         endpoint: side.endpoint.to_owned(),

@@ -194,23 +194,24 @@ impl<'a> Mirror<'a> {
                 match incoming.try_recv() {
                     // Local clients are rung as soon as the frame is out
                     // (their wake-up overlaps the answers' sending) and
-                    // again once the answers it carries are sent.
+                    // again once answers it carries for this mirror are sent.
                     Ok(Event::Frame(bytes, attached)) => {
                         self.on_frame(&bytes)?;
                         self.local.notify();
-                        if let Some(attached) = attached {
-                            self.on_tick_answers(&attached.to_bytes());
+                        if attached.is_some_and(|a| self.on_tick_answers(&a.to_bytes())) {
                             self.local.notify();
                         }
                     }
                     Ok(Event::Capture(bytes)) => self.on_capture(&bytes.to_bytes()),
                     Ok(Event::TickAnswers(bytes)) => {
-                        self.on_tick_answers(&bytes.to_bytes());
-                        self.local.notify();
+                        if self.on_tick_answers(&bytes.to_bytes()) {
+                            self.local.notify();
+                        }
                     }
                     Ok(Event::Reply(id, reply)) => {
-                        self.on_reply(id, reply);
-                        self.local.notify();
+                        if self.on_reply(id, reply) {
+                            self.local.notify();
+                        }
                     }
                     Ok(Event::Done(id)) => self.on_done(id),
                     Ok(Event::Exporter(alive)) => self.on_exporter(alive, notice),
@@ -268,15 +269,16 @@ impl<'a> Mirror<'a> {
             reader.read().unwrap_or_else(bytemuck::Zeroable::zeroed)
         })?;
         stamps::stamp(Stage::MirrorPublishes, key.1);
-        let held = self.held.len();
+        let mut answered = false;
         self.held.retain(|(active, answer, _)| {
             if answer.frame > key.1 {
                 return true;
             }
             send_tick(active, *answer);
+            answered = true;
             false
         });
-        if self.held.len() < held {
+        if answered {
             stamps::stamp(Stage::MirrorAnswers, key.1);
             self.answered_tick();
         }
@@ -287,28 +289,30 @@ impl<'a> Mirror<'a> {
     /// just published here): each of this mirror's in-flight requests
     /// named is answered as a reply would be; a final answer ends it (a
     /// query's own reply, which may follow, then finds nothing in flight).
-    /// The caller rings local clients.
-    fn on_tick_answers(&mut self, bytes: &[u8]) {
+    /// Whether any was this mirror's: the caller then rings local clients.
+    fn on_tick_answers(&mut self, bytes: &[u8]) -> bool {
         let entries = match tagged::decode::<TickResponse>(bytes, "tick answers") {
             Ok(entries) => entries,
             Err(e) => {
                 self.dropped += 1;
                 warn!(dropped = self.dropped, "dropped tick answers: {e}");
-                return;
+                return false;
             }
         };
         let zid = self.link.zid.as_bytes();
+        let mut answered = false;
         for entry in entries.iter().filter(|e| e.mirror == zid) {
             if !self.in_flight.contains_key(&entry.id) {
                 continue;
             }
             let interim = entry.value.status == ResponseStatus::WaitingForParticipants as u32;
             let bytes = wire::bytes_of(&entry.value).to_vec();
-            self.on_reply(entry.id, Ok(ZBytes::from(bytes)));
+            answered |= self.on_reply(entry.id, Ok(ZBytes::from(bytes)));
             if !interim {
                 self.in_flight.remove(&entry.id);
             }
         }
+        answered
     }
 
     /// A capture from the exporter, published here.
@@ -342,11 +346,11 @@ impl<'a> Mirror<'a> {
     }
 
     /// The exporter's reply to forwarded request `id`, sent to its local
-    /// client (a tick's once its frame is published here); the caller
-    /// rings local clients.
-    fn on_reply(&mut self, id: u64, reply: Result<ZBytes, QueryError>) {
+    /// client (a tick's once its frame is published here); whether the
+    /// request was in flight here: the caller then rings local clients.
+    fn on_reply(&mut self, id: u64, reply: Result<ZBytes, QueryError>) -> bool {
         let Some(flight) = self.in_flight.get_mut(&id) else {
-            return;
+            return false;
         };
         flight.answered = true;
         let answered = match reply {
@@ -391,6 +395,7 @@ impl<'a> Mirror<'a> {
                 }
             }
         }
+        true
     }
 
     /// Forwarded request `id` gets no more replies: without any, the

@@ -343,13 +343,10 @@ pub(crate) fn native_ticks(
     let mut ticker = sync_ticker(client, 0.01)?;
     ticker.set_wait_mode(mode);
     let mut native_tick = Latencies::new();
-    for i in 0..ticks + ticks / 10 {
-        let start = Instant::now();
+    native_tick.time(ticks as u64, || {
         ticker.tick(timeout)?;
-        if i >= ticks / 10 {
-            native_tick.record(start.elapsed().as_nanos() as u64);
-        }
-    }
+        Ok(())
+    })?;
     ticker.release()?;
     Ok(native_tick)
 }

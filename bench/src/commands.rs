@@ -51,15 +51,12 @@ fn tick_round_trips(world: &str, n: u64) -> anyhow::Result<Latencies> {
     while client.wait_for_tick(Duration::from_millis(200)).is_ok() {}
     let timeout = Duration::from_secs(10);
     let mut latencies = Latencies::new();
-    for i in 0..n + n / 10 {
-        let start = Instant::now();
+    latencies.time(n, || {
         let frame = ticker.tick(timeout)?;
         let snapshot = client.wait_for_tick(timeout)?;
         anyhow::ensure!(snapshot.frame() == frame, "snapshot of another frame");
-        if i >= n / 10 {
-            latencies.record(start.elapsed().as_nanos() as u64);
-        }
-    }
+        Ok(())
+    })?;
     ticker.release()?;
     Ok(latencies)
 }

@@ -14,6 +14,23 @@ impl Latencies {
         self.0.saturating_record(nanos.max(1));
     }
 
+    /// Times `exchange` `n` times, after `n / 10` untimed calls to warm
+    /// up, and records each.
+    pub(crate) fn time(
+        &mut self,
+        n: u64,
+        mut exchange: impl FnMut() -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        for i in 0..n + n / 10 {
+            let start = std::time::Instant::now();
+            exchange()?;
+            if i >= n / 10 {
+                self.record(start.elapsed().as_nanos() as u64);
+            }
+        }
+        Ok(())
+    }
+
     pub(crate) fn quantile_us(&self, q: f64) -> f64 {
         self.0.value_at_quantile(q) as f64 / 1000.0
     }

@@ -210,13 +210,7 @@ fn tick_rows(
             add_latencies(&json, "round_trip", round_trips);
             add_latencies(&json, "frame", frames);
         }
-        for i in 0..slice + slice / 10 {
-            let start = Instant::now();
-            tcp_exchange()?;
-            if i >= slice / 10 {
-                tcp.record(start.elapsed().as_nanos() as u64);
-            }
-        }
+        tcp.time(slice, &mut tcp_exchange)?;
         floor.measure(slice, &mut zenoh)?;
         eprintln!("zenoh: round {} of {ROUNDS} done", round + 1);
     }

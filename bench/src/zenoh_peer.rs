@@ -219,14 +219,10 @@ impl ZenohFloor {
     pub(crate) fn measure(&mut self, n: u64, latencies: &mut Latencies) -> anyhow::Result<()> {
         use zenoh::Wait as _;
         let error = |e: zenoh::Error| anyhow::anyhow!("{e}");
-        for i in 0..n + n / 10 {
-            let start = Instant::now();
+        latencies.time(n, || {
             self.ping.put(vec![0u8; 8]).wait().map_err(error)?;
             self.pong.recv().map_err(error)?;
-            if i >= n / 10 {
-                latencies.record(start.elapsed().as_nanos() as u64);
-            }
-        }
-        Ok(())
+            Ok(())
+        })
     }
 }

@@ -87,13 +87,14 @@ struct PerfCounts {
 }
 
 /// Measures `n` round trips in each wait mode under `placement`, then
-/// spinning with the tick answered by its frame.
+/// spinning and blocking with the tick answered by its frame.
 pub(crate) fn measure(n: u64, placement: Placement) -> anyhow::Result<Vec<Breakdown>> {
     [
         (WaitMode::Spin, false),
         (WaitMode::Spin, true),
         (WaitMode::Hybrid, false),
         (WaitMode::Block, false),
+        (WaitMode::Block, true),
     ]
     .into_iter()
     .map(|(mode, by_frame)| one_mode((mode, by_frame), n, placement))
@@ -103,10 +104,10 @@ pub(crate) fn measure(n: u64, placement: Placement) -> anyhow::Result<Vec<Breakd
 impl Breakdown {
     /// Its column's name.
     fn name(&self) -> &'static str {
-        if self.by_frame {
-            "by frame"
-        } else {
-            self.mode.name()
+        match (self.by_frame, self.mode) {
+            (false, mode) => mode.name(),
+            (true, WaitMode::Block) => "blk frame",
+            (true, _) => "by frame",
         }
     }
 }
@@ -117,7 +118,7 @@ fn one_mode(
     placement: Placement,
 ) -> anyhow::Result<Breakdown> {
     let file = std::env::temp_dir().join(format!(
-        "simbus-stamps-{}-{}",
+        "simbus-stamps-{}-{}-{by_frame}",
         std::process::id(),
         mode.name()
     ));

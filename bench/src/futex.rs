@@ -14,7 +14,7 @@ use crate::stats::Latencies;
 use crate::support::{spawn_peer, Placement};
 
 /// Two 32-bit words on a page mapped shared: `ping` (to the peer) and `pong`.
-struct SharedWords {
+pub(crate) struct SharedWords {
     base: *mut AtomicU32,
 }
 
@@ -22,7 +22,7 @@ impl SharedWords {
     const LEN: usize = 4096;
 
     /// Maps `path` (created and sized if needed).
-    fn map(path: &Path) -> anyhow::Result<Self> {
+    pub(crate) fn map(path: &Path) -> anyhow::Result<Self> {
         let file = OpenOptions::new()
             .read(true)
             .write(true)
@@ -56,11 +56,11 @@ impl SharedWords {
         unsafe { &*self.base.add(i) }
     }
 
-    fn ping(&self) -> &AtomicU32 {
+    pub(crate) fn ping(&self) -> &AtomicU32 {
         self.word(0)
     }
 
-    fn pong(&self) -> &AtomicU32 {
+    pub(crate) fn pong(&self) -> &AtomicU32 {
         self.word(16)
     }
 }
@@ -75,7 +75,7 @@ impl Drop for SharedWords {
 }
 
 /// Sleeps until `word` no longer holds `old`.
-fn wait(word: &AtomicU32, old: u32) {
+pub(crate) fn wait(word: &AtomicU32, old: u32) {
     while word.load(Ordering::Acquire) == old {
         // SAFETY: FUTEX_WAIT on a valid, aligned, mapped word; it returns at
         // once if the word changed, and spurious wake-ups loop.
@@ -92,7 +92,7 @@ fn wait(word: &AtomicU32, old: u32) {
 }
 
 /// Stores `value` into `word` and wakes its sleeper.
-fn post(word: &AtomicU32, value: u32) {
+pub(crate) fn post(word: &AtomicU32, value: u32) {
     word.store(value, Ordering::Release);
     // SAFETY: FUTEX_WAKE of one waiter on a valid, aligned, mapped word.
     unsafe {

@@ -12,16 +12,29 @@
 //! - [`Shape::Publish`]: the tick as a sample on a publish-subscribe
 //!   service with one publisher, the frame on a frames service without
 //!   history, no events rung.
+//! - [`Shape::RequestBlock`]: simbus's shape as [`Shape::Request`], both
+//!   ends asleep between messages: the peer on the doorbell's event, the
+//!   ticking end on the frame-ready event (`simbus_transport::Bus`'s futex
+//!   under both), as a blocking server and ticker are.
+//! - [`Shape::FutexBlock`]: both ends asleep between messages, the tick
+//!   and the frame's arrival handed over as the futex floor hands its
+//!   counter (`crate::futex`: a word on a shared page each way,
+//!   `FUTEX_WAKE` and `FUTEX_WAIT`), the frame itself published on the
+//!   frames service (history 1) and read by the ticking end. The least a
+//!   blocking tick with a stepped, published frame costs when the handoff
+//!   is not an iceoryx2 port.
 //!
 //! Against the raw ping-pong of a `u64` with a step (the tick table's
 //! `raw iox2 spin + step`), the rows say what each part of the message
 //! shape costs and what simbus's own code adds on top (`simbus, spin, by
 //! frame`).
 
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RequestClient;
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -35,6 +48,8 @@ use simbus_transport::frames::send_frame;
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 
+use crate::futex::{post, wait, SharedWords};
+
 /// Which shape a row and its peer use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Shape {
@@ -45,6 +60,12 @@ pub(crate) enum Shape {
     /// A tick sample on its own publish-subscribe service, the frame
     /// published without history.
     Publish,
+    /// [`Shape::Request`] with both ends asleep on their events between
+    /// messages.
+    RequestBlock,
+    /// The tick and the frame's arrival as futex words, both ends asleep
+    /// between them; the frame published with history.
+    FutexBlock,
 }
 
 impl Shape {
@@ -54,14 +75,22 @@ impl Shape {
             Self::Request => "shape-request",
             Self::RequestNoHistory => "shape-request-no-history",
             Self::Publish => "shape-publish",
+            Self::RequestBlock => "shape-request-block",
+            Self::FutexBlock => "shape-futex-block",
         }
     }
 
     /// The shape a peer kind answers.
     pub(crate) fn of_peer(kind: &str) -> Option<Self> {
-        [Self::Request, Self::RequestNoHistory, Self::Publish]
-            .into_iter()
-            .find(|s| s.peer_kind() == kind)
+        [
+            Self::Request,
+            Self::RequestNoHistory,
+            Self::Publish,
+            Self::RequestBlock,
+            Self::FutexBlock,
+        ]
+        .into_iter()
+        .find(|s| s.peer_kind() == kind)
     }
 }
 
@@ -74,7 +103,7 @@ fn err(e: impl std::fmt::Debug) -> anyhow::Error {
 fn services(world: &str, shape: Shape) -> anyhow::Result<WorldServices> {
     let names = ServiceNames::new(&WorldName::new(world)?);
     let mut services = WorldServices::new(&names)?;
-    if shape != Shape::Request {
+    if matches!(shape, Shape::RequestNoHistory | Shape::Publish) {
         services.frames.history = 0;
     }
     Ok(services)
@@ -105,12 +134,25 @@ enum TickPort {
         wake: Box<Notifier<Bus>>,
     },
     Publish(Publisher<Bus, TickRequest, ()>),
+    /// `ping` carries the tick's number, `pong` the answered one.
+    Futex {
+        words: SharedWords,
+        sent: u32,
+    },
+}
+
+/// The file of the [`Shape::FutexBlock`] words of `world`'s row.
+fn futex_words_path(world: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("simbus-bench-{world}-words"))
 }
 
 /// The ticking end of a shape row: one round trip per call.
 pub(crate) struct Ticking {
     tick: TickPort,
     frames: Subscriber<Bus, [ActorState], FrameHeader>,
+    /// The frame-ready event's listener where the ticking end sleeps
+    /// ([`Shape::RequestBlock`]).
+    ready: Option<Listener<Bus>>,
     request: TickRequest,
     frame: u64,
     _node: Node<Bus>,
@@ -123,7 +165,7 @@ impl Ticking {
         let node = simbus_transport::node("simbus-bench-shape").map_err(err)?;
         let limits = WorldLimits::default();
         let tick = match shape {
-            Shape::Request | Shape::RequestNoHistory => TickPort::Request {
+            Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock => TickPort::Request {
                 client: Box::new(
                     services
                         .tick
@@ -149,29 +191,51 @@ impl Ticking {
                     .create()
                     .map_err(err)?,
             ),
+            Shape::FutexBlock => {
+                let path = futex_words_path(world);
+                let words = SharedWords::map(&path)?;
+                // The peer mapped the page before it said it was ready.
+                let _ = std::fs::remove_file(path);
+                TickPort::Futex { words, sent: 0 }
+            }
         };
         let frames = services
             .frames
             .open_or_create(&node, &limits)
             .map_err(err)?;
         let frames = services.frames.subscriber(&frames).map_err(err)?;
+        let ready = match shape {
+            Shape::RequestBlock => Some(
+                services
+                    .frame_ready
+                    .open_or_create(&node, &limits)
+                    .map_err(err)?
+                    .listener_builder()
+                    .create()
+                    .map_err(err)?,
+            ),
+            _ => None,
+        };
         Ok(Self {
             tick,
             frames,
+            ready,
             request: TickRequest::new(TickRequestKind::Tick, "simbus-bench-shape"),
             frame: 0,
             _node: node,
         })
     }
 
-    /// Sends a tick and spins until its frame is held.
+    /// Sends a tick and waits until its frame is held: asleep on the
+    /// answer's word in [`Shape::FutexBlock`] and on the frame-ready event
+    /// in [`Shape::RequestBlock`], spinning on the frames in the others.
     pub(crate) fn round_trip(&mut self) -> anyhow::Result<()> {
         let request = TickRequest {
             flags: TickRequest::BY_FRAME,
             ..self.request
         };
         let _pending: Option<PendingResponse<Bus, TickRequest, (), TickResponse, ()>> =
-            match &self.tick {
+            match &mut self.tick {
                 TickPort::Request { client, wake } => {
                     let pending = client.send_copy(request).map_err(err)?;
                     wake.notify_with_custom_event_id(EventId::new(Doorbell::Tick.event_id()))
@@ -180,6 +244,12 @@ impl Ticking {
                 }
                 TickPort::Publish(publisher) => {
                     publisher.send_copy(request).map_err(err)?;
+                    None
+                }
+                TickPort::Futex { words, sent } => {
+                    *sent = sent.wrapping_add(1);
+                    post(words.ping(), *sent);
+                    wait(words.pong(), sent.wrapping_sub(1));
                     None
                 }
             };
@@ -193,11 +263,14 @@ impl Ticking {
                 }
                 continue;
             }
-            anyhow::ensure!(
-                Instant::now() < deadline,
-                "the shape peer stopped answering"
-            );
-            std::hint::spin_loop();
+            let left = deadline.saturating_duration_since(Instant::now());
+            anyhow::ensure!(!left.is_zero(), "the shape peer stopped answering");
+            match &self.ready {
+                Some(ready) => {
+                    ready.timed_wait(|_| {}, left).map_err(err)?;
+                }
+                None => std::hint::spin_loop(),
+            }
         }
     }
 }
@@ -237,7 +310,20 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
         Ok(())
     };
     match shape {
-        Shape::Request | Shape::RequestNoHistory => {
+        Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock => {
+            // Asleep on the doorbell between ticks in the blocking shape.
+            let doorbell = match shape {
+                Shape::RequestBlock => Some(
+                    services
+                        .control_wake
+                        .open_or_create(&node, &limits)
+                        .map_err(err)?
+                        .listener_builder()
+                        .create()
+                        .map_err(err)?,
+                ),
+                _ => None,
+            };
             let server = services
                 .tick
                 .open_or_create(&node, &limits)
@@ -248,13 +334,30 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
             println!("ready");
             loop {
                 let Some(request) = server.receive().map_err(err)? else {
-                    std::hint::spin_loop();
+                    match &doorbell {
+                        Some(doorbell) => {
+                            doorbell.blocking_wait(|_| {}).map_err(err)?;
+                        }
+                        None => std::hint::spin_loop(),
+                    }
                     continue;
                 };
                 frame += 1;
                 publish(frame, &mut world_state)?;
                 ready.notify().map_err(err)?;
                 drop(request);
+            }
+        }
+        Shape::FutexBlock => {
+            let words = SharedWords::map(&futex_words_path(world))?;
+            println!("ready");
+            let mut last = 0;
+            loop {
+                wait(words.ping(), last);
+                last = words.ping().load(Ordering::Acquire);
+                frame += 1;
+                publish(frame, &mut world_state)?;
+                post(words.pong(), last);
             }
         }
         Shape::Publish => {

@@ -188,16 +188,25 @@ fn simbus_world(
     Ok((server, client, ticker))
 }
 
-/// The spinning simbus row with the tick answered by its frame
-/// ([`sim_client::Ticker::tick_and_read`]): one message each way; the
-/// server with `--max-clients max_clients` (None: its default).
-fn simbus_by_frame_row(name: &'static str, max_clients: Option<&str>) -> anyhow::Result<Row> {
-    let mut server_args = vec!["--wait-mode", "spin"];
+/// The simbus row with the tick answered by its frame
+/// ([`sim_client::Ticker::tick_and_read`]): one message each way, the
+/// server and the ticker waiting as `mode` says; the server with
+/// `--max-clients max_clients` (None: its default).
+fn simbus_by_frame_row(
+    name: &'static str,
+    mode: WaitMode,
+    max_clients: Option<&str>,
+) -> anyhow::Result<Row> {
+    let mut server_args = vec!["--wait-mode", mode.name()];
     if let Some(max) = max_clients {
         server_args.extend(["--max-clients", max]);
     }
-    let tag = format!("tick-by-frame-{}", max_clients.unwrap_or("default"));
-    let (server, mut client, mut ticker) = simbus_world(&tag, &server_args, WaitMode::Spin)?;
+    let tag = format!(
+        "tick-by-frame-{}-{}",
+        mode.name(),
+        max_clients.unwrap_or("default")
+    );
+    let (server, mut client, mut ticker) = simbus_world(&tag, &server_args, mode)?;
     let timeout = Duration::from_secs(10);
     let mut last: Option<u64> = None;
     Ok(Row::on_server(name, server, move || {
@@ -354,12 +363,22 @@ fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static st
         raw_row::<ipc::Service>("(a) raw iceoryx2, block", "iceoryx-block")?,
         raw_row::<Bus>("(a) raw iceoryx2 futex event, block", "iceoryx-bus-block")?,
         futex_row()?,
+        shape_row(
+            "(a) iox2 tick as request + step, block",
+            crate::shapes::Shape::RequestBlock,
+        )?,
+        shape_row(
+            "(a) futex tick + iox2 frame + step",
+            crate::shapes::Shape::FutexBlock,
+        )?,
         simbus_row("(b) simbus, hybrid", &[], WaitMode::Hybrid)?,
         simbus_row(
             "(b) simbus, block",
             &["--wait-mode", "block"],
             WaitMode::Block,
         )?,
+        simbus_by_frame_row("(b) simbus, hybrid, by frame", WaitMode::Hybrid, None)?,
+        simbus_by_frame_row("(b) simbus, block, by frame", WaitMode::Block, None)?,
         tcp_row()?,
     ]);
     let peers: Vec<u32> = rows.iter().flat_map(|r| r.peers.iter().copied()).collect();
@@ -391,8 +410,8 @@ fn spinning_rows() -> anyhow::Result<Vec<Row>> {
             &["--wait-mode", "spin"],
             WaitMode::Spin,
         )?,
-        simbus_by_frame_row("(b) simbus, spin, by frame", None)?,
-        simbus_by_frame_row("(b) by frame, --max-clients 4", Some("4"))?,
+        simbus_by_frame_row("(b) simbus, spin, by frame", WaitMode::Spin, None)?,
+        simbus_by_frame_row("(b) by frame, --max-clients 4", WaitMode::Spin, Some("4"))?,
     ])
 }
 
@@ -421,6 +440,7 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         p50("(a) iox2 tick published"),
     );
     let by_frame = p50("(b) simbus, spin, by frame");
+    let block_by_frame = p50("(b) simbus, block, by frame");
     vec![
         ("b/a simbus all spin / raw spin", spin / raw_spin),
         ("b/a simbus all spin / raw + step", spin / raw_step),
@@ -440,9 +460,27 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         ("c/b TCP / simbus all spin", tcp / spin),
         ("c/b TCP / simbus hybrid", tcp / hybrid),
         ("c/b TCP / simbus block", tcp / block),
+        ("b/f block by frame / futex floor", block_by_frame / floor),
+        (
+            "a/f futex tick + frame / futex floor",
+            p50("(a) futex tick + iox2 frame") / floor,
+        ),
+        (
+            "a/f tick request, block / futex floor",
+            p50("(a) iox2 tick as request + step, block") / floor,
+        ),
+        (
+            "b/a block by frame / tick request, block",
+            block_by_frame / p50("(a) iox2 tick as request + step, block"),
+        ),
+        ("c/b TCP / block by frame", tcp / block_by_frame),
         (
             "b/c hybrid p99 / TCP p99",
             at("(b) simbus, hybrid", 0.99) / at("(c)", 0.99),
+        ),
+        (
+            "b/c hybrid by frame p99 / TCP p99",
+            at("(b) simbus, hybrid, by frame", 0.99) / at("(c)", 0.99),
         ),
     ]
     .into_iter()
@@ -465,6 +503,7 @@ fn report(
     println!("all spin: server and clients --wait-mode spin (left out on one CPU: a timeslice per round trip); hybrid (the server's default): both poll 100 µs, yielding, then sleep;");
     println!("block: server and clients --wait-mode block (every hop a kernel wake-up);");
     println!("futex: two processes sleeping in futex(2) on a shared page (the blocking floor)");
+    println!("iox2/futex tick ... block: the tick's shape with an empty world's step and no simbus code, both ends asleep (bench/src/shapes.rs)");
     println!("{}", header("exchange"));
     for (name, latencies) in rows {
         println!("{}", latencies.row(name));

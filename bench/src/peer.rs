@@ -13,7 +13,8 @@ pub(crate) struct PeerArgs {
     /// `iceoryx-spin`, `iceoryx-spin-step` (a physics step before each
     /// answer), `iceoryx-block`, `iceoryx-bus-block`, `tcp`, or a tick
     /// shape's answering end: `shape-request`, `shape-request-no-history`,
-    /// `shape-publish`, `shape-request-block`, `shape-futex-block`.
+    /// `shape-publish`, `shape-request-block`, `shape-request-futex`,
+    /// `shape-futex-block`.
     #[arg(long)]
     kind: String,
     /// Service prefix for the iceoryx2 kinds.

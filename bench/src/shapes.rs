@@ -16,13 +16,14 @@
 //!   ends asleep between messages: the peer on the doorbell's event, the
 //!   ticking end on the frame-ready event (`simbus_transport::Bus`'s futex
 //!   under both), as a blocking server and ticker are.
-//! - [`Shape::FutexBlock`]: both ends asleep between messages, the tick
-//!   and the frame's arrival handed over as the futex floor hands its
-//!   counter (`crate::futex`: a word on a shared page each way,
-//!   `FUTEX_WAKE` and `FUTEX_WAIT`), the frame itself published on the
-//!   frames service (history 1) and read by the ticking end. The least a
-//!   blocking tick with a stepped, published frame costs when the handoff
-//!   is not an iceoryx2 port.
+//! - [`Shape::RequestFutex`]: the tick a request as in [`Shape::Request`],
+//!   but no event rung either way: both ends asleep between messages, the
+//!   wake-ups handed over as the futex floor hands its counter
+//!   (`crate::futex`: a word on a shared page each way, `FUTEX_WAKE` and
+//!   `FUTEX_WAIT`); the frame published with history.
+//! - [`Shape::FutexBlock`]: the same wake-ups with no request: the tick is
+//!   the futex word itself. The least a blocking tick with a stepped,
+//!   published frame costs when the handoff is not an iceoryx2 port.
 //!
 //! Against the raw ping-pong of a `u64` with a step (the tick table's
 //! `raw iox2 spin + step`), the rows say what each part of the message
@@ -63,6 +64,9 @@ pub(crate) enum Shape {
     /// [`Shape::Request`] with both ends asleep on their events between
     /// messages.
     RequestBlock,
+    /// A tick request, both ends asleep on futex words (no events); the
+    /// frame published with history.
+    RequestFutex,
     /// The tick and the frame's arrival as futex words, both ends asleep
     /// between them; the frame published with history.
     FutexBlock,
@@ -76,6 +80,7 @@ impl Shape {
             Self::RequestNoHistory => "shape-request-no-history",
             Self::Publish => "shape-publish",
             Self::RequestBlock => "shape-request-block",
+            Self::RequestFutex => "shape-request-futex",
             Self::FutexBlock => "shape-futex-block",
         }
     }
@@ -87,6 +92,7 @@ impl Shape {
             Self::RequestNoHistory,
             Self::Publish,
             Self::RequestBlock,
+            Self::RequestFutex,
             Self::FutexBlock,
         ]
         .into_iter()
@@ -129,19 +135,31 @@ fn tick_topic(
 /// How a tick goes out in each shape (the request's ports boxed: they are
 /// large beside a publisher).
 enum TickPort {
+    /// A request, its doorbell rung unless the wake-up is a futex word.
     Request {
         client: Box<RequestClient<Bus, TickRequest, (), TickResponse, ()>>,
-        wake: Box<Notifier<Bus>>,
+        wake: Option<Box<Notifier<Bus>>>,
     },
     Publish(Publisher<Bus, TickRequest, ()>),
-    /// `ping` carries the tick's number, `pong` the answered one.
-    Futex {
-        words: SharedWords,
-        sent: u32,
-    },
+    /// No message: the futex word is the tick.
+    Word,
 }
 
-/// The file of the [`Shape::FutexBlock`] words of `world`'s row.
+impl Shape {
+    /// Whether both ends hand their wake-ups over as futex words.
+    fn futex(self) -> bool {
+        matches!(self, Self::RequestFutex | Self::FutexBlock)
+    }
+}
+
+/// The futex words of a shape whose wake-ups are words: `ping` carries the
+/// tick's number, `pong` the answered one.
+struct Handoff {
+    words: SharedWords,
+    sent: u32,
+}
+
+/// The file of the futex words of `world`'s row.
 fn futex_words_path(world: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("simbus-bench-{world}-words"))
 }
@@ -153,6 +171,8 @@ pub(crate) struct Ticking {
     /// The frame-ready event's listener where the ticking end sleeps
     /// ([`Shape::RequestBlock`]).
     ready: Option<Listener<Bus>>,
+    /// The futex words ([`Shape::futex`]).
+    handoff: Option<Handoff>,
     request: TickRequest,
     frame: u64,
     _node: Node<Bus>,
@@ -165,7 +185,10 @@ impl Ticking {
         let node = simbus_transport::node("simbus-bench-shape").map_err(err)?;
         let limits = WorldLimits::default();
         let tick = match shape {
-            Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock => TickPort::Request {
+            Shape::Request
+            | Shape::RequestNoHistory
+            | Shape::RequestBlock
+            | Shape::RequestFutex => TickPort::Request {
                 client: Box::new(
                     services
                         .tick
@@ -175,15 +198,18 @@ impl Ticking {
                         .create()
                         .map_err(err)?,
                 ),
-                wake: Box::new(
-                    services
-                        .control_wake
-                        .open_or_create(&node, &limits)
-                        .map_err(err)?
-                        .notifier_builder()
-                        .create()
-                        .map_err(err)?,
-                ),
+                wake: match shape {
+                    Shape::RequestFutex => None,
+                    _ => Some(Box::new(
+                        services
+                            .control_wake
+                            .open_or_create(&node, &limits)
+                            .map_err(err)?
+                            .notifier_builder()
+                            .create()
+                            .map_err(err)?,
+                    )),
+                },
             },
             Shape::Publish => TickPort::Publish(
                 tick_topic(&node, world)?
@@ -191,13 +217,17 @@ impl Ticking {
                     .create()
                     .map_err(err)?,
             ),
-            Shape::FutexBlock => {
+            Shape::FutexBlock => TickPort::Word,
+        };
+        let handoff = match shape.futex() {
+            true => {
                 let path = futex_words_path(world);
                 let words = SharedWords::map(&path)?;
                 // The peer mapped the page before it said it was ready.
                 let _ = std::fs::remove_file(path);
-                TickPort::Futex { words, sent: 0 }
+                Some(Handoff { words, sent: 0 })
             }
+            false => None,
         };
         let frames = services
             .frames
@@ -220,6 +250,7 @@ impl Ticking {
             tick,
             frames,
             ready,
+            handoff,
             request: TickRequest::new(TickRequestKind::Tick, "simbus-bench-shape"),
             frame: 0,
             _node: node,
@@ -227,8 +258,8 @@ impl Ticking {
     }
 
     /// Sends a tick and waits until its frame is held: asleep on the
-    /// answer's word in [`Shape::FutexBlock`] and on the frame-ready event
-    /// in [`Shape::RequestBlock`], spinning on the frames in the others.
+    /// answer's futex word ([`Shape::futex`]) or on the frame-ready event
+    /// ([`Shape::RequestBlock`]), spinning on the frames in the others.
     pub(crate) fn round_trip(&mut self) -> anyhow::Result<()> {
         let request = TickRequest {
             flags: TickRequest::BY_FRAME,
@@ -238,21 +269,23 @@ impl Ticking {
             match &mut self.tick {
                 TickPort::Request { client, wake } => {
                     let pending = client.send_copy(request).map_err(err)?;
-                    wake.notify_with_custom_event_id(EventId::new(Doorbell::Tick.event_id()))
-                        .map_err(err)?;
+                    if let Some(wake) = wake {
+                        wake.notify_with_custom_event_id(EventId::new(Doorbell::Tick.event_id()))
+                            .map_err(err)?;
+                    }
                     Some(pending)
                 }
                 TickPort::Publish(publisher) => {
                     publisher.send_copy(request).map_err(err)?;
                     None
                 }
-                TickPort::Futex { words, sent } => {
-                    *sent = sent.wrapping_add(1);
-                    post(words.ping(), *sent);
-                    wait(words.pong(), sent.wrapping_sub(1));
-                    None
-                }
+                TickPort::Word => None,
             };
+        if let Some(Handoff { words, sent }) = &mut self.handoff {
+            *sent = sent.wrapping_add(1);
+            post(words.ping(), *sent);
+            wait(words.pong(), sent.wrapping_sub(1));
+        }
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
             if let Some(sample) = self.frames.receive().map_err(err)? {
@@ -310,8 +343,9 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
         Ok(())
     };
     match shape {
-        Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock => {
-            // Asleep on the doorbell between ticks in the blocking shape.
+        Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock | Shape::RequestFutex => {
+            // Asleep on the doorbell between ticks in the blocking shape,
+            // on the futex word in the futex one.
             let doorbell = match shape {
                 Shape::RequestBlock => Some(
                     services
@@ -331,20 +365,39 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
                 .server_builder()
                 .create()
                 .map_err(err)?;
+            let words = match shape.futex() {
+                true => Some(SharedWords::map(&futex_words_path(world))?),
+                false => None,
+            };
             println!("ready");
+            let (mut last, mut woken) = (0, false);
             loop {
+                if let (Some(words), false) = (&words, woken) {
+                    wait(words.ping(), last);
+                    last = words.ping().load(Ordering::Acquire);
+                    woken = true;
+                }
                 let Some(request) = server.receive().map_err(err)? else {
-                    match &doorbell {
-                        Some(doorbell) => {
+                    match (&words, &doorbell) {
+                        // Sent before its word was posted: there once woken,
+                        // so the word is not waited on again until it is.
+                        (Some(_), _) => {}
+                        (None, Some(doorbell)) => {
                             doorbell.blocking_wait(|_| {}).map_err(err)?;
                         }
-                        None => std::hint::spin_loop(),
+                        (None, None) => std::hint::spin_loop(),
                     }
                     continue;
                 };
                 frame += 1;
                 publish(frame, &mut world_state)?;
-                ready.notify().map_err(err)?;
+                woken = false;
+                match &words {
+                    Some(words) => post(words.pong(), last),
+                    None => {
+                        ready.notify().map_err(err)?;
+                    }
+                }
                 drop(request);
             }
         }

@@ -368,6 +368,10 @@ fn measure_rows(n: u64, placement: Placement) -> anyhow::Result<Vec<(&'static st
             crate::shapes::Shape::RequestBlock,
         )?,
         shape_row(
+            "(a) iox2 request, futex wake-ups + step",
+            crate::shapes::Shape::RequestFutex,
+        )?,
+        shape_row(
             "(a) futex tick + iox2 frame + step",
             crate::shapes::Shape::FutexBlock,
         )?,
@@ -464,6 +468,10 @@ fn ratios(rows: &[(&str, Latencies)]) -> Vec<(&'static str, f64)> {
         (
             "a/f futex tick + frame / futex floor",
             p50("(a) futex tick + iox2 frame") / floor,
+        ),
+        (
+            "a/f request, futex wake-ups / futex floor",
+            p50("(a) iox2 request, futex wake-ups") / floor,
         ),
         (
             "a/f tick request, block / futex floor",

@@ -219,15 +219,14 @@ impl Ticking {
             ),
             Shape::FutexBlock => TickPort::Word,
         };
-        let handoff = match shape.futex() {
-            true => {
-                let path = futex_words_path(world);
-                let words = SharedWords::map(&path)?;
-                // The peer mapped the page before it said it was ready.
-                let _ = std::fs::remove_file(path);
-                Some(Handoff { words, sent: 0 })
-            }
-            false => None,
+        let handoff = if shape.futex() {
+            let path = futex_words_path(world);
+            let words = SharedWords::map(&path)?;
+            // The peer mapped the page before it said it was ready.
+            let _ = std::fs::remove_file(path);
+            Some(Handoff { words, sent: 0 })
+        } else {
+            None
         };
         let frames = services
             .frames
@@ -266,7 +265,7 @@ impl Ticking {
             ..self.request
         };
         let _pending: Option<PendingResponse<Bus, TickRequest, (), TickResponse, ()>> =
-            match &mut self.tick {
+            match &self.tick {
                 TickPort::Request { client, wake } => {
                     let pending = client.send_copy(request).map_err(err)?;
                     if let Some(wake) = wake {
@@ -365,9 +364,10 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
                 .server_builder()
                 .create()
                 .map_err(err)?;
-            let words = match shape.futex() {
-                true => Some(SharedWords::map(&futex_words_path(world))?),
-                false => None,
+            let words = if shape.futex() {
+                Some(SharedWords::map(&futex_words_path(world))?)
+            } else {
+                None
             };
             println!("ready");
             let (mut last, mut woken) = (0, false);

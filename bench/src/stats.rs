@@ -66,7 +66,7 @@ impl Latencies {
     /// `name  p50  p99  p999` with microsecond columns.
     pub(crate) fn row(&self, name: &str) -> String {
         let [p50, p99, p999] = self.percentiles_us();
-        format!("{name:<28} {p50:>10.1} {p99:>10.1} {p999:>10.1}")
+        format!("{name:<40} {p50:>10.1} {p99:>10.1} {p999:>10.1}")
     }
 
     /// `name  p50  max` in milliseconds (for small samples).
@@ -80,7 +80,7 @@ impl Latencies {
 /// The header matching [`Latencies::row`].
 pub(crate) fn header(first: &str) -> String {
     format!(
-        "{first:<28} {:>10} {:>10} {:>10}",
+        "{first:<40} {:>10} {:>10} {:>10}",
         "p50 µs", "p99 µs", "p999 µs"
     )
 }

@@ -46,7 +46,7 @@ use shared_types::{
     TickResponse, WorldName,
 };
 use simbus_transport::frames::send_frame;
-use simbus_transport::spec::WorldServices;
+use simbus_transport::spec::{EventSpec, WorldServices};
 use simbus_transport::Bus;
 
 use crate::futex::{post, wait, SharedWords};
@@ -159,6 +159,15 @@ struct Handoff {
     sent: u32,
 }
 
+/// A listener of the event `spec` describes.
+fn listener(spec: &EventSpec, node: &Node<Bus>) -> anyhow::Result<Listener<Bus>> {
+    spec.open_or_create(node, &WorldLimits::default())
+        .map_err(err)?
+        .listener_builder()
+        .create()
+        .map_err(err)
+}
+
 /// The file of the futex words of `world`'s row.
 fn futex_words_path(world: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("simbus-bench-{world}-words"))
@@ -233,18 +242,9 @@ impl Ticking {
             .open_or_create(&node, &limits)
             .map_err(err)?;
         let frames = services.frames.subscriber(&frames).map_err(err)?;
-        let ready = match shape {
-            Shape::RequestBlock => Some(
-                services
-                    .frame_ready
-                    .open_or_create(&node, &limits)
-                    .map_err(err)?
-                    .listener_builder()
-                    .create()
-                    .map_err(err)?,
-            ),
-            _ => None,
-        };
+        let ready = (shape == Shape::RequestBlock)
+            .then(|| listener(&services.frame_ready, &node))
+            .transpose()?;
         Ok(Self {
             tick,
             frames,
@@ -345,18 +345,9 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
         Shape::Request | Shape::RequestNoHistory | Shape::RequestBlock | Shape::RequestFutex => {
             // Asleep on the doorbell between ticks in the blocking shape,
             // on the futex word in the futex one.
-            let doorbell = match shape {
-                Shape::RequestBlock => Some(
-                    services
-                        .control_wake
-                        .open_or_create(&node, &limits)
-                        .map_err(err)?
-                        .listener_builder()
-                        .create()
-                        .map_err(err)?,
-                ),
-                _ => None,
-            };
+            let doorbell = (shape == Shape::RequestBlock)
+                .then(|| listener(&services.control_wake, &node))
+                .transpose()?;
             let server = services
                 .tick
                 .open_or_create(&node, &limits)

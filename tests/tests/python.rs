@@ -4,8 +4,7 @@
 //! bridge, and simbus's own Python package (`sim-client/python`, built
 //! from this checkout into the venv: `test_simbus_*.py`); run in the venv
 //! the fixture creates with pinned packages. Each test starts its own
-//! server and the process it checks, so pytest-xdist runs them two at a
-//! time: most of a test is waiting for its processes.
+//! server and the process it checks.
 
 #[test]
 fn the_python_tests_pass() {
@@ -16,7 +15,7 @@ fn the_python_tests_pass() {
         .expect("the binaries' directory")
         .to_path_buf();
     let output = std::process::Command::new(python)
-        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2"])
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(&dir)
         .env("SIMBUS_BIN_DIR", bin_dir)
         .output()

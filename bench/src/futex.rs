@@ -56,12 +56,31 @@ impl SharedWords {
         unsafe { &*self.base.add(i) }
     }
 
-    pub(crate) fn ping(&self) -> &AtomicU32 {
+    fn ping(&self) -> &AtomicU32 {
         self.word(0)
     }
 
-    pub(crate) fn pong(&self) -> &AtomicU32 {
+    fn pong(&self) -> &AtomicU32 {
         self.word(16)
+    }
+
+    /// The measuring side: sends ping `n` (the one after `n - 1`) and
+    /// sleeps until the peer has answered it.
+    pub(crate) fn ping_pong(&self, n: u32) {
+        post(self.ping(), n);
+        wait(self.pong(), n.wrapping_sub(1));
+    }
+
+    /// The peer's side: sleeps until a ping other than `last` comes, and
+    /// returns it.
+    pub(crate) fn next_ping(&self, last: u32) -> u32 {
+        wait(self.ping(), last);
+        self.ping().load(Ordering::Acquire)
+    }
+
+    /// The peer's side: answers ping `n`.
+    pub(crate) fn answer(&self, n: u32) {
+        post(self.pong(), n);
     }
 }
 
@@ -75,7 +94,7 @@ impl Drop for SharedWords {
 }
 
 /// Sleeps until `word` no longer holds `old`.
-pub(crate) fn wait(word: &AtomicU32, old: u32) {
+fn wait(word: &AtomicU32, old: u32) {
     while word.load(Ordering::Acquire) == old {
         // SAFETY: FUTEX_WAIT on a valid, aligned, mapped word; it returns at
         // once if the word changed, and spurious wake-ups loop.
@@ -92,7 +111,7 @@ pub(crate) fn wait(word: &AtomicU32, old: u32) {
 }
 
 /// Stores `value` into `word` and wakes its sleeper.
-pub(crate) fn post(word: &AtomicU32, value: u32) {
+fn post(word: &AtomicU32, value: u32) {
     word.store(value, Ordering::Release);
     // SAFETY: FUTEX_WAKE of one waiter on a valid, aligned, mapped word.
     unsafe {
@@ -108,9 +127,8 @@ pub(crate) fn peer(path: &str) -> anyhow::Result<()> {
     // instead could already see its first ping and then wait for a second.
     let mut last = 0;
     loop {
-        wait(words.ping(), last);
-        last = words.ping().load(Ordering::Acquire);
-        post(words.pong(), last);
+        last = words.next_ping(last);
+        words.answer(last);
     }
 }
 
@@ -127,8 +145,7 @@ pub(crate) fn exchange() -> anyhow::Result<(ChildGuard, impl FnMut() -> anyhow::
     let mut n = 0u32;
     Ok((peer, move || {
         n = n.wrapping_add(1);
-        post(words.ping(), n);
-        wait(words.pong(), n.wrapping_sub(1));
+        words.ping_pong(n);
         anyhow::ensure!(
             words.pong().load(Ordering::Acquire) == n,
             "futex ping-pong out of order"

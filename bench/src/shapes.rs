@@ -30,7 +30,6 @@
 //! shape costs and what simbus's own code adds on top (`simbus, spin, by
 //! frame`).
 
-use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use iceoryx2::pending_response::PendingResponse;
@@ -49,7 +48,7 @@ use simbus_transport::frames::send_frame;
 use simbus_transport::spec::{EventSpec, WorldServices};
 use simbus_transport::Bus;
 
-use crate::futex::{post, wait, SharedWords};
+use crate::futex::SharedWords;
 
 /// Which shape a row and its peer use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,6 +72,11 @@ pub(crate) enum Shape {
 }
 
 impl Shape {
+    /// Whether both ends hand their wake-ups over as futex words.
+    fn futex(self) -> bool {
+        matches!(self, Self::RequestFutex | Self::FutexBlock)
+    }
+
     /// The peer kind (`peer --kind`) that answers this shape.
     pub(crate) fn peer_kind(self) -> &'static str {
         match self {
@@ -143,13 +147,6 @@ enum TickPort {
     Publish(Publisher<Bus, TickRequest, ()>),
     /// No message: the futex word is the tick.
     Word,
-}
-
-impl Shape {
-    /// Whether both ends hand their wake-ups over as futex words.
-    fn futex(self) -> bool {
-        matches!(self, Self::RequestFutex | Self::FutexBlock)
-    }
 }
 
 /// The futex words of a shape whose wake-ups are words: `ping` carries the
@@ -282,8 +279,7 @@ impl Ticking {
             };
         if let Some(Handoff { words, sent }) = &mut self.handoff {
             *sent = sent.wrapping_add(1);
-            post(words.ping(), *sent);
-            wait(words.pong(), sent.wrapping_sub(1));
+            words.ping_pong(*sent);
         }
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
@@ -364,8 +360,7 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
             let (mut last, mut woken) = (0, false);
             loop {
                 if let (Some(words), false) = (&words, woken) {
-                    wait(words.ping(), last);
-                    last = words.ping().load(Ordering::Acquire);
+                    last = words.next_ping(last);
                     woken = true;
                 }
                 let Some(request) = server.receive().map_err(err)? else {
@@ -384,7 +379,7 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
                 publish(frame, &mut world_state)?;
                 woken = false;
                 match &words {
-                    Some(words) => post(words.pong(), last),
+                    Some(words) => words.answer(last),
                     None => {
                         ready.notify().map_err(err)?;
                     }
@@ -397,11 +392,10 @@ pub(crate) fn peer(world: &str, shape: Shape) -> anyhow::Result<()> {
             println!("ready");
             let mut last = 0;
             loop {
-                wait(words.ping(), last);
-                last = words.ping().load(Ordering::Acquire);
+                last = words.next_ping(last);
                 frame += 1;
                 publish(frame, &mut world_state)?;
-                post(words.pong(), last);
+                words.answer(last);
             }
         }
         Shape::Publish => {

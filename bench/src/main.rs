@@ -1,17 +1,19 @@
 //! `simbus-bench`: latency and throughput of simbus, measured side by side
-//! with baselines in one run on one machine.
+//! with baselines in one run on one machine. The workspace's `cargo build
+//! --release` builds it (`cargo run -p simbus-bench` would resolve other
+//! features and build the heavy crates a second time):
 //!
 //! ```text
-//! cargo run --release -p simbus-bench -- tick [--iterations N] [--json]
-//! cargo run --release -p simbus-bench -- frames [--samples N] [--scale-boxes N,..] [--json]
-//! cargo run --release -p simbus-bench -- failover [--trials N] [--json]
-//! cargo run --release -p simbus-bench -- commands [--batches N] [--ticks N] [--json]
-//! cargo run --release -p simbus-bench -- sensors [--samples N] [--frames N] [--json]
-//! cargo run --release -p simbus-bench -- recorder [--frames N] [--big-gib G] [--json]
-//! cargo run --release -p simbus-bench -- carla [--ticks N] [--frames N] [--python P] [--json]
-//! cargo run --release -p simbus-bench -- python [--ticks N] [--frames N] [--captures N] [--python P] [--json]
-//! cargo run --release -p simbus-bench -- substeps [--out DIR] [--seconds S] [--json]
-//! cargo run --release -p simbus-bench -- zenoh [--ticks N] [--captures N] [--no-veth] [--json]
+//! target/release/simbus-bench tick [--iterations N] [--json]
+//! target/release/simbus-bench frames [--samples N] [--scale-boxes N,..] [--json]
+//! target/release/simbus-bench failover [--trials N] [--json]
+//! target/release/simbus-bench commands [--batches N] [--ticks N] [--json]
+//! target/release/simbus-bench sensors [--samples N] [--frames N] [--json]
+//! target/release/simbus-bench recorder [--frames N] [--big-gib G] [--json]
+//! target/release/simbus-bench carla [--ticks N] [--frames N] [--python P] [--json]
+//! target/release/simbus-bench python [--ticks N] [--frames N] [--captures N] [--python P] [--json]
+//! target/release/simbus-bench substeps [--out DIR] [--seconds S] [--json]
+//! target/release/simbus-bench zenoh [--ticks N] [--captures N] [--no-veth] [--json]
 //! ```
 
 use std::process::ExitCode;

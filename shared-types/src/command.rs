@@ -258,6 +258,10 @@ wire_enum! {
         UnknownCommand = 4,
         /// The actor is static and cannot be changed.
         StaticActor = 5,
+        /// A spawn whose body would overlap another body (CARLA's "Spawn
+        /// failed because of collision at spawn position"); the result's
+        /// `actor` is the actor whose body is there.
+        SpawnCollision = 6,
     }
 }
 
@@ -275,6 +279,7 @@ impl std::fmt::Display for CommandStatus {
             Self::NotAVehicle => "the actor is not a vehicle",
             Self::UnknownCommand => "unknown command",
             Self::StaticActor => "the actor is static",
+            Self::SpawnCollision => "spawn failed because of a collision at the spawn position",
         })
     }
 }
@@ -285,7 +290,9 @@ impl std::fmt::Display for CommandStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
 #[type_name("simbus::CommandResult/1")]
 pub struct CommandResult {
-    /// The actor (new id for spawns; 0 when a spawn failed).
+    /// The actor: the new id for a spawn; for a spawn refused with
+    /// [`CommandStatus::SpawnCollision`] the actor whose body is at the
+    /// spawn position; 0 when a spawn failed otherwise.
     pub actor: u64,
     /// [`CommandStatus`] as `u32`.
     pub status: u32,

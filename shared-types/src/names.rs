@@ -28,7 +28,7 @@ pub enum WorldNameError {
         max: usize,
     },
     /// The name holds a character outside `[A-Za-z0-9._-]`.
-    #[error("world name '{name}' contains '{character}'; use letters, digits, '-', '_' and '.'")]
+    #[error("world name '{name}' contains '{character}'; use ASCII letters (a-z, A-Z), digits, '-', '_' and '.'")]
     InvalidCharacter {
         /// The rejected name.
         name: String,

@@ -252,8 +252,8 @@ pub struct RecorderResponse {
     pub verified_frames: u64,
     /// Resimulate: 1 if a frame differed (the first is below).
     pub mismatch: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// [`RecorderResponse::RECORDED`].
+    pub flags: u32,
     /// Resimulate: the first frame that differed.
     pub mismatch_frame: u64,
     /// Resimulate: the first actor that differed in it (0: the actor sets differ).
@@ -267,6 +267,11 @@ pub struct RecorderResponse {
 }
 
 impl RecorderResponse {
+    /// Flag: this server recorded since it started, and `path`,
+    /// `frames_written` and `bytes_written` are its current or last
+    /// recording's (without it, `path` is the last replay's file).
+    pub const RECORDED: u32 = 1;
+
     /// An answer with nothing filled in but `status`.
     pub fn new(status: crate::ResponseStatus) -> Self {
         Self {
@@ -282,7 +287,7 @@ impl RecorderResponse {
             replay_total: 0,
             verified_frames: 0,
             mismatch: 0,
-            reserved: 0,
+            flags: 0,
             mismatch_frame: 0,
             mismatch_actor: 0,
             time_factor: 1.0,

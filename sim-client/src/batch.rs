@@ -74,6 +74,14 @@ pub enum CommandError {
         /// What went wrong.
         status: CommandStatus,
     },
+    /// A spawn was refused because its body would overlap `occupant`'s
+    /// (CARLA's "Spawn failed because of collision at spawn position");
+    /// nothing was spawned.
+    #[error("spawn failed because of a collision at the spawn position: actor {occupant} is there")]
+    SpawnCollision {
+        /// The actor whose body is where the new one would be.
+        occupant: u64,
+    },
     /// The batch failed.
     #[error(transparent)]
     Batch(#[from] BatchError),
@@ -180,6 +188,9 @@ impl Client {
         let result = response.results.first().copied().unwrap_or_default();
         match CommandStatus::from_u32(result.status) {
             Some(CommandStatus::Ok) => Ok(result.actor),
+            Some(CommandStatus::SpawnCollision) => Err(CommandError::SpawnCollision {
+                occupant: result.actor,
+            }),
             status => Err(CommandError::Refused {
                 actor: command.actor,
                 status: status.unwrap_or(CommandStatus::UnknownCommand),

@@ -80,7 +80,12 @@ pub struct Mismatch {
 pub struct RecorderStatus {
     /// A recording runs.
     pub recording: bool,
-    /// The current (or last) recording's path, as the server sees it.
+    /// This server recorded since it started: `path`, `frames` and `bytes`
+    /// are its current or last recording's. Otherwise `path` is the last
+    /// replay's file, and there is no recording to speak of.
+    pub recorded: bool,
+    /// The current (or last) recording's path, as the server sees it (the
+    /// last replay's file when nothing was recorded).
     pub path: String,
     /// Frames written to it.
     pub frames: u64,
@@ -116,6 +121,7 @@ impl From<&RecorderResponse> for RecorderStatus {
     fn from(r: &RecorderResponse) -> Self {
         Self {
             recording: r.recording != 0,
+            recorded: r.flags & RecorderResponse::RECORDED != 0,
             path: r.path.to_string_lossy(),
             frames: r.frames_written,
             bytes: r.bytes_written,

@@ -176,6 +176,10 @@ impl World {
             linear_velocity: Vector::ZERO,
             density: vehicle.as_ref().map_or(1.0, VehicleSpec::density),
         };
+        if let Some(occupant) = self.occupant(&placement) {
+            // The result names what is there instead of a new actor.
+            return result(occupant, CommandStatus::SpawnCollision);
+        }
         let id = self.insert(&placement);
         if let (Some(spec), Some(actor)) = (vehicle, self.actors.last()) {
             // `insert` built the original vehicle: this one is built as its

@@ -65,7 +65,7 @@ pub mod journal;
 pub(crate) mod liveness;
 pub(crate) mod lockstep;
 pub(crate) mod ports;
-pub(crate) mod recorder;
+pub mod recorder;
 pub(crate) mod replayer;
 pub mod scene;
 pub(crate) mod sensors;

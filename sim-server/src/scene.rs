@@ -125,6 +125,25 @@ impl Placement {
         self
     }
 
+    /// Where this placement's body would be and its shape shrunk by
+    /// `skin` on every side: what a spawn tests against the bodies already
+    /// there, so a body placed resting on another (touching it) is not
+    /// taken for one inside it.
+    pub(crate) fn probe(&self, skin: f32) -> (Pose, SharedShape) {
+        let e = self.extent;
+        // Never below half the size, however thin the body.
+        let shrunk = |v: f32| (v - skin).max(v * 0.5);
+        let shape = match self.kind {
+            ActorKind::Static | ActorKind::Box | ActorKind::Vehicle => {
+                SharedShape::cuboid(shrunk(e.x), shrunk(e.y), shrunk(e.z))
+            }
+            ActorKind::Sphere => SharedShape::ball(shrunk(e.x)),
+            ActorKind::Capsule => SharedShape::capsule_y(shrunk(e.y), shrunk(e.x)),
+        };
+        let pose = Pose::from_parts(self.position, Rotation::from_scaled_axis(self.rotation));
+        (pose, shape)
+    }
+
     /// The rapier body and collider of this placement.
     pub fn build(&self) -> (RigidBody, Collider) {
         let body = match self.kind {

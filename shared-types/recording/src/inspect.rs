@@ -109,7 +109,10 @@ pub struct FrameLine {
 pub struct Collision {
     /// The frame in which the contact started.
     pub frame: u64,
-    /// Its simulation time.
+    /// When, in recording seconds: since the recording's start, as CARLA's
+    /// recorder counts and [`Blocked::from_seconds`] does.
+    pub time_seconds: f64,
+    /// When, in the world's simulation time.
     pub elapsed_seconds: f64,
     /// One actor (the lower id).
     pub actor_a: u64,
@@ -319,13 +322,24 @@ pub fn kind_matches(filter: char, kind: u32) -> bool {
 /// [`kind_matches`]), in order.
 pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>, RecordingError> {
     let mut out = Vec::new();
-    entries(path, |entry| {
-        if let Entry::Collision(c) = entry {
+    let mut elapsed = Vec::new();
+    // Each frame's recording time, less its simulation time: what turns a
+    // collision's simulation time into recording time.
+    let mut offsets: std::collections::HashMap<u64, i128> = std::collections::HashMap::new();
+    entries(path, |entry| match entry {
+        Entry::Frame { log_ns, header, .. } => {
+            let t = &header.timestamp;
+            offsets.insert(t.frame, i128::from(*log_ns) - i128::from(t.elapsed_ns));
+        }
+        Entry::Collision(c) => {
             let matches = (kind_matches(kind1, c.kind_a) && kind_matches(kind2, c.kind_b))
                 || (kind_matches(kind1, c.kind_b) && kind_matches(kind2, c.kind_a));
             if matches {
+                elapsed.push(c.elapsed_ns);
                 out.push(Collision {
                     frame: c.frame,
+                    // Filled in below, once every frame is read.
+                    time_seconds: 0.0,
                     elapsed_seconds: seconds(c.elapsed_ns),
                     actor_a: c.actor_a,
                     kind_a: kind_name(c.kind_a),
@@ -335,7 +349,14 @@ pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>
                 });
             }
         }
+        _ => {}
     })?;
+    let first = offsets.values().next().copied().unwrap_or(0);
+    for (c, elapsed_ns) in out.iter_mut().zip(elapsed) {
+        let offset = offsets.get(&c.frame).copied().unwrap_or(first);
+        let log_ns = (i128::from(elapsed_ns) + offset).max(0);
+        c.time_seconds = seconds(u64::try_from(log_ns).unwrap_or(u64::MAX));
+    }
     Ok(out)
 }
 

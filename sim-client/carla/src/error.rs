@@ -183,6 +183,11 @@ pub(crate) enum CallError {
         "simbus: the simbus vehicle has no reverse gear (VehicleControl.reverse must be False)"
     )]
     NoReverse,
+    /// A spawn where another body is, in CARLA's words (scripts such as
+    /// `generate_traffic.py` skip an occupied spawn point by this error,
+    /// and `try_spawn_actor` answers `None`).
+    #[error("Spawn failed because of collision at spawn position")]
+    SpawnCollision,
     /// The server refused a spawn.
     #[error("simbus: spawn refused: {0}")]
     SpawnRefused(CommandStatus),

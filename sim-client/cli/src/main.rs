@@ -92,10 +92,16 @@ enum Command {
     /// with a fixed step and ticks. --count and --until-sim-time bound the
     /// run, --rate paces it; without a bound it ticks until Ctrl-C. However
     /// it ends (a bound, Ctrl-C, SIGTERM, an error, a closed stdout, a
-    /// panic) the world gets its own step back and returns to asynchronous
-    /// mode (unless --leave-sync), and ownership is released. With
-    /// --standby it waits, ports open and claim queued, until the world has
-    /// no ticker, then takes over from the next frame.
+    /// panic) the world gets its settings back as they were before the run
+    /// (a world that was asynchronous runs free again; one that was
+    /// synchronous, `sim-server --sync`, stays synchronous and waits for
+    /// the next ticker; --leave-sync keeps it synchronous in any case), and
+    /// ownership is released. A journaling server (`sim-server --journal`)
+    /// that exits is waited for and, once resumed (`sim-server --resume`),
+    /// claimed again: ticking goes on from the frame it resumed at, none
+    /// printed twice or skipped. With --standby it waits, ports open and
+    /// claim queued, until the world has no ticker, then takes over from
+    /// the next frame.
     Tick(cli::tick::TickArgs),
     /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
     Spawn(cli::actors::SpawnArgs),

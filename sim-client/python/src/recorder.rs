@@ -89,6 +89,9 @@ impl ReplayStatus {
 pub(crate) struct RecorderStatus {
     /// A recording runs.
     recording: bool,
+    /// The server recorded since it started (otherwise `path` is the last
+    /// replay's file).
+    recorded: bool,
     /// The current (or last) recording's path, as the server sees it.
     path: String,
     /// Frames written to it.
@@ -106,6 +109,7 @@ impl From<sim_client::RecorderStatus> for RecorderStatus {
         let r = s.replay;
         Self {
             recording: s.recording,
+            recorded: s.recorded,
             path: s.path,
             frames: s.frames,
             bytes: s.bytes,

@@ -12,13 +12,14 @@ use crate::settings::{Changes, Settings};
 
 /// The world's single ticker: `tick()` computes the next frame. Leaving
 /// the `with` block (or `release()`) puts the settings back as they were
-/// before the claim, asynchronous, and gives the world back.
+/// before the claim (a world that was synchronous stays synchronous and
+/// waits for the next ticker) and gives the world back.
 #[pyclass(module = "simbus", unsendable)]
 #[derive(Debug)]
 pub(crate) struct Ticker {
     inner: Option<sim_client::Ticker>,
-    /// The settings to put back on release: the world's before the claim,
-    /// asynchronous (put back when they differ from [`Ticker::settings`]).
+    /// The settings to put back on release: the world's before the claim
+    /// (put back when they differ from [`Ticker::settings`]).
     restore: WorldSettings,
     /// The settings in force: the world's at the claim, then what this
     /// ticker applied (while it ticks, only it changes them).
@@ -46,10 +47,7 @@ impl Ticker {
         ticker.set_wait_mode(mode);
         let mut held = Ticker {
             inner: Some(ticker),
-            restore: WorldSettings {
-                synchronous_mode: false,
-                ..before
-            },
+            restore: before,
             settings: before,
             timeout,
         };
@@ -172,7 +170,8 @@ impl Ticker {
         self.settings.into()
     }
 
-    /// Puts the settings back as they were before the claim (asynchronous)
+    /// Puts the settings back as they were before the claim (synchronous
+    /// mode too: a world started synchronous waits for the next ticker)
     /// and gives the world back. Called by the end of a `with` block;
     /// harmless twice.
     /// If putting the settings back fails (the server is gone, Ctrl-C), it
@@ -233,8 +232,9 @@ impl Client {
     /// Claims tick ownership (`simbus.NotTickerError` names the owner when
     /// another client ticks) and, with `delta_seconds`, enters synchronous
     /// mode with that fixed step. Leaving the `with` block (or `release()`)
-    /// puts the world's settings back as they were, asynchronous, and
-    /// gives the world back.
+    /// puts the world's settings back as they were before the claim (a
+    /// world that was synchronous stays so, waiting for the next ticker)
+    /// and gives the world back.
     #[pyo3(signature = (delta_seconds = None, *, synchronous_mode = true, timeout = 5.0))]
     fn ticker(
         &self,

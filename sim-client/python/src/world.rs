@@ -54,6 +54,7 @@ fn status_name(status: CommandStatus) -> &'static str {
         CommandStatus::NotAVehicle => "not_a_vehicle",
         CommandStatus::UnknownCommand => "unknown_command",
         CommandStatus::StaticActor => "static_actor",
+        CommandStatus::SpawnCollision => "spawn_collision",
     }
 }
 
@@ -69,7 +70,12 @@ fn results(response: &BatchResponse) -> Vec<BatchResult> {
                 status: status_name(status),
                 ok,
                 actor_id: r.actor,
-                error: (!ok).then(|| format!("actor {}: {status}", r.actor)),
+                error: (!ok).then(|| match status {
+                    CommandStatus::SpawnCollision => {
+                        format!("{status}: actor {} is there", r.actor)
+                    }
+                    status => format!("actor {}: {status}", r.actor),
+                }),
                 frame: response.frame,
             }
         })
@@ -107,7 +113,9 @@ fn batch_error(error: BatchError) -> PyErr {
 fn command_error(error: CommandError) -> PyErr {
     match error {
         CommandError::Batch(e) => batch_error(e),
-        CommandError::Refused { .. } => raise("CommandError", message(&error)),
+        CommandError::Refused { .. } | CommandError::SpawnCollision { .. } => {
+            raise("CommandError", message(&error))
+        }
     }
 }
 
@@ -116,7 +124,8 @@ impl Client {
     /// Spawns an actor and returns its id (it shows in the next frame).
     /// `kind` is `"box"`, `"sphere"`, `"capsule"` or `"vehicle"`; the other
     /// arguments are `simbus.SpawnActor`'s. A refused spawn (a size or
-    /// position out of range) raises `simbus.CommandError`.
+    /// position out of range, or a body already there) raises
+    /// `simbus.CommandError`.
     #[pyo3(signature = (kind, *, at = None, rotation = None, half_extents = None, radius = None, half_height = None))]
     #[allow(clippy::too_many_arguments)]
     fn spawn(
@@ -134,6 +143,14 @@ impl Client {
             CommandError::Refused { status, .. } => raise(
                 "CommandError",
                 format!("spawning {} was refused: {status}", describe(&wire)),
+            ),
+            CommandError::SpawnCollision { occupant } => raise(
+                "CommandError",
+                format!(
+                    "spawning {} was refused: {}: actor {occupant} is there",
+                    describe(&wire),
+                    CommandStatus::SpawnCollision
+                ),
             ),
             e => command_error(e),
         })

@@ -23,7 +23,7 @@ use shared_types::{FrameHeader, WorldSettings};
 use simbus_recording::RecordingHeader;
 use tracing::{info, warn};
 
-use crate::recorder::{Recorder, SensorNote, Synced};
+use crate::recorder::{Recorder, SensorNote, SyncError, Synced};
 use crate::world::World;
 
 /// How often the journal is made durable.
@@ -107,7 +107,7 @@ pub fn segments(dir: &Path) -> std::io::Result<Vec<(u32, PathBuf)>> {
 #[derive(Debug, thiserror::Error)]
 pub enum JournalError {
     /// The directory could not be made or read.
-    #[error("cannot use the journal directory {dir}: {source}")]
+    #[error("cannot use the journal directory {dir}")]
     Directory {
         /// The directory.
         dir: PathBuf,
@@ -124,7 +124,10 @@ pub enum JournalError {
     },
     /// The segment could not be created.
     #[error("cannot start the journal: {0}")]
-    Start(String),
+    Start(#[from] crate::recorder::StartError),
+    /// The segment's first frame could not be made durable.
+    #[error("cannot start the journal: {0}")]
+    Sync(#[from] SyncError),
 }
 
 /// The journal being written.
@@ -175,10 +178,21 @@ impl Journal {
         let mut recorder = Recorder::default();
         recorder.journal = true;
         let path = segment.to_string_lossy().into_owned();
-        recorder
+        let started = recorder
             .start(&path, header, sensors, frame, scene)
-            .map_err(|e| JournalError::Start(crate::message(&e)))?;
-        recorder.sync().map_err(JournalError::Start)?;
+            .map_err(JournalError::from)
+            .and_then(|()| recorder.sync().map_err(JournalError::from));
+        if let Err(e) = started {
+            // No segment is left behind that holds nothing a resume can
+            // use (a full disk would leave an empty one).
+            drop(recorder);
+            if let Err(removed) = std::fs::remove_file(&segment) {
+                if removed.kind() != std::io::ErrorKind::NotFound {
+                    warn!(segment = %segment.display(), "cannot remove the unusable segment: {removed}");
+                }
+            }
+            return Err(e);
+        }
         // The directory entry of the new segment is durable too.
         if let Ok(d) = std::fs::File::open(dir) {
             let _ = d.sync_all();
@@ -220,7 +234,7 @@ impl Journal {
         self.recorder.frame(header, world, scene);
         if !self.recorder.is_recording() {
             let reason = self.recorder.last.error.clone();
-            self.stop(reason.unwrap_or_else(|| "the writer stopped".to_string()));
+            self.stop(reason.unwrap_or_else(|| SyncError::WriterStopped.to_string()));
             return;
         }
         self.unsynced += 1;
@@ -231,7 +245,7 @@ impl Journal {
             self.unsynced = 0;
             match self.recorder.sync() {
                 Ok(()) => self.durable = Some(at),
-                Err(reason) => self.stop(reason),
+                Err(reason) => self.stop(crate::message(&reason)),
             }
             return;
         }
@@ -246,12 +260,12 @@ impl Journal {
         if let Some((synced, covers)) = self.in_flight.take() {
             match self.recorder.synced(&synced) {
                 Ok(()) => self.durable = Some(covers),
-                Err(reason) => return self.stop(reason),
+                Err(reason) => return self.stop(crate::message(&reason)),
             }
         }
         match self.recorder.request_sync() {
             Ok(synced) => self.in_flight = Some((synced, at)),
-            Err(reason) => self.stop(reason),
+            Err(reason) => self.stop(crate::message(&reason)),
         }
     }
 

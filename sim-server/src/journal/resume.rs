@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use shared_types::{ActorState, FrameHeader, SensorSpec, WorldSettings};
-use simbus_recording::{Entry, RecordedEvent, RecordingHeader, RecordingReader};
+use simbus_recording::{Entry, RecordedEvent, RecordingError, RecordingHeader, RecordingReader};
 use tracing::{info, warn};
 
 use super::segments;
@@ -36,7 +36,7 @@ pub struct ResumeOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum ResumeError {
     /// The directory cannot be read.
-    #[error("cannot read the journal directory {dir}: {source}")]
+    #[error("cannot read the journal directory {dir}")]
     Directory {
         /// The directory.
         dir: PathBuf,
@@ -119,8 +119,8 @@ struct Scan {
     damage: Option<String>,
 }
 
-fn scan(path: &Path) -> Result<Scan, String> {
-    let mut reader = RecordingReader::open(&path.to_string_lossy()).map_err(|e| e.to_string())?;
+fn scan(path: &Path) -> Result<Scan, RecordingError> {
+    let mut reader = RecordingReader::open(&path.to_string_lossy())?;
     let mut marks = Vec::new();
     let mut damage = None;
     for entry in std::iter::from_fn(|| reader.next()) {
@@ -138,7 +138,9 @@ fn scan(path: &Path) -> Result<Scan, String> {
         }
     }
     if damage.is_none() && reader.truncated() {
-        damage = Some("it ends in the middle of a chunk (the server was killed)".into());
+        damage = Some(
+            "it ends in the middle of a chunk (its server was killed, or its disk filled)".into(),
+        );
     }
     Ok(Scan { marks, damage })
 }

@@ -13,7 +13,7 @@ const NAME_MAX: usize = 255;
 /// Why the recorder could not start; the client gets it as the refusal's
 /// message.
 #[derive(Debug, thiserror::Error)]
-pub(crate) enum StartError {
+pub enum StartError {
     /// The file could not be created.
     #[error("cannot create {path}: {cause}")]
     Create {
@@ -38,7 +38,7 @@ pub(crate) enum StartError {
 /// Why a file could not be created, told from the file system's error and
 /// a look at the path.
 #[derive(Debug)]
-pub(crate) enum CreateCause {
+pub enum CreateCause {
     /// Its directory does not exist.
     NoDirectory(String),
     /// A part of the path is a file, not a directory.

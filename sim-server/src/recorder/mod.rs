@@ -16,7 +16,8 @@ mod scene_update;
 mod service;
 mod writer;
 
-pub(crate) use create::StartError;
+pub use create::{CreateCause, StartError};
+pub use writer::{CloseCause, WriteError};
 
 pub(crate) use keyframe::{Keyframe, KeyframeError};
 pub(crate) use refusal::Refused;
@@ -33,10 +34,24 @@ use simbus_recording::{
 use tracing::{info, warn};
 
 use crate::world::World;
-use writer::{Item, WriteError, Written};
+use writer::{Item, Written};
 
 /// The answer to a [`Recorder::request_sync`].
-pub(crate) type Synced = Receiver<Result<(), String>>;
+pub(crate) type Synced = Receiver<Result<(), WriteError>>;
+
+/// Why what was recorded could not be made durable.
+#[derive(Debug, thiserror::Error)]
+pub enum SyncError {
+    /// No recording runs.
+    #[error("nothing is being recorded")]
+    NotRecording,
+    /// The writer could not write or sync the file.
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    /// The writer thread ended before it answered.
+    #[error("the recorder's writer stopped")]
+    WriterStopped,
+}
 
 /// Items in flight to the writer before the frame loop waits for it.
 const QUEUE: usize = 256;
@@ -67,6 +82,8 @@ struct Active {
     stalls: u64,
     /// The settings of the last recorded frame.
     settings: Option<shared_types::WireSettings>,
+    /// The id of the last recorded frame.
+    last_frame: u64,
 }
 
 /// What the last recording wrote.
@@ -74,8 +91,29 @@ struct Active {
 pub(crate) struct LastRecording {
     pub(crate) path: String,
     pub(crate) frames: u64,
+    /// The file's size: once closed, or as the error left it.
     pub(crate) bytes: u64,
+    /// Why it stopped by itself, if it did.
     pub(crate) error: Option<String>,
+    /// The last frame it recorded, when it stopped by itself.
+    pub(crate) stopped_at: Option<u64>,
+}
+
+impl LastRecording {
+    /// What a client is told about a recording that stopped by itself:
+    /// where, why, and what the file holds.
+    pub(crate) fn failure(&self) -> Option<String> {
+        let error = self.error.as_ref()?;
+        let at = self
+            .stopped_at
+            .map_or(String::new(), |frame| format!(" at frame {frame}"));
+        Some(format!(
+            "the recording to {} stopped by itself{at}: {error}; the file holds {} bytes, \
+             readable up to its last complete chunk (`sim-client recorder info` says up to \
+             which frame)",
+            self.path, self.bytes
+        ))
+    }
 }
 
 /// The recorder's state. Dropped with a recording running (the server
@@ -155,6 +193,7 @@ impl Recorder {
             next_keyframe_ns: 0,
             stalls: 0,
             settings: None,
+            last_frame: frame.0.timestamp.frame,
         });
         info!(
             path,
@@ -196,13 +235,19 @@ impl Recorder {
                 frames: written.frames,
                 bytes: written.bytes,
                 error: None,
+                stopped_at: None,
             },
-            Err(error) => LastRecording {
-                path: active.path,
-                frames: active.frames,
-                bytes: 0,
-                error: Some(error.to_string()),
-            },
+            Err(error) => {
+                // What is on disk: every complete chunk reads.
+                let bytes = std::fs::metadata(&active.path).map_or(0, |m| m.len());
+                LastRecording {
+                    error: Some(error.to_string()),
+                    stopped_at: Some(active.last_frame),
+                    path: active.path,
+                    frames: active.frames,
+                    bytes,
+                }
+            }
         };
         info!(
             path = self.last.path,
@@ -273,16 +318,16 @@ impl Recorder {
     /// Makes everything recorded so far durable, waiting for the disk (the
     /// writer ends its chunk, flushes and syncs the file). A failure ends
     /// the recording, and says why.
-    pub(crate) fn sync(&mut self) -> Result<(), String> {
+    pub(crate) fn sync(&mut self) -> Result<(), SyncError> {
         let synced = self.request_sync()?;
         self.synced(&synced)
     }
 
     /// Asks the writer to make everything recorded so far durable, without
     /// waiting: [`Recorder::synced`] waits for the answer.
-    pub(crate) fn request_sync(&mut self) -> Result<Synced, String> {
+    pub(crate) fn request_sync(&mut self) -> Result<Synced, SyncError> {
         if self.active.is_none() {
-            return Err("nothing is being recorded".to_string());
+            return Err(SyncError::NotRecording);
         }
         let (done, synced) = sync_channel(1);
         self.send(Item::Sync { done });
@@ -290,14 +335,14 @@ impl Recorder {
     }
 
     /// Waits for the answer to a [`Recorder::request_sync`].
-    pub(crate) fn synced(&mut self, synced: &Synced) -> Result<(), String> {
+    pub(crate) fn synced(&mut self, synced: &Synced) -> Result<(), SyncError> {
         let failed = match synced.recv() {
             Ok(Ok(())) => return Ok(()),
-            Ok(Err(reason)) => reason,
-            Err(_) => "the writer stopped".to_string(),
+            Ok(Err(error)) => SyncError::Write(error),
+            Err(_) => SyncError::WriterStopped,
         };
         self.stop("sync failed", 0);
-        Err(self.last.error.clone().unwrap_or(failed))
+        Err(failed)
     }
 
     /// Makes the next recorded frame carry a keyframe.
@@ -343,6 +388,7 @@ impl Recorder {
             active.log_ns = active.log_ns.saturating_add(header.timestamp.delta_ns);
         }
         active.frames += 1;
+        active.last_frame = header.timestamp.frame;
         let log_ns = active.log_ns;
         let settings_changed = active.settings.is_some_and(|s| s != header.settings);
         active.settings = Some(header.settings);

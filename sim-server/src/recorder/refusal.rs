@@ -32,6 +32,10 @@ pub(crate) enum Refused {
     /// Stop, and no recording runs.
     #[error("no recording is running")]
     NotRecording,
+    /// Stop, and the recording had stopped by itself (the disk filled):
+    /// where, why and what the file holds.
+    #[error("no recording is running: {0}")]
+    StoppedByItself(String),
     /// Stop replay or a time factor, and no replay runs.
     #[error("no replay is running")]
     NotReplaying,
@@ -91,7 +95,7 @@ impl Refused {
             | Self::AlreadyReplaying(_) => RecorderRefusal::Replaying,
             Self::AlreadyRecording(_) => RecorderRefusal::AlreadyRecording,
             Self::Recording(_) => RecorderRefusal::Recording,
-            Self::NotRecording => RecorderRefusal::NotRecording,
+            Self::NotRecording | Self::StoppedByItself(_) => RecorderRefusal::NotRecording,
             Self::NotReplaying | Self::StopReplay(_) => RecorderRefusal::NotReplaying,
             Self::NoPath | Self::UnknownMode(_) | Self::TimeFactor(_) | Self::BadSpan => {
                 RecorderRefusal::InvalidArgument

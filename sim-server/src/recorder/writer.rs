@@ -60,7 +60,7 @@ pub(crate) enum Item {
     /// Make everything handed over so far durable (end the chunk, flush,
     /// `fdatasync`), then say so on `done`: how a journal keeps its promise.
     Sync {
-        done: std::sync::mpsc::SyncSender<Result<(), String>>,
+        done: std::sync::mpsc::SyncSender<Result<(), WriteError>>,
     },
 }
 
@@ -282,17 +282,22 @@ pub(crate) fn run(
     let mut writer = handle.0;
     while let Ok(item) = items.recv() {
         if let Item::Sync { done } = item {
-            let synced = writer.sync();
-            let failed = synced.as_ref().err().map(describe);
-            let _ = done.send(synced.map_err(|e| describe(&e)));
-            if let Some(reason) = failed {
-                warn!(path, "journal sync failed: {reason}");
-                return Err(WriteError::Write {
-                    path,
-                    error: mcap::McapError::Io(std::io::Error::other(reason)),
-                });
-            }
-            continue;
+            let Err(error) = writer.sync() else {
+                let _ = done.send(Ok(()));
+                continue;
+            };
+            warn!(path, "journal sync failed: {}", describe(&error));
+            // The frame loop waiting on `done` gets the error; the thread
+            // ends with its kind, which the recorder's status shows.
+            let kind = match &error {
+                mcap::McapError::Io(e) => e.kind(),
+                _ => std::io::ErrorKind::Other,
+            };
+            let _ = done.send(Err(WriteError::Write {
+                path: path.clone(),
+                error,
+            }));
+            return Err(WriteError::Sync { path, kind });
         }
         if let Err(e) = writer.write(item) {
             warn!(path, "recording failed: {e}");
@@ -330,7 +335,7 @@ fn finish(mut writer: Writer) -> Result<(), CloseCause> {
 /// error is in the message (spelled out as the recorder's status shows
 /// it), and kept typed.
 #[derive(Debug, thiserror::Error)]
-pub(crate) enum WriteError {
+pub enum WriteError {
     /// Writing a frame, an event or a capture failed.
     #[error("writing {path} failed: {}", describe(error))]
     Write {
@@ -338,6 +343,15 @@ pub(crate) enum WriteError {
         path: String,
         /// What the MCAP writer said.
         error: mcap::McapError,
+    },
+    /// Making the file durable failed (what failed went to the frame
+    /// loop that asked; this is its kind).
+    #[error("syncing {path} failed: {}", std::io::Error::from(*kind))]
+    Sync {
+        /// The file.
+        path: String,
+        /// What kind of I/O error it was.
+        kind: std::io::ErrorKind,
     },
     /// Finishing the file (summary, indexes, footer, sync) failed.
     #[error("closing {path} failed: {cause}")]
@@ -354,7 +368,7 @@ pub(crate) enum WriteError {
 
 /// Why a recording's file could not be closed.
 #[derive(Debug)]
-pub(crate) enum CloseCause {
+pub enum CloseCause {
     /// The MCAP writer could not write the summary or the footer.
     Mcap(mcap::McapError),
     /// The file could not be flushed or synced.

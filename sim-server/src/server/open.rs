@@ -136,7 +136,13 @@ impl Server {
         if let Some(r) = &resumed {
             domains.resume_sensors(r);
         }
-        domains.publish(0, 0)?;
+        // A resumed world publishes its frame again as it was first
+        // published (its substeps and how physics was cut), not stepped.
+        let (substeps, flags) = resumed.as_ref().map_or((0, 0), |r| {
+            let kept = FrameHeader::SUBSTEPS_CAPPED | FrameHeader::PHYSICS_CLAMPED;
+            (r.frame.physics_substeps, r.frame.flags & kept)
+        });
+        domains.publish(substeps, flags)?;
         domains.frames.notify()?;
         if let Some(options) = domains.config.journal.clone() {
             // A resumed journal goes on in its directory; any other is new.
@@ -144,7 +150,7 @@ impl Server {
                 .as_ref()
                 .is_none_or(|r| r.segment.parent() != Some(options.dir.as_path()));
             let header = domains.recording_header(false);
-            let frame = domains.frame_header(0, 0);
+            let frame = domains.frame_header(substeps, flags);
             let sensors = domains.sensors.recorded_spawns(domains.clock.frame());
             let scene = domains.runtime.scene.to_string();
             let journal = Journal::start(

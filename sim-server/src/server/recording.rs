@@ -39,10 +39,10 @@ impl Domains {
             }
             RecorderCall::Stop => {
                 let stopped = self.recorder.stop("stop", self.clock.frame()).is_some();
-                let done = if stopped {
-                    Ok(())
-                } else {
-                    Err(Refused::NotRecording)
+                let done = match (stopped, self.recorder.last.failure()) {
+                    (true, _) => Ok(()),
+                    (false, Some(failure)) => Err(Refused::StoppedByItself(failure)),
+                    (false, None) => Err(Refused::NotRecording),
                 };
                 (RecorderKind::Stop, done)
             }
@@ -400,10 +400,12 @@ impl Domains {
         kind: RecorderKind,
         mut response: RecorderResponse,
     ) -> RecorderResponse {
+        let failure = self.recorder.last.failure();
         let mut recorder_error = None;
         match self.recorder.progress() {
             Some((path, frames)) => {
                 response.recording = 1;
+                response.flags |= RecorderResponse::RECORDED;
                 response.frames_written = frames;
                 response.path = PathText::cut(path);
             }
@@ -412,7 +414,10 @@ impl Domains {
                 response.frames_written = last.frames;
                 response.bytes_written = last.bytes;
                 response.path = PathText::cut(&last.path);
-                recorder_error = last.error.as_deref();
+                if !last.path.is_empty() {
+                    response.flags |= RecorderResponse::RECORDED;
+                }
+                recorder_error = failure.as_deref();
             }
         }
         let report = &self.replayer.report;

@@ -1,11 +1,16 @@
 //! What sensors ask of the world: rays, the colliders a ray can meet
 //! (with their actors), whether a point is inside a body.
 
-use rapier3d::parry::query::ShapeCastOptions;
+use rapier3d::parry::query::{intersection_test, ShapeCastOptions};
 use rapier3d::prelude::*;
 use shared_types::ActorKind;
 
 use super::World;
+use crate::scene::Placement;
+
+/// How far a new body may reach into another and still be spawned: a body
+/// placed resting on the ground or on another body touches it.
+pub(crate) const SPAWN_SKIN: f32 = 0.01;
 
 /// A collider a sensor's ray can meet, and the actor it belongs to.
 #[derive(Clone, Copy)]
@@ -31,6 +36,36 @@ impl World {
             .parent()
             .and_then(|b| self.physics.bodies.get(b))
             .is_some_and(|b| !b.is_enabled())
+    }
+
+    /// The actor whose body a body placed as `placement` would overlap
+    /// (deeper than [`SPAWN_SKIN`]), if any: why a spawn is refused, as
+    /// CARLA refuses one "because of collision at spawn position".
+    ///
+    /// Every collider is tested where its body is now, including bodies
+    /// spawned or moved earlier in the same batch, which the query
+    /// pipeline only learns of at the next step; bounding boxes first, so
+    /// a spawn among n bodies costs n box tests and a few shape tests.
+    pub(crate) fn occupant(&self, placement: &Placement) -> Option<u64> {
+        let (pose, shape) = placement.probe(SPAWN_SKIN);
+        let bounds = shape.compute_aabb(&pose);
+        self.physics
+            .colliders
+            .iter()
+            .filter(|(_, c)| !c.is_sensor())
+            .find_map(|(_, c)| {
+                let body = self.physics.bodies.get(c.parent()?)?;
+                let at = c
+                    .position_wrt_parent()
+                    .map_or(*body.position(), |local| *body.position() * *local);
+                if !bounds.intersects(&c.shape().compute_aabb(&at)) {
+                    return None;
+                }
+                // Every shape the world builds is convex, which the test
+                // supports; an unsupported pair is not taken as a collision.
+                let hit = intersection_test(&pose, &*shape, &at, c.shape()).ok()?;
+                hit.intersecting.then_some(body.user_data as u64)
+            })
     }
 
     /// Whether world point `point` is inside one of `body`'s colliders.

@@ -312,6 +312,7 @@ impl Session {
                 status => {
                     let status = status.unwrap_or(CommandStatus::UnknownCommand);
                     Err(match c.actor {
+                        0 if status == CommandStatus::SpawnCollision => CallError::SpawnCollision,
                         0 => CallError::SpawnRefused(status),
                         actor => CallError::CommandRefused { actor, status },
                     })

@@ -5,7 +5,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::Args;
 use shared_types::limits::MAX_ACTOR_POSITION;
-use shared_types::{ActorKind, Command, WorldName};
+use shared_types::{ActorKind, Command, CommandStatus, WorldName};
 use sim_client::{BatchError, CommandError, LoadWorldError};
 
 use crate::Failure;
@@ -74,9 +74,9 @@ fn parse_point(text: &str) -> Result<[f32; 3], Failure> {
 
 fn command_failure(e: CommandError) -> Failure {
     match e {
-        CommandError::Refused { .. } | CommandError::Batch(BatchError::NotTicker) => {
-            Failure::Refused(e.into())
-        }
+        CommandError::Refused { .. }
+        | CommandError::SpawnCollision { .. }
+        | CommandError::Batch(BatchError::NotTicker) => Failure::Refused(e.into()),
         e => Failure::Runtime(e.into()),
     }
 }
@@ -100,8 +100,14 @@ pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Re
     let response = client
         .apply_batch_sync(&[command], false)
         .map_err(|e| command_failure(e.into()))?;
-    if let Some((_, status)) = response.errors().first() {
-        return Err(Failure::Refused(anyhow!("spawn refused: {status}")));
+    if let Some((i, status)) = response.errors().first() {
+        let occupant = response.results.get(*i).map_or(0, |r| r.actor);
+        return Err(Failure::Refused(match status {
+            CommandStatus::SpawnCollision => anyhow!(
+                "spawn refused: {status}: actor {occupant} is there (see `sim-client --world {world} status` or `watch`); nothing was spawned"
+            ),
+            status => anyhow!("spawn refused: {status}"),
+        }));
     }
     let Some(result) = response.results.first() else {
         return Err(Failure::Runtime(anyhow!(

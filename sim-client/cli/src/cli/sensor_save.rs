@@ -41,9 +41,15 @@ pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<()
     let spec = sensor.spec();
     let depth_range = spec.camera().map_or(0.0, |d| d.range);
     let lidar_range = spec.lidar_params().map_or(0.0, |l| l.range);
-    for _ in 0..a.captures {
+    for saved in 0..a.captures {
         let Some(capture) = next_capture(&mut sensor, timeout)? else {
-            break;
+            // Ctrl-C or SIGTERM: not a success, whatever was saved.
+            return Err(Failure::Interrupted(anyhow::anyhow!(
+                "sensor save: {} of {} saved in {}",
+                count(saved, "capture"),
+                a.captures,
+                a.out.display()
+            )));
         };
         let h = *capture.header();
         let stem = a

@@ -1,5 +1,7 @@
 //! `sim-client tick`: be the ticker — claim ownership, enter synchronous
-//! mode with a fixed step, tick, and leave everything as it was on exit.
+//! mode with a fixed step, tick, and leave everything as it was on exit
+//! (a world that was synchronous before stays synchronous), riding
+//! through a server resumed from its journal.
 
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -57,7 +59,10 @@ pub(crate) struct TickArgs {
     allow_variable_step: bool,
 
     /// Leave the world in synchronous mode on exit, with its own step (it
-    /// then waits for the next ticker).
+    /// then waits for the next ticker). Without it the world's settings go
+    /// back to what they were before this run: a world that was
+    /// synchronous (`sim-server --sync`) stays synchronous, one that was
+    /// asynchronous runs free again.
     #[arg(long)]
     leave_sync: bool,
 
@@ -78,6 +83,19 @@ pub(crate) struct TickArgs {
     /// standbys are served first come, first served.
     #[arg(long)]
     standby: bool,
+
+    /// Do not wait for the server to come back: end when it exits, even
+    /// when its world journals (default: a server started with --journal
+    /// that exits is waited for, up to --restart-timeout, and claimed again
+    /// once resumed with `sim-server --resume`).
+    #[arg(long)]
+    no_follow_restarts: bool,
+
+    /// How long to wait for a journaling world's server to be resumed
+    /// after it exits (default 30 s); a fresh server (another run) or none
+    /// in time ends the command (exit 1).
+    #[arg(long, value_name = "S", default_value = "30", value_parser = input::timeout, conflicts_with = "no_follow_restarts")]
+    restart_timeout: Duration,
 
     /// With --standby: give up after S seconds on standby (exit 1, naming
     /// the ticker waited for). Default: wait until Ctrl-C.
@@ -114,6 +132,12 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     let interrupted = super::interrupted();
     let mut client = super::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
+    let status = client.status()?;
+    // Only a journaling server can be resumed: another one's exit ends the run.
+    let follow = (!args.no_follow_restarts && status.journal.is_some()).then_some(Restarts {
+        run_pid: status.run_pid,
+        patience: args.restart_timeout,
+    });
     let current = client.get_settings()?;
     let delta = args.delta(&current)?;
     if args.count == Some(0) {
@@ -168,12 +192,18 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
         eprintln!("tick: warning: {warning}");
     }
 
-    let ticks = match tick_loop(holding.ticker(), timeout, &args, interrupted) {
-        Err(revoked @ TickError::Revoked { .. }) => {
+    let mut restarts = follow.map(|r| (r, &mut client));
+    let ticks = match tick_loop(holding.ticker(), timeout, &args, &mut restarts, interrupted) {
+        Err(TickLoopError::Tick(revoked @ TickError::Revoked { .. })) => {
             // Ownership is gone and the world already left synchronous
             // mode: nothing to put back.
             holding.revoked();
             return Err(Failure::Runtime(revoked.into()));
+        }
+        Err(fresh @ TickLoopError::FreshServer { .. }) => {
+            // Not this run's world: released as it is, nothing put back.
+            holding.revoked();
+            return Err(Failure::Runtime(fresh.into()));
         }
         other => other,
     };
@@ -184,26 +214,32 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     eprintln!(
         "tick: {}; released ownership, {}",
         super::words::count(ticks, "tick"),
-        left_as(&current, args.leave_sync)
+        left_as(&left_with(&current, args.leave_sync), current.synchronous_mode)
     );
     Ok(())
 }
 
-/// How the world is left, as the last line says it.
-fn left_as(current: &WorldSettings, leave_sync: bool) -> String {
-    if !leave_sync {
+/// The settings a run gives back: the world's from `before` it, in
+/// synchronous mode if it was or `leave_sync` asks.
+fn left_with(before: &WorldSettings, leave_sync: bool) -> WorldSettings {
+    WorldSettings {
+        synchronous_mode: before.synchronous_mode || leave_sync,
+        ..*before
+    }
+}
+
+/// How the world is left (`left`), as the last line says it; `was_sync`:
+/// whether it was synchronous before the run.
+fn left_as(left: &WorldSettings, was_sync: bool) -> String {
+    if !left.synchronous_mode {
         return "world left in asynchronous mode, with its settings as before".to_owned();
     }
-    match current.fixed_delta_seconds {
-        Some(dt) => format!(
-            "world left in synchronous mode with its own step ({} s), waiting for the next ticker",
-            simbus_input::Readable(dt)
-        ),
-        None => {
-            "world left in synchronous mode with its own variable step, waiting for the next ticker"
-                .to_owned()
-        }
-    }
+    let step = match left.fixed_delta_seconds {
+        Some(dt) => format!("its own step ({} s)", simbus_input::Readable(dt)),
+        None => "its own variable step".to_owned(),
+    };
+    let why = if was_sync { ", as before" } else { "" };
+    format!("world left in synchronous mode with {step}{why}, waiting for the next ticker")
 }
 
 /// The ticker of a run and what to put back when the run ends. Dropped
@@ -211,8 +247,8 @@ fn left_as(current: &WorldSettings, leave_sync: bool) -> String {
 /// stdout, a panic) it still puts the settings back and releases.
 struct Holding {
     ticker: Option<Ticker>,
-    /// The settings to put back: the world's own, asynchronous (or
-    /// synchronous with --leave-sync); `None` once nothing is to be put back.
+    /// The settings to put back: the world's before the run (synchronous
+    /// too with --leave-sync); `None` once nothing is to be put back.
     restore: Option<WorldSettings>,
 }
 
@@ -225,10 +261,7 @@ impl Holding {
         before: WorldSettings,
         leave_sync: bool,
     ) -> Self {
-        let restore = WorldSettings {
-            synchronous_mode: leave_sync,
-            ..before
-        };
+        let restore = left_with(&before, leave_sync);
         Self {
             ticker: Some(ticker),
             restore: (restore != applied).then_some(restore),
@@ -344,18 +377,64 @@ fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> Resu
     }
 }
 
+/// Following a journaling world's server through a crash and resume.
+#[derive(Debug, Clone, Copy)]
+struct Restarts {
+    /// The run ticked: the pid of the server that began it, which a server
+    /// resumed from its journal keeps.
+    run_pid: u32,
+    /// How long to wait for the server to come back.
+    patience: Duration,
+}
+
+/// Why the ticks ended early.
+#[derive(Debug, thiserror::Error)]
+enum TickLoopError {
+    /// A tick failed.
+    #[error(transparent)]
+    Tick(#[from] TickError),
+    /// The server exited and another started on the world that did not
+    /// resume this run.
+    #[error(
+        "the server of world '{world}' exited and a fresh server (pid {server_pid}) started \
+         on it, not a resume of this run (begun by pid {run_pid}): ticking ended after frame \
+         {last_frame}; the fresh world is left as it is"
+    )]
+    FreshServer {
+        /// The world.
+        world: String,
+        /// The fresh server's pid.
+        server_pid: u32,
+        /// The pid that began the run ticked.
+        run_pid: u32,
+        /// The last frame ticked.
+        last_frame: u64,
+    },
+    /// Asking the resumed server about its run failed.
+    #[error("asking the server that came back about its run: {0}")]
+    Reconnect(#[from] anyhow::Error),
+}
+
 /// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
+/// With `restarts`, a server that exits is waited for and, once resumed
+/// from its journal, claimed again: the frame the resumed world starts at
+/// is printed once (it is the one the interrupted tick computed, when the
+/// journal made it durable) and ticking goes on from it.
 fn tick_loop(
     ticker: &mut Ticker,
     timeout: Duration,
     args: &TickArgs,
+    restarts: &mut Option<(Restarts, &mut Client)>,
     interrupted: &std::sync::atomic::AtomicBool,
-) -> Result<u64, TickError> {
+) -> Result<u64, TickLoopError> {
     // --rate was checked to give a period a clock can wait for.
     let period = args.rate.map(|hz| Duration::from_secs_f64(1.0 / hz));
     let until_ns = args.until_sim_time.map(shared_types::seconds_to_nanos);
     let mut next_at = Instant::now();
     let mut ticks = 0;
+    // The last frame printed: a resumed world's first frame is printed
+    // only when it is past it.
+    let mut printed = ticker.last_frame().map(|(frame, _)| frame);
     loop {
         if interrupted.load(Ordering::Relaxed) || args.count.is_some_and(|n| ticks >= n) {
             return Ok(ticks);
@@ -375,8 +454,23 @@ fn tick_loop(
                 return Ok(ticks);
             }
         }
-        let frame = ticker.tick(timeout)?;
+        let frame = match (ticker.tick(timeout), restarts.as_mut()) {
+            (Ok(frame), _) => frame,
+            (Err(e), Some((follow, client))) if e.is_server_gone() => {
+                let Some(resumed_at) = ride_through(ticker, *follow, client, interrupted)? else {
+                    return Ok(ticks);
+                };
+                if printed.is_some_and(|p| resumed_at <= p) {
+                    // The interrupted tick's frame was not made durable:
+                    // the next tick computes it again.
+                    continue;
+                }
+                resumed_at
+            }
+            (Err(e), _) => return Err(e.into()),
+        };
         ticks += 1;
+        printed = Some(frame);
         let elapsed = ticker.last_frame().map_or(0, |(_, ns)| ns) as f64 / 1e9;
         if args.json {
             println!(
@@ -387,4 +481,64 @@ fn tick_loop(
             println!("tick  frame {frame:>8}  t = {elapsed:>12.6} s");
         }
     }
+}
+
+/// After the server exited: waits (in slices, so Ctrl-C is noticed) for a
+/// server to come back on the world, claims it and checks that it resumed
+/// this run; returns the frame it resumed at, `None` on Ctrl-C.
+fn ride_through(
+    ticker: &mut Ticker,
+    follow: Restarts,
+    client: &mut Client,
+    interrupted: &std::sync::atomic::AtomicBool,
+) -> Result<Option<u64>, TickLoopError> {
+    let world = ticker.world().to_string();
+    let last_frame = ticker.last_frame().map_or(0, |(frame, _)| frame);
+    eprintln!(
+        "tick: the server of world '{world}' (pid {}) exited after frame {last_frame}; \
+         waiting up to {} s for it to be resumed from its journal",
+        ticker.server_pid(),
+        simbus_input::Readable(follow.patience.as_secs_f64())
+    );
+    let deadline = Instant::now() + follow.patience;
+    let reconnected = loop {
+        if interrupted.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(Duration::from_millis(200));
+        match ticker.reclaim(slice) {
+            Ok(reconnected) => break reconnected,
+            Err(TickError::Frame(sim_client::WaitError::NotBack { world, pid, .. }))
+                if Instant::now() >= deadline =>
+            {
+                return Err(TickError::Frame(sim_client::WaitError::NotBack {
+                    world,
+                    pid,
+                    timeout: follow.patience,
+                })
+                .into())
+            }
+            Err(TickError::Frame(sim_client::WaitError::NotBack { .. })) => {}
+            Err(e) => return Err(e.into()),
+        }
+    };
+    client
+        .reconnect(follow.patience)
+        .map_err(|e| TickLoopError::Reconnect(e.into()))?;
+    let run_pid = client
+        .status()
+        .map_err(|e| TickLoopError::Reconnect(e.into()))?
+        .run_pid;
+    if run_pid != follow.run_pid {
+        return Err(TickLoopError::FreshServer {
+            world,
+            server_pid: reconnected.server_pid,
+            run_pid: follow.run_pid,
+            last_frame,
+        });
+    }
+    eprintln!("tick: {reconnected}; ticking on");
+    Ok(Some(reconnected.resumed_at))
 }

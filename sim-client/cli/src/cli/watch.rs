@@ -158,6 +158,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     };
     let mut participant = join(&client)?;
     let (mut seen, mut missed) = (0, 0);
+    // The last frame printed, (episode, frame): a resumed server publishes
+    // the frame it resumed at again, which was printed already when this
+    // watcher saw it before the crash.
+    let mut printed: Option<(u64, u64)> = None;
     while args.frames.is_none_or(|n| seen < n) {
         let snapshot = match next_frame(&mut client, timeout) {
             Ok(Some(snapshot)) => snapshot,
@@ -171,6 +175,14 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
             }
             Err(e) => return Err(e.into()),
         };
+        let this = (snapshot.episode(), snapshot.frame());
+        if printed.is_some_and(|p| this <= p) {
+            if let Some(participant) = &participant {
+                participant.done(this.0, this.1)?;
+            }
+            continue;
+        }
+        printed = Some(this);
         seen += 1;
         missed += snapshot.missed();
         if args.json {

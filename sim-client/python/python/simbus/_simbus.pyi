@@ -620,6 +620,9 @@ class RecorderStatus:
     @property
     def recording(self) -> bool: ...
     @property
+    def recorded(self) -> bool:
+        """The server recorded since it started (else `path` is the last replay's file)."""
+    @property
     def path(self) -> Optional[str]: ...
     @property
     def frames(self) -> int: ...

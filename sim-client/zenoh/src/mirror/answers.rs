@@ -116,7 +116,13 @@ pub(super) fn answer_local(
     let result = match request {
         Local::Control(a) => {
             wire::decode_fixed::<ControlResponse>(bytes, "control answer").map(|mut answer| {
-                answer.report.server_pid = std::process::id();
+                // Here the mirror serves the world; a run its server began
+                // (not resumed from a journal) is the mirror's run too.
+                let report = &mut answer.report;
+                if report.run_pid == report.server_pid {
+                    report.run_pid = std::process::id();
+                }
+                report.server_pid = std::process::id();
                 sent(a.send_copy(answer).map(drop))
             })
         }

@@ -13,7 +13,7 @@ pub(super) fn status(status: &RecorderStatus) {
             status.path,
             count(status.frames, "frame")
         );
-    } else if !status.path.is_empty() {
+    } else if status.recorded {
         println!(
             "recorder   stopped; last: {} ({}, {})",
             status.path,
@@ -21,11 +21,17 @@ pub(super) fn status(status: &RecorderStatus) {
             count(status.bytes, "byte")
         );
     } else {
-        println!("recorder   idle");
+        println!("recorder   idle (nothing recorded since the server started)");
     }
     let r = &status.replay;
+    // Without a recording, the path is the replay's file.
+    let file = if status.recorded || status.path.is_empty() {
+        String::new()
+    } else {
+        format!(" of {}", status.path)
+    };
     println!(
-        "replay     {} ({}): {} of {}, time factor {}",
+        "replay     {} ({}): {} of {}{file}, time factor {}",
         r.state,
         r.mode,
         r.frames,
@@ -107,7 +113,10 @@ pub(super) fn info(info: &inspect::FileInfo) {
     );
     println!("keyframes    {}", info.keyframes);
     match (&info.stopped, info.truncated) {
-        (_, true) => println!("closed       no: still being recorded, or its server was killed; read up to the last complete chunk"),
+        (_, true) => println!(
+            "closed       no: still being recorded, or cut short (its server was killed or its disk filled); readable up to frame {}, its last complete chunk",
+            info.last_frame
+        ),
         (Some(reason), false) => println!("closed       yes ({reason})"),
         (None, false) => println!("closed       no stop event"),
     }
@@ -119,6 +128,9 @@ pub(super) fn info(info: &inspect::FileInfo) {
     }
 }
 
+/// The convention of every time `recorder collisions` and `blocked` print.
+const RECORDING_TIME: &str = "times are recording seconds: since the recording's start, as CARLA's recorder counts";
+
 pub(super) fn collisions(list: &[inspect::Collision]) {
     println!(
         "{:>8} {:>10}  {:<18} {:<18} {:>10}",
@@ -128,13 +140,16 @@ pub(super) fn collisions(list: &[inspect::Collision]) {
         println!(
             "{:>8} {:>10.3}  {:<18} {:<18} {:>10.3}",
             c.frame,
-            c.elapsed_seconds,
+            c.time_seconds,
             format!("{} ({})", c.actor_a, c.kind_a),
             format!("{} ({})", c.actor_b, c.kind_b),
             c.impulse
         );
     }
-    println!("{}", count(list.len() as u64, "collision"));
+    println!(
+        "{} ({RECORDING_TIME})",
+        count(list.len() as u64, "collision")
+    );
 }
 
 pub(super) fn blocked(list: &[inspect::BlockedActor], min_time: f64, min_distance: f64) {
@@ -157,7 +172,7 @@ pub(super) fn blocked(list: &[inspect::BlockedActor], min_time: f64, min_distanc
         }
     }
     println!(
-        "{} blocked for at least {min_time} s (moving less than {min_distance} m)",
+        "{} blocked for at least {min_time} s (moving less than {min_distance} m; {RECORDING_TIME})",
         count(list.len() as u64, "actor")
     );
 }

@@ -361,6 +361,6 @@ mod tests {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
         assert_eq!(kinds, (1..=15).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(statuses, (0..=5).collect::<Vec<_>>());
+        assert_eq!(statuses, (0..=6).collect::<Vec<_>>());
     }
 }

@@ -237,7 +237,9 @@ def test_a_lidar_drops_points_as_carla_by_default_and_keeps_them_with_the_recipe
     share above 1 is refused, naming the attributes."""
     client, world, library = synced(gateway)
     wall = blueprint(library, "static.prop.box", extent_x=0.5, extent_y=30, extent_z=30)
-    world.spawn_actor(wall, carla.Transform(carla.Location(x=10.0, z=2.0))).set_enable_gravity(False)
+    # Clear of the ground and of the scene's boxes: a spawn into them is
+    # refused, as CARLA refuses it.
+    world.spawn_actor(wall, carla.Transform(carla.Location(x=12.0, z=30.8))).set_enable_gravity(False)
     recipe = dict(dropoff_general_rate=0.0, dropoff_intensity_limit=1.0, dropoff_zero_intensity=0.0)
     shape = dict(channels=8, points_per_second=16000, rotation_frequency=20, upper_fov=5, lower_fov=-5,
                  range=50)
@@ -426,3 +428,30 @@ def test_bad_calls_get_errors_and_a_stream_reader_that_never_reads_is_dropped(ga
     while silent.recv(1 << 20):
         pass
     camera.stop()
+
+
+COLLISION = "Spawn failed because of collision at spawn position"
+
+
+def test_a_spawn_into_another_body_fails_as_carla_says(gateway):
+    """A vehicle spawned into the default scene's ramp is refused with
+    CARLA's own message (scripts such as generate_traffic.py skip an
+    occupied spawn point by it): spawn_actor raises, try_spawn_actor
+    answers None, a batch's SpawnActor answers the error for that command
+    only, and nothing is spawned. (It put the car into the ramp, stuck.)"""
+    client, world, library = synced(gateway)
+    impala = library.find("vehicle.chevrolet.impala")
+    inside = carla.Transform(carla.Location(x=0, y=0, z=1))
+    before = sorted(a.id for a in world.get_actors())
+    with pytest.raises(RuntimeError) as refused:
+        world.spawn_actor(impala, inside)
+    assert str(refused.value) == COLLISION
+    assert world.try_spawn_actor(impala, inside) is None
+    free = carla.Transform(carla.Location(x=-20, y=20, z=0.3))
+    responses = client.apply_batch_sync([
+        carla.command.SpawnActor(impala, inside),
+        carla.command.SpawnActor(impala, free),
+        carla.command.SpawnActor(impala, free),  # where the one before now is
+    ], True)
+    assert [r.error for r in responses] == [COLLISION, "", COLLISION]
+    assert sorted(a.id for a in world.get_actors()) == sorted(before + [responses[1].actor_id])

@@ -198,3 +198,33 @@ fn settings_survive_reload_through_the_library_too() {
     assert_eq!(client.get_settings().unwrap(), WorldSettings::default());
     drop(ticker);
 }
+
+/// Issue 44, item 2: `sim-client spawn` into the default scene's stack of
+/// boxes is refused (exit 2) naming the actor that is there, and nothing
+/// is spawned; the library says the same; on top of the stack it spawns.
+/// (It answered "spawned vehicle 18 ... it appears in frame 78".)
+#[test]
+fn a_spawn_inside_another_body_is_refused_naming_what_is_there() {
+    let (world, api) = sync_world("spawn-inside");
+    let before = status(&world)["actors"].clone();
+    // The stack's boxes are actors 4 (y 0..1) to 8.
+    for (kind, at, occupant) in [("vehicle", "5,1,0", 4), ("box", "5,1.5,0", 5)] {
+        let out = client(&world, &["spawn", kind, "--at", at]);
+        out.assert_code(2);
+        let says = format!(
+            "spawn failed because of a collision at the spawn position: actor {occupant} is there"
+        );
+        assert!(out.stderr.contains(&says), "{out}");
+    }
+    assert_eq!(status(&world)["actors"], before, "nothing was spawned");
+    let error = api
+        .spawn_actor(Command::spawn_box([5.0, 1.5, 0.0], [0.5; 3]))
+        .unwrap_err();
+    assert!(
+        matches!(error, sim_client::CommandError::SpawnCollision { occupant: 5 }),
+        "{error:?}"
+    );
+    let on_top = client(&world, &["spawn", "box", "--at", "5,5.5,0", "--json"]);
+    on_top.assert_success();
+    assert_eq!(on_top.json()[0]["id"], 18, "{on_top}");
+}

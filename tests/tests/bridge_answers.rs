@@ -33,7 +33,7 @@ fn batch_sensor_and_recorder_calls_through_a_mirror_are_answered_while_no_frame_
     assert_eq!(before.frame, 0, "nobody ticks: the world stays at frame 0");
 
     let batch = client
-        .apply_batch_sync(&[Command::spawn_vehicle([0.0, 0.0, 1.0])], false)
+        .apply_batch_sync(&[Command::spawn_vehicle([0.0, 1.0, 20.0])], false)
         .expect("a batch through the mirror");
     assert_eq!(batch.frame, 1, "the batch shows from the next frame");
     assert_eq!(batch.results.len(), 1, "{batch:?}");

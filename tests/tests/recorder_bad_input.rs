@@ -126,7 +126,7 @@ fn bad_recordings_are_refused_by_name_and_change_nothing() {
             .stdout
             .iter()
             .any(|l| l
-                .starts_with("closed       no: still being recorded, or its server was killed")),
+                .starts_with("closed       no: still being recorded, or cut short (its server was killed or its disk filled); readable up to frame")),
         "{finished}"
     );
     assert_eq!(where_is(&client), before, "nothing changed");

@@ -169,7 +169,8 @@ fn blocked_checks_its_limits_and_counts_each_actor_once() {
     assert_eq!(
         out.stdout.last().unwrap(),
         &format!(
-            "{} actors blocked for at least 0 s (moving less than 0.001 m)",
+            "{} actors blocked for at least 0 s (moving less than 0.001 m; times are recording \
+             seconds: since the recording's start, as CARLA's recorder counts)",
             actors.len()
         )
     );

@@ -1,6 +1,9 @@
 //! `sim-client tick` puts back what it changed: the world's own step
-//! always (with --leave-sync too), asynchronous mode unless --leave-sync;
-//! and its last line says how it left the world.
+//! always (with --leave-sync too), and the mode the world had before the
+//! run (a world started `--sync` stays synchronous, waiting for the next
+//! ticker; --leave-sync keeps any world synchronous); its last line says
+//! how it left the world. (A `--sync` server was left running free, and
+//! the ticker said "as before": a journaling one then wrote its disk full.)
 
 use std::time::Duration;
 
@@ -29,11 +32,20 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     );
 
     // The next plain ticker ticks with, and puts back, the world's own
-    // step: the earlier --leave-sync lost nothing.
+    // step: the earlier --leave-sync lost nothing. The world was
+    // synchronous before it, so it stays so.
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
-    world.assert_time_settings(false, Some(0.02), "");
+    world.assert_time_settings(true, Some(0.02), "");
+    assert_eq!(
+        ticked.stderr.lines().last(),
+        Some(
+            "tick: 2 ticks; released ownership, world left in synchronous mode with its own step \
+             (0.02 s), as before, waiting for the next ticker"
+        ),
+        "{ticked}"
+    );
 }
 
 #[test]
@@ -51,11 +63,43 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
         "{ticked}"
     );
     // A plain ticker then uses 0.05 s as on a fresh world and leaves the
-    // world asynchronous with its variable step.
+    // world as it found it: synchronous, with its variable step.
     let ticked = world.cli(&["tick", "--count", "2"]);
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.05 s"), "{ticked}");
-    world.assert_time_settings(false, None, "");
+    world.assert_time_settings(true, None, "");
+}
+
+/// Issue 44, item 3: a server started `--sync` stays synchronous after a
+/// bounded ticker, waiting for the next one, and the ticker says so; no
+/// frame is computed without a tick meanwhile.
+#[test]
+fn a_world_started_synchronous_stays_synchronous_after_a_ticker_and_computes_nothing() {
+    let world = TestWorld::start("tick-sync-server", &["--sync", "--delta-seconds", "0.02"]);
+    let ticked = world.cli(&["tick", "--count", "5", "--delta-seconds", "0.02"]);
+    ticked.assert_success();
+    assert_eq!(
+        ticked.stderr.lines().last(),
+        Some(
+            "tick: 5 ticks; released ownership, world left in synchronous mode with its own step \
+             (0.02 s), as before, waiting for the next ticker"
+        ),
+        "{ticked}"
+    );
+    world.assert_time_settings(true, Some(0.02), "");
+    let frame = world.status()["frame"].as_u64().expect("a frame");
+    // A watcher waiting for new frames gets none (at most the one already
+    // published): nothing ticks.
+    let watched = world.cli(&["--timeout", "1", "watch", "--frames", "2", "--json"]);
+    assert_ne!(watched.status.code(), Some(0), "frames came: {watched}");
+    for line in watched.json() {
+        assert!(line["frame"].as_u64() <= Some(frame), "{watched}");
+    }
+    assert_eq!(world.status()["frame"].as_u64(), Some(frame));
+    // The next ticker takes over from there.
+    let ticked = world.cli(&["tick", "--count", "1", "--json"]);
+    ticked.assert_success();
+    assert_eq!(ticked.json()[0]["frame"].as_u64(), Some(frame + 1), "{ticked}");
 }
 
 #[test]

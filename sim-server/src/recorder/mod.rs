@@ -132,6 +132,9 @@ pub(crate) struct Recorder {
     pub(crate) journal: bool,
     /// A journal's items not handed over yet.
     batch: Vec<Item>,
+    /// Why the last recording's writer failed, until a sync that found it
+    /// stopped takes it.
+    failed: Option<WriteError>,
 }
 
 impl Drop for Recorder {
@@ -203,6 +206,7 @@ impl Recorder {
         );
         self.collisions.clear();
         self.captures.clear();
+        self.failed = None;
         self.sensor_notes(sensors);
         self.record_frame(frame.0, frame.1, &scene, true);
         Ok(())
@@ -240,8 +244,10 @@ impl Recorder {
             Err(error) => {
                 // What is on disk: every complete chunk reads.
                 let bytes = std::fs::metadata(&active.path).map_or(0, |m| m.len());
+                let text = error.to_string();
+                self.failed = Some(error);
                 LastRecording {
-                    error: Some(error.to_string()),
+                    error: Some(text),
                     stopped_at: Some(active.last_frame),
                     path: active.path,
                     frames: active.frames,
@@ -338,11 +344,13 @@ impl Recorder {
     pub(crate) fn synced(&mut self, synced: &Synced) -> Result<(), SyncError> {
         let failed = match synced.recv() {
             Ok(Ok(())) => return Ok(()),
-            Ok(Err(error)) => SyncError::Write(error),
-            Err(_) => SyncError::WriterStopped,
+            Ok(Err(error)) => Some(SyncError::Write(error)),
+            Err(_) => None,
         };
         self.stop("sync failed", 0);
-        Err(failed)
+        // A writer that stopped without answering failed before: its error.
+        let failed = failed.or_else(|| self.failed.take().map(SyncError::Write));
+        Err(failed.unwrap_or(SyncError::WriterStopped))
     }
 
     /// Makes the next recorded frame carry a keyframe.

@@ -214,3 +214,64 @@ fn a_contact_starts_when_it_first_pushes_not_when_shapes_come_near() {
     assert_eq!(starts[0].0, 1);
     assert!(starts[0].1.y > 0.0, "{starts:?}");
 }
+
+/// Issue 44, item 2: a spawn whose body would overlap another's is refused
+/// (CARLA's "Spawn failed because of collision at spawn position"), its
+/// result naming the actor that is there, and changes nothing; one that
+/// rests on the ground, or on another body, touches but is spawned.
+#[test]
+fn a_spawn_inside_another_body_is_refused_naming_it_and_changes_nothing() {
+    let mut world = World::new(&Scene::Default.placements(0), 1);
+    let stack_bottom = (0..world.actor_count())
+        .map(|i| world.actor_state(i))
+        .find(|s| s.kind == ActorKind::Box as u32 && s.position == [5.0, 0.5, 0.0])
+        .expect("the default scene's stack of boxes")
+        .id;
+    let before = world.states();
+    for spawn in [
+        // Into the stack of boxes, as the issue's CLI spawn did.
+        Command::spawn_vehicle([5.0, 1.0, 0.0]),
+        Command::spawn_box([5.0, 0.5, 0.0], [0.5; 3]),
+        Command::spawn_sphere([5.0, 0.5, 0.4], 0.3),
+        Command::spawn_capsule([5.3, 1.3, 0.0], 0.3, 0.5),
+    ] {
+        let r = world.apply(&spawn);
+        assert_eq!(r.status, CommandStatus::SpawnCollision as u32, "{spawn:?}");
+        assert_eq!(r.actor, stack_bottom, "{spawn:?} names the box that is there");
+    }
+    // Into the ground (its top is y = 0).
+    let r = world.apply(&Command::spawn_box([30.0, 0.2, 30.0], [0.5; 3]));
+    assert_eq!(r.status, CommandStatus::SpawnCollision as u32);
+    assert_eq!(r.actor, 1, "the ground is actor 1");
+    assert_eq!(world.states(), before, "nothing changed");
+
+    // Resting on the ground, and on top of the stack: spawned.
+    let on_ground = world.apply(&Command::spawn_box([30.0, 0.5, 30.0], [0.5; 3]));
+    assert_eq!(on_ground.status, CommandStatus::Ok as u32);
+    let on_stack = world.apply(&Command::spawn_box([5.0, 5.5, 0.0], [0.5; 3]));
+    assert_eq!(on_stack.status, CommandStatus::Ok as u32);
+}
+
+/// A batch's spawns see the ones before them in the same batch (which the
+/// query pipeline only learns of at the next step).
+#[test]
+fn a_second_spawn_at_the_same_place_in_one_batch_is_refused() {
+    let mut world = World::new(&Scene::Empty.placements(0), 1);
+    let first = world.apply(&Command::spawn_box([0.0, 10.0, 0.0], [0.5; 3]));
+    assert_eq!(first.status, CommandStatus::Ok as u32);
+    let second = world.apply(&Command::spawn_sphere([0.2, 10.0, 0.0], 0.5));
+    assert_eq!(second.status, CommandStatus::SpawnCollision as u32);
+    assert_eq!(second.actor, first.actor);
+    // A body moved this frame is tested where it is now.
+    let moved = world.apply(&Command::set_transform(
+        first.actor,
+        [20.0, 10.0, 0.0],
+        [0.0; 4],
+    ));
+    assert_eq!(moved.status, CommandStatus::Ok as u32);
+    let there = world.apply(&Command::spawn_box([20.0, 10.0, 0.0], [0.5; 3]));
+    assert_eq!(there.status, CommandStatus::SpawnCollision as u32);
+    let freed = world.apply(&Command::spawn_box([0.0, 10.0, 0.0], [0.5; 3]));
+    assert_eq!(freed.status, CommandStatus::Ok as u32);
+    assert_eq!(world.actor_count(), 2);
+}

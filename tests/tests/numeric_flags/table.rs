@@ -116,6 +116,7 @@ pub(crate) const FLAGS: &[Flag] = &[
     client_flag(&["tick"], "--fps", "{}", &[], ZERO),
     client_flag(&["tick"], "--participants", "{}", &[], ZERO),
     client_flag(&["tick", "--standby"], "--standby-timeout", "{}", &[], NONE),
+    client_flag(&["tick"], "--restart-timeout", "{}", &[], NONE),
     // actors and worlds
     client_flag(&["spawn", "box"], "--at", "{},0,0", &[], ZERO_AND_MINUS_ONE),
     client_flag(&["destroy"], "<ID>", "{}", &[], ZERO),

@@ -94,7 +94,7 @@ pub(crate) struct TickArgs {
     /// How long to wait for a journaling world's server to be resumed
     /// after it exits (default 30 s); a fresh server (another run) or none
     /// in time ends the command (exit 1).
-    #[arg(long, value_name = "S", default_value = "30", value_parser = input::timeout, conflicts_with = "no_follow_restarts")]
+    #[arg(long, value_name = "S", default_value = "30", allow_negative_numbers = true, value_parser = input::timeout, conflicts_with = "no_follow_restarts")]
     restart_timeout: Duration,
 
     /// With --standby: give up after S seconds on standby (exit 1, naming
@@ -137,6 +137,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     let follow = (!args.no_follow_restarts && status.journal.is_some()).then_some(Restarts {
         run_pid: status.run_pid,
         patience: args.restart_timeout,
+        participants: args.participants,
     });
     let current = client.get_settings()?;
     let delta = args.delta(&current)?;
@@ -153,7 +154,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     // Refuse bad input before anything changes, ownership included.
     sync.validate()
         .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
-    wait_for_participants(&client, args.participants, timeout)?;
+    wait_for_participants(&client, args.participants, timeout).map_err(Failure::Runtime)?;
     let (mut ticker, current, sync, delta) = if args.standby {
         let Some(ticker) = stand_by(&client, world, &args, interrupted)? else {
             eprintln!("tick: interrupted on standby; the world is unchanged");
@@ -357,7 +358,7 @@ fn stand_by(
 }
 
 /// Waits until at least `count` lockstep participants have joined.
-fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> Result<(), Failure> {
+fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> anyhow::Result<()> {
     if count == 0 {
         return Ok(());
     }
@@ -368,9 +369,9 @@ fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> Resu
             return Ok(());
         }
         if Instant::now() >= deadline {
-            return Err(Failure::Runtime(anyhow!(
+            return Err(anyhow!(
                 "only {joined} of {count} lockstep participants joined within {timeout:?}"
-            )));
+            ));
         }
         // Joins are rare and this runs once: a short poll of the status.
         std::thread::sleep(Duration::from_millis(20));
@@ -385,6 +386,9 @@ struct Restarts {
     run_pid: u32,
     /// How long to wait for the server to come back.
     patience: Duration,
+    /// The lockstep participants to wait for again before ticking the
+    /// resumed world (--participants), so none misses its first frame.
+    participants: u32,
 }
 
 /// Why the ticks ended early.
@@ -410,8 +414,9 @@ enum TickLoopError {
         /// The last frame ticked.
         last_frame: u64,
     },
-    /// Asking the resumed server about its run failed.
-    #[error("asking the server that came back about its run: {0}")]
+    /// Talking to the server that came back failed (asking about its run,
+    /// waiting for the participants).
+    #[error("after the server came back: {0:#}")]
     Reconnect(#[from] anyhow::Error),
 }
 
@@ -539,6 +544,8 @@ fn ride_through(
             last_frame,
         });
     }
+    wait_for_participants(client, follow.participants, follow.patience)
+        .map_err(TickLoopError::Reconnect)?;
     eprintln!("tick: {reconnected}; ticking on");
     Ok(Some(reconnected.resumed_at))
 }

@@ -204,6 +204,12 @@ mod tests {
             WorldName::new("a/b"),
             Err(WorldNameError::InvalidCharacter { character: '/', .. })
         ));
+        // 'ö' is a letter; ASCII ones are meant (issue 44, item 12).
+        assert_eq!(
+            WorldName::new("wörld").unwrap_err().to_string(),
+            "world name 'wörld' contains 'ö'; use ASCII letters (a-z, A-Z), digits, '-', '_' \
+             and '.'"
+        );
     }
 
     #[test]

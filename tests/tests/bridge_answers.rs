@@ -31,6 +31,15 @@ fn batch_sensor_and_recorder_calls_through_a_mirror_are_answered_while_no_frame_
     client.set_request_timeout(LONG);
     let before = client.status().expect("status through the mirror");
     assert_eq!(before.frame, 0, "nobody ticks: the world stays at frame 0");
+    // The mirror serves the world here: its run is not one it resumed
+    // (issue 44, item 10: status said "resumed the run of pid <server>").
+    assert_eq!(before.run_pid, before.server_pid, "{before:?}");
+    let shown = hosts.b.client(&world, "10", &["status"]).finish(LONG);
+    shown.assert_success();
+    assert!(
+        !shown.stdout.iter().any(|l| l.contains("resumed the run")),
+        "{shown}"
+    );
 
     let batch = client
         .apply_batch_sync(&[Command::spawn_vehicle([0.0, 1.0, 20.0])], false)

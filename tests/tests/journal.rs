@@ -408,32 +408,6 @@ fn with_frames_50_a_crash_loses_at_most_50_frames_and_the_resume_says_so() {
     assert!(log.contains("made durable every 50 frames"), "{log}");
 }
 
-/// A tmpfs of `size` mounted at `path` (the tests run as root), unmounted
-/// on drop.
-struct Tmpfs(std::path::PathBuf);
-
-impl Tmpfs {
-    fn mount(path: std::path::PathBuf, size: &str) -> Self {
-        std::fs::create_dir_all(&path).unwrap();
-        let status = std::process::Command::new("mount")
-            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
-            .arg(&path)
-            .status()
-            .expect("running mount");
-        assert!(status.success(), "mounting a tmpfs needs root");
-        Self(path)
-    }
-}
-
-impl Drop for Tmpfs {
-    fn drop(&mut self) {
-        let _ = std::process::Command::new("umount")
-            .arg("-l")
-            .arg(&self.0)
-            .status();
-    }
-}
-
 #[test]
 fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last_durable_frame() {
     let scratch = Scratch::new("journal-full");
@@ -474,6 +448,25 @@ fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last
     let name = world.name().to_owned();
     let mut world = world;
     world.server.guard.kill().unwrap();
+    let segments = || {
+        let mut names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let before = segments();
+    // A resume that journals on the full disk fails, and leaves no empty
+    // segment behind (issue 44, item 11: later resumes warned of it).
+    let failed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()])
+        .finish(Duration::from_secs(60));
+    failed.assert_code(1);
+    assert!(
+        failed.stderr.contains("cannot start the journal") && failed.stderr.contains("No space left"),
+        "{failed}"
+    );
+    assert_eq!(segments(), before, "{failed}");
     // The disk is still full: the resumed run journals elsewhere.
     let elsewhere = scratch.file("elsewhere");
     let (resumed, _) = resumed_at(
@@ -557,4 +550,35 @@ fn a_sensor_watch_follows_a_restart_and_reads_the_sensor_that_came_back() {
     }
     watch.wait_line("\"event\":\"restarted\"", Duration::from_secs(30));
     watch.wait_line(&format!("\"frame\":{}", frame + 3), Duration::from_secs(30));
+}
+
+/// Issue 44, item 12: a journal directory the server cannot use names the
+/// file system's cause once (it said "Read-only file system (os error 30):
+/// Read-only file system (os error 30)").
+#[test]
+fn a_journal_directory_the_server_cannot_use_is_refused_with_its_cause_said_once() {
+    let scratch = Scratch::new("journal-unusable");
+    let read_only = Tmpfs::read_only(scratch.file("ro"));
+    let journal = read_only.0.join("j");
+    let world = unique_world("journal-ro");
+    let missing = scratch.file("missing");
+    let cases = [
+        (
+            vec!["--world", world.as_str(), "--journal", journal.to_str().unwrap()],
+            "Read-only file system",
+            1,
+        ),
+        (
+            vec!["--resume", missing.to_str().unwrap()],
+            "No such file or directory",
+            2,
+        ),
+    ];
+    for (args, cause, code) in cases {
+        let out = Proc::spawn("sim-server", &args).finish(Duration::from_secs(60));
+        out.assert_code(code);
+        let last = out.stderr.lines().last().unwrap_or_default();
+        assert!(last.starts_with("sim-server: "), "{out}");
+        assert_eq!(last.matches(cause).count(), 1, "{out}");
+    }
 }

@@ -223,3 +223,46 @@ fn the_determinism_recipe_passes_as_pasted() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 44, item 14: the README's Rust example gives the world back as it
+/// found it before releasing the ticker, and says why; its calls, run on a
+/// world, leave it running for the tour's next `watch` (the example ended
+/// with a bare `ticker.release()`, which leaves the world synchronous and
+/// nobody ticking it).
+#[test]
+fn the_readmes_rust_example_leaves_the_world_as_it_found_it() {
+    let example = readme_fenced("**From Rust**", "rust,no_run");
+    let restore = example
+        .find("ticker.apply_settings(before)?;")
+        .unwrap_or_else(|| panic!("the example puts the settings back:\n{example}"));
+    let release = example.find("ticker.release()?;").expect("it releases");
+    assert!(restore < release, "{example}");
+    assert!(example.contains("stays synchronous"), "{example}");
+
+    // The example's calls on a fresh world.
+    let world = simbus_tests::TestWorld::start("readme-rust", &[]);
+    let wait = Duration::from_secs(10);
+    let client = sim_client::Client::connect(world.name(), wait).unwrap();
+    let car = client
+        .spawn_actor(shared_types::Command::spawn_vehicle([0.0, 1.0, 0.0]))
+        .unwrap();
+    let mut ticker = client.claim_ticker().unwrap();
+    let before = client.get_settings().unwrap();
+    ticker
+        .apply_settings(shared_types::WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: Some(0.05),
+            ..before
+        })
+        .unwrap();
+    client
+        .apply_batch(&[shared_types::Command::vehicle_control(car, 0.8, 0.0, 0.0, false)])
+        .unwrap();
+    ticker.tick(wait).unwrap();
+    ticker.apply_settings(before).unwrap();
+    ticker.release().unwrap();
+    // The tour's next command sees frames.
+    let watched = world.cli(&["watch", "--frames", "3", "--json"]);
+    watched.assert_success();
+    assert_eq!(watched.json().len(), 3, "{watched}");
+}

@@ -175,3 +175,31 @@ fn sensor_list_counts_one_capture_in_the_singular() {
         "{listed}"
     );
 }
+
+/// Issue 44, item 8: Ctrl-C on `sensor save` before its captures came is
+/// an interruption (exit 130, saying how many were saved), not a success
+/// that wrote nothing.
+#[test]
+fn an_interrupted_save_exits_130_saying_what_it_saved() {
+    let world = TestWorld::start(
+        "save-interrupted",
+        &["--scene", "empty", "--sync", "--delta-seconds", "0.05"],
+    );
+    let spawned = world.cli(&["sensor", "spawn", "imu", "--json"]);
+    spawned.assert_success();
+    let id = spawned.json()[0]["id"].as_u64().expect("id").to_string();
+    let dir = Scratch::new("save-interrupted");
+    let out = dir.path().to_str().expect("path");
+    // Nobody ticks: no capture comes.
+    let save = world.spawn_cli(&["sensor", "save", &id, "--out", out, "--captures", "3"]);
+    save.wait_stderr("waiting for captures", T);
+    simbus_process::send_signal(save.pid(), libc::SIGINT).expect("SIGINT");
+    let ended = save.finish(T);
+    ended.assert_code(130);
+    assert!(
+        ended
+            .stderr
+            .contains(&format!("interrupted: sensor save: 0 captures of 3 saved in {out}")),
+        "{ended}"
+    );
+}

@@ -129,12 +129,14 @@ pub enum InputError {
         /// The text given.
         text: String,
     },
-    /// An `fps` the settings refuse.
-    #[error("{source}; {}", FpsRange)]
+    /// An `fps` the settings refuse (negative, not a number): the range
+    /// says what it must be, once.
+    #[error("fps = {} is {}: {}", Exact(*fps), if fps.is_finite() { "negative" } else { "not a finite number" }, FpsRange)]
     Fps {
+        /// The rate given.
+        fps: f64,
         /// The settings rule it broke.
-        #[source]
-        source: SettingsError,
+        rule: SettingsError,
     },
     /// An `fps` whose step `1/fps` is out of the settings' range.
     #[error("fps = {} is out of range: {}", Exact(*fps), FpsRange)]

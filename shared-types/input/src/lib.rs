@@ -211,7 +211,7 @@ pub fn fixed_step(text: &str) -> Result<f64, InputError> {
 pub fn fps(text: &str) -> Result<f64, InputError> {
     let fps = number(text)?;
     match WorldSettings::delta_from_fps(fps) {
-        Err(source) => Err(InputError::Fps { source }),
+        Err(rule) => Err(InputError::Fps { fps, rule }),
         Ok(None) => Ok(0.0),
         Ok(Some(dt)) if (MIN_DELTA_SECONDS..=MAX_DELTA_SECONDS).contains(&dt) => Ok(fps),
         Ok(Some(_)) => Err(InputError::FpsOutOfRange { fps }),
@@ -553,10 +553,12 @@ mod tests {
         assert!(tiny.contains("fps = 1e-300 is out of range"), "{tiny}");
         assert!(tiny.contains("0.000277778..=1e6"), "{tiny}");
         assert!(fps("1e300").is_err());
-        assert!(fps("-20")
-            .unwrap_err()
-            .to_string()
-            .contains("fps = -20 is negative"));
+        // The range said once (issue 44, item 12: "it must be" twice).
+        assert_eq!(
+            fps("-20").unwrap_err().to_string(),
+            "fps = -20 is negative: it must be 0 (variable step) or in 0.000277778..=1e6 \
+             (a fixed step is 1e-6..=3600 s)"
+        );
         assert!(max_substep_delta_time("0")
             .unwrap_err()
             .to_string()

@@ -69,7 +69,8 @@ enum Command {
     ///
     /// Actors as a scene (`/simbus/scene`), the simulation clock, depth
     /// cameras as images and lidars as point clouds, at the frame rate or at
-    /// most --max-hz. Open ws://HOST:PORT in Foxglove.
+    /// most --max-hz. Open ws://HOST:PORT in Foxglove. A server that exits
+    /// ends it (a resumed one too: start it again).
     #[cfg(feature = "foxglove")]
     Foxglove(cli::foxglove::FoxgloveArgs),
     /// Bridge the world to other hosts: `bridge zenoh --listen` exports it
@@ -116,7 +117,8 @@ enum Command {
     /// In synchronous mode the server waits, every frame, until the autopilot
     /// has sent its commands for the next frame. The same seed drives the same
     /// way, and every new episode starts the random sequence again, so runs
-    /// repeat bit for bit.
+    /// repeat bit for bit. A server that exits ends it, also one that is
+    /// then resumed from its journal: start it again on the resumed world.
     Autopilot(cli::autopilot::AutopilotArgs),
     /// Sensors: spawn, list, watch, save pictures, destroy.
     ///
@@ -132,6 +134,10 @@ enum Command {
     /// collisions, blocked), like CARLA's recorder, on MCAP files.
     Recorder(cli::recorder::RecorderArgs),
     /// Replay a recording: exact, interpolated, or re-simulated and verified.
+    ///
+    /// Without --detach it follows the replay to its end; a server that
+    /// exits ends it (a server resumed from its journal does not go on
+    /// replaying).
     Replay(cli::recorder::ReplayArgs),
     /// Save the whole world in the server's memory and restore it later as
     /// a new episode from exactly that state (save, restore, list, drop).

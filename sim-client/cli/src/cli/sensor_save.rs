@@ -37,7 +37,9 @@ pub(super) struct SaveArgs {
 pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("creating the directory {}", a.out.display()))?;
+    super::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
+    tracing::info!(sensor = a.id, captures = a.captures, "waiting for captures");
     let spec = sensor.spec();
     let depth_range = spec.camera().map_or(0.0, |d| d.range);
     let lidar_range = spec.lidar_params().map_or(0.0, |l| l.range);

@@ -125,6 +125,19 @@ def test_a_ticker_puts_back_settings_it_changed_itself(server):
     assert client.status().ticker is None
 
 
+def test_a_world_started_synchronous_stays_synchronous_after_a_ticker(server):
+    """Issue 44, item 3: the `with` block gives back what was there before
+    the claim; a world started `--sync` is not left running free."""
+    client = server("--sync", "--delta-seconds", "0.02").client()
+    before = client.settings()
+    assert before.synchronous_mode
+    with client.ticker(delta_seconds=0.05) as ticker:
+        frame = ticker.tick()
+    assert client.settings() == before
+    status = client.status()
+    assert status.ticker is None and status.frame == frame
+
+
 def test_ctrl_c_interrupts_a_connect_that_waits_for_a_server():
     child = python_child(
         "print('connecting', flush=True)\n"

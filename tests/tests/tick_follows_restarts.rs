@@ -176,3 +176,37 @@ fn a_resumed_server_publishes_its_first_frame_with_the_substeps_it_was_computed_
     assert_eq!(after["physics_substeps"], before["physics_substeps"], "{after}");
     assert_eq!(after["digest"], before["digest"], "{after}");
 }
+
+/// The bytes of every file in `dir`.
+fn bytes_in(dir: &std::path::Path) -> u64 {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap().len())
+        .sum()
+}
+
+/// Issue 44 ("also high"): a journaling world started `--sync` does not run
+/// free once a bounded ticker ends, nor one stopped by SIGTERM: nothing is
+/// computed and the journal does not grow (it grew by ~53 MB/s, the world
+/// going from frame 0 to 68 210 in a second).
+#[test]
+fn a_journaling_synchronous_world_computes_and_journals_nothing_after_its_ticker_ends() {
+    let scratch = Scratch::new("journal-idle");
+    let dir = scratch.file("j");
+    let world = journaling("journal-idle", &dir);
+    world.cli(&["tick", "--count", "5"]).assert_success();
+    let ticker = world.spawn_cli(&["tick", "--json"]);
+    ticker.line(LONG).expect("a first tick");
+    simbus_process::send_signal(ticker.pid(), libc::SIGTERM).unwrap();
+    ticker.finish(LONG).assert_success();
+
+    let before = status(world.name());
+    assert_eq!(before["synchronous_mode"], true, "{before}");
+    let bytes = bytes_in(&dir);
+    // A second in which nothing may happen: a watcher waits for new frames.
+    let watched = world.cli(&["--timeout", "1", "watch", "--frames", "2", "--json"]);
+    assert!(!watched.status.success(), "frames came: {watched}");
+    let after = status(world.name());
+    assert_eq!(after["frame"], before["frame"], "{after}");
+    assert_eq!(bytes_in(&dir), bytes, "the journal grew");
+}

@@ -64,6 +64,16 @@ pub(crate) enum Item {
     },
 }
 
+/// The kind of the I/O error under an MCAP writer's error, its binrw
+/// layer included (a full disk while a record is written arrives as a
+/// parse error holding the I/O error).
+pub(crate) fn io_kind(error: &mcap::McapError) -> Option<std::io::ErrorKind> {
+    match error {
+        mcap::McapError::Io(e) | mcap::McapError::Parse(binrw::Error::Io(e)) => Some(e.kind()),
+        _ => None,
+    }
+}
+
 /// What a finished recording holds.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Written {
@@ -289,10 +299,7 @@ pub(crate) fn run(
             warn!(path, "journal sync failed: {}", describe(&error));
             // The frame loop waiting on `done` gets the error; the thread
             // ends with its kind, which the recorder's status shows.
-            let kind = match &error {
-                mcap::McapError::Io(e) => e.kind(),
-                _ => std::io::ErrorKind::Other,
-            };
+            let kind = io_kind(&error).unwrap_or(std::io::ErrorKind::Other);
             let _ = done.send(Err(WriteError::Write {
                 path: path.clone(),
                 error,
@@ -526,3 +533,7 @@ impl Writer {
 #[cfg(test)]
 #[path = "header_roundtrip.rs"]
 mod header_roundtrip;
+
+#[cfg(test)]
+#[path = "sync_errors.rs"]
+mod sync_errors;

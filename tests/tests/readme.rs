@@ -141,15 +141,10 @@ impl Drop for Group {
     }
 }
 
-#[test]
-fn the_determinism_recipe_passes_as_pasted() {
-    let script = doc_block("docs/src/time-and-sync.md", "<!-- determinism-recipe -->");
-    assert!(script.contains("watch --digest"), "{script}");
-    // Unique world names, so parallel runs never meet.
-    let (a, b) = (unique_world("recipe-a"), unique_world("recipe-b"));
-    let script = script.replace("run-a", &a).replace("run-b", &b);
-    let dir = std::env::temp_dir().join(format!("simbus-recipe-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// Runs `script` with bash in `dir`, the built binaries first on PATH, in
+/// a process group of its own that is killed once it ends; its status,
+/// stdout and stderr.
+fn run_script(script: &str, dir: &std::path::Path) -> (std::process::ExitStatus, String, String) {
     let bin_dir = bin("sim-server").parent().unwrap().to_path_buf();
     let path = format!(
         "{}:{}",
@@ -159,8 +154,8 @@ fn the_determinism_recipe_passes_as_pasted() {
     let mut command = Command::new("bash");
     command
         .arg("-c")
-        .arg(&script)
-        .current_dir(&dir)
+        .arg(script)
+        .current_dir(dir)
         .env("PATH", path)
         .env("RUST_LOG", "warn")
         .stdin(Stdio::null())
@@ -200,6 +195,19 @@ fn the_determinism_recipe_passes_as_pasted() {
     drop(group);
     let stdout = out.join().expect("stdout reader");
     let stderr = err.join().expect("stderr reader");
+    (status, stdout, stderr)
+}
+
+#[test]
+fn the_determinism_recipe_passes_as_pasted() {
+    let script = doc_block("docs/src/time-and-sync.md", "<!-- determinism-recipe -->");
+    assert!(script.contains("watch --digest"), "{script}");
+    // Unique world names, so parallel runs never meet.
+    let (a, b) = (unique_world("recipe-a"), unique_world("recipe-b"));
+    let script = script.replace("run-a", &a).replace("run-b", &b);
+    let dir = std::env::temp_dir().join(format!("simbus-recipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (status, stdout, stderr) = run_script(&script, &dir);
     assert!(status.success(), "{status}\n{stdout}\n{stderr}");
     assert_eq!(
         stdout.trim_end().lines().last(),
@@ -265,4 +273,40 @@ fn the_readmes_rust_example_leaves_the_world_as_it_found_it() {
     let watched = world.cli(&["watch", "--frames", "3", "--json"]);
     watched.assert_success();
     assert_eq!(watched.json().len(), 3, "{watched}");
+}
+
+/// Issue 44, item 15: the Zenoh chapter's one-host recipe (the mirror in an
+/// iceoryx2 root of its own, `SIMBUS_IOX2_CONFIG`) works as pasted: the
+/// ticker on the mirror's side ticks the server's world.
+#[test]
+fn the_zenoh_one_host_recipe_ticks_through_the_mirror_as_pasted() {
+    let script = doc_block("docs/src/two-machines.md", "<!-- zenoh-one-host -->");
+    assert!(script.contains("SIMBUS_IOX2_CONFIG"), "{script}");
+    let world = unique_world("zenoh-one-host");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let root = format!("simbus-mirror-{}", std::process::id());
+    let prefix = format!("iox2_{}_", root.replace('-', "_"));
+    let script = script
+        .replace("--world W", &format!("--world {world}"))
+        .replace(":7447", &format!(":{port}"))
+        .replace("/tmp/simbus-mirror/", &format!("/tmp/{root}/"))
+        .replace("iox2_mirror_", &prefix);
+    let dir = std::env::temp_dir().join(&root);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (status, stdout, stderr) = run_script(&script, &dir);
+    let last: serde_json::Value = serde_json::from_str(stdout.trim_end().lines().last().unwrap_or("null"))
+        .unwrap_or_else(|e| panic!("{e}: {status}\n{stdout}\n{stderr}"));
+    assert_eq!(last["frame"], 100, "{status}\n{stdout}\n{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(format!("/tmp/{root}"));
+    // The mirror's root leaves its shared memory under its prefix.
+    for entry in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+        if entry.file_name().to_string_lossy().starts_with(&prefix) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }

@@ -77,7 +77,9 @@ pub enum CommandError {
     /// A spawn was refused because its body would overlap `occupant`'s
     /// (CARLA's "Spawn failed because of collision at spawn position");
     /// nothing was spawned.
-    #[error("spawn failed because of a collision at the spawn position: actor {occupant} is there")]
+    #[error(
+        "spawn failed because of a collision at the spawn position: actor {occupant} is there"
+    )]
     SpawnCollision {
         /// The actor whose body is where the new one would be.
         occupant: u64,

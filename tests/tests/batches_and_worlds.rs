@@ -221,7 +221,10 @@ fn a_spawn_inside_another_body_is_refused_naming_what_is_there() {
         .spawn_actor(Command::spawn_box([5.0, 1.5, 0.0], [0.5; 3]))
         .unwrap_err();
     assert!(
-        matches!(error, sim_client::CommandError::SpawnCollision { occupant: 5 }),
+        matches!(
+            error,
+            sim_client::CommandError::SpawnCollision { occupant: 5 }
+        ),
         "{error:?}"
     );
     let on_top = client(&world, &["spawn", "box", "--at", "5,5.5,0", "--json"]);

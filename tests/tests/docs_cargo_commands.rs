@@ -129,10 +129,23 @@ fn documented() -> BTreeSet<CargoCommand> {
 /// test` adds.
 fn resolved(selection: &[&str], tests: bool) -> BTreeSet<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-    let edges = if tests { "normal,build,dev" } else { "normal,build" };
+    let edges = if tests {
+        "normal,build,dev"
+    } else {
+        "normal,build"
+    };
     let output = Command::new(&cargo)
         .current_dir(root())
-        .args(["tree", "--offline", "--prefix", "none", "-f", "{p}|{f}", "-e", edges])
+        .args([
+            "tree",
+            "--offline",
+            "--prefix",
+            "none",
+            "-f",
+            "{p}|{f}",
+            "-e",
+            edges,
+        ])
         .args(selection)
         .output()
         .unwrap_or_else(|e| panic!("running {cargo} tree: {e}"));
@@ -180,8 +193,7 @@ fn every_cargo_command_in_the_docs_reuses_the_first_build() {
     }
     let mut failures = Vec::new();
     for command in &commands {
-        if !matches!(command.subcommand(), "build" | "run" | "test") || command.chooses_features()
-        {
+        if !matches!(command.subcommand(), "build" | "run" | "test") || command.chooses_features() {
             continue;
         }
         let rebuilt = rebuilt(command);

@@ -463,7 +463,8 @@ fn a_full_disk_stops_the_journal_not_the_world_and_a_resume_starts_from_the_last
         .finish(Duration::from_secs(60));
     failed.assert_code(1);
     assert!(
-        failed.stderr.contains("cannot start the journal") && failed.stderr.contains("No space left"),
+        failed.stderr.contains("cannot start the journal")
+            && failed.stderr.contains("No space left"),
         "{failed}"
     );
     assert_eq!(segments(), before, "{failed}");
@@ -564,7 +565,12 @@ fn a_journal_directory_the_server_cannot_use_is_refused_with_its_cause_said_once
     let missing = scratch.file("missing");
     let cases = [
         (
-            vec!["--world", world.as_str(), "--journal", journal.to_str().unwrap()],
+            vec![
+                "--world",
+                world.as_str(),
+                "--journal",
+                journal.to_str().unwrap(),
+            ],
             "Read-only file system",
             1,
         ),

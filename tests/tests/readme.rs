@@ -264,7 +264,9 @@ fn the_readmes_rust_example_leaves_the_world_as_it_found_it() {
         })
         .unwrap();
     client
-        .apply_batch(&[shared_types::Command::vehicle_control(car, 0.8, 0.0, 0.0, false)])
+        .apply_batch(&[shared_types::Command::vehicle_control(
+            car, 0.8, 0.0, 0.0, false,
+        )])
         .unwrap();
     ticker.tick(wait).unwrap();
     ticker.apply_settings(before).unwrap();
@@ -298,13 +300,18 @@ fn the_zenoh_one_host_recipe_ticks_through_the_mirror_as_pasted() {
     let dir = std::env::temp_dir().join(&root);
     std::fs::create_dir_all(&dir).unwrap();
     let (status, stdout, stderr) = run_script(&script, &dir);
-    let last: serde_json::Value = serde_json::from_str(stdout.trim_end().lines().last().unwrap_or("null"))
-        .unwrap_or_else(|e| panic!("{e}: {status}\n{stdout}\n{stderr}"));
+    let last: serde_json::Value =
+        serde_json::from_str(stdout.trim_end().lines().last().unwrap_or("null"))
+            .unwrap_or_else(|e| panic!("{e}: {status}\n{stdout}\n{stderr}"));
     assert_eq!(last["frame"], 100, "{status}\n{stdout}\n{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(format!("/tmp/{root}"));
     // The mirror's root leaves its shared memory under its prefix.
-    for entry in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+    for entry in std::fs::read_dir("/dev/shm")
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         if entry.file_name().to_string_lossy().starts_with(&prefix) {
             let _ = std::fs::remove_file(entry.path());
         }

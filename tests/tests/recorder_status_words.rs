@@ -43,7 +43,9 @@ fn a_recording_that_fills_its_disk_says_where_it_stopped_what_it_holds_and_why()
     assert!(
         status.message.contains("stopped by itself at frame")
             && status.message.contains("No space left on device")
-            && status.message.contains(&format!("the file holds {on_disk} bytes")),
+            && status
+                .message
+                .contains(&format!("the file holds {on_disk} bytes")),
         "{status:?}"
     );
 
@@ -114,7 +116,10 @@ fn collisions_and_blocked_count_time_from_the_recordings_start() {
     client.start_recorder(&path, false).unwrap();
     // Something to collide: a box dropped on the ground.
     client
-        .spawn_actor(shared_types::Command::spawn_box([20.0, 3.0, 20.0], [0.5; 3]))
+        .spawn_actor(shared_types::Command::spawn_box(
+            [20.0, 3.0, 20.0],
+            [0.5; 3],
+        ))
         .unwrap();
     for _ in 0..60 {
         ticker.tick(T).unwrap();

@@ -197,9 +197,9 @@ fn an_interrupted_save_exits_130_saying_what_it_saved() {
     let ended = save.finish(T);
     ended.assert_code(130);
     assert!(
-        ended
-            .stderr
-            .contains(&format!("interrupted: sensor save: 0 captures of 3 saved in {out}")),
+        ended.stderr.contains(&format!(
+            "interrupted: sensor save: 0 captures of 3 saved in {out}"
+        )),
         "{ended}"
     );
 }

@@ -173,7 +173,10 @@ fn a_resumed_server_publishes_its_first_frame_with_the_substeps_it_was_computed_
     after.assert_success();
     let after = &after.json()[0];
     assert_eq!(after["frame"].as_u64(), Some(last), "{after}");
-    assert_eq!(after["physics_substeps"], before["physics_substeps"], "{after}");
+    assert_eq!(
+        after["physics_substeps"], before["physics_substeps"],
+        "{after}"
+    );
     assert_eq!(after["digest"], before["digest"], "{after}");
 }
 

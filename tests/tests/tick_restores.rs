@@ -99,7 +99,11 @@ fn a_world_started_synchronous_stays_synchronous_after_a_ticker_and_computes_not
     // The next ticker takes over from there.
     let ticked = world.cli(&["tick", "--count", "1", "--json"]);
     ticked.assert_success();
-    assert_eq!(ticked.json()[0]["frame"].as_u64(), Some(frame + 1), "{ticked}");
+    assert_eq!(
+        ticked.json()[0]["frame"].as_u64(),
+        Some(frame + 1),
+        "{ticked}"
+    );
 }
 
 #[test]

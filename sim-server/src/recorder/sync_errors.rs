@@ -3,9 +3,9 @@
 //! "no space left"), and the writer thread ends with that kind. (Issue 44,
 //! item 5: these were `Result<_, String>`, the cause flattened to text.)
 
-use std::io::ErrorKind;
 use shared_types::FrameHeader;
 use simbus_recording::{RecordedSettings, RecordingHeader, RECORDING_VERSION};
+use std::io::ErrorKind;
 
 use super::super::{Recorder, SyncError};
 use super::{io_kind, WriteError};
@@ -50,9 +50,7 @@ fn fill_the_disk_under(path: &std::path::Path) {
         if target == path {
             // SAFETY: both descriptors are open; `fd` is replaced in place
             // (the File that owns it closes /dev/full's copy later).
-            let replaced = unsafe {
-                libc::dup2(std::os::fd::AsRawFd::as_raw_fd(&full), fd)
-            };
+            let replaced = unsafe { libc::dup2(std::os::fd::AsRawFd::as_raw_fd(&full), fd) };
             assert_eq!(replaced, fd);
             moved += 1;
         }
@@ -69,7 +67,13 @@ fn a_sync_on_a_full_disk_answers_the_io_error_typed() {
     let world = World::new(&[], 1);
     let frame: FrameHeader = bytemuck::Zeroable::zeroed();
     recorder
-        .start(&path, header(), Vec::new(), (&frame, &world), "empty".to_string())
+        .start(
+            &path,
+            header(),
+            Vec::new(),
+            (&frame, &world),
+            "empty".to_string(),
+        )
         .expect("a temporary file");
     fill_the_disk_under(&file);
     match recorder.sync() {

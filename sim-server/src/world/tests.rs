@@ -237,7 +237,10 @@ fn a_spawn_inside_another_body_is_refused_naming_it_and_changes_nothing() {
     ] {
         let r = world.apply(&spawn);
         assert_eq!(r.status, CommandStatus::SpawnCollision as u32, "{spawn:?}");
-        assert_eq!(r.actor, stack_bottom, "{spawn:?} names the box that is there");
+        assert_eq!(
+            r.actor, stack_bottom,
+            "{spawn:?} names the box that is there"
+        );
     }
     // Into the ground (its top is y = 0).
     let r = world.apply(&Command::spawn_box([30.0, 0.2, 30.0], [0.5; 3]));

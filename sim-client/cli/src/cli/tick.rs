@@ -215,7 +215,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     eprintln!(
         "tick: {}; released ownership, {}",
         super::words::count(ticks, "tick"),
-        left_as(&left_with(&current, args.leave_sync), current.synchronous_mode)
+        left_as(
+            &left_with(&current, args.leave_sync),
+            current.synchronous_mode
+        )
     );
     Ok(())
 }

@@ -129,7 +129,8 @@ pub(super) fn info(info: &inspect::FileInfo) {
 }
 
 /// The convention of every time `recorder collisions` and `blocked` print.
-const RECORDING_TIME: &str = "times are recording seconds: since the recording's start, as CARLA's recorder counts";
+const RECORDING_TIME: &str =
+    "times are recording seconds: since the recording's start, as CARLA's recorder counts";
 
 pub(super) fn collisions(list: &[inspect::Collision]) {
     println!(

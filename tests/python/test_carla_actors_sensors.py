@@ -434,14 +434,14 @@ COLLISION = "Spawn failed because of collision at spawn position"
 
 
 def test_a_spawn_into_another_body_fails_as_carla_says(gateway):
-    """A vehicle spawned into the default scene's ramp is refused with
-    CARLA's own message (scripts such as generate_traffic.py skip an
+    """A vehicle spawned into the default scene's stack of boxes is refused
+    with CARLA's own message (scripts such as generate_traffic.py skip an
     occupied spawn point by it): spawn_actor raises, try_spawn_actor
     answers None, a batch's SpawnActor answers the error for that command
-    only, and nothing is spawned. (It put the car into the ramp, stuck.)"""
+    only, and nothing is spawned. (It was spawned inside the boxes.)"""
     client, world, library = synced(gateway)
     impala = library.find("vehicle.chevrolet.impala")
-    inside = carla.Transform(carla.Location(x=0, y=0, z=1))
+    inside = carla.Transform(carla.Location(x=5, y=0, z=0.2))
     before = sorted(a.id for a in world.get_actors())
     with pytest.raises(RuntimeError) as refused:
         world.spawn_actor(impala, inside)

@@ -290,30 +290,21 @@ fn the_zenoh_one_host_recipe_ticks_through_the_mirror_as_pasted() {
         .local_addr()
         .unwrap()
         .port();
-    let root = format!("simbus-mirror-{}", std::process::id());
-    let prefix = format!("iox2_{}_", root.replace('-', "_"));
+    // The recipe's root, made this test's own (its shared memory goes
+    // with it).
+    let root = simbus_tests::PrivateRoot::new("onehost");
     let script = script
         .replace("--world W", &format!("--world {world}"))
         .replace(":7447", &format!(":{port}"))
-        .replace("/tmp/simbus-mirror/", &format!("/tmp/{root}/"))
-        .replace("iox2_mirror_", &prefix);
-    let dir = std::env::temp_dir().join(&root);
-    std::fs::create_dir_all(&dir).unwrap();
-    let (status, stdout, stderr) = run_script(&script, &dir);
+        .replace(
+            "/tmp/simbus-mirror/",
+            &format!("{}/", root.directory().display()),
+        )
+        .replace("iox2_mirror_", root.prefix());
+    let dir = simbus_tests::Scratch::new("zenoh-one-host");
+    let (status, stdout, stderr) = run_script(&script, dir.path());
     let last: serde_json::Value =
         serde_json::from_str(stdout.trim_end().lines().last().unwrap_or("null"))
             .unwrap_or_else(|e| panic!("{e}: {status}\n{stdout}\n{stderr}"));
     assert_eq!(last["frame"], 100, "{status}\n{stdout}\n{stderr}");
-    let _ = std::fs::remove_dir_all(&dir);
-    let _ = std::fs::remove_dir_all(format!("/tmp/{root}"));
-    // The mirror's root leaves its shared memory under its prefix.
-    for entry in std::fs::read_dir("/dev/shm")
-        .into_iter()
-        .flatten()
-        .flatten()
-    {
-        if entry.file_name().to_string_lossy().starts_with(&prefix) {
-            let _ = std::fs::remove_file(entry.path());
-        }
-    }
 }

@@ -180,7 +180,10 @@ fn blocked_checks_its_limits_and_counts_each_actor_once() {
     out.assert_success();
     assert_eq!(
         out.stdout,
-        ["0 actors blocked for at least 30 s (moving less than 0.1 m)"]
+        [
+            "0 actors blocked for at least 30 s (moving less than 0.1 m; times are recording \
+          seconds: since the recording's start, as CARLA's recorder counts)"
+        ]
     );
 }
 

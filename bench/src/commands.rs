@@ -1,5 +1,7 @@
 //! `commands`: what a batch of 1000 commands costs, against 1000 single
-//! commands, and what a lockstep participant adds to the tick round trip.
+//! commands and against a batch of 1000 spawns (each tested for overlap
+//! with every body), and what a lockstep participant adds to the tick
+//! round trip.
 
 use std::time::{Duration, Instant};
 
@@ -62,7 +64,7 @@ fn tick_round_trips(world: &str, n: u64) -> anyhow::Result<Latencies> {
 }
 
 pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
-    let (batch, singles) = batches(&args)?;
+    let (batch, singles, spawns) = batches(&args)?;
 
     // Lockstep: tick round trip without and with one participant.
     let plain = BenchServer::start("lockstep-none", &["--scene", "empty"])?;
@@ -75,7 +77,7 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
     let floor = crate::futex::floor(args.ticks, Duration::ZERO)?;
     report(
         &args,
-        [&batch, &singles],
+        [&batch, &singles, &spawns],
         Lockstep {
             without: &without,
             with: &with,
@@ -86,8 +88,11 @@ pub(crate) fn run(args: CommandsArgs) -> anyhow::Result<()> {
 }
 
 /// Batches: 1000 velocity commands on the 1000 boxes of boxes:1000, as
-/// one batch and as 1000 single-command batches.
-fn batches(args: &CommandsArgs) -> anyhow::Result<(Latencies, Latencies)> {
+/// one batch and as 1000 single-command batches; and a batch of 1000
+/// spawns above those boxes (each spawn tested against every body there,
+/// the ones spawned before it in the batch included), destroyed again
+/// untimed so that every batch meets the same world.
+fn batches(args: &CommandsArgs) -> anyhow::Result<(Latencies, Latencies, Latencies)> {
     let server = BenchServer::start(
         "commands",
         &[
@@ -121,9 +126,32 @@ fn batches(args: &CommandsArgs) -> anyhow::Result<(Latencies, Latencies)> {
         }
         singles.record(start.elapsed().as_nanos() as u64);
     }
+    let grid: Vec<Command> = (0..1000)
+        .map(|i| {
+            let (x, z) = ((i % 32) as f32 * 3.0 - 48.0, (i / 32) as f32 * 3.0 - 48.0);
+            Command::spawn_box([x, 300.0, z], [0.5; 3])
+        })
+        .collect();
+    let mut spawns = Latencies::new();
+    for _ in 0..(args.batches / 10).max(1) {
+        let start = Instant::now();
+        let response = client.apply_batch_sync(&grid, false)?;
+        spawns.record(start.elapsed().as_nanos() as u64);
+        anyhow::ensure!(
+            response.errors().is_empty(),
+            "spawns failed: {:?}",
+            response.errors()
+        );
+        let destroy: Vec<Command> = response
+            .results
+            .iter()
+            .map(|r| Command::destroy(r.actor))
+            .collect();
+        client.apply_batch_sync(&destroy, false)?;
+    }
     drop(client);
     drop(server);
-    Ok((batch, singles))
+    Ok((batch, singles, spawns))
 }
 
 /// The lockstep rows: the tick round trip without and with one
@@ -135,7 +163,7 @@ struct Lockstep<'a> {
 }
 
 /// Prints the tables (or, with --json, one object).
-fn report(args: &CommandsArgs, [batch, singles]: [&Latencies; 2], lockstep: Lockstep<'_>) {
+fn report(args: &CommandsArgs, [batch, singles, spawns]: [&Latencies; 3], lockstep: Lockstep<'_>) {
     let Lockstep {
         without,
         with,
@@ -149,6 +177,8 @@ fn report(args: &CommandsArgs, [batch, singles]: [&Latencies; 2], lockstep: Lock
                 "batch_of_1000": batch.json(),
                 "1000_single_commands": singles.json(),
                 "singles_over_batch_p50": p50(singles) / p50(batch),
+                "batch_of_1000_spawns": spawns.json(),
+                "spawns_over_batch_p50": p50(spawns) / p50(batch),
                 "tick_without_participant": without.json(),
                 "tick_with_one_participant": with.json(),
                 "participant_cost_p50_us": p50(with) - p50(without),
@@ -161,10 +191,16 @@ fn report(args: &CommandsArgs, [batch, singles]: [&Latencies; 2], lockstep: Lock
     println!("{}", header("how"));
     println!("{}", batch.row("one batch of 1000"));
     println!("{}", singles.row("1000 single-command batches"));
+    println!("{}", spawns.row("one batch of 1000 spawns"));
     println!(
         "per command in a batch: {:.2} µs; 1000 singles / one batch at p50: {:.0}x",
         p50(batch) / 1000.0,
         p50(singles) / p50(batch)
+    );
+    println!(
+        "per spawn among 1000-2000 bodies (the overlap test included): {:.2} µs, {:.1}x a velocity command",
+        p50(spawns) / 1000.0,
+        p50(spawns) / p50(batch)
     );
     println!();
     println!(

@@ -105,6 +105,10 @@ enum Command {
     /// the next frame.
     Tick(cli::tick::TickArgs),
     /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
+    ///
+    /// A spawn whose body would overlap another body (the ground
+    /// included) is refused, exit 2, naming the actor that is there, as
+    /// CARLA refuses one; a body resting on another is spawned.
     Spawn(cli::actors::SpawnArgs),
     /// Destroy an actor.
     Destroy(cli::actors::DestroyArgs),

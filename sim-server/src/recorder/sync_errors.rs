@@ -1,7 +1,7 @@
 //! A sync that cannot reach the disk says why as a typed error: the frame
 //! loop that asked gets the MCAP writer's I/O error (its kind intact, here
 //! "no space left"), and the writer thread ends with that kind. (Issue 44,
-//! item 5: these were `Result<_, String>`, the cause flattened to text.)
+//! item 5: the cause was flattened to a string.)
 
 use shared_types::FrameHeader;
 use simbus_recording::{RecordedSettings, RecordingHeader, RECORDING_VERSION};

@@ -213,3 +213,24 @@ fn a_journaling_synchronous_world_computes_and_journals_nothing_after_its_ticker
     assert_eq!(after["frame"], before["frame"], "{after}");
     assert_eq!(bytes_in(&dir), bytes, "the journal grew");
 }
+
+/// Ctrl-C while the ticker waits for its server to be resumed ends it as
+/// an interruption (exit 130) that says there was nothing to give back.
+#[test]
+fn a_cli_ticker_waiting_for_a_resume_is_interrupted_with_exit_130() {
+    let scratch = Scratch::new("tick-wait-int");
+    let dir = scratch.file("j");
+    let mut world = journaling("tick-wait-int", &dir);
+    let ticker = world.spawn_cli(&["--timeout", "30", "tick", "--rate", "100", "--json"]);
+    read_until(&ticker, 3);
+    world.server.guard.kill().expect("SIGKILL the server");
+    ticker.wait_stderr("to be resumed from its journal", LONG);
+    simbus_process::send_signal(ticker.pid(), libc::SIGINT).unwrap();
+    let done = ticker.finish(LONG);
+    done.assert_code(130);
+    assert!(
+        done.stderr
+            .contains("there was no server to give the world back to"),
+        "{done}"
+    );
+}

@@ -42,19 +42,27 @@ impl World {
     /// (deeper than [`SPAWN_SKIN`]), if any: why a spawn is refused, as
     /// CARLA refuses one "because of collision at spawn position".
     ///
-    /// Every collider is tested where its body is now, including bodies
-    /// spawned or moved earlier in the same batch, which the query
-    /// pipeline only learns of at the next step; bounding boxes first, so
-    /// a spawn among n bodies costs n box tests and a few shape tests.
+    /// Every body is tested where it is now, including bodies spawned or
+    /// moved earlier in the same batch, which the query pipeline only
+    /// learns of at the next step. Each actor is first passed over by a
+    /// bounding sphere around its body (a subtraction and a comparison,
+    /// from the actor's extent), so a spawn among n bodies costs n of
+    /// those and a shape test for each near one.
     pub(crate) fn occupant(&self, placement: &Placement) -> Option<u64> {
         let (pose, shape) = placement.probe(SPAWN_SKIN);
         let bounds = shape.compute_aabb(&pose);
-        self.physics
-            .colliders
-            .iter()
-            .filter(|(_, c)| !c.is_sensor())
-            .find_map(|(_, c)| {
-                let body = self.physics.bodies.get(c.parent()?)?;
+        let reach = bounding_radius(placement.extent.to_array());
+        self.actors.iter().find_map(|actor| {
+            let body = self.physics.bodies.get(actor.body)?;
+            let near = reach + bounding_radius(actor.extent);
+            if (body.translation() - placement.position).length_squared() > near * near {
+                return None;
+            }
+            body.colliders().iter().find_map(|&handle| {
+                let c = self.physics.colliders.get(handle)?;
+                if c.is_sensor() {
+                    return None;
+                }
                 let at = c
                     .position_wrt_parent()
                     .map_or(*body.position(), |local| *body.position() * *local);
@@ -64,8 +72,9 @@ impl World {
                 // Every shape the world builds is convex, which the test
                 // supports; an unsupported pair is not taken as a collision.
                 let hit = intersection_test(&pose, &*shape, &at, c.shape()).ok()?;
-                hit.intersecting.then_some(body.user_data as u64)
+                hit.intersecting.then_some(actor.id)
             })
+        })
     }
 
     /// Whether world point `point` is inside one of `body`'s colliders.
@@ -174,4 +183,13 @@ impl World {
         let actor = self.physics.bodies.get(body)?.user_data as u64;
         Some((actor, hit.time_of_impact))
     }
+}
+
+/// A radius around a body's centre that holds all of it, whatever its
+/// kind, from its extent (half extents; a sphere's radius first; a
+/// capsule's radius, half height, radius): their sum, never less than the
+/// farthest point (a box's half diagonal, a capsule's half height plus
+/// radius).
+fn bounding_radius(extent: [f32; 3]) -> f32 {
+    extent.iter().map(|e| e.abs()).sum()
 }

@@ -61,6 +61,7 @@ pub(crate) mod snapshot;
 pub(crate) mod stall;
 pub(crate) mod status;
 pub(crate) mod tick;
+mod tick_restarts;
 pub(crate) mod top;
 pub(crate) mod watch;
 pub(crate) mod words;

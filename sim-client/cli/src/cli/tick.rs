@@ -12,6 +12,7 @@ use shared_types::{WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client, TakeOver, TickError, Ticker, WaitMode};
 use simbus_input as input;
 
+use super::tick_restarts::{ride_through, Restarts, TickLoopError};
 use crate::Failure;
 
 /// The node name others see as the owner while this command ticks.
@@ -195,16 +196,15 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
 
     let mut restarts = follow.map(|r| (r, &mut client));
     let ticks = match tick_loop(holding.ticker(), timeout, &args, &mut restarts, interrupted) {
-        Err(TickLoopError::Tick(revoked @ TickError::Revoked { .. })) => {
-            // Ownership is gone and the world already left synchronous
-            // mode: nothing to put back.
+        Err(e) if e.nothing_to_give_back() => {
+            // Ownership was revoked (the world already left synchronous
+            // mode), the server is gone, or a fresh server's world is not
+            // this run's: nothing to put back.
             holding.revoked();
-            return Err(Failure::Runtime(revoked.into()));
-        }
-        Err(fresh @ TickLoopError::FreshServer { .. }) => {
-            // Not this run's world: released as it is, nothing put back.
-            holding.revoked();
-            return Err(Failure::Runtime(fresh.into()));
+            return Err(match e {
+                e @ TickLoopError::InterruptedWaiting { .. } => Failure::Interrupted(e.into()),
+                e => Failure::Runtime(e.into()),
+            });
         }
         other => other,
     };
@@ -361,7 +361,7 @@ fn stand_by(
 }
 
 /// Waits until at least `count` lockstep participants have joined.
-fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> anyhow::Result<()> {
+pub(super) fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> anyhow::Result<()> {
     if count == 0 {
         return Ok(());
     }
@@ -379,48 +379,6 @@ fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> anyh
         // Joins are rare and this runs once: a short poll of the status.
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-/// Following a journaling world's server through a crash and resume.
-#[derive(Debug, Clone, Copy)]
-struct Restarts {
-    /// The run ticked: the pid of the server that began it, which a server
-    /// resumed from its journal keeps.
-    run_pid: u32,
-    /// How long to wait for the server to come back.
-    patience: Duration,
-    /// The lockstep participants to wait for again before ticking the
-    /// resumed world (--participants), so none misses its first frame.
-    participants: u32,
-}
-
-/// Why the ticks ended early.
-#[derive(Debug, thiserror::Error)]
-enum TickLoopError {
-    /// A tick failed.
-    #[error(transparent)]
-    Tick(#[from] TickError),
-    /// The server exited and another started on the world that did not
-    /// resume this run.
-    #[error(
-        "the server of world '{world}' exited and a fresh server (pid {server_pid}) started \
-         on it, not a resume of this run (begun by pid {run_pid}): ticking ended after frame \
-         {last_frame}; the fresh world is left as it is"
-    )]
-    FreshServer {
-        /// The world.
-        world: String,
-        /// The fresh server's pid.
-        server_pid: u32,
-        /// The pid that began the run ticked.
-        run_pid: u32,
-        /// The last frame ticked.
-        last_frame: u64,
-    },
-    /// Talking to the server that came back failed (asking about its run,
-    /// waiting for the participants).
-    #[error("after the server came back: {0:#}")]
-    Reconnect(#[from] anyhow::Error),
 }
 
 /// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
@@ -465,9 +423,7 @@ fn tick_loop(
         let frame = match (ticker.tick(timeout), restarts.as_mut()) {
             (Ok(frame), _) => frame,
             (Err(e), Some((follow, client))) if e.is_server_gone() => {
-                let Some(resumed_at) = ride_through(ticker, *follow, client, interrupted)? else {
-                    return Ok(ticks);
-                };
+                let resumed_at = ride_through(ticker, *follow, client, interrupted)?;
                 if printed.is_some_and(|p| resumed_at <= p) {
                     // The interrupted tick's frame was not made durable:
                     // the next tick computes it again.
@@ -489,66 +445,4 @@ fn tick_loop(
             println!("tick  frame {frame:>8}  t = {elapsed:>12.6} s");
         }
     }
-}
-
-/// After the server exited: waits (in slices, so Ctrl-C is noticed) for a
-/// server to come back on the world, claims it and checks that it resumed
-/// this run; returns the frame it resumed at, `None` on Ctrl-C.
-fn ride_through(
-    ticker: &mut Ticker,
-    follow: Restarts,
-    client: &mut Client,
-    interrupted: &std::sync::atomic::AtomicBool,
-) -> Result<Option<u64>, TickLoopError> {
-    let world = ticker.world().to_string();
-    let last_frame = ticker.last_frame().map_or(0, |(frame, _)| frame);
-    eprintln!(
-        "tick: the server of world '{world}' (pid {}) exited after frame {last_frame}; \
-         waiting up to {} s for it to be resumed from its journal",
-        ticker.server_pid(),
-        simbus_input::Readable(follow.patience.as_secs_f64())
-    );
-    let deadline = Instant::now() + follow.patience;
-    let reconnected = loop {
-        if interrupted.load(Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(Duration::from_millis(200));
-        match ticker.reclaim(slice) {
-            Ok(reconnected) => break reconnected,
-            Err(TickError::Frame(sim_client::WaitError::NotBack { world, pid, .. }))
-                if Instant::now() >= deadline =>
-            {
-                return Err(TickError::Frame(sim_client::WaitError::NotBack {
-                    world,
-                    pid,
-                    timeout: follow.patience,
-                })
-                .into())
-            }
-            Err(TickError::Frame(sim_client::WaitError::NotBack { .. })) => {}
-            Err(e) => return Err(e.into()),
-        }
-    };
-    client
-        .reconnect(follow.patience)
-        .map_err(|e| TickLoopError::Reconnect(e.into()))?;
-    let run_pid = client
-        .status()
-        .map_err(|e| TickLoopError::Reconnect(e.into()))?
-        .run_pid;
-    if run_pid != follow.run_pid {
-        return Err(TickLoopError::FreshServer {
-            world,
-            server_pid: reconnected.server_pid,
-            run_pid: follow.run_pid,
-            last_frame,
-        });
-    }
-    wait_for_participants(client, follow.participants, follow.patience)
-        .map_err(TickLoopError::Reconnect)?;
-    eprintln!("tick: {reconnected}; ticking on");
-    Ok(Some(reconnected.resumed_at))
 }

@@ -361,7 +361,11 @@ fn stand_by(
 }
 
 /// Waits until at least `count` lockstep participants have joined.
-pub(super) fn wait_for_participants(client: &Client, count: u32, timeout: Duration) -> anyhow::Result<()> {
+pub(super) fn wait_for_participants(
+    client: &Client,
+    count: u32,
+    timeout: Duration,
+) -> anyhow::Result<()> {
     if count == 0 {
         return Ok(());
     }

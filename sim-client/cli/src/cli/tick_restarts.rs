@@ -71,8 +71,7 @@ impl TickLoopError {
             Self::Tick(e) => {
                 matches!(
                     e,
-                    TickError::Revoked { .. }
-                        | TickError::Frame(WaitError::NotBack { .. })
+                    TickError::Revoked { .. } | TickError::Frame(WaitError::NotBack { .. })
                 ) || e.is_server_gone()
             }
             Self::FreshServer { .. } | Self::InterruptedWaiting { .. } => true,

@@ -124,18 +124,48 @@ fn collisions_and_blocked_count_time_from_the_recordings_start() {
     for _ in 0..60 {
         ticker.tick(T).unwrap();
     }
+    // A reload starts frame ids again, not the recording's time: the
+    // second episode's collisions come later.
+    client.reload_world(false).unwrap();
+    client
+        .spawn_actor(shared_types::Command::spawn_box(
+            [20.0, 3.0, 20.0],
+            [0.5; 3],
+        ))
+        .unwrap();
+    for _ in 0..60 {
+        ticker.tick(T).unwrap();
+    }
     client.stop_recorder().unwrap();
     let out = world.cli(&["recorder", "collisions", "--json", path.to_str().unwrap()]);
     out.assert_success();
     let collisions = out.json()[0].as_array().unwrap().clone();
     assert!(!collisions.is_empty(), "{out}");
-    for c in &collisions {
+    // The first episode's: simulation time less the recording's start.
+    let first: Vec<_> = collisions
+        .iter()
+        .take_while(|c| c["elapsed_seconds"].as_f64().unwrap() > start as f64 / 1e9)
+        .collect();
+    assert!(!first.is_empty(), "{out}");
+    for c in &first {
         let time = c["time_seconds"].as_f64().unwrap();
         let elapsed = c["elapsed_seconds"].as_f64().unwrap();
         assert!((0.0..=3.0).contains(&time), "recording time: {c}");
         let since_start = elapsed - start as f64 / 1e9;
         assert!((time - since_start).abs() < 1e-6, "{c}");
     }
+    // Across the reload, in the file's order, recording time never goes
+    // back and stays within the recording's 6 s.
+    let times: Vec<f64> = collisions
+        .iter()
+        .map(|c| c["time_seconds"].as_f64().unwrap())
+        .collect();
+    assert!(times.windows(2).all(|w| w[0] <= w[1]), "{times:?}");
+    assert!(times.iter().all(|t| (0.0..=6.05).contains(t)), "{times:?}");
+    assert!(
+        times.iter().any(|t| *t > 3.0),
+        "the second episode's collisions: {times:?}"
+    );
     let text = world.cli(&["recorder", "collisions", path.to_str().unwrap()]);
     text.assert_success();
     assert!(

@@ -234,3 +234,55 @@ fn a_cli_ticker_waiting_for_a_resume_is_interrupted_with_exit_130() {
         "{done}"
     );
 }
+
+/// A journal that makes only every 50th frame durable resumes behind the
+/// frames the ticker printed: those are computed again, and printed and
+/// counted once.
+#[test]
+fn a_cli_ticker_resumed_behind_its_printed_frames_prints_each_frame_once() {
+    let scratch = Scratch::new("tick-behind");
+    let dir = scratch.file("j");
+    let mut world = TestWorld::start(
+        "tick-behind",
+        &[
+            "--sync",
+            "--fps",
+            "20",
+            "--journal",
+            dir.to_str().unwrap(),
+            "--journal-sync",
+            "frames:50",
+        ],
+    );
+    let name = world.name().to_owned();
+    let ticker = world.spawn_cli(&[
+        "--timeout",
+        "30",
+        "tick",
+        "--count",
+        "150",
+        "--rate",
+        "200",
+        "--json",
+    ]);
+    let mut ticked = read_until(&ticker, 70);
+    world.server.guard.kill().expect("SIGKILL the server");
+    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
+    wait_until_up(&name, &resumed);
+    let done = ticker.finish(LONG);
+    done.assert_success();
+    ticked.extend(done.json());
+    let ticked = frames(&ticked);
+    assert_eq!(ticked.len(), 150, "{done}");
+    assert_consecutive(&ticked, &done);
+    // It did resume behind: the restart line names a frame before the last
+    // printed one.
+    let resumed_at: u64 = done
+        .stderr
+        .split("the world resumed at frame ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{done}"));
+    assert!(resumed_at < 70, "resumed at {resumed_at}: {done}");
+}

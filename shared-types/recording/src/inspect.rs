@@ -322,24 +322,19 @@ pub fn kind_matches(filter: char, kind: u32) -> bool {
 /// [`kind_matches`]), in order.
 pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>, RecordingError> {
     let mut out = Vec::new();
-    let mut elapsed = Vec::new();
-    // Each frame's recording time, less its simulation time: what turns a
-    // collision's simulation time into recording time.
-    let mut offsets: std::collections::HashMap<u64, i128> = std::collections::HashMap::new();
+    // A step's collisions follow its frame in the file, at its recording
+    // time (a load's new episode starts its frame ids again, never its
+    // recording time).
+    let mut frame_log_ns = 0;
     entries(path, |entry| match entry {
-        Entry::Frame { log_ns, header, .. } => {
-            let t = &header.timestamp;
-            offsets.insert(t.frame, i128::from(*log_ns) - i128::from(t.elapsed_ns));
-        }
+        Entry::Frame { log_ns, .. } => frame_log_ns = *log_ns,
         Entry::Collision(c) => {
             let matches = (kind_matches(kind1, c.kind_a) && kind_matches(kind2, c.kind_b))
                 || (kind_matches(kind1, c.kind_b) && kind_matches(kind2, c.kind_a));
             if matches {
-                elapsed.push(c.elapsed_ns);
                 out.push(Collision {
                     frame: c.frame,
-                    // Filled in below, once every frame is read.
-                    time_seconds: 0.0,
+                    time_seconds: seconds(frame_log_ns),
                     elapsed_seconds: seconds(c.elapsed_ns),
                     actor_a: c.actor_a,
                     kind_a: kind_name(c.kind_a),
@@ -351,12 +346,6 @@ pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>
         }
         _ => {}
     })?;
-    let first = offsets.values().next().copied().unwrap_or(0);
-    for (c, elapsed_ns) in out.iter_mut().zip(elapsed) {
-        let offset = offsets.get(&c.frame).copied().unwrap_or(first);
-        let log_ns = (i128::from(elapsed_ns) + offset).max(0);
-        c.time_seconds = seconds(u64::try_from(log_ns).unwrap_or(u64::MAX));
-    }
     Ok(out)
 }
 

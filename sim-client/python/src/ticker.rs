@@ -40,8 +40,10 @@ impl Ticker {
     ) -> PyResult<Self> {
         let timeout = seconds("timeout", timeout)?;
         let (mut ticker, before) = detached(py, client, |c| {
+            let ticker = c.claim_ticker()?;
+            // Read once this ticker holds the world: what is put back.
             let before = c.get_settings().map_err(sim_client::TickError::from)?;
-            c.claim_ticker().map(|t| (t, before))
+            Ok((ticker, before))
         })
         .map_err(errors::tick)?;
         ticker.set_wait_mode(mode);

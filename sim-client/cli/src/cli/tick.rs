@@ -111,6 +111,22 @@ impl TickArgs {
             .map_or(current.substep_rule, shared_types::SubstepRule::from)
     }
 
+    /// The settings to tick with on a world whose settings are `current`,
+    /// and the fixed step among them (`None`: variable); refused when they
+    /// are invalid.
+    fn wanted(&self, current: &WorldSettings) -> Result<(WorldSettings, Option<f64>), Failure> {
+        let delta = self.delta(current)?;
+        let sync = WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: delta,
+            substep_rule: self.rule(current),
+            ..*current
+        };
+        sync.validate()
+            .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
+        Ok((sync, delta))
+    }
+
     /// The fixed step to tick with; `None` is a variable step.
     fn delta(&self, current: &WorldSettings) -> Result<Option<f64>, Failure> {
         let delta = match (self.delta_seconds, self.fps) {
@@ -140,40 +156,26 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
         patience: args.restart_timeout,
         participants: args.participants,
     });
-    let current = client.get_settings()?;
-    let delta = args.delta(&current)?;
+    // Refuse bad input before anything changes, ownership included.
+    args.wanted(&client.get_settings()?)?;
     if args.count == Some(0) {
         eprintln!("tick: --count 0: nothing to do; the world is unchanged");
         return Ok(());
     }
-    let sync = WorldSettings {
-        synchronous_mode: true,
-        fixed_delta_seconds: delta,
-        substep_rule: args.rule(&current),
-        ..current
-    };
-    // Refuse bad input before anything changes, ownership included.
-    sync.validate()
-        .map_err(|e| Failure::Refused(ApplySettingsError::from(e).into()))?;
     wait_for_participants(&client, args.participants, timeout).map_err(Failure::Runtime)?;
-    let (mut ticker, current, sync, delta) = if args.standby {
+    let mut ticker = if args.standby {
         let Some(ticker) = stand_by(&client, world, &args, interrupted)? else {
             eprintln!("tick: interrupted on standby; the world is unchanged");
             return Ok(());
         };
-        // The settings as the previous ticker left them.
-        let current = client.get_settings()?;
-        let delta = args.delta(&current)?;
-        let sync = WorldSettings {
-            synchronous_mode: true,
-            fixed_delta_seconds: delta,
-            substep_rule: args.rule(&current),
-            ..current
-        };
-        (ticker, current, sync, delta)
+        ticker
     } else {
-        (client.claim_ticker_as(NODE_NAME)?, current, sync, delta)
+        client.claim_ticker_as(NODE_NAME)?
     };
+    // The settings as they are now that this run holds the world (a ticker
+    // that ended meanwhile may have changed them): what is put back.
+    let current = client.get_settings()?;
+    let (sync, delta) = args.wanted(&current)?;
     ticker.set_wait_mode(args.wait_mode);
     let from = ticker
         .apply_settings(sync)
@@ -387,9 +389,8 @@ pub(super) fn wait_for_participants(
 
 /// Ticks until a bound, Ctrl-C or an error; returns the number of ticks.
 /// With `restarts`, a server that exits is waited for and, once resumed
-/// from its journal, claimed again: the frame the resumed world starts at
-/// is printed once (it is the one the interrupted tick computed, when the
-/// journal made it durable) and ticking goes on from it.
+/// from its journal, claimed again; ticking goes on from the frame it
+/// resumed at, and every frame is printed once.
 fn tick_loop(
     ticker: &mut Ticker,
     timeout: Duration,
@@ -405,6 +406,10 @@ fn tick_loop(
     // The last frame printed: a resumed world's first frame is printed
     // only when it is past it.
     let mut printed = ticker.last_frame().map(|(frame, _)| frame);
+    // After a resume behind the last frame printed (a journal that made
+    // only every Nth frame durable, or stopped on a full disk): the frames
+    // up to it are computed again, and neither printed nor counted twice.
+    let mut catching_up: Option<u64> = None;
     loop {
         if interrupted.load(Ordering::Relaxed) || args.count.is_some_and(|n| ticks >= n) {
             return Ok(ticks);
@@ -427,16 +432,18 @@ fn tick_loop(
         let frame = match (ticker.tick(timeout), restarts.as_mut()) {
             (Ok(frame), _) => frame,
             (Err(e), Some((follow, client))) if e.is_server_gone() => {
+                // The frame the world resumed at: the interrupted tick's,
+                // when the journal made it durable.
                 let resumed_at = ride_through(ticker, *follow, client, interrupted)?;
-                if printed.is_some_and(|p| resumed_at <= p) {
-                    // The interrupted tick's frame was not made durable:
-                    // the next tick computes it again.
-                    continue;
-                }
+                catching_up = printed;
                 resumed_at
             }
             (Err(e), _) => return Err(e.into()),
         };
+        if catching_up.is_some_and(|last| frame <= last) {
+            continue;
+        }
+        catching_up = None;
         ticks += 1;
         printed = Some(frame);
         let elapsed = ticker.last_frame().map_or(0, |(_, ns)| ns) as f64 / 1e9;

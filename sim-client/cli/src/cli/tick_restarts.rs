@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use sim_client::{Client, TickError, Ticker, WaitError};
+use sim_client::{Client, ConnectError, TickError, Ticker, WaitError};
 
 use super::tick::wait_for_participants;
 
@@ -81,8 +81,8 @@ impl TickLoopError {
 }
 
 /// After the server exited: waits (in slices, so Ctrl-C is noticed) for a
-/// server to come back on the world, claims it and checks that it resumed
-/// this run; returns the frame it resumed at.
+/// server to come back on the world, checks that it resumed this run, and
+/// only then claims it; returns the frame it resumed at.
 pub(super) fn ride_through(
     ticker: &mut Ticker,
     follow: Restarts,
@@ -98,32 +98,29 @@ pub(super) fn ride_through(
         simbus_input::Readable(follow.patience.as_secs_f64())
     );
     let deadline = Instant::now() + follow.patience;
-    let reconnected = loop {
+    // The client finds the server that came back first, so a fresh one is
+    // told apart before this ticker claims it.
+    loop {
         if interrupted.load(Ordering::Relaxed) {
             return Err(TickLoopError::InterruptedWaiting { world, last_frame });
         }
         let slice = deadline
             .saturating_duration_since(Instant::now())
             .min(Duration::from_millis(200));
-        match ticker.reclaim(slice) {
-            Ok(reconnected) => break reconnected,
-            Err(TickError::Frame(WaitError::NotBack { world, pid, .. }))
-                if Instant::now() >= deadline =>
-            {
+        match client.reconnect(slice) {
+            Ok(_) => break,
+            Err(ConnectError::NoServer { .. }) if Instant::now() >= deadline => {
                 return Err(TickError::Frame(WaitError::NotBack {
                     world,
-                    pid,
+                    pid: ticker.server_pid(),
                     timeout: follow.patience,
                 })
                 .into())
             }
-            Err(TickError::Frame(WaitError::NotBack { .. })) => {}
-            Err(e) => return Err(e.into()),
+            Err(ConnectError::NoServer { .. }) => {}
+            Err(e) => return Err(TickLoopError::Reconnect(e.into())),
         }
-    };
-    client
-        .reconnect(follow.patience)
-        .map_err(|e| TickLoopError::Reconnect(e.into()))?;
+    }
     let run_pid = client
         .status()
         .map_err(|e| TickLoopError::Reconnect(e.into()))?
@@ -131,11 +128,12 @@ pub(super) fn ride_through(
     if run_pid != follow.run_pid {
         return Err(TickLoopError::FreshServer {
             world,
-            server_pid: reconnected.server_pid,
+            server_pid: client.server_pid(),
             run_pid: follow.run_pid,
             last_frame,
         });
     }
+    let reconnected = ticker.reclaim(follow.patience)?;
     wait_for_participants(client, follow.participants, follow.patience)
         .map_err(TickLoopError::Reconnect)?;
     eprintln!("tick: {reconnected}; ticking on");

@@ -162,6 +162,12 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
     // the frame it resumed at again, which was printed already when this
     // watcher saw it before the crash.
     let mut printed: Option<(u64, u64)> = None;
+    // The run watched: a fresh server (another run) starts its frames again.
+    let mut run_pid = if args.follow_restarts {
+        client.status()?.run_pid
+    } else {
+        0
+    };
     while args.frames.is_none_or(|n| seen < n) {
         let snapshot = match next_frame(&mut client, timeout) {
             Ok(Some(snapshot)) => snapshot,
@@ -169,6 +175,10 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Resu
             Err(WaitError::ServerGone { .. }) if args.follow_restarts => {
                 drop(participant.take());
                 let restarted = client.reconnect(timeout)?;
+                let run = client.status()?.run_pid;
+                if run != run_pid {
+                    (run_pid, printed) = (run, None);
+                }
                 println!("{}", restarted_line(&restarted, args.json));
                 participant = join(&client)?;
                 continue;

@@ -116,13 +116,11 @@ pub(super) fn answer_local(
     let result = match request {
         Local::Control(a) => {
             wire::decode_fixed::<ControlResponse>(bytes, "control answer").map(|mut answer| {
-                // Here the mirror serves the world; a run its server began
-                // (not resumed from a journal) is the mirror's run too.
-                let report = &mut answer.report;
-                if report.run_pid == report.server_pid {
-                    report.run_pid = std::process::id();
-                }
-                report.server_pid = std::process::id();
+                // Here the mirror serves the world, and its run is the
+                // mirror's: it goes on across a resume behind the exporter
+                // (a new run there ends the export).
+                answer.report.server_pid = std::process::id();
+                answer.report.run_pid = std::process::id();
                 sent(a.send_copy(answer).map(drop))
             })
         }

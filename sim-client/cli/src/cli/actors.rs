@@ -104,7 +104,7 @@ pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Re
         let occupant = response.results.get(*i).map_or(0, |r| r.actor);
         return Err(Failure::Refused(match status {
             CommandStatus::SpawnCollision => anyhow!(
-                "spawn refused: {status}: actor {occupant} is there (see `sim-client --world {world} status` or `watch`); nothing was spawned"
+                "{status}: actor {occupant} is there (see `sim-client --world {world} watch`); nothing was spawned"
             ),
             status => anyhow!("spawn refused: {status}"),
         }));

@@ -114,28 +114,23 @@ fn collisions_and_blocked_count_time_from_the_recordings_start() {
     }
     let (_, start) = ticker.last_frame().expect("ticked");
     client.start_recorder(&path, false).unwrap();
-    // Something to collide: a box dropped on the ground.
-    client
-        .spawn_actor(shared_types::Command::spawn_box(
-            [20.0, 3.0, 20.0],
-            [0.5; 3],
-        ))
-        .unwrap();
-    for _ in 0..60 {
-        ticker.tick(T).unwrap();
-    }
+    // Something to collide: a box dropped on the ground, 3 s to land.
+    let mut drop_a_box = || {
+        client
+            .spawn_actor(shared_types::Command::spawn_box(
+                [20.0, 3.0, 20.0],
+                [0.5; 3],
+            ))
+            .unwrap();
+        for _ in 0..60 {
+            ticker.tick(T).unwrap();
+        }
+    };
+    drop_a_box();
     // A reload starts frame ids again, not the recording's time: the
     // second episode's collisions come later.
     client.reload_world(false).unwrap();
-    client
-        .spawn_actor(shared_types::Command::spawn_box(
-            [20.0, 3.0, 20.0],
-            [0.5; 3],
-        ))
-        .unwrap();
-    for _ in 0..60 {
-        ticker.tick(T).unwrap();
-    }
+    drop_a_box();
     client.stop_recorder().unwrap();
     let out = world.cli(&["recorder", "collisions", "--json", path.to_str().unwrap()]);
     out.assert_success();

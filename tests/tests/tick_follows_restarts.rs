@@ -14,12 +14,36 @@ use simbus_tests::*;
 
 const LONG: Duration = Duration::from_secs(60);
 
+/// A synchronous 20 FPS world journaling into `dir`, with `extra` flags.
+fn journaling_with(tag: &str, dir: &std::path::Path, extra: &[&str]) -> TestWorld {
+    let mut args = vec!["--sync", "--fps", "20", "--journal", dir.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    TestWorld::start(tag, &args)
+}
+
 /// A synchronous 20 FPS world journaling into `dir`.
 fn journaling(tag: &str, dir: &std::path::Path) -> TestWorld {
-    TestWorld::start(
-        tag,
-        &["--sync", "--fps", "20", "--journal", dir.to_str().unwrap()],
-    )
+    journaling_with(tag, dir, &[])
+}
+
+/// SIGKILLs `world`'s server and resumes it from its journal in `dir`;
+/// the resumed server, up.
+fn kill_and_resume(world: &mut TestWorld, dir: &std::path::Path) -> Proc {
+    world.server.guard.kill().expect("SIGKILL the server");
+    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
+    wait_until_up(world.name(), &resumed);
+    resumed
+}
+
+/// Waits for `ticker` to end by itself, successfully; its run and every
+/// frame it printed, `before` (the lines already read) first.
+fn ticked_frames(ticker: Proc, mut before: Vec<Value>) -> (Finished, Vec<u64>) {
+    let done = ticker.finish(LONG);
+    done.assert_success();
+    before.extend(done.json());
+    let ticked = frames(&before);
+    assert_consecutive(&ticked, &done);
+    (done, ticked)
 }
 
 /// The frame of each JSON line of a ticker or a watcher that has one.
@@ -79,18 +103,10 @@ fn a_cli_ticker_and_a_digest_watch_ride_through_a_resume_without_a_frame_skipped
         "1",
         "--json",
     ]);
-    let mut ticked = read_until(&ticker, 30);
-
-    world.server.guard.kill().expect("SIGKILL the server");
-    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
-    wait_until_up(&name, &resumed);
-
-    let done = ticker.finish(LONG);
-    done.assert_success();
-    ticked.extend(done.json());
-    let ticked = frames(&ticked);
+    let printed = read_until(&ticker, 30);
+    let _resumed = kill_and_resume(&mut world, &dir);
+    let (done, ticked) = ticked_frames(ticker, printed);
     assert_eq!(ticked.len(), 120, "every tick counted once: {done}");
-    assert_consecutive(&ticked, &done);
     assert!(done.stderr.contains("ticking on"), "{done}");
     // Left as it was: synchronous, waiting for the next ticker.
     assert_eq!(status(&name)["synchronous_mode"], true);
@@ -166,9 +182,7 @@ fn a_resumed_server_publishes_its_first_frame_with_the_substeps_it_was_computed_
     // 0.05 s in substeps of at most 0.01 s.
     assert_eq!(before["physics_substeps"], 5, "{before}");
 
-    world.server.guard.kill().expect("SIGKILL the server");
-    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
-    wait_until_up(&name, &resumed);
+    let _resumed = kill_and_resume(&mut world, &dir);
     let after = client(&name, &["watch", "--frames", "1", "--json"]);
     after.assert_success();
     let after = &after.json()[0];
@@ -242,19 +256,7 @@ fn a_cli_ticker_waiting_for_a_resume_is_interrupted_with_exit_130() {
 fn a_cli_ticker_resumed_behind_its_printed_frames_prints_each_frame_once() {
     let scratch = Scratch::new("tick-behind");
     let dir = scratch.file("j");
-    let mut world = TestWorld::start(
-        "tick-behind",
-        &[
-            "--sync",
-            "--fps",
-            "20",
-            "--journal",
-            dir.to_str().unwrap(),
-            "--journal-sync",
-            "frames:50",
-        ],
-    );
-    let name = world.name().to_owned();
+    let mut world = journaling_with("tick-behind", &dir, &["--journal-sync", "frames:50"]);
     let ticker = world.spawn_cli(&[
         "--timeout",
         "30",
@@ -265,16 +267,10 @@ fn a_cli_ticker_resumed_behind_its_printed_frames_prints_each_frame_once() {
         "200",
         "--json",
     ]);
-    let mut ticked = read_until(&ticker, 70);
-    world.server.guard.kill().expect("SIGKILL the server");
-    let resumed = Proc::spawn("sim-server", &["--resume", dir.to_str().unwrap()]);
-    wait_until_up(&name, &resumed);
-    let done = ticker.finish(LONG);
-    done.assert_success();
-    ticked.extend(done.json());
-    let ticked = frames(&ticked);
+    let printed = read_until(&ticker, 70);
+    let _resumed = kill_and_resume(&mut world, &dir);
+    let (done, ticked) = ticked_frames(ticker, printed);
     assert_eq!(ticked.len(), 150, "{done}");
-    assert_consecutive(&ticked, &done);
     // It did resume behind: the restart line names a frame before the last
     // printed one.
     let resumed_at: u64 = done

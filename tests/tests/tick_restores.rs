@@ -7,7 +7,13 @@
 
 use std::time::Duration;
 
-use simbus_tests::{send_signal, TestWorld};
+use simbus_tests::{send_signal, Finished, TestWorld};
+
+/// Asserts the ticker's last line (stderr), which says how it left the
+/// world.
+fn assert_last_line(ticked: &Finished, expected: &str) {
+    assert_eq!(ticked.stderr.lines().last(), Some(expected), "{ticked}");
+}
 
 #[test]
 fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
@@ -22,13 +28,10 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     ]);
     ticked.assert_success();
     world.assert_time_settings(true, Some(0.02), "the world's own step is back: ");
-    assert_eq!(
-        ticked.stderr.lines().last(),
-        Some(
-            "tick: 3 ticks; released ownership, world left in synchronous mode with its own step \
-             (0.02 s), waiting for the next ticker"
-        ),
-        "{ticked}"
+    assert_last_line(
+        &ticked,
+        "tick: 3 ticks; released ownership, world left in synchronous mode with its own step \
+         (0.02 s), waiting for the next ticker",
     );
 
     // The next plain ticker ticks with, and puts back, the world's own
@@ -38,13 +41,10 @@ fn leave_sync_keeps_synchronous_mode_but_puts_back_the_worlds_own_step() {
     ticked.assert_success();
     assert!(ticked.stderr.contains("fixed step 0.02 s"), "{ticked}");
     world.assert_time_settings(true, Some(0.02), "");
-    assert_eq!(
-        ticked.stderr.lines().last(),
-        Some(
-            "tick: 2 ticks; released ownership, world left in synchronous mode with its own step \
-             (0.02 s), as before, waiting for the next ticker"
-        ),
-        "{ticked}"
+    assert_last_line(
+        &ticked,
+        "tick: 2 ticks; released ownership, world left in synchronous mode with its own step \
+         (0.02 s), as before, waiting for the next ticker",
     );
 }
 
@@ -54,13 +54,10 @@ fn leave_sync_on_a_variable_step_world_puts_the_variable_step_back() {
     let ticked = world.cli(&["tick", "--count", "2", "--leave-sync"]);
     ticked.assert_success();
     world.assert_time_settings(true, None, "variable again: ");
-    assert_eq!(
-        ticked.stderr.lines().last(),
-        Some(
-            "tick: 2 ticks; released ownership, world left in synchronous mode with its own \
-             variable step, waiting for the next ticker"
-        ),
-        "{ticked}"
+    assert_last_line(
+        &ticked,
+        "tick: 2 ticks; released ownership, world left in synchronous mode with its own \
+         variable step, waiting for the next ticker",
     );
     // A plain ticker then uses 0.05 s as on a fresh world and leaves the
     // world as it found it: synchronous, with its variable step.
@@ -78,13 +75,10 @@ fn a_world_started_synchronous_stays_synchronous_after_a_ticker_and_computes_not
     let world = TestWorld::start("tick-sync-server", &["--sync", "--delta-seconds", "0.02"]);
     let ticked = world.cli(&["tick", "--count", "5", "--delta-seconds", "0.02"]);
     ticked.assert_success();
-    assert_eq!(
-        ticked.stderr.lines().last(),
-        Some(
-            "tick: 5 ticks; released ownership, world left in synchronous mode with its own step \
-             (0.02 s), as before, waiting for the next ticker"
-        ),
-        "{ticked}"
+    assert_last_line(
+        &ticked,
+        "tick: 5 ticks; released ownership, world left in synchronous mode with its own step \
+         (0.02 s), as before, waiting for the next ticker",
     );
     world.assert_time_settings(true, Some(0.02), "");
     let frame = world.status()["frame"].as_u64().expect("a frame");
@@ -112,13 +106,10 @@ fn tick_says_it_left_the_world_asynchronous_with_its_settings_as_before() {
     let ticked = world.cli(&["tick", "--delta-seconds", "0.05", "--count", "3"]);
     ticked.assert_success();
     assert_eq!(ticked.stdout.len(), 3, "{ticked}");
-    assert_eq!(
-        ticked.stderr.lines().last(),
-        Some(
-            "tick: 3 ticks; released ownership, world left in asynchronous mode, with its \
-             settings as before"
-        ),
-        "{ticked}"
+    assert_last_line(
+        &ticked,
+        "tick: 3 ticks; released ownership, world left in asynchronous mode, with its \
+         settings as before",
     );
     world.assert_time_settings(false, Some(0.02), "");
 }

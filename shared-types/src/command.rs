@@ -4,7 +4,7 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::PROTOCOL_VERSION;
+use crate::wire::PROTOCOL_VERSION;
 
 wire_enum! {
     /// What a [`Command`] does. Vectors are in world coordinates (Y up).
@@ -21,7 +21,7 @@ wire_enum! {
         /// chassis half extents (X length, Y height, Z width, metres),
         /// `params[3]` = mass (kg); all four zero = the original vehicle
         /// (chassis 2 × 0.5 × 1 m, 100 kg). Wheels, engine and brakes follow
-        /// from them ([`crate::VehicleSpec`]); a partial or out-of-range set
+        /// from them ([`VehicleSpec`](crate::vehicle::VehicleSpec)); a partial or out-of-range set
         /// is refused with [`CommandStatus::InvalidArgument`].
         SpawnVehicle = 4,
         /// Remove `actor`.
@@ -101,7 +101,7 @@ impl Command {
     }
 
     /// Move the sun that lights RGB cameras to `sun`.
-    pub fn set_sun(sun: crate::Sun) -> Self {
+    pub fn set_sun(sun: crate::camera::Sun) -> Self {
         Self {
             params: [sun.azimuth, sun.altitude, 0.0, 0.0],
             ..Self::new(CommandKind::SetSun, 0)
@@ -325,7 +325,7 @@ impl BatchHeader {
     pub fn new(tick: bool) -> Self {
         Self {
             protocol_version: PROTOCOL_VERSION,
-            pid: crate::this_process_id(),
+            pid: crate::wire::this_process_id(),
             flags: if tick { Self::TICK } else { 0 },
             reserved: 0,
         }
@@ -339,12 +339,14 @@ impl BatchHeader {
 pub struct BatchResponseHeader {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
-    /// [`crate::ResponseStatus`] of the batch as a whole.
+    /// [`ResponseStatus`](crate::wire::ResponseStatus) of the batch as a whole.
     pub status: u32,
     /// The first frame that shows the batch's effects. With
     /// [`BatchHeader::TICK`], the frame that was stepped.
     pub frame: u64,
 }
+
+crate::wire::responses!(BatchResponseHeader);
 
 #[cfg(test)]
 mod tests {

@@ -3,10 +3,10 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
-use crate::wire::wire_enum;
-use crate::{
-    SettingsError, TickerInfo, WireSettings, WireSettingsError, WorldSettings, PROTOCOL_VERSION,
-};
+use crate::settings::{SettingsError, WorldSettings};
+use crate::settings_wire::{WireSettings, WireSettingsError};
+use crate::tick::TickerInfo;
+use crate::wire::{wire_enum, FixedText, ResponseStatus, PROTOCOL_VERSION};
 
 wire_enum! {
     /// What a [`ControlRequest`] asks for.
@@ -34,55 +34,6 @@ wire_enum! {
         ListSnapshots = 9,
         /// Forgets snapshot [`ControlRequest::snapshot`].
         DropSnapshot = 10,
-    }
-}
-
-wire_enum! {
-    /// How the server answered a [`ControlRequest`].
-    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-    pub enum ResponseStatus {
-        /// Done.
-        Ok = 0,
-        /// The request's protocol version is not the server's; nothing was done.
-        ProtocolMismatch = 1,
-        /// The settings were refused ([`ControlResponse::settings_error`]); nothing changed.
-        InvalidSettings = 2,
-        /// The request kind is unknown to this server; nothing was done.
-        UnknownRequest = 3,
-        /// Synchronous mode is entered by the tick owner, not by settings alone.
-        SyncNeedsTicker = 4,
-        /// Only the tick owner may do this (or the sender is not the owner).
-        NotTicker = 5,
-        /// The scene name is not one the server knows; nothing changed.
-        UnknownScene = 6,
-        /// Tick service: this client's tick ownership ended because another
-        /// client left synchronous mode (`TickResponse::revoked_by` names it).
-        Revoked = 7,
-        /// Tick service, an interim answer: the tick waits for a lockstep
-        /// participant (`TickResponse::waiting_for`), which the server drops
-        /// after `TickResponse::lockstep_timeout_ns`. The final answer follows.
-        WaitingForParticipants = 8,
-        /// Lockstep service: the sender is not (or no longer) a participant;
-        /// the server dropped it or it never joined.
-        NotParticipant = 9,
-        /// Loading or reloading the world failed on the server (its log says
-        /// why); the world is unchanged.
-        LoadFailed = 10,
-        /// The request was refused; the answer's error code says why (a
-        /// sensor request: [`crate::SensorRefusal`]). Nothing changed.
-        Refused = 11,
-        /// Batch service: the world is replaying a recording, whose actors
-        /// follow the recording; commands are refused until the replay ends.
-        Replaying = 12,
-        /// A mirroring bridge answers for a server on another host that it
-        /// cannot reach now (the link is down or the exporting bridge is
-        /// gone); nothing was done.
-        Unreachable = 13,
-        /// No snapshot has the id asked for; nothing changed.
-        UnknownSnapshot = 14,
-        /// The server holds as many snapshots as it keeps
-        /// ([`MAX_SNAPSHOTS`]); drop one first. Nothing changed.
-        SnapshotsFull = 15,
     }
 }
 
@@ -116,7 +67,7 @@ impl ControlRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            client_pid: crate::this_process_id(),
+            client_pid: crate::wire::this_process_id(),
             flags: 0,
             settings: WorldSettings::default().into(),
             scene: FixedText::new(""),
@@ -160,36 +111,6 @@ impl ControlRequest {
             settings: settings.into(),
             ..Self::new(RequestKind::ApplySettings)
         }
-    }
-}
-
-/// Up to 64 bytes of UTF-8 text in a fixed-size field (scene names).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
-#[type_name("simbus::FixedText/1")]
-pub struct FixedText {
-    /// Bytes in use.
-    pub len: u32,
-    /// Zero.
-    pub reserved: u32,
-    /// The text, zero-padded.
-    pub bytes: [u8; 64],
-}
-
-impl FixedText {
-    /// `text` cut to at most 64 bytes at a character boundary.
-    pub fn new(text: &str) -> Self {
-        let (len, bytes) = crate::wire::text_field(text);
-        Self {
-            len,
-            reserved: 0,
-            bytes,
-        }
-    }
-
-    /// The text; invalid bytes from a misbehaving peer read as `?`.
-    pub fn to_string_lossy(&self) -> String {
-        crate::wire::text_of(self.len, &self.bytes)
     }
 }
 
@@ -365,6 +286,8 @@ pub struct ControlResponse {
     /// For [`RequestKind::ListSnapshots`]: the snapshots.
     pub snapshots: SnapshotList,
 }
+
+crate::wire::responses!(ControlResponse);
 
 impl ControlResponse {
     /// A successful response carrying `report`.

@@ -1,7 +1,7 @@
 //! The event sensors: a collision sensor (every contact its parent starts)
 //! and an obstacle detector (what lies ahead of its parent). They publish
 //! only on frames where something happened; the capture's
-//! [`crate::SensorHeader::count`] says how many events it holds.
+//! [`SensorHeader::count`](crate::sensor::SensorHeader::count) says how many events it holds.
 
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;

@@ -7,8 +7,9 @@ use std::mem::MaybeUninit;
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::settings::NANOS_PER_SECOND;
+use crate::settings_wire::WireSettings;
 use crate::wire::wire_enum;
-use crate::{WireSettings, NANOS_PER_SECOND};
 
 /// When a frame happened, in simulation time (integer nanoseconds) and wall time.
 #[repr(C)]
@@ -49,7 +50,7 @@ pub fn nanos_to_seconds(nanos: u64) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, ZeroCopySend)]
 #[type_name("simbus::FrameHeader/3")]
 pub struct FrameHeader {
-    /// [`crate::PROTOCOL_VERSION`] of the server that wrote the frame.
+    /// [`PROTOCOL_VERSION`](crate::wire::PROTOCOL_VERSION) of the server that wrote the frame.
     pub protocol_version: u32,
     /// Number of [`ActorState`]s in the sample.
     pub actor_count: u32,
@@ -121,8 +122,8 @@ impl FrameHeader {
         if !self.is_physics_clamped() {
             return delta_ns;
         }
-        let s = crate::WorldSettings::from(self.settings);
-        crate::SubstepRule::Clamp.physics_ns(
+        let s = crate::settings::WorldSettings::from(self.settings);
+        crate::substep_rule::SubstepRule::Clamp.physics_ns(
             delta_ns,
             s.substepping,
             s.max_substep_nanos(),

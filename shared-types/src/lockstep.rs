@@ -5,7 +5,8 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::{FixedText, PROTOCOL_VERSION};
+use crate::wire::FixedText;
+use crate::wire::PROTOCOL_VERSION;
 
 wire_enum! {
     /// What a [`LockstepRequest`] asks for.
@@ -56,7 +57,7 @@ impl LockstepRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            pid: crate::this_process_id(),
+            pid: crate::wire::this_process_id(),
             window: 0,
             frame,
             episode,
@@ -72,10 +73,12 @@ impl LockstepRequest {
 pub struct LockstepResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
-    /// [`crate::ResponseStatus`] as `u32`.
+    /// [`ResponseStatus`](crate::wire::ResponseStatus) as `u32`.
     pub status: u32,
     /// The current frame (for `Join`: the frame to report `Done` for first).
     pub frame: u64,
     /// The current episode.
     pub episode: u64,
 }
+
+crate::wire::responses!(LockstepResponse);

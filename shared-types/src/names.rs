@@ -87,29 +87,29 @@ impl std::str::FromStr for WorldName {
 /// The iceoryx2 service names of one world.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServiceNames {
-    /// Publish-subscribe: one sample per frame, a [`crate::FrameHeader`] user
-    /// header and a slice of [`crate::ActorState`].
+    /// Publish-subscribe: one sample per frame, a [`FrameHeader`](crate::frame::FrameHeader) user
+    /// header and a slice of [`ActorState`](crate::frame::ActorState).
     pub frames: String,
     /// Event: the server notifies it after every published frame, so clients
     /// block instead of spinning.
     pub frame_ready: String,
-    /// Request-response: [`crate::ControlRequest`] → [`crate::ControlResponse`]
+    /// Request-response: [`ControlRequest`](crate::control::ControlRequest) → [`ControlResponse`](crate::control::ControlResponse)
     /// (settings, status).
     pub control: String,
     /// Event: clients notify it after sending a control request, so a server
     /// that is idle (paced, or waiting) answers at once.
     pub control_wake: String,
-    /// Request-response admitting one client: [`crate::TickRequest`] →
-    /// [`crate::TickResponse`]. Holding its client port is tick ownership.
+    /// Request-response admitting one client: [`TickRequest`](crate::tick::TickRequest) →
+    /// [`TickResponse`](crate::tick::TickResponse). Holding its client port is tick ownership.
     pub tick: String,
-    /// Request-response: a slice of [`crate::Command`] with a
-    /// [`crate::BatchHeader`] → a slice of [`crate::CommandResult`].
+    /// Request-response: a slice of [`Command`](crate::command::Command) with a
+    /// [`BatchHeader`](crate::command::BatchHeader) → a slice of [`CommandResult`](crate::command::CommandResult).
     pub batch: String,
-    /// Request-response: [`crate::LockstepRequest`] → [`crate::LockstepResponse`].
+    /// Request-response: [`LockstepRequest`](crate::lockstep::LockstepRequest) → [`LockstepResponse`](crate::lockstep::LockstepResponse).
     pub lockstep: String,
-    /// Request-response: [`crate::SensorRequest`] → a slice of [`crate::SensorInfo`].
+    /// Request-response: [`SensorRequest`](crate::sensor::SensorRequest) → a slice of [`SensorInfo`](crate::sensor::SensorInfo).
     pub sensors: String,
-    /// Request-response: [`crate::RecorderRequest`] → [`crate::RecorderResponse`]
+    /// Request-response: [`RecorderRequest`](crate::recorder::RecorderRequest) → [`RecorderResponse`](crate::recorder::RecorderResponse)
     /// (recorder and replayer).
     pub recorder: String,
     prefix: String,
@@ -175,7 +175,7 @@ impl ServiceNames {
         &self.prefix
     }
 
-    /// Publish-subscribe of sensor `id`: a [`crate::SensorHeader`] user
+    /// Publish-subscribe of sensor `id`: a [`SensorHeader`](crate::sensor::SensorHeader) user
     /// header and a slice of its kind's payload.
     pub fn sensor(&self, id: u64) -> String {
         format!("{}/sensor/{id}", self.prefix)

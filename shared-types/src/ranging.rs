@@ -31,7 +31,7 @@ pub struct SemanticLidarPoint {
     pub cos_inc_angle: f32,
     /// The actor met (0: none of the world's actors).
     pub object_idx: u32,
-    /// Its CARLA tag ([`crate::SemanticTag`]).
+    /// Its CARLA tag ([`SemanticTag`](crate::camera::SemanticTag)).
     pub object_tag: u32,
 }
 

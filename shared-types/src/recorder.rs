@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::PROTOCOL_VERSION;
+use crate::wire::PROTOCOL_VERSION;
 
 /// Default simulation time between two keyframes of a recording.
 pub const DEFAULT_KEYFRAME_SECONDS: f64 = 10.0;
@@ -209,7 +209,7 @@ impl RecorderRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            client_pid: crate::this_process_id(),
+            client_pid: crate::wire::this_process_id(),
             flags: 0,
             mode: 0,
             reserved: 0,
@@ -230,7 +230,7 @@ impl RecorderRequest {
 pub struct RecorderResponse {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
-    /// [`crate::ResponseStatus`] as `u32`.
+    /// [`ResponseStatus`](crate::wire::ResponseStatus) as `u32`.
     pub status: u32,
     /// [`RecorderRefusal`] as `u32`.
     pub refusal: u32,
@@ -266,6 +266,8 @@ pub struct RecorderResponse {
     pub message: PathText,
 }
 
+crate::wire::responses!(RecorderResponse);
+
 impl RecorderResponse {
     /// Flag: this server recorded since it started, and `path`,
     /// `frames_written` and `bytes_written` are its current or last
@@ -273,7 +275,7 @@ impl RecorderResponse {
     pub const RECORDED: u32 = 1;
 
     /// An answer with nothing filled in but `status`.
-    pub fn new(status: crate::ResponseStatus) -> Self {
+    pub fn new(status: crate::wire::ResponseStatus) -> Self {
         Self {
             protocol_version: PROTOCOL_VERSION,
             status: status as u32,

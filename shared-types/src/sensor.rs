@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::wire::wire_enum;
-use crate::{Camera, Imu, Lidar, SensorParams, PROTOCOL_VERSION};
+use crate::wire::PROTOCOL_VERSION;
 
 /// The largest capture a sensor may publish (its shared memory holds a few
 /// dozen of them).
@@ -31,29 +31,29 @@ wire_enum! {
         Lidar = 2,
         /// Inertial measurement unit: one [`ImuMeasurement`].
         Imu = 3,
-        /// GNSS receiver: one [`crate::GnssMeasurement`].
+        /// GNSS receiver: one [`GnssMeasurement`](crate::gnss::GnssMeasurement).
         Gnss = 4,
-        /// Ray-cast RGB camera: one [`crate::Bgra`] per pixel, row by row
+        /// Ray-cast RGB camera: one [`Bgra`](crate::camera::Bgra) per pixel, row by row
         /// from the top left, each surface lit by the sun.
         Rgb = 5,
-        /// Ray-cast semantic segmentation camera: one [`crate::Bgra`] per
-        /// pixel, CARLA's [`crate::SemanticTag`] in red.
+        /// Ray-cast semantic segmentation camera: one [`Bgra`](crate::camera::Bgra) per
+        /// pixel, CARLA's [`SemanticTag`](crate::camera::SemanticTag) in red.
         Semantic = 6,
-        /// Ray-cast instance segmentation camera: one [`crate::Bgra`] per
+        /// Ray-cast instance segmentation camera: one [`Bgra`](crate::camera::Bgra) per
         /// pixel, the tag in red, the actor's id in green (low byte) and
         /// blue (high byte).
         Instance = 7,
-        /// Collision sensor: [`crate::CollisionEvent`]s, one per contact
+        /// Collision sensor: [`CollisionEvent`](crate::events::CollisionEvent)s, one per contact
         /// its parent started this frame; published only on such frames,
         /// whatever its `sensor_tick`.
         Collision = 8,
-        /// Obstacle detector: one [`crate::ObstacleDetection`], published
+        /// Obstacle detector: one [`ObstacleDetection`](crate::events::ObstacleDetection), published
         /// only on frames where something is ahead.
         Obstacle = 9,
-        /// Ray-cast semantic lidar: [`crate::SemanticLidarPoint`]s in the
+        /// Ray-cast semantic lidar: [`SemanticLidarPoint`](crate::ranging::SemanticLidarPoint)s in the
         /// sensor frame, each naming the actor and tag it met.
         SemanticLidar = 10,
-        /// Radar: [`crate::RadarDetection`]s, rays spread at random over
+        /// Radar: [`RadarDetection`](crate::ranging::RadarDetection)s, rays spread at random over
         /// its field of view, each with the radial velocity of what it met.
         Radar = 11,
     }
@@ -135,108 +135,18 @@ pub struct SensorSpec {
     /// [`SensorSpec::set_params`]). Depth: width, height, horizontal field of
     /// view (degrees), far range. Lidar: channels, points per channel,
     /// range, upper fov, lower fov (degrees), rotation frequency (Hz; 0 = a
-    /// full turn every capture), then its noise ([`crate::LidarNoise`]).
+    /// full turn every capture), then its noise ([`LidarNoise`](crate::sensor_params::LidarNoise)).
     pub params: [f32; SENSOR_PARAMS],
 }
 
 /// How many `f32` parameters a [`SensorSpec`] carries (16 since protocol 4;
-/// [`crate::LEGACY_SENSOR_PARAMS`] before).
+/// [`LEGACY_SENSOR_PARAMS`](crate::sensor::LEGACY_SENSOR_PARAMS) before).
 pub const SENSOR_PARAMS: usize = 16;
 
 /// How many parameters a `simbus::SensorSpec/1` (protocol 3) carried.
 pub const LEGACY_SENSOR_PARAMS: usize = 8;
 
 impl SensorSpec {
-    /// A depth camera of `width` × `height` pixels, horizontal field of view
-    /// `fov_degrees`, reading `far` metres where nothing is hit.
-    pub fn depth(position: [f32; 3], width: u32, height: u32, fov_degrees: f32, far: f32) -> Self {
-        let camera = Camera {
-            width,
-            height,
-            fov: fov_degrees,
-            range: far,
-        };
-        Self::with_params(position, camera)
-    }
-
-    /// A lidar with `channels` × `points_per_channel` rays per full turn,
-    /// taking a full turn every capture (see [`SensorSpec::rotating`]).
-    pub fn lidar(
-        position: [f32; 3],
-        channels: u32,
-        points_per_channel: u32,
-        range: f32,
-        upper_fov: f32,
-        lower_fov: f32,
-    ) -> Self {
-        let lidar = Lidar {
-            channels,
-            points: points_per_channel,
-            range,
-            upper_fov,
-            lower_fov,
-            rotation_hz: 0.0,
-            noise: Default::default(),
-        };
-        Self::with_params(position, lidar)
-    }
-
-    /// A lidar spinning at `hz`: each capture covers `hz × Δt` of a turn
-    /// (CARLA's partial scans); 0 takes a full turn every capture. Other
-    /// kinds are returned unchanged.
-    pub fn rotating(mut self, hz: f32) -> Self {
-        let Some(lidar) = self.lidar_params() else {
-            return self;
-        };
-        let lidar = Lidar {
-            rotation_hz: hz,
-            ..lidar
-        };
-        self.set_params(match self.sensor_kind() {
-            Some(SensorKind::SemanticLidar) => SensorParams::SemanticLidar(lidar),
-            _ => SensorParams::Lidar(lidar),
-        });
-        self
-    }
-
-    /// A semantic lidar with `lidar`'s parameters.
-    pub fn semantic_lidar(position: [f32; 3], lidar: Lidar) -> Self {
-        Self::with_params(position, SensorParams::SemanticLidar(lidar))
-    }
-
-    /// A camera of `kind` (depth, RGB, semantic or instance segmentation)
-    /// of `width` × `height` pixels and horizontal field of view
-    /// `fov_degrees`, seeing `far` metres; `None` for a kind that is not a
-    /// camera.
-    pub fn camera_of(
-        kind: SensorKind,
-        position: [f32; 3],
-        (width, height): (u32, u32),
-        fov_degrees: f32,
-        far: f32,
-    ) -> Option<Self> {
-        let camera = Camera {
-            width,
-            height,
-            fov: fov_degrees,
-            range: far,
-        };
-        Some(Self::with_params(
-            position,
-            SensorParams::camera_of(kind, camera)?,
-        ))
-    }
-
-    /// An IMU.
-    pub fn imu(position: [f32; 3]) -> Self {
-        Self::with_params(position, Imu)
-    }
-
-    /// A GNSS receiver without noise.
-    pub fn gnss(position: [f32; 3]) -> Self {
-        Self::with_params(position, crate::gnss::Gnss::default())
-    }
-
     /// Attached to actor `id`.
     pub fn attached_to(mut self, id: u64) -> Self {
         self.attach_to = id;
@@ -252,40 +162,6 @@ impl SensorSpec {
     /// The kind, if known.
     pub fn sensor_kind(&self) -> Option<SensorKind> {
         SensorKind::from_u32(self.kind)
-    }
-
-    /// How many payload elements one capture holds (pixels, lidar slots, 1).
-    pub fn elements(&self) -> usize {
-        match self.sensor_params() {
-            Some(p) if p.kind().is_camera() => {
-                let [w, h] = p.size();
-                w as usize * h as usize
-            }
-            Some(SensorParams::Lidar(l) | SensorParams::SemanticLidar(l)) => {
-                l.channels as usize * l.points as usize
-            }
-            Some(SensorParams::Radar(r)) => r.capacity().max(1),
-            Some(SensorParams::Collision(_)) => crate::events::MAX_COLLISION_EVENTS,
-            _ => 1,
-        }
-    }
-
-    /// The bytes of one capture's payload.
-    pub fn payload_bytes(&self) -> usize {
-        let element = match self.sensor_kind() {
-            Some(SensorKind::Depth) => std::mem::size_of::<f32>(),
-            Some(SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance) => {
-                std::mem::size_of::<crate::Bgra>()
-            }
-            Some(SensorKind::Lidar) => std::mem::size_of::<LidarPoint>(),
-            Some(SensorKind::SemanticLidar) => std::mem::size_of::<crate::SemanticLidarPoint>(),
-            Some(SensorKind::Radar) => std::mem::size_of::<crate::RadarDetection>(),
-            Some(SensorKind::Gnss) => std::mem::size_of::<crate::GnssMeasurement>(),
-            Some(SensorKind::Collision) => std::mem::size_of::<crate::CollisionEvent>(),
-            Some(SensorKind::Obstacle) => std::mem::size_of::<crate::ObstacleDetection>(),
-            _ => std::mem::size_of::<ImuMeasurement>(),
-        };
-        self.elements() * element
     }
 }
 
@@ -464,13 +340,15 @@ impl SensorRequest {
 pub struct SensorResponseHeader {
     /// [`PROTOCOL_VERSION`] of the server.
     pub protocol_version: u32,
-    /// [`crate::ResponseStatus`] as `u32`.
+    /// [`ResponseStatus`](crate::wire::ResponseStatus) as `u32`.
     pub status: u32,
-    /// With [`crate::ResponseStatus::Refused`]: why, as [`SensorRefusal`].
+    /// With [`ResponseStatus::Refused`](crate::wire::ResponseStatus::Refused): why, as [`SensorRefusal`].
     pub error: u32,
     /// Zero.
     pub reserved: u32,
 }
+
+crate::wire::responses!(SensorResponseHeader);
 
 wire_enum! {
     /// Why the server refused a sensor request ([`SensorResponseHeader::error`]).

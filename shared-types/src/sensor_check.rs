@@ -1,10 +1,11 @@
 //! What a [`SensorSpec`] may be: each limit, and the error that states
 //! the one a spec breaks.
 
-use crate::{
-    SensorKind, SensorParams, SensorSpec, MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS,
+use crate::sensor::{
+    SensorKind, SensorSpec, MAX_CAPTURE_BYTES, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS,
     MAX_LIDAR_POINTS, MAX_SENSOR_TICK_SECONDS,
 };
+use crate::sensor_params::SensorParams;
 
 /// Why a [`SensorSpec`] cannot build a sensor; each message states the
 /// limit that was broken.
@@ -138,7 +139,7 @@ impl SensorSpec {
                     return Err(SensorSpecError::LidarRotation);
                 }
                 let semantic = self.sensor_kind() == Some(SensorKind::SemanticLidar);
-                let noisy = l.noise != crate::LidarNoise::default();
+                let noisy = l.noise != crate::sensor_params::LidarNoise::default();
                 if !l.noise.valid(p[11]) || (semantic && noisy) {
                     return Err(SensorSpecError::LidarNoise);
                 }

@@ -16,7 +16,7 @@
 use crate::events::{Collision, Obstacle};
 use crate::gnss::Gnss;
 use crate::ranging::Radar;
-use crate::{SensorKind, SensorSpec, SENSOR_PARAMS};
+use crate::sensor::{SensorKind, SensorSpec, SENSOR_PARAMS};
 
 /// A ray-cast camera's parameters: the depth camera's, and the RGB,
 /// semantic and instance segmentation cameras' (cameras of one parent,
@@ -152,7 +152,7 @@ impl SensorParams {
         }
     }
 
-    /// The capture's size as [`crate::SensorHeader::size`] states it: a
+    /// The capture's size as [`SensorHeader::size`](crate::sensor::SensorHeader::size) states it: a
     /// camera's width and height, a lidar's channels and points per
     /// channel; zeros for the others (a radar's and an event sensor's
     /// captures say their count).

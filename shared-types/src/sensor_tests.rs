@@ -1,7 +1,7 @@
 //! The sensor wire types' rules: what a spec may be, and the kinds' names.
 
 use super::*;
-use crate::SensorSpecError;
+use crate::sensor_check::SensorSpecError;
 
 #[test]
 fn specs_are_checked() {
@@ -92,7 +92,7 @@ fn kinds_round_trip_through_their_names() {
 
 #[test]
 fn every_camera_kind_is_checked_as_the_depth_camera_is() {
-    use crate::SensorSpecError as E;
+    use crate::sensor_check::SensorSpecError as E;
     for kind in [SensorKind::Rgb, SensorKind::Semantic, SensorKind::Instance] {
         assert!(kind.is_camera());
         let camera =
@@ -131,7 +131,7 @@ fn a_semantic_lidar_is_a_lidar_that_stays_semantic() {
     assert!(spec.check().is_ok());
     let upside_down = SensorSpec::semantic_lidar(
         [0.0; 3],
-        crate::Lidar {
+        crate::sensor_params::Lidar {
             upper_fov: -30.0,
             lower_fov: 10.0,
             ..lidar
@@ -147,7 +147,7 @@ fn a_semantic_lidar_is_a_lidar_that_stays_semantic() {
 
 #[test]
 fn radars_are_checked_as_sent() {
-    let radar = crate::Radar::default();
+    let radar = crate::ranging::Radar::default();
     let spec = SensorSpec::with_params([0.0; 3], radar);
     assert_eq!(spec.params[..4], [30.0, 30.0, 100.0, 1500.0]);
     assert_eq!(spec.radar_params(), Some(radar));

@@ -2,8 +2,8 @@
 
 use std::fmt;
 
+use crate::substep_rule::SubstepRule;
 use crate::wire::wire_enum;
-use crate::{SubstepRule, NANOS_PER_SECOND};
 
 /// The largest `max_substeps` accepted (CARLA's limit).
 pub const MAX_SUBSTEPS_LIMIT: u32 = 16;
@@ -35,6 +35,9 @@ pub const LONG_SUBSTEP_SECONDS: f64 = 1.0 / 60.0;
 /// `seconds_to_nanos(s) > LONG_SUBSTEP_NS` agrees with
 /// `s > LONG_SUBSTEP_SECONDS` at the boundary.
 pub const LONG_SUBSTEP_NS: u64 = 16_666_667;
+
+/// Nanoseconds in one second: simulation time is kept as integer nanoseconds.
+pub const NANOS_PER_SECOND: u64 = 1_000_000_000;
 
 /// Converts seconds to the integer nanoseconds the clock keeps, rounding to
 /// the nearest nanosecond (0.1 s is exactly 100 000 000 ns).
@@ -157,7 +160,7 @@ impl fmt::Display for SettingsField {
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum SettingsError {
     /// A value is NaN or infinite.
-    #[error("{field} = {} is not a finite number", crate::Exact(*value))]
+    #[error("{field} = {} is not a finite number", crate::number::Exact(*value))]
     NotFinite {
         /// The setting.
         field: SettingsField,
@@ -165,7 +168,7 @@ pub enum SettingsError {
         value: f64,
     },
     /// A value is negative.
-    #[error("{field} = {} is negative; {}", crate::Exact(*value), field.sign_rule())]
+    #[error("{field} = {} is negative; {}", crate::number::Exact(*value), field.sign_rule())]
     Negative {
         /// The setting.
         field: SettingsField,
@@ -175,8 +178,8 @@ pub enum SettingsError {
     /// A time is shorter than [`MIN_DELTA_SECONDS`].
     #[error(
         "{field} = {} s is shorter than the minimum of {} s",
-        crate::Exact(*value),
-        crate::Exact(*min)
+        crate::number::Exact(*value),
+        crate::number::Exact(*min)
     )]
     TooSmall {
         /// The setting.
@@ -189,8 +192,8 @@ pub enum SettingsError {
     /// A time is longer than [`MAX_DELTA_SECONDS`].
     #[error(
         "{field} = {} s is longer than the maximum of {} s",
-        crate::Exact(*value),
-        crate::Exact(*max)
+        crate::number::Exact(*value),
+        crate::number::Exact(*max)
     )]
     TooLarge {
         /// The setting.

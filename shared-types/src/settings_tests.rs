@@ -1,7 +1,7 @@
 //! Unit tests of [`super`]: validation, warnings, display and the wire.
 
 use super::*;
-use crate::{WireSettings, WireSettingsError};
+use crate::settings_wire::{WireSettings, WireSettingsError};
 
 fn fixed(dt: f64) -> WorldSettings {
     WorldSettings {

@@ -3,8 +3,9 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::settings::WorldSettings;
 use crate::settings::{SettingsError, SettingsField};
-use crate::{SubstepRule, WorldSettings};
+use crate::substep_rule::SubstepRule;
 
 /// [`WorldSettings`] as they travel in shared memory.
 ///

@@ -11,7 +11,7 @@ use crate::wire::wire_enum;
 
 wire_enum! {
     /// What a frame longer than `max_substeps × max_substep_delta_time`
-    /// does. Travels in [`crate::WireSettings::substep_rule`]; 0 (what every
+    /// does. Travels in [`WireSettings::substep_rule`](crate::settings_wire::WireSettings::substep_rule); 0 (what every
     /// older peer and recording holds) is [`SubstepRule::Refuse`].
     #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
     #[serde(rename_all = "lowercase")]
@@ -22,11 +22,11 @@ wire_enum! {
         /// CARLA's behaviour: physics advances at most `max_substeps`
         /// substeps of `max_substep_delta_time` while the frame's timestamp
         /// advances the full delta; each such frame is flagged
-        /// [`crate::FrameHeader::PHYSICS_CLAMPED`].
+        /// [`FrameHeader::PHYSICS_CLAMPED`](crate::frame::FrameHeader::PHYSICS_CLAMPED).
         Clamp = 1,
         /// Substeps are lengthened to `delta / max_substeps`, so physics
         /// keeps pace with time (each such frame is flagged
-        /// [`crate::FrameHeader::SUBSTEPS_CAPPED`]).
+        /// [`FrameHeader::SUBSTEPS_CAPPED`](crate::frame::FrameHeader::SUBSTEPS_CAPPED)).
         Stretch = 2,
     }
 }
@@ -124,8 +124,8 @@ mod tests {
     }
 
     /// CARLA's example: synchronous, 0.2 s frames, the default 0.01 s x 10.
-    fn carla_example(rule: SubstepRule) -> crate::WorldSettings {
-        crate::WorldSettings {
+    fn carla_example(rule: SubstepRule) -> crate::settings::WorldSettings {
+        crate::settings::WorldSettings {
             synchronous_mode: true,
             fixed_delta_seconds: Some(0.2),
             substep_rule: rule,
@@ -147,7 +147,7 @@ mod tests {
 
     #[test]
     fn clamp_and_stretch_accept_long_frames_and_say_what_they_do() {
-        use crate::SettingsWarning;
+        use crate::settings::SettingsWarning;
         let clamp = carla_example(SubstepRule::Clamp);
         assert_eq!(clamp.validate(), Ok(()));
         assert!(clamp.clamps_physics());
@@ -176,7 +176,7 @@ mod tests {
             ] if (substep_seconds - 0.02).abs() < 1e-12
         ));
         // Within the limit every rule is the same.
-        let short = crate::WorldSettings {
+        let short = crate::settings::WorldSettings {
             fixed_delta_seconds: Some(0.05),
             ..clamp
         };

@@ -5,11 +5,11 @@
 use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::settings::{SettingsError, WorldSettings};
+use crate::settings_wire::{WireSettings, WireSettingsError};
 use crate::wire::wire_enum;
-use crate::{
-    FixedText, ResponseStatus, SettingsError, WireSettings, WireSettingsError, WorldSettings,
-    PROTOCOL_VERSION,
-};
+use crate::wire::PROTOCOL_VERSION;
+use crate::wire::{FixedText, ResponseStatus};
 
 wire_enum! {
     /// What a [`TickRequest`] asks for.
@@ -120,7 +120,7 @@ impl TickRequest {
         Self {
             protocol_version: PROTOCOL_VERSION,
             kind: kind as u32,
-            pid: crate::this_process_id(),
+            pid: crate::wire::this_process_id(),
             flags: 0,
             settings: WorldSettings::default().into(),
             node_name: FixedText::new(node_name),
@@ -158,6 +158,8 @@ pub struct TickResponse {
     /// mode (`since_frame`: the frame at which it did).
     pub revoked_by: TickerInfo,
 }
+
+crate::wire::responses!(TickResponse);
 
 impl TickResponse {
     /// A response with `status` about `frame`.

@@ -7,7 +7,7 @@
 //! All-zero params build simbus's original vehicle (2 × 0.5 × 1 m,
 //! 100 kg), so clients that never set them see no change.
 //!
-//! [`CommandKind::SpawnVehicle`]: crate::CommandKind::SpawnVehicle
+//! [`CommandKind::SpawnVehicle`]: crate::command::CommandKind::SpawnVehicle
 
 /// The original vehicle's chassis half extents (simbus axes: X length,
 /// Y height, Z width): 2 m long, 0.5 m high, 1 m wide.

@@ -2,6 +2,9 @@
 //! once with [`wire_enum!`], and the error for a value this version does not
 //! know ([`UnknownWireValue`]).
 
+use bytemuck::{Pod, Zeroable};
+use iceoryx2::prelude::ZeroCopySend;
+
 /// A `u32` from a peer that names no variant of a wire enum: the peer speaks
 /// a newer (or broken) protocol.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -97,86 +100,101 @@ macro_rules! wire_enum {
 
 pub(crate) use wire_enum;
 
-#[cfg(test)]
-mod tests {
-    use std::fmt::Debug;
+wire_enum! {
+    /// How the server answered a request (a
+    /// [`ControlRequest`](crate::control::ControlRequest), a tick, a batch, ...).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum ResponseStatus {
+        /// Done.
+        Ok = 0,
+        /// The request's protocol version is not the server's; nothing was done.
+        ProtocolMismatch = 1,
+        /// The settings were refused ([`ControlResponse::settings_error`]); nothing changed.
+        InvalidSettings = 2,
+        /// The request kind is unknown to this server; nothing was done.
+        UnknownRequest = 3,
+        /// Synchronous mode is entered by the tick owner, not by settings alone.
+        SyncNeedsTicker = 4,
+        /// Only the tick owner may do this (or the sender is not the owner).
+        NotTicker = 5,
+        /// The scene name is not one the server knows; nothing changed.
+        UnknownScene = 6,
+        /// Tick service: this client's tick ownership ended because another
+        /// client left synchronous mode (`TickResponse::revoked_by` names it).
+        Revoked = 7,
+        /// Tick service, an interim answer: the tick waits for a lockstep
+        /// participant (`TickResponse::waiting_for`), which the server drops
+        /// after `TickResponse::lockstep_timeout_ns`. The final answer follows.
+        WaitingForParticipants = 8,
+        /// Lockstep service: the sender is not (or no longer) a participant;
+        /// the server dropped it or it never joined.
+        NotParticipant = 9,
+        /// Loading or reloading the world failed on the server (its log says
+        /// why); the world is unchanged.
+        LoadFailed = 10,
+        /// The request was refused; the answer's error code says why (a
+        /// sensor request: [`SensorRefusal`](crate::sensor::SensorRefusal)). Nothing changed.
+        Refused = 11,
+        /// Batch service: the world is replaying a recording, whose actors
+        /// follow the recording; commands are refused until the replay ends.
+        Replaying = 12,
+        /// A mirroring bridge answers for a server on another host that it
+        /// cannot reach now (the link is down or the exporting bridge is
+        /// gone); nothing was done.
+        Unreachable = 13,
+        /// No snapshot has the id asked for; nothing changed.
+        UnknownSnapshot = 14,
+        /// The server holds as many snapshots as it keeps
+        /// ([`MAX_SNAPSHOTS`]); drop one first. Nothing changed.
+        SnapshotsFull = 15,
+    }
+}
 
-    use super::UnknownWireValue;
-    use crate::*;
+/// Up to 64 bytes of UTF-8 text in a fixed-size field (scene names).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, ZeroCopySend)]
+#[type_name("simbus::FixedText/1")]
+pub struct FixedText {
+    /// Bytes in use.
+    pub len: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The text, zero-padded.
+    pub bytes: [u8; 64],
+}
 
-    /// Every variant of `all` survives `u32` and back; the smallest value
-    /// that is no variant, and `u32::MAX`, are refused with an error naming
-    /// the type and the value.
-    fn round_trips<T>(type_name: &'static str, all: &[T])
-    where
-        T: Copy + PartialEq + Debug + Into<u32> + TryFrom<u32, Error = UnknownWireValue>,
-    {
-        assert!(!all.is_empty(), "{type_name}::ALL is empty");
-        for &variant in all {
-            let value: u32 = variant.into();
-            assert_eq!(T::try_from(value), Ok(variant), "{type_name} value {value}");
-        }
-        let unknown = (0..).find(|v| all.iter().all(|&k| k.into() != *v));
-        for value in [unknown.unwrap(), u32::MAX] {
-            let error = T::try_from(value).unwrap_err();
-            assert_eq!(error, UnknownWireValue { type_name, value });
-            assert_eq!(
-                error.to_string(),
-                format!("{value} is not a {type_name} known to this version of simbus")
-            );
+impl FixedText {
+    /// `text` cut to at most 64 bytes at a character boundary.
+    pub fn new(text: &str) -> Self {
+        let (len, bytes) = crate::wire::text_field(text);
+        Self {
+            len,
+            reserved: 0,
+            bytes,
         }
     }
 
-    #[test]
-    fn every_wire_enum_round_trips_and_refuses_unknown_values() {
-        round_trips("RequestKind", &RequestKind::ALL);
-        round_trips("Doorbell", &Doorbell::ALL);
-        round_trips("ResponseStatus", &ResponseStatus::ALL);
-        round_trips("TickRequestKind", &TickRequestKind::ALL);
-        round_trips("LockstepKind", &LockstepKind::ALL);
-        round_trips("SensorKind", &SensorKind::ALL);
-        round_trips("SensorRequestKind", &SensorRequestKind::ALL);
-        round_trips("SensorEnd", &SensorEnd::ALL);
-        round_trips("SensorRefusal", &SensorRefusal::ALL);
-        round_trips("CommandKind", &CommandKind::ALL);
-        round_trips("CommandStatus", &CommandStatus::ALL);
-        round_trips("ActorKind", &ActorKind::ALL);
-        round_trips("SettingsField", &SettingsField::ALL);
-        round_trips("SubstepRule", &crate::SubstepRule::ALL);
-        round_trips("RecorderKind", &crate::RecorderKind::ALL);
-        round_trips("ReplayMode", &crate::ReplayMode::ALL);
-        round_trips("ReplayState", &crate::ReplayState::ALL);
-        round_trips("RecorderRefusal", &crate::RecorderRefusal::ALL);
-        // `from_u32` is `try_from(..).ok()`.
-        assert_eq!(
-            ResponseStatus::from_u32(9),
-            Some(ResponseStatus::NotParticipant)
-        );
-        assert_eq!(
-            ResponseStatus::from_u32(13),
-            Some(ResponseStatus::Unreachable)
-        );
-        assert_eq!(
-            ResponseStatus::from_u32(15),
-            Some(ResponseStatus::SnapshotsFull)
-        );
-        assert_eq!(ResponseStatus::from_u32(16), None);
+    /// The text; invalid bytes from a misbehaving peer read as `?`.
+    pub fn to_string_lossy(&self) -> String {
+        crate::wire::text_of(self.len, &self.bytes)
     }
 }
 
 /// An answer of a request service: the server's protocol version and a
-/// [`crate::ResponseStatus`]. Every request service's answer (or answer
+/// [`ResponseStatus`](crate::wire::ResponseStatus). Every request service's answer (or answer
 /// header) implements it, so a client checks all of them the same way.
 pub trait Response {
-    /// The server's [`crate::PROTOCOL_VERSION`].
+    /// The server's [`PROTOCOL_VERSION`](crate::wire::PROTOCOL_VERSION).
     fn protocol_version(&self) -> u32;
-    /// A [`crate::ResponseStatus`] as `u32`.
+    /// A [`ResponseStatus`](crate::wire::ResponseStatus) as `u32`.
     fn status(&self) -> u32;
 }
 
+/// Implements [`Response`] for answer types with `protocol_version` and
+/// `status` fields.
 macro_rules! responses {
     ($($t:ty),*) => {$(
-        impl Response for $t {
+        impl $crate::wire::Response for $t {
             fn protocol_version(&self) -> u32 {
                 self.protocol_version
             }
@@ -186,11 +204,20 @@ macro_rules! responses {
         }
     )*};
 }
-responses!(
-    crate::ControlResponse,
-    crate::TickResponse,
-    crate::LockstepResponse,
-    crate::BatchResponseHeader,
-    crate::SensorResponseHeader,
-    crate::RecorderResponse
-);
+pub(crate) use responses;
+
+/// Version of the simbus wire protocol. Every payload carries it; a peer that
+/// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
+/// service it cannot open) instead of misread bytes.
+pub const PROTOCOL_VERSION: u32 = 7;
+
+/// This process's id, read once: every request carries it, and asking the
+/// kernel for it on every request would be a syscall on the hot path.
+pub fn this_process_id() -> u32 {
+    static PID: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *PID.get_or_init(std::process::id)
+}
+
+#[cfg(test)]
+#[path = "wire_tests.rs"]
+mod tests;

@@ -15,9 +15,9 @@ use simbus_transport::EarlierClients;
 use tracing::{debug, warn};
 
 use crate::clock::Clock;
+use crate::error::PortError;
 use crate::ports::{sender_pid, Transport};
 use crate::world::World;
-use crate::ServerError;
 
 type BatchServer = RequestServer<Bus, [Command], BatchHeader, [CommandResult], BatchResponseHeader>;
 
@@ -46,15 +46,15 @@ pub(crate) struct Batches {
 impl Batches {
     /// Opens the batch service. A batch is never dropped: a sender that
     /// outruns the server waits.
-    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, PortError> {
         let spec = &transport.services.batch;
         let service = spec
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("batch service", e))?;
+            .map_err(|e| PortError::transport("batch service", e))?;
         let earlier = EarlierClients::of(service.dynamic_config());
         let port = spec
             .server(&service)
-            .map_err(|e| ServerError::transport("batch server", e))?;
+            .map_err(|e| PortError::transport("batch server", e))?;
         Ok(Self { port, earlier })
     }
 
@@ -69,12 +69,12 @@ impl Batches {
         ticker_pid: Option<u32>,
         clock: &Clock,
         mut effect: impl FnMut(BatchEffect<'_>),
-    ) -> Result<bool, ServerError> {
+    ) -> Result<bool, PortError> {
         let mut applied = false;
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("batch receive", e))?
+            .map_err(|e| PortError::transport("batch receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");
@@ -113,11 +113,11 @@ impl Batches {
 impl Batches {
     /// Refuses every pending batch: a replay runs, its actors follow the
     /// recording (and a spawn would shift the recorded actor ids).
-    pub(crate) fn refuse_while_replaying(&mut self, clock: &Clock) -> Result<(), ServerError> {
+    pub(crate) fn refuse_while_replaying(&mut self, clock: &Clock) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("batch receive", e))?
+            .map_err(|e| PortError::transport("batch receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");

@@ -2,13 +2,14 @@
 //! life. What changes while it runs (settings, scene, episode) is
 //! [`crate::state::Runtime`].
 
-use std::num::NonZeroUsize;
+use std::num::{NonZeroU64, NonZeroUsize};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use shared_types::limits::WorldLimits;
 use shared_types::{WaitMode, WorldName, WorldSettings};
 
-use crate::{OnTickerLoss, Scene};
+use crate::scene::Scene;
 
 /// How a server is started.
 #[derive(Debug, Clone)]
@@ -17,7 +18,7 @@ pub struct ServerConfig {
     pub world: WorldName,
     /// The scene loaded at start.
     pub scene: Scene,
-    /// The settings at start (validated by [`crate::Server::start`]).
+    /// The settings at start (validated by `Server::start`).
     pub settings: WorldSettings,
     /// Fixed step, async: pace frames so simulation time follows wall time.
     pub realtime: bool,
@@ -48,7 +49,7 @@ pub struct ServerConfig {
     /// a capture.
     pub render_threads: Option<NonZeroUsize>,
     /// Journal the run into a directory (`None`: no journal).
-    pub journal: Option<crate::JournalOptions>,
+    pub journal: Option<JournalOptions>,
 }
 
 impl ServerConfig {
@@ -74,4 +75,66 @@ impl ServerConfig {
             journal: None,
         }
     }
+}
+
+/// The policy when the ticker dies while the world is in synchronous mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnTickerLoss {
+    /// Stay in synchronous mode and wait for a new ticker.
+    #[default]
+    Wait,
+    /// Fall back to asynchronous mode.
+    Async,
+}
+
+/// How often the journal is made durable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum JournalSync {
+    /// Every frame in synchronous mode, every 50 frames in asynchronous mode.
+    #[default]
+    Default,
+    /// At least every N frames.
+    Frames(NonZeroU64),
+}
+
+impl JournalSync {
+    /// Frames between two syncs under `settings`.
+    pub(crate) fn every(self, settings: &WorldSettings) -> u64 {
+        match self {
+            Self::Frames(n) => n.get(),
+            Self::Default if settings.synchronous_mode => 1,
+            Self::Default => 50,
+        }
+    }
+}
+
+impl std::fmt::Display for JournalSync {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Default => f.write_str("frames:1 (synchronous) / frames:50 (asynchronous)"),
+            Self::Frames(n) => write!(f, "frames:{n}"),
+        }
+    }
+}
+
+impl std::str::FromStr for JournalSync {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let n = text
+            .strip_prefix("frames:")
+            .ok_or_else(|| format!("'{text}' is not a sync policy: write frames:N (N >= 1)"))?;
+        n.parse::<NonZeroU64>()
+            .map(Self::Frames)
+            .map_err(|_| format!("'{n}' in '{text}' is not a whole number of frames >= 1"))
+    }
+}
+
+/// Where and how a server journals.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct JournalOptions {
+    /// The directory of segments.
+    pub dir: PathBuf,
+    /// How often it is made durable.
+    pub sync: JournalSync,
 }

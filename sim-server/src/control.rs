@@ -15,8 +15,9 @@ use shared_types::{
 use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
+use crate::error::PortError;
 use crate::ports::{sender_pid, Transport};
-use crate::{Scene, ServerError};
+use crate::scene::Scene;
 
 /// Below this, waits are plain sleeps (event timeouts are this coarse).
 const COARSE_WAIT: Duration = Duration::from_millis(5);
@@ -71,27 +72,27 @@ impl Control {
         transport: &Transport,
         world: &WorldName,
         limits: &WorldLimits,
-    ) -> Result<Self, ServerError> {
+    ) -> Result<Self, PortError> {
         use iceoryx2::service::port_factory::server::ServerCreateError;
         let (node, services) = (&transport.node, &transport.services);
         let service = services
             .control
             .open_or_create(node, limits)
-            .map_err(|e| ServerError::transport("control service", e))?;
+            .map_err(|e| PortError::transport("control service", e))?;
         let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
         let port = service.server_builder().create().map_err(|e| match e {
-            ServerCreateError::ExceedsMaxSupportedServers => ServerError::AlreadyRunning {
+            ServerCreateError::ExceedsMaxSupportedServers => PortError::AlreadyRunning {
                 world: world.to_string(),
             },
-            e => ServerError::transport("control server", e),
+            e => PortError::transport("control server", e),
         })?;
         let wake = services
             .control_wake
             .open_or_create(node, limits)
-            .map_err(|e| ServerError::transport("control wake-up service", e))?
+            .map_err(|e| PortError::transport("control wake-up service", e))?
             .listener_builder()
             .create()
-            .map_err(|e| ServerError::transport("control wake-up listener", e))?;
+            .map_err(|e| PortError::transport("control wake-up listener", e))?;
         Ok(Self {
             port,
             earlier,
@@ -105,7 +106,7 @@ impl Control {
     /// The event listener's timeout is rounded up to the kernel's tick (a
     /// few milliseconds), so the last stretch before a due frame is a plain,
     /// precise sleep.
-    pub(crate) fn idle(&mut self, timeout: Duration) -> Result<(), ServerError> {
+    pub(crate) fn idle(&mut self, timeout: Duration) -> Result<(), PortError> {
         if timeout <= COARSE_WAIT {
             std::thread::sleep(timeout);
             return Ok(());
@@ -116,7 +117,7 @@ impl Control {
     /// Sleeps until a client announces a request, or about `timeout` passed
     /// (as coarse as the event's timeouts: for waits that need no precise
     /// end, such as a synchronous world waiting for its tick).
-    pub(crate) fn wait_for_request(&mut self, timeout: Duration) -> Result<(), ServerError> {
+    pub(crate) fn wait_for_request(&mut self, timeout: Duration) -> Result<(), PortError> {
         let rung = &mut self.rung;
         let waited = self
             .wake
@@ -125,7 +126,7 @@ impl Control {
         match waited {
             // A signal (Ctrl-C) ends the sleep early; the loop looks at the flag.
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
-            Err(e) => Err(ServerError::transport("control wake-up wait", e)),
+            Err(e) => Err(PortError::transport("control wake-up wait", e)),
         }
     }
 
@@ -135,11 +136,11 @@ impl Control {
     /// frame-ready event after answering what was announced (a client
     /// waiting for an answer on that event, the Zenoh exporter, wakes).
     /// Costs no system call.
-    pub(crate) fn take_rung(&mut self) -> Result<Rung, ServerError> {
+    pub(crate) fn take_rung(&mut self) -> Result<Rung, PortError> {
         let rung = &mut self.rung;
         match self.wake.try_wait(|event| rung.ring(event.id.as_value())) {
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-            Err(e) => return Err(ServerError::transport("control wake-up wait", e)),
+            Err(e) => return Err(PortError::transport("control wake-up wait", e)),
         }
         Ok(std::mem::take(&mut self.rung))
     }
@@ -149,11 +150,11 @@ impl Control {
     pub(crate) fn handle(
         &mut self,
         mut answer: impl FnMut(ControlCall) -> ControlResponse,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("control receive", e))?
+            .map_err(|e| PortError::transport("control receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");

@@ -10,9 +10,9 @@ use simbus_transport::frames::{send_frame, FramePublisher};
 use simbus_transport::Bus;
 use tracing::debug;
 
+use crate::error::PortError;
 use crate::ports::Transport;
 use crate::world::World;
-use crate::ServerError;
 
 /// The frame publisher and the frame-ready notifier.
 #[derive(Debug)]
@@ -28,36 +28,36 @@ impl Frames {
         transport: &Transport,
         initial_actors: usize,
         limits: &WorldLimits,
-    ) -> Result<Self, ServerError> {
+    ) -> Result<Self, PortError> {
         let (node, services) = (&transport.node, &transport.services);
         let frames = services
             .frames
             .open_or_create(node, limits)
-            .map_err(|e| ServerError::transport("frames service", e))?;
+            .map_err(|e| PortError::transport("frames service", e))?;
         let publisher = services
             .frames
             .publisher(
                 &frames,
                 frame_slice_len(initial_actors.max(INITIAL_MAX_ACTORS)),
             )
-            .map_err(|e| ServerError::transport("frames publisher", e))?;
+            .map_err(|e| PortError::transport("frames publisher", e))?;
         let ready = services
             .frame_ready
             .open_or_create(node, limits)
-            .map_err(|e| ServerError::transport("frame-ready service", e))?
+            .map_err(|e| PortError::transport("frame-ready service", e))?
             .notifier_builder()
             .create()
-            .map_err(|e| ServerError::transport("frame-ready notifier", e))?;
+            .map_err(|e| PortError::transport("frame-ready notifier", e))?;
         Ok(Self { publisher, ready })
     }
 
     /// Writes `header`, every actor of `world` and their poses straight
     /// into a loaned sample and sends it. No copy, no allocation.
-    pub(crate) fn publish(&self, header: FrameHeader, world: &World) -> Result<(), ServerError> {
+    pub(crate) fn publish(&self, header: FrameHeader, world: &World) -> Result<(), PortError> {
         send_frame(&self.publisher, header, world.actor_count(), |i| {
             world.actor_state(i)
         })
-        .map_err(|e| ServerError::transport("frame send", e))
+        .map_err(|e| PortError::transport("frame send", e))
     }
 
     /// Sends `header` with `actors` (a replayed frame).
@@ -65,16 +65,16 @@ impl Frames {
         &self,
         header: FrameHeader,
         actors: &[ActorState],
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         send_frame(&self.publisher, header, actors.len(), |i| actors[i])
-            .map_err(|e| ServerError::transport("frame send", e))
+            .map_err(|e| PortError::transport("frame send", e))
     }
 
     /// Wakes every client blocked on the frame-ready event.
-    pub(crate) fn notify(&self) -> Result<(), ServerError> {
+    pub(crate) fn notify(&self) -> Result<(), PortError> {
         self.ready
             .notify()
-            .map_err(|e| ServerError::transport("frame-ready notify", e))?;
+            .map_err(|e| PortError::transport("frame-ready notify", e))?;
         Ok(())
     }
 

@@ -18,9 +18,9 @@ use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
+use crate::error::PortError;
 use crate::liveness::LiveProcesses;
 use crate::ports::{sender_pid, Transport};
-use crate::ServerError;
 
 /// A tick held up by a participant this long is told which one, and how
 /// long the server will wait for it, so the ticker's own timeout can wait
@@ -44,17 +44,17 @@ pub(crate) struct Lockstep {
 
 impl Lockstep {
     /// Opens the lockstep service.
-    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, PortError> {
         let service = transport
             .services
             .lockstep
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("lockstep service", e))?;
+            .map_err(|e| PortError::transport("lockstep service", e))?;
         let earlier = EarlierClients::of(service.dynamic_config());
         let port = service
             .server_builder()
             .create()
-            .map_err(|e| ServerError::transport("lockstep server", e))?;
+            .map_err(|e| PortError::transport("lockstep server", e))?;
         Ok(Self {
             port,
             earlier,
@@ -88,11 +88,11 @@ impl Lockstep {
     /// Joins, leaves and "done with frame N" of participants. A "done"
     /// from a client that is not (or no longer) a participant is answered
     /// `NotParticipant`, so a dropped one learns it.
-    pub(crate) fn handle(&mut self, episode: u64, clock: &Clock) -> Result<(), ServerError> {
+    pub(crate) fn handle(&mut self, episode: u64, clock: &Clock) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("lockstep receive", e))?
+            .map_err(|e| PortError::transport("lockstep receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");

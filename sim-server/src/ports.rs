@@ -8,7 +8,7 @@ use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 use tracing::{info, warn};
 
-use crate::ServerError;
+use crate::error::PortError;
 
 /// The server's node and the descriptions of its world's services.
 #[derive(Debug)]
@@ -22,8 +22,8 @@ pub(crate) struct Transport {
 impl Transport {
     /// Creates the server's node for `world`, removing what dead processes
     /// left behind (a crashed predecessor's services included).
-    pub(crate) fn open(world: &WorldName) -> Result<Self, ServerError> {
-        simbus_transport::environment::prepare().map_err(ServerError::SharedDirectory)?;
+    pub(crate) fn open(world: &WorldName) -> Result<Self, PortError> {
+        simbus_transport::environment::prepare().map_err(PortError::SharedDirectory)?;
         // Count the dead first so the log says it happened.
         let mut dead = 0u32;
         let _ = Node::<Bus>::list(Config::global_config(), |state| {
@@ -36,7 +36,7 @@ impl Transport {
             info!("removing resources left by {dead} dead process(es)");
         }
         let node =
-            simbus_transport::node("sim-server").map_err(|e| ServerError::transport("node", e))?;
+            simbus_transport::node("sim-server").map_err(|e| PortError::transport("node", e))?;
         let cleanup = node.try_cleanup_dead_nodes();
         if cleanup.failed_cleanups > 0 {
             warn!(
@@ -46,7 +46,7 @@ impl Transport {
         }
         let names = ServiceNames::new(world);
         let services =
-            WorldServices::new(&names).map_err(|e| ServerError::transport("service name", e))?;
+            WorldServices::new(&names).map_err(|e| PortError::transport("service name", e))?;
         Ok(Self { node, services })
     }
 }

@@ -6,7 +6,7 @@
 
 use shared_types::{SensorSpec, SnapshotInfo, SnapshotList, WorldSettings, MAX_SNAPSHOTS};
 
-use crate::Scene;
+use crate::scene::Scene;
 
 /// One saved world.
 #[derive(Debug)]

@@ -1,6 +1,6 @@
 //! What changes while a server runs: the settings in force, the scene and
 //! episode, and the pacing of asynchronous frames. The settings the server
-//! was started with stay in [`crate::ServerConfig`].
+//! was started with stay in [`ServerConfig`](crate::config::ServerConfig).
 
 use std::time::{Duration, Instant};
 
@@ -10,7 +10,8 @@ use tracing::{info, warn};
 use shared_types::LONG_FRAME_NS;
 
 use crate::clock::{long_substep, Pacer, SubstepPlan};
-use crate::{Scene, ServerConfig};
+use crate::config::ServerConfig;
+use crate::scene::Scene;
 
 /// The least time between two "physics unreliable" warnings.
 const WARN_PERIOD: Duration = Duration::from_secs(5);

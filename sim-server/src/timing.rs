@@ -2,13 +2,13 @@
 //! took in each frame, and how long the whole frame took (step, snapshot,
 //! publishing and the loop's bookkeeping until the next frame begins).
 //!
-//! Off unless [`crate::Server::time_frames`] turns it on: a server that was
+//! Off unless `Server::time_frames` turns it on: a server that was
 //! not asked reads no clock and records nothing (one branch per frame and
 //! per substep). Nothing of it goes on the wire.
 
 use std::time::{Duration, Instant};
 
-/// The frames a server timed, in order (see [`crate::Server::time_frames`]).
+/// The frames a server timed, in order (see `Server::time_frames`).
 #[derive(Debug, Clone)]
 pub struct FrameTimings {
     origin: Instant,

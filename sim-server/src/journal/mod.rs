@@ -16,67 +16,16 @@
 
 pub(crate) mod resume;
 
-use std::num::NonZeroU64;
 use std::path::{Path, PathBuf};
 
 use shared_types::{FrameHeader, WorldSettings};
 use simbus_recording::RecordingHeader;
 use tracing::{info, warn};
 
-use crate::recorder::{Recorder, SensorNote, SyncError, Synced};
+use crate::config::JournalOptions;
+use crate::recorder::{Recorder, SyncError, Synced};
+use crate::sensors::SensorNote;
 use crate::world::World;
-
-/// How often the journal is made durable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum JournalSync {
-    /// Every frame in synchronous mode, every 50 frames in asynchronous mode.
-    #[default]
-    Default,
-    /// At least every N frames.
-    Frames(NonZeroU64),
-}
-
-impl JournalSync {
-    /// Frames between two syncs under `settings`.
-    fn every(self, settings: &WorldSettings) -> u64 {
-        match self {
-            Self::Frames(n) => n.get(),
-            Self::Default if settings.synchronous_mode => 1,
-            Self::Default => 50,
-        }
-    }
-}
-
-impl std::fmt::Display for JournalSync {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Default => f.write_str("frames:1 (synchronous) / frames:50 (asynchronous)"),
-            Self::Frames(n) => write!(f, "frames:{n}"),
-        }
-    }
-}
-
-impl std::str::FromStr for JournalSync {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        let n = text
-            .strip_prefix("frames:")
-            .ok_or_else(|| format!("'{text}' is not a sync policy: write frames:N (N >= 1)"))?;
-        n.parse::<NonZeroU64>()
-            .map(Self::Frames)
-            .map_err(|_| format!("'{n}' in '{text}' is not a whole number of frames >= 1"))
-    }
-}
-
-/// Where and how a server journals.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct JournalOptions {
-    /// The directory of segments.
-    pub dir: PathBuf,
-    /// How often it is made durable.
-    pub sync: JournalSync,
-}
 
 /// The name of segment `index` in `dir`.
 pub(crate) fn segment_path(dir: &Path, index: u32) -> PathBuf {
@@ -245,7 +194,7 @@ impl Journal {
             self.unsynced = 0;
             match self.recorder.sync() {
                 Ok(()) => self.durable = Some(at),
-                Err(reason) => self.stop(crate::message(&reason)),
+                Err(reason) => self.stop(crate::error::message(&reason)),
             }
             return;
         }
@@ -260,12 +209,12 @@ impl Journal {
         if let Some((synced, covers)) = self.in_flight.take() {
             match self.recorder.synced(&synced) {
                 Ok(()) => self.durable = Some(covers),
-                Err(reason) => return self.stop(crate::message(&reason)),
+                Err(reason) => return self.stop(crate::error::message(&reason)),
             }
         }
         match self.recorder.request_sync() {
             Ok(synced) => self.in_flight = Some((synced, at)),
-            Err(reason) => self.stop(crate::message(&reason)),
+            Err(reason) => self.stop(crate::error::message(&reason)),
         }
     }
 

@@ -17,10 +17,10 @@ use tracing::{info, warn};
 
 use super::segments;
 use crate::clock::Clock;
-use crate::recorder::Keyframe;
+use crate::keyframe::Keyframe;
 use crate::replayer::{episode_world, recorded_plan};
+use crate::scene::Scene;
 use crate::world::World;
-use crate::Scene;
 
 /// Where a server resumes from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -372,7 +372,7 @@ fn roll(path: &Path, keyframe: usize, target: usize) -> Result<Rolled, ResumeErr
                                 Err(e) => {
                                     return Err(ResumeError::Unusable {
                                         dir: path.to_path_buf(),
-                                        reason: crate::message(&e),
+                                        reason: crate::error::message(&e),
                                     })
                                 }
                             }

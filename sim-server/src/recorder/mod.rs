@@ -10,7 +10,6 @@
 //! killed server leaves every complete chunk readable.
 
 mod create;
-mod keyframe;
 mod refusal;
 mod scene_update;
 mod service;
@@ -19,7 +18,6 @@ mod writer;
 pub use create::{CreateCause, StartError};
 pub use writer::{CloseCause, WriteError};
 
-pub(crate) use keyframe::{Keyframe, KeyframeError};
 pub(crate) use refusal::Refused;
 pub(crate) use service::{RecorderCall, RecorderPort};
 
@@ -28,11 +26,11 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
 use shared_types::{Command, CommandResult, FrameHeader, SensorHeader, NANOS_PER_SECOND};
-use simbus_recording::{
-    RecordedCollision, RecordedCommand, RecordedEvent, RecordedSensor, RecordingHeader,
-};
+use simbus_recording::{RecordedCollision, RecordedCommand, RecordedEvent, RecordingHeader};
 use tracing::{info, warn};
 
+use crate::keyframe::Keyframe;
+use crate::sensors::SensorNote;
 use crate::world::World;
 use writer::{Item, Written};
 
@@ -57,14 +55,6 @@ pub enum SyncError {
 const QUEUE: usize = 256;
 /// A journal's items gathered before they are handed over without a sync.
 const BATCH: usize = 256;
-
-/// A sensor spawned or ended (the sensors domain notes them; the recorder
-/// writes them when recording).
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum SensorNote {
-    Spawned(RecordedSensor),
-    Ended { frame: u64, id: u64 },
-}
 
 /// The running recording.
 #[derive(Debug)]

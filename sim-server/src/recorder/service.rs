@@ -18,9 +18,9 @@ use simbus_transport::Bus;
 use tracing::{debug, warn};
 
 use super::Refused;
+use crate::error::PortError;
 use crate::ports::{sender_pid, Transport};
 use crate::replayer::ReplayRequest;
-use crate::ServerError;
 
 type Port = RequestServer<Bus, RecorderRequest, (), RecorderResponse, ()>;
 type Request = ActiveRequest<Bus, RecorderRequest, (), RecorderResponse, ()>;
@@ -67,17 +67,17 @@ pub(crate) enum RecorderCall {
 
 impl RecorderPort {
     /// Opens the recorder service.
-    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, PortError> {
         let service = transport
             .services
             .recorder
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("recorder service", e))?;
+            .map_err(|e| PortError::transport("recorder service", e))?;
         let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
         let port = service
             .server_builder()
             .create()
-            .map_err(|e| ServerError::transport("recorder server", e))?;
+            .map_err(|e| PortError::transport("recorder server", e))?;
         Ok(Self {
             port,
             earlier,
@@ -91,11 +91,11 @@ impl RecorderPort {
     pub(crate) fn handle(
         &mut self,
         mut answer: impl FnMut(RecorderCall, u32) -> Option<RecorderResponse>,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("recorder receive", e))?
+            .map_err(|e| PortError::transport("recorder receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 tracing::debug!("dropped a request from a client of the previous server");

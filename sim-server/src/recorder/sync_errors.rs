@@ -7,8 +7,8 @@ use shared_types::FrameHeader;
 use simbus_recording::{RecordedSettings, RecordingHeader, RECORDING_VERSION};
 use std::io::ErrorKind;
 
-use super::super::{Recorder, SyncError};
 use super::{io_kind, WriteError};
+use crate::recorder::{Recorder, SyncError};
 use crate::world::World;
 
 fn header() -> RecordingHeader {

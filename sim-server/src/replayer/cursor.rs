@@ -10,8 +10,8 @@ use simbus_recording::{Entry, RecordedEvent, RecordingReader};
 use super::selection::Selection;
 use super::{episode_of, episode_world, recorded_plan, restore, ReplayError};
 use crate::clock::Clock;
+use crate::scene::Scene;
 use crate::world::World;
-use crate::Scene;
 
 /// A recorded frame.
 #[derive(Debug, Clone)]

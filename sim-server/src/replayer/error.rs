@@ -2,13 +2,13 @@
 
 use simbus_recording::RecordingError;
 
-use crate::recorder::KeyframeError;
+use crate::keyframe::KeyframeError;
+use crate::scene::SceneError;
 use crate::world::Inconsistency;
-use crate::SceneError;
 
 /// Why a recording cannot be replayed, or a replay cannot go on. Each
 /// variant says what failed; the lower error it comes from is its typed
-/// source ([`message`](crate::message) joins them for a client).
+/// source ([`message`](crate::error::message) joins them for a client).
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum ReplayError {
     /// The file cannot be read, or is not a simbus recording.

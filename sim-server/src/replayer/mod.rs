@@ -10,6 +10,7 @@
 
 mod cursor;
 mod error;
+mod refused;
 mod selection;
 
 use std::thread::JoinHandle;
@@ -20,12 +21,13 @@ use simbus_recording::{Entry, RecordedEvent, RecordingReader};
 use tracing::{info, warn};
 
 use crate::clock::{Clock, SubstepPlan};
-use crate::recorder::{Keyframe, Refused};
+use crate::keyframe::Keyframe;
+use crate::scene::Scene;
 use crate::world::World;
-use crate::Scene;
 use cursor::Cursor;
 pub(crate) use cursor::SensorChange;
 pub(crate) use error::{KeyframeFault, ReplayError};
+pub(crate) use refused::ReplayRefused;
 use selection::Selection;
 
 /// A replay request, checked.
@@ -129,7 +131,7 @@ pub(crate) struct Replayer {
 #[derive(Debug)]
 struct Preparing {
     path: String,
-    job: JoinHandle<Result<Prepared, Refused>>,
+    job: JoinHandle<Result<Prepared, ReplayRefused>>,
 }
 
 impl Replayer {
@@ -145,22 +147,25 @@ impl Replayer {
 
     /// Reads and checks `request`'s recording on a thread of its own, so
     /// that a large file never stalls the frame loop (see [`prepare`]).
-    pub(crate) fn prepare_in_background(&mut self, request: ReplayRequest) -> Result<(), Refused> {
+    pub(crate) fn prepare_in_background(
+        &mut self,
+        request: ReplayRequest,
+    ) -> Result<(), ReplayRefused> {
         if let Some(path) = self.preparing() {
-            return Err(Refused::AlreadyPreparing(path.to_string()));
+            return Err(ReplayRefused::AlreadyPreparing(path.to_string()));
         }
         let path = request.path.clone();
         let job = std::thread::Builder::new()
             .name("simbus-replay-prepare".into())
             .spawn(move || prepare(&request))
-            .map_err(Refused::ReaderThread)?;
+            .map_err(ReplayRefused::ReaderThread)?;
         self.preparing = Some(Preparing { path, job });
         Ok(())
     }
 
     /// The replay whose preparation finished since last asked (or why it
     /// is refused), if one did.
-    pub(crate) fn prepared(&mut self) -> Option<Result<Prepared, Refused>> {
+    pub(crate) fn prepared(&mut self) -> Option<Result<Prepared, ReplayRefused>> {
         if !self.preparing.as_ref()?.job.is_finished() {
             return None;
         }
@@ -169,7 +174,7 @@ impl Replayer {
             preparing
                 .job
                 .join()
-                .unwrap_or_else(|_| Err(Refused::ReaderPanicked(preparing.path))),
+                .unwrap_or_else(|_| Err(ReplayRefused::ReaderPanicked(preparing.path))),
         )
     }
 
@@ -206,12 +211,12 @@ impl Replayer {
     }
 
     /// Sets the time factor (refused unless positive and finite).
-    pub(crate) fn set_time_factor(&mut self, factor: f64) -> Result<(), Refused> {
+    pub(crate) fn set_time_factor(&mut self, factor: f64) -> Result<(), ReplayRefused> {
         if !(factor.is_finite() && factor > 0.0) {
-            return Err(Refused::TimeFactor(factor));
+            return Err(ReplayRefused::TimeFactor(factor));
         }
         let Some(replay) = &mut self.active else {
-            return Err(Refused::NotReplaying);
+            return Err(ReplayRefused::NotReplaying);
         };
         self.report.time_factor = factor;
         // Pace from here on at the new factor.
@@ -277,7 +282,7 @@ impl Replayer {
                 return None;
             }
             Err(error) => {
-                let message = crate::message(&error);
+                let message = crate::error::message(&error);
                 warn!("replay failed: {message}");
                 self.end(ReplayState::Failed, message);
                 return None;
@@ -345,13 +350,13 @@ impl Prepared {
 /// Reads and checks `request`'s recording (all of it: a damaged file is
 /// refused before anything changes) and builds the world it starts from.
 /// Touches nothing of the server's, so it runs on its own thread.
-pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
+pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, ReplayRefused> {
     if !(request.time_factor.is_finite() && request.time_factor > 0.0) {
-        return Err(Refused::TimeFactor(request.time_factor));
+        return Err(ReplayRefused::TimeFactor(request.time_factor));
     }
     let finite = request.start_seconds.is_finite() && request.duration_seconds.is_finite();
     if !(finite && request.duration_seconds >= 0.0) {
-        return Err(Refused::BadSpan);
+        return Err(ReplayRefused::BadSpan);
     }
     let selection = Selection::scan(
         &request.path,
@@ -359,7 +364,7 @@ pub(crate) fn prepare(request: &ReplayRequest) -> Result<Prepared, Refused> {
         request.duration_seconds,
     )?;
     if request.follow_id != 0 && !selection.actor_ids.contains(&request.follow_id) {
-        return Err(Refused::UnknownActor(request.follow_id));
+        return Err(ReplayRefused::UnknownActor(request.follow_id));
     }
     let mode = request.mode.unwrap_or(if selection.variable_step {
         ReplayMode::Interpolate

@@ -7,8 +7,7 @@ use std::collections::HashSet;
 use shared_types::NANOS_PER_SECOND;
 use simbus_recording::{Entry, RecordingReader};
 
-use super::ReplayError;
-use crate::recorder::Refused;
+use super::{ReplayError, ReplayRefused};
 
 /// The frames a replay covers.
 #[derive(Debug, Clone)]
@@ -44,7 +43,7 @@ impl Selection {
         path: &str,
         start_seconds: f64,
         duration_seconds: f64,
-    ) -> Result<Self, Refused> {
+    ) -> Result<Self, ReplayRefused> {
         let mut reader = RecordingReader::open(path).map_err(ReplayError::from)?;
         let seed = reader.header().seed;
         // (recording time, frame id) of every frame; (keyframe, index of its frame).
@@ -67,13 +66,13 @@ impl Selection {
                 }
                 Entry::Keyframe { .. } => match frames.len().checked_sub(1) {
                     Some(index) => keyframes.push(index as u64),
-                    None => return Err(Refused::KeyframeFirst(path.to_string())),
+                    None => return Err(ReplayRefused::KeyframeFirst(path.to_string())),
                 },
                 _ => {}
             }
         }
         let (Some(&(end_ns, _)), Some(&first_keyframe)) = (frames.last(), keyframes.first()) else {
-            return Err(Refused::NothingToReplay(path.to_string()));
+            return Err(ReplayRefused::NothingToReplay(path.to_string()));
         };
         let seconds = |ns: u64| ns as f64 / NANOS_PER_SECOND as f64;
         let to_ns = |s: f64| (s * NANOS_PER_SECOND as f64).round() as u64;
@@ -83,7 +82,7 @@ impl Selection {
             to_ns(start_seconds)
         };
         if start_ns > end_ns {
-            return Err(Refused::StartPastEnd {
+            return Err(ReplayRefused::StartPastEnd {
                 start: start_seconds,
                 length: seconds(end_ns),
             });

@@ -255,7 +255,7 @@ mod tests {
 
     #[test]
     fn parallel_channels_give_the_points_rapiers_query_would_in_channel_order() {
-        let mut world = World::new(&crate::Scene::Default.placements(0), 1);
+        let mut world = World::new(&crate::scene::Scene::Default.placements(0), 1);
         let plan =
             crate::clock::SubstepPlan::new(10_000_000, &shared_types::WorldSettings::default());
         // One step puts the colliders in the query structures; more set

@@ -13,8 +13,8 @@ use tracing::{debug, warn};
 use super::publish::publish;
 use super::renderer::Renderer;
 use super::{camera, capture, casts, events, gnss, radar, Sensor, SensorPort, Sensors};
+use crate::error::PortError;
 use crate::world::World;
-use crate::ServerError;
 
 /// A capture's copy for the recorder, when it records sensors.
 type Record<'r> = Option<&'r mut Vec<(SensorHeader, Vec<u8>)>>;
@@ -108,7 +108,7 @@ impl Sensor {
         header: SensorHeader,
         (casts, renderer): (&mut casts::Casts, &Renderer),
         record: Record,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         let (world, pose) = (shot.world, shot.pose);
         match &self.port {
             // SAFETY: the cast (straight into the slots, or through the
@@ -214,7 +214,7 @@ impl Sensor {
         header: SensorHeader,
         (casts, renderer): (&mut casts::Casts, &Renderer),
         record: Record,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         let sweep = capture::lidar_sweep(&self.spec, self.lidar_column, shot.since_last_ns);
         let [channels, _] = header.size;
         casts.rays += sweep.columns as u64 * u64::from(channels);
@@ -253,7 +253,7 @@ impl Sensor {
         header: SensorHeader,
         record: Record,
         seen: ObstacleDetection,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         let SensorPort::Obstacle(port) = &self.port else {
             return Ok(());
         };

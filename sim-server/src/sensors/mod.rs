@@ -26,14 +26,14 @@ use iceoryx2::service::port_factory::PortFactory as _;
 use publish::send_end;
 
 pub use renderer::RenderThreadsError;
-use renderer::Renderer;
+pub(crate) use renderer::Renderer;
 
 /// The default scene after 1.2 s (the sphere rolling, boxes tumbling, the
 /// capsule falling) and the id of one of its vehicles: what the ray-casting
 /// tests look at.
 #[cfg(test)]
 fn default_world_in_motion() -> (World, u64) {
-    let mut world = World::new(&crate::Scene::Default.placements(0), 1);
+    let mut world = World::new(&crate::scene::Scene::Default.placements(0), 1);
     let plan = crate::clock::SubstepPlan::new(10_000_000, &shared_types::WorldSettings::default());
     for _ in 0..120 {
         world.step(&plan);
@@ -46,8 +46,6 @@ fn default_world_in_motion() -> (World, u64) {
         .id;
     (world, vehicle)
 }
-
-use std::num::NonZeroUsize;
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server as RequestServer;
@@ -64,10 +62,9 @@ use simbus_transport::Bus;
 use tracing::{debug, info, warn};
 
 use crate::clock::Clock;
+use crate::error::PortError;
 use crate::ports::Transport;
-use crate::recorder::SensorNote;
 use crate::world::World;
-use crate::ServerError;
 
 type Port<T> = Publisher<Bus, [T], SensorHeader>;
 type SensorServer = RequestServer<Bus, SensorRequest, (), [SensorInfo], SensorResponseHeader>;
@@ -105,6 +102,14 @@ struct Sensor {
     captures: u64,
 }
 
+/// A sensor spawned or ended (the sensors domain notes them; the recorder
+/// writes them when recording).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum SensorNote {
+    Spawned(RecordedSensor),
+    Ended { frame: u64, id: u64 },
+}
+
 /// Every sensor of a world, and the service that manages them.
 pub(crate) struct Sensors {
     port: SensorServer,
@@ -127,16 +132,16 @@ fn open_port<T: std::fmt::Debug + ZeroCopySend + 'static>(
     id: u64,
     elements: usize,
     limits: &WorldLimits,
-) -> Result<Port<T>, ServerError> {
+) -> Result<Port<T>, PortError> {
     let spec = transport
         .services
         .sensor::<T>(id)
-        .map_err(|e| ServerError::transport("sensor service name", e))?;
+        .map_err(|e| PortError::transport("sensor service name", e))?;
     let service = spec
         .open_or_create(&transport.node, limits)
-        .map_err(|e| ServerError::transport("sensor service", e))?;
+        .map_err(|e| PortError::transport("sensor service", e))?;
     spec.publisher(&service, elements)
-        .map_err(|e| ServerError::transport("sensor publisher", e))
+        .map_err(|e| PortError::transport("sensor publisher", e))
 }
 
 impl std::fmt::Debug for Sensors {
@@ -151,20 +156,21 @@ impl std::fmt::Debug for Sensors {
 
 impl Sensors {
     /// Opens the sensor service; no sensors yet, each will admit
-    /// `limits.max_sensor_readers` readers.
+    /// `limits.max_sensor_readers` readers, and their captures are cast
+    /// on `renderer`'s threads.
     pub(crate) fn open(
         transport: &Transport,
         limits: &WorldLimits,
-        render_threads: Option<NonZeroUsize>,
-    ) -> Result<Self, ServerError> {
+        renderer: Renderer,
+    ) -> Result<Self, PortError> {
         let spec = &transport.services.sensors;
         let service = spec
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("sensor service", e))?;
+            .map_err(|e| PortError::transport("sensor service", e))?;
         let earlier = simbus_transport::EarlierClients::of(service.dynamic_config());
         let port = spec
             .server(&service)
-            .map_err(|e| ServerError::transport("sensor server", e))?;
+            .map_err(|e| PortError::transport("sensor server", e))?;
         Ok(Self {
             port,
             earlier,
@@ -172,7 +178,7 @@ impl Sensors {
             next_id: 0,
             limits: *limits,
             journal: Vec::new(),
-            renderer: Renderer::new(render_threads).map_err(ServerError::RenderThreads)?,
+            renderer,
             casts: casts::Casts::default(),
         })
     }
@@ -187,11 +193,11 @@ impl Sensors {
         clock: &Clock,
         episode: u64,
         follow: u64,
-    ) -> Result<(), ServerError> {
+    ) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("sensor receive", e))?
+            .map_err(|e| PortError::transport("sensor receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");

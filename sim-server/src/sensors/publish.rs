@@ -7,22 +7,22 @@ use iceoryx2::prelude::*;
 use shared_types::SensorHeader;
 
 use super::Port;
-use crate::ServerError;
+use crate::error::PortError;
 
 /// Sends an empty sample with `header` (an end-of-stream marker).
 pub(super) fn send_end<T: std::fmt::Debug + ZeroCopySend + 'static>(
     port: &Port<T>,
     header: SensorHeader,
-) -> Result<(), ServerError> {
+) -> Result<(), PortError> {
     let mut sample = port
         .loan_slice_uninit(0)
-        .map_err(|e| ServerError::transport("sensor loan", e))?;
+        .map_err(|e| PortError::transport("sensor loan", e))?;
     *sample.user_header_mut() = header;
     // SAFETY: the slice has no elements, so there is nothing to initialise.
     let sample = unsafe { sample.assume_init() };
     sample
         .send()
-        .map_err(|e| ServerError::transport("sensor send", e))?;
+        .map_err(|e| PortError::transport("sensor send", e))?;
     Ok(())
 }
 
@@ -37,11 +37,11 @@ pub(super) unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod +
     header: SensorHeader,
     record: Option<&mut Vec<(SensorHeader, Vec<u8>)>>,
     fill: impl FnOnce(&mut [MaybeUninit<T>], &mut SensorHeader),
-) -> Result<(), ServerError> {
+) -> Result<(), PortError> {
     let elements = port.initial_max_slice_len();
     let mut sample = port
         .loan_slice_uninit(elements)
-        .map_err(|e| ServerError::transport("sensor loan", e))?;
+        .map_err(|e| PortError::transport("sensor loan", e))?;
     let mut header = header;
     fill(sample.payload_mut(), &mut header);
     header.platform_timestamp = crate::clock::platform_timestamp();
@@ -53,6 +53,6 @@ pub(super) unsafe fn publish<T: std::fmt::Debug + ZeroCopySend + bytemuck::Pod +
     }
     sample
         .send()
-        .map_err(|e| ServerError::transport("sensor send", e))?;
+        .map_err(|e| PortError::transport("sensor send", e))?;
     Ok(())
 }

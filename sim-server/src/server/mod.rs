@@ -12,10 +12,13 @@
 //! one; while a recording runs, every published frame is recorded.
 
 mod answers;
+mod error;
 mod open;
 mod recording;
 mod snapshots;
 mod turn;
+
+pub use error::ServerError;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -26,7 +29,9 @@ use tracing::{debug_span, info};
 
 use crate::batches::Batches;
 use crate::clock::{platform_timestamp, Clock, SubstepPlan};
+use crate::config::ServerConfig;
 use crate::control::Control;
+use crate::error::PortError;
 use crate::frames::Frames;
 use crate::journal::Journal;
 use crate::liveness::{LiveProcesses, PidWatch};
@@ -34,12 +39,12 @@ use crate::lockstep::Lockstep;
 use crate::ports::Transport;
 use crate::recorder::{Recorder, RecorderPort};
 use crate::replayer::Replayer;
+use crate::scene::Scene;
 use crate::sensors::Sensors;
 use crate::state::Runtime;
 use crate::ticker::Ticker;
 use crate::timing::FrameTimings;
 use crate::world::World;
-use crate::{Scene, ServerConfig, ServerError};
 
 /// What a finished run did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -284,7 +289,7 @@ impl Domains {
     }
 
     /// Publishes the current frame (and records it while recording).
-    fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), ServerError> {
+    fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), PortError> {
         let header = self.frame_header(physics_substeps, flags);
         self.frames.publish(header, &self.world)?;
         self.recorder.published(&header);
@@ -390,7 +395,7 @@ impl Domains {
         );
         self.record_episode(reset);
         self.publish(0, 0)?;
-        self.frames.notify()
+        Ok(self.frames.notify()?)
     }
 
     /// How long the loop may sleep (at most `wanted`): while processes are

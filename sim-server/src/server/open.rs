@@ -7,9 +7,11 @@ use std::time::Instant;
 use shared_types::FrameHeader;
 use tracing::{info, warn};
 
+use super::error::ServerError;
 use super::{check_keyframe_seconds, Domains, Server, Timers};
 use crate::batches::Batches;
 use crate::clock::Clock;
+use crate::config::ServerConfig;
 use crate::control::Control;
 use crate::frames::Frames;
 use crate::journal::resume::{resume, ResumeOptions, Resumed};
@@ -19,11 +21,10 @@ use crate::lockstep::Lockstep;
 use crate::ports::Transport;
 use crate::recorder::{Recorder, RecorderPort};
 use crate::replayer::Replayer;
-use crate::sensors::Sensors;
+use crate::sensors::{Renderer, Sensors};
 use crate::state::Runtime;
 use crate::ticker::Ticker;
 use crate::world::World;
-use crate::{ServerConfig, ServerError};
 
 impl Server {
     /// Validates the settings, loads the scene, opens the world's services
@@ -91,7 +92,8 @@ impl Server {
         let ticker = Ticker::open(&transport, &limits)?;
         let batches = Batches::open(&transport, &limits)?;
         let lockstep = Lockstep::open(&transport, &limits)?;
-        let sensors = Sensors::open(&transport, &limits, config.render_threads)?;
+        let renderer = Renderer::new(config.render_threads)?;
+        let sensors = Sensors::open(&transport, &limits, renderer)?;
         let recorder = RecorderPort::open(&transport, &limits)?;
         let mut runtime = Runtime::new(&config, settings);
         if let Some(r) = &resumed {

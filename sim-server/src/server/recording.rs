@@ -13,11 +13,12 @@ use simbus_recording::{
 };
 use tracing::{info, warn};
 
+use super::error::ServerError;
 use super::Domains;
 use crate::clock::{platform_timestamp, Clock};
+use crate::error::PortError;
 use crate::recorder::{RecorderCall, Refused};
-use crate::replayer::{Prepared, ReplayRequest, SavedWorld, SensorChange};
-use crate::ServerError;
+use crate::replayer::{Prepared, ReplayRefused, ReplayRequest, SavedWorld, SensorChange};
 
 impl Domains {
     /// Carries out a decoded recorder request from `client_pid` and answers
@@ -54,13 +55,13 @@ impl Domains {
                 let done = if self.replayer.is_running() || self.replayer.saved.is_some() {
                     self.stop_replay(keep_actors).map_err(Refused::StopReplay)
                 } else {
-                    Err(Refused::NotReplaying)
+                    Err(ReplayRefused::NotReplaying.into())
                 };
                 (RecorderKind::StopReplay, done)
             }
             RecorderCall::TimeFactor(factor) => (
                 RecorderKind::TimeFactor,
-                self.replayer.set_time_factor(factor),
+                self.replayer.set_time_factor(factor).map_err(Refused::from),
             ),
         };
         Some(self.reply(kind, client_pid, done))
@@ -70,7 +71,9 @@ impl Domains {
     /// did: the replay starts, or is refused.
     pub(super) fn replay_prepared(&mut self) -> Option<RecorderResponse> {
         let prepared = self.replayer.prepared()?;
-        let done = prepared.map(|prepared| self.start_replay(prepared));
+        let done = prepared
+            .map_err(Refused::from)
+            .map(|prepared| self.start_replay(prepared));
         Some(self.reply(RecorderKind::Replay, 0, done))
     }
 
@@ -84,7 +87,7 @@ impl Domains {
         match done {
             Ok(()) => self.recorder_status(kind, RecorderResponse::new(ResponseStatus::Ok)),
             Err(refused) => {
-                let message = crate::message(&refused);
+                let message = crate::error::message(&refused);
                 info!(client_pid, ?kind, "refused: {message}");
                 let mut response =
                     self.recorder_status(kind, RecorderResponse::new(ResponseStatus::Refused));
@@ -99,7 +102,7 @@ impl Domains {
     /// read its recording off the frame loop.
     fn prepare_replay(&mut self, request: Result<ReplayRequest, Refused>) -> Result<(), Refused> {
         if let Some(path) = self.replayer.preparing() {
-            return Err(Refused::AlreadyPreparing(path.to_string()));
+            return Err(ReplayRefused::AlreadyPreparing(path.to_string()).into());
         }
         if self.replayer.is_running() {
             return Err(Refused::AlreadyReplaying(self.replayer.report.path.clone()));
@@ -107,7 +110,7 @@ impl Domains {
         if let Some((path, _)) = self.recorder.progress() {
             return Err(Refused::Recording(path.to_string()));
         }
-        self.replayer.prepare_in_background(request?)
+        Ok(self.replayer.prepare_in_background(request?)?)
     }
 
     /// Starts recording to `path` from the current frame, unless a
@@ -230,7 +233,7 @@ impl Domains {
     /// Stops the replay: with `keep_actors` the replayed world goes on live
     /// from where it is; otherwise the world from before the replay comes
     /// back. Either way a new episode starts and its frame is published.
-    fn stop_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
+    fn stop_replay(&mut self, keep_actors: bool) -> Result<(), PortError> {
         self.replayer.end(
             shared_types::ReplayState::Stopped,
             "stopped by a client".to_string(),
@@ -241,7 +244,7 @@ impl Domains {
     /// After a replay: keep its world live, or bring back the one from
     /// before, published at once as the next frame id (in no simulation
     /// time) and the first frame of a new episode.
-    fn leave_replay(&mut self, keep_actors: bool) -> Result<(), ServerError> {
+    fn leave_replay(&mut self, keep_actors: bool) -> Result<(), PortError> {
         self.replayer.sensor_ids.clear();
         let saved = self.replayer.saved.take();
         self.sensors.end_all(

@@ -6,18 +6,18 @@ use std::time::Instant;
 
 use shared_types::{Doorbell, FixedText, WaitMode};
 
+use super::error::ServerError;
 use super::{Domains, Server, FULL_PASS_PERIOD, MAX_IDLE_WAIT};
 use crate::batches::BatchEffect;
 use crate::control::Rung;
 use crate::ticker::Ticker;
-use crate::ServerError;
 
 impl Domains {
     /// The batch domain answers what arrived: applied now, queued for the
     /// next tick, or refused while a replay runs.
     fn answer_batches(&mut self) -> Result<(), ServerError> {
         if self.replayer.is_running() {
-            return self.batches.refuse_while_replaying(&self.clock);
+            return Ok(self.batches.refuse_while_replaying(&self.clock)?);
         }
         let (frame, episode) = (self.clock.frame(), self.runtime.episode);
         let ticker_pid = self.ticker.owner_pid();
@@ -116,7 +116,11 @@ impl Server {
                 return d.step_frame(now, 1);
             }
             // The ticks were abandoned (their ticker is gone).
-            return if answered { d.frames.notify() } else { Ok(()) };
+            return if answered {
+                Ok(d.frames.notify()?)
+            } else {
+                Ok(())
+            };
         }
         if ticked {
             let timeout = d.config.lockstep_timeout;
@@ -173,9 +177,9 @@ impl Server {
                 let limit = d.idle_limit(until);
                 if limit < until {
                     // Woken by requests; probes its watch on the way.
-                    self.control.wait_for_request(limit)
+                    Ok(self.control.wait_for_request(limit)?)
                 } else {
-                    self.control.idle(until)
+                    Ok(self.control.idle(until)?)
                 }
             }
             _ => {

@@ -27,20 +27,11 @@ use standby::Standbys;
 
 use crate::batches::{respond_batch, PendingBatch};
 use crate::clock::Clock;
+use crate::config::OnTickerLoss;
+use crate::error::PortError;
 use crate::liveness::LiveProcesses;
 use crate::ports::{sender_pid, Transport};
 use crate::state::{Refusal, Runtime};
-use crate::ServerError;
-
-/// The policy when the ticker dies while the world is in synchronous mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum OnTickerLoss {
-    /// Stay in synchronous mode and wait for a new ticker.
-    #[default]
-    Wait,
-    /// Fall back to asynchronous mode.
-    Async,
-}
 
 type TickServer = RequestServer<Bus, TickRequest, (), TickResponse, ()>;
 type PendingTick = ActiveRequest<Bus, TickRequest, (), TickResponse, ()>;
@@ -68,17 +59,17 @@ pub(crate) struct Ticker {
 
 impl Ticker {
     /// Opens the tick service.
-    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, ServerError> {
+    pub(crate) fn open(transport: &Transport, limits: &WorldLimits) -> Result<Self, PortError> {
         let service = transport
             .services
             .tick
             .open_or_create(&transport.node, limits)
-            .map_err(|e| ServerError::transport("tick service", e))?;
+            .map_err(|e| PortError::transport("tick service", e))?;
         let earlier = EarlierClients::of(service.dynamic_config());
         let port = service
             .server_builder()
             .create()
-            .map_err(|e| ServerError::transport("tick server", e))?;
+            .map_err(|e| PortError::transport("tick server", e))?;
         Ok(Self {
             port,
             earlier,
@@ -144,15 +135,11 @@ impl Ticker {
 
     /// Answers every pending request of the ticker; ticks are queued for
     /// the frame loop. Settings from the ticker change `runtime`.
-    pub(crate) fn handle(
-        &mut self,
-        runtime: &mut Runtime,
-        clock: &Clock,
-    ) -> Result<(), ServerError> {
+    pub(crate) fn handle(&mut self, runtime: &mut Runtime, clock: &Clock) -> Result<(), PortError> {
         while let Some(request) = self
             .port
             .receive()
-            .map_err(|e| ServerError::transport("tick receive", e))?
+            .map_err(|e| PortError::transport("tick receive", e))?
         {
             if self.earlier.sent(request.header()) {
                 debug!("dropped a request from a client of the previous server");

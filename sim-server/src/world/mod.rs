@@ -1,6 +1,6 @@
 //! The physics world: rapier bodies and the actors that name them. What
-//! each wire command does to them is in [`crate::commands`]; the vehicles
-//! are in [`crate::vehicles`].
+//! each wire command does to them is in `commands.rs`; the vehicles are
+//! in `vehicles.rs`.
 
 use std::time::{Duration, Instant};
 

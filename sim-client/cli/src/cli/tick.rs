@@ -12,7 +12,7 @@ use shared_types::{WorldName, WorldSettings};
 use sim_client::{ApplySettingsError, Client, TakeOver, TickError, Ticker, WaitMode};
 use simbus_input as input;
 
-use super::tick_restarts::{ride_through, Restarts, TickLoopError};
+use super::tick_restarts::{ride_through, wait_for_participants, Restarts, TickLoopError};
 use crate::Failure;
 
 /// The node name others see as the owner while this command ticks.
@@ -359,31 +359,6 @@ fn stand_by(
             }
             TakeOver::Waiting(waiting) => standby = waiting,
         }
-    }
-}
-
-/// Waits until at least `count` lockstep participants have joined.
-pub(super) fn wait_for_participants(
-    client: &Client,
-    count: u32,
-    timeout: Duration,
-) -> anyhow::Result<()> {
-    if count == 0 {
-        return Ok(());
-    }
-    let deadline = Instant::now() + timeout;
-    loop {
-        let joined = client.status()?.participants;
-        if joined >= count {
-            return Ok(());
-        }
-        if Instant::now() >= deadline {
-            return Err(anyhow!(
-                "only {joined} of {count} lockstep participants joined within {timeout:?}"
-            ));
-        }
-        // Joins are rare and this runs once: a short poll of the status.
-        std::thread::sleep(Duration::from_millis(20));
     }
 }
 

@@ -5,9 +5,8 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use anyhow::anyhow;
 use sim_client::{Client, ConnectError, TickError, Ticker, WaitError};
-
-use super::tick::wait_for_participants;
 
 /// Following a journaling world's server through a crash and resume.
 #[derive(Debug, Clone, Copy)]
@@ -138,4 +137,30 @@ pub(super) fn ride_through(
         .map_err(TickLoopError::Reconnect)?;
     eprintln!("tick: {reconnected}; ticking on");
     Ok(reconnected.resumed_at)
+}
+
+/// Waits until at least `count` lockstep participants have joined: before
+/// the first tick, and again after each resume.
+pub(super) fn wait_for_participants(
+    client: &Client,
+    count: u32,
+    timeout: Duration,
+) -> anyhow::Result<()> {
+    if count == 0 {
+        return Ok(());
+    }
+    let deadline = Instant::now() + timeout;
+    loop {
+        let joined = client.status()?.participants;
+        if joined >= count {
+            return Ok(());
+        }
+        if Instant::now() >= deadline {
+            return Err(anyhow!(
+                "only {joined} of {count} lockstep participants joined within {timeout:?}"
+            ));
+        }
+        // Joins are rare and this runs once: a short poll of the status.
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }

@@ -44,7 +44,7 @@ use shared_types::{
     frame_slice_len, ActorState, Doorbell, FrameHeader, ServiceNames, TickRequest, TickRequestKind,
     TickResponse, WorldName,
 };
-use simbus_transport::frames::send_frame;
+use simbus_transport::frame_sample::send_frame;
 use simbus_transport::spec::{EventSpec, WorldServices};
 use simbus_transport::Bus;
 

@@ -13,7 +13,7 @@ use simbus_transport::Bus;
 use tracing::debug;
 
 use crate::batch::{open_batch_client, BatchClient};
-use crate::frames::FrameStream;
+use crate::frame_stream::FrameStream;
 use crate::on_tick::{CallbackId, TickDispatcher};
 use crate::open::{wake_notifier, OpenFailure};
 use crate::rpc::{client_error, open_service, RequestPort, Wait};

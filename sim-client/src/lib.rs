@@ -35,7 +35,7 @@ mod builder;
 mod capture;
 mod client;
 mod error;
-mod frames;
+mod frame_stream;
 mod lockstep;
 mod on_tick;
 mod open;

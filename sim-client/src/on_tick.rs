@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use shared_types::{ServiceNames, WorldName};
 use tracing::warn;
 
-use crate::frames::FrameStream;
+use crate::frame_stream::FrameStream;
 use crate::open::client_node;
 use crate::{ConnectError, WaitError, WorldSnapshot};
 

@@ -320,7 +320,7 @@ impl Ticker {
         client: &mut crate::Client,
         timeout: Duration,
     ) -> Result<crate::FrameView, TickError> {
-        use crate::frames::FrameOr;
+        use crate::frame_stream::FrameOr;
         use crate::wait::Stop;
         let started = Instant::now();
         client.frames.skip_queued()?;

@@ -23,7 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod environment;
-pub mod frames;
+pub mod frame_sample;
 pub mod futex;
 pub mod hybrid;
 pub mod spec;

@@ -106,7 +106,7 @@ fn shell_syntax_around_a_command_is_not_part_of_it() {
         "python3 - <<'PY'\n",
         "sim-client --world nowhere bogus\n",
         "PY\n",
-        "cargo run --release -p simbus-cli -- status --json\n",
+        "cargo run --release -p sim-client-cli -- status --json\n",
         "```\n",
         "```text\n",
         "$ ./target/release/sim-client demo\n",

@@ -10,6 +10,35 @@
 //! ticks, housekeeping — so whatever arrived before a step applies before
 //! it. While a replay runs, a replayed frame takes the place of a computed
 //! one; while a recording runs, every published frame is recorded.
+//!
+//! # Where `Domains` is
+//!
+//! `Domains` holds every domain but the two request ports whose answers
+//! concern all of them; its `impl` is split by what it does:
+//!
+//! | file | what it holds |
+//! |---|---|
+//! | `mod.rs` | `Server::run`; `step_frame` (one computed frame), `finish_frame` (the tail every frame shares: capture, publish, answer, wake), `publish`, the frame header, `load_world`, housekeeping |
+//! | `open.rs` | `Server::start` / `Server::resume`: every domain opened, fresh, resumed or forked |
+//! | `turn.rs` | one turn: `answer_requests` in the order above, `synchronous_turn`, `asynchronous_turn` (when to step, where to sleep) |
+//! | `answers.rs` | control requests: status `report`, settings, load and reload |
+//! | `recording.rs` | recorder requests; `replay_frame` and its header; the episodes the recording and the journal note |
+//! | `snapshots.rs` | saving and restoring snapshots in memory |
+//! | `error.rs` | `ServerError`: what starting or running can fail with |
+//!
+//! # What each domain may touch
+//!
+//! A domain (each module beside this folder) owns its ports and its state.
+//! What it needs of another's state is handed to each call, read-only
+//! unless the call is about changing it: `batches` and `commands` change
+//! the world, the ticker and the lockstep read the clock, the sensors read
+//! the world. A domain uses another's types only where it is built on it:
+//! the journal on the recorder's writer, the recorder service on the
+//! replayer's requests, the ticker on the batches' answer to a batch that
+//! ticks. Imports go one way (lower modules never import higher ones), and
+//! only this folder touches several domains in one place, so the order of
+//! their effects within a frame is decided here.
+//!
 
 mod answers;
 mod error;
@@ -32,13 +61,13 @@ use crate::clock::{platform_timestamp, Clock, SubstepPlan};
 use crate::config::ServerConfig;
 use crate::control::Control;
 use crate::error::PortError;
-use crate::frames::Frames;
 use crate::journal::Journal;
 use crate::liveness::{LiveProcesses, PidWatch};
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
+use crate::publication::Publication;
 use crate::recorder::{Recorder, RecorderPort};
-use crate::replayer::Replayer;
+use crate::replayer::{ReplayFrame, Replayer};
 use crate::scene::Scene;
 use crate::sensors::Sensors;
 use crate::state::Runtime;
@@ -105,7 +134,7 @@ struct Domains {
     transport: Transport,
     world: World,
     clock: Clock,
-    frames: Frames,
+    publication: Publication,
     ticker: Ticker,
     batches: Batches,
     lockstep: Lockstep,
@@ -121,6 +150,15 @@ struct Domains {
     pidwatch: PidWatch,
     /// Per-frame timings, only when a benchmark asked ([`Server::time_frames`]).
     timings: Option<FrameTimings>,
+}
+
+/// What a frame publishes: the world as computed, or a recorded frame.
+#[derive(Debug, Clone, Copy)]
+enum Outgoing<'a> {
+    /// A computed frame, with its substeps and `FrameHeader` flags.
+    Computed { substeps: u32, flags: u32 },
+    /// A replayed frame, published as recorded.
+    Replayed(&'a ReplayFrame),
 }
 
 /// When the periodic chores last ran.
@@ -247,18 +285,6 @@ impl Domains {
         stamps::stamp(Stage::StepEnd, frame);
         self.clock.advance(delta_ns, now);
         self.runtime.frames_computed += 1;
-        // Sensors first: whoever sees the frame's snapshot (or hears the
-        // tick is done) finds its captures already queued.
-        self.sensors.capture(
-            &self.world,
-            self.runtime.scene.name(),
-            (
-                self.clock.frame(),
-                self.clock.elapsed_ns(),
-                self.runtime.episode,
-            ),
-            self.recorder.captures(),
-        );
         let flags = FrameHeader::STEPPED
             | if plan.capped {
                 FrameHeader::SUBSTEPS_CAPPED
@@ -270,13 +296,13 @@ impl Domains {
             } else {
                 0
             };
-        self.publish(plan.count, flags)?;
-        stamps::stamp(Stage::Published, frame);
-        self.ticker
-            .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
-        stamps::stamp(Stage::Answered, frame);
-        self.frames.notify()?;
-        stamps::stamp(Stage::Notified, frame);
+        self.finish_frame(
+            Outgoing::Computed {
+                substeps: plan.count,
+                flags,
+            },
+            ticks,
+        )?;
         if ticks == 0 && self.runtime.pacer.paces(&self.runtime.settings) {
             // A paced frame no tick asked for: the loop sleeps until the
             // next one anyway. On a CPU it shares with a client waiting for
@@ -288,10 +314,46 @@ impl Domains {
         Ok(())
     }
 
+    /// The tail every frame shares, computed or replayed: the sensors
+    /// capture it, it is published (a computed one recorded and journaled
+    /// too), the first `ticks` waiting steps are answered with it, and
+    /// waiting clients wake.
+    fn finish_frame(&mut self, outgoing: Outgoing<'_>, ticks: usize) -> Result<(), PortError> {
+        let frame = self.clock.frame();
+        // Sensors first: whoever sees the frame's snapshot (or hears the
+        // tick is done) finds its captures already queued. A replayed
+        // frame's captures are not recorded again.
+        let captures = match outgoing {
+            Outgoing::Computed { .. } => self.recorder.captures(),
+            Outgoing::Replayed(_) => None,
+        };
+        self.sensors.capture(
+            &self.world,
+            self.runtime.scene.name(),
+            (frame, self.clock.elapsed_ns(), self.runtime.episode),
+            captures,
+        );
+        match outgoing {
+            Outgoing::Computed { substeps, flags } => self.publish(substeps, flags)?,
+            Outgoing::Replayed(replayed) => {
+                let header = self.replayed_header(replayed);
+                self.publication.publish_states(header, &replayed.actors)?;
+                self.recorder.published(&header);
+            }
+        }
+        stamps::stamp(Stage::Published, frame);
+        self.ticker
+            .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
+        stamps::stamp(Stage::Answered, frame);
+        self.publication.notify()?;
+        stamps::stamp(Stage::Notified, frame);
+        Ok(())
+    }
+
     /// Publishes the current frame (and records it while recording).
     fn publish(&mut self, physics_substeps: u32, flags: u32) -> Result<(), PortError> {
         let header = self.frame_header(physics_substeps, flags);
-        self.frames.publish(header, &self.world)?;
+        self.publication.publish(header, &self.world)?;
         self.recorder.published(&header);
         if self.recorder.is_recording() {
             self.recorder
@@ -395,7 +457,7 @@ impl Domains {
         );
         self.record_episode(reset);
         self.publish(0, 0)?;
-        Ok(self.frames.notify()?)
+        Ok(self.publication.notify()?)
     }
 
     /// How long the loop may sleep (at most `wanted`): while processes are
@@ -422,7 +484,7 @@ impl Domains {
     fn housekeeping(&mut self) -> bool {
         if self.timers.connections.elapsed() >= CONNECTION_PERIOD {
             self.timers.connections = Instant::now();
-            self.frames.connect_new_subscribers();
+            self.publication.connect_new_subscribers();
         }
         // The processes the world waits on: a pidfd probe at most every
         // millisecond (the loop may spin), a node-list sweep when one

@@ -13,12 +13,12 @@ use crate::batches::Batches;
 use crate::clock::Clock;
 use crate::config::ServerConfig;
 use crate::control::Control;
-use crate::frames::Frames;
 use crate::journal::resume::{resume, ResumeOptions, Resumed};
 use crate::journal::Journal;
 use crate::liveness::PidWatch;
 use crate::lockstep::Lockstep;
 use crate::ports::Transport;
+use crate::publication::Publication;
 use crate::recorder::{Recorder, RecorderPort};
 use crate::replayer::Replayer;
 use crate::sensors::{Renderer, Sensors};
@@ -88,7 +88,7 @@ impl Server {
         let limits = config.limits;
         // Control first: it refuses a second live server on the world.
         let control = Control::open(&transport, &config.world, &limits)?;
-        let frames = Frames::open(&transport, world.actor_count(), &limits)?;
+        let publication = Publication::open(&transport, world.actor_count(), &limits)?;
         let ticker = Ticker::open(&transport, &limits)?;
         let batches = Batches::open(&transport, &limits)?;
         let lockstep = Lockstep::open(&transport, &limits)?;
@@ -115,7 +115,7 @@ impl Server {
             transport,
             world,
             clock,
-            frames,
+            publication,
             ticker,
             batches,
             lockstep,
@@ -145,7 +145,7 @@ impl Server {
             (r.frame.physics_substeps, r.frame.flags & kept)
         });
         domains.publish(substeps, flags)?;
-        domains.frames.notify()?;
+        domains.publication.notify()?;
         if let Some(options) = domains.config.journal.clone() {
             // A resumed journal goes on in its directory; any other is new.
             let fresh = resumed

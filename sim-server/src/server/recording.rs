@@ -15,10 +15,13 @@ use tracing::{info, warn};
 
 use super::error::ServerError;
 use super::Domains;
+use super::Outgoing;
 use crate::clock::{platform_timestamp, Clock};
 use crate::error::PortError;
 use crate::recorder::{RecorderCall, Refused};
-use crate::replayer::{Prepared, ReplayRefused, ReplayRequest, SavedWorld, SensorChange};
+use crate::replayer::{
+    Prepared, ReplayFrame, ReplayRefused, ReplayRequest, SavedWorld, SensorChange,
+};
 
 impl Domains {
     /// Carries out a decoded recorder request from `client_pid` and answers
@@ -275,7 +278,7 @@ impl Domains {
             "replay over; the world goes on live"
         );
         self.publish(0, 0)?;
-        self.frames.notify()
+        self.publication.notify()
     }
 
     /// Produces the next replayed frame in place of a computed one.
@@ -314,17 +317,23 @@ impl Domains {
         if !self.sensors.is_empty() {
             self.world.sync_queries();
         }
-        self.sensors.capture(
-            &self.world,
-            self.runtime.scene.name(),
-            (
-                self.clock.frame(),
-                self.clock.elapsed_ns(),
-                self.runtime.episode,
-            ),
-            None,
-        );
-        let header = FrameHeader {
+        self.finish_frame(Outgoing::Replayed(&frame), ticks)?;
+        if frame.last {
+            info!(
+                frame = self.clock.frame(),
+                recorded_frame = recorded.frame,
+                "replay finished"
+            );
+            self.leave_replay(self.replayer.keep_actors)?;
+        }
+        Ok(())
+    }
+
+    /// The header a replayed frame is published under: the recorded
+    /// frame's, numbered and timed as this server's next frame.
+    pub(super) fn replayed_header(&self, frame: &ReplayFrame) -> FrameHeader {
+        let recorded = frame.header.timestamp;
+        FrameHeader {
             episode: self.runtime.episode,
             // A recording of an older protocol replays as this one's frames.
             protocol_version: PROTOCOL_VERSION,
@@ -343,21 +352,7 @@ impl Domains {
             // The settings frames are delivered under are the server's.
             settings: self.runtime.settings.into(),
             ..frame.header
-        };
-        self.frames.publish_states(header, &frame.actors)?;
-        self.recorder.published(&header);
-        self.ticker
-            .answer_stepped(ticks, &self.clock, self.runtime.settings.synchronous_mode);
-        self.frames.notify()?;
-        if frame.last {
-            info!(
-                frame = self.clock.frame(),
-                recorded_frame = recorded.frame,
-                "replay finished"
-            );
-            self.leave_replay(self.replayer.keep_actors)?;
         }
-        Ok(())
     }
 
     /// Spawns the recorded sensors that appeared (riding on the same

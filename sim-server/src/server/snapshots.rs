@@ -121,7 +121,7 @@ impl Domains {
             episode = self.runtime.episode,
             "snapshot restored"
         );
-        if let Err(e) = self.publish(0, 0).and_then(|()| self.frames.notify()) {
+        if let Err(e) = self.publish(0, 0).and_then(|()| self.publication.notify()) {
             warn!("publishing the restored frame failed: {e}");
         }
         ControlResponse {

@@ -117,7 +117,7 @@ impl Server {
             }
             // The ticks were abandoned (their ticker is gone).
             return if answered {
-                Ok(d.frames.notify()?)
+                Ok(d.publication.notify()?)
             } else {
                 Ok(())
             };
@@ -133,7 +133,7 @@ impl Server {
             }
         }
         if answered {
-            d.frames.notify()?;
+            d.publication.notify()?;
         }
         let polling = match d.config.wait_mode {
             WaitMode::Spin => true,
@@ -171,7 +171,7 @@ impl Server {
         match due {
             Some(at) if at > now => {
                 if answered {
-                    d.frames.notify()?;
+                    d.publication.notify()?;
                 }
                 let until = at - now;
                 let limit = d.idle_limit(until);

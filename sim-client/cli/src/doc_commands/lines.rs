@@ -352,8 +352,7 @@ fn argv_of(words: Vec<String>, program: &str) -> Option<Vec<String>> {
         let split = rest.iter().position(|w| w == "--").unwrap_or(rest.len());
         let (cargo, args) = rest.split_at(split);
         let package = match program {
-            "sim-client" => "simbus-cli",
-            "sim-server" => "simbus-server",
+            "sim-client" => "sim-client-cli",
             _ => program,
         };
         let named = cargo.windows(2).any(|pair| {

@@ -15,7 +15,7 @@ use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait as _};
 
 use super::events::Event;
-use super::frames::{Order, Shared};
+use super::frame_forwarder::{Order, Shared};
 use super::relay;
 use crate::error::ExportError;
 use crate::ports::{self, Bell};

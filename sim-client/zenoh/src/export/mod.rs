@@ -20,7 +20,7 @@
 mod declare;
 mod events;
 mod follow;
-mod frames;
+mod frame_forwarder;
 mod relay;
 mod ticker;
 mod ticks;
@@ -46,7 +46,7 @@ use zenoh::query::Query;
 
 use self::declare::{declare, Routes};
 use self::events::Event;
-use self::frames::{follow_sensors, FrameForwarder, Order, Shared};
+use self::frame_forwarder::{follow_sensors, FrameForwarder, Order, Shared};
 use self::relay::{
     mirror_of, Answer, BatchRelay, Dropped, FixedRelay, Refusal, Refused, SensorRelay,
 };
@@ -168,7 +168,7 @@ fn export_server(
                     }
                     let (ended, held) = forwarder.run(
                         &ordered,
-                        || frames::either(stop, done),
+                        || frame_forwarder::either(stop, done),
                         |event| {
                             let _ = to_main.send(event);
                         },

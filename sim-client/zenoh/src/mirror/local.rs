@@ -21,7 +21,7 @@ use shared_types::{
     RecorderRequest, RecorderResponse, SemanticLidarPoint, SensorHeader, SensorInfo, SensorKind,
     SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
-use simbus_transport::frames::{send_frame, FramePublisher};
+use simbus_transport::frame_sample::{send_frame, FramePublisher};
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
 

@@ -310,7 +310,7 @@ mod tests {
     use iceoryx2::port::update_connections::UpdateConnections;
     use shared_types::limits::WorldLimits;
     use shared_types::WorldName;
-    use simbus_transport::frames::{send_frame, FramePublisher};
+    use simbus_transport::frame_sample::{send_frame, FramePublisher};
 
     const T: Duration = Duration::from_secs(5);
 

@@ -6,7 +6,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::update_connections::UpdateConnections;
 use shared_types::limits::{WorldLimits, INITIAL_MAX_ACTORS};
 use shared_types::{frame_slice_len, ActorState, FrameHeader};
-use simbus_transport::frames::{send_frame, FramePublisher};
+use simbus_transport::frame_sample::{send_frame, FramePublisher};
 use simbus_transport::Bus;
 use tracing::debug;
 
@@ -16,12 +16,12 @@ use crate::world::World;
 
 /// The frame publisher and the frame-ready notifier.
 #[derive(Debug)]
-pub(crate) struct Frames {
+pub(crate) struct Publication {
     publisher: FramePublisher,
     ready: Notifier<Bus>,
 }
 
-impl Frames {
+impl Publication {
     /// Opens the world's frame service (every new subscriber gets the
     /// current frame) and its frame-ready event.
     pub(crate) fn open(

@@ -7,6 +7,12 @@
 //! resolved other features than the workspace build, and cargo built a
 //! second copy of the heavy crates, minutes on two cores.)
 //!
+//! The README's first command builds less (the two binaries without the
+//! adapters, in minutes on a fresh clone), but every crate it compiles
+//! with the features the whole workspace's build gives it, so the `cargo
+//! build --release` after it reuses all of them: only the `sim-client`
+//! binary itself, built without its adapters, is built again.
+//!
 //! Nothing is built or timed: `cargo tree` prints each package with the
 //! features a command would build it with, which is what names its
 //! artifacts (their file names are the same when these are).
@@ -159,6 +165,96 @@ fn resolved(selection: &[&str], tests: bool) -> BTreeSet<String> {
         .map(|line| line.trim_end_matches(" (*)").to_owned())
         .filter(|line| !line.is_empty())
         .collect()
+}
+
+/// The arguments of `command` that choose what `cargo tree` resolves: its
+/// packages and its features.
+fn selection_of(command: &CargoCommand) -> Vec<String> {
+    let mut selection = Vec::new();
+    let mut words = command.0.iter().take_while(|w| *w != "--");
+    while let Some(word) = words.next() {
+        match word.as_str() {
+            "-p" | "--package" | "-F" | "--features" => {
+                selection.push(word.clone());
+                selection.extend(words.next().cloned());
+            }
+            "--no-default-features" | "--all-features" => selection.push(word.clone()),
+            w if w.starts_with("--package=") || w.starts_with("--features=") => {
+                selection.push(word.clone());
+            }
+            _ => {}
+        }
+    }
+    selection
+}
+
+/// The README's first command: the one that builds the demo.
+fn first_command() -> CargoCommand {
+    let readme = std::fs::read_to_string(root().join("README.md")).expect("README.md");
+    let demo = readme
+        .split("**Run the demo**")
+        .nth(1)
+        .expect("the README has a **Run the demo** paragraph");
+    code_in(demo)
+        .iter()
+        .flat_map(|code| cargo_commands(code))
+        .next()
+        .expect("a cargo command under **Run the demo**")
+}
+
+/// Whether the package of a `cargo tree` line builds only binaries (no
+/// library another build could reuse).
+fn binaries_only(unit: &str) -> bool {
+    let Some(path) = unit
+        .split_once(" (")
+        .and_then(|(_, rest)| rest.split_once(')'))
+        .map(|(path, _)| PathBuf::from(path))
+    else {
+        return false;
+    };
+    path.join("Cargo.toml").exists() && !path.join("src/lib.rs").exists()
+}
+
+#[test]
+fn the_first_command_builds_every_library_as_the_workspace_build_does() {
+    let first = first_command();
+    assert_eq!(first.subcommand(), "build", "{first:?}");
+    assert!(first.0.iter().any(|w| w == "--release"), "{first:?}");
+    let selection = selection_of(&first);
+    let selection: Vec<&str> = selection.iter().map(String::as_str).collect();
+    let workspace = resolved(&["--workspace"], false);
+    let built = resolved(&selection, false);
+    assert!(
+        built.iter().any(|u| u.starts_with("sim-server "))
+            && built.iter().any(|u| u.starts_with("rapier3d ")),
+        "the first command builds the server and the physics: {built:#?}"
+    );
+    let again: Vec<_> = built
+        .iter()
+        .filter(|unit| !workspace.contains(*unit) && !binaries_only(unit))
+        .collect();
+    assert!(
+        again.is_empty(),
+        "`cargo {}` builds these with other features than `cargo build --release`, \
+         which would compile them (and what depends on them) again: {again:#?}; \
+         pin the features in sim-client/cli/Cargo.toml",
+        first.0.join(" ")
+    );
+}
+
+/// The first command's check sees a build whose features differ: without
+/// the pins in the command line's manifest, the server's build without
+/// the adapters resolves other features for the crates it shares.
+#[test]
+fn a_build_without_the_pins_is_seen_to_differ() {
+    let workspace = resolved(&["--workspace"], false);
+    let built = resolved(&["-p", "sim-server", "--no-default-features"], false);
+    assert!(
+        built
+            .iter()
+            .any(|u| !workspace.contains(u) && !binaries_only(u)),
+        "a server library without its command line now resolves the workspace's features"
+    );
 }
 
 /// What `command` would build that the first build did not: each package

@@ -56,6 +56,13 @@ impl WorldLimits {
     }
 
     /// Checks both limits against `1..=MAX_*`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`LimitsError::MaxClients`] if `max_clients` is outside
+    /// `1..=`[`MAX_MAX_CLIENTS`], and [`LimitsError::MaxSensorReaders`] if
+    /// `max_sensor_readers` is outside `1..=`[`MAX_MAX_SENSOR_READERS`]
+    /// (`max_clients` is checked first).
     pub fn validate(&self) -> Result<(), LimitsError> {
         if !(1..=MAX_MAX_CLIENTS).contains(&self.max_clients) {
             return Err(LimitsError::MaxClients(self.max_clients));

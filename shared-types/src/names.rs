@@ -42,6 +42,14 @@ impl WorldName {
     pub const MAX_LEN: usize = 64;
 
     /// Checks `name` and wraps it.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`WorldNameError::Empty`] for an empty name,
+    /// [`WorldNameError::TooLong`] for one longer than [`WorldName::MAX_LEN`]
+    /// bytes, and [`WorldNameError::InvalidCharacter`] (naming the first
+    /// offending character) for one holding a character outside
+    /// `[A-Za-z0-9._-]`.
     pub fn new(name: &str) -> Result<Self, WorldNameError> {
         if name.is_empty() {
             return Err(WorldNameError::Empty);

@@ -78,6 +78,25 @@ pub enum SensorSpecError {
 impl SensorSpec {
     /// Why this spec cannot build a sensor, if it cannot. The message
     /// states the limit that was broken.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorSpecError::NotFinite`] if any position, rotation or
+    /// parameter is NaN or infinite, [`SensorSpecError::Position`] if the
+    /// position is further than
+    /// [`MAX_ACTOR_POSITION`](crate::limits::MAX_ACTOR_POSITION) on an axis,
+    /// [`SensorSpecError::SensorTick`] if `sensor_tick` is outside the clock's
+    /// range, and [`SensorSpecError::UnknownKind`] for a kind this build does
+    /// not know.
+    ///
+    /// Otherwise the kind's own rule decides: [`SensorSpecError::CameraSize`],
+    /// [`SensorSpecError::CameraFieldOfView`] or
+    /// [`SensorSpecError::CameraRange`] for the cameras;
+    /// [`SensorSpecError::LidarSize`], [`SensorSpecError::LidarRange`],
+    /// [`SensorSpecError::LidarRotation`] or [`SensorSpecError::LidarNoise`]
+    /// for the lidars; [`SensorSpecError::GnssNoise`],
+    /// [`SensorSpecError::Obstacle`] or [`SensorSpecError::Radar`] for those
+    /// sensors. Each variant's message states the limit broken.
     pub fn check(&self) -> Result<(), SensorSpecError> {
         let p = self.params;
         let finite = self

@@ -317,6 +317,12 @@ fn check_time(field: SettingsField, value: f64) -> Result<(), SettingsError> {
 
 impl WorldSettings {
     /// Converts a frame rate to a fixed delta: `fps = 0` means variable step.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SettingsError::NotFinite`] if `fps` is NaN or infinite, and
+    /// [`SettingsError::Negative`] if it is below 0. (The step's range is
+    /// checked by [`WorldSettings::validate`], not here.)
     pub fn delta_from_fps(fps: f64) -> Result<Option<f64>, SettingsError> {
         let field = SettingsField::Fps;
         if !fps.is_finite() {
@@ -355,6 +361,18 @@ impl WorldSettings {
     /// (compared in integer nanoseconds, so 0.1 = 0.01 × 10 holds exactly).
     /// [`SubstepRule::Clamp`] and [`SubstepRule::Stretch`] accept longer
     /// frames and say what they do with them.
+    ///
+    /// # Errors
+    ///
+    /// Returns the first rule broken, in this order: for `fixed_delta_seconds`
+    /// and then `max_substep_delta_time`, [`SettingsError::NotFinite`],
+    /// [`SettingsError::Negative`], [`SettingsError::TooSmall`] (below
+    /// [`MIN_DELTA_SECONDS`]) or [`SettingsError::TooLarge`] (above
+    /// [`MAX_DELTA_SECONDS`]); [`SettingsError::MaxSubstepsOutOfRange`] if
+    /// `max_substeps` is outside `1..=`[`MAX_SUBSTEPS_LIMIT`]; and
+    /// [`SettingsError::SubstepRule`] if, with substepping on under
+    /// [`SubstepRule::Refuse`], the fixed step is longer than
+    /// `max_substep_delta_time * max_substeps`.
     pub fn validate(&self) -> Result<(), SettingsError> {
         let settings = self.normalized();
         if let Some(dt) = settings.fixed_delta_seconds {

@@ -37,15 +37,28 @@ pub struct WireSettings {
 impl WireSettings {
     /// The substep rule carried, refused with an error naming the value
     /// when this version does not know it.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SettingsError::UnknownSubstepRule`] (with the value read) if
+    /// the byte is not the wire value of a [`SubstepRule`] this version knows.
     pub fn substep_rule(&self) -> Result<SubstepRule, SettingsError> {
         SubstepRule::try_from(u32::from(self.substep_rule))
             .map_err(|e| SettingsError::UnknownSubstepRule { value: e.value })
     }
 
-    /// The settings carried, checked: an unknown substep rule from another
-    /// process is an error, never a guess. (The [`From`] conversion, for
-    /// settings this process's own server wrote, reads an unknown rule as
-    /// [`SubstepRule::Refuse`].)
+    /// The settings carried, checked.
+    ///
+    /// An unknown substep rule from another process is an error, never a
+    /// guess. (The [`From`] conversion, for settings this process's own server
+    /// wrote, reads an unknown rule as [`SubstepRule::Refuse`].)
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SettingsError::UnknownSubstepRule`] if the substep rule
+    /// carried is not one this version knows (see
+    /// [`WireSettings::substep_rule`]); the other fields are not checked here
+    /// (see [`WorldSettings::validate`]).
     pub fn settings(&self) -> Result<WorldSettings, SettingsError> {
         Ok(WorldSettings {
             substep_rule: self.substep_rule()?,

@@ -109,6 +109,14 @@ impl VehicleSpec {
     /// The vehicle `SpawnVehicle` params build: all zero, the default one;
     /// else `[half length, half height, half width, mass]` (simbus axes,
     /// metres, kg), each checked.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`VehicleSpecError::Partial`] if some params are zero and others
+    /// are not, [`VehicleSpecError::HalfExtent`] if a half extent is NaN or
+    /// outside [`MIN_VEHICLE_HALF_EXTENT`]`..=`[`MAX_VEHICLE_HALF_EXTENT`]
+    /// metres, and [`VehicleSpecError::Mass`] if the mass is NaN or outside
+    /// [`MIN_VEHICLE_MASS`]`..=`[`MAX_VEHICLE_MASS`] kg.
     pub fn from_params(params: [f32; 4]) -> Result<Self, VehicleSpecError> {
         if params == [0.0; 4] {
             return Ok(Self::default());

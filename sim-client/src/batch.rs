@@ -141,14 +141,90 @@ impl Client {
     /// Sends `commands` to be applied, in order, at the next frame boundary,
     /// and returns without waiting (CARLA's `apply_batch`). Batches from one
     /// client are applied in the order sent; none is dropped.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError`] if the batch cannot be sent: opening the batch
+    /// port on first use fails ([`RequestError::Full`] if the world admits no
+    /// more clients sending batches, [`RequestError::Timeout`] if the server
+    /// does not answer the port's first, empty batch within the request
+    /// timeout, [`RequestError::Transport`] if iceoryx2 refuses), or iceoryx2
+    /// cannot loan or send the request ([`RequestError::Transport`]). A command
+    /// the server refuses is not an error here: use
+    /// [`Client::apply_batch_sync`] to see each command's result.
     pub fn apply_batch(&self, commands: &[Command]) -> Result<(), RequestError> {
         self.send_batch(commands, false).map(drop)
     }
 
-    /// Applies `commands` atomically at the next frame boundary, in order,
-    /// and returns one result per command and the frame that first shows
-    /// them. With `tick`, one frame is then stepped (only the ticker's
-    /// process may ask), and `frame` is that frame.
+    /// Applies `commands` atomically at the next frame boundary, in order.
+    ///
+    /// Returns one result per command and the frame that first shows them.
+    /// With `tick`, one frame is then stepped (only the ticker's process may
+    /// ask), and `frame` is that frame.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`BatchError::NotTicker`] if `tick` is asked by a process that
+    /// is not the ticker (nothing applied); [`BatchError::NotStepped`] (with
+    /// the results) if the batch was applied but the ticker released, died or
+    /// was revoked before its frame was stepped; [`BatchError::Replaying`] if
+    /// the world is replaying a recording (nothing applied); and
+    /// [`BatchError::Request`] if the batch cannot be sent or is not answered
+    /// within the request timeout ([`RequestError::Timeout`],
+    /// [`RequestError::ServerGone`], [`RequestError::Full`], ...).
+    ///
+    /// A command the server refuses is not an error of the batch: it has its
+    /// status in [`BatchResponse::results`] (see [`BatchResponse::errors`]).
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::Client;
+    /// use shared_types::Command;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "batch", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         config.scene = sim_server::Scene::Empty;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let mut client = Client::connect(&name, Duration::from_secs(5))?;
+    /// let before = client.wait_for_tick(Duration::from_secs(1))?.actors.len();
+    /// let response = client.apply_batch_sync(
+    ///     &[
+    ///         Command::spawn_box([0.0, 5.0, 0.0], [0.5, 0.5, 0.5]),
+    ///         Command::spawn_sphere([3.0, 5.0, 0.0], 0.5),
+    ///     ],
+    ///     false,
+    /// )?;
+    /// assert_eq!(response.results.len(), 2);
+    /// assert!(response.errors().is_empty());
+    /// // `response.frame` is the first frame that shows both.
+    /// let snapshot = loop {
+    ///     let snapshot = client.wait_for_tick(Duration::from_secs(1))?;
+    ///     if snapshot.frame() >= response.frame {
+    ///         break snapshot;
+    ///     }
+    /// };
+    /// assert_eq!(snapshot.actors.len(), before + 2);
+    /// assert!(snapshot.find(response.results[0].actor).is_some());
+    /// # drop(client);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn apply_batch_sync(
         &self,
         commands: &[Command],
@@ -201,11 +277,26 @@ impl Client {
     }
 
     /// Spawns an actor (a `Command::spawn_*`) and returns its id.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`CommandError::SpawnCollision`] (naming the occupant) if the
+    /// new actor's body would overlap another's, [`CommandError::Refused`]
+    /// (with the [`CommandStatus`]) if the server refuses the spawn for another
+    /// reason, and [`CommandError::Batch`] if the batch fails as in
+    /// [`Client::apply_batch_sync`] (a replay running, the request timing out,
+    /// ...). Nothing is spawned in any of these cases.
     pub fn spawn_actor(&self, spawn: Command) -> Result<u64, CommandError> {
         self.single(spawn)
     }
 
     /// Removes actor `id`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`CommandError::Refused`] (with the [`CommandStatus`], such as
+    /// an unknown actor) if the server refuses, and [`CommandError::Batch`] if
+    /// the batch fails as in [`Client::apply_batch_sync`].
     pub fn destroy(&self, id: u64) -> Result<(), CommandError> {
         self.single(Command::destroy(id)).map(drop)
     }

@@ -12,18 +12,39 @@ pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
 /// Options for a [`Client`], from [`Client::builder`]; [`ClientBuilder::connect`]
 /// connects with them.
 ///
-/// ```no_run
+/// A server runs on a thread here, so the example runs as a test:
+///
+/// ```
 /// use std::time::Duration;
 /// use sim_client::prelude::*;
 ///
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-/// let client = Client::builder("default")
+/// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+/// # let name = format!("doc-{}-{}", "builder", std::process::id());
+/// # let stop = Arc::new(AtomicBool::new(false));
+/// # let server = {
+/// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+/// #     std::thread::spawn(move || {
+/// #         let mut config = sim_server::ServerConfig::new(world);
+/// #         config.settings.fixed_delta_seconds = Some(0.01);
+/// #         config.realtime = true;
+/// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+/// #     })
+/// # };
+/// let mut client = Client::builder(&name)
 ///     .timeout(Duration::from_secs(5))
 ///     .wait_mode(WaitMode::Spin)
 ///     .request_timeout(Duration::from_secs(1))
 ///     .every_frame(true)
 ///     .connect()?;
+/// assert_eq!(client.world().as_str(), name);
+/// // Every frame, in order: each next frame is the one after the last.
+/// let first = client.wait_for_tick(Duration::from_secs(1))?;
+/// let second = client.wait_for_tick(Duration::from_secs(1))?;
+/// assert_eq!((second.frame(), second.missed), (first.frame() + 1, 0));
 /// # drop(client);
+/// # stop.store(true, Ordering::Relaxed);
+/// # server.join().expect("server thread")?;
 /// # Ok(())
 /// # }
 /// ```
@@ -78,6 +99,14 @@ impl ClientBuilder {
     }
 
     /// Connects with these options (see [`Client::connect`]).
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`ConnectError`]s of [`Client::connect`]:
+    /// [`ConnectError::InvalidWorld`] for a name that is not a world name,
+    /// [`ConnectError::NoServer`] if no server owns the world within the
+    /// [`timeout`](ClientBuilder::timeout), [`ConnectError::NotAnswering`],
+    /// [`ConnectError::ProtocolMismatch`], [`ConnectError::Full`], and so on.
     pub fn connect(self) -> Result<Client, ConnectError> {
         let mut client = Client::connect(&self.world, self.timeout)?;
         client.set_wait_mode(self.wait_mode);

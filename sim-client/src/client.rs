@@ -139,6 +139,55 @@ impl Client {
     ///
     /// Only the frame subscription and its listener are opened here; the
     /// control, batch and sensor ports open on first use and stay open.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ConnectError::InvalidWorld`] if `world` is not a valid world
+    /// name; [`ConnectError::SharedDirectory`] if iceoryx2 cannot be used as
+    /// configured (its configuration file does not load, or another user owns
+    /// its shared directory); [`ConnectError::NoServer`] if no server owns the
+    /// world within `timeout`; [`ConnectError::NotAnswering`] if the world's
+    /// services exist but no frame is published within `timeout` (a stopped or
+    /// overloaded server); [`ConnectError::ProtocolMismatch`] if the server
+    /// speaks another protocol version; [`ConnectError::Full`] if the world
+    /// admits no more frame subscribers or listeners (`--max-clients`); and
+    /// [`ConnectError::Transport`] if iceoryx2 refuses anything else.
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::{Client, ConnectError};
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "connect", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let client = Client::connect(&name, Duration::from_secs(5))?;
+    /// assert_eq!(client.world().as_str(), name);
+    /// assert_eq!(client.server_pid(), std::process::id()); // the server runs on a thread here
+    ///
+    /// // No server owns this world: refused once the timeout has passed.
+    /// let nobody = format!("{name}-nobody");
+    /// let missing = Client::connect(&nobody, Duration::from_millis(50));
+    /// assert!(matches!(missing, Err(ConnectError::NoServer { .. })));
+    /// # drop(client);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn connect(world: &str, timeout: Duration) -> Result<Self, ConnectError> {
         let world = WorldName::new(world)?;
         let deadline = Instant::now() + timeout;
@@ -258,12 +307,33 @@ impl Client {
 
     /// The world's status: current frame, settings, scene, actors, ticker
     /// and lockstep participants.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError::Timeout`] if the server does not answer within
+    /// the request timeout ([`Client::set_request_timeout`]),
+    /// [`RequestError::ServerGone`] if its process has exited,
+    /// [`RequestError::Interrupted`] if the interrupt check
+    /// ([`set_interrupt_check`](crate::set_interrupt_check)) ends the wait,
+    /// [`RequestError::ProtocolMismatch`] if the server speaks another protocol
+    /// version, and [`RequestError::Unreachable`] if the world is mirrored from
+    /// a host the bridge cannot reach now. The first request opens the control
+    /// port: [`RequestError::Full`] if the world admits no more clients sending
+    /// requests, [`RequestError::Transport`] if iceoryx2 refuses.
     pub fn status(&self) -> Result<Status, RequestError> {
         let response = self.request(ControlRequest::new(RequestKind::Status))?;
         Ok(Status::from(&response.report))
     }
 
     /// The settings in force for the next frame.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`RequestError`]s of [`Client::status`]:
+    /// [`RequestError::Timeout`] if the server does not answer within the
+    /// request timeout, [`RequestError::ServerGone`] if it has exited,
+    /// [`RequestError::ProtocolMismatch`] for a server of another version, and
+    /// so on.
     pub fn get_settings(&self) -> Result<WorldSettings, RequestError> {
         let response = self.request(ControlRequest::new(RequestKind::GetSettings))?;
         Ok(response.report.settings.into())
@@ -272,6 +342,19 @@ impl Client {
     /// Applies `settings` and returns the first frame computed with them.
     /// Refused settings come back as [`ApplySettingsError::Invalid`] and
     /// leave the server's settings unchanged.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ApplySettingsError::Invalid`] if `settings` break a rule of
+    /// [`WorldSettings::validate`] (checked here before anything is sent, and
+    /// again by the server), [`ApplySettingsError::SyncNeedsTicker`] if they
+    /// turn synchronous mode on (only a ticker enters it: see
+    /// [`Ticker::apply_settings`]), [`ApplySettingsError::TickerHolds`] (naming
+    /// the ticker) if a ticker holds the world, and
+    /// [`ApplySettingsError::Request`] if the request fails as for
+    /// [`Client::status`] (or the server answers with a status this client does
+    /// not expect: [`RequestError::UnknownAnswer`]). Nothing changes on the
+    /// server in any of these cases.
     pub fn apply_settings(&self, settings: WorldSettings) -> Result<u64, ApplySettingsError> {
         // Check here first: a clear error without a round trip. The server
         // checks again, since not every sender is this library.
@@ -299,6 +382,16 @@ impl Client {
 
     /// Loads `scene` (`default`, `empty`, `boxes:N`) as a new episode that
     /// starts at frame 0; settings are kept unless `reset_settings`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`LoadWorldError::UnknownScene`] (with the rule it breaks) if
+    /// `scene` is not a scene name, checked here before anything is sent, or if
+    /// the server does not know it; [`LoadWorldError::TickerHolds`] if
+    /// `reset_settings` is asked while a ticker holds the world;
+    /// [`LoadWorldError::Failed`] if the server could not build the world (its
+    /// log says why); and [`LoadWorldError::Request`] if the request fails as
+    /// for [`Client::status`]. The world is unchanged in each case.
     pub fn load_world(&self, scene: &str, reset_settings: bool) -> Result<Status, LoadWorldError> {
         if let Err(reason) = scene.parse::<shared_types::scene::SceneName>() {
             return Err(LoadWorldError::UnknownScene {
@@ -312,10 +405,19 @@ impl Client {
         )
     }
 
-    /// Restores the current scene's initial state (actors and physics; the
-    /// actors get new ids, never reused within the server's life) as
-    /// a new episode that starts at frame 0; settings are kept unless
-    /// `reset_settings`.
+    /// Restores the current scene's initial state as a new episode.
+    ///
+    /// The actors and physics are the scene's first ones (the actors get new
+    /// ids, never reused within the server's life); the episode starts at
+    /// frame 0; settings are kept unless `reset_settings`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`LoadWorldError::TickerHolds`] if `reset_settings` is asked
+    /// while a ticker holds the world, [`LoadWorldError::Failed`] if the server
+    /// could not rebuild the world (its log says why), and
+    /// [`LoadWorldError::Request`] if the request fails as for
+    /// [`Client::status`]. The world is unchanged in each case.
     pub fn reload_world(&self, reset_settings: bool) -> Result<Status, LoadWorldError> {
         self.load(ControlRequest::load_world(None, reset_settings), "")
     }
@@ -352,12 +454,66 @@ impl Client {
     /// In synchronous mode frames come in order, each once. In asynchronous
     /// mode a client that fell behind gets the newest frame, and
     /// [`WorldSnapshot::missed`] says how many it skipped.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`WaitError::Timeout`] (with the last frame this client saw) if
+    /// no new frame comes within `timeout`, [`WaitError::ServerGone`] if the
+    /// server process exits meanwhile (see [`Client::next_event`] to ride
+    /// through a restart), [`WaitError::Interrupted`] if the interrupt check
+    /// ([`set_interrupt_check`](crate::set_interrupt_check)) ends the wait,
+    /// [`WaitError::ProtocolMismatch`] for a frame of another protocol version,
+    /// and [`WaitError::Transport`] if iceoryx2 fails to receive or wait.
     pub fn wait_for_tick(&mut self, timeout: Duration) -> Result<WorldSnapshot, WaitError> {
         self.wait_for_frame(timeout).map(|view| view.to_snapshot())
     }
 
     /// [`Client::wait_for_tick`] without the copy: the frame is read in
     /// place in shared memory until the view is dropped (hold at most a few).
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`WaitError`]s of [`Client::wait_for_tick`]:
+    /// [`WaitError::Timeout`] if no new frame comes within `timeout`,
+    /// [`WaitError::ServerGone`] if the server process exits meanwhile,
+    /// [`WaitError::Interrupted`], [`WaitError::ProtocolMismatch`] or
+    /// [`WaitError::Transport`].
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::Client;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "frame", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let mut client = Client::connect(&name, Duration::from_secs(5))?;
+    /// let view = client.wait_for_frame(Duration::from_secs(1))?; // read in place
+    /// assert_eq!(view.actors().len(), view.header().actor_count as usize);
+    /// let seen = view.frame();
+    /// drop(view); // the sample goes back to the server's pool
+    /// let next = client.wait_for_frame(Duration::from_secs(1))?;
+    /// assert!(next.frame() > seen);
+    /// # drop(next);
+    /// # drop(client);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn wait_for_frame(&mut self, timeout: Duration) -> Result<FrameView, WaitError> {
         self.frames
             .next(timeout, self.world.as_str(), Some(self.server_pid))
@@ -382,11 +538,30 @@ impl Client {
 
     /// Claims tick ownership of the world. Fails with
     /// [`TickError::NotTicker`], naming the owner, while another client ticks.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::NotTicker`] (naming the owner when the server can)
+    /// if another client ticks the world; [`TickError::Request`] with
+    /// [`RequestError::Timeout`] if the tick service does not appear or the
+    /// claim is not answered within the request timeout, with
+    /// [`RequestError::ServerGone`] if the server exits meanwhile, or with
+    /// [`RequestError::Full`] / [`RequestError::Transport`] if the ticker's
+    /// node or ports cannot be opened; and [`TickError::Revoked`] if the claim
+    /// is answered as revoked.
     pub fn claim_ticker(&self) -> Result<Ticker, TickError> {
         self.claim_ticker_as(&default_ticker_name())
     }
 
     /// [`Client::claim_ticker`] with the node name others see as the owner.
+    ///
+    /// # Errors
+    ///
+    /// Returns the errors of [`Client::claim_ticker`]: [`TickError::NotTicker`]
+    /// if another client ticks the world, [`TickError::Request`] if the tick
+    /// service cannot be opened or does not answer (including
+    /// [`RequestError::Transport`] if iceoryx2 refuses `node_name` as a node
+    /// name).
     pub fn claim_ticker_as(&self, node_name: &str) -> Result<Ticker, TickError> {
         Ticker::claim(
             &self.world,
@@ -412,18 +587,35 @@ impl Client {
         )
     }
 
-    /// A standby ticker: opens a ticker's node and ports now and queues a
-    /// claim that the server grants the moment the world has no ticker
-    /// (the owner released, died or was revoked); first come, first
-    /// served. Returns once the server answered (granted or queued);
-    /// [`StandbyTicker::wait`] then returns the [`Ticker`]. Fails with
-    /// [`TickError::StandbyFull`] when the tick service admits no more ports.
+    /// A standby ticker: a claim the server grants once the world has no ticker.
+    ///
+    /// It opens a ticker's node and ports now and queues a claim that the
+    /// server grants the moment the world has no ticker (the owner released,
+    /// died or was revoked); first come, first served. Returns once the server
+    /// answered (granted or queued); [`StandbyTicker::wait`] then returns the
+    /// [`Ticker`]. Fails with [`TickError::StandbyFull`] when the tick service
+    /// admits no more ports.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::StandbyFull`] if the tick service admits no more
+    /// ports (too many standbys wait), and [`TickError::Request`] if the
+    /// ticker's ports cannot be opened or the server does not answer the claim
+    /// within the request timeout ([`RequestError::Timeout`],
+    /// [`RequestError::ServerGone`], [`RequestError::Transport`], ...).
     pub fn standby_ticker(&self) -> Result<StandbyTicker, TickError> {
         self.standby_ticker_as(&default_ticker_name())
     }
 
     /// [`Client::standby_ticker`] with the node name others see once it
     /// owns the world.
+    ///
+    /// # Errors
+    ///
+    /// Returns the errors of [`Client::standby_ticker`]:
+    /// [`TickError::StandbyFull`] if the tick service admits no more ports,
+    /// [`TickError::Request`] if the ports cannot be opened (including a
+    /// `node_name` iceoryx2 refuses) or the claim is not answered in time.
     pub fn standby_ticker_as(&self, node_name: &str) -> Result<StandbyTicker, TickError> {
         StandbyTicker::open(
             &self.world,
@@ -435,16 +627,35 @@ impl Client {
 
     /// Joins the world's lockstep as `name`: in synchronous mode the server
     /// then waits for this participant's [`Participant::done`] every frame.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError::Timeout`] if the lockstep service does not
+    /// appear or the join is not answered within the request timeout,
+    /// [`RequestError::ServerGone`] if the server exits meanwhile,
+    /// [`RequestError::Full`] if the world admits no more lockstep participants
+    /// (`--max-clients`), [`RequestError::ProtocolMismatch`] for a server of
+    /// another version, and [`RequestError::Transport`] if iceoryx2 refuses to
+    /// open the participant's node or ports.
     pub fn join_lockstep(&self, name: &str) -> Result<Participant, RequestError> {
         self.join_lockstep_with_window(name, 0)
     }
 
-    /// Joins the world's lockstep as `name` with a window of `window`
-    /// frames (CARLA's per-participant synchronous windows): in synchronous
-    /// mode the server steps past frame N only when this participant is
-    /// done with frame N − `window`, so it may fall up to `window` frames
-    /// behind without holding the ticker. 0 is [`Client::join_lockstep`];
-    /// at most [`shared_types::MAX_LOCKSTEP_WINDOW`].
+    /// Joins the world's lockstep as `name` with a window of `window` frames.
+    ///
+    /// CARLA's per-participant synchronous windows: in synchronous mode the
+    /// server steps past frame N only when this participant is done with frame
+    /// N − `window`, so it may fall up to `window` frames behind without
+    /// holding the ticker. 0 is [`Client::join_lockstep`]; at most
+    /// [`shared_types::MAX_LOCKSTEP_WINDOW`].
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError::WindowTooLarge`] if `window` is above
+    /// [`shared_types::MAX_LOCKSTEP_WINDOW`] (checked before anything is
+    /// opened) or the server refuses it, and otherwise the errors of
+    /// [`Client::join_lockstep`] ([`RequestError::Timeout`],
+    /// [`RequestError::Full`], [`RequestError::ServerGone`], ...).
     pub fn join_lockstep_with_window(
         &self,
         name: &str,
@@ -512,6 +723,15 @@ impl std::fmt::Debug for Client {
 impl Client {
     /// Calls `callback` with every new frame, on a background thread with its
     /// own subscription, until [`Client::remove_on_tick`] or the client drops.
+    ///
+    /// # Errors
+    ///
+    /// The first callback starts the background thread and its subscription:
+    /// [`ConnectError::NoServer`] if the world's frames do not appear within
+    /// [`DEFAULT_REQUEST_TIMEOUT`], [`ConnectError::Full`] if the world admits
+    /// no more frame subscribers, [`ConnectError::Transport`] if the thread
+    /// cannot be started or has stopped, and the other errors of
+    /// [`Client::connect`].
     pub fn on_tick(
         &mut self,
         callback: impl FnMut(&WorldSnapshot) + Send + 'static,

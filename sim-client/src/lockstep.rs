@@ -29,18 +29,47 @@ type PendingDone = Pending<LockstepRequest, LockstepResponse>;
 ///
 /// [`Client::join_lockstep_with_window`]: crate::Client::join_lockstep_with_window
 ///
-/// ```no_run
+/// A server runs on a thread here, so the example runs as a test; one
+/// thread ticks and takes part, where a program would do each in its own
+/// process:
+///
+/// ```
 /// use std::time::Duration;
 /// use sim_client::Client;
+/// use shared_types::WorldSettings;
 ///
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-/// let mut client = Client::connect("default", Duration::from_secs(2))?;
+/// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+/// # let name = format!("doc-{}-{}", "participant", std::process::id());
+/// # let stop = Arc::new(AtomicBool::new(false));
+/// # let server = {
+/// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+/// #     std::thread::spawn(move || {
+/// #         let mut config = sim_server::ServerConfig::new(world);
+/// #         config.settings.fixed_delta_seconds = Some(0.01);
+/// #         config.realtime = true;
+/// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+/// #     })
+/// # };
+/// let client = Client::connect(&name, Duration::from_secs(5))?;
+/// let mut ticker = client.claim_ticker()?;
+/// let sync = WorldSettings { synchronous_mode: true, ..client.get_settings()? };
+/// ticker.apply_settings(sync)?;
 /// let participant = client.join_lockstep("my-traffic")?;
-/// loop {
-///     let snapshot = client.wait_for_tick(Duration::from_secs(5))?;
+/// assert_eq!(client.status()?.participants, 1);
+/// let (episode, mut frame) = participant.joined_at();
+/// for _ in 0..5 {
 ///     // ... send this frame's commands with client.apply_batch_sync(..) ...
-///     participant.done(snapshot.episode(), snapshot.frame())?;
+///     participant.done(episode, frame)?; // the server may step past `frame`
+///     let next = ticker.tick(Duration::from_secs(5))?;
+///     assert_eq!(next, frame + 1);
+///     frame = next;
 /// }
+/// participant.leave();
+/// # drop(ticker);
+/// # stop.store(true, Ordering::Relaxed);
+/// # server.join().expect("server thread")?;
+/// # Ok(())
 /// # }
 /// ```
 ///
@@ -146,15 +175,24 @@ impl Participant {
         self.joined
     }
 
-    /// Done with `frame` of `episode`: the server may step past it (once
-    /// the tick is there and every other participant is done too). Send the
-    /// frame's commands *before* (with `apply_batch_sync`) so they land in
-    /// the next step.
+    /// Done with `frame` of `episode`: the server may step past it.
+    ///
+    /// It steps once the tick is there and every other participant is done
+    /// too. Send the frame's commands *before* (with `apply_batch_sync`) so
+    /// they land in the next step.
     ///
     /// Does not wait for the server. Fails with
     /// [`RequestError::NotParticipant`] when the server answered an earlier
     /// `done` saying it no longer waits for this participant (it was
     /// dropped after the lockstep timeout): frames went on without it.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError::NotParticipant`] if the server answered an
+    /// earlier `done` saying it no longer waits for this participant (see
+    /// [`Participant::check`]), any other error that answer carried
+    /// ([`RequestError::ProtocolMismatch`], ...), and
+    /// [`RequestError::Transport`] if iceoryx2 cannot send this `done`.
     pub fn done(&self, episode: u64, frame: u64) -> Result<(), RequestError> {
         self.check()?;
         let pending = self.send(LockstepKind::Done, episode, frame)?;
@@ -164,6 +202,15 @@ impl Participant {
 
     /// Whether the server still counts this participant, from the answer
     /// to the last [`Participant::done`] if it has come (no waiting).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RequestError::NotParticipant`] if the answer to the last
+    /// `done` says the server dropped this participant (it kept a tick waiting
+    /// past the server's `--lockstep-timeout`),
+    /// [`RequestError::ProtocolMismatch`] or [`RequestError::Unreachable`] if
+    /// that answer says so, and [`RequestError::Transport`] if iceoryx2 fails
+    /// to receive it. No answer yet is `Ok(())`.
     pub fn check(&self) -> Result<(), RequestError> {
         let mut last = self.last_done.borrow_mut();
         let Some(pending) = last.as_ref() else {

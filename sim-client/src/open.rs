@@ -21,11 +21,22 @@ use crate::{Client, ConnectError, RequestError};
 /// flag is looked at again.
 const STOP_CHECK: Duration = Duration::from_millis(200);
 
-/// `connect` (e.g. `|slice| Client::connect(world, slice)`), given at most
-/// 200 ms per attempt, until it reaches a server, `timeout` has passed
+/// Calls `connect` until it reaches a server, `timeout` passes or `stop` is set.
+///
+/// `connect` (e.g. `|slice| Client::connect(world, slice)`) is given at
+/// most 200 ms per attempt, until it reaches a server, `timeout` has passed
 /// (then its last error, with the whole `timeout` in it) or `stop` is set
 /// (`Ok(None)`): a wait for a world's server that Ctrl-C ends, for a
 /// program whose signal handler sets `stop`.
+///
+/// # Errors
+///
+/// Returns `Ok(None)`, not an error, when `stop` is set. Returns
+/// [`ConnectError::NoServer`] or [`ConnectError::NotAnswering`] (with the whole
+/// `timeout` in it) if no attempt reached a server before `timeout` passed, and
+/// any other error of `connect` at once ([`ConnectError::InvalidWorld`],
+/// [`ConnectError::ProtocolMismatch`], ...): only a missing or silent server is
+/// waited for.
 pub fn connect_until_stopped(
     timeout: Duration,
     stop: &AtomicBool,

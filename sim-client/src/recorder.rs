@@ -245,10 +245,64 @@ impl Client {
         }
     }
 
-    /// Starts recording the world into `path` (an MCAP file, created by the
-    /// server; made absolute here), with every sensor capture if
-    /// `record_sensors`. Returns the path the server writes (CARLA's
-    /// `start_recorder`).
+    /// Starts recording the world into `path` (CARLA's `start_recorder`).
+    ///
+    /// `path` is an MCAP file, created by the server (made absolute here),
+    /// with every sensor capture if `record_sensors`. Returns the path the
+    /// server writes.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::PathTooLong`] if the absolute path is longer
+    /// than the wire carries ([`PathText::CAPACITY`] bytes);
+    /// [`RecorderError::Refused`] (with a [`RecorderRefusal`] and the server's
+    /// message) if a recording already runs (`AlreadyRecording`), a replay runs
+    /// (`Replaying`) or the server cannot create the file (`CannotWrite`); and
+    /// [`RecorderError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`],
+    /// [`RequestError::Full`], ...). Nothing changes when it is refused.
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::Client;
+    /// use shared_types::WorldSettings;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "recorder", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let client = Client::connect(&name, Duration::from_secs(5))?;
+    /// let mut ticker = client.claim_ticker()?;
+    /// let sync = WorldSettings { synchronous_mode: true, ..client.get_settings()? };
+    /// ticker.apply_settings(sync)?;
+    /// let path = std::env::temp_dir().join(format!("{name}.mcap"));
+    /// let written = client.start_recorder(&path, false)?; // the current frame is the first
+    /// for _ in 0..10 {
+    ///     ticker.tick(Duration::from_secs(1))?;
+    /// }
+    /// let status = client.stop_recorder()?;
+    /// assert_eq!(status.frames, 11);
+    /// assert_eq!(std::fs::metadata(&written)?.len(), status.bytes);
+    /// # std::fs::remove_file(&written)?;
+    /// # drop(ticker);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn start_recorder(
         &self,
         path: impl AsRef<Path>,
@@ -265,17 +319,37 @@ impl Client {
 
     /// Stops the recording and closes its file; the status says how many
     /// frames and bytes it holds.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::Refused`] with `NotRecording` if no recording
+    /// runs, and [`RecorderError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`], ...).
     pub fn stop_recorder(&self) -> Result<RecorderStatus, RecorderError> {
         self.recorder_request(RecorderRequest::new(RecorderKind::Stop))
     }
 
     /// How the recorder and the replayer are doing.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`],
+    /// [`RequestError::Full`] if the world admits no more clients sending
+    /// recorder requests, ...).
     pub fn recorder_status(&self) -> Result<RecorderStatus, RecorderError> {
         self.recorder_request(RecorderRequest::new(RecorderKind::Status))
     }
 
     /// CARLA's `replay_file(name, start, duration, follow_id, replay_sensors)`:
     /// replays the recording at `path` in the default mode.
+    ///
+    /// # Errors
+    ///
+    /// Returns the errors of [`Client::replay`]:
+    /// [`RecorderError::PathTooLong`], [`RecorderError::Refused`] (a bad file,
+    /// a `start` past the end, an unknown `follow_id`, a recording or replay
+    /// running), and [`RecorderError::Request`].
     pub fn replay_file(
         &self,
         path: impl AsRef<Path>,
@@ -296,11 +370,25 @@ impl Client {
         )
     }
 
-    /// Replays the recording at `path` as `options` say. The server reads
-    /// the whole file first (off its frame loop; a damaged one is refused
-    /// and nothing changes), so this waits up to [`REPLAY_READ_TIMEOUT`]
-    /// (or the request timeout, if longer) — less if the server dies. In
-    /// synchronous mode the replay starts with the next tick.
+    /// Replays the recording at `path` as `options` say.
+    ///
+    /// The server reads the whole file first (off its frame loop; a damaged
+    /// one is refused and nothing changes), so this waits up to
+    /// [`REPLAY_READ_TIMEOUT`] (or the request timeout, if longer) — less if
+    /// the server dies. In synchronous mode the replay starts with the next
+    /// tick.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::PathTooLong`] if the absolute path is longer
+    /// than the wire carries; [`RecorderError::Refused`] (nothing changes) with
+    /// `BadFile` if the file is not a readable recording, `StartPastEnd` if
+    /// `options.start` is past its end, `UnknownActor` if `options.follow_id`
+    /// names no recorded actor, `Recording` or `Replaying` if a recording or
+    /// another replay runs, `InvalidArgument` for a value out of range (the
+    /// time factor, the duration, the mode); and [`RecorderError::Request`] if
+    /// the request fails ([`RequestError::Timeout`] after the wait above,
+    /// [`RequestError::ServerGone`], ...).
     pub fn replay(
         &self,
         path: impl AsRef<Path>,
@@ -324,6 +412,12 @@ impl Client {
 
     /// CARLA's `set_replayer_time_factor`: the replay's speed relative to
     /// the recording (asynchronous mode).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::Refused`] with `NotReplaying` if no replay runs
+    /// or `InvalidArgument` if `factor` is out of range, and
+    /// [`RecorderError::Request`] if the request fails.
     pub fn set_replayer_time_factor(&self, factor: f64) -> Result<RecorderStatus, RecorderError> {
         let mut request = RecorderRequest::new(RecorderKind::TimeFactor);
         request.time_factor = factor;
@@ -333,6 +427,12 @@ impl Client {
     /// CARLA's `stop_replayer(keep_actors)`: ends the replay; with
     /// `keep_actors` the replayed world goes on live, otherwise the world
     /// from before the replay comes back.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecorderError::Refused`] with `NotReplaying` if no replay
+    /// runs, and [`RecorderError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`], ...).
     pub fn stop_replayer(&self, keep_actors: bool) -> Result<RecorderStatus, RecorderError> {
         let mut request = RecorderRequest::new(RecorderKind::StopReplay);
         if keep_actors {

@@ -50,12 +50,19 @@ pub enum Event {
 const RETRY: Duration = Duration::from_millis(20);
 
 impl Client {
-    /// Connects to the next server of `world` after the one with pid
-    /// `previous_pid` exited: a live server whose pid is not that one,
-    /// waiting up to `timeout` for it to come (a resume: `sim-server
-    /// --resume DIR`). Fails with [`ConnectError::NoServer`] when none came
-    /// in time. [`Client::reconnect`] does this for a client that is
-    /// already connected.
+    /// Connects to the next server of `world` after the one with pid `previous_pid`.
+    ///
+    /// It waits up to `timeout` for a live server whose pid is not that one to
+    /// come (a resume: `sim-server --resume DIR`). Fails with
+    /// [`ConnectError::NoServer`] when none came in time.
+    /// [`Client::reconnect`] does this for a client that is already connected.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ConnectError::NoServer`] if no server other than
+    /// `previous_pid` came within `timeout`, and any other error of
+    /// [`Client::connect`] at once ([`ConnectError::InvalidWorld`],
+    /// [`ConnectError::ProtocolMismatch`], [`ConnectError::Full`], ...).
     pub fn connect_next(
         world: &str,
         previous_pid: u32,
@@ -85,12 +92,20 @@ impl Client {
         }
     }
 
-    /// Waits up to `timeout` for a server to come back on this client's
-    /// world after the one it knew exited (a resume: `sim-server --resume
-    /// DIR`), and talks to it from now on: its frames, and its ports opened
-    /// on first use as at connect. The wait mode, frame order and request
-    /// timeout stay as set. Fails with [`ConnectError::NoServer`] when none
-    /// came back in time.
+    /// Waits up to `timeout` for a server to come back, and talks to it from now on.
+    ///
+    /// The server comes back on this client's world after the one it knew
+    /// exited (a resume: `sim-server --resume DIR`); this client then reads its
+    /// frames, and its ports open on first use as at connect. The wait mode,
+    /// frame order and request timeout stay as set. Fails with
+    /// [`ConnectError::NoServer`] when none came back in time.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ConnectError::NoServer`] if no new server came back within
+    /// `timeout` (this client is unchanged), and any other error of
+    /// [`Client::connect`] met meanwhile ([`ConnectError::ProtocolMismatch`],
+    /// [`ConnectError::Full`], ...).
     pub fn reconnect(&mut self, timeout: Duration) -> Result<Reconnected, ConnectError> {
         let previous_pid = self.server_pid;
         let mut next = Client::connect_next(self.world.as_str(), previous_pid, timeout)?;
@@ -111,12 +126,21 @@ impl Client {
         Ok(reconnected)
     }
 
-    /// [`Client::wait_for_tick`] that rides through a server restart: the
-    /// next frame, or — when the server exited and another came back on
-    /// the world within `timeout` — [`Event::Reconnected`], after which
-    /// this client reads the new server's frames (the frame it resumed at
-    /// comes next). Fails with [`WaitError::NotBack`] when no server came
-    /// back in time.
+    /// [`Client::wait_for_tick`] that rides through a server restart.
+    ///
+    /// The next frame, or — when the server exited and another came back on
+    /// the world within `timeout` — [`Event::Reconnected`], after which this
+    /// client reads the new server's frames (the frame it resumed at comes
+    /// next). Fails with [`WaitError::NotBack`] when no server came back in
+    /// time.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`WaitError::NotBack`] if the server exited and none came back
+    /// within `timeout`, [`WaitError::Reconnect`] if one came back but
+    /// connecting to it failed, and the other [`WaitError`]s of
+    /// [`Client::wait_for_tick`] ([`WaitError::Timeout`] if no frame came and
+    /// the server still runs, [`WaitError::Interrupted`], ...).
     pub fn next_event(&mut self, timeout: Duration) -> Result<Event, WaitError> {
         let deadline = Instant::now() + timeout;
         match self.wait_for_tick(timeout) {
@@ -165,11 +189,20 @@ impl Ticker {
         }
     }
 
-    /// Waits up to `timeout` for the next server of the world (one whose
-    /// pid is not this ticker's server's) and claims it under the same node
-    /// name, keeping this ticker's wait mode: what
-    /// [`Ticker::set_follow_restarts`] does when a tick notices, for a
-    /// program that noticed first (a request failed with the server gone).
+    /// Waits up to `timeout` for the next server of the world and claims it.
+    ///
+    /// The next server is one whose pid is not this ticker's server's; it is
+    /// claimed under the same node name, keeping this ticker's wait mode: what
+    /// [`Ticker::set_follow_restarts`] does when a tick notices, for a program
+    /// that noticed first (a request failed with the server gone).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::Frame`] with [`WaitError::NotBack`] if no new
+    /// server came within `timeout`, with [`WaitError::Reconnect`] if one came
+    /// but connecting to it failed, and the errors of [`Client::claim_ticker`]
+    /// if claiming it fails ([`TickError::NotTicker`] if another client got
+    /// there first, [`TickError::Request`]).
     pub fn reclaim(&mut self, timeout: Duration) -> Result<Reconnected, TickError> {
         let previous_pid = self.server_pid;
         // Nothing to release on a server that is gone.

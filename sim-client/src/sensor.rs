@@ -263,14 +263,33 @@ impl Sensor {
     }
 
     /// The next queued capture, without waiting.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`WaitError::SensorEnded`] (with the reason) once the sensor is
+    /// gone, and on every call after; [`WaitError::ProtocolMismatch`] for a
+    /// capture of another protocol version; [`WaitError::Transport`] if
+    /// iceoryx2 fails to receive.
     pub fn try_recv(&mut self) -> Result<Option<Capture>, WaitError> {
         self.reader.next()
     }
 
-    /// Waits up to `timeout` for the next capture. Ends with
-    /// [`WaitError::NoCapture`] when none came, and with
+    /// Waits up to `timeout` for the next capture.
+    ///
+    /// Ends with [`WaitError::NoCapture`] when none came, and with
     /// [`WaitError::SensorEnded`] once the sensor is gone (destroyed, its
     /// parent destroyed, the world reloaded, the server stopped).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`WaitError::NoCapture`] if no capture comes within `timeout`,
+    /// [`WaitError::SensorEnded`] once the sensor is gone (destroyed, its
+    /// parent destroyed, the world reloaded, the server stopped),
+    /// [`WaitError::ServerGone`] if the server process exits,
+    /// [`WaitError::Interrupted`] if the interrupt check ends the wait,
+    /// [`WaitError::ProtocolMismatch`] for a capture of another protocol
+    /// version, and [`WaitError::Transport`] if iceoryx2 fails to receive or
+    /// wait.
     pub fn recv(&mut self, timeout: Duration) -> Result<Capture, WaitError> {
         let wait = Wait::for_mode(self.mode, &self.ready);
         let reader = &mut self.reader;
@@ -318,6 +337,13 @@ impl Sensor {
     /// Calls `callback` with every capture, on a background thread with its
     /// own subscription (CARLA's `sensor.listen`), until the returned
     /// handle is stopped or dropped.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorError::Request`] if the background thread cannot be
+    /// started or cannot subscribe to the sensor ([`RequestError::Full`] if the
+    /// sensor admits no more readers, `--max-sensor-readers`;
+    /// [`RequestError::Transport`] if its service is gone or iceoryx2 refuses).
     pub fn listen(
         &self,
         mut callback: impl FnMut(&Capture) + Send + 'static,
@@ -453,6 +479,57 @@ impl Client {
     }
 
     /// Builds a sensor from `spec` and subscribes to it.
+    ///
+    /// # Errors
+    ///
+    /// Returns the errors of [`Client::create_sensor`]
+    /// ([`SensorError::InvalidSpec`], [`SensorError::Refused`],
+    /// [`SensorError::Request`]), and [`SensorError::Request`] if subscribing
+    /// fails ([`RequestError::Full`] if the sensor admits no more readers,
+    /// `--max-sensor-readers`; [`RequestError::Transport`]).
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::Client;
+    /// use shared_types::{SensorSpec, WorldSettings};
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "sensor", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let client = Client::connect(&name, Duration::from_secs(5))?;
+    /// let mut ticker = client.claim_ticker()?;
+    /// let sync = WorldSettings { synchronous_mode: true, ..client.get_settings()? };
+    /// ticker.apply_settings(sync)?;
+    /// // A 32 x 24 depth camera 2 m up, looking along +x.
+    /// let mut camera = client.spawn_sensor(SensorSpec::depth([0.0, 2.0, 0.0], 32, 24, 90.0, 100.0))?;
+    /// let frame = ticker.tick(Duration::from_secs(1))?;
+    /// let capture = camera.recv(Duration::from_secs(5))?; // borrowed from shared memory
+    /// assert_eq!(capture.header().frame, frame);
+    /// assert_eq!(capture.header().size, [32, 24]);
+    /// assert_eq!(capture.depth().map(<[f32]>::len), Some(32 * 24));
+    /// assert_eq!(capture.bytes().len(), 32 * 24 * 4);
+    /// # drop(capture);
+    /// # drop(camera);
+    /// # drop(ticker);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn spawn_sensor(&self, spec: SensorSpec) -> Result<Sensor, SensorError> {
         let info = self.create_sensor(spec)?;
         self.open_sensor(info)
@@ -460,6 +537,17 @@ impl Client {
 
     /// Builds a sensor from `spec` without subscribing to it (read it
     /// later with [`Client::sensor`]).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorError::InvalidSpec`] if `spec` breaks a rule of
+    /// [`SensorSpec::check`] (checked before anything is sent);
+    /// [`SensorError::Refused`] with the server's [`SensorRefusal`]
+    /// (`UnknownActor` if `attach_to` names no actor, `NoMemory` if the shared
+    /// memory for its captures cannot be had, `InvalidSpec`); and
+    /// [`SensorError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`],
+    /// [`RequestError::Full`], ...).
     pub fn create_sensor(&self, spec: SensorSpec) -> Result<SensorInfo, SensorError> {
         spec.check()?;
         let info = self
@@ -473,6 +561,13 @@ impl Client {
     }
 
     /// Subscribes to the existing sensor `id`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorError::UnknownSensor`] if the world has no sensor `id`
+    /// (never spawned, or it has ended), and [`SensorError::Request`] if
+    /// listing the sensors or subscribing fails ([`RequestError::Full`] if the
+    /// sensor admits no more readers, [`RequestError::Timeout`], ...).
     pub fn sensor(&self, id: u64) -> Result<Sensor, SensorError> {
         self.open_sensor(self.sensor_info(id)?)
     }
@@ -495,6 +590,13 @@ impl Client {
     }
 
     /// Every sensor of the world.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorError::Request`] if the request fails
+    /// ([`RequestError::Timeout`], [`RequestError::ServerGone`],
+    /// [`RequestError::Full`] if the world admits no more clients sending
+    /// sensor requests, ...).
     pub fn list_sensors(&self) -> Result<Vec<SensorInfo>, SensorError> {
         self.sensor_request(SensorRequest::new(
             SensorRequestKind::List,
@@ -504,6 +606,13 @@ impl Client {
     }
 
     /// Removes sensor `id` from the world (CARLA's `sensor.stop()` + destroy).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`SensorError::UnknownSensor`] if the world has no sensor `id`
+    /// (never spawned, or it has ended already), [`SensorError::Refused`] if
+    /// the server refuses otherwise, and [`SensorError::Request`] if the
+    /// request fails.
     pub fn destroy_sensor(&self, id: u64) -> Result<(), SensorError> {
         match self.sensor_request(SensorRequest::new(
             SensorRequestKind::Destroy,

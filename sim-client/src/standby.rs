@@ -120,6 +120,14 @@ impl StandbyTicker {
     /// Waits up to `timeout` for the world to be free, then returns the
     /// [`Ticker`]: [`TickError::StandbyTimedOut`] (naming the owner) if it
     /// is not, [`RequestError::ServerGone`] if the server died meanwhile.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::StandbyTimedOut`] (naming the owner) if the world
+    /// still has a ticker after `timeout`, [`TickError::Request`] with
+    /// [`RequestError::ServerGone`] if the server died meanwhile (or another
+    /// [`RequestError`] if the answer cannot be read), and the errors of the
+    /// grant ([`TickError::Revoked`], [`TickError::NotTicker`]).
     pub fn wait(self, timeout: Duration) -> Result<Ticker, TickError> {
         match self.wait_for(timeout)? {
             TakeOver::Ticker(ticker) => Ok(ticker),
@@ -134,6 +142,14 @@ impl StandbyTicker {
     /// Waits up to `within` for the world to be free (woken by the server's
     /// answer, not by a timer): the [`Ticker`], or this standby, still
     /// queued, to wait again (a loop that also watches for Ctrl-C).
+    ///
+    /// # Errors
+    ///
+    /// Running out of time is not an error: it returns [`TakeOver::Waiting`].
+    /// Returns [`TickError::Request`] with [`RequestError::ServerGone`] if the
+    /// server died meanwhile (or another [`RequestError`] if the answer cannot
+    /// be read), and [`TickError::Revoked`] or [`TickError::NotTicker`] if the
+    /// server's answer is not a grant.
     pub fn wait_for(mut self, within: Duration) -> Result<TakeOver, TickError> {
         let deadline = Instant::now() + within;
         loop {

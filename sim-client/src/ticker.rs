@@ -225,10 +225,11 @@ impl Ticker {
         self.last
     }
 
-    /// Asks for the next frame and returns its id once its snapshot is
-    /// published, so a subscriber that then reads sees it. In synchronous
-    /// mode nothing moves without a tick; in asynchronous mode a tick just
-    /// waits for the next frame.
+    /// Asks for the next frame and returns its id once its snapshot is published.
+    ///
+    /// A subscriber that then reads sees it. In synchronous mode nothing moves
+    /// without a tick; in asynchronous mode a tick just waits for the next
+    /// frame.
     ///
     /// A tick held up by a lockstep participant is told so by the server
     /// (which drops a participant after its `--lockstep-timeout`); it then
@@ -237,6 +238,18 @@ impl Ticker {
     /// With [`Ticker::set_follow_restarts`], a server that exits while the
     /// tick waits ends it with [`TickError::Restarted`] once another came
     /// back and this ticker claimed it.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::Request`] with [`RequestError::Timeout`] if the
+    /// frame is not published within `timeout`, or with
+    /// [`RequestError::ServerGone`] if the server exits (without
+    /// [`Ticker::set_follow_restarts`]); [`TickError::HeldUp`] if a lockstep
+    /// participant held the tick past the server's lockstep timeout and no
+    /// answer came; [`TickError::NotTicker`] or [`TickError::Revoked`] if this
+    /// client is no longer the ticker; and [`TickError::Restarted`] when
+    /// following restarts, once another server came back and this ticker
+    /// claimed it.
     pub fn tick(&mut self, timeout: Duration) -> Result<u64, TickError> {
         self.tick_once(timeout).map_err(|e| self.ride_through(e))
     }
@@ -276,23 +289,77 @@ impl Ticker {
         }
     }
 
-    /// Asks for the next frame and returns it, read in place from
-    /// `client`'s subscription: in synchronous mode, one wait, on the frame
-    /// itself. The server sends this tick no answer once its frame is
-    /// published ([`TickRequest::BY_FRAME`]), so a round trip is one
-    /// message each way where [`Ticker::tick`] and a read take two; a
-    /// refusal, a revocation and a lockstep participant holding the tick
-    /// are answered and end or stretch the wait as for [`Ticker::tick`]; a
-    /// frame another client's load or reload publishes meanwhile is not the
-    /// tick's ([`FrameHeader::STEPPED`]) and is passed over. In
-    /// asynchronous mode, whose frames come whatever ticks, it waits for
-    /// the answer and returns the newest frame then. Frames `client` had
-    /// queued before the tick are skipped (its next frame after this one
-    /// counts none missed). Waits as `client`'s wait mode says.
+    /// Asks for the next frame and returns it, read in place from `client`'s subscription.
+    ///
+    /// In synchronous mode, one wait, on the frame itself. The server sends
+    /// this tick no answer once its frame is published
+    /// ([`TickRequest::BY_FRAME`]), so a round trip is one message each way
+    /// where [`Ticker::tick`] and a read take two.
+    ///
+    /// A refusal, a revocation and a lockstep participant holding the tick are
+    /// answered and end or stretch the wait as for [`Ticker::tick`]; a frame
+    /// another client's load or reload publishes meanwhile is not the tick's
+    /// ([`FrameHeader::STEPPED`]) and is passed over. In asynchronous mode,
+    /// whose frames come whatever ticks, it waits for the answer and returns
+    /// the newest frame then.
+    ///
+    /// Frames `client` had queued before the tick are skipped (its next frame
+    /// after this one counts none missed). Waits as `client`'s wait mode says.
     ///
     /// With [`Ticker::set_follow_restarts`], a server that exits ends the
     /// tick with [`TickError::Restarted`] once another came back, this
     /// ticker claimed it and `client` reconnected to it.
+    ///
+    /// # Errors
+    ///
+    /// Returns the errors of [`Ticker::tick`] ([`TickError::Request`] with
+    /// [`RequestError::Timeout`] or [`RequestError::ServerGone`],
+    /// [`TickError::HeldUp`], [`TickError::NotTicker`], [`TickError::Revoked`],
+    /// [`TickError::Restarted`]), and [`TickError::Frame`] if reading the frame
+    /// fails ([`WaitError::ProtocolMismatch`], [`WaitError::Transport`]) or,
+    /// when following restarts, `client` cannot reconnect
+    /// ([`WaitError::Reconnect`]).
+    ///
+    /// # Examples
+    ///
+    /// A server runs on a thread here, so the example runs as a test:
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use sim_client::Client;
+    /// use shared_types::WorldSettings;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// # use std::sync::{atomic::{AtomicBool, Ordering}, Arc};
+    /// # let name = format!("doc-{}-{}", "tick-and-read", std::process::id());
+    /// # let stop = Arc::new(AtomicBool::new(false));
+    /// # let server = {
+    /// #     let (stop, world) = (stop.clone(), shared_types::WorldName::new(&name)?);
+    /// #     std::thread::spawn(move || {
+    /// #         let mut config = sim_server::ServerConfig::new(world);
+    /// #         config.settings.fixed_delta_seconds = Some(0.01);
+    /// #         config.realtime = true;
+    /// #         sim_server::Server::start(config).and_then(|mut s| s.run(&stop))
+    /// #     })
+    /// # };
+    /// let mut client = Client::connect(&name, Duration::from_secs(5))?;
+    /// let mut ticker = client.claim_ticker()?;
+    /// let sync = WorldSettings {
+    ///     synchronous_mode: true,
+    ///     fixed_delta_seconds: Some(0.05),
+    ///     ..client.get_settings()?
+    /// };
+    /// let first = ticker.apply_settings(sync)?;
+    /// let frame = ticker.tick_and_read(&mut client, Duration::from_secs(1))?;
+    /// assert_eq!(frame.frame(), first);
+    /// assert_eq!(frame.timestamp().delta_ns, 50_000_000);
+    /// # drop(frame);
+    /// # drop(ticker);
+    /// # stop.store(true, Ordering::Relaxed);
+    /// # server.join().expect("server thread")?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn tick_and_read(
         &mut self,
         client: &mut crate::Client,
@@ -434,6 +501,16 @@ impl Ticker {
 
     /// Applies `settings`, which may enter synchronous mode (only the ticker
     /// may). Returns the first frame computed with them.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ApplySettingsError::Invalid`] if `settings` break a rule of
+    /// [`WorldSettings::validate`] (checked here first, and by the server),
+    /// [`ApplySettingsError::NotTicker`] if this client is no longer the
+    /// ticker, [`ApplySettingsError::Revoked`] (naming who) if another client
+    /// left synchronous mode, and [`ApplySettingsError::Request`] if the
+    /// request fails ([`RequestError::Timeout`], [`RequestError::ServerGone`],
+    /// ...). Nothing changes on the server in any of these cases.
     pub fn apply_settings(&mut self, settings: WorldSettings) -> Result<u64, ApplySettingsError> {
         settings.validate()?;
         let response = self.send(
@@ -458,6 +535,13 @@ impl Ticker {
 
     /// Gives up tick ownership; another client may then claim it. The world
     /// keeps its mode: leave synchronous mode first if nobody will tick.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`TickError::Request`] if the server does not answer within the
+    /// request timeout ([`RequestError::Timeout`]) or is gone
+    /// ([`RequestError::ServerGone`]), and [`TickError::NotTicker`] or
+    /// [`TickError::Revoked`] if this client was no longer the ticker.
     pub fn release(mut self) -> Result<(), TickError> {
         self.released = true;
         let response = self.send(TickRequestKind::Release, None, self.request_timeout)?;

@@ -1,14 +1,21 @@
 //! Keyframes: the whole server world (rapier's physics sets through their
-//! serde support, simbus's actors and vehicles) with the clock, as msgpack,
-//! so a replay or a re-simulation starts from the nearest one instead of
-//! from the recording's first frame.
+//! serde support, simbus's actors and vehicles) with the clock, in
+//! [postcard](https://docs.rs/postcard), so a replay or a re-simulation
+//! starts from the nearest one instead of from the recording's first frame.
+//!
+//! Layout 1 was msgpack (recordings of simbus before it); a keyframe of it
+//! is refused by its version, with what it is.
 
 use serde::{Deserialize, Serialize};
 
 use crate::world::World;
 
 /// Layout version of [`Keyframe`], checked on restore.
-const KEYFRAME_VERSION: u32 = 1;
+const KEYFRAME_VERSION: u32 = 2;
+
+/// How a layout-1 keyframe begins: msgpack's array of its 7 fields, the
+/// first its version, 1.
+const MSGPACK_LAYOUT_1: [u8; 2] = [0x97, 0x01];
 
 /// The state after a frame.
 #[derive(Debug, Serialize, Deserialize)]
@@ -42,10 +49,10 @@ impl<'a> Keyframe<&'a World> {
         }
     }
 
-    /// As msgpack.
+    /// As postcard, its layout version first.
     pub(crate) fn encode(&self) -> Vec<u8> {
         // Serializing plain data into a Vec cannot fail.
-        rmp_serde::to_vec(self).unwrap_or_default()
+        postcard::to_stdvec(self).unwrap_or_default()
     }
 }
 
@@ -53,7 +60,7 @@ impl<'a> Keyframe<&'a World> {
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum KeyframeError {
     #[error("the keyframe is not readable")]
-    Decode(#[from] rmp_serde::decode::Error),
+    Decode(#[from] postcard::Error),
     #[error("the keyframe has layout version {0}; this server reads {KEYFRAME_VERSION}")]
     Version(u32),
 }
@@ -61,11 +68,14 @@ pub(crate) enum KeyframeError {
 impl Keyframe<World> {
     /// Decodes a keyframe written by [`Keyframe::encode`].
     pub(crate) fn decode(bytes: &[u8]) -> Result<Self, KeyframeError> {
-        let keyframe: Self = rmp_serde::from_slice(bytes)?;
-        if keyframe.version != KEYFRAME_VERSION {
-            return Err(KeyframeError::Version(keyframe.version));
+        if bytes.starts_with(&MSGPACK_LAYOUT_1) {
+            return Err(KeyframeError::Version(1));
         }
-        Ok(keyframe)
+        let (version, _) = postcard::take_from_bytes::<u32>(bytes)?;
+        if version != KEYFRAME_VERSION {
+            return Err(KeyframeError::Version(version));
+        }
+        Ok(postcard::from_bytes(bytes)?)
     }
 }
 
@@ -128,7 +138,25 @@ mod tests {
 
     #[test]
     fn garbage_is_an_error_not_a_panic() {
-        assert!(Keyframe::decode(b"not msgpack").is_err());
+        assert!(Keyframe::decode(b"not a keyframe").is_err());
         assert!(Keyframe::decode(&[]).is_err());
+        let world = World::new(&Scene::Default.placements(1), 1);
+        let bytes = Keyframe::of(&world, &FrameHeader::default(), "default".into()).encode();
+        for cut in [1, bytes.len() / 2, bytes.len() - 1] {
+            assert!(Keyframe::decode(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+    }
+
+    /// A keyframe of layout 1 (msgpack, before this layout) is refused by
+    /// its version, not misread.
+    #[test]
+    fn a_msgpack_keyframe_of_layout_1_is_refused_by_its_version() {
+        let old = [0x97, 0x01, 0x05, 0x00, 0x00, 0x00, 0xa7];
+        let error = Keyframe::decode(&old).unwrap_err();
+        assert!(matches!(error, KeyframeError::Version(1)), "{error:?}");
+        assert_eq!(
+            error.to_string(),
+            "the keyframe has layout version 1; this server reads 2"
+        );
     }
 }

@@ -47,6 +47,13 @@ pub fn bin(name: &str) -> PathBuf {
 }
 
 /// Sends `signal` to every process of the process group `pgid`.
+///
+/// # Errors
+///
+/// Returns an error of kind [`InvalidInput`](std::io::ErrorKind::InvalidInput)
+/// if `pgid` does not fit a `pid_t`, and the OS error of `kill(2)` otherwise
+/// (`ESRCH` if no process is in the group, `EPERM` if this process may not
+/// signal it).
 pub fn send_signal_to_group(pgid: u32, signal: i32) -> std::io::Result<()> {
     let pgid = libc::pid_t::try_from(pgid)
         .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;

@@ -96,6 +96,13 @@ fn whole_in(text: &str, range: RangeInclusive<u64>) -> Result<u64, InputError> {
 }
 
 /// A wait in seconds: finite, positive, at most [`MAX_WAIT_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number,
+/// [`InputError::NotPositiveSeconds`] if it is zero, negative or not finite,
+/// and [`InputError::Timeout`] (wrapping [`InputError::WaitTooLong`]) if it is
+/// longer than [`MAX_WAIT_SECONDS`].
 pub fn timeout(text: &str) -> Result<Duration, InputError> {
     let seconds = number(text)?;
     if !(seconds.is_finite() && seconds > 0.0) {
@@ -111,6 +118,12 @@ pub fn timeout(text: &str) -> Result<Duration, InputError> {
 
 /// `seconds` as a [`Duration`] a clock can wait for: finite, not negative,
 /// at most [`MAX_WAIT_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::WaitNotFinite`] if `seconds` is negative, NaN or
+/// infinite, and [`InputError::WaitTooLong`] if it is longer than
+/// [`MAX_WAIT_SECONDS`].
 pub fn wait(seconds: f64) -> Result<Duration, InputError> {
     if !(seconds.is_finite() && seconds >= 0.0) {
         return Err(InputError::WaitNotFinite { seconds });
@@ -123,6 +136,14 @@ pub fn wait(seconds: f64) -> Result<Duration, InputError> {
 
 /// A rate in hertz: positive, at most [`MAX_RATE_HZ`], and with a period a
 /// clock can wait for (at most one tick per [`MAX_WAIT_SECONDS`]).
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number,
+/// [`InputError::RateNotPositive`] if it is zero, negative or not finite,
+/// [`InputError::RateTooHigh`] if it is above [`MAX_RATE_HZ`], and
+/// [`InputError::PeriodTooLong`] if one period (`1/hz`) is longer than
+/// [`MAX_WAIT_SECONDS`].
 pub fn rate(text: &str) -> Result<f64, InputError> {
     let hz = number(text)?;
     let text = text.to_owned();
@@ -139,6 +160,12 @@ pub fn rate(text: &str) -> Result<f64, InputError> {
 }
 
 /// A rate limit in hertz: 0 (no limit) or a [`rate`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number; any
+/// other value [`rate`] refuses is returned as its error wrapped in
+/// [`InputError::Hinted`] (the hint says that 0 means no limit).
 pub fn rate_limit(text: &str) -> Result<f64, InputError> {
     match number(text)? {
         0.0 => Ok(0.0),
@@ -148,6 +175,12 @@ pub fn rate_limit(text: &str) -> Result<f64, InputError> {
 
 /// A simulation time in seconds the integer-nanosecond clock can reach:
 /// finite, `0..=18446744073` s.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::SimTime`] if it is negative, not finite, or beyond the clock's
+/// range ([`MAX_SENSOR_TICK_SECONDS`]).
 pub fn sim_time(text: &str) -> Result<f64, InputError> {
     let seconds = number(text)?;
     if !(seconds.is_finite() && (0.0..=MAX_SENSOR_TICK_SECONDS).contains(&seconds)) {
@@ -160,6 +193,12 @@ pub fn sim_time(text: &str) -> Result<f64, InputError> {
 
 /// An offset in simulation seconds, negative counting from the end:
 /// finite, within the clock's range either way.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is not finite or further than
+/// [`MAX_SENSOR_TICK_SECONDS`] from 0 either way.
 pub fn sim_offset(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
@@ -169,12 +208,23 @@ pub fn sim_offset(text: &str) -> Result<f64, InputError> {
 }
 
 /// A sensor's capture period: 0 (every frame) or up to the clock's range.
+///
+/// # Errors
+///
+/// Returns the error of [`sim_time`] wrapped in [`InputError::Hinted`] (the
+/// hint says that 0 captures every frame) if `text` is not a number or is out
+/// of the clock's range.
 pub fn sensor_tick(text: &str) -> Result<f64, InputError> {
     sim_time(text).map_err(|e| e.hinted("; 0 captures every frame"))
 }
 
 /// Any number of seconds, negative and non-finite included, for values
 /// that are checked later by rules that name themselves.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number; any
+/// number, even NaN or infinite, is accepted.
 pub fn seconds(text: &str) -> Result<f64, InputError> {
     number(text)
 }
@@ -182,6 +232,14 @@ pub fn seconds(text: &str) -> Result<f64, InputError> {
 /// `fixed_delta_seconds`: 0 (variable step) or a fixed step the settings
 /// accept ([`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`]); the error
 /// names the settings rule.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::FixedDelta`] (with the settings'
+/// [`SettingsError`](shared_types::SettingsError) as its source) if the
+/// settings refuse it as a fixed step: negative, not finite, or outside
+/// [`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`].
 pub fn fixed_delta_seconds(text: &str) -> Result<f64, InputError> {
     let dt = number(text)?;
     let settings = WorldSettings {
@@ -197,6 +255,12 @@ pub fn fixed_delta_seconds(text: &str) -> Result<f64, InputError> {
 
 /// A fixed step that must be fixed (no 0): [`MIN_DELTA_SECONDS`]`..=`
 /// [`MAX_DELTA_SECONDS`].
+///
+/// # Errors
+///
+/// Returns the errors of [`fixed_delta_seconds`] ([`InputError::NotANumber`],
+/// [`InputError::FixedDelta`]), and [`InputError::NotFixedStep`] if `text` is 0
+/// (a variable step).
 pub fn fixed_step(text: &str) -> Result<f64, InputError> {
     match fixed_delta_seconds(text)? {
         0.0 => Err(InputError::NotFixedStep {
@@ -208,6 +272,13 @@ pub fn fixed_step(text: &str) -> Result<f64, InputError> {
 
 /// `fps`: 0 (variable step) or a rate whose step `1/fps` the settings
 /// accept, i.e. `1/`[`MAX_DELTA_SECONDS`]`..=1/`[`MIN_DELTA_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number,
+/// [`InputError::Fps`] if it is negative or not finite, and
+/// [`InputError::FpsOutOfRange`] if its step `1/fps` is outside
+/// [`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`].
 pub fn fps(text: &str) -> Result<f64, InputError> {
     let fps = number(text)?;
     match WorldSettings::delta_from_fps(fps) {
@@ -219,6 +290,13 @@ pub fn fps(text: &str) -> Result<f64, InputError> {
 }
 
 /// `max_substep_delta_time`: [`MIN_DELTA_SECONDS`]`..=`[`MAX_DELTA_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::MaxSubstepDelta`] (with the settings'
+/// [`SettingsError`](shared_types::SettingsError) as its source) if the
+/// settings refuse it.
 pub fn max_substep_delta_time(text: &str) -> Result<f64, InputError> {
     let dt = number(text)?;
     let settings = WorldSettings {
@@ -232,11 +310,22 @@ pub fn max_substep_delta_time(text: &str) -> Result<f64, InputError> {
 }
 
 /// `max_substeps`: a whole number in `1..=16`.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_SUBSTEPS_LIMIT`].
 pub fn max_substeps(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_SUBSTEPS_LIMIT)).map(|n| n as u32)
 }
 
 /// A whole number of microseconds, at most [`MAX_WAIT_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotMicros`] if `text` is not a whole number of
+/// microseconds (a sign, a decimal point or an exponent), and
+/// [`InputError::MicrosTooLong`] if it is longer than [`MAX_WAIT_SECONDS`].
 pub fn micros(text: &str) -> Result<Duration, InputError> {
     let value: u64 = text.trim().parse().map_err(|_| InputError::NotMicros {
         text: text.to_owned(),
@@ -262,6 +351,12 @@ pub fn micros(text: &str) -> Result<Duration, InputError> {
 /// assert!(refused.to_string().contains("positive, finite number of metres"));
 /// assert!(metres("0").is_err() && metres("inf").is_err() && metres("-1").is_err());
 /// ```
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::Metres`] if it is not positive, not finite, or above
+/// [`MAX_DISTANCE_METRES`].
 pub fn metres(text: &str) -> Result<f64, InputError> {
     let value = number(text)?;
     if !(value.is_finite() && value > 0.0 && value <= MAX_DISTANCE_METRES) {
@@ -274,6 +369,11 @@ pub fn metres(text: &str) -> Result<f64, InputError> {
 
 /// `--hybrid-window-us`: `0..=`[`MAX_HYBRID_WINDOW_MICROS`] microseconds
 /// (0: sleep at once).
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`], wrapped in [`InputError::Hinted`], if
+/// `text` is not a whole number in `0..=`[`MAX_HYBRID_WINDOW_MICROS`].
 pub fn hybrid_window(text: &str) -> Result<Duration, InputError> {
     whole_in(text, 0..=MAX_HYBRID_WINDOW_MICROS)
         .map(Duration::from_micros)
@@ -281,6 +381,12 @@ pub fn hybrid_window(text: &str) -> Result<Duration, InputError> {
 }
 
 /// `--keyframe-seconds`: simulation seconds between keyframes,
+/// [`MIN_KEYFRAME_SECONDS`]`..=`[`MAX_KEYFRAME_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is not finite or outside
 /// [`MIN_KEYFRAME_SECONDS`]`..=`[`MAX_KEYFRAME_SECONDS`].
 pub fn keyframe_seconds(text: &str) -> Result<f64, InputError> {
     real_in(
@@ -292,6 +398,11 @@ pub fn keyframe_seconds(text: &str) -> Result<f64, InputError> {
 
 /// A count that must be at least 1 (`--max-frames`, `--frames`,
 /// `--captures`, `--every`: 0 would mean nothing).
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number of at least
+/// 1.
 pub fn count(text: &str) -> Result<u64, InputError> {
     whole_in(text, 1..=u64::MAX)
 }
@@ -299,21 +410,41 @@ pub fn count(text: &str) -> Result<u64, InputError> {
 /// `watch --window`: how many frames a lockstep watcher that prints every
 /// frame may fall behind, `0..=15`: its frame queue holds
 /// [`FRAME_SUBSCRIBER_BUFFER`] frames, the one it reads and 15 more.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `0..=15`.
 pub fn watch_window(text: &str) -> Result<u32, InputError> {
     whole_in(text, 0..=FRAME_SUBSCRIBER_BUFFER as u64 - 1).map(|n| n as u32)
 }
 
 /// `--max-clients`: `1..=`[`MAX_MAX_CLIENTS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_MAX_CLIENTS`].
 pub fn max_clients(text: &str) -> Result<usize, InputError> {
     whole_in(text, 1..=MAX_MAX_CLIENTS as u64).map(|n| n as usize)
 }
 
 /// `--max-sensor-readers`: `1..=`[`MAX_MAX_SENSOR_READERS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_MAX_SENSOR_READERS`].
 pub fn max_sensor_readers(text: &str) -> Result<usize, InputError> {
     whole_in(text, 1..=MAX_MAX_SENSOR_READERS as u64).map(|n| n as usize)
 }
 
 /// `--render-threads`: `1..=`[`MAX_RENDER_THREADS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_RENDER_THREADS`].
 pub fn render_threads(text: &str) -> Result<std::num::NonZeroUsize, InputError> {
     whole_in(text, 1..=MAX_RENDER_THREADS as u64)
         .map(|n| std::num::NonZeroUsize::new(n as usize).unwrap_or(std::num::NonZeroUsize::MIN))
@@ -324,11 +455,22 @@ pub const MAX_RENDER_THREADS: usize = 1024;
 
 /// Lockstep participants to wait for: `0..=`[`MAX_MAX_CLIENTS`] (a world
 /// admits no more).
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `0..=`[`MAX_MAX_CLIENTS`].
 pub fn participants(text: &str) -> Result<u32, InputError> {
     whole_in(text, 0..=MAX_MAX_CLIENTS as u64).map(|n| n as u32)
 }
 
 /// A replay's time factor: [`MIN_TIME_FACTOR`]`..=`[`MAX_TIME_FACTOR`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is not finite or outside
+/// [`MIN_TIME_FACTOR`]`..=`[`MAX_TIME_FACTOR`].
 pub fn time_factor(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
@@ -338,6 +480,12 @@ pub fn time_factor(text: &str) -> Result<f64, InputError> {
 }
 
 /// `top --interval`: [`MIN_REFRESH_SECONDS`]`..=`[`MAX_REFRESH_SECONDS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is not finite or outside
+/// [`MIN_REFRESH_SECONDS`]`..=`[`MAX_REFRESH_SECONDS`].
 pub fn refresh_interval(text: &str) -> Result<f64, InputError> {
     real_in(
         text,
@@ -347,11 +495,23 @@ pub fn refresh_interval(text: &str) -> Result<f64, InputError> {
 }
 
 /// A sensor's range, metres: a [`metres`] value.
+///
+/// # Errors
+///
+/// Returns the errors of [`metres`]: [`InputError::NotANumber`] if `text` does
+/// not read as a number, [`InputError::Metres`] if it is not a positive, finite
+/// distance of at most [`MAX_DISTANCE_METRES`].
 pub fn sensor_range(text: &str) -> Result<f32, InputError> {
     metres(text).map(|m| m as f32)
 }
 
 /// A depth camera's horizontal field of view, degrees: above 0, below 180.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::FieldOfView`] if it is not finite, not above 0 or not below
+/// 180.
 pub fn field_of_view(text: &str) -> Result<f32, InputError> {
     let degrees = number(text)?;
     if degrees.is_finite() && degrees > 0.0 && degrees < 180.0 {
@@ -363,21 +523,41 @@ pub fn field_of_view(text: &str) -> Result<f32, InputError> {
 }
 
 /// A lidar's channel count: `1..=`[`MAX_LIDAR_CHANNELS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_LIDAR_CHANNELS`].
 pub fn lidar_channels(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_LIDAR_CHANNELS)).map(|n| n as u32)
 }
 
 /// A lidar's points per channel: `1..=`[`MAX_LIDAR_POINTS`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `1..=`[`MAX_LIDAR_POINTS`].
 pub fn lidar_points(text: &str) -> Result<u32, InputError> {
     whole_in(text, 1..=u64::from(MAX_LIDAR_POINTS)).map(|n| n as u32)
 }
 
 /// A GNSS receiver's noise seed: `0..=`[`MAX_GNSS_SEED`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
+/// `0..=`[`MAX_GNSS_SEED`].
 pub fn gnss_seed(text: &str) -> Result<u32, InputError> {
     whole_in(text, 0..=u64::from(MAX_GNSS_SEED)).map(|n| n as u32)
 }
 
 /// A radar's rays per simulated second:
+/// `1..=`[`shared_types::ranging::MAX_RADAR_POINTS_PER_SECOND`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotWhole`] if `text` is not a whole number in
 /// `1..=`[`shared_types::ranging::MAX_RADAR_POINTS_PER_SECOND`].
 pub fn radar_points_per_second(text: &str) -> Result<u32, InputError> {
     let max = shared_types::ranging::MAX_RADAR_POINTS_PER_SECOND;
@@ -386,11 +566,22 @@ pub fn radar_points_per_second(text: &str) -> Result<u32, InputError> {
 
 /// A lidar's atmosphere attenuation rate, per metre: 0 up to
 /// [`MAX_RATE_HZ`] (the intensity is `exp(-rate × distance)`).
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is negative, not finite or above
+/// [`MAX_RATE_HZ`].
 pub fn attenuation_rate(text: &str) -> Result<f32, InputError> {
     real_in(text, 0.0..=MAX_RATE_HZ, " per metre").map(|rate| rate as f32)
 }
 
 /// An obstacle detector's hit radius, metres: above 0, at most 100.
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is not finite, not above 0 or above 100.
 pub fn hit_radius(text: &str) -> Result<f32, InputError> {
     let radius = number(text)?;
     if !(radius.is_finite() && radius > 0.0 && radius <= 100.0) {
@@ -406,6 +597,12 @@ pub fn hit_radius(text: &str) -> Result<f32, InputError> {
 
 /// A lidar's rotation frequency: 0 (a full turn every capture) up to
 /// [`MAX_RATE_HZ`].
+///
+/// # Errors
+///
+/// Returns [`InputError::NotANumber`] if `text` does not read as a number, and
+/// [`InputError::OutOfRange`] if it is negative, not finite or above
+/// [`MAX_RATE_HZ`].
 pub fn rotation_frequency(text: &str) -> Result<f32, InputError> {
     real_in(
         text,
@@ -417,6 +614,11 @@ pub fn rotation_frequency(text: &str) -> Result<f32, InputError> {
 
 /// An image size `W,H` in pixels, each a whole number in
 /// `1..=`[`MAX_IMAGE_SIDE`] (the spec's check bounds their product).
+///
+/// # Errors
+///
+/// Returns [`InputError::ImageSize`] if `text` is not two comma-separated whole
+/// numbers, each in `1..=`[`MAX_IMAGE_SIDE`].
 pub fn image_size(text: &str) -> Result<[u32; 2], InputError> {
     let refused = || InputError::ImageSize {
         text: text.to_owned(),
@@ -435,6 +637,12 @@ pub fn image_size(text: &str) -> Result<[u32; 2], InputError> {
 
 /// A position `x,y,z` in metres, each within ±[`MAX_ACTOR_POSITION`] of
 /// the origin (the world's reach).
+///
+/// # Errors
+///
+/// Returns [`InputError::Position`] if `text` is not three comma-separated
+/// numbers, or if any of them is not finite or is further than
+/// [`MAX_ACTOR_POSITION`] metres from the origin.
 pub fn position(text: &str) -> Result<[f32; 3], InputError> {
     let refused = || InputError::Position {
         text: text.to_owned(),
@@ -454,7 +662,16 @@ pub fn position(text: &str) -> Result<[f32; 3], InputError> {
 }
 
 /// A scene name (`default`, `empty`, `town`, `flat` or `boxes:N`, N in
-/// `1..=`[`crate::scene::MAX_SCENE_BOXES`]), checked as the server reads it.
+/// `1..=`[`MAX_SCENE_BOXES`](shared_types::scene::MAX_SCENE_BOXES)),
+/// checked as the server reads it.
+///
+/// # Errors
+///
+/// Returns [`InputError::Scene`] holding the
+/// [`SceneNameError`](shared_types::scene::SceneNameError): `Unknown` for a
+/// name the server does not know, `BoxCount` for a `boxes:N` whose N is not a
+/// whole number in
+/// `1..=`[`MAX_SCENE_BOXES`](shared_types::scene::MAX_SCENE_BOXES).
 pub fn scene(text: &str) -> Result<String, InputError> {
     let name = text.parse::<shared_types::scene::SceneName>()?;
     Ok(name.to_string())

@@ -190,6 +190,16 @@ fn entries(path: &str, mut each: impl FnMut(&Entry)) -> Result<RecordingReader, 
 }
 
 /// CARLA's `show_recorder_file_info(name, show_all)`.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`RecordingReader::open`] if `path` cannot
+/// be opened as a simbus recording ([`RecordingError::Io`],
+/// [`RecordingError::NotMcap`], [`RecordingError::NotSimbus`],
+/// [`RecordingError::Truncated`], ...), and the first error met reading its
+/// messages: [`RecordingError::Corrupt`] for a damaged chunk,
+/// [`RecordingError::Malformed`] for a message that breaks its schema,
+/// [`RecordingError::FutureSchema`] for a channel of a newer simbus.
 pub fn file_info(path: &str, show_all: bool) -> Result<FileInfo, RecordingError> {
     let mut info = FileInfo::empty(path, RecordingReader::open(path)?.header().clone());
     let mut last_log = 0;
@@ -320,6 +330,13 @@ pub fn kind_matches(filter: char, kind: u32) -> bool {
 /// CARLA's `show_recorder_collisions(name, type1, type2)`: collisions
 /// between an actor of category `kind1` and one of `kind2` (see
 /// [`kind_matches`]), in order.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`RecordingReader::open`] if `path` cannot
+/// be opened as a simbus recording, and the first error met reading its
+/// messages ([`RecordingError::Corrupt`], [`RecordingError::Malformed`],
+/// [`RecordingError::FutureSchema`], ...).
 pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>, RecordingError> {
     let mut out = Vec::new();
     // A step's collisions follow its frame in the file, at its recording
@@ -349,10 +366,19 @@ pub fn collisions(path: &str, kind1: char, kind2: char) -> Result<Vec<Collision>
     Ok(out)
 }
 
-/// CARLA's `show_recorder_actors_blocked(name, min_time, min_distance)`:
-/// every movable actor that, at least once, moved less than `min_distance`
+/// CARLA's `show_recorder_actors_blocked(name, min_time, min_distance)`.
+///
+/// Every movable actor that, at least once, moved less than `min_distance`
 /// metres (positive, finite) for at least `min_time` seconds (finite, not
 /// negative), with each such stretch; actors in id order.
+///
+/// # Errors
+///
+/// Returns [`BlockedError::MinTime`] if `min_time` is negative, not finite or
+/// beyond the clock's range, [`BlockedError::MinDistance`] if `min_distance` is
+/// not positive and finite (both checked before the file is opened), and
+/// [`BlockedError::File`] with the [`RecordingError`] if the recording cannot
+/// be opened or read.
 pub fn actors_blocked(
     path: &str,
     min_time: f64,

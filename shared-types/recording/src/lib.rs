@@ -17,7 +17,7 @@
 //! | `/simbus/collisions` | `simbus::RecordedCollision/1` | one [`RecordedCollision`] |
 //! | `/simbus/sensors` | `simbus::RecordedSensor/2` | one [`RecordedSensor`] (a sensor's spawn) |
 //! | `/simbus/sensor/{id}` | `simbus::SensorHeader/2` | a [`SensorHeader`] then the capture's bytes |
-//! | `/simbus/keyframes` | `simbus::Keyframe/1` (msgpack) | the server's serialized world |
+//! | `/simbus/keyframes` | `simbus::Keyframe/2` (postcard) | the server's serialized world |
 //! | `/foxglove/scene` | `foxglove.SceneUpdate` (JSON) | a cube, sphere or capsule per actor |
 //!
 //! Messages are written in the order things happened; a message's log time
@@ -100,7 +100,10 @@ pub const LEGACY_SENSOR_SPAWN_BYTES: usize =
 /// Schema of each sensor's captures: the capture header's own type name.
 pub const CAPTURE_SCHEMA: &str = "simbus::SensorHeader/2";
 /// Schema of [`KEYFRAMES_TOPIC`].
-pub const KEYFRAME_SCHEMA: &str = "simbus::Keyframe/1";
+pub const KEYFRAME_SCHEMA: &str = "simbus::Keyframe/2";
+/// Schema of [`KEYFRAMES_TOPIC`] before layout 2 (msgpack): read, and its
+/// keyframes refused by their layout version when restored.
+pub const LEGACY_KEYFRAME_SCHEMA: &str = "simbus::Keyframe/1";
 /// Schema of [`SCENE_TOPIC`] (Foxglove's).
 pub const SCENE_SCHEMA: &str = "foxglove.SceneUpdate";
 
@@ -416,13 +419,24 @@ impl std::fmt::Display for NotMcap {
     }
 }
 
-/// Checks a schema name against the versions this build knows: `Ok(true)`
-/// for one of [`SCHEMAS`], `Ok(false)` for a schema this build does not know
-/// at all (a later version's new channel, skipped), an error for a known
-/// schema of a newer version.
+/// Checks a schema name against the versions this build knows.
+///
+/// `Ok(true)` for one of [`SCHEMAS`], `Ok(false)` for a schema this build
+/// does not know at all (a later version's new channel, skipped), an error
+/// for a known schema of a newer version.
+///
+/// # Errors
+///
+/// Returns `Err(known)`, the schema name this build knows (of an older
+/// version), if `name` is a newer version of one of the [`SCHEMAS`] (same name
+/// before the `/`, higher version after it, or no readable version).
 pub fn check_schema(name: &str) -> Result<bool, &'static str> {
-    if SCHEMAS.contains(&name) || [LEGACY_FRAME_SCHEMA, LEGACY_SENSOR_SPAWN_SCHEMA].contains(&name)
-    {
+    let legacy = [
+        LEGACY_FRAME_SCHEMA,
+        LEGACY_SENSOR_SPAWN_SCHEMA,
+        LEGACY_KEYFRAME_SCHEMA,
+    ];
+    if SCHEMAS.contains(&name) || legacy.contains(&name) {
         return Ok(true);
     }
     let (base, version) = match name.rsplit_once('/') {

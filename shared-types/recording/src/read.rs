@@ -119,6 +119,19 @@ impl std::fmt::Debug for RecordingReader {
 
 impl RecordingReader {
     /// Opens `path` and reads its header.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`RecordingError::Io`] if `path` cannot be read,
+    /// [`RecordingError::Directory`] if it is a directory,
+    /// [`RecordingError::NotMcap`] if it does not begin with MCAP's magic
+    /// (empty, text, other bytes), [`RecordingError::Truncated`] if it ends
+    /// before its first complete chunk (still being recorded, or never closed),
+    /// [`RecordingError::Corrupt`] if its first chunk is damaged,
+    /// [`RecordingError::NotSimbus`] if its first message is not a simbus
+    /// header, [`RecordingError::Malformed`] if that header does not read, and
+    /// [`RecordingError::FutureSchema`] if it was written by a newer simbus (a
+    /// recording version or a header schema this build does not read).
     pub fn open(path: &str) -> Result<Self, RecordingError> {
         let io = |error| RecordingError::Io {
             path: path.to_string(),
@@ -244,7 +257,7 @@ impl RecordingReader {
                 (topic, CAPTURE_SCHEMA) if topic.starts_with(SENSOR_TOPIC_PREFIX) => {
                     Channel::Capture
                 }
-                (KEYFRAMES_TOPIC, KEYFRAME_SCHEMA) => Channel::Keyframes,
+                (KEYFRAMES_TOPIC, KEYFRAME_SCHEMA | LEGACY_KEYFRAME_SCHEMA) => Channel::Keyframes,
                 _ => Channel::Skipped,
             },
             Ok(false) => Channel::Skipped,

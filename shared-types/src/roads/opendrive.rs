@@ -57,6 +57,16 @@ pub enum OpenDriveError {
 /// Checks that `text` is a well-formed XML document whose root is
 /// `OpenDRIVE` and that holds a `header` and at least one `road`. (The
 /// roads' geometry is CARLA's client's to read.)
+///
+/// # Errors
+///
+/// Returns [`OpenDriveError::TooLarge`] if `text` is longer than
+/// [`MAX_OPENDRIVE_BYTES`]; [`OpenDriveError::Unclosed`],
+/// [`OpenDriveError::Mismatched`], [`OpenDriveError::Unterminated`] or
+/// [`OpenDriveError::OutsideRoot`] if it is not well-formed XML (each with the
+/// byte offset or element where it breaks); [`OpenDriveError::Root`] if its
+/// root element is not `OpenDRIVE`; and [`OpenDriveError::Missing`] if it has
+/// no root, no `header` or no `road`.
 pub fn check_opendrive(text: &str) -> Result<(), OpenDriveError> {
     if text.len() > MAX_OPENDRIVE_BYTES {
         return Err(OpenDriveError::TooLarge(text.len()));

@@ -63,6 +63,15 @@ pub enum EnvironmentError {
 
 /// Loads the configuration `SIMBUS_IOX2_CONFIG` names (once per process)
 /// and checks that this user can use iceoryx2's root directory.
+///
+/// # Errors
+///
+/// Returns [`EnvironmentError::ConfigPath`] if `SIMBUS_IOX2_CONFIG` is set to
+/// something iceoryx2 cannot use as a file path,
+/// [`EnvironmentError::LoadConfig`] if iceoryx2 cannot load the file it names
+/// (both are remembered: every later call returns the same error), and
+/// [`EnvironmentError::UnusableRoot`] if iceoryx2's root directory exists but
+/// this user may not read its `nodes` directory (another user created it).
 pub fn prepare() -> Result<(), EnvironmentError> {
     static LOADED: OnceLock<Result<(), EnvironmentError>> = OnceLock::new();
     LOADED.get_or_init(load_config).clone()?;

@@ -33,6 +33,14 @@ pub enum FrameSendError {
 /// Sends `header` with `actor(0..actor_count)` (and their poses), each
 /// actor written once straight into the loaned sample: no copy, no
 /// allocation. The header's `actor_count` is set to `actor_count`.
+///
+/// # Errors
+///
+/// Returns [`FrameSendError::Loan`] if no sample can be loaned (the publisher's
+/// pool is spent or cannot grow to the frame's length),
+/// [`FrameSendError::Length`] if the loaned sample is not the length asked for
+/// (nothing is sent), and [`FrameSendError::Send`] if iceoryx2 cannot deliver
+/// the sample.
 pub fn send_frame(
     publisher: &FramePublisher,
     mut header: FrameHeader,

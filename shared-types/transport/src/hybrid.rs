@@ -39,11 +39,19 @@ use iceoryx2::port::listener::{Listener, ListenerWaitError};
 
 use crate::Bus;
 
-/// Waits until `listener` is rung or `timeout` passes; whether it was
-/// rung. For the first `poll_for` (at most `timeout`) it looks at the
-/// event's counter, yielding the CPU between looks; then it sleeps on the
-/// event for what is left. `poll_for` zero is a plain sleeping wait.
-/// Every ring that came is consumed.
+/// Waits until `listener` is rung or `timeout` passes; whether it was rung.
+///
+/// For the first `poll_for` (at most `timeout`) it looks at the event's
+/// counter, yielding the CPU between looks; then it sleeps on the event for
+/// what is left. `poll_for` zero is a plain sleeping wait. Every ring that
+/// came is consumed.
+///
+/// # Errors
+///
+/// Returns the [`ListenerWaitError`] iceoryx2 reports if looking at or waiting
+/// on the event fails (`InternalFailure`, `ContractViolation`). A signal that
+/// interrupts the sleeping wait is not an error: the wait ends and says whether
+/// the event was rung meanwhile.
 pub fn wait(
     listener: &Listener<Bus>,
     poll_for: Duration,

@@ -89,10 +89,18 @@ pub enum NodeError {
     Create(#[source] iceoryx2::node::NodeCreationFailure),
 }
 
-/// A node of this process for simbus's ports, named `name` (what
-/// `iox2 node list` and `sim-client top` show), with iceoryx2's signal
-/// handling off: simbus processes handle their own signals. Every simbus
-/// process makes its nodes here.
+/// A node of this process for simbus's ports, named `name`.
+///
+/// The name is what `iox2 node list` and `sim-client top` show. iceoryx2's
+/// signal handling is off: simbus processes handle their own signals. Every
+/// simbus process makes its nodes here.
+///
+/// # Errors
+///
+/// Returns [`NodeError::Name`] if `name` is not a valid iceoryx2 node name, and
+/// [`NodeError::Create`] if iceoryx2 cannot create the node (for instance
+/// `InternalError` when another user owns iceoryx2's root directory: call
+/// [`environment::prepare`] first for a message that says so).
 pub fn node(name: &str) -> Result<iceoryx2::node::Node<Bus>, NodeError> {
     use iceoryx2::prelude::*;
     let node_name = NodeName::new(name).map_err(|source| NodeError::Name {

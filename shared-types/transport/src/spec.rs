@@ -179,6 +179,15 @@ macro_rules! request_shape {
             RespHeader: Debug + ZeroCopySend + 'static,
         {
             /// Creates the service (fails if it exists), configured under `limits`.
+            ///
+            /// # Errors
+            ///
+            /// Returns [`RequestResponseCreateError::AlreadyExists`] if the
+            /// service exists (a server of this world is already running, or a
+            /// crashed one left it behind), and iceoryx2's other variants if it
+            /// cannot be created (`InsufficientPermissions`,
+            /// `IsBeingCreatedByAnotherInstance`, `HangsInCreation`,
+            /// `InternalFailure`, ...).
             pub fn create(
                 &self,
                 node: &Node<Bus>,
@@ -188,6 +197,15 @@ macro_rules! request_shape {
             }
 
             /// Opens the service, or creates it configured under `limits`.
+            ///
+            /// # Errors
+            ///
+            /// Returns
+            /// [`RequestResponseOpenOrCreateError::RequestResponseOpenError`]
+            /// if the service exists but cannot be opened as described (other
+            /// payload types or limits), and
+            /// [`RequestResponseOpenOrCreateError::RequestResponseCreateError`]
+            /// if it does not exist and cannot be created.
             pub fn open_or_create(
                 &self,
                 node: &Node<Bus>,
@@ -197,6 +215,17 @@ macro_rules! request_shape {
             }
 
             /// Opens the existing service (a client's side).
+            ///
+            /// # Errors
+            ///
+            /// Returns [`RequestResponseOpenError::DoesNotExist`] if no server
+            /// has created the service (no server owns the world),
+            /// [`RequestResponseOpenError::IncompatibleRequestOrResponseType`]
+            /// if it was created with other payload or header types (a server
+            /// of another version),
+            /// [`RequestResponseOpenError::ExceedsMaxNumberOfNodes`] if the
+            /// world admits no more processes, and iceoryx2's other variants
+            /// otherwise.
             pub fn open(
                 &self,
                 node: &Node<Bus>,
@@ -218,6 +247,12 @@ where
     RespHeader: Debug + ZeroCopySend + 'static,
 {
     /// The server port of a slice answer, its memory growing as needed.
+    ///
+    /// # Errors
+    ///
+    /// Returns `ServerCreateError::ExceedsMaxSupportedServers` if the service
+    /// already has its one server, and iceoryx2's other variants if the port or
+    /// its data segment cannot be created.
     pub fn server(
         &self,
         factory: &RequestFactory<Req, ReqHeader, [Resp], RespHeader>,
@@ -241,6 +276,13 @@ where
     RespHeader: Debug + ZeroCopySend + 'static,
 {
     /// The client port of a slice request, its memory growing as needed.
+    ///
+    /// # Errors
+    ///
+    /// Returns `ClientCreateError::ExceedsMaxSupportedClients` if the service
+    /// already has as many clients as it admits (`--max-clients`), and
+    /// iceoryx2's other variants if the port or its data segment cannot be
+    /// created.
     pub fn client(
         &self,
         factory: &RequestFactory<[Req], ReqHeader, Resp, RespHeader>,
@@ -333,6 +375,14 @@ where
     }
 
     /// Creates the service (fails if it exists), configured under `limits`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`PublishSubscribeCreateError::AlreadyExists`] if the service
+    /// exists (a server of this world is already running, or a crashed one left
+    /// it behind), and iceoryx2's other variants if it cannot be created
+    /// (`InsufficientPermissions`, `IsBeingCreatedByAnotherInstance`,
+    /// `InternalFailure`, ...).
     pub fn create(
         &self,
         node: &Node<Bus>,
@@ -342,6 +392,14 @@ where
     }
 
     /// Opens the service, or creates it configured under `limits`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError`]
+    /// if the service exists but cannot be opened as described (other payload
+    /// types or limits), and
+    /// [`PublishSubscribeOpenOrCreateError::PublishSubscribeCreateError`] if it
+    /// does not exist and cannot be created.
     pub fn open_or_create(
         &self,
         node: &Node<Bus>,
@@ -351,6 +409,16 @@ where
     }
 
     /// Opens the existing service (a reader's side).
+    ///
+    /// # Errors
+    ///
+    /// Returns [`PublishSubscribeOpenError::DoesNotExist`] if nobody has
+    /// created the service (no server owns the world, or the sensor is gone),
+    /// [`PublishSubscribeOpenError::IncompatibleTypes`] if it was created with
+    /// another payload, header or alignment (a server of another version), and
+    /// iceoryx2's other variants otherwise
+    /// (`DoesNotSupportRequestedAmountOfNodes`, `InsufficientPermissions`,
+    /// ...).
     pub fn open(
         &self,
         node: &Node<Bus>,
@@ -360,6 +428,12 @@ where
 
     /// The publisher, with `initial_len` elements reserved in its first
     /// sample (it grows as needed).
+    ///
+    /// # Errors
+    ///
+    /// Returns `PublisherCreateError::ExceedsMaxSupportedPublishers` if the
+    /// service already has its one publisher, and iceoryx2's other variants if
+    /// the port or its data segment cannot be created.
     pub fn publisher(
         &self,
         factory: &PubSubFactory<T, Header>,
@@ -382,6 +456,13 @@ where
     }
 
     /// A subscriber that may queue the service's whole buffer.
+    ///
+    /// # Errors
+    ///
+    /// Returns `SubscriberCreateError::ExceedsMaxSupportedSubscribers` if the
+    /// service already has as many subscribers as it admits (`--max-clients`
+    /// for frames, `--max-sensor-readers` for a sensor), and iceoryx2's other
+    /// variants if the port cannot be created.
     pub fn subscriber(
         &self,
         factory: &PubSubFactory<T, Header>,
@@ -429,6 +510,13 @@ impl EventSpec {
     }
 
     /// Creates the service (fails if it exists), configured under `limits`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`EventCreateError::AlreadyExists`] if the service exists, and
+    /// iceoryx2's other variants if it cannot be created
+    /// (`InsufficientPermissions`, `IsBeingCreatedByAnotherInstance`,
+    /// `InternalFailure`, ...).
     pub fn create(
         &self,
         node: &Node<Bus>,
@@ -438,6 +526,12 @@ impl EventSpec {
     }
 
     /// Opens the service, or creates it configured under `limits`.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`EventOpenOrCreateError::EventOpenError`] if the service exists
+    /// but cannot be opened, and [`EventOpenOrCreateError::EventCreateError`]
+    /// if it does not exist and cannot be created.
     pub fn open_or_create(
         &self,
         node: &Node<Bus>,
@@ -447,6 +541,13 @@ impl EventSpec {
     }
 
     /// Opens the existing service.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`EventOpenError::DoesNotExist`] if nobody has created the
+    /// service (no server owns the world), and iceoryx2's other variants if it
+    /// cannot be opened (`InsufficientPermissions`, `HangsInCreation`,
+    /// `InternalFailure`, ...).
     pub fn open(&self, node: &Node<Bus>) -> Result<event::PortFactory<Bus>, EventOpenError> {
         node.service_builder(&self.name).event().open()
     }
@@ -496,6 +597,12 @@ pub struct WorldServices {
 
 impl WorldServices {
     /// The services of the world named by `names`.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`ServiceNameError`] of the first name in `names` that is
+    /// not a valid iceoryx2 service name (`InvalidContent`,
+    /// `ExceedsMaximumLength`).
     pub fn new(names: &ServiceNames) -> Result<Self, ServiceNameError> {
         let frames = PubSubSpec {
             name: ServiceName::new(&names.frames)?,
@@ -549,6 +656,11 @@ impl WorldServices {
     }
 
     /// The captures of sensor `id`, a slice of `T` (its kind's element).
+    ///
+    /// # Errors
+    ///
+    /// Returns a [`ServiceNameError`] if the sensor's service name is not a
+    /// valid iceoryx2 service name (`InvalidContent`, `ExceedsMaximumLength`).
     pub fn sensor<T>(&self, id: u64) -> Result<SensorSpec<T>, ServiceNameError> {
         Ok(PubSubSpec {
             name: ServiceName::new(&self.names.sensor(id))?,

@@ -270,6 +270,11 @@ pub fn enable_from_env() -> Option<std::path::PathBuf> {
 }
 
 /// Writes `stamps` to `path`, one `stage frame ns` line each.
+///
+/// # Errors
+///
+/// Returns the [`std::io::Error`] of creating `path` (a missing directory, no
+/// permission) or of writing to it.
 pub fn write(path: &Path, stamps: &[Stamp]) -> std::io::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     for s in stamps {
@@ -278,8 +283,15 @@ pub fn write(path: &Path, stamps: &[Stamp]) -> std::io::Result<()> {
     out.flush()
 }
 
-/// Reads stamps [`write`] wrote; a line that does not read is an error
+/// Reads stamps [`write()`] wrote; a line that does not read is an error
 /// naming it.
+///
+/// # Errors
+///
+/// Returns the [`std::io::Error`] of opening or reading `path`, and one of kind
+/// [`InvalidData`](std::io::ErrorKind::InvalidData), naming the file, the line
+/// number and the line, for a line that is not `stage frame ns` with a known
+/// stage name and two whole numbers.
 pub fn read(path: &Path) -> std::io::Result<Vec<Stamp>> {
     let file = std::io::BufReader::new(std::fs::File::open(path)?);
     let mut stamps = Vec::new();

@@ -71,10 +71,17 @@ pub struct Listening {
     pub streaming_port: u16,
 }
 
-/// The streaming port to bind for RPC port `port`: `explicit` as given;
-/// else `port + 1`, refused where that wraps past 65535 or lands on a
-/// privileged port (below 1024) nobody asked for; with port 0, any free
-/// port (0).
+/// The streaming port to bind for RPC port `port`.
+///
+/// `explicit` as given; else `port + 1`, refused where that wraps past
+/// 65535 or lands on a privileged port (below 1024) nobody asked for; with
+/// port 0, any free port (0).
+///
+/// # Errors
+///
+/// Returns [`GatewayError::NoStreamingPort`] if `port + 1` is past 65535, and
+/// [`GatewayError::PrivilegedStreamingPort`] if it is below 1024; both only
+/// when no `explicit` port is given and `port` is not 0.
 pub fn streaming_port(port: u16, explicit: Option<u16>) -> Result<u16, GatewayError> {
     if let Some(explicit) = explicit {
         return Ok(explicit);
@@ -89,11 +96,22 @@ pub fn streaming_port(port: u16, explicit: Option<u16>) -> Result<u16, GatewayEr
     }
 }
 
-/// Serves `world` to CARLA clients until `stop` is given; `on_listening`
-/// is told the ports bound once both listeners are. The calling thread
-/// accepts the CARLA connections, waking only for a connection or the
-/// stop. The streams' and connections' threads end with the process (the
-/// server sees the gateway's tick ownership and ports go with it).
+/// Serves `world` to CARLA clients until `stop` is given.
+///
+/// `on_listening` is told the ports bound once both listeners are. The
+/// calling thread accepts the CARLA connections, waking only for a
+/// connection or the stop. The streams' and connections' threads end with
+/// the process (the server sees the gateway's tick ownership and ports go
+/// with it).
+///
+/// # Errors
+///
+/// Returns the errors of [`streaming_port`] for the streaming port implied,
+/// [`GatewayError::Listen`] if either listener cannot be bound (the port is
+/// taken, or privileged), [`GatewayError::Address`] if a bound listener has no
+/// address to report, and [`GatewayError::Wait`] if the RPC listener and the
+/// stop cannot be waited on. A CARLA client's failure ends its own session,
+/// never the gateway.
 pub fn serve(
     world: &WorldName,
     config: &Config,

@@ -301,6 +301,12 @@ fn collision_line(out: &mut String, id: u64, c: &RecordedCollision) {
 /// CARLA's `show_recorder_file_info(name, show_all)` of the recording at
 /// `path`: the heading, each frame with events (every frame and its
 /// positions with `show_all`), and `Frames:` and `Duration:`.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`RecordingReader::open`] if `path` cannot
+/// be opened as a simbus recording, and the first error met reading its
+/// messages ([`RecordingError::Corrupt`], [`RecordingError::Malformed`], ...).
 pub fn file_info(path: &str, show_all: bool) -> Result<String, RecordingError> {
     file_info_named(path, show_all, &Names::new())
 }
@@ -319,6 +325,12 @@ fn name_of(names: &Names, id: u64, kind: u32) -> &str {
 }
 
 /// [`file_info`], naming the actors in `names` by their type ids there.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`RecordingReader::open`] if `path` cannot
+/// be opened as a simbus recording, and the first error met reading its
+/// messages ([`RecordingError::Corrupt`], [`RecordingError::Malformed`], ...).
 pub fn file_info_named(
     path: &str,
     show_all: bool,
@@ -335,6 +347,12 @@ pub fn file_info_named(
 /// CARLA's `show_recorder_collisions` text: the heading, a row per
 /// collision that started between actors of kinds for which
 /// `keep(kind_a, kind_b)` (simbus's kind names) holds, and the footer.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`RecordingReader::open`] if `path` cannot
+/// be opened as a simbus recording, and the first error met reading its
+/// messages ([`RecordingError::Corrupt`], [`RecordingError::Malformed`], ...).
 pub fn collisions(
     path: &str,
     keep: impl Fn(&str, &str) -> bool,
@@ -383,10 +401,17 @@ pub fn collisions(
     Ok(out)
 }
 
-/// CARLA's `show_recorder_actors_blocked` text of `blocked` (what
-/// [`inspect::actors_blocked`] found in the recording at `path`): the
-/// heading, a row per stretch an actor stayed still (longest first), and
-/// the footer.
+/// CARLA's `show_recorder_actors_blocked` text of `blocked`.
+///
+/// `blocked` is what [`inspect::actors_blocked`] found in the recording at
+/// `path`; the text is the heading, a row per stretch an actor stayed still
+/// (longest first), and the footer.
+///
+/// # Errors
+///
+/// Returns the [`RecordingError`] of [`inspect::file_info`] if the recording at
+/// `path` cannot be opened or read (it is read again for its heading and
+/// footer).
 pub fn actors_blocked(path: &str, blocked: &[BlockedActor]) -> Result<String, RecordingError> {
     let info = inspect::file_info(path, false)?;
     let mut out = heading(&info.header);

@@ -24,6 +24,11 @@ pub struct Stop {
 impl Stop {
     /// A stop not yet given. Fails only where the process has no file
     /// descriptors left.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`io::Error`] of creating or configuring the socket pair
+    /// behind it (`EMFILE` when the process has no file descriptors left).
     pub fn new() -> io::Result<Self> {
         let (waker, woken) = UnixStream::pair()?;
         waker.set_nonblocking(true)?;

@@ -107,6 +107,16 @@ impl ServeError {
 
 /// Serves `world` to Foxglove until `stop` is set; `on_listening` is told
 /// where, once the server listens. Returns what was sent.
+///
+/// # Errors
+///
+/// Returns [`ServeError::MaxHz`] if [`Config::max_hz`] is negative or not a
+/// number (nothing is started); [`ServeError::Connect`] if the world's server
+/// cannot be reached within the config's timeout; [`ServeError::Listen`] if the
+/// WebSocket server cannot listen on the address asked for;
+/// [`ServeError::Sensors`] if the world's sensors cannot be listed or
+/// subscribed; and [`ServeError::Wait`] if the world's frames stop (its server
+/// is gone). Setting `stop` ends it with `Ok`.
 pub fn serve(
     world: &WorldName,
     config: &Config,

@@ -6,6 +6,13 @@ use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
 
 /// Sends `signal` (e.g. `libc::SIGTERM`) to `pid`.
+///
+/// # Errors
+///
+/// Returns an error of kind [`InvalidInput`](std::io::ErrorKind::InvalidInput)
+/// if `pid` does not fit a `pid_t`, and the OS error of `kill(2)` otherwise:
+/// `ESRCH` if no such process exists, `EPERM` if this process may not signal
+/// it, `EINVAL` for an unknown `signal`.
 pub fn send_signal(pid: u32, signal: i32) -> std::io::Result<()> {
     let pid = libc::pid_t::try_from(pid)
         .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;
@@ -46,11 +53,21 @@ impl ChildGuard {
     }
 
     /// Whether the child has exited (it is reaped if so).
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`std::io::Error`] of [`Child::try_wait`] if the child's
+    /// status cannot be read.
     pub fn try_wait(&mut self) -> std::io::Result<Option<ExitStatus>> {
         self.child_mut().try_wait()
     }
 
     /// Waits up to `timeout` for the child to exit by itself.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`std::io::Error`] of [`Child::try_wait`] if the child's
+    /// status cannot be read; running out of time is `Ok(None)`, not an error.
     pub fn wait_timeout(&mut self, timeout: Duration) -> std::io::Result<Option<ExitStatus>> {
         let deadline = Instant::now() + timeout;
         loop {
@@ -65,6 +82,12 @@ impl ChildGuard {
     }
 
     /// SIGKILL, no grace, then reap.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`std::io::Error`] of [`Child::wait`] if the child cannot be
+    /// reaped. (A failed SIGKILL, for a child that already exited, is not an
+    /// error.)
     pub fn kill(&mut self) -> std::io::Result<ExitStatus> {
         let child = self.child_mut();
         let _ = child.kill();
@@ -73,6 +96,11 @@ impl ChildGuard {
 
     /// SIGTERM, wait up to the grace period, SIGKILL if needed; reaps the
     /// child and returns how it ended.
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`std::io::Error`] of [`Child::try_wait`] or [`Child::wait`]
+    /// if the child's status cannot be read or it cannot be reaped.
     pub fn stop(&mut self) -> std::io::Result<ExitStatus> {
         if let Some(status) = self.try_wait()? {
             return Ok(status);

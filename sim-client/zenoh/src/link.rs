@@ -10,6 +10,11 @@ use crate::{Options, Role};
 /// Checks `endpoint`, given with `flag`, has the form Zenoh needs:
 /// `PROTOCOL/HOST:PORT` (`tcp/192.168.1.10:7447`, `tls/[::1]:7447`), with
 /// optional `?metadata` / `#config` after it; refused saying so.
+///
+/// # Errors
+///
+/// Returns [`LinkError::BadEndpoint`] (naming `flag`) if `endpoint` is not
+/// `PROTOCOL/HOST:PORT` with a port that fits 16 bits.
 pub fn check_endpoint(flag: &'static str, endpoint: &str) -> Result<(), LinkError> {
     let address = endpoint.split(['?', '#']).next().unwrap_or_default();
     let well_formed = address.split_once('/').is_some_and(|(protocol, address)| {

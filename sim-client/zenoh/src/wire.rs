@@ -218,6 +218,13 @@ fn read_header<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadErr
 
 /// The header and the actors of a frame payload, checked: protocol version,
 /// and exactly `actor_count` actors after the header.
+///
+/// # Errors
+///
+/// Returns [`PayloadError::TooShort`] if `bytes` cannot hold a frame header,
+/// [`PayloadError::ProtocolMismatch`] if the header is of another protocol
+/// version, and [`PayloadError::WrongLength`] if the bytes after it are not
+/// exactly `actor_count` actors.
 pub fn decode_frame(bytes: &[u8]) -> Result<(FrameHeader, Vec<ActorState>), PayloadError> {
     let mut reader = Slices::new([bytes]);
     let header = frame_header(&mut reader, bytes.len())?;
@@ -227,10 +234,18 @@ pub fn decode_frame(bytes: &[u8]) -> Result<(FrameHeader, Vec<ActorState>), Payl
     Ok((header, actors))
 }
 
-/// The header of a frame payload of `len` bytes, read from `reader` and
-/// checked: protocol version, and exactly `actor_count` actors after it.
-/// The actors follow in `reader` (the mirror reads them straight into
-/// its loaned sample).
+/// The header of a frame payload of `len` bytes, read from `reader` and checked.
+///
+/// Checked: protocol version, and exactly `actor_count` actors after it.
+/// The actors follow in `reader` (the mirror reads them straight into its
+/// loaned sample).
+///
+/// # Errors
+///
+/// Returns [`PayloadError::TooShort`] if fewer than a frame header's bytes are
+/// left in `reader`, [`PayloadError::ProtocolMismatch`] if the header is of
+/// another protocol version, and [`PayloadError::WrongLength`] if `len` is not
+/// exactly the header and `actor_count` actors.
 pub fn frame_header<'a>(
     reader: &mut Slices<'a, impl Iterator<Item = &'a [u8]>>,
     len: usize,
@@ -308,6 +323,13 @@ pub fn encode_capture(header: &SensorHeader, payload: &[u8], out: &mut Vec<u8>) 
 
 /// The header and payload bytes of a capture, checked: protocol version,
 /// and at most [`shared_types::MAX_CAPTURE_BYTES`] after the header.
+///
+/// # Errors
+///
+/// Returns [`PayloadError::TooShort`] if `bytes` cannot hold a capture header,
+/// [`PayloadError::ProtocolMismatch`] if the header is of another protocol
+/// version, and [`PayloadError::WrongLength`] if more than
+/// [`shared_types::MAX_CAPTURE_BYTES`] follow it.
 pub fn decode_capture(bytes: &[u8]) -> Result<(SensorHeader, &[u8]), PayloadError> {
     let header: SensorHeader = read_header(bytes, "sensor capture")?;
     if header.protocol_version != PROTOCOL_VERSION {
@@ -329,6 +351,13 @@ pub fn decode_capture(bytes: &[u8]) -> Result<(SensorHeader, &[u8]), PayloadErro
 
 /// A request (or answer) of a fixed-size type `T`, checked: exactly
 /// `size_of::<T>()` bytes, starting with [`PROTOCOL_VERSION`].
+///
+/// # Errors
+///
+/// Returns [`PayloadError::ProtocolMismatch`] if the payload does not start
+/// with [`PROTOCOL_VERSION`] (checked first: another version's types may have
+/// other sizes), [`PayloadError::TooShort`] if it is shorter than a `T`, and
+/// [`PayloadError::WrongLength`] if it is longer.
 pub fn decode_fixed<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, PayloadError> {
     // The version first: another version's types may have other sizes.
     if bytes.len() >= 4 {
@@ -347,6 +376,13 @@ pub fn decode_fixed<T: Pod>(bytes: &[u8], what: &'static str) -> Result<T, Paylo
 
 /// A slice request (or answer): its header `H`, checked to start with
 /// [`PROTOCOL_VERSION`], and whole `T`s after it (at most `max`).
+///
+/// # Errors
+///
+/// Returns [`PayloadError::ProtocolMismatch`] if the payload does not start
+/// with [`PROTOCOL_VERSION`], [`PayloadError::TooShort`] if it is shorter than
+/// an `H`, and [`PayloadError::WrongLength`] if the bytes after the header are
+/// not whole `T`s or are more than `max` of them.
 pub fn decode_slice<H: Pod, T: Pod>(
     bytes: &[u8],
     what: &'static str,

@@ -33,6 +33,12 @@ pub(crate) fn segment_path(dir: &Path, index: u32) -> PathBuf {
 }
 
 /// The segments (`journal-NNNNNN.mcap`) in `dir`, oldest first.
+///
+/// # Errors
+///
+/// Returns the [`std::io::Error`] of reading `dir` (it does not exist, is not a
+/// directory, or may not be read) or one of its entries. Files that are not
+/// named `journal-NNNNNN.mcap` are skipped, not errors.
 pub fn segments(dir: &Path) -> std::io::Result<Vec<(u32, PathBuf)>> {
     let mut found = Vec::new();
     for entry in std::fs::read_dir(dir)? {

@@ -244,13 +244,13 @@ fn add_channels(mcap: &mut McapFile) -> McapResult<Channels> {
     let events = mcap.add_channel(event_schema, EVENTS_TOPIC, "json", &Default::default())?;
     let keyframe_schema = mcap.add_schema(
         KEYFRAME_SCHEMA,
-        "msgpack",
-        b"simbus server world: rapier3d 0.36 PhysicsWorld (serde) and simbus actors, msgpack",
+        "postcard",
+        b"simbus server world: rapier3d 0.36 PhysicsWorld (serde) and simbus actors, postcard",
     )?;
     let keyframes = mcap.add_channel(
         keyframe_schema,
         KEYFRAMES_TOPIC,
-        "msgpack",
+        "postcard",
         &Default::default(),
     )?;
     let scene_schema = json_schema(mcap, SCENE_SCHEMA, scene_update_schema())?;

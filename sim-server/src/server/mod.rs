@@ -202,6 +202,13 @@ impl Server {
     }
 
     /// Runs until `shutdown` is set or `max_frames` frames were computed.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ServerError::Port`] if iceoryx2 fails while the server takes
+    /// requests, steps or publishes a frame (a port it can no longer use). A
+    /// client's bad request is answered with a refusal, not an error of the
+    /// server.
     pub fn run(&mut self, shutdown: &AtomicBool) -> Result<RunSummary, ServerError> {
         let started = Instant::now();
         let first_frame = self.domains.runtime.frames_computed;

@@ -30,16 +30,43 @@ impl Server {
     /// Validates the settings, loads the scene, opens the world's services
     /// (cleaning up after a crashed predecessor) and publishes frame 0;
     /// starts the journal when the config asks for one.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ServerError::Settings`] if the config's settings break a rule
+    /// of [`WorldSettings::validate`](shared_types::WorldSettings::validate);
+    /// [`ServerError::KeyframeSeconds`] if `keyframe_seconds` is out of range;
+    /// [`ServerError::Port`] with
+    /// [`PortError::AlreadyRunning`](crate::PortError::AlreadyRunning) if
+    /// another live server owns the world,
+    /// [`PortError::SharedDirectory`](crate::PortError::SharedDirectory) if
+    /// iceoryx2 cannot be used as configured, or
+    /// [`PortError::Transport`](crate::PortError::Transport) if iceoryx2
+    /// refuses to create a service; [`ServerError::RenderThreads`] if the
+    /// render threads cannot be started; and [`ServerError::Journal`] if the
+    /// journal cannot be started (its directory cannot be made, or already
+    /// holds a journal).
     pub fn start(config: ServerConfig) -> Result<Self, ServerError> {
         Self::open(config, None)
     }
 
-    /// Rebuilds the world a journal describes (its last complete frame, or
-    /// `options.at`'s frame for a fork) and serves it live from the next
-    /// frame: the same world name (unless forked under another), actor and
-    /// sensor ids, episode and settings; frame ids go on. The journal
+    /// Rebuilds the world a journal describes and serves it live from the next frame.
+    ///
+    /// The world is the journal's last complete frame, or `options.at`'s frame
+    /// for a fork: the same world name (unless forked under another), actor
+    /// and sensor ids, episode and settings; frame ids go on. The journal
     /// continues into `config.journal` when set. A journal that cannot be
     /// resumed is refused, and nothing starts.
+    ///
+    /// # Errors
+    ///
+    /// Returns [`ServerError::Resume`] if the journal cannot be resumed (its
+    /// directory cannot be read, holds no segment or no usable one, lacks the
+    /// frame a fork asks for, or a re-simulated frame differs from it);
+    /// [`ServerError::ForkIntoOriginal`] if a fork would journal into the
+    /// journal it forks; [`ServerError::OtherWorld`] if a resume (not a fork)
+    /// names another world than the journal's; and otherwise the errors of
+    /// [`Server::start`].
     pub fn resume(mut config: ServerConfig, options: &ResumeOptions) -> Result<Self, ServerError> {
         if let Some(journal) = &config.journal {
             if options.at.is_some() && journal.dir == options.dir {

@@ -3,11 +3,23 @@
 use super::World;
 
 impl World {
-    /// Checks a world read from a file (a keyframe) before it is used: every
-    /// actor's body and every collider's parent exist, ids ascend below
-    /// `next_id`, every vehicle's chassis is an actor's body, and every body
-    /// is finite. Rapier trusts its own sets; a damaged keyframe must not
-    /// reach it.
+    /// Checks a world read from a file (a keyframe) before it is used.
+    ///
+    /// Every actor's body and every collider's parent exist, ids ascend below
+    /// `next_id`, every vehicle's chassis is an actor's body, and every body is
+    /// finite. Rapier trusts its own sets; a damaged keyframe must not reach
+    /// it.
+    ///
+    /// # Errors
+    ///
+    /// Returns the first [`Inconsistency`] found:
+    /// [`Inconsistency::IdsOutOfOrder`] if actor ids do not ascend within the
+    /// world's id range, [`Inconsistency::NoBody`] if an actor has no body,
+    /// [`Inconsistency::NotFinite`] if a pose or velocity is not finite,
+    /// [`Inconsistency::ColliderWithoutBody`] if a collider's parent body is
+    /// missing, [`Inconsistency::ChassisNotActor`] if a vehicle's chassis is no
+    /// actor's body, and [`Inconsistency::BodiesAndActorsDiffer`] if there are
+    /// bodies that are no actor's.
     pub fn check(&self) -> Result<(), Inconsistency> {
         let mut previous = None;
         for actor in &self.actors {

@@ -104,7 +104,8 @@ pub(crate) fn interrupted() -> &'static AtomicBool {
 
 /// Calls `wake` on Ctrl-C / SIGTERM (at once if one came already): for a
 /// command that blocks on an event of its own instead of reading
-/// [`interrupted`].
+/// [`interrupted`] (the CARLA gateway).
+#[cfg(feature = "carla")]
 pub(crate) fn on_interrupt(wake: impl Fn() + Send + Sync + 'static) {
     let flag = interrupted();
     let wake = Arc::new(wake);

@@ -6,7 +6,9 @@ use shared_types::limits::{MAX_ACTOR_POSITION, MAX_WAIT_SECONDS};
 use shared_types::scene::SceneNameError;
 use shared_types::{SettingsError, MAX_DELTA_SECONDS, MAX_IMAGE_SIDE, MIN_DELTA_SECONDS};
 
-use super::{Exact, Readable, MAX_DISTANCE_METRES, MAX_RATE_HZ};
+use shared_types::{Exact, Readable};
+
+use crate::bounds::{MAX_DISTANCE_METRES, MAX_RATE_HZ};
 
 /// Why a value given on a command line was refused. Each variant keeps the
 /// text given (or the value read from it), the range it had to be in and
@@ -256,8 +258,9 @@ impl fmt::Display for FpsRange {
 mod tests {
     use std::error::Error as _;
 
-    use super::super::*;
     use super::*;
+    use crate::*;
+    use shared_types::WorldSettings;
     use shared_types::{MAX_KEYFRAME_SECONDS, MIN_KEYFRAME_SECONDS};
 
     fn message<T: fmt::Debug>(result: Result<T, InputError>) -> String {

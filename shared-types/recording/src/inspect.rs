@@ -16,9 +16,8 @@ use shared_types::{
     ActorKind, ActorState, CommandKind, CommandStatus, FrameHeader, NANOS_PER_SECOND,
 };
 
-use crate::{
-    Entry, RecordedCommand, RecordedEvent, RecordingError, RecordingHeader, RecordingReader,
-};
+use crate::format::{RecordedCommand, RecordedEvent, RecordingError, RecordingHeader};
+use crate::read::{Entry, RecordingReader};
 
 /// What a recording holds (`recorder info`).
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -87,7 +87,7 @@ pub(super) mod option {
 
 #[cfg(test)]
 mod tests {
-    use crate::{RecordingHeader, RECORDING_VERSION};
+    use crate::format::{RecordingHeader, RECORDING_VERSION};
     use shared_types::WorldSettings;
 
     fn header(keyframe_seconds: f64, fixed: Option<f64>) -> RecordingHeader {

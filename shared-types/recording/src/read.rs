@@ -8,7 +8,10 @@ use std::sync::Arc;
 
 use mcap::sans_io::linear_reader::LinearReaderOptions;
 
-use super::*;
+use bytemuck::Pod;
+use shared_types::WorldSettings;
+
+use crate::format::*;
 use shared_types::{ActorState, FrameHeader, SensorHeader};
 
 /// The longest record the reader accepts (a chunk, decompressed): bounds

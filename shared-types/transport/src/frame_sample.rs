@@ -6,7 +6,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::{LoanError, SendError};
 use shared_types::{fill_frame_slice, frame_slice_len, ActorState, FrameHeader};
 
-use crate::Bus;
+use crate::bus::Bus;
 
 /// The publisher of a world's frames.
 pub type FramePublisher = Publisher<Bus, [ActorState], FrameHeader>;

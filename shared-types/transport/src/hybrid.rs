@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 
-use crate::Bus;
+use crate::bus::Bus;
 
 /// Waits until `listener` is rung or `timeout` passes; whether it was rung.
 ///

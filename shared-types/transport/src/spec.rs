@@ -26,7 +26,7 @@ use iceoryx2::service::port_factory::{event, publish_subscribe, request_response
 use iceoryx2::service::service_name::ServiceNameError;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
-use crate::Bus;
+use crate::bus::Bus;
 use shared_types::limits::{
     WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_BATCH,
     MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,

@@ -7,6 +7,7 @@ use std::fs::File;
 use std::path::PathBuf;
 
 use super::*;
+use bytemuck::Zeroable;
 
 /// A file in a directory of its own, removed on drop.
 struct Temp(PathBuf);

@@ -8,7 +8,7 @@ use shared_types::limits::MAX_ACTOR_POSITION;
 use shared_types::{ActorKind, Command, CommandStatus, WorldName};
 use sim_client::{BatchError, CommandError, LoadWorldError};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Spawn an actor and print its id.
 #[derive(Debug, Args)]
@@ -63,7 +63,7 @@ pub(crate) struct LoadArgs {
 
 /// `--at x,y,z`, within the reach of the world.
 fn parse_point(text: &str) -> Result<[f32; 3], Failure> {
-    let point = super::numbers::<3>(text, "--at")?;
+    let point = super::parse::numbers::<3>(text, "--at")?;
     if point.iter().any(|v| v.abs() > MAX_ACTOR_POSITION) {
         return Err(Failure::Refused(anyhow!(
             "--at {text} is out of range: positions must be within +-{MAX_ACTOR_POSITION} m of the origin"
@@ -95,7 +95,7 @@ pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Re
             )))
         }
     };
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let response = client
         .apply_batch_sync(&[command], false)
@@ -133,7 +133,7 @@ pub(crate) fn destroy(
     timeout: Duration,
     args: DestroyArgs,
 ) -> Result<(), Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     client.destroy(args.id).map_err(command_failure)?;
     println!("destroyed actor {}", args.id);
@@ -172,13 +172,13 @@ pub(crate) fn reload(
     timeout: Duration,
     args: ReloadArgs,
 ) -> Result<(), Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(client.reload_world(args.reset_settings), args.json)
 }
 
 pub(crate) fn load(world: &WorldName, timeout: Duration, args: LoadArgs) -> Result<(), Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loaded(
         client.load_world(&args.scene, args.reset_settings),

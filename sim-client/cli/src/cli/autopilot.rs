@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use shared_types::{ActorKind, Command, WorldName};
 use sim_client::{BatchError, WaitError};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Options of `sim-client autopilot` (described on the command).
 #[derive(Debug, Args)]
@@ -36,8 +36,8 @@ pub(crate) fn run(
     if args.every == 0 {
         return Err(Failure::Refused(anyhow!("--every must be at least 1")));
     }
-    let interrupted = super::interrupted();
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let interrupted = super::interrupt::interrupted();
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let participant = client.join_lockstep("autopilot")?;
     let (episode, frame) = participant.joined_at();

@@ -9,7 +9,7 @@ use clap::{Args, Subcommand};
 use shared_types::WorldName;
 use simbus_zenoh::{BridgeError, JsonViews, Notice, Options, Role};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Bridge a world to other hosts.
 #[derive(Debug, Args)]
@@ -84,7 +84,7 @@ pub(crate) struct ZenohArgs {
 /// The JSON `status --json` and `config --json` print, for Zenoh tools.
 const JSON: JsonViews = JsonViews {
     status: super::status::status_json,
-    settings: super::settings_json,
+    settings: super::describe::settings_json,
 };
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: BridgeArgs) -> Result<(), Failure> {
@@ -109,7 +109,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: BridgeArgs) -> Res
     // `SIMBUS_STAMPS=FILE`: the stamps of the ticks it relays, written on
     // exit (`simbus-bench zenoh --breakdown`).
     let stamps_file = simbus_transport::stamps::enable_from_env();
-    let stop = crate::cli::interrupted();
+    let stop = crate::cli::interrupt::interrupted();
     let result = simbus_zenoh::run(world, timeout, role, &options, stop, &mut say).map_err(failure);
     if let Some(path) = stamps_file {
         let stamps = simbus_transport::stamps::take();

@@ -10,7 +10,7 @@ use clap::Args;
 use shared_types::WorldName;
 use simbus_carla::{Config, GatewayError, Stop};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Serve a simbus world to CARLA's Python client (`import carla`).
 #[derive(Debug, Args)]
@@ -53,7 +53,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         .map_err(|e| Failure::Runtime(anyhow::Error::new(e).context("the gateway's stop")))?;
     let stop = Arc::new(stop);
     let waker = stop.clone();
-    super::on_interrupt(move || waker.stop());
+    super::interrupt::on_interrupt(move || waker.stop());
     simbus_carla::serve(world, &config, &stop, |listening| {
         let (port, streaming_port) = (listening.port, listening.streaming_port);
         if args.json {

@@ -7,9 +7,8 @@ use clap::{Args, ValueEnum};
 use shared_types::{SubstepRule, WorldName, WorldSettings};
 use sim_client::ApplySettingsError;
 use simbus_input as input;
-use simbus_input::Readable;
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Options of `sim-client config` (described on the command).
 #[derive(Debug, Args)]
@@ -88,33 +87,6 @@ impl From<SubstepRuleArg> for SubstepRule {
     }
 }
 
-/// The `rule` line of the printed settings: the substep rule and what it
-/// does with these settings.
-pub(crate) fn substep_rule_line(settings: &WorldSettings) -> String {
-    let limit = settings.max_substep_delta_time * f64::from(settings.max_substeps);
-    let what = match settings.substep_rule {
-        SubstepRule::Refuse => format!("a fixed step over {} s is refused", Readable(limit)),
-        SubstepRule::Clamp => format!(
-            "CARLA's: physics advances at most {} s per frame",
-            Readable(limit)
-        ),
-        SubstepRule::Stretch => format!(
-            "a fixed step over {} s lengthens the substeps",
-            Readable(limit)
-        ),
-    };
-    match (settings.substepping, settings.clamps_physics()) {
-        (false, _) => format!("{} (no substepping: no effect)", settings.substep_rule),
-        (true, false) => format!("{} ({what})", settings.substep_rule),
-        (true, true) => format!(
-            "{} ({what}: {} s of each {} s frame)",
-            settings.substep_rule,
-            Readable(limit),
-            Readable(settings.fixed_delta_seconds.unwrap_or(0.0))
-        ),
-    }
-}
-
 impl ConfigArgs {
     fn changes_anything(&self) -> bool {
         self.delta_seconds.is_some()
@@ -166,13 +138,15 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
             ApplySettingsError::SyncNeedsTicker
         )));
     }
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let current = client.get_settings()?;
     let mut effective_frame = None;
     let mut settings = current;
     if args.changes_anything() {
-        settings = args.apply_to(current).map_err(super::refused_or_runtime)?;
+        settings = args
+            .apply_to(current)
+            .map_err(super::session::refused_or_runtime)?;
         // Like CARLA's config.py, `--no-sync` with other changes applies
         // them all. While a ticker holds the world only it changes
         // settings, but anyone may leave synchronous mode (which ends its
@@ -185,12 +159,12 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
         if args.no_sync && current.synchronous_mode && settings != only_leaving {
             client
                 .apply_settings(only_leaving)
-                .map_err(super::refused_or_runtime)?;
+                .map_err(super::session::refused_or_runtime)?;
         }
         let left_first = args.no_sync && current.synchronous_mode && settings != only_leaving;
         effective_frame =
             Some(client.apply_settings(settings).map_err(|e| {
-                let failure = super::refused_or_runtime(e);
+                let failure = super::session::refused_or_runtime(e);
                 if !left_first {
                     return failure;
                 }
@@ -202,7 +176,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
             })?);
     }
     if args.json {
-        let mut json = super::settings_json(&settings);
+        let mut json = super::describe::settings_json(&settings);
         if let Some(object) = json.as_object_mut() {
             object.insert("world".into(), world.as_str().into());
             object.insert("effective_frame".into(), effective_frame.into());
@@ -217,7 +191,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: ConfigArgs) -> Res
         }
     }
     if args.inspect || effective_frame.is_none() {
-        for (name, value) in super::settings_lines(&settings) {
+        for (name, value) in super::describe::settings_lines(&settings) {
             println!("{name:<9} {value}");
         }
     }

@@ -15,7 +15,7 @@ use simbus_input as input;
 use simbus_process::ChildGuard;
 
 use super::words::count;
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Options of `sim-client demo` (described on the command).
 #[derive(Debug, Args)]
@@ -210,7 +210,7 @@ pub(crate) fn run(
             "--delta-seconds must be a positive number of seconds"
         )));
     }
-    let interrupted = super::interrupted();
+    let interrupted = super::interrupt::interrupted();
     let binary = server_binary(args.server.clone())?;
     let world = world.map_or_else(
         || format!("demo-{}", std::process::id()),

@@ -7,7 +7,7 @@ use clap::Args;
 use shared_types::WorldName;
 use simbus_foxglove::{Config, ServeError};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Serve the world live to Foxglove over its WebSocket protocol.
 #[derive(Debug, Args)]
@@ -30,7 +30,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: FoxgloveArgs) -> R
         max_hz: args.max_hz,
         timeout,
     };
-    let served = simbus_foxglove::serve(world, &config, super::interrupted(), |listening| {
+    let served = simbus_foxglove::serve(world, &config, super::interrupt::interrupted(), |listening| {
         println!(
             "foxglove: world '{world}' on ws://{}:{} (open it in Foxglove: Open connection → Foxglove WebSocket)",
             config.host, listening.port

@@ -29,12 +29,12 @@ pub(crate) struct StdoutClosed;
 pub(crate) struct StdoutFailed(pub(crate) std::io::Error);
 
 /// Writes `args` to stdout. On failure it stops the command: it sets
-/// [`super::interrupted`] (so other threads stop at their next check) and
+/// [`super::interrupt::interrupted`] (so other threads stop at their next check) and
 /// unwinds this thread with [`StdoutClosed`] or [`StdoutFailed`].
 pub(crate) fn stdout(args: fmt::Arguments<'_>) {
     let result = std::io::stdout().lock().write_fmt(args);
     if let Err(e) = result {
-        super::interrupted().store(true, Ordering::Relaxed);
+        super::interrupt::interrupted().store(true, Ordering::Relaxed);
         if e.kind() == std::io::ErrorKind::BrokenPipe {
             std::panic::resume_unwind(Box::new(StdoutClosed));
         }

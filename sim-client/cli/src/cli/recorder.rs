@@ -13,8 +13,8 @@ use sim_client::{Client, RecorderError, RecorderStatus, ReplayOptions};
 use simbus_input as input;
 use simbus_recording::inspect;
 
+use crate::cli::failure::Failure;
 use crate::cli::words::count;
-use crate::Failure;
 
 mod print;
 
@@ -173,7 +173,7 @@ fn refused_or_runtime(e: RecorderError) -> Failure {
 }
 
 fn connect(world: &WorldName, timeout: Duration) -> Result<Client, Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     Ok(client)
 }
@@ -495,7 +495,7 @@ fn follow(
     let client = following.client;
     let mut last = (frames, Instant::now());
     loop {
-        if super::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
+        if super::interrupt::interrupted().load(std::sync::atomic::Ordering::Relaxed) {
             following.armed = false; // stopped here, with its answer printed
             let status = client
                 .stop_replayer(args.keep_actors)

@@ -11,7 +11,7 @@ use simbus_input as input;
 use super::sensor_capture::{failure, next_capture};
 use super::sensor_text::print_capture;
 use super::words::count;
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Sensors: cameras (depth, RGB, semantic and instance segmentation),
 /// lidars (plain and semantic), radar, IMU, GNSS, collision and obstacle,
@@ -185,7 +185,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: SensorArgs) -> Res
         SensorCommand::Spawn(a) => Some(spec(a)?),
         _ => None,
     };
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     match args.command {
         SensorCommand::Spawn(a) => match spawning {
@@ -246,8 +246,8 @@ fn only_for(kind: SensorKind, given: &[(&str, bool, &[SensorKind])]) -> Result<(
 /// The spec `a` describes, checked.
 fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     use SensorKind::{Depth, Gnss, Instance, Lidar, Obstacle, Radar, Rgb, Semantic, SemanticLidar};
-    let at = super::numbers::<3>(&a.at, "--at")?;
-    let [yaw, pitch, roll] = super::numbers::<3>(&a.rotation, "--rotation")?;
+    let at = super::parse::numbers::<3>(&a.at, "--at")?;
+    let [yaw, pitch, roll] = super::parse::numbers::<3>(&a.rotation, "--rotation")?;
     let Some(kind) = SensorKind::from_name(&a.kind) else {
         return Err(Failure::Refused(anyhow!(
             "unknown sensor kind '{}': expected depth, rgb, semantic, instance, lidar, semantic-lidar, radar, imu, gnss, collision or obstacle",
@@ -317,7 +317,8 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
     let mut typed_size = None;
     let mut spec = match kind {
         SensorKind::Depth | SensorKind::Rgb | SensorKind::Semantic | SensorKind::Instance => {
-            let [w, h] = super::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
+            let [w, h] =
+                super::parse::numbers::<2>(a.size.as_deref().unwrap_or("640,480"), "--size")?;
             typed_size = Some([w, h]);
             let far = if kind == Depth { 100.0 } else { 1000.0 };
             let camera = Camera {
@@ -332,8 +333,10 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
             )
         }
         SensorKind::Lidar | SensorKind::SemanticLidar => {
-            let [upper_fov, lower_fov] =
-                super::numbers::<2>(a.fov_range.as_deref().unwrap_or("10,-30"), "--fov-range")?;
+            let [upper_fov, lower_fov] = super::parse::numbers::<2>(
+                a.fov_range.as_deref().unwrap_or("10,-30"),
+                "--fov-range",
+            )?;
             let lidar = shared_types::Lidar {
                 channels: a.channels.unwrap_or(32),
                 points: a.points.unwrap_or(512),
@@ -390,13 +393,13 @@ fn spec(a: &SpawnArgs) -> Result<SensorSpec, Failure> {
 /// `--noise-seed` give it (checked with the rest of the spec).
 fn lidar_noise(a: &SpawnArgs) -> Result<shared_types::LidarNoise, Failure> {
     let [noise_stddev] =
-        super::numbers::<1>(a.noise_stddev.as_deref().unwrap_or("0"), "--noise-stddev")?;
+        super::parse::numbers::<1>(a.noise_stddev.as_deref().unwrap_or("0"), "--noise-stddev")?;
     if noise_stddev < 0.0 {
         return Err(Failure::Refused(anyhow!(
             "--noise-stddev takes a standard deviation >= 0, got '{noise_stddev}'"
         )));
     }
-    let dropoff = super::numbers::<3>(a.dropoff.as_deref().unwrap_or("0,0,0"), "--dropoff")?;
+    let dropoff = super::parse::numbers::<3>(a.dropoff.as_deref().unwrap_or("0,0,0"), "--dropoff")?;
     if dropoff.iter().any(|v| !(0.0..=1.0).contains(v)) {
         return Err(Failure::Refused(anyhow!(
             "--dropoff takes three shares in 0..=1 (GENERAL,LIMIT,ZERO), got '{}'",
@@ -417,8 +420,9 @@ fn lidar_noise(a: &SpawnArgs) -> Result<shared_types::LidarNoise, Failure> {
 /// A GNSS receiver's noise as `--noise-stddev`, `--noise-bias` and
 /// `--noise-seed` give it (checked with the rest of the spec).
 fn gnss_params(a: &SpawnArgs) -> Result<shared_types::Gnss, Failure> {
-    let three =
-        |text: &Option<String>, flag| super::numbers::<3>(text.as_deref().unwrap_or("0,0,0"), flag);
+    let three = |text: &Option<String>, flag| {
+        super::parse::numbers::<3>(text.as_deref().unwrap_or("0,0,0"), flag)
+    };
     let [lat_stddev, lon_stddev, alt_stddev] = three(&a.noise_stddev, "--noise-stddev")?;
     if [lat_stddev, lon_stddev, alt_stddev]
         .iter()
@@ -488,13 +492,13 @@ fn seconds_text(seconds: f64) -> String {
 /// Every wait of `sensor watch` honours --timeout: no capture (or frame)
 /// within it is an error, and so is the sensor's end.
 fn watch(client: &mut Client, a: WatchArgs, timeout: Duration) -> Result<(), Failure> {
-    let interrupted = super::interrupted();
+    let interrupted = super::interrupt::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     let running = || !interrupted.load(std::sync::atomic::Ordering::Relaxed);
     let mut seen = 0;
     if a.lockstep {
         // Follow every frame: read its captures, then report it done.
-        let mut frames = super::connect(client.world().as_str(), timeout)?;
+        let mut frames = super::session::connect(client.world().as_str(), timeout)?;
         let participant = frames.join_lockstep("sensor-watch")?;
         while a.captures.is_none_or(|n| seen < n) && running() {
             let Some(snapshot) = super::watch::next_frame(&mut frames, timeout)? else {

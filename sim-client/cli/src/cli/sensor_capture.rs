@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use sim_client::{Capture, Sensor, SensorError, WaitError};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// A sensor error as the command's exit: refused (2) for what the server
 /// refused or does not know, a runtime failure (1) otherwise.
@@ -21,5 +21,5 @@ pub(super) fn next_capture(
     sensor: &mut Sensor,
     timeout: Duration,
 ) -> Result<Option<Capture>, WaitError> {
-    super::in_slices(timeout, |slice| sensor.recv(slice))
+    super::interrupt::in_slices(timeout, |slice| sensor.recv(slice))
 }

@@ -11,7 +11,7 @@ use simbus_input as input;
 use super::sensor_capture::{failure, next_capture};
 use super::sensor_text::{capture_json, gnss_text, imu_text};
 use super::words::count;
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 #[derive(Debug, Args)]
 pub(super) struct SaveArgs {
@@ -37,7 +37,7 @@ pub(super) struct SaveArgs {
 pub(super) fn save(client: &Client, a: SaveArgs, timeout: Duration) -> Result<(), Failure> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("creating the directory {}", a.out.display()))?;
-    super::interrupted();
+    super::interrupt::interrupted();
     let mut sensor = client.sensor(a.id).map_err(failure)?;
     tracing::info!(sensor = a.id, captures = a.captures, "waiting for captures");
     let spec = sensor.spec();

@@ -7,7 +7,7 @@ use clap::{Args, Subcommand};
 use shared_types::WorldName;
 use sim_client::{SnapshotError, SnapshotId};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Options of `sim-client snapshot` (described on the command).
 #[derive(Debug, Args)]
@@ -49,7 +49,7 @@ fn refused(error: SnapshotError) -> Failure {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: SnapshotArgs) -> Result<(), Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     match args.action {
         Action::Save => {

@@ -6,7 +6,7 @@ use clap::Args;
 use shared_types::{Timestamp, WorldName};
 use sim_client::{JournalStatus, Status};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Show the world's mode, settings and current frame.
 #[derive(Debug, Args)]
@@ -17,7 +17,7 @@ pub(crate) struct StatusArgs {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Result<(), Failure> {
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let report = client.status()?;
     let settings = report.settings;
@@ -48,7 +48,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         "frame     {} (t = {elapsed:.6} s, episode {})",
         report.frame, report.episode
     );
-    for (name, value) in super::settings_lines(&settings) {
+    for (name, value) in super::describe::settings_lines(&settings) {
         println!("{name:<9} {value}");
     }
     match &report.ticker {
@@ -60,7 +60,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
         super::words::count(report.participants, "participant")
     );
     for p in &report.lockstep {
-        println!("          {}", super::participant_line(p));
+        println!("          {}", super::describe::participant_line(p));
     }
     if report.seed != 0 {
         println!("seed      {}", report.seed);
@@ -88,7 +88,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: StatusArgs) -> Res
 
 /// The world's status as `status --json` prints it.
 pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Value {
-    let mut json = super::settings_json(&report.settings);
+    let mut json = super::describe::settings_json(&report.settings);
     let elapsed = Timestamp {
         elapsed_ns: report.elapsed_ns,
         ..Default::default()
@@ -104,7 +104,7 @@ pub(crate) fn status_json(world: &WorldName, report: &Status) -> serde_json::Val
         "server_pid": report.server_pid,
         "run_pid": report.run_pid,
         "participants": report.participants,
-        "lockstep": report.lockstep.iter().map(super::participant_json).collect::<Vec<_>>(),
+        "lockstep": report.lockstep.iter().map(super::describe::participant_json).collect::<Vec<_>>(),
         "seed": report.seed,
         "snapshots": report.snapshots,
         "journal": report.journal.as_ref().map(|j| match j {

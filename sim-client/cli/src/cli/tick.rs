@@ -13,7 +13,7 @@ use sim_client::{ApplySettingsError, Client, TakeOver, TickError, Ticker, WaitMo
 use simbus_input as input;
 
 use super::tick_restarts::{ride_through, wait_for_participants, Restarts, TickLoopError};
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// The node name others see as the owner while this command ticks.
 const NODE_NAME: &str = "sim-client-tick";
@@ -146,8 +146,8 @@ impl TickArgs {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Result<(), Failure> {
-    let interrupted = super::interrupted();
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let interrupted = super::interrupt::interrupted();
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     let status = client.status()?;
     // Only a journaling server can be resumed: another one's exit ends the run.
@@ -179,7 +179,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TickArgs) -> Resul
     ticker.set_wait_mode(args.wait_mode);
     let from = ticker
         .apply_settings(sync)
-        .map_err(super::refused_or_runtime)?;
+        .map_err(super::session::refused_or_runtime)?;
     // From here on the world is given back however this run ends: a bound,
     // Ctrl-C, an error, a closed stdout or a panic (the guard's drop).
     let mut holding = Holding::new(ticker, sync, current, args.leave_sync);

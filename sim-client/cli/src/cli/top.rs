@@ -14,7 +14,7 @@ use serde::Serialize;
 use shared_types::{SensorInfo, SensorKind, Timestamp, WorldName, WorldSettings};
 use sim_client::Client;
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Show a world's clients, sensors, rates and shared memory, refreshing.
 #[derive(Debug, Args)]
@@ -129,14 +129,14 @@ fn measure(client: &Client, interval: Duration) -> anyhow::Result<Screen> {
         frame: report.frame,
         elapsed_seconds: seconds(report.elapsed_ns),
         actors: report.actor_count,
-        settings: super::settings_json(&settings),
+        settings: super::describe::settings_json(&settings),
         frames_per_second: frames / wall,
         real_time_factor: simulated / wall,
         ticker: report.ticker.as_ref().map(|t| {
             serde_json::json!({"node": t.node_name, "pid": t.pid, "since_frame": t.since_frame})
         }),
         participant_count: report.participants,
-        participants: report.lockstep.iter().map(super::participant_json).collect(),
+        participants: report.lockstep.iter().map(super::describe::participant_json).collect(),
         clients: clients
             .into_iter()
             .filter(|h| h.pid != report.server_pid)
@@ -224,7 +224,7 @@ fn render(screen: &Screen) -> String {
         "frame {}  t = {:.3} s  {:.1} frames/s  real-time factor {:.2}",
         screen.frame, screen.elapsed_seconds, screen.frames_per_second, screen.real_time_factor
     );
-    for (name, value) in super::settings_lines(&screen.world_settings) {
+    for (name, value) in super::describe::settings_lines(&screen.world_settings) {
         let _ = writeln!(out, "{name:<9} {value}");
     }
     let _ = writeln!(out, "ticker    {}", screen.ticker_line);
@@ -234,7 +234,7 @@ fn render(screen: &Screen) -> String {
         super::words::count(screen.participant_count, "participant")
     );
     for p in &screen.lockstep {
-        let _ = writeln!(out, "          {}", super::participant_line(p));
+        let _ = writeln!(out, "          {}", super::describe::participant_line(p));
     }
     let _ = writeln!(
         out,
@@ -298,8 +298,8 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: TopArgs) -> Result
         )));
     }
     let interval = Duration::from_secs_f64(args.interval);
-    let stop = super::interrupted();
-    let mut client = super::connect(world.as_str(), timeout)?;
+    let stop = super::interrupt::interrupted();
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     loop {
         let screen = measure(&client, interval)?;

@@ -6,7 +6,7 @@ use clap::Args;
 use shared_types::WorldName;
 use sim_client::{Client, FrameView, WaitError, WaitMode};
 
-use crate::Failure;
+use crate::cli::failure::Failure;
 
 /// Options of `sim-client watch` (described on the command).
 #[derive(Debug, Args)]
@@ -142,12 +142,12 @@ pub(crate) fn next_frame(
     client: &mut Client,
     timeout: Duration,
 ) -> Result<Option<FrameView>, WaitError> {
-    super::in_slices(timeout, |slice| client.wait_for_frame(slice))
+    super::interrupt::in_slices(timeout, |slice| client.wait_for_frame(slice))
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: WatchArgs) -> Result<(), Failure> {
-    super::interrupted();
-    let mut client = super::connect(world.as_str(), timeout)?;
+    super::interrupt::interrupted();
+    let mut client = super::session::connect(world.as_str(), timeout)?;
     client.set_request_timeout(timeout);
     client.set_wait_mode(args.wait_mode);
     client.set_every_frame(args.every_frame);

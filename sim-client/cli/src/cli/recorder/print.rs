@@ -69,7 +69,7 @@ pub(super) fn info(info: &inspect::FileInfo) {
         h.world, h.scene, h.seed
     );
     let settings = shared_types::WorldSettings::from(h.settings);
-    for (name, value) in crate::cli::settings_lines(&settings) {
+    for (name, value) in crate::cli::describe::settings_lines(&settings) {
         println!("{name:<12} {value}");
     }
     // Frame ids start again with each episode: one range per episode.

@@ -5,7 +5,7 @@
 use zenoh::{Session, Wait as _};
 
 use crate::error::{LinkError, ZenohError};
-use crate::{Options, Role};
+use crate::side::{Options, Role};
 
 /// Checks `endpoint`, given with `flag`, has the form Zenoh needs:
 /// `PROTOCOL/HOST:PORT` (`tcp/192.168.1.10:7447`, `tls/[::1]:7447`), with

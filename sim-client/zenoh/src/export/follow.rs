@@ -7,7 +7,7 @@ use tracing::{info, warn};
 
 use super::{export_once, Ended};
 use crate::error::ExportError;
-use crate::{Notice, Side};
+use crate::side::{Notice, Side};
 
 /// Exports `world` on `session` until `stop`. When the server exits and
 /// one resumed from its journal (`sim-server --resume DIR`: the same run)

@@ -54,8 +54,8 @@ use self::ticker::LockstepRelay;
 use self::ticker::RemoteTicker;
 use crate::error::{ExportError, FramesError, LocalError};
 use crate::ports;
+use crate::side::{JsonViews, Notice, Side};
 use crate::wire::{BridgeKeys, Forwarded};
-use crate::{JsonViews, Notice, Side};
 
 /// How often the server's sensors are looked at, for sensors spawned by
 /// clients on its host (those spawned from other hosts are followed as

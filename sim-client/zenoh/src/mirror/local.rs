@@ -68,12 +68,12 @@ use crate::error::LocalError;
 use crate::ports::{self, node, specs, Bell};
 
 /// A service of the world that could not be created here.
-fn create_failed(e: impl Into<crate::TransportError>) -> LocalError {
+fn create_failed(e: impl Into<crate::error::TransportError>) -> LocalError {
     LocalError::Create(e.into())
 }
 
 /// A local request that could not be received.
-fn receive_failed(e: impl Into<crate::TransportError>) -> LocalError {
+fn receive_failed(e: impl Into<crate::error::TransportError>) -> LocalError {
     LocalError::Transport {
         what: "receiving a local request".to_owned(),
         source: e.into(),
@@ -81,7 +81,7 @@ fn receive_failed(e: impl Into<crate::TransportError>) -> LocalError {
 }
 
 /// A sensor's service that could not be created here.
-fn sensor_failed(e: impl Into<crate::TransportError>) -> LocalError {
+fn sensor_failed(e: impl Into<crate::error::TransportError>) -> LocalError {
     LocalError::CreateSensor(e.into())
 }
 

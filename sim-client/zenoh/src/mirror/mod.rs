@@ -44,9 +44,9 @@ use self::events::Event;
 use self::local::{Active, Local, LocalServices, SensorPorts};
 use self::query::{hello, Hello, Link};
 use crate::error::{Chain, MirrorError, QueryError};
+use crate::side::{Notice, Side};
 use crate::tagged;
 use crate::wire::{self, BridgeKeys, Forwarded};
-use crate::{Notice, Side};
 
 /// How long a tick's answer waits here for its frame.
 const HOLD_LIMIT: Duration = Duration::from_secs(2);

@@ -52,7 +52,7 @@ impl<'a> Keyframe<&'a World> {
     /// As postcard, its layout version first.
     pub(crate) fn encode(&self) -> Vec<u8> {
         // Serializing plain data into a Vec cannot fail.
-        postcard::to_stdvec(self).unwrap_or_default()
+        postcard::to_allocvec(self).unwrap_or_default()
     }
 }
 

@@ -242,6 +242,29 @@ fn the_first_command_builds_every_library_as_the_workspace_build_does() {
     );
 }
 
+/// `pip install ./sim-client/python` (the README's next step for Python)
+/// builds the extension with maturin: a build of its package alone, which
+/// must compile every crate as the workspace's build does, so it reuses
+/// what the first command and `cargo build --release` compiled.
+#[test]
+fn the_python_package_builds_every_crate_as_the_workspace_build_does() {
+    let workspace = resolved(&["--workspace"], false);
+    let built = resolved(&["-p", "simbus-python"], false);
+    assert!(
+        built.iter().any(|u| u.starts_with("sim-client ")),
+        "the extension builds the client library: {built:#?}"
+    );
+    let again: Vec<_> = built
+        .iter()
+        .filter(|unit| !workspace.contains(*unit))
+        .collect();
+    assert!(
+        again.is_empty(),
+        "the Python package builds these with other features than the workspace: {again:#?}; \
+         pin the features in sim-client/python/Cargo.toml"
+    );
+}
+
 /// The first command's check sees a build whose features differ: without
 /// the pins in the command line's manifest, the server's build without
 /// the adapters resolves other features for the crates it shares.

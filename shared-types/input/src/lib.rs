@@ -27,5 +27,7 @@ mod parse;
 pub use bounds::*;
 pub use error::InputError;
 pub use parse::*;
+/// The sensor limits a spec's check enforces, re-exported where the flags
+/// that set them are parsed (one definition, in [`shared_types::SensorSpec`]'s module).
 pub use shared_types::gnss::MAX_GNSS_SEED;
 pub use shared_types::{Exact, Readable, MAX_IMAGE_SIDE, MAX_LIDAR_CHANNELS, MAX_LIDAR_POINTS};

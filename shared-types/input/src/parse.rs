@@ -18,9 +18,6 @@ use shared_types::{
     MAX_SUBSTEPS_LIMIT, MIN_DELTA_SECONDS, MIN_KEYFRAME_SECONDS,
 };
 
-/// The sensor limits a spec's check enforces, re-exported where the flags
-/// that set them are parsed (one definition, in [`shared_types::SensorSpec`]'s module).
-
 fn number(text: &str) -> Result<f64, InputError> {
     text.trim()
         .parse::<f64>()

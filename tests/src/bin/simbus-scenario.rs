@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use shared_types::{ActorKind, Command, SensorSpec, WorldSettings};
+use shared_types::{ActorKind, Command, FrameHeader, SensorSpec, WorldSettings};
 use sim_client::{Client, Sensor, TickError, Ticker, WorldSnapshot};
 
 /// The step at which the world is reloaded (a new episode).
@@ -198,7 +198,9 @@ fn print(step: u64, now: &WorldSnapshot, sensors: &mut [Sensor]) {
 /// A hash of `sensor`'s capture of `now`'s frame ("-" when it has none:
 /// a frame published without a step, or the sensor ended).
 fn capture_of(sensor: &mut Sensor, now: &WorldSnapshot) -> String {
-    if now.header.physics_substeps == 0 {
+    // Not stepped (a load's, a reload's, a resumed server's first frame):
+    // nothing was captured for it.
+    if now.header.flags & FrameHeader::STEPPED == 0 {
         return "-".into();
     }
     loop {

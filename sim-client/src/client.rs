@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use shared_types::{
     ControlRequest, ControlResponse, FixedText, RequestKind, ResponseStatus, ServiceNames,
-    WorldName, WorldSettings, PROTOCOL_VERSION,
+    WorldName, PROTOCOL_VERSION,
 };
 use simbus_transport::spec::WorldServices;
 use simbus_transport::Bus;
@@ -17,13 +17,9 @@ use crate::frame_stream::FrameStream;
 use crate::on_tick::{CallbackId, TickDispatcher};
 use crate::open::{wake_notifier, OpenFailure};
 use crate::rpc::{client_error, open_service, RequestPort, Wait};
-use crate::standby::StandbyTicker;
 use crate::FrameView;
 use crate::WaitMode;
-use crate::{
-    ApplySettingsError, ConnectError, LoadWorldError, Participant, RequestError, Status, TickError,
-    Ticker, WaitError, WorldSnapshot,
-};
+use crate::{ConnectError, RequestError, Status, WaitError, WorldSnapshot};
 
 /// The control port, with the notifier that wakes the server after a request.
 pub(crate) type ControlPort = RequestPort<ControlRequest, ControlResponse>;
@@ -131,6 +127,10 @@ fn default_ticker_name() -> String {
         name
     }
 }
+
+mod roles;
+mod sensors;
+mod settings;
 
 impl Client {
     /// Connects to the server of `world`, waiting up to `timeout` for it to
@@ -325,129 +325,6 @@ impl Client {
         Ok(Status::from(&response.report))
     }
 
-    /// The settings in force for the next frame.
-    ///
-    /// # Errors
-    ///
-    /// Returns the [`RequestError`]s of [`Client::status`]:
-    /// [`RequestError::Timeout`] if the server does not answer within the
-    /// request timeout, [`RequestError::ServerGone`] if it has exited,
-    /// [`RequestError::ProtocolMismatch`] for a server of another version, and
-    /// so on.
-    pub fn get_settings(&self) -> Result<WorldSettings, RequestError> {
-        let response = self.request(ControlRequest::new(RequestKind::GetSettings))?;
-        Ok(response.report.settings.into())
-    }
-
-    /// Applies `settings` and returns the first frame computed with them.
-    /// Refused settings come back as [`ApplySettingsError::Invalid`] and
-    /// leave the server's settings unchanged.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`ApplySettingsError::Invalid`] if `settings` break a rule of
-    /// [`WorldSettings::validate`] (checked here before anything is sent, and
-    /// again by the server), [`ApplySettingsError::SyncNeedsTicker`] if they
-    /// turn synchronous mode on (only a ticker enters it: see
-    /// [`Ticker::apply_settings`]), [`ApplySettingsError::TickerHolds`] (naming
-    /// the ticker) if a ticker holds the world, and
-    /// [`ApplySettingsError::Request`] if the request fails as for
-    /// [`Client::status`] (or the server answers with a status this client does
-    /// not expect: [`RequestError::UnknownAnswer`]). Nothing changes on the
-    /// server in any of these cases.
-    pub fn apply_settings(&self, settings: WorldSettings) -> Result<u64, ApplySettingsError> {
-        // Check here first: a clear error without a round trip. The server
-        // checks again, since not every sender is this library.
-        settings.validate()?;
-        let response = self.request(ControlRequest::apply_settings(settings))?;
-        match ResponseStatus::from_u32(response.status) {
-            Some(ResponseStatus::Ok) => Ok(response.effective_frame),
-            Some(ResponseStatus::SyncNeedsTicker) => Err(ApplySettingsError::SyncNeedsTicker),
-            Some(ResponseStatus::NotTicker) => Err(ApplySettingsError::TickerHolds {
-                owner: response.report.ticker,
-            }),
-            Some(ResponseStatus::InvalidSettings) => match response.settings_error() {
-                Some(error) => Err(ApplySettingsError::Invalid(error)),
-                None => Err(RequestError::UnknownAnswer {
-                    status: response.status,
-                }
-                .into()),
-            },
-            _ => Err(RequestError::UnknownAnswer {
-                status: response.status,
-            }
-            .into()),
-        }
-    }
-
-    /// Loads `scene` (`default`, `empty`, `boxes:N`) as a new episode that
-    /// starts at frame 0; settings are kept unless `reset_settings`.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`LoadWorldError::UnknownScene`] (with the rule it breaks) if
-    /// `scene` is not a scene name, checked here before anything is sent, or if
-    /// the server does not know it; [`LoadWorldError::TickerHolds`] if
-    /// `reset_settings` is asked while a ticker holds the world;
-    /// [`LoadWorldError::Failed`] if the server could not build the world (its
-    /// log says why); and [`LoadWorldError::Request`] if the request fails as
-    /// for [`Client::status`]. The world is unchanged in each case.
-    pub fn load_world(&self, scene: &str, reset_settings: bool) -> Result<Status, LoadWorldError> {
-        if let Err(reason) = scene.parse::<shared_types::scene::SceneName>() {
-            return Err(LoadWorldError::UnknownScene {
-                scene: scene.to_owned(),
-                reason,
-            });
-        }
-        self.load(
-            ControlRequest::load_world(Some(scene), reset_settings),
-            scene,
-        )
-    }
-
-    /// Restores the current scene's initial state as a new episode.
-    ///
-    /// The actors and physics are the scene's first ones (the actors get new
-    /// ids, never reused within the server's life); the episode starts at
-    /// frame 0; settings are kept unless `reset_settings`.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`LoadWorldError::TickerHolds`] if `reset_settings` is asked
-    /// while a ticker holds the world, [`LoadWorldError::Failed`] if the server
-    /// could not rebuild the world (its log says why), and
-    /// [`LoadWorldError::Request`] if the request fails as for
-    /// [`Client::status`]. The world is unchanged in each case.
-    pub fn reload_world(&self, reset_settings: bool) -> Result<Status, LoadWorldError> {
-        self.load(ControlRequest::load_world(None, reset_settings), "")
-    }
-
-    fn load(&self, request: ControlRequest, scene: &str) -> Result<Status, LoadWorldError> {
-        let response = self.request(request)?;
-        match ResponseStatus::from_u32(response.status) {
-            Some(ResponseStatus::Ok) => Ok(Status::from(&response.report)),
-            Some(ResponseStatus::UnknownScene) => Err(LoadWorldError::UnknownScene {
-                scene: scene.to_owned(),
-                reason: scene
-                    .parse::<shared_types::scene::SceneName>()
-                    .err()
-                    .unwrap_or_else(|| {
-                        shared_types::scene::SceneNameError::Unknown(scene.to_owned())
-                    }),
-            }),
-            Some(ResponseStatus::LoadFailed) => Err(LoadWorldError::Failed {
-                world: self.world.to_string(),
-            }),
-            Some(ResponseStatus::NotTicker) => Err(LoadWorldError::TickerHolds {
-                owner: response.report.ticker,
-            }),
-            _ => Err(RequestError::UnknownAnswer {
-                status: response.status,
-            }
-            .into()),
-        }
-    }
-
     /// Waits up to `timeout` for a frame newer than the last one this client
     /// received and returns it.
     ///
@@ -534,139 +411,6 @@ impl Client {
             return Err(RequestError::UnknownRequest);
         }
         Ok(response)
-    }
-
-    /// Claims tick ownership of the world. Fails with
-    /// [`TickError::NotTicker`], naming the owner, while another client ticks.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`TickError::NotTicker`] (naming the owner when the server can)
-    /// if another client ticks the world; [`TickError::Request`] with
-    /// [`RequestError::Timeout`] if the tick service does not appear or the
-    /// claim is not answered within the request timeout, with
-    /// [`RequestError::ServerGone`] if the server exits meanwhile, or with
-    /// [`RequestError::Full`] / [`RequestError::Transport`] if the ticker's
-    /// node or ports cannot be opened; and [`TickError::Revoked`] if the claim
-    /// is answered as revoked.
-    pub fn claim_ticker(&self) -> Result<Ticker, TickError> {
-        self.claim_ticker_as(&default_ticker_name())
-    }
-
-    /// [`Client::claim_ticker`] with the node name others see as the owner.
-    ///
-    /// # Errors
-    ///
-    /// Returns the errors of [`Client::claim_ticker`]: [`TickError::NotTicker`]
-    /// if another client ticks the world, [`TickError::Request`] if the tick
-    /// service cannot be opened or does not answer (including
-    /// [`RequestError::Transport`] if iceoryx2 refuses `node_name` as a node
-    /// name).
-    pub fn claim_ticker_as(&self, node_name: &str) -> Result<Ticker, TickError> {
-        Ticker::claim(
-            &self.world,
-            self.server_pid,
-            node_name,
-            self.request_timeout,
-            || {
-                // The owner may be registering right now: ask a few times,
-                // within one request timeout in all.
-                let deadline = Instant::now() + self.request_timeout;
-                (0..20).find_map(|_| {
-                    let remaining = deadline.saturating_duration_since(Instant::now());
-                    let owner = self
-                        .request_within(ControlRequest::new(RequestKind::Status), remaining)
-                        .ok()
-                        .and_then(|r| r.report.ticker.active());
-                    if owner.is_none() {
-                        std::thread::sleep(Duration::from_millis(10));
-                    }
-                    owner
-                })
-            },
-        )
-    }
-
-    /// A standby ticker: a claim the server grants once the world has no ticker.
-    ///
-    /// It opens a ticker's node and ports now and queues a claim that the
-    /// server grants the moment the world has no ticker (the owner released,
-    /// died or was revoked); first come, first served. Returns once the server
-    /// answered (granted or queued); [`StandbyTicker::wait`] then returns the
-    /// [`Ticker`]. Fails with [`TickError::StandbyFull`] when the tick service
-    /// admits no more ports.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`TickError::StandbyFull`] if the tick service admits no more
-    /// ports (too many standbys wait), and [`TickError::Request`] if the
-    /// ticker's ports cannot be opened or the server does not answer the claim
-    /// within the request timeout ([`RequestError::Timeout`],
-    /// [`RequestError::ServerGone`], [`RequestError::Transport`], ...).
-    pub fn standby_ticker(&self) -> Result<StandbyTicker, TickError> {
-        self.standby_ticker_as(&default_ticker_name())
-    }
-
-    /// [`Client::standby_ticker`] with the node name others see once it
-    /// owns the world.
-    ///
-    /// # Errors
-    ///
-    /// Returns the errors of [`Client::standby_ticker`]:
-    /// [`TickError::StandbyFull`] if the tick service admits no more ports,
-    /// [`TickError::Request`] if the ports cannot be opened (including a
-    /// `node_name` iceoryx2 refuses) or the claim is not answered in time.
-    pub fn standby_ticker_as(&self, node_name: &str) -> Result<StandbyTicker, TickError> {
-        StandbyTicker::open(
-            &self.world,
-            self.server_pid,
-            node_name,
-            self.request_timeout,
-        )
-    }
-
-    /// Joins the world's lockstep as `name`: in synchronous mode the server
-    /// then waits for this participant's [`Participant::done`] every frame.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`RequestError::Timeout`] if the lockstep service does not
-    /// appear or the join is not answered within the request timeout,
-    /// [`RequestError::ServerGone`] if the server exits meanwhile,
-    /// [`RequestError::Full`] if the world admits no more lockstep participants
-    /// (`--max-clients`), [`RequestError::ProtocolMismatch`] for a server of
-    /// another version, and [`RequestError::Transport`] if iceoryx2 refuses to
-    /// open the participant's node or ports.
-    pub fn join_lockstep(&self, name: &str) -> Result<Participant, RequestError> {
-        self.join_lockstep_with_window(name, 0)
-    }
-
-    /// Joins the world's lockstep as `name` with a window of `window` frames.
-    ///
-    /// CARLA's per-participant synchronous windows: in synchronous mode the
-    /// server steps past frame N only when this participant is done with frame
-    /// N − `window`, so it may fall up to `window` frames behind without
-    /// holding the ticker. 0 is [`Client::join_lockstep`]; at most
-    /// [`shared_types::MAX_LOCKSTEP_WINDOW`].
-    ///
-    /// # Errors
-    ///
-    /// Returns [`RequestError::WindowTooLarge`] if `window` is above
-    /// [`shared_types::MAX_LOCKSTEP_WINDOW`] (checked before anything is
-    /// opened) or the server refuses it, and otherwise the errors of
-    /// [`Client::join_lockstep`] ([`RequestError::Timeout`],
-    /// [`RequestError::Full`], [`RequestError::ServerGone`], ...).
-    pub fn join_lockstep_with_window(
-        &self,
-        name: &str,
-        window: u32,
-    ) -> Result<Participant, RequestError> {
-        Participant::join_with_window(
-            &self.world,
-            self.server_pid,
-            (name, window),
-            self.request_timeout,
-        )
     }
 
     /// The batch port, opened on first use.

@@ -23,10 +23,12 @@
 mod bounds;
 mod error;
 mod parse;
+mod sensor_values;
 
 pub use bounds::*;
 pub use error::InputError;
 pub use parse::*;
+pub use sensor_values::*;
 /// The sensor limits a spec's check enforces, re-exported where the flags
 /// that set them are parsed (one definition, in [`shared_types::SensorSpec`]'s module).
 pub use shared_types::gnss::MAX_GNSS_SEED;

@@ -24,9 +24,11 @@
 
 mod bus;
 pub mod environment;
+mod event_spec;
 pub mod frame_sample;
 pub mod futex;
 pub mod hybrid;
+mod limit;
 pub mod spec;
 pub mod stamps;
 

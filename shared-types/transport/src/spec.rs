@@ -13,7 +13,6 @@ use core::marker::PhantomData;
 
 use iceoryx2::node::Node;
 use iceoryx2::prelude::{Alignment, AllocationStrategy, IceoryxSend, ServiceName};
-use iceoryx2::service::builder::event::{EventCreateError, EventOpenError, EventOpenOrCreateError};
 use iceoryx2::service::builder::publish_subscribe::{
     Builder as PubSubBuilder, PublishSubscribeCreateError, PublishSubscribeOpenError,
     PublishSubscribeOpenOrCreateError,
@@ -22,11 +21,13 @@ use iceoryx2::service::builder::request_response::{
     Builder as RequestBuilder, RequestResponseCreateError, RequestResponseOpenError,
     RequestResponseOpenOrCreateError,
 };
-use iceoryx2::service::port_factory::{event, publish_subscribe, request_response};
+use iceoryx2::service::port_factory::{publish_subscribe, request_response};
 use iceoryx2::service::service_name::ServiceNameError;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 use crate::bus::Bus;
+pub use crate::event_spec::EventSpec;
+pub use crate::limit::Limit;
 use shared_types::limits::{
     WorldLimits, FRAME_SUBSCRIBER_BORROWED, FRAME_SUBSCRIBER_BUFFER, INITIAL_MAX_BATCH,
     MAX_BATCHES_IN_FLIGHT, SENSOR_SUBSCRIBER_BUFFER,
@@ -37,37 +38,6 @@ use shared_types::{
     RecorderResponse, SensorHeader, SensorInfo, SensorRequest, SensorResponseHeader, ServiceNames,
     TickRequest, TickResponse,
 };
-
-/// A limit of a service, resolved against the server's [`WorldLimits`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Limit {
-    /// `--max-clients`.
-    Clients,
-    /// Listeners of an event: [`WorldLimits::event_listeners`].
-    EventListeners,
-    /// Nodes that may open a world service: [`WorldLimits::nodes`].
-    Nodes,
-    /// `--max-sensor-readers`.
-    SensorReaders,
-    /// Nodes that may open a sensor's service: its readers and 16 more.
-    SensorNodes,
-    /// This many, whatever the flags.
-    Fixed(usize),
-}
-
-impl Limit {
-    /// The number this limit stands for under `limits`.
-    pub fn of(self, limits: &WorldLimits) -> usize {
-        match self {
-            Self::Clients => limits.max_clients,
-            Self::EventListeners => limits.event_listeners(),
-            Self::Nodes => limits.nodes(),
-            Self::SensorReaders => limits.max_sensor_readers,
-            Self::SensorNodes => limits.max_sensor_readers + 16,
-            Self::Fixed(n) => n,
-        }
-    }
-}
 
 /// The payload types a description stands for (it holds none).
 type Types<Req, ReqHeader, Resp, RespHeader> =
@@ -474,82 +444,6 @@ where
             .subscriber_builder()
             .buffer_size(self.subscriber_buffer)
             .create()
-    }
-}
-
-/// An event service.
-#[derive(Debug, Clone)]
-pub struct EventSpec {
-    /// The service's name.
-    pub name: ServiceName,
-    /// Listener ports admitted.
-    pub listeners: Limit,
-    /// Notifier ports admitted.
-    pub notifiers: Limit,
-    /// The largest event id rung: 0 for an event that says only "now",
-    /// [`Doorbell::MAX_ID`] for the wake-up event (which service holds a
-    /// request).
-    pub max_event_id: usize,
-}
-
-impl EventSpec {
-    fn configured(
-        &self,
-        node: &Node<Bus>,
-        limits: &WorldLimits,
-    ) -> iceoryx2::service::builder::event::Builder<Bus> {
-        node.service_builder(&self.name)
-            .event()
-            // As few event ids as are rung: a listener's wait or check
-            // drains one counter per id, and iceoryx2's default of 256 cost
-            // ~2 µs on every wait and every doorbell look.
-            .event_id_max_value(self.max_event_id)
-            .max_listeners(self.listeners.of(limits))
-            .max_notifiers(self.notifiers.of(limits))
-            .max_nodes(Limit::Nodes.of(limits))
-    }
-
-    /// Creates the service (fails if it exists), configured under `limits`.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`EventCreateError::AlreadyExists`] if the service exists, and
-    /// iceoryx2's other variants if it cannot be created
-    /// (`InsufficientPermissions`, `IsBeingCreatedByAnotherInstance`,
-    /// `InternalFailure`, ...).
-    pub fn create(
-        &self,
-        node: &Node<Bus>,
-        limits: &WorldLimits,
-    ) -> Result<event::PortFactory<Bus>, EventCreateError> {
-        self.configured(node, limits).create()
-    }
-
-    /// Opens the service, or creates it configured under `limits`.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`EventOpenOrCreateError::EventOpenError`] if the service exists
-    /// but cannot be opened, and [`EventOpenOrCreateError::EventCreateError`]
-    /// if it does not exist and cannot be created.
-    pub fn open_or_create(
-        &self,
-        node: &Node<Bus>,
-        limits: &WorldLimits,
-    ) -> Result<event::PortFactory<Bus>, EventOpenOrCreateError> {
-        self.configured(node, limits).open_or_create()
-    }
-
-    /// Opens the existing service.
-    ///
-    /// # Errors
-    ///
-    /// Returns [`EventOpenError::DoesNotExist`] if nobody has created the
-    /// service (no server owns the world), and iceoryx2's other variants if it
-    /// cannot be opened (`InsufficientPermissions`, `HangsInCreation`,
-    /// `InternalFailure`, ...).
-    pub fn open(&self, node: &Node<Bus>) -> Result<event::PortFactory<Bus>, EventOpenError> {
-        node.service_builder(&self.name).event().open()
     }
 }
 

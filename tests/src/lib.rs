@@ -547,11 +547,17 @@ pub fn replayed_frames(
 
 /// Waits (at most 60 s) until the world of `client` has `count` lockstep
 /// participants. Joining has no event of its own, so this asks the
-/// server's status, which answers in microseconds.
+/// server's status, which answers in microseconds; a status that times
+/// out (a debug-build server while dozens of processes start on two
+/// cores) is asked again within the same 60 s.
 pub fn wait_for_participants(client: &sim_client::Client, count: u32) {
     let deadline = Instant::now() + Duration::from_secs(60);
     loop {
-        let joined = client.status().expect("status").participants;
+        let joined = match client.status() {
+            Ok(status) => status.participants,
+            Err(sim_client::RequestError::Timeout { .. }) if Instant::now() < deadline => continue,
+            Err(e) => panic!("status: {e}"),
+        };
         if joined >= count {
             return;
         }

@@ -52,6 +52,17 @@ wire_enum! {
         /// azimuth, `params[1]` = altitude, degrees, any finite angles
         /// (CARLA's `sun_azimuth_angle`, `sun_altitude_angle`).
         SetSun = 15,
+        /// Spawn a walker (a pedestrian) standing at `vector`, facing as
+        /// `rotation` says (only its turn about Y is kept): `params[0]` =
+        /// radius, `params[1]` = half height (its round ends included,
+        /// larger than the radius), metres.
+        SpawnWalker = 16,
+        /// Walk: `vector` = direction (world axes; its horizontal part is
+        /// used, normalised; zero stands still), `params[0]` = speed, m/s
+        /// (0..=[`MAX_WALKER_SPEED`](crate::limits::MAX_WALKER_SPEED));
+        /// `flags` bit 0 = jump (once, from the ground). Holds until
+        /// changed. CARLA's `WalkerControl`.
+        WalkerControl = 17,
     }
 }
 
@@ -60,7 +71,11 @@ impl CommandKind {
     pub fn spawns(&self) -> bool {
         matches!(
             self,
-            Self::SpawnBox | Self::SpawnSphere | Self::SpawnCapsule | Self::SpawnVehicle
+            Self::SpawnBox
+                | Self::SpawnSphere
+                | Self::SpawnCapsule
+                | Self::SpawnVehicle
+                | Self::SpawnWalker
         )
     }
 }
@@ -150,6 +165,27 @@ impl Command {
             vector: at,
             params: [half[0], half[1], half[2], mass],
             ..Self::new(CommandKind::SpawnVehicle, 0)
+        }
+    }
+
+    /// Spawn a walker of `radius` and `half_height` (round ends
+    /// included) standing at `at`, facing +X.
+    pub fn spawn_walker(at: [f32; 3], radius: f32, half_height: f32) -> Self {
+        Self {
+            vector: at,
+            params: [radius, half_height, 0.0, 0.0],
+            ..Self::new(CommandKind::SpawnWalker, 0)
+        }
+    }
+
+    /// Walk walker `actor` along `direction` (world axes) at `speed` m/s,
+    /// jumping once if `jump`.
+    pub fn walker_control(actor: u64, direction: [f32; 3], speed: f32, jump: bool) -> Self {
+        Self {
+            flags: if jump { Self::ON } else { 0 },
+            vector: direction,
+            params: [speed, 0.0, 0.0, 0.0],
+            ..Self::new(CommandKind::WalkerControl, actor)
         }
     }
 
@@ -262,6 +298,8 @@ wire_enum! {
         /// failed because of collision at spawn position"); the result's
         /// `actor` is the actor whose body is there.
         SpawnCollision = 6,
+        /// The command needs a walker and the actor is not one.
+        NotAWalker = 7,
     }
 }
 
@@ -274,9 +312,11 @@ impl std::fmt::Display for CommandStatus {
                 "invalid argument: values must be finite; sizes in (0, 1000] m, positions \
                  within +-100000 m of the origin, throttle and brake in 0..=1, steer in -1..=1; \
                  a vehicle's params all zero or half extents in 0.05..=20 m and mass in \
-                 1..=100000 kg"
+                 1..=100000 kg; a walker's radius in 0.05..=2 m, its half height above \
+                 the radius and up to 5 m, its speed in 0..=20 m/s"
             }
             Self::NotAVehicle => "the actor is not a vehicle",
+            Self::NotAWalker => "the actor is not a walker",
             Self::UnknownCommand => "unknown command",
             Self::StaticActor => "the actor is static",
             Self::SpawnCollision => "spawn failed because of a collision at the spawn position",
@@ -361,8 +401,8 @@ mod tests {
     #[test]
     fn kinds_and_statuses_are_numbered_without_gaps() {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(kinds, (1..=15).collect::<Vec<_>>());
+        assert_eq!(kinds, (1..=17).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(statuses, (0..=6).collect::<Vec<_>>());
+        assert_eq!(statuses, (0..=7).collect::<Vec<_>>());
     }
 }

@@ -173,6 +173,11 @@ wire_enum! {
         Capsule = 4,
         /// A four-wheeled ray-cast vehicle; `extent` holds the chassis half extents.
         Vehicle = 5,
+        /// A pedestrian: a kinematic capsule along Y that stands on the
+        /// ground, walks as its [`WalkerControl`](crate::CommandKind::WalkerControl)
+        /// says and pushes nothing; `extent` is (radius, half height,
+        /// radius), the half height counting the round ends.
+        Walker = 6,
     }
 }
 
@@ -190,6 +195,7 @@ impl ActorKind {
             Self::Sphere => "sphere",
             Self::Capsule => "capsule",
             Self::Vehicle => "vehicle",
+            Self::Walker => "walker",
         }
     }
 }

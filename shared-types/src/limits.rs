@@ -5,6 +5,16 @@
 //! (`sim-server --max-clients N --max-sensor-readers M`); a client past a
 //! limit gets an error naming the flag that raises it.
 
+/// The fastest a walker may be told to walk, m/s (CARLA's runners do
+/// about 3; a sprinter 10).
+pub const MAX_WALKER_SPEED: f32 = 20.0;
+/// A walker's radius, metres: at least this...
+pub const MIN_WALKER_RADIUS: f32 = 0.05;
+/// ...and at most this.
+pub const MAX_WALKER_RADIUS: f32 = 2.0;
+/// The tallest walker's half height, metres.
+pub const MAX_WALKER_HALF_HEIGHT: f32 = 5.0;
+
 /// The most clients a world admits by default (`--max-clients`).
 pub const DEFAULT_MAX_CLIENTS: usize = 64;
 /// The most readers one sensor admits by default (`--max-sensor-readers`).

@@ -1,10 +1,14 @@
 //! What each wire command does to the world: spawn, destroy, set a pose or
-//! a velocity, push, switch physics or gravity, drive a vehicle. A command
-//! that is invalid (NaN, out of range, unknown actor, static actor, not a
-//! vehicle) changes nothing and says why in its result.
+//! a velocity, push, switch physics or gravity, drive a vehicle, walk a
+//! walker. A command that is invalid (NaN, out of range, unknown actor,
+//! static actor, not a vehicle or walker) changes nothing and says why in
+//! its result.
 
 use rapier3d::prelude::*;
-use shared_types::limits::{MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION};
+use shared_types::limits::{
+    MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION, MAX_WALKER_HALF_HEIGHT, MAX_WALKER_RADIUS,
+    MAX_WALKER_SPEED, MIN_WALKER_RADIUS,
+};
 use shared_types::{ActorKind, Command, CommandKind, CommandResult, CommandStatus, VehicleSpec};
 use tracing::debug;
 
@@ -78,6 +82,7 @@ impl World {
                 self.physics.remove_body(handle);
                 self.actors.remove(index);
                 self.vehicles.remove(id);
+                self.walkers.remove(id);
             }
             CommandKind::SetTransform => {
                 let Some(rotation) = rotation_of(command.rotation) else {
@@ -132,10 +137,22 @@ impl World {
                 vehicle.set_control(throttle, steer, brake, command.flags & Command::ON != 0);
                 body.wake_up(true);
             }
+            CommandKind::WalkerControl => {
+                let speed = command.params[0];
+                if !(0.0..=MAX_WALKER_SPEED).contains(&speed) {
+                    return result(id, CommandStatus::InvalidArgument);
+                }
+                let Some(walker) = self.walkers.get_mut(id) else {
+                    return result(id, CommandStatus::NotAWalker);
+                };
+                walker.set_control(v, speed, command.flags & Command::ON != 0);
+                body.wake_up(true);
+            }
             CommandKind::SpawnBox
             | CommandKind::SpawnSphere
             | CommandKind::SpawnCapsule
-            | CommandKind::SpawnVehicle => return self.spawn(kind, command),
+            | CommandKind::SpawnVehicle
+            | CommandKind::SpawnWalker => return self.spawn(kind, command),
             CommandKind::SetSun => return self.set_sun(command),
         }
         result(id, CommandStatus::Ok)
@@ -148,6 +165,15 @@ impl World {
             CommandKind::SpawnBox => (ActorKind::Box, [a, b, c]),
             CommandKind::SpawnSphere => (ActorKind::Sphere, [a, a, a]),
             CommandKind::SpawnCapsule => (ActorKind::Capsule, [a, b, a]),
+            CommandKind::SpawnWalker => {
+                if !((MIN_WALKER_RADIUS..=MAX_WALKER_RADIUS).contains(&a)
+                    && b > a
+                    && b <= MAX_WALKER_HALF_HEIGHT)
+                {
+                    return result(0, CommandStatus::InvalidArgument);
+                }
+                (ActorKind::Walker, [a, b, a])
+            }
             _ => match VehicleSpec::from_params(command.params) {
                 Ok(spec) => {
                     vehicle = Some(spec);
@@ -165,10 +191,15 @@ impl World {
         {
             return result(0, CommandStatus::InvalidArgument);
         }
-        let Some(rotation) = rotation_of(command.rotation) else {
+        let Some(mut rotation) = rotation_of(command.rotation) else {
             return result(0, CommandStatus::InvalidArgument);
         };
-        let placement = Placement {
+        if actor_kind == ActorKind::Walker {
+            // Upright: only the turn about Y is kept.
+            let facing = rotation * Vector::X;
+            rotation = Rotation::from_rotation_y((-facing.z).atan2(facing.x));
+        }
+        let mut placement = Placement {
             kind: actor_kind,
             extent: Vector::from_array(extent),
             position: Vector::from_array(position),
@@ -176,6 +207,15 @@ impl World {
             linear_velocity: Vector::ZERO,
             density: vehicle.as_ref().map_or(1.0, VehicleSpec::density),
         };
+        if actor_kind == ActorKind::Walker {
+            // A walker asked for with its feet in (or on) the ground stands
+            // just above it (CARLA's navigation points are on the ground).
+            if let Some(standing) = self.standing_on_ground(&placement) {
+                if standing.y >= placement.position.y {
+                    placement.position = standing;
+                }
+            }
+        }
         if let Some(occupant) = self.occupant(&placement) {
             // The result names what is there instead of a new actor.
             return result(occupant, CommandStatus::SpawnCollision);

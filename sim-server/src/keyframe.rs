@@ -4,14 +4,16 @@
 //! starts from the nearest one instead of from the recording's first frame.
 //!
 //! Layout 1 was msgpack (recordings of simbus before it); a keyframe of it
-//! is refused by its version, with what it is.
+//! is refused by its version, with what it is. Layout 2 had no walkers: the
+//! world's last field, so a layout-2 keyframe reads as layout 3 with an
+//! empty list of walkers (one zero byte) after it.
 
 use serde::{Deserialize, Serialize};
 
 use crate::world::World;
 
 /// Layout version of [`Keyframe`], checked on restore.
-const KEYFRAME_VERSION: u32 = 2;
+const KEYFRAME_VERSION: u32 = 3;
 
 /// How a layout-1 keyframe begins: msgpack's array of its 7 fields, the
 /// first its version, 1.
@@ -61,7 +63,7 @@ impl<'a> Keyframe<&'a World> {
 pub(crate) enum KeyframeError {
     #[error("the keyframe is not readable")]
     Decode(#[from] postcard::Error),
-    #[error("the keyframe has layout version {0}; this server reads {KEYFRAME_VERSION}")]
+    #[error("the keyframe has layout version {0}; this server reads 2 and {KEYFRAME_VERSION}")]
     Version(u32),
 }
 
@@ -71,11 +73,18 @@ impl Keyframe<World> {
         if bytes.starts_with(&MSGPACK_LAYOUT_1) {
             return Err(KeyframeError::Version(1));
         }
-        let (version, _) = postcard::take_from_bytes::<u32>(bytes)?;
-        if version != KEYFRAME_VERSION {
-            return Err(KeyframeError::Version(version));
+        let (version, rest) = postcard::take_from_bytes::<u32>(bytes)?;
+        match version {
+            KEYFRAME_VERSION => Ok(postcard::from_bytes(bytes)?),
+            2 => {
+                // Layout 3 is layout 2 and the walkers, last: none.
+                let mut current = postcard::to_allocvec(&KEYFRAME_VERSION)?;
+                current.extend_from_slice(rest);
+                current.push(0);
+                Ok(postcard::from_bytes(&current)?)
+            }
+            _ => Err(KeyframeError::Version(version)),
         }
-        Ok(postcard::from_bytes(bytes)?)
     }
 }
 
@@ -97,10 +106,15 @@ mod tests {
         let plan = SubstepPlan::new(50_000_000, &settings);
         let mut world = World::new(&Scene::Default.placements(7), 1);
         let vehicle = world.apply(&Command::spawn_vehicle([0.0, 1.0, -6.0])).actor;
+        let walker = world
+            .apply(&Command::spawn_walker([6.0, 0.9, 6.0], 0.25, 0.9))
+            .actor;
+        assert!(world.walkers.contains(walker));
         for _ in 0..40 {
             world.step(&plan);
         }
         world.apply(&Command::vehicle_control(vehicle, 0.8, 0.3, 0.0, false));
+        world.apply(&Command::walker_control(walker, [1.0, 0.0, 1.0], 1.5, true));
         let bytes = Keyframe::of(&world, &FrameHeader::default(), "default".into()).encode();
         let mut restored = Keyframe::decode(&bytes).expect("decodes").world;
         for frame in 0..120 {
@@ -121,10 +135,20 @@ mod tests {
         let plan = SubstepPlan::new(50_000_000, &settings);
         let mut world = World::new(&Scene::Default.placements(3), 1);
         let vehicle = world.apply(&Command::spawn_vehicle([0.0, 1.0, -6.0])).actor;
+        let walker = world
+            .apply(&Command::spawn_walker([6.0, 0.9, 6.0], 0.25, 0.9))
+            .actor;
+        assert!(world.walkers.contains(walker));
         for _ in 0..30 {
             world.step(&plan);
         }
         world.apply(&Command::vehicle_control(vehicle, 0.6, -0.2, 0.0, false));
+        world.apply(&Command::walker_control(
+            walker,
+            [-1.0, 0.0, 0.5],
+            1.2,
+            false,
+        ));
         let mut copy = world.duplicate();
         let mut again = copy.duplicate();
         for frame in 0..120 {
@@ -156,7 +180,34 @@ mod tests {
         assert!(matches!(error, KeyframeError::Version(1)), "{error:?}");
         assert_eq!(
             error.to_string(),
-            "the keyframe has layout version 1; this server reads 2"
+            "the keyframe has layout version 1; this server reads 2 and 3"
         );
+    }
+
+    /// A keyframe of layout 2 (before walkers: layout 3 without its last
+    /// field) reads as the same world with no walkers.
+    #[test]
+    fn a_keyframe_of_layout_2_reads_with_no_walkers() {
+        let settings = WorldSettings {
+            fixed_delta_seconds: Some(0.05),
+            ..Default::default()
+        };
+        let plan = SubstepPlan::new(50_000_000, &settings);
+        let mut world = World::new(&Scene::Default.placements(5), 1);
+        for _ in 0..10 {
+            world.step(&plan);
+        }
+        let bytes = Keyframe::of(&world, &FrameHeader::default(), "default".into()).encode();
+        // Layout 2: version 2, the same fields, no walkers after them.
+        assert_eq!((bytes[0], bytes.last()), (3, Some(&0)));
+        let mut old = bytes[..bytes.len() - 1].to_vec();
+        old[0] = 2;
+        let mut restored = Keyframe::decode(&old).expect("layout 2 decodes").world;
+        assert_eq!(restored.states(), world.states());
+        world.step(&plan);
+        restored.step(&plan);
+        assert_eq!(restored.states(), world.states());
+        let error = Keyframe::decode(&[4, 0, 0]).unwrap_err();
+        assert!(matches!(error, KeyframeError::Version(4)), "{error:?}");
     }
 }

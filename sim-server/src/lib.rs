@@ -80,6 +80,7 @@ pub(crate) mod state;
 pub(crate) mod ticker;
 pub mod timing;
 pub(crate) mod vehicles;
+pub(crate) mod walkers;
 pub mod world;
 
 pub use config::{JournalOptions, JournalSync, OnTickerLoss, ServerConfig};

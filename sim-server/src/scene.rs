@@ -139,6 +139,10 @@ impl Placement {
             }
             ActorKind::Sphere => SharedShape::ball(shrunk(e.x)),
             ActorKind::Capsule => SharedShape::capsule_y(shrunk(e.y), shrunk(e.x)),
+            ActorKind::Walker => {
+                let radius = shrunk(e.x);
+                SharedShape::capsule_y((shrunk(e.y) - radius).max(0.0), radius)
+            }
         };
         let pose = Pose::from_parts(self.position, Rotation::from_scaled_axis(self.rotation));
         (pose, shape)
@@ -148,6 +152,7 @@ impl Placement {
     pub fn build(&self) -> (RigidBody, Collider) {
         let body = match self.kind {
             ActorKind::Static => RigidBodyBuilder::fixed(),
+            ActorKind::Walker => RigidBodyBuilder::kinematic_position_based(),
             _ => RigidBodyBuilder::dynamic(),
         }
         .translation(self.position)
@@ -161,6 +166,9 @@ impl Placement {
             }
             ActorKind::Sphere => ColliderBuilder::ball(e.x),
             ActorKind::Capsule => ColliderBuilder::capsule_y(e.y, e.x),
+            ActorKind::Walker => {
+                ColliderBuilder::new(SharedShape::new(crate::walkers::walker_shape(e.x, e.y)))
+            }
         }
         .density(self.density)
         .friction(0.6)

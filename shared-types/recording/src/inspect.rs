@@ -313,12 +313,13 @@ impl FileInfo {
 }
 
 /// Whether `kind` matches CARLA-style category `filter`: `a` any, `v`
-/// vehicle, `b` box, `s` sphere, `c` capsule, `x` static.
+/// vehicle, `w` walker, `b` box, `s` sphere, `c` capsule, `x` static.
 pub fn kind_matches(filter: char, kind: u32) -> bool {
     matches!(
         (filter, ActorKind::from_u32(kind)),
         ('a', _)
             | ('v', Some(ActorKind::Vehicle))
+            | ('w', Some(ActorKind::Walker))
             | ('b', Some(ActorKind::Box))
             | ('s', Some(ActorKind::Sphere))
             | ('c', Some(ActorKind::Capsule))

@@ -106,7 +106,7 @@ enum Command {
     /// claim queued, until the world has no ticker, then takes over from
     /// the next frame.
     Tick(cli::tick::TickArgs),
-    /// Spawn an actor (box, sphere, capsule, vehicle) and print its id.
+    /// Spawn an actor (box, sphere, capsule, vehicle, walker) and print its id.
     ///
     /// A spawn whose body would overlap another body (the ground
     /// included) is refused, exit 2, naming the actor that is there, as

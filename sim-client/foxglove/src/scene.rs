@@ -42,6 +42,7 @@ fn colour(kind: Option<ActorKind>) -> Color {
         Some(ActorKind::Sphere) => (0.25, 0.55, 0.85),
         Some(ActorKind::Capsule) => (0.35, 0.75, 0.35),
         Some(ActorKind::Vehicle) => (0.85, 0.2, 0.2),
+        Some(ActorKind::Walker) => (0.95, 0.75, 0.2),
         None => (1.0, 0.0, 1.0),
     };
     Color { r, g, b, a: 1.0 }
@@ -65,11 +66,17 @@ pub(crate) fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
             size: Some(vector([2.0 * ex; 3])),
             color,
         }),
-        Some(ActorKind::Capsule) => {
+        Some(k @ (ActorKind::Capsule | ActorKind::Walker)) => {
             // A capsule (radius, half height): a cylinder along the body's Y
             // (Foxglove's run along Z: a quarter turn about X) and a sphere
-            // at each end, placed in the world through the body's pose.
-            let (radius, half) = (ex, ey);
+            // at each end, placed in the world through the body's pose. A
+            // walker's half height counts its round ends.
+            let radius = ex;
+            let half = if k == ActorKind::Walker {
+                (ey - ex).max(0.0)
+            } else {
+                ey
+            };
             let quarter = std::f32::consts::FRAC_1_SQRT_2;
             entity.cylinders.push(CylinderPrimitive {
                 pose: Some(placed(actor, ([0.0; 3], [quarter, 0.0, 0.0, quarter]))),

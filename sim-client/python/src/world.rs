@@ -55,6 +55,7 @@ fn status_name(status: CommandStatus) -> &'static str {
         CommandStatus::UnknownCommand => "unknown_command",
         CommandStatus::StaticActor => "static_actor",
         CommandStatus::SpawnCollision => "spawn_collision",
+        CommandStatus::NotAWalker => "not_a_walker",
     }
 }
 
@@ -122,8 +123,8 @@ fn command_error(error: CommandError) -> PyErr {
 #[pymethods]
 impl Client {
     /// Spawns an actor and returns its id (it shows in the next frame).
-    /// `kind` is `"box"`, `"sphere"`, `"capsule"` or `"vehicle"`; the other
-    /// arguments are `simbus.SpawnActor`'s. A refused spawn (a size or
+    /// `kind` is `"box"`, `"sphere"`, `"capsule"`, `"vehicle"` or
+    /// `"walker"`; the other arguments are `simbus.SpawnActor`'s. A refused spawn (a size or
     /// position out of range, or a body already there) raises
     /// `simbus.CommandError`.
     #[pyo3(signature = (kind, *, at = None, rotation = None, half_extents = None, radius = None, half_height = None))]

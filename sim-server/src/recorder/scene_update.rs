@@ -47,6 +47,7 @@ fn entity(a: &ActorState, stamp: Time, frame: u64) -> Entity {
     let (cubes, spheres, cylinders) = match kind {
         Some(ActorKind::Sphere) => (None, Some(primitive(size(ex, ex, ex))), None),
         Some(ActorKind::Capsule) => (None, None, Some(primitive(size(ex, ey + ex, ex)))),
+        Some(ActorKind::Walker) => (None, None, Some(primitive(size(ex, ey, ex)))),
         _ => (Some(primitive(size(ex, ey, ez))), None, None),
     };
     Entity {
@@ -96,6 +97,12 @@ fn color(kind: Option<ActorKind>) -> Color {
         Some(ActorKind::Vehicle) => Color {
             r: 0.9,
             g: 0.2,
+            b: 0.2,
+            a: 1.0,
+        },
+        Some(ActorKind::Walker) => Color {
+            r: 0.95,
+            g: 0.75,
             b: 0.2,
             a: 1.0,
         },

@@ -143,6 +143,7 @@ impl Surface {
             Some(ActorKind::Box) => Self::Plain(SemanticTag::Dynamic, [200, 36, 28]),
             Some(ActorKind::Sphere) => Self::Plain(SemanticTag::Dynamic, [232, 200, 40]),
             Some(ActorKind::Capsule) => Self::Plain(SemanticTag::Dynamic, [64, 168, 96]),
+            Some(ActorKind::Walker) => Self::Plain(SemanticTag::Pedestrians, [196, 120, 84]),
             Some(ActorKind::Static) if is_ground(target.extent) => Self::Ground,
             Some(ActorKind::Static) if target.extent[1] >= 2.0 => {
                 Self::Plain(SemanticTag::Buildings, [150, 138, 124])

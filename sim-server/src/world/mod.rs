@@ -1,6 +1,6 @@
 //! The physics world: rapier bodies and the actors that name them. What
 //! each wire command does to them is in `commands.rs`; the vehicles are
-//! in `vehicles.rs`.
+//! in `vehicles.rs`, the walkers in `walkers.rs`.
 
 use std::time::{Duration, Instant};
 
@@ -12,6 +12,7 @@ use simbus_recording::RecordedCollision;
 use crate::clock::SubstepPlan;
 use crate::scene::Placement;
 use crate::vehicles::Vehicles;
+use crate::walkers::Walkers;
 
 mod check;
 mod contacts;
@@ -67,6 +68,9 @@ pub struct World {
     /// need [`World::sync_queries`] first.
     #[serde(skip)]
     queries_stale: bool,
+    /// The walkers. Last, so a keyframe of before walkers (layout 2) reads
+    /// with an empty list appended (`keyframe.rs`).
+    pub(crate) walkers: Walkers,
 }
 
 impl std::fmt::Debug for World {
@@ -90,6 +94,7 @@ impl World {
             physics: PhysicsWorld::new(),
             actors: Vec::new(),
             vehicles: Vehicles::default(),
+            walkers: Walkers::default(),
             pushed: Vec::new(),
             held: Vec::new(),
             contact_starts: Vec::new(),
@@ -128,6 +133,7 @@ impl World {
             },
             actors: self.actors.clone(),
             vehicles: self.vehicles.clone(),
+            walkers: self.walkers.clone(),
             pushed: self.pushed.clone(),
             held: self.held.clone(),
             contact_starts: Vec::new(),
@@ -156,9 +162,13 @@ impl World {
             previous_velocity: placement.linear_velocity,
             acceleration: Vector::ZERO,
         });
-        if placement.kind == ActorKind::Vehicle {
-            self.vehicles
-                .add(id, body, &shared_types::VehicleSpec::default());
+        match placement.kind {
+            ActorKind::Vehicle => {
+                self.vehicles
+                    .add(id, body, &shared_types::VehicleSpec::default());
+            }
+            ActorKind::Walker => self.walkers.add(id, body, e.x, e.y),
+            _ => {}
         }
         id
     }
@@ -183,7 +193,7 @@ impl World {
     }
 
     /// Advances physics by one frame: `plan.count` rapier steps of
-    /// `plan.substep_seconds` (vehicles updated before each), then updates
+    /// `plan.substep_seconds` (vehicles and walkers updated before each), then updates
     /// every actor's acceleration.
     pub fn step(&mut self, plan: &SubstepPlan) {
         self.step_with_collisions(plan, None);
@@ -223,6 +233,7 @@ impl World {
         for _ in 0..plan.count {
             self.vehicles
                 .update(&mut self.physics, plan.substep_seconds);
+            self.walkers.update(&mut self.physics, plan.substep_seconds);
             for &(handle, local) in &self.held {
                 if let Some(body) = self.physics.bodies.get_mut(handle) {
                     let velocity = body.rotation() * local;

@@ -12,6 +12,10 @@ use crate::scene::Placement;
 /// placed resting on the ground or on another body touches it.
 pub(crate) const SPAWN_SKIN: f32 = 0.01;
 
+/// How far above the ground a walker is spawned: beyond its character
+/// controller's 1 cm gap, so it starts clear of the ground and settles.
+const STANDING_GAP: f32 = 0.02;
+
 /// A collider a sensor's ray can meet, and the actor it belongs to.
 #[derive(Clone, Copy)]
 pub(crate) struct RayTarget<'a> {
@@ -74,6 +78,57 @@ impl World {
                 let hit = intersection_test(&pose, &*shape, &at, c.shape()).ok()?;
                 hit.intersecting.then_some(actor.id)
             })
+        })
+    }
+
+    /// Where a body placed as `placement` (a walker) stands, 2 cm above
+    /// the static geometry under it, when its head is above that geometry:
+    /// the highest surface that five rays down from its head's height
+    /// (through its axis and four points around it) meet within its height.
+    /// `None` when they meet nothing, or start inside static geometry.
+    pub(crate) fn standing_on_ground(&self, placement: &Placement) -> Option<Vector> {
+        let half_height = placement.extent.y;
+        let radius = placement.extent.x * 0.7;
+        let top = placement.position.y + half_height;
+        let reach = 2.0 * half_height;
+        let mut ground: Option<f32> = None;
+        for (dx, dz) in [
+            (0.0, 0.0),
+            (radius, 0.0),
+            (-radius, 0.0),
+            (0.0, radius),
+            (0.0, -radius),
+        ] {
+            let origin = Vector::new(placement.position.x + dx, top, placement.position.z + dz);
+            let ray = Ray::new(origin, -Vector::Y);
+            for actor in self.actors.iter().filter(|a| a.kind == ActorKind::Static) {
+                let Some(body) = self.physics.bodies.get(actor.body) else {
+                    continue;
+                };
+                for &handle in body.colliders() {
+                    let Some(c) = self.physics.colliders.get(handle) else {
+                        continue;
+                    };
+                    let at = c
+                        .position_wrt_parent()
+                        .map_or(*body.position(), |local| *body.position() * *local);
+                    let Some(toi) = c.shape().cast_ray(&at, &ray, reach, true) else {
+                        continue;
+                    };
+                    if toi <= 0.0 {
+                        return None;
+                    }
+                    let y = top - toi;
+                    ground = Some(ground.map_or(y, |g: f32| g.max(y)));
+                }
+            }
+        }
+        ground.map(|y| {
+            Vector::new(
+                placement.position.x,
+                y + half_height + STANDING_GAP,
+                placement.position.z,
+            )
         })
     }
 

@@ -13,7 +13,7 @@ use crate::cli::failure::Failure;
 /// Spawn an actor and print its id.
 #[derive(Debug, Args)]
 pub(crate) struct SpawnArgs {
-    /// box, sphere, capsule or vehicle.
+    /// box, sphere, capsule, vehicle or walker (radius 0.25 m, 1.8 m tall).
     kind: String,
     /// Where, as x,y,z in metres (Y up).
     #[arg(
@@ -88,9 +88,10 @@ pub(crate) fn spawn(world: &WorldName, timeout: Duration, args: SpawnArgs) -> Re
         Some(ActorKind::Sphere) => Command::spawn_sphere(at, 0.5),
         Some(ActorKind::Capsule) => Command::spawn_capsule(at, 0.3, 0.5),
         Some(ActorKind::Vehicle) => Command::spawn_vehicle(at),
+        Some(ActorKind::Walker) => Command::spawn_walker(at, 0.25, 0.9),
         _ => {
             return Err(Failure::Refused(anyhow!(
-                "unknown actor kind '{}': expected box, sphere, capsule or vehicle",
+                "unknown actor kind '{}': expected box, sphere, capsule, vehicle or walker",
                 args.kind
             )))
         }

@@ -262,7 +262,7 @@ class Client:
         radius: Optional[float] = None,
         half_height: Optional[float] = None,
     ) -> int:
-        """Spawns a box, sphere, capsule or vehicle; returns its id."""
+        """Spawns a box, sphere, capsule, vehicle or walker; returns its id."""
     def destroy(self, actor_id: int) -> None: ...
     def apply_batch(self, commands: Sequence[Command]) -> None:
         """Sends the commands; applied before the next frame (no answer)."""
@@ -432,6 +432,17 @@ class ApplyVehicleControl(Command):
     def brake(self) -> float: ...
     @property
     def hand_brake(self) -> bool: ...
+
+class ApplyWalkerControl(Command):
+    def __init__(
+        self, actor_id: int, direction: Sequence[float] | None = None, speed: float = 0.0, jump: bool = False
+    ) -> None: ...
+    @property
+    def direction(self) -> tuple[float, float, float]: ...
+    @property
+    def speed(self) -> float: ...
+    @property
+    def jump(self) -> bool: ...
 
 class CommandResult:
     """How one command of apply_batch_sync ended."""

@@ -141,6 +141,19 @@ pub(super) fn describe(w: &Wire) -> String {
                 quad(r)
             )
         }
+        CommandKind::SpawnWalker => format!(
+            "SpawnActor('walker', at={:?}, rotation={:?}, radius={:?}, half_height={:?})",
+            triple(v),
+            quad(r),
+            p[0],
+            p[1]
+        ),
+        CommandKind::WalkerControl => format!(
+            "ApplyWalkerControl({id}, direction={:?}, speed={:?}, jump={})",
+            triple(v),
+            p[0],
+            py_bool(flag(w))
+        ),
         CommandKind::Destroy => format!("DestroyActor({id})"),
         CommandKind::SetTransform => {
             format!(
@@ -183,7 +196,8 @@ fn py_bool(value: bool) -> &'static str {
 }
 
 /// The spawn command for `kind` with its sizes (defaults: box half extents
-/// 0.5 m, sphere radius 0.5 m, capsule radius 0.3 m and half height 0.5 m).
+/// 0.5 m, sphere radius 0.5 m, capsule radius 0.3 m and half height 0.5 m,
+/// walker radius 0.25 m and half height 0.9 m).
 pub(super) fn spawn_command(
     kind: &str,
     at: Option<&Bound<'_, PyAny>>,
@@ -220,6 +234,16 @@ pub(super) fn spawn_command(
                 (_, h) => Wire::spawn_capsule(at, r, finite("half_height", h.unwrap_or(0.5))?),
             }
         }
+        Some(ActorKind::Walker) => {
+            if half_extents.is_some() {
+                return Err(not_for("half_extents", ActorKind::Walker));
+            }
+            Wire::spawn_walker(
+                at,
+                finite("radius", radius.unwrap_or(0.25))?,
+                finite("half_height", half_height.unwrap_or(0.9))?,
+            )
+        }
         Some(ActorKind::Vehicle) => {
             if half_extents.is_some() || radius.is_some() || half_height.is_some() {
                 return Err(not_for("a size", ActorKind::Vehicle));
@@ -228,7 +252,8 @@ pub(super) fn spawn_command(
         }
         _ => {
             return Err(PyValueError::new_err(format!(
-                "unknown actor kind '{name}': expected 'box', 'sphere', 'capsule' or 'vehicle'"
+                "unknown actor kind '{name}': expected 'box', 'sphere', 'capsule', 'vehicle' \
+                 or 'walker'"
             )))
         }
     };
@@ -238,11 +263,13 @@ pub(super) fn spawn_command(
     Ok(wire)
 }
 
-/// Spawns an actor: `kind` is `"box"`, `"sphere"`, `"capsule"` or
-/// `"vehicle"`, `at` its position (x, y, z; Y up; default (0, 5, 0)),
-/// `rotation` a quaternion (x, y, z, w). Sizes: `half_extents` (box, default
-/// 0.5 m each), `radius` (sphere 0.5 m, capsule 0.3 m), `half_height`
-/// (capsule, 0.5 m).
+/// Spawns an actor: `kind` is `"box"`, `"sphere"`, `"capsule"`,
+/// `"vehicle"` or `"walker"`, `at` its position (x, y, z; Y up; default
+/// (0, 5, 0)), `rotation` a quaternion (x, y, z, w). Sizes: `half_extents`
+/// (box, default 0.5 m each), `radius` (sphere 0.5 m, capsule 0.3 m,
+/// walker 0.25 m), `half_height` (capsule 0.5 m; walker 0.9 m, its round
+/// ends included). A walker asked for with its feet in the ground stands
+/// on it.
 #[pyclass(module = "simbus", extends = Command, frozen)]
 #[derive(Debug)]
 pub(crate) struct SpawnActor;
@@ -263,13 +290,14 @@ impl SpawnActor {
         Ok(subclass(Self, wire))
     }
 
-    /// `"box"`, `"sphere"`, `"capsule"` or `"vehicle"`.
+    /// `"box"`, `"sphere"`, `"capsule"`, `"vehicle"` or `"walker"`.
     #[getter]
     fn kind(slf: PyRef<'_, Self>) -> &'static str {
         match CommandKind::from_u32(slf.as_ref().wire.kind) {
             Some(CommandKind::SpawnBox) => "box",
             Some(CommandKind::SpawnSphere) => "sphere",
             Some(CommandKind::SpawnCapsule) => "capsule",
+            Some(CommandKind::SpawnWalker) => "walker",
             _ => "vehicle",
         }
     }
@@ -500,6 +528,52 @@ impl ApplyVehicleControl {
     }
 }
 
+/// Walks a walker: `direction` (x, y, z; its horizontal part is used),
+/// `speed` m/s (0..=20), `jump` once. Holds until changed (CARLA's
+/// `WalkerControl`).
+#[pyclass(module = "simbus", extends = Command, frozen)]
+#[derive(Debug)]
+pub(crate) struct ApplyWalkerControl;
+
+#[pymethods]
+impl ApplyWalkerControl {
+    #[new]
+    #[pyo3(signature = (actor_id, direction = None, speed = 0.0, jump = false))]
+    fn new(
+        actor_id: &Bound<'_, PyAny>,
+        direction: Option<&Bound<'_, PyAny>>,
+        speed: f64,
+        jump: bool,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let direction = direction.map_or(Ok([1.0, 0.0, 0.0]), |d| numbers("direction", d))?;
+        let wire = Wire::walker_control(
+            self::actor_id(actor_id)?,
+            direction,
+            finite("speed", speed)?,
+            jump,
+        );
+        Ok(subclass(Self, wire))
+    }
+
+    /// Direction (x, y, z).
+    #[getter]
+    fn direction(slf: PyRef<'_, Self>) -> (f32, f32, f32) {
+        triple(slf.as_ref().wire.vector)
+    }
+
+    /// Speed, m/s.
+    #[getter]
+    fn speed(slf: PyRef<'_, Self>) -> f32 {
+        slf.as_ref().wire.params[0]
+    }
+
+    /// A jump.
+    #[getter]
+    fn jump(slf: PyRef<'_, Self>) -> bool {
+        flag(&slf.as_ref().wire)
+    }
+}
+
 /// Adds the command classes to the extension module.
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Command>()?;
@@ -513,5 +587,6 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SetSimulatePhysics>()?;
     m.add_class::<SetEnableGravity>()?;
     m.add_class::<ApplyVehicleControl>()?;
+    m.add_class::<ApplyWalkerControl>()?;
     Ok(())
 }

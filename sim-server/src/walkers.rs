@@ -1,10 +1,10 @@
-//! Walkers (pedestrians): kinematic capsules moved by rapier's
-//! `KinematicCharacterController`, so they stand on the ground, climb
-//! kerbs, slide along walls and stop at other bodies; what each holds is
-//! its `WalkerControl` (direction, speed, a jump). Gravity pulls a walker
-//! that is off the ground; a body that is disabled does not walk.
+//! Walkers (pedestrians): kinematic capsules that stand on the ground,
+//! step up kerbs, slide along walls and stop at other bodies (rapier's
+//! `KinematicCharacterController` across, rays to the ground); what each
+//! holds is its `WalkerControl` (direction, speed, a jump). Gravity pulls
+//! a walker that is off the ground; a body that is disabled does not walk.
 
-use rapier3d::control::{CharacterAutostep, CharacterLength, KinematicCharacterController};
+use rapier3d::control::{CharacterLength, KinematicCharacterController};
 use rapier3d::prelude::*;
 
 /// Upward speed of a jump, m/s (about 0.45 m high).
@@ -95,6 +95,13 @@ impl Walkers {
     /// Moves every walker as its control says, for a physics step of `dt`
     /// seconds: where it may go is decided against the bodies as they are
     /// before the step, and the step carries it there.
+    ///
+    /// Across, rapier's character controller moves its capsule raised by
+    /// [`STEP`] (so kerbs and the ground never catch it, and walls and
+    /// bodies stop it or it slides along them); up and down, rays from
+    /// that height find the ground under it, which it stands on, steps up
+    /// or down to, or falls to. Rays meet a large flat ground exactly,
+    /// where a capsule's casts touching it do not.
     pub(crate) fn update(&mut self, physics: &mut PhysicsWorld, dt: f32) {
         let controller = character_controller();
         let gravity = physics.gravity.y;
@@ -106,32 +113,56 @@ impl Walkers {
                 continue;
             }
             let pose = *body.position();
-            if walker.jump && walker.grounded {
-                walker.vertical_speed = JUMP_SPEED;
-                walker.grounded = false;
-                walker.jump = false;
-            }
-            if !walker.grounded || walker.vertical_speed > 0.0 {
-                walker.vertical_speed += gravity * body.gravity_scale() * dt;
-            }
-            // Pressed to the ground while on it, so the controller keeps it
-            // there on a slope down.
-            let fall = if walker.grounded && walker.vertical_speed <= 0.0 {
-                gravity * body.gravity_scale() * dt * dt
-            } else {
-                walker.vertical_speed * dt
-            };
-            let desired = walker.direction * (walker.speed * dt) + Vector::Y * fall;
-            let shape = walker.shape();
+            let pull = gravity * body.gravity_scale();
             let queries = physics.query_pipeline_with_filter(
                 QueryFilter::default()
                     .exclude_rigid_body(walker.body)
                     .exclude_sensors(),
             );
-            let movement = controller.move_shape(dt, &queries, &shape, &pose, desired, |_| {});
-            walker.grounded = movement.grounded;
-            if walker.grounded && walker.vertical_speed < 0.0 {
-                walker.vertical_speed = 0.0;
+            let raised = Pose::from_parts(pose.translation + Vector::Y * STEP, pose.rotation);
+            let across = walker.direction * (walker.speed * dt);
+            let moved = if across == Vector::ZERO {
+                Vector::ZERO
+            } else {
+                let shape = walker.shape();
+                let m = controller.move_shape(dt, &queries, &shape, &raised, across, |_| {});
+                Vector::new(m.translation.x, 0.0, m.translation.z)
+            };
+            let mut at = pose.translation + moved;
+            let feet = at.y - walker.half_height;
+            if walker.jump && walker.grounded {
+                walker.vertical_speed = JUMP_SPEED;
+                walker.grounded = false;
+                walker.jump = false;
+            }
+            let airborne = !walker.grounded || walker.vertical_speed > 0.0;
+            if airborne {
+                walker.vertical_speed += pull * dt;
+            }
+            let drop = if airborne {
+                (-walker.vertical_speed * dt).max(0.0)
+            } else {
+                SNAP
+            };
+            let ground = ground_under(&queries, at, feet, walker.radius, drop);
+            match ground {
+                // Rising, or above the ground by more than this step falls.
+                _ if walker.vertical_speed > 0.0 => {
+                    at.y += walker.vertical_speed * dt;
+                }
+                Some(ground) if feet + walker.vertical_speed.min(0.0) * dt <= ground + GAP => {
+                    at.y = ground + walker.half_height + GAP;
+                    walker.vertical_speed = 0.0;
+                    walker.grounded = true;
+                }
+                _ => {
+                    if !airborne {
+                        // Walked off an edge: it falls from here on.
+                        walker.vertical_speed = pull * dt;
+                    }
+                    at.y += walker.vertical_speed * dt;
+                    walker.grounded = false;
+                }
             }
             let rotation = if walker.direction == Vector::ZERO || walker.speed == 0.0 {
                 pose.rotation
@@ -139,24 +170,51 @@ impl Walkers {
                 // Facing where it walks: +X turned about Y.
                 Rotation::from_rotation_y((-walker.direction.z).atan2(walker.direction.x))
             };
-            let target = Pose::from_parts(pose.translation + movement.translation, rotation);
             if let Some(body) = physics.bodies.get_mut(walker.body) {
-                body.set_next_kinematic_position(target);
+                body.set_next_kinematic_position(Pose::from_parts(at, rotation));
             }
         }
     }
 }
 
-/// How every walker moves: steps up kerbs to 0.3 m, climbs slopes to 45°,
-/// keeps to the ground within 0.2 m.
+/// How high a walker steps up (a kerb) without stopping, metres.
+const STEP: f32 = 0.3;
+/// How far below its feet a walker on the ground keeps to it (a kerb down,
+/// a slope), metres.
+const SNAP: f32 = 0.3;
+/// A walker's feet stand this far above the ground, metres.
+const GAP: f32 = 0.01;
+
+/// The height of the highest surface under a walker of `radius` at `at`
+/// (its axis and four points around it), from [`STEP`] above its `feet`
+/// down to `drop` below them; `None` when there is none.
+fn ground_under(
+    queries: &QueryPipeline,
+    at: Vector,
+    feet: f32,
+    radius: f32,
+    drop: f32,
+) -> Option<f32> {
+    let top = feet + STEP;
+    let reach = STEP + drop + GAP;
+    let r = radius * 0.7;
+    [(0.0, 0.0), (r, 0.0), (-r, 0.0), (0.0, r), (0.0, -r)]
+        .into_iter()
+        .filter_map(|(dx, dz)| {
+            let ray = Ray::new(Vector::new(at.x + dx, top, at.z + dz), -Vector::Y);
+            queries
+                .cast_ray(&ray, reach, true)
+                .map(|(_, toi)| top - toi)
+        })
+        .reduce(f32::max)
+}
+
+/// How every walker moves across: slides along what it meets, climbs
+/// slopes to 45°, keeps a 1 cm gap.
 fn character_controller() -> KinematicCharacterController {
     KinematicCharacterController {
-        autostep: Some(CharacterAutostep {
-            max_height: CharacterLength::Absolute(0.3),
-            min_width: CharacterLength::Absolute(0.1),
-            include_dynamic_bodies: false,
-        }),
-        snap_to_ground: Some(CharacterLength::Absolute(0.2)),
+        autostep: None,
+        snap_to_ground: None,
         offset: CharacterLength::Absolute(0.01),
         ..KinematicCharacterController::default()
     }

@@ -102,22 +102,35 @@ def test_catalog_vehicles_have_their_models_size_and_mass_and_drive(gateway):
     assert vehicles == {v.id: t for t, v in spawned.items()}
 
 
-@pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
-def test_walkers_are_refused_at_spawn_alone_and_in_a_batch(gateway):
+@pytest.mark.parametrize("gateway", [["--scene", "flat"]], indirect=True)
+def test_walkers_and_their_controllers_spawn_in_batches_as_generate_traffic_spawns_them(gateway):
+    """generate_traffic.py's calls: walkers in one batch (its `speed`
+    attribute read from the blueprint), then one `controller.ai.walker` per
+    walker, attached to it, in a second batch; a box beside them."""
     client, world = synced(gateway)
     library = world.get_blueprint_library()
-    walker = library.find("walker.pedestrian.0001")
-    with pytest.raises(RuntimeError,
-                       match=r"simbus: walkers are not supported \(walker.pedestrian.0001\)"):
-        world.spawn_actor(walker, carla.Transform(carla.Location(z=1)))
+    walkers = [bp for bp in library.filter("walker.pedestrian.*")
+               if int(bp.get_attribute("generation")) == 2][:3]
+    speeds = [float(bp.get_attribute("speed").recommended_values[1]) for bp in walkers]
+    assert speeds == [1.4, 1.4, 1.4]
     box = library.find("static.prop.box")
-    responses = client.apply_batch_sync([
-        carla.command.SpawnActor(walker, carla.Transform(carla.Location(z=1))),
-        carla.command.SpawnActor(box, carla.Transform(carla.Location(x=5, z=1))),
-    ], True)
-    assert responses[0].has_error()
-    assert "walkers are not supported (walker.pedestrian.0001)" in responses[0].error
-    assert not responses[1].has_error() and responses[1].actor_id > 0
+    responses = client.apply_batch_sync(
+        [carla.command.SpawnActor(bp, carla.Transform(carla.Location(x=3.0 * i, y=4.0)))
+         for i, bp in enumerate(walkers)]
+        + [carla.command.SpawnActor(box, carla.Transform(carla.Location(x=5, y=-5, z=1)))], True)
+    assert not any(r.has_error() for r in responses), [r.error for r in responses]
+    walker_ids = [r.actor_id for r in responses[:3]]
+    controller = library.find("controller.ai.walker")
+    responses = client.apply_batch_sync(
+        [carla.command.SpawnActor(controller, carla.Transform(), w) for w in walker_ids], True)
+    assert not any(r.has_error() for r in responses), [r.error for r in responses]
+    actors = world.get_actors(walker_ids + [r.actor_id for r in responses])
+    by_id = {a.id: a for a in actors}
+    assert sorted(by_id[w].type_id for w in walker_ids) == sorted(bp.id for bp in walkers)
+    for walker, response in zip(walker_ids, responses):
+        assert by_id[response.actor_id].type_id == "controller.ai.walker"
+        assert by_id[response.actor_id].parent.id == walker
+        assert abs(by_id[walker].get_location().z - 0.9375) < 0.05
 
 
 def test_scene_and_spawned_actors_carry_carlas_attributes(gateway):

@@ -57,6 +57,14 @@ pub(crate) fn vehicle_control(v: &Value) -> Option<CarlaVehicleControl> {
     })
 }
 
+/// CARLA's `WalkerControl` `[direction, speed, jump]`: direction in
+/// CARLA's world axes, speed m/s.
+pub(crate) fn walker_control(v: &Value) -> Option<(V3, f32, bool)> {
+    let a = v.as_array()?;
+    let speed = a.get(1).and_then(number)? as f32;
+    Some((vector(a.first()?)?, speed, a.get(2)?.as_bool()?))
+}
+
 /// What a CARLA command does to one actor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Op {
@@ -70,6 +78,16 @@ pub(crate) enum Op {
     Physics(bool),
     Gravity(bool),
     Control(CarlaVehicleControl),
+    /// CARLA's `WalkerControl`: direction (CARLA's axes), speed, jump.
+    WalkerControl(V3, f32, bool),
+    /// CARLA's `ApplyWalkerState`, what its walker AI sends every tick:
+    /// where the walker's feet are (on the navigation mesh), facing its
+    /// way; the speed it walks at there is shown by the next one.
+    WalkerState(CarlaTransform),
+    /// CARLA's `set_actor_collisions`: simbus has no switch of its own for
+    /// it, so it switches the actor's physics (its contacts with it; see
+    /// the CARLA chapter).
+    Collisions(bool),
     /// CARLA's `enable_constant_velocity` (m/s in the actor's own axes),
     /// or `disable_constant_velocity` (`None`).
     ConstantVelocity(Option<V3>),
@@ -115,13 +133,29 @@ impl Op {
                 Command::vehicle_control(actor, c.throttle, -c.steer, c.brake, c.hand_brake)
             }
             Op::ConstantVelocity(v) => Command::constant_velocity(actor, v.map(convert::vector)),
+            Op::WalkerControl(direction, speed, jump) => {
+                Command::walker_control(actor, convert::vector(direction), speed, jump)
+            }
+            Op::WalkerState(t) => {
+                // The feet on the mesh: the walker's centre is its half
+                // height above them (CARLA's server adds it too).
+                let half_height = current()?.extent[2];
+                let mut location = t.location;
+                location[2] += half_height;
+                let (position, rotation) = convert::pose(&CarlaTransform {
+                    location,
+                    rotation: [0.0, t.rotation[1], 0.0],
+                });
+                Command::set_transform(actor, position, rotation)
+            }
+            Op::Collisions(on) => Command::set_physics(actor, on),
             Op::Destroy => Command::destroy(actor),
         })
     }
 }
 
 /// The RPC methods that act on one actor, as [`rpc_op`] reads them.
-const RPC_OPS: [&str; 12] = [
+const RPC_OPS: [&str; 14] = [
     "set_actor_transform",
     "set_actor_location",
     "set_actor_target_velocity",
@@ -132,6 +166,8 @@ const RPC_OPS: [&str; 12] = [
     "set_actor_simulate_physics",
     "set_actor_enable_gravity",
     "apply_control_to_vehicle",
+    "apply_control_to_walker",
+    "set_actor_collisions",
     "enable_actor_constant_velocity",
     "disable_actor_constant_velocity",
 ];
@@ -157,6 +193,10 @@ pub(crate) fn rpc_op(method: &str, args: &[Value]) -> Option<Result<(u32, Op), C
         "set_actor_simulate_physics" => arg(1).as_bool().map(Op::Physics).ok_or_else(bad),
         "set_actor_enable_gravity" => arg(1).as_bool().map(Op::Gravity).ok_or_else(bad),
         "apply_control_to_vehicle" => vehicle_control(arg(1)).map(Op::Control).ok_or_else(bad),
+        "apply_control_to_walker" => walker_control(arg(1))
+            .map(|(d, s, j)| Op::WalkerControl(d, s, j))
+            .ok_or_else(bad),
+        "set_actor_collisions" => arg(1).as_bool().map(Op::Collisions).ok_or_else(bad),
         "enable_actor_constant_velocity" => v3().map(|v| Op::ConstantVelocity(Some(v))),
         "disable_actor_constant_velocity" => Ok(Op::ConstantVelocity(None)),
         _ => return None,
@@ -253,7 +293,15 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
     let op = match index {
         1 => Op::Destroy,
         2 => Op::Control(vehicle_control(field(1)).ok_or_else(bad)?),
+        4 => {
+            let (direction, speed, jump) = walker_control(field(1)).ok_or_else(bad)?;
+            Op::WalkerControl(direction, speed, jump)
+        }
         6 => Op::Transform(transform(field(1)).ok_or_else(bad)?),
+        7 => {
+            number(field(2)).ok_or_else(bad)?;
+            Op::WalkerState(transform(field(1)).ok_or_else(bad)?)
+        }
         8 => Op::Velocity(v3()?),
         9 => Op::AngularVelocity(v3()?),
         10 => Op::Impulse(v3()?),
@@ -308,6 +356,38 @@ mod tests {
         let walker = command(4, vec![Value::from(1u32)]);
         let e = batch_command(&walker, None).unwrap_err();
         assert!(e.to_string().contains("ApplyWalkerControl"), "{e}");
+        let walk = command(
+            4,
+            vec![
+                Value::from(1u32),
+                Value::Array(vec![
+                    Value::Array(vec![Value::F32(1.0), Value::F32(0.0), Value::F32(0.0)]),
+                    Value::F32(1.4),
+                    Value::Boolean(false),
+                ]),
+            ],
+        );
+        assert!(matches!(
+            batch_command(&walk, None).unwrap(),
+            BatchCommand::Actor(1, Op::WalkerControl([1.0, 0.0, 0.0], s, false)) if (s - 1.4).abs() < 1e-6
+        ));
+        let state = command(
+            7,
+            vec![
+                Value::from(5u32),
+                Value::Array(vec![
+                    Value::Array(vec![Value::F32(1.0), Value::F32(2.0), Value::F32(3.0)]),
+                    Value::Array(vec![Value::F32(0.0), Value::F32(90.0), Value::F32(0.0)]),
+                ]),
+                Value::F32(1.5),
+            ],
+        );
+        assert!(matches!(
+            batch_command(&state, None).unwrap(),
+            BatchCommand::Actor(5, Op::WalkerState(_))
+        ));
+        let speedless = command(7, vec![Value::from(5u32), Value::Nil]);
+        assert!(batch_command(&speedless, None).is_err());
         assert!(batch_command(&Value::from("x"), None).is_err());
         let wrong = command(10, vec![Value::from(1u32), Value::from("up")]);
         assert!(batch_command(&wrong, None)

@@ -145,6 +145,13 @@ pub(crate) enum CallError {
         "simbus: {blueprint} cannot be attached to actor {parent}: simbus attaches only sensors"
     )]
     OnlySensorsAttach { blueprint: String, parent: u32 },
+    /// A `controller.ai.walker` spawned on no actor (CARLA: "not attached
+    /// to walker" at its `start()`; simbus says so at the spawn).
+    #[error("simbus: controller.ai.walker must be spawned attached to its walker")]
+    ControllerWithoutWalker,
+    /// A `controller.ai.walker` on an actor that is not a walker.
+    #[error("simbus: controller.ai.walker must be attached to a walker; actor {0} is not one")]
+    ControllerNotOnAWalker(u32),
     /// A sensor spawned on a sensor.
     #[error("simbus: a sensor cannot ride on sensor {0}: attach it to an actor")]
     SensorOnSensor(u32),
@@ -240,9 +247,6 @@ pub(crate) enum BlueprintError {
     /// Not in the library (listed, comma-separated, in `known`).
     #[error("blueprint '{id}' is not in simbus's library ({known})")]
     Unknown { id: String, known: String },
-    /// A walker or walker controller: listed, not spawned.
-    #[error("walkers are not supported ({0})")]
-    Walker(String),
     #[error("{blueprint}: attribute {name} = '{text}' is not a number")]
     NotANumber {
         blueprint: String,

@@ -34,18 +34,23 @@ use simbus_recording::{
 use crate::convert;
 use crate::session::type_id;
 
-/// CARLA's actor type number in a `Create` line: 1 vehicle, 0 other
-/// (CARLA's 2 walker and 3 traffic light do not occur in simbus).
+/// CARLA's actor type number in a `Create` line: 1 vehicle, 2 walker, 0
+/// other (CARLA's 3 traffic light does not occur in simbus).
 fn actor_type(kind: u32) -> u8 {
-    u8::from(kind == ActorKind::Vehicle as u32)
+    match ActorKind::from_u32(kind) {
+        Some(ActorKind::Vehicle) => 1,
+        Some(ActorKind::Walker) => 2,
+        _ => 0,
+    }
 }
 
-/// CARLA's collision category letter of an actor: `v` vehicle, `o` other.
+/// CARLA's collision category letter of an actor: `v` vehicle, `w`
+/// walker, `o` other.
 fn category(kind: u32) -> char {
-    if kind == ActorKind::Vehicle as u32 {
-        'v'
-    } else {
-        'o'
+    match ActorKind::from_u32(kind) {
+        Some(ActorKind::Vehicle) => 'v',
+        Some(ActorKind::Walker) => 'w',
+        _ => 'o',
     }
 }
 

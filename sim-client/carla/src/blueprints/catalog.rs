@@ -170,8 +170,7 @@ pub(crate) fn vehicle(id: &str) -> Option<&'static Vehicle> {
 /// How many `walker.pedestrian.*` blueprints CARLA 0.9.16 has (0001..).
 pub(crate) const WALKERS: u32 = 51;
 
-/// One walker of CARLA's catalogue (simbus lists them; it cannot spawn
-/// them).
+/// One walker of CARLA's catalogue.
 #[derive(Debug, Clone)]
 pub(crate) struct Walker {
     pub(crate) id: String,
@@ -182,6 +181,20 @@ pub(crate) struct Walker {
     pub(crate) speeds: [&'static str; 3],
     /// Whether it may use a wheelchair (`can_use_wheelchair`).
     pub(crate) wheelchair: bool,
+    /// Its bounding box's half extents in CARLA's axes (x, y, z up), m:
+    /// CARLA's adults' 0.1875 × 0.1875 × 0.9375; a child's and a
+    /// teenager's height scaled (simbus's approximation: CARLA publishes
+    /// no table).
+    pub(crate) extent: [f32; 3],
+}
+
+/// The catalogue walker `id` (`walker.pedestrian.NNNN`), if it is one.
+pub(crate) fn walker_of(id: &str) -> Option<Walker> {
+    let n: u32 = id.strip_prefix("walker.pedestrian.")?.parse().ok()?;
+    (1..=WALKERS)
+        .contains(&n)
+        .then(|| walker(n))
+        .filter(|w| w.id == id)
 }
 
 /// Walker `n` (1..=[`WALKERS`]). CARLA's children are 0009–0011 and
@@ -203,6 +216,11 @@ pub(crate) fn walker(n: u32) -> Walker {
             _ => ["0.0", "1.4", "2.5"],
         },
         wheelchair: age == "adult",
+        extent: match age {
+            "child" => [0.1875, 0.1875, 0.6],
+            "teenager" => [0.1875, 0.1875, 0.85],
+            _ => [0.1875, 0.1875, 0.9375],
+        },
     }
 }
 

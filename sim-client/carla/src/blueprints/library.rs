@@ -150,11 +150,11 @@ pub(super) fn definitions() -> &'static [Definition] {
     })
 }
 
-/// Walker `n`'s blueprint (listed; refused at spawn).
+/// Walker `n`'s blueprint.
 fn walker_definition(n: u32) -> Definition {
     let w = catalog::walker(n);
     Definition {
-        uid: 0,
+        uid: ActorKind::Walker as u32,
         tags: tags_of(&w.id),
         attributes: vec![
             Attr::fixed("age", Kind::String, w.age),
@@ -245,11 +245,14 @@ pub(crate) fn vehicle_build(id: &str) -> Option<(f32, [f32; 3])> {
 }
 
 /// The CARLA extent an actor spawned from `description` will have, known
-/// before its first frame (a catalogue vehicle's; zero for the others).
+/// before its first frame (a catalogue vehicle's or walker's; zero for
+/// the others).
 pub(crate) fn spawned_extent(description: &Value) -> [f32; 3] {
-    description
+    let id = description
         .as_array()
-        .and_then(|fields| fields.get(1)?.as_str())
-        .and_then(vehicle_build)
-        .map_or([0.0; 3], |(_, extent)| extent)
+        .and_then(|fields| fields.get(1)?.as_str());
+    id.and_then(vehicle_build)
+        .map(|(_, extent)| extent)
+        .or_else(|| id.and_then(catalog::walker_of).map(|w| w.extent))
+        .unwrap_or([0.0; 3])
 }

@@ -226,6 +226,10 @@ pub(crate) enum Spawn {
     /// crossings of the map's lane marks by its parent's bounding box): a
     /// pose-only actor at this pose, no simbus sensor.
     ClientSide([f32; 3], [f32; 4]),
+    /// `controller.ai.walker`: CARLA's client walks its walker itself
+    /// (on the navigation mesh the gateway serves) and sends where it is
+    /// every tick; the controller is an actor attached to the walker.
+    Controller,
 }
 
 /// A parsed CARLA `ActorDescription` `[uid, id, [[id, type, value]]]`:
@@ -359,8 +363,12 @@ impl Description {
                 self.number("half_height")?,
             )),
             "vehicle.simbus.car" => body(Command::spawn_vehicle(position)),
-            id if id.starts_with("walker.") || id.starts_with("controller.") => {
-                Err(BlueprintError::Walker(id.to_string()))
+            "controller.ai.walker" => Ok(Spawn::Controller),
+            id if catalog::walker_of(id).is_some() => {
+                let extent = catalog::walker_of(id).map_or([0.19, 0.19, 0.94], |w| w.extent);
+                // CARLA's location is the capsule's centre; a walker whose
+                // feet would be in the ground is stood on it by simbus.
+                body(Command::spawn_walker(position, extent[0], extent[2]))
             }
             id if catalog::vehicle(id).is_some() => {
                 let (mass, extent) = vehicle_build(id).unwrap_or_default();

@@ -60,15 +60,38 @@ fn every_catalog_vehicle_has_carlas_attributes_and_spawns_at_its_size() {
 }
 
 #[test]
-fn walkers_are_listed_and_refused_at_spawn() {
-    for id in [
-        "walker.pedestrian.0001",
-        "walker.pedestrian.0051",
-        "controller.ai.walker",
+fn walkers_spawn_with_their_size_and_the_controller_as_one_on_its_walker() {
+    for (id, half_height) in [
+        ("walker.pedestrian.0001", 0.9375),
+        ("walker.pedestrian.0010", 0.6),
+        ("walker.pedestrian.0051", 0.9375),
     ] {
         let d = Description::parse(&description(id, &[])).expect(id);
-        let e = d.spawn(&CarlaTransform::default()).unwrap_err().to_string();
-        assert_eq!(e, format!("walkers are not supported ({id})"));
+        let Spawn::Body(command) = d.spawn(&CarlaTransform::default()).unwrap() else {
+            panic!("{id} spawns no body");
+        };
+        assert_eq!(
+            command.kind,
+            shared_types::CommandKind::SpawnWalker as u32,
+            "{id}"
+        );
+        assert_eq!(command.params[..2], [0.1875, half_height], "{id}");
+    }
+    let controller = Description::parse(&description("controller.ai.walker", &[])).unwrap();
+    assert_eq!(
+        controller.spawn(&CarlaTransform::default()).unwrap(),
+        Spawn::Controller
+    );
+    for id in [
+        "walker.pedestrian.0000",
+        "walker.pedestrian.0052",
+        "walker.pedestrian.1",
+    ] {
+        let d = Description::parse(&description(id, &[]));
+        assert!(
+            d.is_err() || d.unwrap().spawn(&CarlaTransform::default()).is_err(),
+            "{id}"
+        );
     }
     let generation = |id: &str| {
         let d = definition(id).unwrap();

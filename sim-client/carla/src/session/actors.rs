@@ -226,6 +226,14 @@ impl Session {
             Spawn::ClientSide(position, rotation) => {
                 return self.spawn_client_side(description, position, rotation, parent)
             }
+            Spawn::Controller => {
+                let walker = parent.ok_or_else(|| CallError::ControllerWithoutWalker)?;
+                let kind = lock(&self.hub.actors).get(&walker).map(|a| a.kind);
+                if kind != Some(shared_types::ActorKind::Walker as u32) {
+                    return Err(CallError::ControllerNotOnAWalker(walker));
+                }
+                return self.spawn_client_side(description, [0.0; 3], [0.0, 0.0, 0.0, 1.0], parent);
+            }
         };
         lock(&self.hub.registry)
             .descriptions
@@ -470,6 +478,7 @@ pub(crate) fn type_id(kind: u32) -> &'static str {
         Some(ActorKind::Sphere) => "static.prop.sphere",
         Some(ActorKind::Capsule) => "static.prop.capsule",
         Some(ActorKind::Vehicle) => "vehicle.simbus.car",
+        Some(ActorKind::Walker) => "walker.pedestrian.0001",
         _ => "static.prop.fixed",
     }
 }
@@ -510,12 +519,24 @@ pub(crate) fn record_of(hub: &crate::stream::Hub, id: u32, streaming_port: u16) 
     }
     let registry = lock(&hub.registry);
     if let Some(sensor) = registry.sensors.get(&id) {
+        // A walker's AI controller streams nothing: CARLA's client tells it
+        // from a sensor by that (and then by its blueprint id).
+        let controller = sensor
+            .description
+            .as_array()
+            .and_then(|d| d.get(1)?.as_str())
+            .is_some_and(|bp| bp == "controller.ai.walker");
+        let stream = if controller {
+            Vec::new()
+        } else {
+            token(id, streaming_port).to_vec()
+        };
         return Some(actor_record(
             id,
             sensor.parent,
             sensor.description.clone(),
             [0.0; 3],
-            Value::Binary(token(id, streaming_port).to_vec()),
+            Value::Binary(stream),
         ));
     }
     let (kind, extent) = match lock(&hub.actors).get(&id) {

@@ -25,21 +25,23 @@ fn frames(n: u64) -> String {
 }
 
 /// Whether an actor of kind `kind` (its name in a recording) is in CARLA's
-/// collision category `category`: `a` any, `v` vehicle, `o` other (anything
-/// not a vehicle, walker or traffic light: simbus's boxes, spheres,
-/// capsules and static bodies such as the ground), `w` walker and `t`
-/// traffic light (simbus has neither), `h` hero, and simbus's own letters
-/// (see [`inspect::kind_matches`]); any other letter matches nothing.
+/// collision category `category`: `a` any, `v` vehicle, `w` walker, `o`
+/// other (anything not a vehicle, walker or traffic light: simbus's boxes,
+/// spheres, capsules and static bodies such as the ground), `t` traffic
+/// light (simbus has none), `h` hero, and simbus's own letters (see
+/// [`inspect::kind_matches`]); any other letter matches nothing.
 fn in_category(category: char, kind: &str) -> bool {
     let vehicle = kind == ActorKind::Vehicle.name();
+    let walker = kind == ActorKind::Walker.name();
     match category {
         'a' => true,
         'v' => vehicle,
-        'o' => !vehicle,
+        'w' => walker,
+        'o' => !vehicle && !walker,
         // CARLA's hero is the actor whose role_name is "hero". A simbus
         // recording keeps no role_name, so no recorded actor is the hero:
         // 'h' matches nothing.
-        'h' | 'w' | 't' => false,
+        'h' | 't' => false,
         _ => ActorKind::from_name(kind).is_some_and(|k| inspect::kind_matches(category, k as u32)),
     }
 }

@@ -34,6 +34,7 @@ impl Session {
             Some(CommandKind::SpawnBox) => (ActorKind::Box, [a, b, c]),
             Some(CommandKind::SpawnSphere) => (ActorKind::Sphere, [a, a, a]),
             Some(CommandKind::SpawnCapsule) => (ActorKind::Capsule, [a, b, a]),
+            Some(CommandKind::SpawnWalker) => (ActorKind::Walker, [a, b, a]),
             Some(CommandKind::SpawnVehicle) => match VehicleSpec::from_params(command.params) {
                 Ok(spec) => (ActorKind::Vehicle, spec.half_extents),
                 Err(_) => return,

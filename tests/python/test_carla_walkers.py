@@ -93,3 +93,69 @@ def test_a_walker_controller_on_nothing_or_a_car_is_refused(gateway):
     results = client.apply_batch_sync([carla.command.ApplyWalkerControl(
         car, carla.WalkerControl(carla.Vector3D(1.0, 0.0, 0.0), 1.0))])
     assert "not a walker" in results[0].error
+
+
+TOWN = [["--scene", "town"]]
+
+
+@pytest.mark.parametrize("gateway", TOWN, indirect=True)
+def test_generate_traffics_walkers_find_sidewalks_and_walk_them(gateway):
+    """generate_traffic.py's walker section (CARLA 0.9.16), its calls in
+    its order: random locations from the navigation (the mesh the gateway
+    serves from the town's roads), walkers spawned there in one batch and
+    their AI controllers in another, a tick, the crossing factor, then
+    each controller started, sent to another random location and given
+    its walking speed; 200 ticks. Every location is on a sidewalk, and
+    the walkers walk (CARLA's client walks them and sends their feet)."""
+    client, world = synced(gateway)
+    town = world.get_map()
+    world.set_pedestrians_seed(7)
+    library = world.get_blueprint_library()
+    walker_bps = [bp for bp in library.filter("walker.pedestrian.*")
+                  if int(bp.get_attribute("generation")) == 2]
+    spawn_points = []
+    for _ in range(10):
+        location = world.get_random_location_from_navigation()
+        assert location is not None, "the navigation answers a point"
+        spawn_points.append(carla.Transform(location))
+    for point in spawn_points:
+        # On the ground, off the driving lanes.
+        assert abs(point.location.z) < 0.01, point.location
+        lane = town.get_waypoint(point.location, project_to_road=False,
+                                 lane_type=carla.LaneType.Driving)
+        assert lane is None, (point.location, lane)
+    batch, speeds = [], []
+    for i, point in enumerate(spawn_points):
+        bp = walker_bps[i % len(walker_bps)]
+        bp.set_attribute("is_invincible", "false")
+        speeds.append(bp.get_attribute("speed").recommended_values[1])
+        batch.append(carla.command.SpawnActor(bp, point))
+    results = client.apply_batch_sync(batch, True)
+    walkers = [r.actor_id for r in results if not r.error]
+    assert len(walkers) >= 8, [r.error for r in results]
+    controller_bp = library.find("controller.ai.walker")
+    results = client.apply_batch_sync(
+        [carla.command.SpawnActor(controller_bp, carla.Transform(), w) for w in walkers], True)
+    controllers = [r.actor_id for r in results]
+    assert all(not r.error for r in results), [r.error for r in results]
+    world.tick()
+    world.set_pedestrians_cross_factor(0.0)
+    actors = world.get_actors(controllers + walkers)
+    by_id = {a.id: a for a in actors}
+    for controller, speed in zip(controllers, speeds):
+        by_id[controller].start()
+        by_id[controller].go_to_location(world.get_random_location_from_navigation())
+        by_id[controller].set_max_speed(float(speed))
+    start = {w: by_id[w].get_location() for w in walkers}
+    for _ in range(200):
+        world.tick()
+    moved = [start[w].distance(by_id[w].get_location()) for w in walkers]
+    assert sum(m > 2.0 for m in moved) >= len(walkers) - 1, moved
+    for w in walkers:
+        at = by_id[w].get_location()
+        assert abs(at.z - by_id[w].bounding_box.extent.z) < 0.1, at
+        assert town.get_waypoint(at, project_to_road=False,
+                                 lane_type=carla.LaneType.Driving) is None, at
+    for controller in controllers:
+        by_id[controller].stop()
+    client.apply_batch([carla.command.DestroyActor(x) for x in controllers + walkers])

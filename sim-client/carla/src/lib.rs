@@ -18,6 +18,7 @@ mod convert;
 mod error;
 mod locks;
 mod maps;
+mod navigation;
 pub mod recorder_text;
 mod rpc;
 mod sensors;

@@ -141,6 +141,47 @@ pub(crate) struct MapAnswer {
     pub(crate) opendrive: Arc<str>,
     /// The recommended spawn points.
     pub(crate) spawn_points: Vec<SpawnPoint>,
+    /// The walkers' navigation file, for a scene's roads (none for an
+    /// OpenDRIVE a client sent: CARLA's client then has no navigation).
+    pub(crate) navigation: Option<Arc<NavigationFile>>,
+}
+
+/// A navigation file as CARLA's client fetches it (`get_required_files`
+/// `"Nav"`, `request_file`).
+#[derive(Debug)]
+pub(crate) struct NavigationFile {
+    /// Its name in CARLA's file cache (`~/carlaCache/0.9.16/<name>`,
+    /// never fetched again once there): the scene and a digest of the
+    /// bytes, so a client never reads another mesh under the same name.
+    pub(crate) name: String,
+    pub(crate) bytes: Vec<u8>,
+}
+
+/// The navigation file of `network` (computed once per network name).
+fn navigation_of(network: &roads::RoadNetwork) -> Option<Arc<NavigationFile>> {
+    type Cache = Mutex<Vec<(String, Option<Arc<NavigationFile>>)>>;
+    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
+    let cache = CACHE.get_or_init(Cache::default);
+    if let Some((_, file)) = lock(cache).iter().find(|(name, _)| *name == network.name) {
+        return file.clone();
+    }
+    let file = crate::navigation::navmesh(&crate::navigation::polygons(network)).map(|bytes| {
+        // FNV-1a, 64 bits: the same bytes, the same name.
+        let digest = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        });
+        let scene: String = network
+            .name
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        Arc::new(NavigationFile {
+            name: format!("Carla/Maps/Nav/simbus_{scene}_{digest:016x}.bin"),
+            bytes,
+        })
+    });
+    lock(cache).push((network.name.clone(), file.clone()));
+    file
 }
 
 impl MapAnswer {
@@ -185,6 +226,7 @@ impl Maps {
                 // Not computed from a foreign OpenDRIVE: CARLA's client
                 // finds its waypoints itself.
                 spawn_points: Vec::new(),
+                navigation: None,
             }),
             Some(EpisodeMap { name, .. }) => {
                 let network = network()?;
@@ -247,6 +289,7 @@ fn answer_of(name: String, network: &roads::RoadNetwork) -> MapAnswer {
         name,
         opendrive: Arc::from(network.to_opendrive()),
         spawn_points: network.spawn_points(),
+        navigation: navigation_of(network),
     }
 }
 

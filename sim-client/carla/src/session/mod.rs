@@ -75,9 +75,9 @@ fn call_of(method: &str) -> Option<Call> {
         "set_weather_parameters" => Session::on_set_weather_parameters,
         "load_new_episode" => Session::on_load_new_episode,
         "copy_opendrive_to_file" => Session::on_copy_opendrive_to_file,
-        "get_required_files" | "query_lights_state" | "get_vehicle_light_states" => {
-            Session::on_empty_list
-        }
+        "get_required_files" => Session::on_get_required_files,
+        "request_file" => Session::on_request_file,
+        "query_lights_state" | "get_vehicle_light_states" => Session::on_empty_list,
         "get_actors_by_id" => Session::on_get_actors_by_id,
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,

@@ -141,7 +141,38 @@ impl Session {
             .map_err(CallError::simbus)
     }
 
-    /// The calls simbus answers with an empty list (no files, no lights).
+    /// CARLA's `get_required_files(folder)`: for `"Nav"`, the walkers'
+    /// navigation file of the map (none for an OpenDRIVE a client sent);
+    /// no other folder has files.
+    pub(super) fn on_get_required_files(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let folder = arg_str(args, 0, "get_required_files")?;
+        let files = match folder.trim_matches('/') {
+            "Nav" => self
+                .map()?
+                .navigation
+                .map(|file| Value::from(file.name.as_str()))
+                .into_iter()
+                .collect(),
+            _ => Vec::new(),
+        };
+        Ok(Answer::Value(Value::Array(files)))
+    }
+
+    /// CARLA's `request_file(name)`: the map's navigation file by the name
+    /// `get_required_files` gave; empty for any other name (as CARLA's
+    /// server answers a file it does not have).
+    pub(super) fn on_request_file(&mut self, args: &[Value]) -> Result<Answer, CallError> {
+        let name = arg_str(args, 0, "request_file")?;
+        let bytes = self
+            .map()?
+            .navigation
+            .filter(|file| file.name == name)
+            .map(|file| file.bytes.clone())
+            .unwrap_or_default();
+        Ok(Answer::Value(Value::Binary(bytes)))
+    }
+
+    /// The calls simbus answers with an empty list (no lights).
     pub(super) fn on_empty_list(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         Ok(Answer::Value(Value::Array(Vec::new())))
     }

@@ -1,6 +1,7 @@
 //! `simbus-scenario WORLD STEPS SEED`: the crash loop's driver. It ticks a
-//! synchronous world through a seeded scenario — boxes spawned, impulses,
-//! a vehicle driven, a reload at step 1000, a depth camera and a lidar —
+//! synchronous world through a seeded scenario — boxes and walkers
+//! spawned, impulses, a vehicle driven, walkers walked, a reload at step
+//! 1000, a depth camera and a lidar —
 //! and prints one JSON line per frame it reads: step, episode, frame,
 //! digest and a hash of each sensor's capture of that frame.
 //!
@@ -141,6 +142,38 @@ fn commands(now: &WorldSnapshot, seed: u64, step: u64) -> Vec<Command> {
             let actor = dynamic[rng.random_range(0..dynamic.len())];
             let push = [rng.random_range(-3.0..3.0), rng.random_range(0.0..4.0), 0.0];
             commands.push(Command::apply_impulse(actor.id, push));
+        }
+    }
+    if step % 50 == 17 {
+        // On the ground (centre at its surface: the walker stands on it),
+        // or refused where something is.
+        let at = [
+            rng.random_range(-12.0..12.0),
+            0.0,
+            rng.random_range(-12.0..12.0),
+        ];
+        commands.push(Command::spawn_walker(at, 0.25, 0.9));
+    }
+    if step % 15 == 4 {
+        let walkers: Vec<_> = now
+            .actors
+            .iter()
+            .filter(|a| a.kind == ActorKind::Walker as u32)
+            .collect();
+        if !walkers.is_empty() {
+            let walker = walkers[rng.random_range(0..walkers.len())];
+            let direction = [
+                rng.random_range(-1.0..1.0),
+                0.0,
+                rng.random_range(-1.0..1.0),
+            ];
+            let speed = rng.random_range(0.0..2.5);
+            commands.push(Command::walker_control(
+                walker.id,
+                direction,
+                speed,
+                step % 45 == 4,
+            ));
         }
     }
     if step.is_multiple_of(20) {

@@ -161,6 +161,11 @@ pub(crate) struct Hub {
     pub(crate) weather: Mutex<carla::Weather>,
     /// The last world stream id handed out ([`Hub::next_world_stream`]).
     world_streams: AtomicU32,
+    /// How many connections have ended (and released any tick ownership
+    /// they held); a claim refused by another connection of this gateway
+    /// waits on it ([`Hub::wait_for_a_connection_to_end`]).
+    ended: Mutex<u64>,
+    ended_changed: Condvar,
 }
 
 impl Default for Hub {
@@ -177,6 +182,8 @@ impl Default for Hub {
             traffic_managers: Mutex::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
             world_streams: AtomicU32::new(0),
+            ended: Mutex::default(),
+            ended_changed: Condvar::default(),
         }
     }
 }
@@ -185,6 +192,29 @@ impl Default for Hub {
 type Sent = (u32, u64, u64);
 
 impl Hub {
+    /// A connection ended, its tick ownership released.
+    pub(crate) fn connection_ended(&self) {
+        *lock(&self.ended) += 1;
+        self.ended_changed.notify_all();
+    }
+
+    /// Waits until a connection ends, at most until `deadline`; whether
+    /// one did.
+    pub(crate) fn wait_for_a_connection_to_end(&self, deadline: std::time::Instant) -> bool {
+        let mut ended = lock(&self.ended);
+        let before = *ended;
+        while *ended == before {
+            let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) else {
+                return false;
+            };
+            ended = match self.ended_changed.wait_timeout(ended, left) {
+                Ok((guard, _)) => guard,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        true
+    }
+
     /// A world stream id no episode of this gateway's clients had just
     /// before: CARLA's client keys its stream subscriptions by id without
     /// a lock, and when a world load drops its episode while an io thread

@@ -189,6 +189,10 @@ impl Session {
             }
         }
         self.forget_traffic_managers();
+        // Released before the others are told: a connection that a dead
+        // client's ticker refused waits for this.
+        self.ticker = None;
+        self.hub.connection_ended();
         info!(%peer, "CARLA client gone");
     }
 

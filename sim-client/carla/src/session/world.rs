@@ -1,7 +1,7 @@
 //! The world's calls: version and episode, map, settings and ticks, and
 //! the stream tokens.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use rmpv::Value;
 use shared_types::WaitMode;
@@ -18,6 +18,10 @@ use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};
 use crate::rpc::Answer;
 use crate::sensors;
 use crate::wire::{self, token, CARLA_VERSION};
+
+/// How long a claim waits for another connection of this gateway whose
+/// client died to release the tick (its end read and its ticker dropped).
+const SIBLING_RELEASE: Duration = Duration::from_secs(2);
 
 /// The longest [`Session::publish`] waits for the frame its tick stepped
 /// (already in shared memory when the tick returns, so in practice no
@@ -250,10 +254,21 @@ impl Session {
     /// ticks on.
     fn claim(&mut self) -> Result<(), CallError> {
         let name = self.ticker_name();
-        let mut ticker = self
-            .client()?
-            .claim_ticker_as(&name)
-            .map_err(CallError::simbus)?;
+        // A client killed while it ticked leaves its connection's ticker
+        // until the gateway reads the connection's end: a claim it refuses
+        // waits that long (at most SIBLING_RELEASE) before it is refused.
+        let deadline = Instant::now() + SIBLING_RELEASE;
+        let mut ticker = loop {
+            match self.client()?.claim_ticker_as(&name) {
+                Ok(ticker) => break ticker,
+                Err(TickError::NotTicker {
+                    owner: Some(owner), ..
+                }) if owner.pid == std::process::id()
+                    && owner.node_name.to_string_lossy().starts_with("carla:")
+                    && self.hub.wait_for_a_connection_to_end(deadline) => {}
+                Err(e) => return Err(CallError::simbus(e)),
+            }
+        };
         ticker.set_wait_mode(WaitMode::Hybrid);
         ticker.set_follow_restarts(Some(RESTART_PATIENCE.min(self.timeout)));
         self.ticker = Some(ticker);

@@ -253,7 +253,8 @@ pub(crate) mod tests {
         world
     }
 
-    fn step(world: &mut World, frames: usize) {
+    /// Steps `world` `frames` frames of 0.05 s (substeps of 0.01 s).
+    pub(crate) fn step(world: &mut World, frames: usize) {
         let settings = WorldSettings {
             fixed_delta_seconds: Some(0.05),
             ..Default::default()
@@ -264,7 +265,8 @@ pub(crate) mod tests {
         }
     }
 
-    fn state(world: &World, id: u64) -> ActorState {
+    /// Actor `id`'s state, as published.
+    pub(crate) fn state(world: &World, id: u64) -> ActorState {
         world.actor_state(world.index_of(id).expect("actor exists"))
     }
 

@@ -1,26 +1,10 @@
 //! Walkers stand, walk, jump, stop at walls and are refused bad values.
 
 use rapier3d::prelude::{Rotation, Vector};
-use shared_types::{ActorKind, ActorState, Command, CommandStatus, WorldSettings};
+use shared_types::{ActorKind, Command, CommandStatus};
 
-use crate::clock::SubstepPlan;
-use crate::commands::tests::world_on_ground;
+use crate::commands::tests::{state, step, world_on_ground};
 use crate::world::World;
-
-fn step(world: &mut World, frames: usize) {
-    let settings = WorldSettings {
-        fixed_delta_seconds: Some(0.05),
-        ..Default::default()
-    };
-    let plan = SubstepPlan::new(settings.fixed_delta_nanos().unwrap(), &settings);
-    for _ in 0..frames {
-        world.step(&plan);
-    }
-}
-
-fn state(world: &World, id: u64) -> ActorState {
-    world.actor_state(world.index_of(id).expect("actor exists"))
-}
 
 fn spawned(world: &mut World, command: Command) -> u64 {
     let r = world.apply(&command);

@@ -150,7 +150,11 @@ impl Walkers {
                 _ if walker.vertical_speed > 0.0 => {
                     at.y += walker.vertical_speed * dt;
                 }
-                Some(ground) if feet + walker.vertical_speed.min(0.0) * dt <= ground + GAP => {
+                // (A tenth of a millimetre's slack: standing is not
+                // taken for falling by a float's rounding.)
+                Some(ground)
+                    if feet + walker.vertical_speed.min(0.0) * dt <= ground + GAP + 1e-4 =>
+                {
                     at.y = ground + walker.half_height + GAP;
                     walker.vertical_speed = 0.0;
                     walker.grounded = true;

@@ -15,11 +15,13 @@
 mod blueprints;
 mod commands;
 mod convert;
+mod episode_settings;
 mod error;
 mod locks;
 mod maps;
 mod navigation;
 pub mod recorder_text;
+mod records;
 mod rpc;
 mod sensors;
 mod session;

@@ -32,7 +32,7 @@ use simbus_recording::{
 };
 
 use crate::convert;
-use crate::session::type_id;
+use crate::records::type_id;
 
 /// CARLA's actor type number in a `Create` line: 1 vehicle, 2 walker, 0
 /// other (CARLA's 3 traffic light does not occur in simbus).

@@ -15,7 +15,7 @@ use tracing::{debug, info};
 use crate::convert;
 use crate::error::{CallError, Source};
 use crate::locks::lock;
-use crate::session::record_of;
+use crate::records::record_of;
 use crate::stream::Hub;
 use crate::wire as carla;
 

@@ -176,7 +176,7 @@ impl Default for Hub {
             registry: Mutex::default(),
             sent: Mutex::default(),
             sent_changed: Condvar::default(),
-            other_settings: Mutex::new(crate::session::settings::default_other_fields()),
+            other_settings: Mutex::new(crate::episode_settings::default_other_fields()),
             spectator: Mutex::default(),
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),

@@ -10,7 +10,6 @@
 mod actors;
 mod physics;
 mod recorder;
-pub(crate) mod settings;
 mod spawned;
 pub(crate) mod traffic;
 pub(crate) mod weather;
@@ -29,9 +28,6 @@ use crate::commands;
 use crate::error::CallError;
 use crate::rpc::{self, Answer, ReadError, Request};
 use crate::stream::Hub;
-
-/// The type id of an actor of a kind (the recorder texts name actors by it).
-pub(crate) use actors::{record_of, type_id};
 
 /// The calls answered with `Response<void>` by CARLA (their errors have
 /// another shape).

@@ -8,10 +8,10 @@ use shared_types::WaitMode;
 use sim_client::{Reconnected, TickError, Ticker};
 use tracing::{info, warn};
 
-use super::settings::{
+use super::{arg_flag, arg_str, arg_u64, Session, RESTART_PATIENCE};
+use crate::episode_settings::{
     carla_substep_warning, default_other_fields, episode_settings, other_fields, parse_settings,
 };
-use super::{arg_flag, arg_str, arg_u64, Session, RESTART_PATIENCE};
 use crate::error::CallError;
 use crate::locks::lock;
 use crate::maps::{EpisodeMap, MapAnswer, MapRequest, AVAILABLE_MAPS, TOWN};

@@ -41,6 +41,7 @@ mod stats;
 mod substeps;
 mod support;
 mod tick;
+mod walkers;
 mod zenoh;
 mod zenoh_breakdown;
 mod zenoh_hosts;
@@ -89,6 +90,9 @@ enum Command {
     /// frame or an 8 MiB capture, spinning and blocking.
     Fanout(fanout::FanoutArgs),
     Substeps(substeps::SubstepsArgs),
+    /// The server's physics step with 100 and 1 000 walkers (pedestrians)
+    /// against the empty ground, per frame and per walker.
+    Walkers(walkers::WalkersArgs),
     /// The Zenoh bridge: tick round trip and frame latency locally, through
     /// a mirror on loopback and across a veth pair (root), against TCP;
     /// 1 and 8 MiB captures across the link; ticks per second with 1000
@@ -118,6 +122,7 @@ fn main() -> ExitCode {
         Command::Python(a) => python::run(a),
         Command::Fanout(a) => fanout::run(a),
         Command::Substeps(a) => substeps::run(a),
+        Command::Walkers(a) => walkers::run(a),
         Command::Zenoh(a) => zenoh::run(a),
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),

@@ -1,8 +1,9 @@
 //! Walkers (pedestrians): kinematic capsules that stand on the ground,
-//! step up kerbs, slide along walls and stop at other bodies (rapier's
-//! `KinematicCharacterController` across, rays to the ground); what each
-//! holds is its `WalkerControl` (direction, speed, a jump). Gravity pulls
-//! a walker that is off the ground; a body that is disabled does not walk.
+//! step up kerbs, slide along walls and stop at other bodies, walkers
+//! excepted (rapier's `KinematicCharacterController` across, rays to the
+//! ground); what each holds is its `WalkerControl` (direction, speed, a
+//! jump). Gravity pulls a walker that is off the ground; a body that is
+//! disabled does not walk.
 
 use rapier3d::control::{CharacterLength, KinematicCharacterController};
 use rapier3d::prelude::*;
@@ -115,9 +116,9 @@ impl Walkers {
             let pose = *body.position();
             let pull = gravity * body.gravity_scale();
             let queries = physics.query_pipeline_with_filter(
-                QueryFilter::default()
-                    .exclude_rigid_body(walker.body)
-                    .exclude_sensors(),
+                // Walkers pass through each other, as CARLA's AI walkers
+                // do (their collisions off; the crowd keeps them apart).
+                QueryFilter::exclude_kinematic().exclude_sensors(),
             );
             let raised = Pose::from_parts(pose.translation + Vector::Y * STEP, pose.rotation);
             let across = walker.direction * (walker.speed * dt);

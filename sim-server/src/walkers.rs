@@ -147,7 +147,7 @@ impl Walkers {
             };
             let ground = ground_under(&queries, at, feet, walker.radius, drop);
             match ground {
-                // Rising, or above the ground by more than this step falls.
+                // Rising: a jump.
                 _ if walker.vertical_speed > 0.0 => {
                     at.y += walker.vertical_speed * dt;
                 }
@@ -160,6 +160,7 @@ impl Walkers {
                     walker.vertical_speed = 0.0;
                     walker.grounded = true;
                 }
+                // No ground within this step's fall: falling.
                 _ => {
                     if !airborne {
                         // Walked off an edge: it falls from here on.

@@ -95,15 +95,20 @@ mod tests {
     use crate::scene::Scene;
     use shared_types::{Command, FrameHeader, WorldSettings};
 
-    /// A world restored from a keyframe steps bit for bit as the original:
-    /// the property re-simulation from a keyframe rests on.
-    #[test]
-    fn a_restored_world_steps_exactly_as_the_original() {
+    /// Frames of 0.05 s (five physics steps).
+    fn plan() -> SubstepPlan {
         let settings = WorldSettings {
             fixed_delta_seconds: Some(0.05),
             ..Default::default()
         };
-        let plan = SubstepPlan::new(50_000_000, &settings);
+        SubstepPlan::new(50_000_000, &settings)
+    }
+
+    /// A world restored from a keyframe steps bit for bit as the original:
+    /// the property re-simulation from a keyframe rests on.
+    #[test]
+    fn a_restored_world_steps_exactly_as_the_original() {
+        let plan = plan();
         let mut world = World::new(&Scene::Default.placements(7), 1);
         let vehicle = world.apply(&Command::spawn_vehicle([0.0, 1.0, -6.0])).actor;
         let walker = world
@@ -128,11 +133,7 @@ mod tests {
     /// what a restore rests on.
     #[test]
     fn a_duplicated_world_steps_exactly_as_the_original() {
-        let settings = WorldSettings {
-            fixed_delta_seconds: Some(0.05),
-            ..Default::default()
-        };
-        let plan = SubstepPlan::new(50_000_000, &settings);
+        let plan = plan();
         let mut world = World::new(&Scene::Default.placements(3), 1);
         let vehicle = world.apply(&Command::spawn_vehicle([0.0, 1.0, -6.0])).actor;
         let walker = world
@@ -188,11 +189,7 @@ mod tests {
     /// field) reads as the same world with no walkers.
     #[test]
     fn a_keyframe_of_layout_2_reads_with_no_walkers() {
-        let settings = WorldSettings {
-            fixed_delta_seconds: Some(0.05),
-            ..Default::default()
-        };
-        let plan = SubstepPlan::new(50_000_000, &settings);
+        let plan = plan();
         let mut world = World::new(&Scene::Default.placements(5), 1);
         for _ in 0..10 {
             world.step(&plan);

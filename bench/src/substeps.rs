@@ -83,6 +83,7 @@ pub(crate) fn simulate(steps: Steps, seconds: f64) -> anyhow::Result<Vec<Sample>
         rotation: Vector::ZERO,
         linear_velocity: Vector::ZERO,
         density: 1.0,
+        signal: None,
     };
     let mut world = World::new(&[ground], 1);
     let vehicle = world

@@ -63,10 +63,38 @@ wire_enum! {
         /// `flags` bit 0 = jump (once, from the ground). Holds until
         /// changed. CARLA's `WalkerControl`.
         WalkerControl = 17,
+        /// Show `params[0]` (a [`LightState`](crate::LightState) code) on
+        /// traffic light `actor` until its group's cycle moves on (at
+        /// once if frozen: until unfrozen). CARLA's `set_state`.
+        TrafficLightState = 18,
+        /// Set how long traffic light `actor` stays green (`params[0]`),
+        /// yellow (`params[1]`) and red (`params[2]`), seconds, each
+        /// 0..=[`MAX_LIGHT_SECONDS`](crate::limits::MAX_LIGHT_SECONDS);
+        /// `flags` bits 0, 1, 2 say which of the three are set.
+        TrafficLightTimes = 19,
+        /// Freeze (`flags` bit 0 set) or unfreeze traffic lights where
+        /// they are: `actor`'s junction group, or with `actor` 0 every
+        /// group.
+        FreezeTrafficLights = 20,
+        /// Start `actor`'s junction group's cycle again (its first light
+        /// green, the others red, times from zero), or with `actor` 0
+        /// every group's.
+        ResetTrafficLights = 21,
     }
 }
 
 impl CommandKind {
+    /// Whether the command sets traffic lights.
+    pub fn sets_lights(&self) -> bool {
+        matches!(
+            self,
+            Self::TrafficLightState
+                | Self::TrafficLightTimes
+                | Self::FreezeTrafficLights
+                | Self::ResetTrafficLights
+        )
+    }
+
     /// Whether the command creates an actor.
     pub fn spawns(&self) -> bool {
         matches!(
@@ -189,6 +217,40 @@ impl Command {
         }
     }
 
+    /// Show `state` on traffic light `actor`.
+    pub fn traffic_light_state(actor: u64, state: crate::LightState) -> Self {
+        Self {
+            params: [state as u32 as f32, 0.0, 0.0, 0.0],
+            ..Self::new(CommandKind::TrafficLightState, actor)
+        }
+    }
+
+    /// Set traffic light `actor`'s green, yellow and red times, seconds;
+    /// `None` leaves one as it is.
+    pub fn traffic_light_times(actor: u64, times: [Option<f32>; 3]) -> Self {
+        let mut command = Self::new(CommandKind::TrafficLightTimes, actor);
+        for (i, time) in times.into_iter().enumerate() {
+            if let Some(seconds) = time {
+                command.flags |= 1 << i;
+                command.params[i] = seconds;
+            }
+        }
+        command
+    }
+
+    /// Freeze or unfreeze the lights of `actor`'s group (`actor` 0: all).
+    pub fn freeze_traffic_lights(actor: u64, frozen: bool) -> Self {
+        Self {
+            flags: if frozen { Self::ON } else { 0 },
+            ..Self::new(CommandKind::FreezeTrafficLights, actor)
+        }
+    }
+
+    /// Restart the cycle of `actor`'s group (`actor` 0: every group).
+    pub fn reset_traffic_lights(actor: u64) -> Self {
+        Self::new(CommandKind::ResetTrafficLights, actor)
+    }
+
     /// Remove `actor`.
     pub fn destroy(actor: u64) -> Self {
         Self::new(CommandKind::Destroy, actor)
@@ -300,6 +362,8 @@ wire_enum! {
         SpawnCollision = 6,
         /// The command needs a walker and the actor is not one.
         NotAWalker = 7,
+        /// The command needs a traffic light and the actor is not one.
+        NotATrafficLight = 8,
     }
 }
 
@@ -313,10 +377,12 @@ impl std::fmt::Display for CommandStatus {
                  within +-100000 m of the origin, throttle and brake in 0..=1, steer in -1..=1; \
                  a vehicle's params all zero or half extents in 0.05..=20 m and mass in \
                  1..=100000 kg; a walker's radius in 0.05..=2 m, its half height above \
-                 the radius and up to 5 m, its speed in 0..=20 m/s"
+                 the radius and up to 5 m, its speed in 0..=20 m/s; a traffic light's state a \
+                 known code and its times in 0..=1000000 s"
             }
             Self::NotAVehicle => "the actor is not a vehicle",
             Self::NotAWalker => "the actor is not a walker",
+            Self::NotATrafficLight => "the actor is not a traffic light",
             Self::UnknownCommand => "unknown command",
             Self::StaticActor => "the actor is static",
             Self::SpawnCollision => "spawn failed because of a collision at the spawn position",
@@ -401,8 +467,8 @@ mod tests {
     #[test]
     fn kinds_and_statuses_are_numbered_without_gaps() {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(kinds, (1..=17).collect::<Vec<_>>());
+        assert_eq!(kinds, (1..=21).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(statuses, (0..=7).collect::<Vec<_>>());
+        assert_eq!(statuses, (0..=8).collect::<Vec<_>>());
     }
 }

@@ -178,6 +178,16 @@ wire_enum! {
         /// says and pushes nothing; `extent` is (radius, half height,
         /// radius), the half height counting the round ends.
         Walker = 6,
+        /// A traffic light's head: a fixed box (`extent` its half
+        /// extents) over the kerb of the approach it controls, cycling
+        /// with its junction's group in simulation time; its state and
+        /// how long it has held it are in the state's `flags` and
+        /// `detail` ([`ActorState::light`]).
+        TrafficLight = 7,
+        /// A traffic sign's plate: a fixed box facing the traffic it
+        /// speaks to; what it says is in the state's `flags` and `detail`
+        /// ([`ActorState::sign`]).
+        TrafficSign = 8,
     }
 }
 
@@ -196,6 +206,8 @@ impl ActorKind {
             Self::Capsule => "capsule",
             Self::Vehicle => "vehicle",
             Self::Walker => "walker",
+            Self::TrafficLight => "traffic_light",
+            Self::TrafficSign => "traffic_sign",
         }
     }
 }
@@ -223,8 +235,10 @@ pub struct ActorState {
     pub acceleration: [f32; 3],
     /// Shape size: half extents for boxes, radius for spheres (see [`ActorKind`]).
     pub extent: [f32; 3],
-    /// Zero.
-    pub reserved: u32,
+    /// What the kind says beyond its body: a traffic light's milliseconds
+    /// in its state, a speed-limit sign's km/h ([`ActorState::light`],
+    /// [`ActorState::sign`]); zero for every other kind.
+    pub detail: u32,
 }
 
 impl ActorState {
@@ -232,6 +246,13 @@ impl ActorState {
     pub const SLEEPING: u32 = 1;
     /// Flag: the actor's physics is disabled (it does not move or collide).
     pub const PHYSICS_DISABLED: u32 = 2;
+    /// Flag: a traffic light whose time is frozen (CARLA's
+    /// `TrafficLight.freeze`): it keeps its state until unfrozen.
+    pub const LIGHT_FROZEN: u32 = 4;
+    /// Where the kind's code sits in `flags`: bits 8 to 15 (a traffic
+    /// light's [`LightState`](crate::LightState), a sign's
+    /// [`SignKind`](crate::SignKind)).
+    pub const CODE_SHIFT: u32 = 8;
 
     /// The actor's kind, if this version knows it.
     pub fn actor_kind(&self) -> Option<ActorKind> {
@@ -363,7 +384,7 @@ mod tests {
             angular_velocity: [2.0 * f; 3],
             acceleration: [3.0 * f; 3],
             extent: [0.5; 3],
-            reserved: 0,
+            detail: 0,
         }
     }
 

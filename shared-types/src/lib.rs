@@ -62,6 +62,8 @@ mod sensor_params;
 mod sensor_spec;
 mod settings;
 mod settings_wire;
+mod signals;
+pub use signals::{LightReading, LightState, SignKind, SignReading};
 pub use settings_wire::{WireSettings, WireSettingsError};
 mod substep_rule;
 pub use substep_rule::{SubstepRule, UnknownSubstepRule};

@@ -15,6 +15,11 @@ pub const MAX_WALKER_RADIUS: f32 = 2.0;
 /// The tallest walker's half height, metres.
 pub const MAX_WALKER_HALF_HEIGHT: f32 = 5.0;
 
+/// The longest a traffic light may be told to stay green, yellow or
+/// red, seconds (CARLA sets no bound; scripts that hold a light use a
+/// few thousand).
+pub const MAX_LIGHT_SECONDS: f32 = 1_000_000.0;
+
 /// The most clients a world admits by default (`--max-clients`).
 pub const DEFAULT_MAX_CLIENTS: usize = 64;
 /// The most readers one sensor admits by default (`--max-sensor-readers`).

@@ -23,14 +23,25 @@
 
 mod opendrive;
 mod scenes;
+mod signals;
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
 pub use opendrive::{check_opendrive, OpenDriveError, GEO_REFERENCE, MAX_OPENDRIVE_BYTES};
 pub use scenes::{network, FLAT_GROUND_HALF_SIZE, TOWN_GROUND_HALF_SIZE};
+pub use signals::{
+    Signal, SignalKind, KERB_OFFSET, LIGHT_HALF_EXTENTS, LIGHT_HEIGHT, SIGN_HALF_EXTENTS,
+    SIGN_HEIGHT, TRIGGER_LENGTH,
+};
 
 /// The width of every lane, metres.
 pub const LANE_WIDTH: f64 = 3.5;
+/// The width of the sidewalk beside every road's outer lanes, metres
+/// (walkers' ground; no OpenDRIVE lane).
+pub const SIDEWALK_WIDTH: f64 = 2.0;
+/// How much of a road's end at a junction is a crosswalk, metres: the
+/// stop lines are before it.
+pub const CROSSWALK_WIDTH: f64 = 3.0;
 /// The speed limit of every road, km/h (CARLA's default).
 pub const SPEED_LIMIT_KMH: f64 = 30.0;
 /// How far apart spawn points are along a lane, metres.
@@ -244,6 +255,8 @@ pub struct RoadNetwork {
     pub roads: Vec<Road>,
     /// Every junction.
     pub junctions: Vec<Junction>,
+    /// Its traffic lights and signs, in id order.
+    pub signals: Vec<Signal>,
 }
 
 /// One arm of a junction: a road's end, seen from the junction.
@@ -275,6 +288,7 @@ impl RoadNetwork {
             name: name.to_owned(),
             roads: Vec::new(),
             junctions: Vec::new(),
+            signals: Vec::new(),
         }
     }
 

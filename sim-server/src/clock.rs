@@ -31,6 +31,9 @@ pub struct SubstepPlan {
     /// and the substep rule `clamp` (CARLA's) ran only that much physics:
     /// `count * substep_seconds` is less than the frame's delta.
     pub clamped: bool,
+    /// The frame's whole delta, nanoseconds: what the traffic lights
+    /// count (physics may advance less, `clamped`).
+    pub frame_ns: u64,
 }
 
 impl SubstepPlan {
@@ -65,6 +68,7 @@ impl SubstepPlan {
                 as f32,
             capped,
             clamped: physics_ns < delta_ns,
+            frame_ns: delta_ns,
         }
     }
 }

@@ -1,15 +1,17 @@
 //! What each wire command does to the world: spawn, destroy, set a pose or
 //! a velocity, push, switch physics or gravity, drive a vehicle, walk a
-//! walker. A command that is invalid (NaN, out of range, unknown actor,
-//! static actor, not a vehicle or walker) changes nothing and says why in
-//! its result.
+//! walker, set a traffic light. A command that is invalid (NaN, out of
+//! range, unknown actor, static actor, not a vehicle, walker or light)
+//! changes nothing and says why in its result.
 
 use rapier3d::prelude::*;
 use shared_types::limits::{
-    MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION, MAX_WALKER_HALF_HEIGHT, MAX_WALKER_RADIUS,
-    MAX_WALKER_SPEED, MIN_WALKER_RADIUS,
+    MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION, MAX_LIGHT_SECONDS, MAX_WALKER_HALF_HEIGHT,
+    MAX_WALKER_RADIUS, MAX_WALKER_SPEED, MIN_WALKER_RADIUS,
 };
-use shared_types::{ActorKind, Command, CommandKind, CommandResult, CommandStatus, VehicleSpec};
+use shared_types::{
+    ActorKind, Command, CommandKind, CommandResult, CommandStatus, LightState, VehicleSpec,
+};
 use tracing::debug;
 
 use crate::scene::Placement;
@@ -66,12 +68,18 @@ impl World {
         if kind == CommandKind::SetSun {
             return self.set_sun(command);
         }
+        if kind.sets_lights() {
+            return self.set_lights(kind, command);
+        }
         let Some(index) = self.index_of(command.actor) else {
             return result(command.actor, CommandStatus::UnknownActor);
         };
         let actor = &self.actors[index];
         let (id, handle) = (actor.id, actor.body);
-        if actor.kind == ActorKind::Static && kind != CommandKind::Destroy {
+        let signal = matches!(actor.kind, ActorKind::TrafficLight | ActorKind::TrafficSign);
+        // Lights and signs are the roads' (as in CARLA's towns): they
+        // stay, and stay put.
+        if signal || (actor.kind == ActorKind::Static && kind != CommandKind::Destroy) {
             return result(id, CommandStatus::StaticActor);
         }
         let v = Vector::from_array(command.vector);
@@ -154,8 +162,56 @@ impl World {
             | CommandKind::SpawnVehicle
             | CommandKind::SpawnWalker => return self.spawn(kind, command),
             CommandKind::SetSun => return self.set_sun(command),
+            CommandKind::TrafficLightState
+            | CommandKind::TrafficLightTimes
+            | CommandKind::FreezeTrafficLights
+            | CommandKind::ResetTrafficLights => return self.set_lights(kind, command),
         }
         result(id, CommandStatus::Ok)
+    }
+
+    /// A traffic-light command: on one light, or (freeze, reset) with
+    /// actor 0 on all of them.
+    fn set_lights(&mut self, kind: CommandKind, command: &Command) -> CommandResult {
+        let actor = command.actor;
+        let lights = &mut self.lights;
+        let done = match kind {
+            CommandKind::TrafficLightState => {
+                let code = command.params[0];
+                let state = (code.fract() == 0.0 && code >= 0.0)
+                    .then(|| LightState::from_u32(code as u32))
+                    .flatten();
+                let Some(state) = state else {
+                    return result(actor, CommandStatus::InvalidArgument);
+                };
+                lights.set_state(actor, state)
+            }
+            CommandKind::TrafficLightTimes => {
+                let mut times = [None; 3];
+                for (i, time) in times.iter_mut().enumerate() {
+                    if command.flags & (1 << i) != 0 {
+                        let seconds = command.params[i];
+                        if !(0.0..=MAX_LIGHT_SECONDS).contains(&seconds) {
+                            return result(actor, CommandStatus::InvalidArgument);
+                        }
+                        *time = Some(seconds);
+                    }
+                }
+                lights.set_times(actor, times)
+            }
+            CommandKind::FreezeTrafficLights => {
+                lights.freeze(actor, command.flags & Command::ON != 0)
+            }
+            _ => lights.reset(actor),
+        };
+        let status = if done {
+            CommandStatus::Ok
+        } else if self.index_of(actor).is_some() {
+            CommandStatus::NotATrafficLight
+        } else {
+            CommandStatus::UnknownActor
+        };
+        result(actor, status)
     }
 
     fn spawn(&mut self, kind: CommandKind, command: &Command) -> CommandResult {
@@ -206,6 +262,7 @@ impl World {
             rotation: rotation.to_scaled_axis(),
             linear_velocity: Vector::ZERO,
             density: vehicle.as_ref().map_or(1.0, VehicleSpec::density),
+            signal: None,
         };
         if actor_kind == ActorKind::Walker {
             // A walker asked for with its feet in (or on) the ground stands
@@ -249,6 +306,7 @@ pub(crate) mod tests {
             rotation: Vector::ZERO,
             linear_velocity: Vector::ZERO,
             density: 1.0,
+            signal: None,
         });
         world
     }

@@ -4,16 +4,17 @@
 //! starts from the nearest one instead of from the recording's first frame.
 //!
 //! Layout 1 was msgpack (recordings of simbus before it); a keyframe of it
-//! is refused by its version, with what it is. Layout 2 had no walkers: the
-//! world's last field, so a layout-2 keyframe reads as layout 3 with an
-//! empty list of walkers (one zero byte) after it.
+//! is refused by its version, with what it is. Layout 2 had no walkers and
+//! layout 3 no traffic lights: the world's last fields, so a layout-2
+//! keyframe reads as layout 4 with an empty list of walkers (one zero
+//! byte) and empty lights (three) after it, a layout-3 one with the lights.
 
 use serde::{Deserialize, Serialize};
 
 use crate::world::World;
 
 /// Layout version of [`Keyframe`], checked on restore.
-const KEYFRAME_VERSION: u32 = 3;
+const KEYFRAME_VERSION: u32 = 4;
 
 /// How a layout-1 keyframe begins: msgpack's array of its 7 fields, the
 /// first its version, 1.
@@ -63,7 +64,7 @@ impl<'a> Keyframe<&'a World> {
 pub(crate) enum KeyframeError {
     #[error("the keyframe is not readable")]
     Decode(#[from] postcard::Error),
-    #[error("the keyframe has layout version {0}; this server reads 2 and {KEYFRAME_VERSION}")]
+    #[error("the keyframe has layout version {0}; this server reads 2 to {KEYFRAME_VERSION}")]
     Version(u32),
 }
 
@@ -76,11 +77,16 @@ impl Keyframe<World> {
         let (version, rest) = postcard::take_from_bytes::<u32>(bytes)?;
         match version {
             KEYFRAME_VERSION => Ok(postcard::from_bytes(bytes)?),
-            2 => {
-                // Layout 3 is layout 2 and the walkers, last: none.
+            2 | 3 => {
+                // Layout 3 is layout 2 and the walkers, last: none; layout
+                // 4 is layout 3 and the lights (lights, groups, signs):
+                // none.
                 let mut current = postcard::to_allocvec(&KEYFRAME_VERSION)?;
                 current.extend_from_slice(rest);
-                current.push(0);
+                if version == 2 {
+                    current.push(0);
+                }
+                current.extend_from_slice(&[0, 0, 0]);
                 Ok(postcard::from_bytes(&current)?)
             }
             _ => Err(KeyframeError::Version(version)),
@@ -181,30 +187,36 @@ mod tests {
         assert!(matches!(error, KeyframeError::Version(1)), "{error:?}");
         assert_eq!(
             error.to_string(),
-            "the keyframe has layout version 1; this server reads 2 and 3"
+            "the keyframe has layout version 1; this server reads 2 to 4"
         );
     }
 
-    /// A keyframe of layout 2 (before walkers: layout 3 without its last
-    /// field) reads as the same world with no walkers.
+    /// Keyframes of layout 2 (before walkers and lights: layout 4 without
+    /// its last two fields) and 3 (before lights) read as the same world
+    /// with no walkers and no lights.
     #[test]
-    fn a_keyframe_of_layout_2_reads_with_no_walkers() {
+    fn keyframes_of_layouts_2_and_3_read_with_no_walkers_or_lights() {
         let plan = plan();
         let mut world = World::new(&Scene::Default.placements(5), 1);
         for _ in 0..10 {
             world.step(&plan);
         }
         let bytes = Keyframe::of(&world, &FrameHeader::default(), "default".into()).encode();
-        // Layout 2: version 2, the same fields, no walkers after them.
-        assert_eq!((bytes[0], bytes.last()), (3, Some(&0)));
-        let mut old = bytes[..bytes.len() - 1].to_vec();
-        old[0] = 2;
-        let mut restored = Keyframe::decode(&old).expect("layout 2 decodes").world;
-        assert_eq!(restored.states(), world.states());
-        world.step(&plan);
-        restored.step(&plan);
-        assert_eq!(restored.states(), world.states());
-        let error = Keyframe::decode(&[4, 0, 0]).unwrap_err();
-        assert!(matches!(error, KeyframeError::Version(4)), "{error:?}");
+        // The same fields; layout 3 without the lights (three empty
+        // lists), layout 2 without the walkers (one) too.
+        assert_eq!(bytes[0], 4);
+        assert_eq!(bytes[bytes.len() - 4..], [0; 4]);
+        for (version, cut) in [(2, 4), (3, 3)] {
+            let mut old = bytes[..bytes.len() - cut].to_vec();
+            old[0] = version;
+            let mut restored = Keyframe::decode(&old).expect("an older layout decodes").world;
+            assert_eq!(restored.states(), world.states());
+            let mut world = world.duplicate();
+            world.step(&plan);
+            restored.step(&plan);
+            assert_eq!(restored.states(), world.states());
+        }
+        let error = Keyframe::decode(&[5, 0, 0]).unwrap_err();
+        assert!(matches!(error, KeyframeError::Version(5)), "{error:?}");
     }
 }

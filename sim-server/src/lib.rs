@@ -78,6 +78,7 @@ pub(crate) mod server;
 pub(crate) mod snapshots;
 pub(crate) mod state;
 pub(crate) mod ticker;
+pub(crate) mod traffic_lights;
 pub mod timing;
 pub(crate) mod vehicles;
 pub(crate) mod walkers;

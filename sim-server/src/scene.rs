@@ -101,6 +101,22 @@ pub struct Placement {
     pub linear_velocity: Vector,
     /// Density, kg/m³ (ignored for static bodies).
     pub density: f32,
+    /// A traffic light's junction and pole, or what a sign says.
+    pub signal: Option<PlacedSignal>,
+}
+
+/// What a traffic light or sign placement is beyond its body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlacedSignal {
+    /// A light: its junction's group and its place in it.
+    Light {
+        /// The junction's id.
+        junction: u32,
+        /// Its pole index.
+        pole: u32,
+    },
+    /// A sign and what it says.
+    Sign(shared_types::SignReading),
 }
 
 impl Placement {
@@ -112,6 +128,7 @@ impl Placement {
             rotation: Vector::ZERO,
             linear_velocity: Vector::ZERO,
             density: 1.0,
+            signal: None,
         }
     }
 
@@ -134,7 +151,11 @@ impl Placement {
         // Never below half the size, however thin the body.
         let shrunk = |v: f32| (v - skin).max(v * 0.5);
         let shape = match self.kind {
-            ActorKind::Static | ActorKind::Box | ActorKind::Vehicle => {
+            ActorKind::Static
+            | ActorKind::Box
+            | ActorKind::Vehicle
+            | ActorKind::TrafficLight
+            | ActorKind::TrafficSign => {
                 SharedShape::cuboid(shrunk(e.x), shrunk(e.y), shrunk(e.z))
             }
             ActorKind::Sphere => SharedShape::ball(shrunk(e.x)),
@@ -151,7 +172,9 @@ impl Placement {
     /// The rapier body and collider of this placement.
     pub fn build(&self) -> (RigidBody, Collider) {
         let body = match self.kind {
-            ActorKind::Static => RigidBodyBuilder::fixed(),
+            ActorKind::Static | ActorKind::TrafficLight | ActorKind::TrafficSign => {
+                RigidBodyBuilder::fixed()
+            }
             ActorKind::Walker => RigidBodyBuilder::kinematic_position_based(),
             _ => RigidBodyBuilder::dynamic(),
         }
@@ -161,9 +184,11 @@ impl Placement {
         .build();
         let e = self.extent;
         let collider = match self.kind {
-            ActorKind::Static | ActorKind::Box | ActorKind::Vehicle => {
-                ColliderBuilder::cuboid(e.x, e.y, e.z)
-            }
+            ActorKind::Static
+            | ActorKind::Box
+            | ActorKind::Vehicle
+            | ActorKind::TrafficLight
+            | ActorKind::TrafficSign => ColliderBuilder::cuboid(e.x, e.y, e.z),
             ActorKind::Sphere => ColliderBuilder::ball(e.x),
             ActorKind::Capsule => ColliderBuilder::capsule_y(e.y, e.x),
             ActorKind::Walker => {
@@ -269,8 +294,9 @@ fn default_scene() -> Vec<Placement> {
     scene
 }
 
-/// `town`: its ground, and a building in the middle of each block
-/// between the roads (the grid lines run at ±40 m and ±120 m).
+/// `town`: its ground, a building in the middle of each block between
+/// the roads (the grid lines run at ±40 m and ±120 m), and its road
+/// network's traffic lights and signs.
 fn town_scene() -> Vec<Placement> {
     let mut scene = vec![ground(TOWN_GROUND_HALF_SIZE)];
     let blocks = [-80.0, 0.0, 80.0];
@@ -283,7 +309,56 @@ fn town_scene() -> Vec<Placement> {
             )
         }));
     }
+    scene.extend(signal_placements(&shared_types::roads::network(SceneName::Town)));
     scene
+}
+
+/// A fixed box for every signal of `network`: a light's head or a sign's
+/// plate, turned to face the traffic it speaks to.
+fn signal_placements(network: &shared_types::roads::RoadNetwork) -> Vec<Placement> {
+    use shared_types::roads::SignalKind;
+    use shared_types::{SignKind, SignReading};
+    network
+        .signals
+        .iter()
+        .map(|signal| {
+            let (kind, placed) = match signal.kind {
+                SignalKind::TrafficLight => (
+                    ActorKind::TrafficLight,
+                    PlacedSignal::Light {
+                        junction: signal.junction.unwrap_or(0),
+                        pole: signal.pole,
+                    },
+                ),
+                SignalKind::Stop => (
+                    ActorKind::TrafficSign,
+                    PlacedSignal::Sign(SignReading {
+                        kind: SignKind::Stop,
+                        value: 0,
+                    }),
+                ),
+                SignalKind::SpeedLimit(kmh) => (
+                    ActorKind::TrafficSign,
+                    PlacedSignal::Sign(SignReading {
+                        kind: SignKind::SpeedLimit,
+                        value: kmh,
+                    }),
+                ),
+            };
+            let [along, up, across] = signal.half_extents().map(|v| v as f32);
+            // OpenDRIVE's (x, y) is simbus's (x, -z); its heading a turn
+            // about +Y.
+            let p = signal.pose;
+            let mut placement = Placement::new(
+                kind,
+                Vector::new(along, up, across),
+                Vector::new(p.x as f32, signal.height() as f32, -p.y as f32),
+            )
+            .rotated(Vector::new(0.0, p.hdg as f32, 0.0));
+            placement.signal = Some(placed);
+            placement
+        })
+        .collect()
 }
 
 fn boxes_scene(n: u32) -> Vec<Placement> {
@@ -386,8 +461,11 @@ mod tests {
                     z.abs() + edge < ground.extent.z,
                     "{scene}: {p:?} off the ground"
                 );
-                // Nothing within 3 m of the lane (bodies' sizes counted).
-                for body in &placements[1..] {
+                // Nothing within 3 m of the lane (bodies' sizes counted)
+                // but the signs and lights beside it (`roads` keeps
+                // those off the lanes).
+                let signals = [ActorKind::TrafficLight, ActorKind::TrafficSign];
+                for body in placements[1..].iter().filter(|b| !signals.contains(&b.kind)) {
                     let reach = body.extent.x.max(body.extent.z) + 3.0;
                     let (dx, dz) = (body.position.x - x, body.position.z - z);
                     assert!(

@@ -49,10 +49,12 @@ def test_autopilot_vehicles_drive_along_the_town_roads(request):
     assert out["spawn_points"] >= 100
     first, last = out["ticks"][0], out["ticks"][-1]
     moved = [math.dist(a[1:3], b[1:3]) for a, b in zip(first, last)]
-    # 10 s of driving at up to 36 km/h: every vehicle got somewhere, and
-    # nothing went flying (NaN controls, a fall off the world).
+    # 10 s of driving at up to 36 km/h: nothing went flying (NaN
+    # controls, a fall off the world), and most vehicles got somewhere. A
+    # vehicle spawned a few metres before a junction stops at its light,
+    # red three quarters of a 60 s cycle, and may wait the whole 10 s.
     assert all(math.isfinite(m) for m in moved), moved
-    assert sum(m > 5.0 for m in moved) >= 8, moved
+    assert sum(m > 5.0 for m in moved) >= 6, moved
     assert all(-1.0 < row[3] < 3.0 for row in last), last
 
 

@@ -313,17 +313,19 @@ impl FileInfo {
 }
 
 /// Whether `kind` matches CARLA-style category `filter`: `a` any, `v`
-/// vehicle, `w` walker, `b` box, `s` sphere, `c` capsule, `x` static.
+/// vehicle, `w` walker, `t` traffic light, `b` box, `s` sphere, `c`
+/// capsule, `x` static (and traffic signs).
 pub fn kind_matches(filter: char, kind: u32) -> bool {
     matches!(
         (filter, ActorKind::from_u32(kind)),
         ('a', _)
             | ('v', Some(ActorKind::Vehicle))
             | ('w', Some(ActorKind::Walker))
+            | ('t', Some(ActorKind::TrafficLight))
             | ('b', Some(ActorKind::Box))
             | ('s', Some(ActorKind::Sphere))
             | ('c', Some(ActorKind::Capsule))
-            | ('x', Some(ActorKind::Static))
+            | ('x', Some(ActorKind::Static | ActorKind::TrafficSign))
     )
 }
 

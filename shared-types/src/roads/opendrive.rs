@@ -4,7 +4,10 @@
 
 use std::fmt::Write;
 
-use super::{Contact, Lane, Link, Road, RoadNetwork, Segment, LANE_WIDTH, SPEED_LIMIT_KMH};
+use super::{
+    Contact, Lane, Link, Road, RoadNetwork, Segment, Signal, SignalKind, LANE_WIDTH,
+    SPEED_LIMIT_KMH,
+};
 
 /// The geographic reference of every simbus network: a transverse
 /// Mercator projection of a sphere at 0°, 0° (see [`crate::gnss`]: what
@@ -176,7 +179,9 @@ impl RoadNetwork {
     /// The network as an OpenDRIVE 1.4 document: a header with a
     /// `geoReference` and the network's bounds, every road (lines and
     /// arcs, lanes of [`LANE_WIDTH`], a speed limit of
-    /// [`SPEED_LIMIT_KMH`]) and every junction.
+    /// [`SPEED_LIMIT_KMH`]), its signals, every junction (with the
+    /// controllers of its lights) and the controllers themselves: one per
+    /// light, named by the light's id.
     pub fn to_opendrive(&self) -> String {
         let mut out = String::with_capacity(2048 * self.roads.len());
         let [north, south, east, west] = self.bounds();
@@ -190,7 +195,7 @@ impl RoadNetwork {
             escape(&self.name)
         );
         for road in &self.roads {
-            write_road(&mut out, road);
+            write_road(&mut out, road, &self.signals);
         }
         for junction in &self.junctions {
             let _ = writeln!(
@@ -207,7 +212,26 @@ impl RoadNetwork {
                     c.incoming, c.connecting, c.from_lane
                 );
             }
+            for light in self.lights_of(junction.id) {
+                let _ = writeln!(
+                    out,
+                    "    <controller id=\"{}\" type=\"0\" sequence=\"{}\"/>",
+                    light.id, light.pole
+                );
+            }
             out.push_str("  </junction>\n");
+        }
+        for light in self
+            .signals
+            .iter()
+            .filter(|s| s.kind == SignalKind::TrafficLight)
+        {
+            let _ = writeln!(
+                out,
+                "  <controller id=\"{0}\" name=\"Controller {0}\" sequence=\"0\">\n    \
+                 <control signalId=\"{0}\" type=\"0\"/>\n  </controller>",
+                light.id
+            );
         }
         out.push_str("</OpenDRIVE>\n");
         out
@@ -231,8 +255,8 @@ impl RoadNetwork {
     }
 }
 
-/// One `<road>` element.
-fn write_road(out: &mut String, road: &Road) {
+/// One `<road>` element, with the signals of `signals` that stand on it.
+fn write_road(out: &mut String, road: &Road, signals: &[Signal]) {
     let junction = road.junction.map_or(-1, i64::from);
     let _ = write!(
         out,
@@ -293,7 +317,51 @@ fn write_road(out: &mut String, road: &Road) {
         "right",
         road.lanes.iter().filter(|l| l.id < 0).collect(),
     );
-    out.push_str("      </laneSection>\n    </lanes>\n  </road>\n");
+    out.push_str("      </laneSection>\n    </lanes>\n");
+    let mut on_road = signals.iter().filter(|s| s.road == road.id).peekable();
+    if on_road.peek().is_some() {
+        out.push_str("    <signals>\n");
+        for signal in on_road {
+            write_signal(out, signal);
+        }
+        out.push_str("    </signals>\n");
+    }
+    out.push_str("  </road>\n");
+}
+
+/// One `<signal>` element: its own lane its validity (so CARLA's client
+/// finds it from that lane's waypoints), its head's height, and turned
+/// (`hOffset`) to the heading of the traffic it speaks to.
+fn write_signal(out: &mut String, signal: &Signal) {
+    let (name, kind, subtype, value, unit) = match signal.kind {
+        SignalKind::TrafficLight => ("Signal_3Light", "1000001", "-1".to_owned(), -1.0, ""),
+        SignalKind::Stop => ("Sign_Stop", "206", "-1".to_owned(), -1.0, ""),
+        SignalKind::SpeedLimit(kmh) => ("Sign_SpeedLimit", "274", kmh.to_string(), f64::from(kmh), "km/h"),
+    };
+    let dynamic = if signal.kind == SignalKind::TrafficLight {
+        "yes"
+    } else {
+        "no"
+    };
+    let turn = if signal.lane < 0 { 0.0 } else { std::f64::consts::PI };
+    let [_, up, across] = signal.half_extents();
+    let _ = writeln!(
+        out,
+        "      <signal s=\"{:.6}\" t=\"{:.6}\" id=\"{}\" name=\"{name} {}\" dynamic=\"{dynamic}\" \
+         orientation=\"{}\" zOffset=\"{:.3}\" country=\"OpenDRIVE\" type=\"{kind}\" \
+         subtype=\"{subtype}\" value=\"{value}\" unit=\"{unit}\" height=\"{:.3}\" width=\"{:.3}\" \
+         text=\"\" hOffset=\"{turn:.9}\" pitch=\"0.0\" roll=\"0.0\">\n        \
+         <validity fromLane=\"{lane}\" toLane=\"{lane}\"/>\n      </signal>",
+        signal.s,
+        signal.t,
+        signal.id,
+        signal.id,
+        signal.orientation(),
+        signal.height(),
+        2.0 * up,
+        2.0 * across,
+        lane = signal.lane,
+    );
 }
 
 /// A road's `predecessor` and `successor` elements.

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::f64::consts::FRAC_PI_2;
 
-use super::{Contact, Pose2, RoadNetwork, Segment};
+use super::{Contact, Pose2, RoadNetwork, Segment, SPEED_LIMIT_KMH};
 use crate::scene::SceneName;
 
 /// Half the side of `town`'s ground, metres: well past the network
@@ -106,6 +106,7 @@ fn town() -> RoadNetwork {
     // The loop's corners: from the junction before each corner to the one
     // after it, counter-clockwise.
     let corners = [(last, 0), (last, last), (0, last), (0, 0)];
+    let mut corner_roads = Vec::new();
     let spacing = TOWN_LINES[1] - TOWN_LINES[0];
     let straight = spacing - JUNCTION_HALF - TOWN_CORNER_RADIUS;
     for (k, &(i, j)) in corners.iter().enumerate() {
@@ -132,9 +133,21 @@ fn town() -> RoadNetwork {
         );
         arms.entry(from).or_default().push((id, Contact::Start));
         arms.entry(to).or_default().push((id, Contact::End));
+        corner_roads.push(id);
     }
     for node_arms in arms.values() {
-        network.add_junction(node_arms);
+        let id = network.add_junction(node_arms);
+        // Lights where four roads meet; where a road from inside meets
+        // the loop, the loop goes first.
+        if node_arms.len() == 4 {
+            network.add_lights(id);
+        } else {
+            network.add_stop_on_stem(id);
+        }
+    }
+    // The corners are signed with the town's limit.
+    for id in corner_roads {
+        network.add_speed_limits(id, SPEED_LIMIT_KMH as u32);
     }
     network
 }

@@ -187,3 +187,71 @@ fn texts_that_are_not_opendrive_are_refused_with_the_reason() {
                 <road id=\"0\"/></OpenDRIVE>\n";
     assert_eq!(check_opendrive(fine), Ok(()));
 }
+
+#[test]
+fn the_towns_four_way_junctions_have_a_light_on_every_approach_and_its_tees_a_stop() {
+    let town = network(SceneName::Town);
+    let lights: Vec<&Signal> = town
+        .signals
+        .iter()
+        .filter(|s| s.kind == SignalKind::TrafficLight)
+        .collect();
+    assert_eq!(lights.len(), 16);
+    let stops = town.signals.iter().filter(|s| s.kind == SignalKind::Stop);
+    assert_eq!(stops.count(), 8);
+    let limits = town
+        .signals
+        .iter()
+        .filter(|s| s.kind == SignalKind::SpeedLimit(30));
+    assert_eq!(limits.count(), 8);
+    for (i, signal) in town.signals.iter().enumerate() {
+        assert_eq!(signal.id as usize, i + 1);
+        // Beside its lane, off the road.
+        assert!(signal.t.abs() > LANE_WIDTH, "{signal:?}");
+        assert_eq!(signal.t.signum(), f64::from(signal.lane.signum()));
+        // Its stop point on its lane's centre, heading as the lane drives:
+        // it is in its own trigger volume, and a car heading the other
+        // way is not.
+        let (x, y) = (signal.stop.x, signal.stop.y);
+        let (d, yaw) = nearest_lane(&town, x, -y);
+        assert!(d < 0.05, "{signal:?} is {d} m off a lane centre");
+        assert!(wrap((-yaw).to_radians() - signal.stop.hdg).abs() < 1e-6);
+        if !matches!(signal.kind, SignalKind::SpeedLimit(_)) {
+            assert_eq!(
+                town.signal_at(x - signal.stop.hdg.cos(), y - signal.stop.hdg.sin(), signal.stop.hdg)
+                    .map(|s| s.id),
+                Some(signal.id)
+            );
+            assert!(town.signal_at(x, y, signal.stop.hdg + PI).is_none());
+        }
+    }
+    // Per junction: four lights, poles 0 to 3.
+    for junction in town.junctions.iter().filter(|j| j.connections.len() == 12) {
+        let poles: Vec<u32> = town.lights_of(junction.id).map(|l| l.pole).collect();
+        assert_eq!(poles, [0, 1, 2, 3]);
+    }
+    // A point on the lane past the stop line is at no light.
+    let light = lights[0];
+    let (sin, cos) = light.stop.hdg.sin_cos();
+    assert!(town
+        .signal_at(light.stop.x + cos, light.stop.y + sin, light.stop.hdg)
+        .is_none());
+}
+
+#[test]
+fn the_towns_opendrive_names_every_signal_and_the_controllers_of_its_lights() {
+    let town = network(SceneName::Town);
+    let text = town.to_opendrive();
+    check_opendrive(&text).expect("well formed");
+    assert_eq!(text.matches("<signal ").count(), town.signals.len());
+    assert_eq!(text.matches("type=\"1000001\"").count(), 16);
+    assert_eq!(text.matches("type=\"206\"").count(), 8);
+    assert_eq!(text.matches("type=\"274\" subtype=\"30\" value=\"30\"").count(), 8);
+    // Every light's controller, declared and listed by its junction.
+    assert_eq!(text.matches("<control signalId=").count(), 16);
+    assert_eq!(text.matches("<controller id=").count(), 32);
+    // No scene but the town has signals.
+    for scene in SCENES.into_iter().filter(|s| *s != SceneName::Town) {
+        assert!(network(scene).signals.is_empty(), "{scene}");
+    }
+}

@@ -3,7 +3,7 @@
 //! simbus commands, and CARLA's msgpack shapes they carry.
 
 use rmpv::Value;
-use shared_types::Command;
+use shared_types::{Command, LightState};
 
 use crate::blueprints::Description;
 use crate::convert;
@@ -91,6 +91,16 @@ pub(crate) enum Op {
     /// CARLA's `enable_constant_velocity` (m/s in the actor's own axes),
     /// or `disable_constant_velocity` (`None`).
     ConstantVelocity(Option<V3>),
+    /// CARLA's `TrafficLight.set_state`.
+    LightState(LightState),
+    /// CARLA's `set_green_time`, `set_yellow_time`, `set_red_time`: the
+    /// times given.
+    LightTimes([Option<f32>; 3]),
+    /// CARLA's `freeze_traffic_light` (its group), or with actor 0
+    /// `freeze_all_traffic_lights`.
+    FreezeLights(bool),
+    /// CARLA's `reset_group`, or with actor 0 `reset_all_traffic_lights`.
+    ResetLights,
     Destroy,
 }
 
@@ -149,13 +159,25 @@ impl Op {
                 Command::set_transform(actor, position, rotation)
             }
             Op::Collisions(on) => Command::set_physics(actor, on),
+            Op::LightState(state) => Command::traffic_light_state(actor, state),
+            Op::LightTimes(times) => Command::traffic_light_times(actor, times),
+            Op::FreezeLights(frozen) => Command::freeze_traffic_lights(actor, frozen),
+            Op::ResetLights => Command::reset_traffic_lights(actor),
             Op::Destroy => Command::destroy(actor),
         })
     }
 }
 
+/// CARLA's `TrafficLightState` (an integer; `Unknown`, 4, shows as off).
+fn light_state(v: &Value) -> Option<LightState> {
+    match v.as_u64()? {
+        4 => Some(LightState::Off),
+        code => LightState::from_u32(u32::try_from(code).ok()?),
+    }
+}
+
 /// The RPC methods that act on one actor, as [`rpc_op`] reads them.
-const RPC_OPS: [&str; 14] = [
+const RPC_OPS: [&str; 20] = [
     "set_actor_transform",
     "set_actor_location",
     "set_actor_target_velocity",
@@ -170,6 +192,12 @@ const RPC_OPS: [&str; 14] = [
     "set_actor_collisions",
     "enable_actor_constant_velocity",
     "disable_actor_constant_velocity",
+    "set_traffic_light_state",
+    "set_traffic_light_green_time",
+    "set_traffic_light_yellow_time",
+    "set_traffic_light_red_time",
+    "freeze_traffic_light",
+    "reset_traffic_light_group",
 ];
 
 /// The RPC methods that act on one actor: `(actor, what)` from their
@@ -199,6 +227,23 @@ pub(crate) fn rpc_op(method: &str, args: &[Value]) -> Option<Result<(u32, Op), C
         "set_actor_collisions" => arg(1).as_bool().map(Op::Collisions).ok_or_else(bad),
         "enable_actor_constant_velocity" => v3().map(|v| Op::ConstantVelocity(Some(v))),
         "disable_actor_constant_velocity" => Ok(Op::ConstantVelocity(None)),
+        "set_traffic_light_state" => light_state(arg(1)).map(Op::LightState).ok_or_else(bad),
+        "set_traffic_light_green_time"
+        | "set_traffic_light_yellow_time"
+        | "set_traffic_light_red_time" => {
+            let slot = match method {
+                "set_traffic_light_green_time" => 0,
+                "set_traffic_light_yellow_time" => 1,
+                _ => 2,
+            };
+            number(arg(1)).ok_or_else(bad).map(|seconds| {
+                let mut times = [None; 3];
+                times[slot] = Some(seconds as f32);
+                Op::LightTimes(times)
+            })
+        }
+        "freeze_traffic_light" => arg(1).as_bool().map(Op::FreezeLights).ok_or_else(bad),
+        "reset_traffic_light_group" => Ok(Op::ResetLights),
         _ => return None,
     };
     Some(op.and_then(|op| actor_id(arg(0)).map(|id| (id, op)).ok_or_else(bad)))
@@ -310,6 +355,7 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
         14 => Op::Physics(field(1).as_bool().ok_or_else(bad)?),
         15 => Op::Gravity(field(1).as_bool().ok_or_else(bad)?),
         19 => Op::Location(v3()?),
+        21 => Op::LightState(light_state(field(1)).ok_or_else(bad)?),
         _ => return Err(CallError::UnsupportedCommand(name)),
     };
     Ok(BatchCommand::Actor(id()?, op))

@@ -82,8 +82,7 @@ pub(crate) fn actor(state: &ActorState) -> CarlaActorState {
         velocity: vector(state.linear_velocity),
         angular_velocity: angular_velocity(state.angular_velocity),
         acceleration: vector(state.acceleration),
-        vehicle: None,
-        dying: false,
+        ..CarlaActorState::default()
     }
 }
 

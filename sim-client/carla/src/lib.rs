@@ -24,6 +24,7 @@ pub mod recorder_text;
 mod records;
 mod rpc;
 mod sensors;
+mod signals;
 mod session;
 mod stop;
 mod stream;

@@ -1,14 +1,16 @@
 //! CARLA's `rpc::Actor` records the gateway answers for actors
 //! (`get_actors_by_id`, a spawn's answer, a sensor's parent): a simbus
 //! body's with the blueprint it was spawned from (or its kind's type id),
-//! a sensor's with its stream's token, a walker controller's, and the
-//! spectator's.
+//! a sensor's with its stream's token, a walker controller's, a traffic
+//! light's or sign's (its trigger volume for a bounding box, as CARLA's
+//! client reads `trigger_volume`), and the spectator's.
 
 use rmpv::Value;
 use shared_types::ActorKind;
 
 use crate::blueprints;
 use crate::locks::lock;
+use crate::stream::ActorInfo;
 use crate::wire::{token, SPECTATOR_ID};
 
 /// CARLA's type id of a simbus actor kind.
@@ -42,11 +44,17 @@ fn spectator_record() -> Value {
 
 /// CARLA's `BoundingBox` of actor `id`: centred, `extent` half sizes.
 pub(crate) fn bounding_box(id: u32, extent: [f32; 3]) -> Value {
+    located_box(id, [0.0; 3], extent, [0.0; 3])
+}
+
+/// CARLA's `BoundingBox` of actor `id` centred at `location`, turned by
+/// `rotation` (pitch, yaw, roll, degrees).
+pub(crate) fn located_box(id: u32, location: [f32; 3], extent: [f32; 3], rotation: [f32; 3]) -> Value {
     let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
     Value::Array(vec![
-        vector([0.0; 3]),
+        vector(location),
         vector(extent),
-        vector([0.0; 3]),
+        vector(rotation),
         Value::from(id),
     ])
 }
@@ -79,7 +87,11 @@ pub(crate) fn record_of(hub: &crate::stream::Hub, id: u32, streaming_port: u16) 
             Value::Binary(stream),
         ));
     }
-    let (kind, extent) = match lock(&hub.actors).get(&id) {
+    let last = lock(&hub.actors).get(&id).copied();
+    if let Some(record) = last.and_then(|a| signal_record(hub, id, &a)) {
+        return Some(record);
+    }
+    let (kind, extent) = match last {
         Some(a) => (a.kind, a.extent),
         None => {
             // Spawned through the gateway, not in a frame yet.
@@ -103,6 +115,26 @@ pub(crate) fn record_of(hub: &crate::stream::Hub, id: u32, streaming_port: u16) 
         extent,
         Value::Binary(Vec::new()),
     ))
+}
+
+/// The `rpc::Actor` of traffic light or sign `id`: CARLA's type id for
+/// it (`traffic.traffic_light`, `traffic.stop`, `traffic.speed_limit.30`)
+/// and its trigger volume for a box (none for a speed-limit sign).
+fn signal_record(hub: &crate::stream::Hub, id: u32, actor: &ActorInfo) -> Option<Value> {
+    let signals = lock(&hub.signals);
+    let type_id = signals.type_id(id)?;
+    let description = blueprints::scene_description(actor.kind, &type_id);
+    let (location, extent) = signals
+        .trigger_volume(id, actor.position, actor.rotation)
+        .unwrap_or(([0.0; 3], [0.0; 3]));
+    Some(Value::Array(vec![
+        Value::from(id),
+        Value::from(0u32),
+        description,
+        located_box(id, location, extent, [0.0; 3]),
+        Value::Binary(Vec::new()),
+        Value::Binary(Vec::new()),
+    ]))
 }
 
 /// CARLA's `rpc::Actor`: id, parent, description, bounding box, no

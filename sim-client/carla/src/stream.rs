@@ -24,6 +24,7 @@ use tracing::{debug, info, warn};
 
 use crate::convert;
 use crate::locks::lock;
+use crate::signals::Signals;
 use crate::wire::{self as carla, CarlaActorState, CarlaTransform, CarlaVehicleControl};
 
 /// How long a subscriber may take to accept one message before it is
@@ -159,6 +160,8 @@ pub(crate) struct Hub {
     pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
     /// The weather CARLA clients set (simbus renders no sky).
     pub(crate) weather: Mutex<carla::Weather>,
+    /// The town's traffic lights and signs, as seen in its frames.
+    pub(crate) signals: Mutex<crate::signals::Signals>,
     /// The last world stream id handed out ([`Hub::next_world_stream`]).
     world_streams: AtomicU32,
     /// How many connections have ended (and released any tick ownership
@@ -181,6 +184,7 @@ impl Default for Hub {
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
+            signals: Mutex::default(),
             world_streams: AtomicU32::new(0),
             ended: Mutex::default(),
             ended_changed: Condvar::default(),
@@ -354,13 +358,15 @@ pub(crate) fn accept(listener: TcpListener, hub: Arc<Hub>) {
 }
 
 /// The world state of `frame` as CARLA's client reads it: simbus's actors
-/// (vehicles with their last control), the gateway's sensors, placed on
-/// their parents in `actors`, and the spectator at `spectator`.
+/// (vehicles with their last control and the light they are at, lights
+/// with their state, signs with their ids), the gateway's sensors, placed
+/// on their parents in `actors`, and the spectator at `spectator`.
 fn world_state(
     frame: &FrameView,
     run_pid: u32,
     actors: &HashMap<u32, ActorInfo>,
     registry: &Registry,
+    signals: &Signals,
     spectator: CarlaTransform,
 ) -> Vec<u8> {
     let t = frame.timestamp();
@@ -382,16 +388,27 @@ fn world_state(
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
+    let lights: Vec<(u32, shared_types::LightState)> = frame
+        .actors()
+        .iter()
+        .filter_map(|a| Some((convert::actor_id(a.id), a.light()?.state)))
+        .collect();
     for actor in frame.actors() {
         let mut state = convert::actor(actor);
-        if actor.actor_kind() == Some(shared_types::ActorKind::Vehicle) {
-            state.vehicle = Some(
-                registry
-                    .controls
-                    .get(&state.id)
-                    .copied()
-                    .unwrap_or_default(),
-            );
+        match actor.actor_kind() {
+            Some(shared_types::ActorKind::Vehicle) => {
+                state.vehicle = Some(
+                    registry
+                        .controls
+                        .get(&state.id)
+                        .copied()
+                        .unwrap_or_default(),
+                );
+                state.signals = signals.vehicle(actor.position, actor.rotation, &lights);
+            }
+            Some(shared_types::ActorKind::TrafficLight) => state.light = signals.light(actor),
+            Some(shared_types::ActorKind::TrafficSign) => state.sign = signals.sign_id(state.id),
+            _ => {}
         }
         carla::actor_state(&mut out, &state);
     }
@@ -525,7 +542,9 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, run_pid: u32) {
             }
         }
         let spectator = *lock(&hub.spectator);
-        world_state(frame, run_pid, &actors, &registry, spectator)
+        let mut signals = lock(&hub.signals);
+        signals.learn(frame.actors());
+        world_state(frame, run_pid, &actors, &registry, &signals, spectator)
     };
     // A frame of an episode older than one begun (its reload answered
     // before the world stream's pump saw it) is not news.

@@ -8,6 +8,8 @@
 //! `sensor/s11n/SensorHeaderSerializer.h`, `sensor/s11n/EpisodeStateSerializer.h`,
 //! `sensor/data/ActorDynamicState.h`, checked against the 0.9.16 wheel.
 
+use shared_types::LightState;
+
 /// Bytes of a stream token.
 pub const TOKEN_LEN: usize = 24;
 /// Bytes of the header every stream message starts with.
@@ -239,6 +241,12 @@ pub struct CarlaActorState {
     pub acceleration: [f32; 3],
     /// A vehicle's last control.
     pub vehicle: Option<CarlaVehicleControl>,
+    /// A vehicle's speed limit and the light it is at.
+    pub signals: VehicleSignals,
+    /// A traffic light's state.
+    pub light: Option<CarlaLight>,
+    /// A traffic sign's OpenDRIVE id.
+    pub sign: Option<u32>,
     /// Gone with its parent, not yet destroyed by a client: CARLA's
     /// `ActorState::PendingKill` (`is_alive` false, `destroy()` still sent).
     pub dying: bool,
@@ -246,8 +254,57 @@ pub struct CarlaActorState {
 
 /// The speed limit every vehicle reports, km/h: CARLA's default.
 pub const SPEED_LIMIT_KMH: f32 = 30.0;
-/// CARLA's `TrafficLightState::Green`.
-const TRAFFIC_LIGHT_GREEN: u8 = 2;
+
+/// What CARLA's `VehicleData` says beyond the control: the speed limit the
+/// traffic manager drives to, and the light or stop the vehicle is at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VehicleSignals {
+    /// km/h (0 would make the traffic manager's controller divide by zero).
+    pub speed_limit: f32,
+    /// CARLA's `TrafficLightState`: the light's, red at a stop sign, green
+    /// elsewhere (CARLA's state away from a light).
+    pub light_state: u8,
+    /// At a traffic light (not at a stop sign).
+    pub at_light: bool,
+    /// That light's actor id (0: none).
+    pub light_id: u32,
+}
+
+impl Default for VehicleSignals {
+    fn default() -> Self {
+        Self {
+            speed_limit: SPEED_LIMIT_KMH,
+            light_state: LightState::Green as u8,
+            at_light: false,
+            light_id: 0,
+        }
+    }
+}
+
+/// CARLA's `TrafficLightData`: what a light shows and its times.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CarlaLight {
+    /// Its OpenDRIVE signal id (`sign_id`, written as decimal text).
+    pub sign_id: u32,
+    /// Green, yellow and red times, seconds.
+    pub times: [f32; 3],
+    /// Seconds in its phase (0 while it waits its turn).
+    pub elapsed: f32,
+    /// Its place in its junction's group.
+    pub pole: u32,
+    /// Its group's time is frozen.
+    pub frozen: bool,
+    /// CARLA's `TrafficLightState`.
+    pub state: u8,
+}
+
+/// A signal id as CARLA's 32-byte, NUL-padded `sign_id`.
+fn sign_id(out: &mut Vec<u8>, id: u32) {
+    let mut text = [0u8; 32];
+    let digits = id.to_string();
+    text[..digits.len()].copy_from_slice(digits.as_bytes());
+    out.extend_from_slice(&text);
+}
 
 /// CARLA's `rpc::ActorState::Active`.
 const ACTOR_ACTIVE: u8 = 1;
@@ -255,8 +312,8 @@ const ACTOR_ACTIVE: u8 = 1;
 const ACTOR_PENDING_KILL: u8 = 3;
 
 /// Appends one actor's 119-byte record (alive or dying; a vehicle's
-/// control, speed limit and traffic-light state; no walker or
-/// traffic-light actors).
+/// control, speed limit and traffic-light state; a traffic light's state
+/// and times; a sign's id).
 pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
     let start = out.len();
     out.extend_from_slice(&actor.id.to_le_bytes());
@@ -286,14 +343,21 @@ pub fn actor_state(out: &mut Vec<u8>, actor: &CarlaActorState) {
             u8::from(c.manual_gear_shift),
         ]);
         out.extend_from_slice(&c.gear.to_le_bytes());
-        // The rest of CARLA's `VehicleData`: the speed limit the traffic
-        // manager drives to (0 would make its controller divide by zero),
-        // and no traffic light, green (CARLA's state away from a light: a
-        // junction is then no stop sign).
-        out.extend_from_slice(&SPEED_LIMIT_KMH.to_le_bytes());
-        out.push(TRAFFIC_LIGHT_GREEN);
-        out.push(0); // has_traffic_light
-        out.extend_from_slice(&0u32.to_le_bytes()); // traffic_light_id
+        let v = &actor.signals;
+        out.extend_from_slice(&v.speed_limit.to_le_bytes());
+        out.push(v.light_state);
+        out.push(u8::from(v.at_light));
+        out.extend_from_slice(&v.light_id.to_le_bytes());
+    } else if let Some(light) = &actor.light {
+        sign_id(out, light.sign_id);
+        for v in light.times.iter().chain([&light.elapsed]) {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&light.pole.to_le_bytes());
+        out.push(u8::from(light.frozen));
+        out.push(light.state);
+    } else if let Some(id) = actor.sign {
+        sign_id(out, id);
     }
     out.resize(start + ACTOR_STATE_LEN, 0);
 }
@@ -422,6 +486,52 @@ mod tests {
         // The speed limit the traffic manager reads, and a green light.
         assert_eq!(&out[84..88], &30f32.to_le_bytes());
         assert_eq!(out[88], 2);
+    }
+
+    #[test]
+    fn a_lights_data_sits_where_carla_reads_it() {
+        let mut out = Vec::new();
+        let light = CarlaLight {
+            sign_id: 17,
+            times: [10.0, 3.0, 2.0],
+            elapsed: 1.5,
+            pole: 2,
+            frozen: true,
+            state: LightState::Yellow as u8,
+        };
+        actor_state(
+            &mut out,
+            &CarlaActorState {
+                id: 9,
+                light: Some(light),
+                ..Default::default()
+            },
+        );
+        assert_eq!(out.len(), ACTOR_STATE_LEN);
+        assert_eq!(&out[65..68], b"17\0");
+        assert!(out[67..97].iter().all(|&b| b == 0));
+        assert_eq!(&out[97..101], &10f32.to_le_bytes());
+        assert_eq!(&out[105..109], &2f32.to_le_bytes());
+        assert_eq!(&out[109..113], &1.5f32.to_le_bytes());
+        assert_eq!(&out[113..117], &2u32.to_le_bytes());
+        assert_eq!((out[117], out[118]), (1, 1));
+        // A vehicle at that light.
+        let mut out = Vec::new();
+        actor_state(
+            &mut out,
+            &CarlaActorState {
+                vehicle: Some(CarlaVehicleControl::default()),
+                signals: VehicleSignals {
+                    light_state: 0,
+                    at_light: true,
+                    light_id: 9,
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        );
+        assert_eq!((out[88], out[89]), (0, 1));
+        assert_eq!(&out[90..94], &9u32.to_le_bytes());
     }
 
     #[test]

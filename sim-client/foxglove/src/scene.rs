@@ -5,7 +5,7 @@ use foxglove::messages::{
     Color, CubePrimitive, CylinderPrimitive, Pose, Quaternion, SceneEntity, SpherePrimitive,
     Timestamp, Vector3,
 };
-use shared_types::{ActorKind, ActorState, NANOS_PER_SECOND};
+use shared_types::{ActorKind, ActorState, LightState, NANOS_PER_SECOND};
 use simbus_pose::compose;
 
 /// A frame's simulation time as a Foxglove timestamp.
@@ -35,14 +35,26 @@ pub(crate) fn pose(position: [f32; 3], rotation: [f32; 4]) -> Pose {
 /// No rotation (x, y, z, w).
 pub(crate) const IDENTITY: [f32; 4] = [0.0, 0.0, 0.0, 1.0];
 
-fn colour(kind: Option<ActorKind>) -> Color {
-    let (r, g, b) = match kind {
+/// An actor's colour: its kind's, a traffic light's by what it shows.
+fn colour(actor: &ActorState) -> Color {
+    if let Some(light) = actor.light() {
+        let (r, g, b) = match light.state {
+            LightState::Red => (0.9, 0.12, 0.12),
+            LightState::Yellow => (0.95, 0.77, 0.1),
+            LightState::Green => (0.12, 0.82, 0.28),
+            LightState::Off => (0.17, 0.17, 0.17),
+        };
+        return Color { r, g, b, a: 1.0 };
+    }
+    let (r, g, b) = match ActorKind::from_u32(actor.kind) {
         Some(ActorKind::Static) => (0.55, 0.55, 0.55),
         Some(ActorKind::Box) => (0.85, 0.55, 0.25),
         Some(ActorKind::Sphere) => (0.25, 0.55, 0.85),
         Some(ActorKind::Capsule) => (0.35, 0.75, 0.35),
         Some(ActorKind::Vehicle) => (0.85, 0.2, 0.2),
         Some(ActorKind::Walker) => (0.95, 0.75, 0.2),
+        Some(ActorKind::TrafficLight) => (0.17, 0.17, 0.17),
+        Some(ActorKind::TrafficSign) => (0.82, 0.19, 0.19),
         None => (1.0, 0.0, 1.0),
     };
     Color { r, g, b, a: 1.0 }
@@ -52,7 +64,7 @@ fn colour(kind: Option<ActorKind>) -> Color {
 pub(crate) fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
     let kind = ActorKind::from_u32(actor.kind);
     let [ex, ey, ez] = actor.extent;
-    let color = Some(colour(kind));
+    let color = Some(colour(actor));
     let mut entity = SceneEntity {
         timestamp: Some(time),
         frame_id: "world".into(),

@@ -37,6 +37,7 @@ pub(crate) fn actor_dtype(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
                     offset_of!(ActorState, acceleration),
                 ),
                 ("extent", "(3,)<f4", offset_of!(ActorState, extent)),
+                ("detail", "<u4", offset_of!(ActorState, detail)),
             ];
             structured_dtype(py, &fields, size_of::<ActorState>()).map(Bound::unbind)
         })

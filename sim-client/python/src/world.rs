@@ -14,6 +14,7 @@ use crate::gil::detached;
 use commands::{actor_id, describe, spawn_command, Command};
 
 mod commands;
+mod light_commands;
 
 /// How one command of `apply_batch_sync` ended.
 #[pyclass(module = "simbus", name = "CommandResult", frozen, get_all)]
@@ -56,6 +57,7 @@ fn status_name(status: CommandStatus) -> &'static str {
         CommandStatus::StaticActor => "static_actor",
         CommandStatus::SpawnCollision => "spawn_collision",
         CommandStatus::NotAWalker => "not_a_walker",
+        CommandStatus::NotATrafficLight => "not_a_traffic_light",
     }
 }
 
@@ -195,6 +197,7 @@ impl Client {
 /// Adds this module's classes to the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     commands::register(m)?;
+    light_commands::register(m)?;
     m.add_class::<BatchResult>()?;
     Ok(())
 }

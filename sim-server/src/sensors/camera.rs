@@ -9,7 +9,7 @@ use std::ops::RangeInclusive;
 
 use rapier3d::prelude::{Pose, RigidBodyHandle, Rotation, Vector};
 use rayon::prelude::*;
-use shared_types::{ActorKind, Bgra, Camera, SemanticTag, SensorKind, Sun};
+use shared_types::{ActorKind, Bgra, Camera, LightState, SemanticTag, SensorKind, Sun};
 
 use super::culling::{self, Target, View};
 use super::ground::GroundMap;
@@ -144,6 +144,16 @@ impl Surface {
             Some(ActorKind::Sphere) => Self::Plain(SemanticTag::Dynamic, [232, 200, 40]),
             Some(ActorKind::Capsule) => Self::Plain(SemanticTag::Dynamic, [64, 168, 96]),
             Some(ActorKind::Walker) => Self::Plain(SemanticTag::Pedestrians, [196, 120, 84]),
+            Some(ActorKind::TrafficLight) => {
+                let colour = match target.light {
+                    Some(LightState::Red) => [230, 32, 32],
+                    Some(LightState::Yellow) => [240, 196, 24],
+                    Some(LightState::Green) => [32, 208, 72],
+                    Some(LightState::Off) | None => [44, 44, 44],
+                };
+                Self::Plain(SemanticTag::TrafficLight, colour)
+            }
+            Some(ActorKind::TrafficSign) => Self::Plain(SemanticTag::TrafficSigns, [208, 48, 48]),
             Some(ActorKind::Static) if is_ground(target.extent) => Self::Ground,
             Some(ActorKind::Static) if target.extent[1] >= 2.0 => {
                 Self::Plain(SemanticTag::Buildings, [150, 138, 124])

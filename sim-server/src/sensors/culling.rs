@@ -14,7 +14,7 @@
 use std::ops::RangeInclusive;
 
 use rapier3d::prelude::{Aabb, Pose, Ray, RigidBodyHandle, Rotation, Shape, Vector};
-use shared_types::ActorKind;
+use shared_types::{ActorKind, LightState};
 
 use super::slab::{self, Face, Grid, Slab};
 use crate::world::World;
@@ -174,6 +174,8 @@ pub(super) struct Target<'a> {
     pub(super) actor: u64,
     pub(super) kind: Option<ActorKind>,
     pub(super) extent: [f32; 3],
+    /// What it shows, if it is a traffic light.
+    pub(super) light: Option<LightState>,
 }
 
 impl Target<'_> {
@@ -237,6 +239,7 @@ pub(super) fn targets<'a>(
                 actor: t.actor,
                 kind: t.kind,
                 extent: t.extent,
+                light: t.light,
             })
         })
         .collect()

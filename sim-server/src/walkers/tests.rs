@@ -94,6 +94,7 @@ fn a_walker_jumps_once_and_lands_and_stops_at_a_wall() {
         rotation: Vector::ZERO,
         linear_velocity: Vector::ZERO,
         density: 1.0,
+        signal: None,
     });
     world.apply(&Command::walker_control(id, [1.0, 0.0, 0.0], 2.0, false));
     step(&mut world, 60);
@@ -213,6 +214,7 @@ fn a_walker_stands_at_one_height_anywhere_on_a_wide_ground_and_steps_up_a_kerb()
         rotation: Vector::ZERO,
         linear_velocity: Vector::ZERO,
         density: 1.0,
+        signal: None,
     });
     let id = spawned(
         &mut world,

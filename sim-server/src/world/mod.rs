@@ -11,6 +11,8 @@ use simbus_recording::RecordedCollision;
 
 use crate::clock::SubstepPlan;
 use crate::scene::Placement;
+use crate::scene::PlacedSignal;
+use crate::traffic_lights::TrafficLights;
 use crate::vehicles::Vehicles;
 use crate::walkers::Walkers;
 
@@ -68,9 +70,12 @@ pub struct World {
     /// need [`World::sync_queries`] first.
     #[serde(skip)]
     queries_stale: bool,
-    /// The walkers. Last, so a keyframe of before walkers (layout 2) reads
-    /// with an empty list appended (`keyframe.rs`).
+    /// The walkers. Last but one, so a keyframe of before walkers
+    /// (layout 2) reads with an empty list appended (`keyframe.rs`).
     pub(crate) walkers: Walkers,
+    /// The traffic lights and signs. Last, so a keyframe of before them
+    /// (layout 3) reads with empty lists appended.
+    pub(crate) lights: TrafficLights,
 }
 
 impl std::fmt::Debug for World {
@@ -95,6 +100,7 @@ impl World {
             actors: Vec::new(),
             vehicles: Vehicles::default(),
             walkers: Walkers::default(),
+            lights: TrafficLights::default(),
             pushed: Vec::new(),
             held: Vec::new(),
             contact_starts: Vec::new(),
@@ -134,6 +140,7 @@ impl World {
             actors: self.actors.clone(),
             vehicles: self.vehicles.clone(),
             walkers: self.walkers.clone(),
+            lights: self.lights.clone(),
             pushed: self.pushed.clone(),
             held: self.held.clone(),
             contact_starts: Vec::new(),
@@ -169,6 +176,11 @@ impl World {
             }
             ActorKind::Walker => self.walkers.add(id, body, e.x, e.y),
             _ => {}
+        }
+        match placement.signal {
+            Some(PlacedSignal::Light { junction, pole }) => self.lights.add(id, junction, pole),
+            Some(PlacedSignal::Sign(sign)) => self.lights.add_sign(id, sign),
+            None => {}
         }
         id
     }
@@ -267,6 +279,9 @@ impl World {
                 body.reset_torques(false);
             }
         }
+        // The lights keep the frame's time, not physics' (which a clamped
+        // frame cuts short).
+        self.lights.advance(plan.frame_ns);
         let frame_seconds = plan.substep_seconds * plan.count as f32;
         for actor in &mut self.actors {
             let velocity = self.physics.bodies[actor.body].linvel();
@@ -302,6 +317,9 @@ impl World {
             body.set_angvel(Vector::from_array(state.angular_velocity), false);
             actor.acceleration = Vector::from_array(state.acceleration);
             actor.previous_velocity = Vector::from_array(state.linear_velocity);
+            if let Some(light) = state.light() {
+                self.lights.restore(state.id, light);
+            }
         }
         self.queries_stale = true;
     }
@@ -355,7 +373,7 @@ impl World {
         if !body.is_enabled() {
             flags |= ActorState::PHYSICS_DISABLED;
         }
-        ActorState {
+        let mut state = ActorState {
             id: actor.id,
             kind: actor.kind as u32,
             flags,
@@ -365,8 +383,22 @@ impl World {
             angular_velocity: body.angvel().to_array(),
             acceleration: actor.acceleration.to_array(),
             extent: actor.extent,
-            reserved: 0,
+            detail: 0,
+        };
+        match actor.kind {
+            ActorKind::TrafficLight => {
+                if let Some(light) = self.lights.reading(actor.id) {
+                    state.set_light(light);
+                }
+            }
+            ActorKind::TrafficSign => {
+                if let Some(sign) = self.lights.sign(actor.id) {
+                    state.set_sign(sign);
+                }
+            }
+            _ => {}
         }
+        state
     }
 }
 

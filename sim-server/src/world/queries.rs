@@ -29,6 +29,8 @@ pub(crate) struct RayTarget<'a> {
     pub(crate) kind: Option<ActorKind>,
     /// Its actor's half extents.
     pub(crate) extent: [f32; 3],
+    /// What it shows, if it is a traffic light.
+    pub(crate) light: Option<shared_types::LightState>,
 }
 
 impl World {
@@ -189,6 +191,10 @@ impl World {
                     actor: actor.map_or(0, |a| a.id),
                     kind: actor.map(|a| a.kind),
                     extent: actor.map_or([0.0; 3], |a| a.extent),
+                    light: actor
+                        .filter(|a| a.kind == ActorKind::TrafficLight)
+                        .and_then(|a| self.lights.reading(a.id))
+                        .map(|reading| reading.state),
                 }
             })
     }

@@ -333,7 +333,7 @@ impl Session {
     /// Runs CARLA commands in order: one simbus batch for the commands on
     /// bodies, sensors through the sensor service, then every spawned
     /// actor's `.then(...)` commands. One result per command.
-    fn run_batch(&mut self, batch: Vec<Result<BatchCommand, CallError>>) -> Results {
+    pub(super) fn run_batch(&mut self, batch: Vec<Result<BatchCommand, CallError>>) -> Results {
         let mut results: Results = Vec::with_capacity(batch.len());
         let mut simbus = Vec::new();
         let mut slots = Vec::new();
@@ -371,8 +371,12 @@ impl Session {
                     op.command(id, last.as_ref()).map(|command| {
                         slots.push(i);
                         simbus.push(command);
-                        if let Op::Control(control) = op {
-                            lock(&self.hub.registry).controls.insert(id, control);
+                        match op {
+                            Op::Control(control) => {
+                                lock(&self.hub.registry).controls.insert(id, control);
+                            }
+                            Op::LightTimes(times) => lock(&self.hub.signals).set_times(id, times),
+                            _ => {}
                         }
                         id
                     })

@@ -8,6 +8,7 @@
 //! below.
 
 mod actors;
+mod lights;
 mod physics;
 mod recorder;
 mod spawned;
@@ -40,6 +41,14 @@ const VOID_CALLS: &[&str] = &[
     "set_weather_parameters",
     "enable_actor_constant_velocity",
     "disable_actor_constant_velocity",
+    "set_traffic_light_state",
+    "set_traffic_light_green_time",
+    "set_traffic_light_yellow_time",
+    "set_traffic_light_red_time",
+    "freeze_traffic_light",
+    "reset_traffic_light_group",
+    "freeze_all_traffic_lights",
+    "reset_all_traffic_lights",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -97,6 +106,9 @@ fn call_of(method: &str) -> Option<Call> {
         "add_traffic_manager_running" => Session::on_add_traffic_manager_running,
         "destroy_traffic_manager" => Session::on_destroy_traffic_manager,
         "reset_all_traffic_lights" => Session::on_reset_all_traffic_lights,
+        "freeze_all_traffic_lights" => Session::on_freeze_all_traffic_lights,
+        "get_group_traffic_lights" => Session::on_get_group_traffic_lights,
+        "get_light_boxes" => Session::on_get_light_boxes,
         _ => return None,
     })
 }

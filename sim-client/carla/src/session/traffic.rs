@@ -95,12 +95,6 @@ impl Session {
         Ok(Answer::Value(Value::Boolean(removed)))
     }
 
-    /// The traffic manager's `set_random_device_seed` resets the lights:
-    /// simbus's roads have none, so there is nothing to reset.
-    pub(super) fn on_reset_all_traffic_lights(&mut self, _: &[Value]) -> Result<Answer, CallError> {
-        Ok(Answer::Done)
-    }
-
     /// `SetAutopilot` on actor `id`: nothing for the server to do (the
     /// traffic manager runs in CARLA's client), but the actor must exist:
     /// in the last frame, or just spawned through the gateway.

@@ -351,9 +351,10 @@ fn carla_info(_: &str, _: bool) -> Result<(), Failure> {
 /// `recorder collisions`: the contacts that started between two categories.
 fn collisions(file: &str, kind1: char, kind2: char, json: bool) -> Result<(), Failure> {
     for kind in [kind1, kind2] {
-        if !"avbscx".contains(kind) {
+        if !"avwtbscx".contains(kind) {
             return Err(Failure::Refused(anyhow!(
-                "unknown category '{kind}': use a (any), v (vehicle), b (box), s (sphere), c (capsule) or x (static)"
+                "unknown category '{kind}': use a (any), v (vehicle), w (walker), t (traffic light), \
+                 b (box), s (sphere), c (capsule) or x (static)"
             )));
         }
     }

@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use clap::Args;
-use shared_types::WorldName;
+use shared_types::{LightState, WorldName};
 use sim_client::{Client, FrameView, WaitError, WaitMode};
 
 use crate::cli::failure::Failure;
@@ -106,7 +106,27 @@ pub(crate) fn frame_json(s: &FrameView) -> serde_json::Value {
             shared_types::nanos_to_seconds(s.header().recorded_elapsed_ns)
         }),
         "digest": format!("{:016x}", s.digest()),
+        "traffic_lights": light_counts(s).map(|counts| {
+            serde_json::Map::from_iter(
+                LightState::ALL
+                    .iter()
+                    .zip(counts)
+                    .map(|(state, n)| (state.name().to_owned(), n.into())),
+            )
+        }),
     })
+}
+
+/// How many traffic lights show red, yellow, green and off (in
+/// [`LightState::ALL`]'s order); `None` in a world without lights.
+fn light_counts(s: &FrameView) -> Option<[u32; 4]> {
+    let mut counts = [0u32; 4];
+    let mut any = false;
+    for light in s.actors().iter().filter_map(|a| a.light()) {
+        counts[light.state as usize] += 1;
+        any = true;
+    }
+    any.then_some(counts)
 }
 
 fn frame_line(s: &FrameView) -> String {
@@ -124,6 +144,15 @@ fn frame_line(s: &FrameView) -> String {
             "  (physics clamped to {} s)",
             simbus_input::Readable(s.physics_seconds())
         ));
+    }
+    if let Some(counts) = light_counts(s) {
+        let shown: Vec<String> = LightState::ALL
+            .iter()
+            .zip(counts)
+            .filter(|(_, n)| *n > 0)
+            .map(|(state, n)| format!("{n} {}", state.name()))
+            .collect();
+        line.push_str(&format!("  lights = {}", shown.join(" ")));
     }
     if s.missed() > 0 {
         line.push_str(&format!("  (missed {})", s.missed()));

@@ -48,17 +48,43 @@ from ._simbus import (  # actors and batches, lockstep, the recorder
     Command,
     CommandResult,
     DestroyActor,
+    FreezeTrafficLights,
     Participant,
     RecorderStatus,
     ReplayStatus,
+    ResetTrafficLights,
     SetEnableGravity,
     SetSimulatePhysics,
     SetTargetVelocity,
+    SetTrafficLightState,
+    SetTrafficLightTimes,
     SetTransform,
     SpawnActor,
 )
 from ._simbus import Capture, Listening, Sensor, SensorInfo  # sensors
 from . import recording
+
+#: Actor kinds, as a frame's ``actors["kind"]`` holds them.
+TRAFFIC_LIGHT_KIND = 7
+#: What a traffic light shows, by the code in ``flags`` bits 8 to 15.
+LIGHT_STATES = ("red", "yellow", "green", "off")
+#: A light whose junction is frozen (``flags`` bit 2).
+LIGHT_FROZEN = 4
+
+
+def traffic_lights(frame):
+    """The traffic lights of `frame`: ``{actor id: (state, elapsed
+    seconds in its phase, frozen)}``, the state one of `LIGHT_STATES`.
+    Reads the frame's actors (hold the frame, or a ``copy()``)."""
+    actors = frame.actors
+    lights = actors[actors["kind"] == TRAFFIC_LIGHT_KIND]
+    codes = (lights["flags"] >> 8) & 0xFF
+    return {
+        int(a["id"]): (LIGHT_STATES[int(c)] if c < len(LIGHT_STATES) else "unknown",
+                       int(a["detail"]) / 1000.0, bool(a["flags"] & LIGHT_FROZEN))
+        for a, c in zip(lights, codes)
+    }
+
 
 __all__ = [
     "PROTOCOL_VERSION",
@@ -74,6 +100,8 @@ __all__ = [
     "CommandResult",
     "DestroyActor",
     "Error",
+    "FreezeTrafficLights",
+    "LIGHT_STATES",
     "Frame",
     "Frames",
     "Full",
@@ -104,6 +132,10 @@ __all__ = [
     "Ticker",
     "TickerInfo",
     "TimeoutError",
+    "ResetTrafficLights",
+    "SetTrafficLightState",
+    "SetTrafficLightTimes",
     "connect",
     "recording",
+    "traffic_lights",
 ]

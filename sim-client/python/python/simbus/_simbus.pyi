@@ -154,7 +154,9 @@ class Frame:
     def actors(self) -> npt.NDArray[np.void]:
         """Read-only structured array over the frame's shared memory: id,
         kind, flags, position, rotation, linear_velocity, angular_velocity,
-        acceleration, extent. Raises simbus.ReleasedError once released."""
+        acceleration, extent, detail (a traffic light's milliseconds in its
+        phase; `simbus.traffic_lights(frame)` reads the lights). Raises
+        simbus.ReleasedError once released."""
     @property
     def poses(self) -> npt.NDArray[np.void]:
         """The actors' poses in the order of ``actors``, packed: a read-only
@@ -443,6 +445,29 @@ class ApplyWalkerControl(Command):
     def speed(self) -> float: ...
     @property
     def jump(self) -> bool: ...
+
+class SetTrafficLightState(Command):
+    """Shows `state` ("red", "yellow", "green", "off") on a traffic light
+    until its junction's cycle next changes that light."""
+
+    def __init__(self, actor_id: int, state: str) -> None: ...
+
+class SetTrafficLightTimes(Command):
+    """Sets a light's green, yellow and red seconds (None: unchanged)."""
+
+    def __init__(
+        self, actor_id: int, *, green: float | None = None, yellow: float | None = None, red: float | None = None
+    ) -> None: ...
+
+class FreezeTrafficLights(Command):
+    """Freezes or unfreezes a light's junction (actor_id None: every one)."""
+
+    def __init__(self, frozen: bool, actor_id: int | None = None) -> None: ...
+
+class ResetTrafficLights(Command):
+    """Starts a light's junction's cycle again (actor_id None: every one)."""
+
+    def __init__(self, actor_id: int | None = None) -> None: ...
 
 class CommandResult:
     """How one command of apply_batch_sync ended."""

@@ -38,7 +38,7 @@ fn numbers<const N: usize>(name: &str, value: &Bound<'_, PyAny>) -> PyResult<[f3
 }
 
 /// `value` as an `f32`, refused when NaN, infinite or beyond `f32`'s range.
-fn finite(name: &str, value: f64) -> PyResult<f32> {
+pub(super) fn finite(name: &str, value: f64) -> PyResult<f32> {
     let single = value as f32;
     if single.is_finite() {
         Ok(single)
@@ -76,11 +76,11 @@ fn quad(v: [f32; 4]) -> (f32, f32, f32, f32) {
 }
 
 /// The Python object of command `sub` sending `wire`.
-fn subclass<T: PyClass<BaseType = Command>>(sub: T, wire: Wire) -> PyClassInitializer<T> {
+pub(super) fn subclass<T: PyClass<BaseType = Command>>(sub: T, wire: Wire) -> PyClassInitializer<T> {
     PyClassInitializer::from(Command { wire }).add_subclass(sub)
 }
 
-fn flag(wire: &Wire) -> bool {
+pub(super) fn flag(wire: &Wire) -> bool {
     wire.flags & Wire::ON != 0
 }
 
@@ -184,10 +184,14 @@ pub(super) fn describe(w: &Wire) -> String {
             p[2],
             py_bool(flag(w))
         ),
+        CommandKind::TrafficLightState
+        | CommandKind::TrafficLightTimes
+        | CommandKind::FreezeTrafficLights
+        | CommandKind::ResetTrafficLights => super::light_commands::describe(kind, w),
     }
 }
 
-fn py_bool(value: bool) -> &'static str {
+pub(super) fn py_bool(value: bool) -> &'static str {
     if value {
         "True"
     } else {

@@ -1,0 +1,203 @@
+//! The town's traffic lights and signs as CARLA's client sees them. The
+//! server's light and sign actors stand where `shared_types::roads` puts
+//! the town's signals, so each is known by where it stands: its OpenDRIVE
+//! id (`sign_id`, what `world.get_traffic_light(landmark)` matches), its
+//! junction's group, its trigger volume (where a vehicle is "at" it, the
+//! box CARLA's client reads as `trigger_volume`), and, per vehicle, the
+//! light or stop sign it is at.
+
+use std::collections::HashMap;
+use std::sync::OnceLock;
+
+use shared_types::roads::{self, RoadNetwork, Signal, SignalKind};
+use shared_types::scene::SceneName;
+use shared_types::{ActorKind, ActorState, LightState};
+
+use crate::convert;
+use crate::wire::{CarlaLight, VehicleSignals};
+
+/// How far from a signal's head a light or sign actor may stand and still
+/// be that signal, metres.
+const MATCH_DISTANCE: f32 = 0.5;
+/// Height of the trigger volume's centre above the road, metres, and its
+/// half height.
+const TRIGGER_HEIGHT: f32 = 1.0;
+
+/// The town's roads (the only scene with signals).
+fn town() -> &'static RoadNetwork {
+    static TOWN: OnceLock<RoadNetwork> = OnceLock::new();
+    TOWN.get_or_init(|| roads::network(SceneName::Town))
+}
+
+/// A signal's head in simbus's world axes.
+fn head(signal: &Signal) -> [f32; 3] {
+    let p = signal.pose;
+    [p.x as f32, signal.height() as f32, -p.y as f32]
+}
+
+/// A point on the ground in OpenDRIVE's axes as simbus's.
+fn simbus_point(x: f64, y: f64, up: f32) -> [f32; 3] {
+    [x as f32, up, -y as f32]
+}
+
+/// The lights and signs seen in the world's frames.
+#[derive(Debug, Default)]
+pub(crate) struct Signals {
+    /// The signal (an index into the town's) of each light or sign actor.
+    of_actor: HashMap<u32, usize>,
+    /// The actor of each signal, as last seen.
+    actor_of: HashMap<usize, u32>,
+    /// The times set through the gateway, per light: green, yellow, red
+    /// (the server's own default until then).
+    times: HashMap<u32, [f32; 3]>,
+}
+
+/// CARLA's default green, yellow and red times, seconds (the server's).
+pub(crate) const DEFAULT_TIMES: [f32; 3] = [10.0, 3.0, 2.0];
+
+impl Signals {
+    /// Learns the lights and signs among `actors` (a frame's) not seen
+    /// before.
+    pub(crate) fn learn(&mut self, actors: &[ActorState]) {
+        for actor in actors {
+            let kind = actor.actor_kind();
+            if !matches!(kind, Some(ActorKind::TrafficLight | ActorKind::TrafficSign)) {
+                continue;
+            }
+            let id = convert::actor_id(actor.id);
+            if self.of_actor.contains_key(&id) {
+                continue;
+            }
+            let found = town().signals.iter().position(|signal| {
+                let lit = signal.kind == SignalKind::TrafficLight;
+                let h = head(signal);
+                let d = (0..3).map(|i| (h[i] - actor.position[i]).powi(2)).sum::<f32>();
+                lit == (kind == Some(ActorKind::TrafficLight)) && d.sqrt() < MATCH_DISTANCE
+            });
+            if let Some(index) = found {
+                self.of_actor.insert(id, index);
+                self.actor_of.insert(index, id);
+            }
+        }
+    }
+
+    /// The signal actor `id` is.
+    pub(crate) fn signal(&self, id: u32) -> Option<&'static Signal> {
+        self.of_actor.get(&id).map(|&i| &town().signals[i])
+    }
+
+    /// CARLA's type id of light or sign actor `id`.
+    pub(crate) fn type_id(&self, id: u32) -> Option<String> {
+        Some(match self.signal(id)?.kind {
+            SignalKind::TrafficLight => "traffic.traffic_light".to_owned(),
+            SignalKind::Stop => "traffic.stop".to_owned(),
+            SignalKind::SpeedLimit(kmh) => format!("traffic.speed_limit.{kmh}"),
+        })
+    }
+
+    /// Records the times set on light `id` (those given).
+    pub(crate) fn set_times(&mut self, id: u32, times: [Option<f32>; 3]) {
+        let slot = self.times.entry(id).or_insert(DEFAULT_TIMES);
+        for (slot, time) in slot.iter_mut().zip(times) {
+            if let Some(t) = time {
+                *slot = t;
+            }
+        }
+    }
+
+    /// CARLA's `TrafficLightData` of light `actor`, if it is one.
+    pub(crate) fn light(&self, actor: &ActorState) -> Option<CarlaLight> {
+        let reading = actor.light()?;
+        let id = convert::actor_id(actor.id);
+        let signal = self.signal(id)?;
+        Some(CarlaLight {
+            sign_id: signal.id,
+            times: self.times.get(&id).copied().unwrap_or(DEFAULT_TIMES),
+            elapsed: reading.elapsed_seconds as f32,
+            pole: signal.pole,
+            frozen: reading.frozen,
+            state: reading.state as u8,
+        })
+    }
+
+    /// The OpenDRIVE id of sign `id`.
+    pub(crate) fn sign_id(&self, id: u32) -> Option<u32> {
+        self.signal(id)
+            .filter(|s| s.kind != SignalKind::TrafficLight)
+            .map(|s| s.id)
+    }
+
+    /// What a vehicle at `position` heading as `rotation` (simbus's) is
+    /// at, given the frame's lights (`lights`: actor and what it shows):
+    /// a light (its state), a stop sign (red, not a light: the traffic
+    /// manager's all-way stop), or nothing (green).
+    pub(crate) fn vehicle(
+        &self,
+        position: [f32; 3],
+        rotation: [f32; 4],
+        lights: &[(u32, LightState)],
+    ) -> VehicleSignals {
+        let mut signals = VehicleSignals::default();
+        if self.of_actor.is_empty() {
+            return signals;
+        }
+        let forward = simbus_pose::rotate(rotation, [1.0, 0.0, 0.0]);
+        let heading = f64::from((-forward[2]).atan2(forward[0]));
+        let (x, y) = (f64::from(position[0]), -f64::from(position[2]));
+        let Some(signal) = town().signal_at(x, y, heading) else {
+            return signals;
+        };
+        let index = town().signals.iter().position(|s| s.id == signal.id);
+        match signal.kind {
+            SignalKind::TrafficLight => {
+                let actor = index.and_then(|i| self.actor_of.get(&i)).copied();
+                let state = actor.and_then(|a| lights.iter().find(|l| l.0 == a));
+                if let (Some(actor), Some(&(_, state))) = (actor, state) {
+                    signals.at_light = true;
+                    signals.light_id = actor;
+                    signals.light_state = state as u8;
+                }
+            }
+            SignalKind::Stop => signals.light_state = LightState::Red as u8,
+            SignalKind::SpeedLimit(_) => {}
+        }
+        signals
+    }
+
+    /// The lights of light `id`'s junction (itself too), in pole order.
+    pub(crate) fn group(&self, id: u32) -> Option<Vec<u32>> {
+        let junction = self.signal(id)?.junction?;
+        Some(
+            town()
+                .signals
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.kind == SignalKind::TrafficLight && s.junction == Some(junction))
+                .filter_map(|(i, _)| self.actor_of.get(&i).copied())
+                .collect(),
+        )
+    }
+
+    /// The trigger volume of light or sign `id` in its own frame (CARLA's
+    /// axes: the actor faces the traffic's way): centre and half extents.
+    pub(crate) fn trigger_volume(
+        &self,
+        id: u32,
+        position: [f32; 3],
+        rotation: [f32; 4],
+    ) -> Option<([f32; 3], [f32; 3])> {
+        let signal = self.signal(id)?;
+        if matches!(signal.kind, SignalKind::SpeedLimit(_)) {
+            return None;
+        }
+        let (centre, [half_length, half_width]) = signal.trigger();
+        let world = simbus_point(centre.x, centre.y, TRIGGER_HEIGHT);
+        let offset = [0, 1, 2].map(|i| world[i] - position[i]);
+        let [x, y, z, w] = rotation;
+        let local = simbus_pose::rotate([-x, -y, -z, w], offset);
+        Some((
+            convert::vector(local),
+            [half_length as f32, half_width as f32, TRIGGER_HEIGHT],
+        ))
+    }
+}

@@ -104,7 +104,9 @@ impl ActorState {
             flags |= Self::LIGHT_FROZEN;
         }
         self.flags = flags;
-        self.detail = (light.elapsed_seconds * 1000.0).round().clamp(0.0, u32::MAX as f64) as u32;
+        self.detail = (light.elapsed_seconds * 1000.0)
+            .round()
+            .clamp(0.0, u32::MAX as f64) as u32;
     }
 
     /// What a traffic sign says; `None` for any other actor.

@@ -209,7 +209,9 @@ mod tests {
         for (version, cut) in [(2, 4), (3, 3)] {
             let mut old = bytes[..bytes.len() - cut].to_vec();
             old[0] = version;
-            let mut restored = Keyframe::decode(&old).expect("an older layout decodes").world;
+            let mut restored = Keyframe::decode(&old)
+                .expect("an older layout decodes")
+                .world;
             assert_eq!(restored.states(), world.states());
             let mut world = world.duplicate();
             world.step(&plan);

@@ -155,9 +155,7 @@ impl Placement {
             | ActorKind::Box
             | ActorKind::Vehicle
             | ActorKind::TrafficLight
-            | ActorKind::TrafficSign => {
-                SharedShape::cuboid(shrunk(e.x), shrunk(e.y), shrunk(e.z))
-            }
+            | ActorKind::TrafficSign => SharedShape::cuboid(shrunk(e.x), shrunk(e.y), shrunk(e.z)),
             ActorKind::Sphere => SharedShape::ball(shrunk(e.x)),
             ActorKind::Capsule => SharedShape::capsule_y(shrunk(e.y), shrunk(e.x)),
             ActorKind::Walker => {
@@ -309,7 +307,9 @@ fn town_scene() -> Vec<Placement> {
             )
         }));
     }
-    scene.extend(signal_placements(&shared_types::roads::network(SceneName::Town)));
+    scene.extend(signal_placements(&shared_types::roads::network(
+        SceneName::Town,
+    )));
     scene
 }
 
@@ -465,7 +465,10 @@ mod tests {
                 // but the signs and lights beside it (`roads` keeps
                 // those off the lanes).
                 let signals = [ActorKind::TrafficLight, ActorKind::TrafficSign];
-                for body in placements[1..].iter().filter(|b| !signals.contains(&b.kind)) {
+                for body in placements[1..]
+                    .iter()
+                    .filter(|b| !signals.contains(&b.kind))
+                {
                     let reach = body.extent.x.max(body.extent.z) + 3.0;
                     let (dx, dz) = (body.position.x - x, body.position.z - z);
                     assert!(

@@ -336,14 +336,24 @@ fn write_signal(out: &mut String, signal: &Signal) {
     let (name, kind, subtype, value, unit) = match signal.kind {
         SignalKind::TrafficLight => ("Signal_3Light", "1000001", "-1".to_owned(), -1.0, ""),
         SignalKind::Stop => ("Sign_Stop", "206", "-1".to_owned(), -1.0, ""),
-        SignalKind::SpeedLimit(kmh) => ("Sign_SpeedLimit", "274", kmh.to_string(), f64::from(kmh), "km/h"),
+        SignalKind::SpeedLimit(kmh) => (
+            "Sign_SpeedLimit",
+            "274",
+            kmh.to_string(),
+            f64::from(kmh),
+            "km/h",
+        ),
     };
     let dynamic = if signal.kind == SignalKind::TrafficLight {
         "yes"
     } else {
         "no"
     };
-    let turn = if signal.lane < 0 { 0.0 } else { std::f64::consts::PI };
+    let turn = if signal.lane < 0 {
+        0.0
+    } else {
+        std::f64::consts::PI
+    };
     let [_, up, across] = signal.half_extents();
     let _ = writeln!(
         out,

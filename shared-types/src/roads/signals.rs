@@ -174,7 +174,14 @@ impl RoadNetwork {
     }
 
     /// Adds a signal of `kind` for `lane` of `road` at station `s`.
-    fn add_signal(&mut self, kind: SignalKind, road: u32, lane: i32, s: f64, junction: Option<u32>) {
+    fn add_signal(
+        &mut self,
+        kind: SignalKind,
+        road: u32,
+        lane: i32,
+        s: f64,
+        junction: Option<u32>,
+    ) {
         let r = &self.roads[road as usize];
         let reference = r.pose_at(s);
         let side = f64::from(lane.signum());
@@ -221,7 +228,13 @@ impl RoadNetwork {
     pub(super) fn add_lights(&mut self, id: u32) {
         for approach in self.approaches(id) {
             let s = Self::stop_station(&approach);
-            self.add_signal(SignalKind::TrafficLight, approach.road, approach.lane, s, Some(id));
+            self.add_signal(
+                SignalKind::TrafficLight,
+                approach.road,
+                approach.lane,
+                s,
+                Some(id),
+            );
         }
     }
 
@@ -248,7 +261,13 @@ impl RoadNetwork {
         if length < 2.0 * SPEED_SIGN_DISTANCE {
             return;
         }
-        self.add_signal(SignalKind::SpeedLimit(kmh), road, -1, SPEED_SIGN_DISTANCE, None);
+        self.add_signal(
+            SignalKind::SpeedLimit(kmh),
+            road,
+            -1,
+            SPEED_SIGN_DISTANCE,
+            None,
+        );
         self.add_signal(
             SignalKind::SpeedLimit(kmh),
             road,

@@ -218,8 +218,12 @@ fn the_towns_four_way_junctions_have_a_light_on_every_approach_and_its_tees_a_st
         assert!(wrap((-yaw).to_radians() - signal.stop.hdg).abs() < 1e-6);
         if !matches!(signal.kind, SignalKind::SpeedLimit(_)) {
             assert_eq!(
-                town.signal_at(x - signal.stop.hdg.cos(), y - signal.stop.hdg.sin(), signal.stop.hdg)
-                    .map(|s| s.id),
+                town.signal_at(
+                    x - signal.stop.hdg.cos(),
+                    y - signal.stop.hdg.sin(),
+                    signal.stop.hdg
+                )
+                .map(|s| s.id),
                 Some(signal.id)
             );
             assert!(town.signal_at(x, y, signal.stop.hdg + PI).is_none());
@@ -246,7 +250,11 @@ fn the_towns_opendrive_names_every_signal_and_the_controllers_of_its_lights() {
     assert_eq!(text.matches("<signal ").count(), town.signals.len());
     assert_eq!(text.matches("type=\"1000001\"").count(), 16);
     assert_eq!(text.matches("type=\"206\"").count(), 8);
-    assert_eq!(text.matches("type=\"274\" subtype=\"30\" value=\"30\"").count(), 8);
+    assert_eq!(
+        text.matches("type=\"274\" subtype=\"30\" value=\"30\"")
+            .count(),
+        8
+    );
     // Every light's controller, declared and listed by its junction.
     assert_eq!(text.matches("<control signalId=").count(), 16);
     assert_eq!(text.matches("<controller id=").count(), 32);

@@ -49,7 +49,12 @@ pub(crate) fn bounding_box(id: u32, extent: [f32; 3]) -> Value {
 
 /// CARLA's `BoundingBox` of actor `id` centred at `location`, turned by
 /// `rotation` (pitch, yaw, roll, degrees).
-pub(crate) fn located_box(id: u32, location: [f32; 3], extent: [f32; 3], rotation: [f32; 3]) -> Value {
+pub(crate) fn located_box(
+    id: u32,
+    location: [f32; 3],
+    extent: [f32; 3],
+    rotation: [f32; 3],
+) -> Value {
     let vector = |v: [f32; 3]| Value::Array(v.iter().map(|&x| Value::F32(x)).collect());
     Value::Array(vec![
         vector(location),

@@ -71,7 +71,9 @@ impl Signals {
             let found = town().signals.iter().position(|signal| {
                 let lit = signal.kind == SignalKind::TrafficLight;
                 let h = head(signal);
-                let d = (0..3).map(|i| (h[i] - actor.position[i]).powi(2)).sum::<f32>();
+                let d = (0..3)
+                    .map(|i| (h[i] - actor.position[i]).powi(2))
+                    .sum::<f32>();
                 lit == (kind == Some(ActorKind::TrafficLight)) && d.sqrt() < MATCH_DISTANCE
             });
             if let Some(index) = found {

@@ -10,8 +10,8 @@ use shared_types::{ActorKind, ActorState};
 use simbus_recording::RecordedCollision;
 
 use crate::clock::SubstepPlan;
-use crate::scene::Placement;
 use crate::scene::PlacedSignal;
+use crate::scene::Placement;
 use crate::traffic_lights::TrafficLights;
 use crate::vehicles::Vehicles;
 use crate::walkers::Walkers;

@@ -55,7 +55,10 @@ impl Session {
                 method,
                 what: "no actor id",
             })?;
-        match lock(&self.hub.actors).get(&id).map(|a| ActorKind::from_u32(a.kind)) {
+        match lock(&self.hub.actors)
+            .get(&id)
+            .map(|a| ActorKind::from_u32(a.kind))
+        {
             Some(Some(ActorKind::TrafficLight)) => Ok(id),
             Some(_) => Err(CallError::NotATrafficLight(id)),
             None => Err(CallError::UnknownActor(id)),
@@ -69,7 +72,9 @@ impl Session {
         args: &[Value],
     ) -> Result<Answer, CallError> {
         let id = self.light_arg(args, "get_group_traffic_lights")?;
-        let group = lock(&self.hub.signals).group(id).unwrap_or_else(|| vec![id]);
+        let group = lock(&self.hub.signals)
+            .group(id)
+            .unwrap_or_else(|| vec![id]);
         Ok(Answer::Value(Value::Array(
             group.into_iter().map(Value::from).collect(),
         )))

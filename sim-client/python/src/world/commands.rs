@@ -76,7 +76,10 @@ fn quad(v: [f32; 4]) -> (f32, f32, f32, f32) {
 }
 
 /// The Python object of command `sub` sending `wire`.
-pub(super) fn subclass<T: PyClass<BaseType = Command>>(sub: T, wire: Wire) -> PyClassInitializer<T> {
+pub(super) fn subclass<T: PyClass<BaseType = Command>>(
+    sub: T,
+    wire: Wire,
+) -> PyClassInitializer<T> {
     PyClassInitializer::from(Command { wire }).add_subclass(sub)
 }
 

@@ -45,8 +45,11 @@ fn simbus_point(x: f64, y: f64, up: f32) -> [f32; 3] {
 pub(crate) struct Signals {
     /// The signal (an index into the town's) of each light or sign actor.
     of_actor: HashMap<u32, usize>,
-    /// The actor of each signal, as last seen.
-    actor_of: HashMap<usize, u32>,
+    /// The actor of each signal (by its OpenDRIVE id), as last seen.
+    actor_of: HashMap<u32, u32>,
+    /// The last frame's lights and what each shows (kept, not allocated
+    /// per frame).
+    frame_lights: Vec<(u32, LightState)>,
     /// The times set through the gateway, per light: green, yellow, red
     /// (the server's own default until then).
     times: HashMap<u32, [f32; 3]>,
@@ -56,10 +59,15 @@ pub(crate) struct Signals {
 pub(crate) const DEFAULT_TIMES: [f32; 3] = [10.0, 3.0, 2.0];
 
 impl Signals {
-    /// Learns the lights and signs among `actors` (a frame's) not seen
-    /// before.
-    pub(crate) fn learn(&mut self, actors: &[ActorState]) {
+    /// Takes in a frame's `actors`: what its lights show, and the lights
+    /// and signs not seen before.
+    pub(crate) fn observe(&mut self, actors: &[ActorState]) {
+        self.frame_lights.clear();
         for actor in actors {
+            if let Some(light) = actor.light() {
+                self.frame_lights
+                    .push((convert::actor_id(actor.id), light.state));
+            }
             let kind = actor.actor_kind();
             if !matches!(kind, Some(ActorKind::TrafficLight | ActorKind::TrafficSign)) {
                 continue;
@@ -78,7 +86,7 @@ impl Signals {
             });
             if let Some(index) = found {
                 self.of_actor.insert(id, index);
-                self.actor_of.insert(index, id);
+                self.actor_of.insert(town().signals[index].id, id);
             }
         }
     }
@@ -130,17 +138,13 @@ impl Signals {
     }
 
     /// What a vehicle at `position` heading as `rotation` (simbus's) is
-    /// at, given the frame's lights (`lights`: actor and what it shows):
-    /// a light (its state), a stop sign (red, not a light: the traffic
-    /// manager's all-way stop), or nothing (green).
-    pub(crate) fn vehicle(
-        &self,
-        position: [f32; 3],
-        rotation: [f32; 4],
-        lights: &[(u32, LightState)],
-    ) -> VehicleSignals {
+    /// at in the last frame observed: a light (its state), a stop sign
+    /// (red, not a light: the traffic manager's all-way stop), or nothing
+    /// (green). A frame without lights (another scene than the town) has
+    /// no signals.
+    pub(crate) fn vehicle(&self, position: [f32; 3], rotation: [f32; 4]) -> VehicleSignals {
         let mut signals = VehicleSignals::default();
-        if self.of_actor.is_empty() {
+        if self.frame_lights.is_empty() {
             return signals;
         }
         let forward = simbus_pose::rotate(rotation, [1.0, 0.0, 0.0]);
@@ -149,11 +153,10 @@ impl Signals {
         let Some(signal) = town().signal_at(x, y, heading) else {
             return signals;
         };
-        let index = town().signals.iter().position(|s| s.id == signal.id);
         match signal.kind {
             SignalKind::TrafficLight => {
-                let actor = index.and_then(|i| self.actor_of.get(&i)).copied();
-                let state = actor.and_then(|a| lights.iter().find(|l| l.0 == a));
+                let actor = self.actor_of.get(&signal.id).copied();
+                let state = actor.and_then(|a| self.frame_lights.iter().find(|l| l.0 == a));
                 if let (Some(actor), Some(&(_, state))) = (actor, state) {
                     signals.at_light = true;
                     signals.light_id = actor;
@@ -171,11 +174,8 @@ impl Signals {
         let junction = self.signal(id)?.junction?;
         Some(
             town()
-                .signals
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.kind == SignalKind::TrafficLight && s.junction == Some(junction))
-                .filter_map(|(i, _)| self.actor_of.get(&i).copied())
+                .lights_of(junction)
+                .filter_map(|s| self.actor_of.get(&s.id).copied())
                 .collect(),
         )
     }

@@ -388,11 +388,6 @@ fn world_state(
         t.platform_timestamp,
         t.delta_seconds() as f32,
     );
-    let lights: Vec<(u32, shared_types::LightState)> = frame
-        .actors()
-        .iter()
-        .filter_map(|a| Some((convert::actor_id(a.id), a.light()?.state)))
-        .collect();
     for actor in frame.actors() {
         let mut state = convert::actor(actor);
         match actor.actor_kind() {
@@ -404,7 +399,7 @@ fn world_state(
                         .copied()
                         .unwrap_or_default(),
                 );
-                state.signals = signals.vehicle(actor.position, actor.rotation, &lights);
+                state.signals = signals.vehicle(actor.position, actor.rotation);
             }
             Some(shared_types::ActorKind::TrafficLight) => state.light = signals.light(actor),
             Some(shared_types::ActorKind::TrafficSign) => state.sign = signals.sign_id(state.id),
@@ -543,15 +538,19 @@ pub(crate) fn publish(hub: &Hub, frame: &FrameView, run_pid: u32) {
         }
         let spectator = *lock(&hub.spectator);
         let mut signals = lock(&hub.signals);
-        signals.learn(frame.actors());
+        signals.observe(frame.actors());
         world_state(frame, run_pid, &actors, &registry, &signals, spectator)
     };
+    // The actors go in before the state goes out: a CARLA client that
+    // reads a new actor's id in it asks for its record at once
+    // (`get_actors_by_id`), and must find it.
+    let previous = std::mem::replace(&mut *lock(&hub.actors), actors);
     // A frame of an episode older than one begun (its reload answered
     // before the world stream's pump saw it) is not news.
     if !lock(&hub.streams).send_world_state((run_pid, episode), &message) {
+        *lock(&hub.actors) = previous;
         return;
     }
-    *lock(&hub.actors) = actors;
     *sent = (run_pid, episode, frame.frame());
     drop(sent);
     hub.sent_changed.notify_all();

@@ -97,6 +97,7 @@ def replies(s, selector, payload=None, timeout=10.0):
 def test_a_foreign_zenoh_peer_decodes_frames_and_ros2_clock(request):
     world = world_name(request)
     procs = []
+    s = None
     try:
         endpoint, _ = start_export(world, procs, "--ros2-clock")
         s = session(endpoint)
@@ -160,8 +161,11 @@ def test_a_foreign_zenoh_peer_decodes_frames_and_ros2_clock(request):
         assert settings["fixed_delta_seconds"] == 0.05
         for sub in subs:
             sub.undeclare()
-        s.close()
     finally:
+        # A session left open keeps zenoh's threads, and pytest waits for
+        # them at exit: closed even when an assertion failed.
+        if s is not None:
+            s.close()
         kill_all(procs)
 
 

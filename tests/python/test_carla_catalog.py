@@ -153,3 +153,32 @@ def test_scene_and_spawned_actors_carry_carlas_attributes(gateway):
         assert "role_name" in vehicle.attributes
     assert world.get_actor(hero.id).attributes["role_name"] == "hero"
     assert {v.type_id for v in vehicles} == {"vehicle.simbus.car", "vehicle.audi.tt"}
+
+
+def test_every_sensor_attribute_a_script_may_set_recommends_its_default(gateway):
+    """visualize_multiple_sensors.py and raycast_sensor_testing.py read
+    `recommended_values[0]` of the lidar's attributes (as CARLA's sensor
+    attributes recommend their default, so do simbus's)."""
+    library = gateway.client().get_world().get_blueprint_library()
+    lidar = library.find("sensor.lidar.ray_cast")
+    rate = lidar.get_attribute("dropoff_general_rate")
+    assert rate.recommended_values == ["0.45"] and abs(rate.as_float() - 0.45) < 1e-6
+    lidar.set_attribute("dropoff_general_rate", rate.recommended_values[0])
+
+    def value(attribute, text):
+        kind = attribute.type
+        if kind == carla.ActorAttributeType.Float:
+            # as_float() reads the value as a C++ float.
+            return round(float(text) if text is not None else attribute.as_float(), 5)
+        if kind == carla.ActorAttributeType.Int:
+            return int(text) if text is not None else attribute.as_int()
+        if kind == carla.ActorAttributeType.Bool:
+            return text in ("true", "True") if text is not None else attribute.as_bool()
+        return text if text is not None else attribute.as_str()
+
+    for bp in library.filter("sensor.*"):
+        for attribute in bp:
+            if attribute.is_modifiable:
+                recommended = attribute.recommended_values
+                assert recommended, (bp.id, attribute.id)
+                assert value(attribute, recommended[0]) == value(attribute, None), (bp.id, attribute.id)

@@ -21,12 +21,19 @@ pub(super) struct Attr {
 }
 
 impl Attr {
+    /// A simbus blueprint's attribute; one that may be set recommends its
+    /// default, as CARLA's sensor attributes do (scripts read
+    /// `recommended_values[0]`).
     fn of(a: &Attribute) -> Self {
         Self {
             id: a.id,
             kind: a.kind,
             value: a.default.to_string(),
-            recommended: Vec::new(),
+            recommended: if a.modifiable {
+                vec![a.default.to_string()]
+            } else {
+                Vec::new()
+            },
             modifiable: a.modifiable,
             restricted: false,
         }

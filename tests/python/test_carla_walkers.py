@@ -166,3 +166,74 @@ def test_generate_traffics_walkers_find_sidewalks_and_walk_them(gateway):
     for controller in controllers:
         by_id[controller].stop()
     client.apply_batch([carla.command.DestroyActor(x) for x in controllers + walkers])
+
+
+SKELETON = [  # the bones draw_skeleton.py joins, by name
+    "crl_hips__C", "crl_spine__C", "crl_spine01__C", "crl_neck__C", "crl_Head__C",
+    "crl_eye__L", "crl_eye__R", *[f"crl_{b}__{s}" for s in "LR" for b in (
+        "shoulder", "arm", "foreArm", "hand", "thigh", "leg", "foot", "toe", "toeEnd",
+        *[f"hand{f}{j}" for f in ("Thumb", "Index", "Middle", "Ring", "Pinky")
+          for j in ("", "01", "02", "End")])],
+]
+
+
+@pytest.mark.parametrize("gateway", [["--scene", "town"]], indirect=True)
+def test_draw_skeleton_gets_a_walkers_bones_every_tick(gateway):
+    """draw_skeleton.py's calls, in its order: a camera, a pedestrian at a
+    navigation point with its AI controller walking it, then every tick
+    (30 FPS, synchronous) `blend_pose`, the camera moved round the walker,
+    and `get_bones()`: every bone it draws is there, on the walker (feet
+    on the ground, head at its height), in front of the camera."""
+    client = gateway.client()
+    world = client.get_world()
+    library = world.get_blueprint_library()
+    camera_bp = library.find("sensor.camera.rgb")
+    for name, value in (("image_size_x", "160"), ("image_size_y", "120"), ("fov", "60")):
+        camera_bp.set_attribute(name, value)
+    camera = world.spawn_actor(camera_bp, carla.Transform())
+    world.set_pedestrians_seed(1235)
+    ped_bp = library.find("walker.pedestrian.0001")
+    trans = carla.Transform()
+    trans.location = world.get_random_location_from_navigation()
+    trans.location.z += 1
+    ped = world.spawn_actor(ped_bp, trans)
+    controller = world.spawn_actor(library.find("controller.ai.walker"), carla.Transform(), ped)
+    controller.start()
+    controller.go_to_location(world.get_random_location_from_navigation())
+    controller.set_max_speed(1.7)
+    settings = world.get_settings()
+    world.apply_settings(carla.WorldSettings(
+        no_rendering_mode=False, synchronous_mode=True, fixed_delta_seconds=1.0 / 30))
+    try:
+        blending, turning = 0.0, 0.0
+        for _ in range(30):
+            ped.blend_pose(math.sin(blending))
+            blending += 0.015
+            turning += 0.009
+            view = ped.get_transform()
+            view.location.x += math.cos(turning) * -3
+            view.location.y += math.sin(turning) * 3
+            view.location.z = 2
+            view.rotation = carla.Rotation(pitch=-16, yaw=-360 * (turning / (math.pi * 2)))
+            camera.set_transform(view)
+            world.tick()
+            bones = ped.get_bones()
+            names = [bone.name for bone in bones.bone_transforms]
+            assert set(SKELETON) <= set(names)
+            world_points = {b.name: b.world.location for b in bones.bone_transforms}
+            at = ped.get_location()
+            feet, head = world_points["crl_foot__L"], world_points["crl_Head__C"]
+            assert math.dist((feet.x, feet.y), (at.x, at.y)) < 0.5
+            assert abs(feet.z - (at.z - 0.9375)) < 0.15 and head.z > at.z + 0.5
+            # In front of the camera, as the script projects them.
+            to_camera = camera.get_transform().get_inverse_matrix()
+            ahead = [sum(r * c for r, c in zip(row, (p.x, p.y, p.z, 1.0)))
+                     for p in world_points.values() for row in to_camera[:1]]
+            assert min(ahead) > 0.5, min(ahead)
+        ped.show_pose()
+        ped.hide_pose()
+        ped.get_pose_from_animation()
+        ped.set_bones(carla.WalkerBoneControlIn([("crl_hand__R", carla.Transform())]))
+    finally:
+        world.apply_settings(settings)
+        controller.stop()

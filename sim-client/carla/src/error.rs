@@ -176,6 +176,9 @@ pub(crate) enum CallError {
     /// A vehicle's call on an actor that is not a vehicle.
     #[error("simbus: actor {0} is not a vehicle")]
     NotAVehicle(u32),
+    /// A walker's call on an actor that is not a walker.
+    #[error("simbus: actor {0} is not a walker")]
+    NotAWalker(u32),
     /// A traffic light's call on an actor that is not one.
     #[error("simbus: actor {0} is not a traffic light")]
     NotATrafficLight(u32),

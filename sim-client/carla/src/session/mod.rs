@@ -8,6 +8,7 @@
 //! below.
 
 mod actors;
+mod bones;
 mod lights;
 mod physics;
 mod recorder;
@@ -49,6 +50,9 @@ const VOID_CALLS: &[&str] = &[
     "reset_traffic_light_group",
     "freeze_all_traffic_lights",
     "reset_all_traffic_lights",
+    "set_bones_transform",
+    "blend_pose",
+    "get_pose_from_animation",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -109,6 +113,8 @@ fn call_of(method: &str) -> Option<Call> {
         "freeze_all_traffic_lights" => Session::on_freeze_all_traffic_lights,
         "get_group_traffic_lights" => Session::on_get_group_traffic_lights,
         "get_light_boxes" => Session::on_get_light_boxes,
+        "get_bones_transform" => Session::on_get_bones_transform,
+        "set_bones_transform" | "blend_pose" | "get_pose_from_animation" => Session::on_pose,
         _ => return None,
     })
 }

@@ -78,7 +78,9 @@ pub struct VehicleSpec {
     pub wheels: [[f32; 3]; 4],
     /// Engine force on each driven (rear) wheel at full throttle, newtons.
     pub engine_force: f32,
-    /// Brake on each wheel at full brake (rapier's: an impulse per step).
+    /// Braking force of each wheel at full brake, newtons: the four
+    /// together stop the vehicle at [`FULL_BRAKE_DECELERATION`] (before
+    /// the tyres slide), a brake of 0.1 at a tenth of it.
     pub brake: f32,
     /// Front-wheel angle at full steer, radians.
     pub max_steer: f32,
@@ -98,7 +100,7 @@ impl Default for VehicleSpec {
             suspension_rest_length: 0.3,
             wheels: [[x, y, z], [x, y, -z], [-x, y, z], [-x, y, -z]],
             engine_force: 300.0,
-            brake: 40.0,
+            brake: DEFAULT_VEHICLE_MASS * FULL_BRAKE_DECELERATION / 4.0,
             max_steer: 0.5,
             max_suspension_force: 6000.0,
         }
@@ -155,7 +157,7 @@ impl VehicleSpec {
             suspension_rest_length: rest,
             wheels: [[x, y, z], [x, y, -z], [-x, y, z], [-x, y, -z]],
             engine_force: mass * full_throttle_acceleration(mass) / 2.0,
-            brake: 0.4 * mass,
+            brake: mass * FULL_BRAKE_DECELERATION / 4.0,
             max_steer: 0.5,
             max_suspension_force: (3.0 * mass * GRAVITY).max(6000.0),
         }
@@ -178,6 +180,10 @@ impl VehicleSpec {
         self.wheels[0][0] - self.wheels[2][0]
     }
 }
+
+/// How hard a full brake decelerates a vehicle on level ground, m/s²
+/// (a car's, about what CARLA's cars brake at).
+pub const FULL_BRAKE_DECELERATION: f32 = 8.0;
 
 /// The acceleration at full throttle on level ground, m/s², of a vehicle
 /// of `mass` kg: its class's power to weight (bicycle, motorcycle, car,

@@ -349,6 +349,46 @@ pub(crate) mod tests {
         }
     }
 
+    /// A car at 10 m/s slows by about a tenth of a full brake under a
+    /// brake of 0.1, and by about `FULL_BRAKE_DECELERATION` under a full
+    /// one (CARLA's cars brake at about that), whatever the physics step.
+    #[test]
+    fn a_brake_slows_a_car_in_proportion_to_how_hard_it_is_pressed() {
+        let half = [2.4, 0.74, 1.08];
+        let decelerations: Vec<f32> = [0.1, 0.5, 1.0]
+            .into_iter()
+            .map(|brake| {
+                let mut world = world_on_ground();
+                let r = world.apply(&Command::spawn_sized_vehicle([0.0, 1.1, 0.0], half, 1850.0));
+                step(&mut world, 20);
+                world.apply(&Command::set_target_velocity(
+                    r.actor,
+                    [10.0, 0.0, 0.0],
+                    [0.0; 3],
+                ));
+                step(&mut world, 1);
+                let before = state(&world, r.actor).linear_velocity[0];
+                world.apply(&Command::vehicle_control(r.actor, 0.0, 0.0, brake, false));
+                step(&mut world, 10);
+                let after = state(&world, r.actor).linear_velocity[0];
+                (before - after) / 0.5
+            })
+            .collect();
+        let full = shared_types::FULL_BRAKE_DECELERATION;
+        assert!(
+            (0.05 * full..0.2 * full).contains(&decelerations[0]),
+            "{decelerations:?}"
+        );
+        assert!(
+            (0.35 * full..0.65 * full).contains(&decelerations[1]),
+            "{decelerations:?}"
+        );
+        assert!(
+            (0.8 * full..1.25 * full).contains(&decelerations[2]),
+            "{decelerations:?}"
+        );
+    }
+
     #[test]
     fn vehicle_params_that_are_partial_or_absurd_are_refused() {
         let mut world = world_on_ground();

@@ -19,7 +19,7 @@ pub(crate) struct Vehicle {
     /// (absent from keyframes of before sized vehicles: the original's).
     #[serde(default = "original_engine_force")]
     max_engine_force: f32,
-    /// Brake per wheel at full brake.
+    /// Braking force per wheel at full brake, newtons.
     #[serde(default = "original_brake")]
     max_brake: f32,
     /// Front-wheel angle at full steer, radians.
@@ -104,11 +104,15 @@ impl Vehicles {
                 } else {
                     vehicle.throttle * vehicle.max_engine_force
                 };
-                wheel.brake = if vehicle.hand_brake && !front {
+                // Rapier's brake is the impulse one step may take off a
+                // wheel: the force times the step.
+                let force = if vehicle.hand_brake && !front {
+                    // The rear wheels locked: as hard as the tyres hold.
                     vehicle.max_brake * 4.0
                 } else {
                     vehicle.brake * vehicle.max_brake
                 };
+                wheel.brake = force * dt;
             }
             let queries = physics.broad_phase.as_query_pipeline_mut(
                 physics.narrow_phase.query_dispatcher(),

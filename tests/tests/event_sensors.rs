@@ -56,10 +56,12 @@ fn a_falling_box_reports_landing_once_and_resting_never() {
 fn a_vehicle_driven_into_a_box_reports_one_contact_naming_it() {
     let (_server, client, mut ticker) = world("collision-car");
     let car = spawn(&client, Command::spawn_vehicle([0.0, 1.0, 0.0]));
-    // A tall heavy box 8 m ahead of the car, resting on the ground.
+    // A tall, deep box 8 m ahead of the car, resting on the ground: too
+    // deep for a car braking at 8 m/s² after the hit to tip it over onto
+    // itself.
     let wall = spawn(
         &client,
-        Command::spawn_box([8.0, 1.5, 0.0], [0.5, 1.5, 2.0]),
+        Command::spawn_box([9.0, 1.5, 0.0], [1.5, 1.5, 2.0]),
     );
     let mut sensor = client
         .spawn_sensor(SensorSpec::with_params([0.0; 3], Collision).attached_to(car))

@@ -389,6 +389,32 @@ pub(crate) mod tests {
         );
     }
 
+    /// A parked car that rapier put to sleep reads at rest: no velocity
+    /// left over from its suspension's impulses (CARLA's client read
+    /// +0.59 m/s up for ever); a control wakes it and it drives.
+    #[test]
+    fn a_sleeping_parked_car_stays_still_and_a_control_wakes_it() {
+        let mut world = world_on_ground();
+        let r = world.apply(&Command::spawn_sized_vehicle(
+            [0.0, 1.1, 0.0],
+            [2.4, 0.74, 1.08],
+            1850.0,
+        ));
+        step(&mut world, 100);
+        let body = world.body_of(r.actor).expect("a body");
+        world.physics.bodies[body].sleep();
+        step(&mut world, 40);
+        let parked = state(&world, r.actor);
+        assert_eq!(parked.flags & ActorState::SLEEPING, ActorState::SLEEPING);
+        assert_eq!(
+            (parked.linear_velocity, parked.angular_velocity),
+            ([0.0; 3], [0.0; 3])
+        );
+        world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false));
+        step(&mut world, 20);
+        assert!(state(&world, r.actor).linear_velocity[0] > 1.0);
+    }
+
     #[test]
     fn vehicle_params_that_are_partial_or_absurd_are_refused() {
         let mut world = world_on_ground();

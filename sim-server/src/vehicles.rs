@@ -92,6 +92,12 @@ impl Vehicles {
     pub(crate) fn update(&mut self, physics: &mut PhysicsWorld, dt: f32) {
         for vehicle in &mut self.list {
             let chassis = vehicle.controller.chassis;
+            // A chassis asleep is at rest: its suspension's impulses would
+            // change its velocity without moving it (a parked car read
+            // +0.59 m/s upwards for ever). A new control wakes it.
+            if physics.bodies.get(chassis).is_none_or(|b| b.is_sleeping()) {
+                continue;
+            }
             for (i, wheel) in vehicle.controller.wheels_mut().iter_mut().enumerate() {
                 let front = i < 2;
                 wheel.steering = if front {

@@ -17,8 +17,8 @@ const T: Duration = Duration::from_secs(20);
 /// (frame, digest) checkpoints of the scenario.
 const GOLDEN: [(u64, u64); 3] = [
     (0, 0x462b055fd4df3212),
-    (100, 0x17efe21eb949cd0b),
-    (300, 0x478fa83e0d8d58c2),
+    (100, 0x7cdc18bba2df6782),
+    (300, 0x4f11bd305e805d22),
 ];
 
 #[test]

@@ -293,6 +293,22 @@ def test_a_sensor_goes_with_its_parent_and_is_destroyed_as_a_dying_actor(gateway
     assert camera.id not in [a.id for a in world.get_actors()]
 
 
+def test_a_sensor_destroyed_right_after_its_parent_is_destroyed(gateway):
+    """Asynchronous mode, as after leaving synchronous mode: a sensor
+    destroyed at once after its parent (before any world state says it
+    went with it) is destroyed, ten times out of ten (it failed with
+    "unknown sensor" when the server had ended it first)."""
+    client = gateway.client()
+    world = client.get_world()
+    library = world.get_blueprint_library()
+    for i in range(10):
+        car = world.spawn_actor(library.find("vehicle.tesla.model3"),
+                                carla.Transform(carla.Location(x=-20, y=5 * i, z=1)))
+        gnss = world.spawn_actor(library.find("sensor.other.gnss"), carla.Transform(), attach_to=car)
+        assert car.destroy()
+        assert gnss.destroy(), i
+
+
 @pytest.mark.parametrize("gateway", [["--scene", "empty"]], indirect=True)
 def test_batches_answer_one_response_per_command_with_errors_per_command(gateway):
     client, world, library = synced(gateway)

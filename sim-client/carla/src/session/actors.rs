@@ -466,11 +466,18 @@ impl Session {
             registry.sensors.remove(&id);
             return Ok(id);
         }
+        let spawned_here = registry.sensors.contains_key(&id);
         drop(registry);
         let simbus_id = crate::wire::simbus_id(id).ok_or(CallError::NotASensor(id))?;
-        self.client()?
-            .destroy_sensor(simbus_id)
-            .map_err(CallError::simbus)?;
+        match self.client()?.destroy_sensor(simbus_id) {
+            Ok(()) => {}
+            // A sensor this gateway spawned that the server no longer has
+            // went with its parent in a frame the world stream has not
+            // passed on yet (a destroy right after the parent's): it is
+            // destroyed, as the client asks.
+            Err(sim_client::SensorError::UnknownSensor { .. }) if spawned_here => {}
+            Err(e) => return Err(CallError::simbus(e)),
+        }
         lock(&self.hub.registry).sensors.remove(&id);
         Ok(id)
     }

@@ -41,7 +41,9 @@ wire_enum! {
         /// Enable (`flags` bit 0 set) or disable gravity on `actor`.
         SetGravity = 12,
         /// Drive a vehicle: `params` = throttle 0..1, steer -1..1 (positive
-        /// left), brake 0..1; `flags` bit 0 = hand brake. Holds until changed.
+        /// left), brake 0..1; `flags` bit 0 = hand brake, bit 1
+        /// ([`Command::REVERSE`]) = the reverse gear (the throttle drives
+        /// it backwards). Holds until changed.
         VehicleControl = 13,
         /// Hold `actor` at a constant velocity, `vector` (m/s) in the
         /// actor's own axes, every physics step until switched off
@@ -134,6 +136,8 @@ impl Command {
     /// (`SetPhysics`), gravity (`SetGravity`), the hand brake
     /// (`VehicleControl`).
     pub const ON: u32 = 1;
+    /// The flag bit of `VehicleControl` that engages the reverse gear.
+    pub const REVERSE: u32 = 2;
 
     fn new(kind: CommandKind, actor: u64) -> Self {
         Self {
@@ -337,6 +341,16 @@ impl Command {
             params: [throttle, steer, brake, 0.0],
             ..Self::new(CommandKind::VehicleControl, actor)
         }
+    }
+
+    /// This `VehicleControl` in the reverse gear (or, `false`, forward).
+    pub fn in_reverse(mut self, reverse: bool) -> Self {
+        if reverse {
+            self.flags |= Self::REVERSE;
+        } else {
+            self.flags &= !Self::REVERSE;
+        }
+        self
     }
 }
 

@@ -142,7 +142,13 @@ impl World {
                 let Some(vehicle) = self.vehicles.get_mut(id) else {
                     return result(id, CommandStatus::NotAVehicle);
                 };
-                vehicle.set_control(throttle, steer, brake, command.flags & Command::ON != 0);
+                vehicle.set_control(
+                    throttle,
+                    steer,
+                    brake,
+                    command.flags & Command::ON != 0,
+                    command.flags & Command::REVERSE != 0,
+                );
                 body.wake_up(true);
             }
             CommandKind::WalkerControl => {
@@ -412,6 +418,27 @@ pub(crate) mod tests {
         );
         world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false));
         step(&mut world, 20);
+        assert!(state(&world, r.actor).linear_velocity[0] > 1.0);
+    }
+
+    /// In the reverse gear the throttle drives a car backwards; out of it,
+    /// forwards again.
+    #[test]
+    fn the_reverse_gear_drives_a_car_backwards() {
+        let mut world = world_on_ground();
+        let r = world.apply(&Command::spawn_sized_vehicle(
+            [0.0, 1.1, 0.0],
+            [2.4, 0.74, 1.08],
+            1850.0,
+        ));
+        step(&mut world, 20);
+        let start = state(&world, r.actor).position[0];
+        world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false).in_reverse(true));
+        step(&mut world, 40);
+        let back = state(&world, r.actor).position[0];
+        assert!(back < start - 1.5, "{start} -> {back}");
+        world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false));
+        step(&mut world, 80);
         assert!(state(&world, r.actor).linear_velocity[0] > 1.0);
     }
 

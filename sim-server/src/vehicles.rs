@@ -11,6 +11,7 @@ use shared_types::{VehicleSpec, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_ST
 pub(crate) struct Vehicle {
     actor: u64,
     controller: DynamicRayCastVehicleController,
+    /// The throttle, negative in the reverse gear.
     throttle: f32,
     steer: f32,
     brake: f32,
@@ -40,9 +41,17 @@ fn original_steer() -> f32 {
 }
 
 impl Vehicle {
-    /// Holds this control until the next one.
-    pub(crate) fn set_control(&mut self, throttle: f32, steer: f32, brake: f32, hand_brake: bool) {
-        self.throttle = throttle;
+    /// Holds this control until the next one (`reverse`: the throttle
+    /// drives the vehicle backwards).
+    pub(crate) fn set_control(
+        &mut self,
+        throttle: f32,
+        steer: f32,
+        brake: f32,
+        hand_brake: bool,
+        reverse: bool,
+    ) {
+        self.throttle = if reverse { -throttle } else { throttle };
         self.steer = steer;
         self.brake = brake;
         self.hand_brake = hand_brake;

@@ -471,3 +471,20 @@ def test_a_spawn_into_another_body_fails_as_carla_says(gateway):
     ], True)
     assert [r.error for r in responses] == [COLLISION, "", COLLISION]
     assert sorted(a.id for a in world.get_actors()) == sorted(before + [responses[1].actor_id])
+
+
+def test_the_reverse_gear_drives_a_car_backwards(gateway):
+    """`VehicleControl(reverse=True)`: the throttle drives backwards, and
+    `get_control()` reads the gear back (manual_control.py's `Q` key)."""
+    client, world, library = synced(gateway)
+    car = world.spawn_actor(library.find("vehicle.tesla.model3"), carla.Transform(carla.Location(x=-20, z=1)))
+    for _ in range(20):
+        world.tick()
+    start = car.get_location()
+    car.apply_control(carla.VehicleControl(throttle=0.6, reverse=True))
+    for _ in range(40):
+        world.tick()
+    assert car.get_control().reverse
+    moved = car.get_location() - start
+    forward = car.get_transform().get_forward_vector()
+    assert moved.x * forward.x + moved.y * forward.y < -1.0, moved

@@ -135,12 +135,10 @@ impl Op {
             Op::Torque(v) => Command::apply_torque(actor, convert::vector(v).map(|x| -x)),
             Op::Physics(on) => Command::set_physics(actor, on),
             Op::Gravity(on) => Command::set_gravity(actor, on),
+            // CARLA steers right for positive values, simbus left.
             Op::Control(c) => {
-                if c.reverse {
-                    return Err(CallError::NoReverse);
-                }
-                // CARLA steers right for positive values, simbus left.
                 Command::vehicle_control(actor, c.throttle, -c.steer, c.brake, c.hand_brake)
+                    .in_reverse(c.reverse)
             }
             Op::ConstantVelocity(v) => Command::constant_velocity(actor, v.map(convert::vector)),
             Op::WalkerControl(direction, speed, jump) => {
@@ -443,13 +441,14 @@ mod tests {
     }
 
     #[test]
-    fn reverse_and_sensors_are_refused_with_the_reason() {
+    fn reverse_engages_the_reverse_gear_and_sensors_are_refused_with_the_reason() {
         let reverse = Op::Control(CarlaVehicleControl {
+            throttle: 0.5,
             reverse: true,
             ..Default::default()
         });
-        let e = reverse.command(3, None).unwrap_err().to_string();
-        assert!(e.contains("reverse"), "{e}");
+        let command = reverse.command(3, None).unwrap();
+        assert_eq!(command.flags & Command::REVERSE, Command::REVERSE);
         let on_sensor = Op::Impulse([0.0; 3]).command(crate::wire::SENSOR_ID_BASE + 1, None);
         let e = on_sensor.unwrap_err().to_string();
         assert!(e.contains("sensor"), "{e}");

@@ -191,11 +191,6 @@ pub(crate) enum CallError {
     /// A command that needs the actor's last state, for an actor not seen.
     #[error("simbus: unknown actor {0}")]
     UnknownActor(u32),
-    /// `VehicleControl.reverse`.
-    #[error(
-        "simbus: the simbus vehicle has no reverse gear (VehicleControl.reverse must be False)"
-    )]
-    NoReverse,
     /// A spawn where another body is, in CARLA's words (scripts such as
     /// `generate_traffic.py` skip an occupied spawn point by this error,
     /// and `try_spawn_actor` answers `None`).

@@ -14,6 +14,7 @@ use crate::gil::detached;
 use commands::{actor_id, describe, spawn_command, Command};
 
 mod commands;
+mod control_commands;
 mod light_commands;
 
 /// How one command of `apply_batch_sync` ended.
@@ -197,6 +198,7 @@ impl Client {
 /// Adds this module's classes to the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     commands::register(m)?;
+    control_commands::register(m)?;
     light_commands::register(m)?;
     m.add_class::<BatchResult>()?;
     Ok(())

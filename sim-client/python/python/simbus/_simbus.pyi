@@ -424,7 +424,13 @@ class SetEnableGravity(Command):
 
 class ApplyVehicleControl(Command):
     def __init__(
-        self, actor_id: int, throttle: float = 0.0, steer: float = 0.0, brake: float = 0.0, hand_brake: bool = False
+        self,
+        actor_id: int,
+        throttle: float = 0.0,
+        steer: float = 0.0,
+        brake: float = 0.0,
+        hand_brake: bool = False,
+        reverse: bool = False,
     ) -> None: ...
     @property
     def throttle(self) -> float: ...
@@ -434,6 +440,8 @@ class ApplyVehicleControl(Command):
     def brake(self) -> float: ...
     @property
     def hand_brake(self) -> bool: ...
+    @property
+    def reverse(self) -> bool: ...
 
 class ApplyWalkerControl(Command):
     def __init__(

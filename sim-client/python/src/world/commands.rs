@@ -13,7 +13,7 @@ use shared_types::{ActorKind, Command as Wire, CommandKind};
 
 /// A `name` of `N` numbers (any sequence: tuple, list, numpy array), each
 /// finite as an `f32`.
-fn numbers<const N: usize>(name: &str, value: &Bound<'_, PyAny>) -> PyResult<[f32; N]> {
+pub(super) fn numbers<const N: usize>(name: &str, value: &Bound<'_, PyAny>) -> PyResult<[f32; N]> {
     let wrong = || {
         let kind = value
             .get_type()
@@ -67,7 +67,7 @@ pub(super) fn actor_id(value: &Bound<'_, PyAny>) -> PyResult<u64> {
     })
 }
 
-fn triple(v: [f32; 3]) -> (f32, f32, f32) {
+pub(super) fn triple(v: [f32; 3]) -> (f32, f32, f32) {
     (v[0], v[1], v[2])
 }
 
@@ -181,11 +181,16 @@ pub(super) fn describe(w: &Wire) -> String {
         },
         CommandKind::SetSun => format!("SetSun(azimuth={:?}, altitude={:?})", p[0], p[1]),
         CommandKind::VehicleControl => format!(
-            "ApplyVehicleControl({id}, throttle={:?}, steer={:?}, brake={:?}, hand_brake={})",
+            "ApplyVehicleControl({id}, throttle={:?}, steer={:?}, brake={:?}, hand_brake={}{})",
             p[0],
             p[1],
             p[2],
-            py_bool(flag(w))
+            py_bool(flag(w)),
+            if w.flags & Wire::REVERSE != 0 {
+                ", reverse=True"
+            } else {
+                ""
+            }
         ),
         CommandKind::TrafficLightState
         | CommandKind::TrafficLightTimes
@@ -483,104 +488,6 @@ switch_command!(
     SetEnableGravity, Wire::set_gravity
 );
 
-/// Drives a vehicle: `throttle` 0..1, `steer` -1..1 (positive: left),
-/// `brake` 0..1, `hand_brake`. Holds until changed.
-#[pyclass(module = "simbus", extends = Command, frozen)]
-#[derive(Debug)]
-pub(crate) struct ApplyVehicleControl;
-
-#[pymethods]
-impl ApplyVehicleControl {
-    #[new]
-    #[pyo3(signature = (actor_id, throttle = 0.0, steer = 0.0, brake = 0.0, hand_brake = false))]
-    fn new(
-        actor_id: &Bound<'_, PyAny>,
-        throttle: f64,
-        steer: f64,
-        brake: f64,
-        hand_brake: bool,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let wire = Wire::vehicle_control(
-            self::actor_id(actor_id)?,
-            finite("throttle", throttle)?,
-            finite("steer", steer)?,
-            finite("brake", brake)?,
-            hand_brake,
-        );
-        Ok(subclass(Self, wire))
-    }
-
-    /// Throttle, 0..1.
-    #[getter]
-    fn throttle(slf: PyRef<'_, Self>) -> f32 {
-        slf.as_ref().wire.params[0]
-    }
-
-    /// Steer, -1..1 (positive: left).
-    #[getter]
-    fn steer(slf: PyRef<'_, Self>) -> f32 {
-        slf.as_ref().wire.params[1]
-    }
-
-    /// Brake, 0..1.
-    #[getter]
-    fn brake(slf: PyRef<'_, Self>) -> f32 {
-        slf.as_ref().wire.params[2]
-    }
-
-    /// The hand brake.
-    #[getter]
-    fn hand_brake(slf: PyRef<'_, Self>) -> bool {
-        flag(&slf.as_ref().wire)
-    }
-}
-
-/// Walks a walker: `direction` (x, y, z; its horizontal part is used),
-/// `speed` m/s (0..=20), `jump` once. Holds until changed (CARLA's
-/// `WalkerControl`).
-#[pyclass(module = "simbus", extends = Command, frozen)]
-#[derive(Debug)]
-pub(crate) struct ApplyWalkerControl;
-
-#[pymethods]
-impl ApplyWalkerControl {
-    #[new]
-    #[pyo3(signature = (actor_id, direction = None, speed = 0.0, jump = false))]
-    fn new(
-        actor_id: &Bound<'_, PyAny>,
-        direction: Option<&Bound<'_, PyAny>>,
-        speed: f64,
-        jump: bool,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let direction = direction.map_or(Ok([1.0, 0.0, 0.0]), |d| numbers("direction", d))?;
-        let wire = Wire::walker_control(
-            self::actor_id(actor_id)?,
-            direction,
-            finite("speed", speed)?,
-            jump,
-        );
-        Ok(subclass(Self, wire))
-    }
-
-    /// Direction (x, y, z).
-    #[getter]
-    fn direction(slf: PyRef<'_, Self>) -> (f32, f32, f32) {
-        triple(slf.as_ref().wire.vector)
-    }
-
-    /// Speed, m/s.
-    #[getter]
-    fn speed(slf: PyRef<'_, Self>) -> f32 {
-        slf.as_ref().wire.params[0]
-    }
-
-    /// A jump.
-    #[getter]
-    fn jump(slf: PyRef<'_, Self>) -> bool {
-        flag(&slf.as_ref().wire)
-    }
-}
-
 /// Adds the command classes to the extension module.
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Command>()?;
@@ -593,7 +500,5 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ApplyTorque>()?;
     m.add_class::<SetSimulatePhysics>()?;
     m.add_class::<SetEnableGravity>()?;
-    m.add_class::<ApplyVehicleControl>()?;
-    m.add_class::<ApplyWalkerControl>()?;
     Ok(())
 }

@@ -488,3 +488,28 @@ def test_the_reverse_gear_drives_a_car_backwards(gateway):
     moved = car.get_location() - start
     forward = car.get_transform().get_forward_vector()
     assert moved.x * forward.x + moved.y * forward.y < -1.0, moved
+
+
+def test_a_vehicles_lights_and_doors_answer_as_carla(gateway):
+    """`set_light_state` / `get_light_state`, the batch's
+    `SetVehicleLightState` (the traffic manager's `update_vehicle_lights`),
+    `world.get_vehicles_light_states()`; `open_door` / `close_door`
+    accepted."""
+    client, world, library = synced(gateway)
+    car = world.spawn_actor(library.find("vehicle.tesla.model3"), carla.Transform(carla.Location(x=-20, z=1)))
+    other = world.spawn_actor(library.find("vehicle.audi.tt"), carla.Transform(carla.Location(x=-30, z=1)))
+    world.tick()
+    assert car.get_light_state() == carla.VehicleLightState.NONE
+    beams = carla.VehicleLightState.LowBeam | carla.VehicleLightState.Position
+    car.set_light_state(carla.VehicleLightState(beams))
+    # (CARLA's binding turns the enum given into the flags it carries.)
+    command = carla.command.SetVehicleLightState(other, carla.VehicleLightState.Brake)
+    client.apply_batch_sync([command])
+    world.tick()
+    assert car.get_light_state() == carla.VehicleLightState(beams)
+    states = dict(world.get_vehicles_light_states())
+    assert states[car.id] == int(beams) and states[other.id] == command.light_state
+    car.open_door(carla.VehicleDoor.FL)
+    car.close_door(carla.VehicleDoor.All)
+    world.tick()
+    assert car.is_alive

@@ -166,6 +166,17 @@ impl Op {
     }
 }
 
+/// CARLA's `VehicleLightState`: its flags, as `[flags]` (the class's
+/// msgpack array) or a bare integer.
+pub(crate) fn light_flags(v: &Value) -> Option<u32> {
+    let flags = match v.as_array().map(Vec::as_slice) {
+        Some([flags]) => flags,
+        Some(_) => return None,
+        None => v,
+    };
+    u32::try_from(flags.as_u64()?).ok()
+}
+
 /// CARLA's `TrafficLightState` (an integer; `Unknown`, 4, shows as off).
 fn light_state(v: &Value) -> Option<LightState> {
     match v.as_u64()? {
@@ -264,6 +275,9 @@ pub(crate) enum BatchCommand {
     /// traffic manager in its own process; the server only checks the
     /// actor (simbus has no server-side autopilot).
     Autopilot(u32),
+    /// `SetVehicleLightState` (what the traffic manager's
+    /// `update_vehicle_lights` sends): the gateway keeps the flags.
+    VehicleLights(u32, u32),
 }
 
 /// The names of CARLA 0.9.16's batch commands, in variant order.
@@ -331,6 +345,10 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
     if index == 16 {
         field(1).as_bool().ok_or_else(bad)?;
         return Ok(BatchCommand::Autopilot(id()?));
+    }
+    if index == 18 {
+        let flags = light_flags(field(1)).ok_or_else(bad)?;
+        return Ok(BatchCommand::VehicleLights(id()?, flags));
     }
     let v3 = || vector(field(1)).ok_or_else(bad);
     let op = match index {

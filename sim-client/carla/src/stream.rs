@@ -92,6 +92,9 @@ pub(crate) struct Registry {
     pub(crate) descriptions: HashMap<u32, Value>,
     pub(crate) sensors: HashMap<u32, SensorEntry>,
     pub(crate) controls: HashMap<u32, CarlaVehicleControl>,
+    /// Each vehicle's lights as CARLA clients set them (CARLA's
+    /// `VehicleLightState` flags; simbus draws no light).
+    pub(crate) vehicle_lights: HashMap<u32, u32>,
     /// Client-side sensors numbered so far ([`crate::wire::client_side_id`]).
     pub(crate) client_side: u32,
 }

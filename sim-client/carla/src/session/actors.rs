@@ -362,6 +362,7 @@ impl Session {
                     }
                 },
                 Ok(BatchCommand::Autopilot(id)) => self.autopilot_target(id),
+                Ok(BatchCommand::VehicleLights(id, flags)) => self.set_vehicle_lights(id, flags),
                 Ok(BatchCommand::Actor(SPECTATOR_ID, op)) => self.move_spectator(op),
                 Ok(BatchCommand::Actor(id, Op::Destroy)) if crate::wire::is_sensor(id) => {
                     self.destroy_sensor(id)

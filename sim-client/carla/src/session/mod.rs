@@ -14,6 +14,7 @@ mod physics;
 mod recorder;
 mod spawned;
 pub(crate) mod traffic;
+mod vehicle_lights;
 pub(crate) mod weather;
 mod world;
 
@@ -53,6 +54,9 @@ const VOID_CALLS: &[&str] = &[
     "set_bones_transform",
     "blend_pose",
     "get_pose_from_animation",
+    "set_vehicle_light_state",
+    "open_vehicle_door",
+    "close_vehicle_door",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -86,7 +90,11 @@ fn call_of(method: &str) -> Option<Call> {
         "copy_opendrive_to_file" => Session::on_copy_opendrive_to_file,
         "get_required_files" => Session::on_get_required_files,
         "request_file" => Session::on_request_file,
-        "query_lights_state" | "get_vehicle_light_states" => Session::on_empty_list,
+        "query_lights_state" => Session::on_empty_list,
+        "get_vehicle_light_states" => Session::on_get_vehicle_light_states,
+        "get_vehicle_light_state" => Session::on_get_vehicle_light_state,
+        "set_vehicle_light_state" => Session::on_set_vehicle_light_state,
+        "open_vehicle_door" | "close_vehicle_door" => Session::on_vehicle_door,
         "get_actors_by_id" => Session::on_get_actors_by_id,
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,

@@ -82,6 +82,15 @@ wire_enum! {
         /// green, the others red, times from zero), or with `actor` 0
         /// every group's.
         ResetTrafficLights = 21,
+        /// Drive a vehicle to a steering angle and a speed (CARLA's
+        /// `VehicleAckermannControl`): `params` = steering angle (radians,
+        /// positive left, within ±π/2), steering speed (rad/s, 0: at once),
+        /// speed (m/s along the vehicle, negative backwards, within
+        /// ±[`MAX_ACKERMANN_SPEED`](crate::limits::MAX_ACKERMANN_SPEED)),
+        /// acceleration (m/s², 0: as hard as the vehicle can); `rotation[0]`
+        /// = jerk (m/s³, accepted, not followed). Holds until a
+        /// `VehicleControl` or another target replaces it.
+        VehicleAckermann = 22,
     }
 }
 
@@ -255,6 +264,22 @@ impl Command {
         Self::new(CommandKind::ResetTrafficLights, actor)
     }
 
+    /// Drive vehicle `actor` to steering angle `steer` (radians, positive
+    /// left) at `steer_speed` rad/s and to `speed` m/s at `acceleration`
+    /// m/s² (0: at once / as hard as it can).
+    pub fn vehicle_ackermann(
+        actor: u64,
+        steer: f32,
+        steer_speed: f32,
+        speed: f32,
+        acceleration: f32,
+    ) -> Self {
+        Self {
+            params: [steer, steer_speed, speed, acceleration],
+            ..Self::new(CommandKind::VehicleAckermann, actor)
+        }
+    }
+
     /// Remove `actor`.
     pub fn destroy(actor: u64) -> Self {
         Self::new(CommandKind::Destroy, actor)
@@ -392,7 +417,8 @@ impl std::fmt::Display for CommandStatus {
                  a vehicle's params all zero or half extents in 0.05..=20 m and mass in \
                  1..=100000 kg; a walker's radius in 0.05..=2 m, its half height above \
                  the radius and up to 5 m, its speed in 0..=20 m/s; a traffic light's state a \
-                 known code and its times in 0..=1000000 s"
+                 known code and its times in 0..=1000000 s; an Ackermann steer within +-pi/2 rad, its \
+                 speed within +-100 m/s, steering speed, acceleration and jerk not negative"
             }
             Self::NotAVehicle => "the actor is not a vehicle",
             Self::NotAWalker => "the actor is not a walker",
@@ -481,7 +507,7 @@ mod tests {
     #[test]
     fn kinds_and_statuses_are_numbered_without_gaps() {
         let kinds: Vec<u32> = CommandKind::ALL.into_iter().map(u32::from).collect();
-        assert_eq!(kinds, (1..=21).collect::<Vec<_>>());
+        assert_eq!(kinds, (1..=22).collect::<Vec<_>>());
         let statuses: Vec<u32> = CommandStatus::ALL.into_iter().map(u32::from).collect();
         assert_eq!(statuses, (0..=8).collect::<Vec<_>>());
     }

@@ -20,6 +20,9 @@ pub const MAX_WALKER_HALF_HEIGHT: f32 = 5.0;
 /// few thousand).
 pub const MAX_LIGHT_SECONDS: f32 = 1_000_000.0;
 
+/// The fastest an Ackermann target may ask a vehicle to go, m/s.
+pub const MAX_ACKERMANN_SPEED: f32 = 100.0;
+
 /// The most clients a world admits by default (`--max-clients`).
 pub const DEFAULT_MAX_CLIENTS: usize = 64;
 /// The most readers one sensor admits by default (`--max-sensor-readers`).

@@ -6,8 +6,8 @@
 
 use rapier3d::prelude::*;
 use shared_types::limits::{
-    MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION, MAX_LIGHT_SECONDS, MAX_WALKER_HALF_HEIGHT,
-    MAX_WALKER_RADIUS, MAX_WALKER_SPEED, MIN_WALKER_RADIUS,
+    MAX_ACKERMANN_SPEED, MAX_ACTOR_EXTENT, MAX_ACTOR_POSITION, MAX_LIGHT_SECONDS,
+    MAX_WALKER_HALF_HEIGHT, MAX_WALKER_RADIUS, MAX_WALKER_SPEED, MIN_WALKER_RADIUS,
 };
 use shared_types::{
     ActorKind, Command, CommandKind, CommandResult, CommandStatus, LightState, VehicleSpec,
@@ -15,6 +15,7 @@ use shared_types::{
 use tracing::debug;
 
 use crate::scene::Placement;
+use crate::vehicles::Ackermann;
 use crate::world::World;
 
 /// Whether every value is finite.
@@ -90,6 +91,7 @@ impl World {
                 self.physics.remove_body(handle);
                 self.actors.remove(index);
                 self.vehicles.remove(id);
+                self.ackermann.retain(|a| a.actor != id);
                 self.walkers.remove(id);
             }
             CommandKind::SetTransform => {
@@ -142,6 +144,8 @@ impl World {
                 let Some(vehicle) = self.vehicles.get_mut(id) else {
                     return result(id, CommandStatus::NotAVehicle);
                 };
+                // A control replaces any Ackermann target.
+                self.ackermann.retain(|a| a.actor != id);
                 vehicle.set_control(
                     throttle,
                     steer,
@@ -149,6 +153,25 @@ impl World {
                     command.flags & Command::ON != 0,
                     command.flags & Command::REVERSE != 0,
                 );
+                body.wake_up(true);
+            }
+            CommandKind::VehicleAckermann => {
+                let [steer, steer_speed, speed, acceleration] = command.params;
+                let jerk = command.rotation[0];
+                let valid = steer.abs() <= std::f32::consts::FRAC_PI_2
+                    && speed.abs() <= MAX_ACKERMANN_SPEED
+                    && steer_speed >= 0.0
+                    && acceleration >= 0.0
+                    && jerk >= 0.0;
+                if !valid {
+                    return result(id, CommandStatus::InvalidArgument);
+                }
+                if self.vehicles.get_mut(id).is_none() {
+                    return result(id, CommandStatus::NotAVehicle);
+                }
+                let target = Ackermann::new(id, command.params, self.vehicles.steering(id));
+                self.ackermann.retain(|a| a.actor != id);
+                self.ackermann.push(target);
                 body.wake_up(true);
             }
             CommandKind::WalkerControl => {
@@ -440,6 +463,53 @@ pub(crate) mod tests {
         world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false));
         step(&mut world, 80);
         assert!(state(&world, r.actor).linear_velocity[0] > 1.0);
+    }
+
+    /// An Ackermann target drives a car to its speed and holds it there,
+    /// backwards too, and a plain control takes the car back.
+    #[test]
+    fn an_ackermann_target_reaches_its_speed_and_a_control_ends_it() {
+        let mut world = world_on_ground();
+        let r = world.apply(&Command::spawn_sized_vehicle(
+            [0.0, 1.1, 0.0],
+            [2.4, 0.74, 1.08],
+            1850.0,
+        ));
+        step(&mut world, 20);
+        let ok = world.apply(&Command::vehicle_ackermann(r.actor, 0.0, 0.0, 6.0, 2.0));
+        assert_eq!(ok.status, CommandStatus::Ok as u32);
+        // 2 m/s² for 3 s, then held.
+        step(&mut world, 40);
+        let climbing = state(&world, r.actor).linear_velocity[0];
+        assert!((3.0..5.0).contains(&climbing), "{climbing}");
+        step(&mut world, 100);
+        let held = state(&world, r.actor).linear_velocity[0];
+        assert!((held - 6.0).abs() < 0.3, "{held}");
+        world.apply(&Command::vehicle_ackermann(r.actor, 0.0, 0.0, -2.0, 0.0));
+        step(&mut world, 160);
+        let back = state(&world, r.actor).linear_velocity[0];
+        assert!((back + 2.0).abs() < 0.3, "{back}");
+        world.apply(&Command::vehicle_control(r.actor, 0.0, 0.0, 1.0, false));
+        step(&mut world, 60);
+        assert!(state(&world, r.actor).linear_velocity[0].abs() < 0.1);
+        let bad = [
+            Command::vehicle_ackermann(r.actor, 2.0, 0.0, 1.0, 0.0),
+            Command::vehicle_ackermann(r.actor, 0.0, -1.0, 1.0, 0.0),
+            Command::vehicle_ackermann(r.actor, 0.0, 0.0, 101.0, 0.0),
+        ];
+        for command in bad {
+            assert_eq!(
+                world.apply(&command).status,
+                CommandStatus::InvalidArgument as u32
+            );
+        }
+        let ground = world.first_id();
+        assert_eq!(
+            world
+                .apply(&Command::vehicle_ackermann(ground, 0.0, 0.0, 1.0, 0.0))
+                .status,
+            CommandStatus::StaticActor as u32
+        );
     }
 
     #[test]

@@ -4,17 +4,18 @@
 //! starts from the nearest one instead of from the recording's first frame.
 //!
 //! Layout 1 was msgpack (recordings of simbus before it); a keyframe of it
-//! is refused by its version, with what it is. Layout 2 had no walkers and
-//! layout 3 no traffic lights: the world's last fields, so a layout-2
-//! keyframe reads as layout 4 with an empty list of walkers (one zero
-//! byte) and empty lights (three) after it, a layout-3 one with the lights.
+//! is refused by its version, with what it is. Layout 2 had no walkers,
+//! layout 3 no traffic lights and layout 4 no Ackermann targets: the
+//! world's last fields, so an older keyframe reads as layout 5 with those
+//! it lacks appended empty (walkers one zero byte, lights three,
+//! Ackermann targets one).
 
 use serde::{Deserialize, Serialize};
 
 use crate::world::World;
 
 /// Layout version of [`Keyframe`], checked on restore.
-const KEYFRAME_VERSION: u32 = 4;
+const KEYFRAME_VERSION: u32 = 5;
 
 /// How a layout-1 keyframe begins: msgpack's array of its 7 fields, the
 /// first its version, 1.
@@ -77,16 +78,20 @@ impl Keyframe<World> {
         let (version, rest) = postcard::take_from_bytes::<u32>(bytes)?;
         match version {
             KEYFRAME_VERSION => Ok(postcard::from_bytes(bytes)?),
-            2 | 3 => {
-                // Layout 3 is layout 2 and the walkers, last: none; layout
-                // 4 is layout 3 and the lights (lights, groups, signs):
-                // none.
+            2..=4 => {
+                // Each layout is the one before and one more of the
+                // world's last fields, empty: layout 3 the walkers (one
+                // zero byte), 4 the lights (lights, groups, signs: three),
+                // 5 the Ackermann targets (one).
                 let mut current = postcard::to_allocvec(&KEYFRAME_VERSION)?;
                 current.extend_from_slice(rest);
                 if version == 2 {
                     current.push(0);
                 }
-                current.extend_from_slice(&[0, 0, 0]);
+                if version <= 3 {
+                    current.extend_from_slice(&[0, 0, 0]);
+                }
+                current.push(0);
                 Ok(postcard::from_bytes(&current)?)
             }
             _ => Err(KeyframeError::Version(version)),
@@ -231,26 +236,28 @@ mod tests {
         assert!(matches!(error, KeyframeError::Version(1)), "{error:?}");
         assert_eq!(
             error.to_string(),
-            "the keyframe has layout version 1; this server reads 2 to 4"
+            "the keyframe has layout version 1; this server reads 2 to 5"
         );
     }
 
-    /// Keyframes of layout 2 (before walkers and lights: layout 4 without
-    /// its last two fields) and 3 (before lights) read as the same world
-    /// with no walkers and no lights.
+    /// Keyframes of layout 2 (before walkers, lights and Ackermann
+    /// targets: layout 5 without its last three fields), 3 (before lights)
+    /// and 4 (before Ackermann targets) read as the same world without
+    /// them.
     #[test]
-    fn keyframes_of_layouts_2_and_3_read_with_no_walkers_or_lights() {
+    fn keyframes_of_layouts_2_to_4_read_with_no_walkers_lights_or_targets() {
         let plan = plan();
         let mut world = World::new(&Scene::Default.placements(5), 1);
         for _ in 0..10 {
             world.step(&plan);
         }
         let bytes = Keyframe::of(&world, &FrameHeader::default(), "default".into()).encode();
-        // The same fields; layout 3 without the lights (three empty
-        // lists), layout 2 without the walkers (one) too.
-        assert_eq!(bytes[0], 4);
-        assert_eq!(bytes[bytes.len() - 4..], [0; 4]);
-        for (version, cut) in [(2, 4), (3, 3)] {
+        // The same fields; layout 4 without the Ackermann targets (one
+        // empty list), 3 without the lights (three) too, 2 without the
+        // walkers (one) too.
+        assert_eq!(bytes[0], 5);
+        assert_eq!(bytes[bytes.len() - 5..], [0; 5]);
+        for (version, cut) in [(2, 5), (3, 4), (4, 1)] {
             let mut old = bytes[..bytes.len() - cut].to_vec();
             old[0] = version;
             let mut restored = Keyframe::decode(&old)
@@ -262,7 +269,7 @@ mod tests {
             restored.step(&plan);
             assert_eq!(restored.states(), world.states());
         }
-        let error = Keyframe::decode(&[5, 0, 0]).unwrap_err();
-        assert!(matches!(error, KeyframeError::Version(5)), "{error:?}");
+        let error = Keyframe::decode(&[6, 0, 0]).unwrap_err();
+        assert!(matches!(error, KeyframeError::Version(6)), "{error:?}");
     }
 }

@@ -6,6 +6,9 @@ use rapier3d::control::{DynamicRayCastVehicleController, WheelTuning};
 use rapier3d::prelude::*;
 use shared_types::{VehicleSpec, FRICTION_SLIP, SUSPENSION_DAMPING, SUSPENSION_STIFFNESS};
 
+mod ackermann;
+pub(crate) use ackermann::Ackermann;
+
 /// A vehicle's controller and the control it holds until told otherwise.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Vehicle {
@@ -96,11 +99,50 @@ impl Vehicles {
         self.list.iter_mut().find(|v| v.actor == actor)
     }
 
-    /// Applies each vehicle's control to its wheels and lets its controller
-    /// push the chassis, for a physics step of `dt` seconds.
-    pub(crate) fn update(&mut self, physics: &mut PhysicsWorld, dt: f32) {
+    /// The steering angle vehicle `actor`'s control holds, radians.
+    pub(crate) fn steering(&self, actor: u64) -> f32 {
+        self.list
+            .iter()
+            .find(|v| v.actor == actor)
+            .map_or(0.0, |v| v.steer * v.max_steer)
+    }
+
+    /// Applies each vehicle's control to its wheels — the one its
+    /// Ackermann target in `ackermann` gives it this step, if it has one —
+    /// and lets its controller push the chassis, for a physics step of
+    /// `dt` seconds.
+    pub(crate) fn update(
+        &mut self,
+        physics: &mut PhysicsWorld,
+        dt: f32,
+        ackermann: &mut [Ackermann],
+    ) {
         for vehicle in &mut self.list {
             let chassis = vehicle.controller.chassis;
+            if let (Some(target), Some(body)) = (
+                ackermann.iter_mut().find(|a| a.actor == vehicle.actor),
+                physics.bodies.get(chassis),
+            ) {
+                let forward = body.rotation() * Vector::X;
+                let mass = body.mass().max(1e-3);
+                let drive = target.drive(
+                    body.linvel().dot(forward),
+                    vehicle.max_steer,
+                    2.0 * vehicle.max_engine_force / mass,
+                    4.0 * vehicle.max_brake / mass,
+                    dt,
+                );
+                vehicle.set_control(
+                    drive.throttle,
+                    drive.steer,
+                    drive.brake,
+                    false,
+                    drive.reverse,
+                );
+                if let Some(body) = physics.bodies.get_mut(chassis) {
+                    body.wake_up(true);
+                }
+            }
             // A chassis asleep is at rest: its suspension's impulses would
             // change its velocity without moving it (a parked car read
             // +0.59 m/s upwards for ever). A new control wakes it.

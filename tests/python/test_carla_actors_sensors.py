@@ -513,3 +513,35 @@ def test_a_vehicles_lights_and_doors_answer_as_carla(gateway):
     car.close_door(carla.VehicleDoor.All)
     world.tick()
     assert car.is_alive
+
+
+def test_ackermann_control_drives_a_car_to_its_speed_and_steering(gateway):
+    """`apply_ackermann_control(carla.VehicleAckermannControl(...))`: the
+    car reaches the speed asked for at the acceleration asked for and
+    turns its way (CARLA's steer: radians, positive right); the controller
+    settings read back as set."""
+    client, world, library = synced(gateway)
+    # Clear of the scene's ramp and boxes for 40 m ahead.
+    car = world.spawn_actor(library.find("vehicle.tesla.model3"),
+                            carla.Transform(carla.Location(x=-40, y=25, z=1)))
+    for _ in range(20):
+        world.tick()
+    car.apply_ackermann_control(carla.VehicleAckermannControl(speed=5.0, acceleration=2.0))
+    for _ in range(100):
+        world.tick()
+    assert abs(car.get_velocity().length() - 5.0) < 0.5, car.get_velocity()
+    yaw = car.get_transform().rotation.yaw
+    car.apply_ackermann_control(carla.VehicleAckermannControl(steer=0.3, steer_speed=1.0, speed=5.0))
+    for _ in range(40):
+        world.tick()
+    turned = car.get_transform().rotation.yaw - yaw
+    assert 10.0 < (turned + 360.0) % 360.0 < 180.0, turned  # to the right
+    settings = car.get_ackermann_controller_settings()
+    assert abs(settings.speed_kp - 0.15) < 1e-6
+    car.apply_ackermann_controller_settings(carla.AckermannControllerSettings(speed_kp=0.3))
+    assert abs(car.get_ackermann_controller_settings().speed_kp - 0.3) < 1e-6
+    client.apply_batch_sync([carla.command.ApplyVehicleAckermannControl(
+        car, carla.VehicleAckermannControl(speed=0.0))])
+    for _ in range(80):
+        world.tick()
+    assert car.get_velocity().length() < 0.2

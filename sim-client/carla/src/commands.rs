@@ -91,6 +91,9 @@ pub(crate) enum Op {
     /// CARLA's `enable_constant_velocity` (m/s in the actor's own axes),
     /// or `disable_constant_velocity` (`None`).
     ConstantVelocity(Option<V3>),
+    /// CARLA's `VehicleAckermannControl`: steer (radians, positive
+    /// right), steer speed, speed, acceleration, jerk.
+    Ackermann([f32; 5]),
     /// CARLA's `TrafficLight.set_state`.
     LightState(LightState),
     /// CARLA's `set_green_time`, `set_yellow_time`, `set_red_time`: the
@@ -157,6 +160,13 @@ impl Op {
                 Command::set_transform(actor, position, rotation)
             }
             Op::Collisions(on) => Command::set_physics(actor, on),
+            Op::Ackermann([steer, steer_speed, speed, acceleration, jerk]) => {
+                // CARLA steers right for positive values, simbus left.
+                let mut command =
+                    Command::vehicle_ackermann(actor, -steer, steer_speed, speed, acceleration);
+                command.rotation[0] = jerk;
+                command
+            }
             Op::LightState(state) => Command::traffic_light_state(actor, state),
             Op::LightTimes(times) => Command::traffic_light_times(actor, times),
             Op::FreezeLights(frozen) => Command::freeze_traffic_lights(actor, frozen),
@@ -164,6 +174,20 @@ impl Op {
             Op::Destroy => Command::destroy(actor),
         })
     }
+}
+
+/// CARLA 0.9.16's `VehicleAckermannControl`: `[steer, steer_speed,
+/// speed, acceleration, jerk]`.
+fn ackermann_control(v: &Value) -> Option<[f32; 5]> {
+    let fields = v.as_array()?;
+    if fields.len() != 5 {
+        return None;
+    }
+    let mut out = [0.0; 5];
+    for (slot, field) in out.iter_mut().zip(fields) {
+        *slot = number(field)? as f32;
+    }
+    Some(out)
 }
 
 /// CARLA's `VehicleLightState`: its flags, as `[flags]` (the class's
@@ -186,7 +210,7 @@ fn light_state(v: &Value) -> Option<LightState> {
 }
 
 /// The RPC methods that act on one actor, as [`rpc_op`] reads them.
-const RPC_OPS: [&str; 20] = [
+const RPC_OPS: [&str; 21] = [
     "set_actor_transform",
     "set_actor_location",
     "set_actor_target_velocity",
@@ -207,6 +231,7 @@ const RPC_OPS: [&str; 20] = [
     "set_traffic_light_red_time",
     "freeze_traffic_light",
     "reset_traffic_light_group",
+    "apply_ackermann_control_to_vehicle",
 ];
 
 /// The RPC methods that act on one actor: `(actor, what)` from their
@@ -253,6 +278,9 @@ pub(crate) fn rpc_op(method: &str, args: &[Value]) -> Option<Result<(u32, Op), C
         }
         "freeze_traffic_light" => arg(1).as_bool().map(Op::FreezeLights).ok_or_else(bad),
         "reset_traffic_light_group" => Ok(Op::ResetLights),
+        "apply_ackermann_control_to_vehicle" => {
+            ackermann_control(arg(1)).map(Op::Ackermann).ok_or_else(bad)
+        }
         _ => return None,
     };
     Some(op.and_then(|op| actor_id(arg(0)).map(|id| (id, op)).ok_or_else(bad)))
@@ -354,6 +382,7 @@ pub(crate) fn batch_command(v: &Value, actor: Option<u32>) -> Result<BatchComman
     let op = match index {
         1 => Op::Destroy,
         2 => Op::Control(vehicle_control(field(1)).ok_or_else(bad)?),
+        3 => Op::Ackermann(ackermann_control(field(1)).ok_or_else(bad)?),
         4 => {
             let (direction, speed, jump) = walker_control(field(1)).ok_or_else(bad)?;
             Op::WalkerControl(direction, speed, jump)

@@ -95,6 +95,9 @@ pub(crate) struct Registry {
     /// Each vehicle's lights as CARLA clients set them (CARLA's
     /// `VehicleLightState` flags; simbus draws no light).
     pub(crate) vehicle_lights: HashMap<u32, u32>,
+    /// Each vehicle's Ackermann controller settings as CARLA clients set
+    /// them.
+    pub(crate) ackermann_settings: HashMap<u32, [f32; 6]>,
     /// Client-side sensors numbered so far ([`crate::wire::client_side_id`]).
     pub(crate) client_side: u32,
 }

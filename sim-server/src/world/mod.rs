@@ -13,7 +13,7 @@ use crate::clock::SubstepPlan;
 use crate::scene::PlacedSignal;
 use crate::scene::Placement;
 use crate::traffic_lights::TrafficLights;
-use crate::vehicles::Vehicles;
+use crate::vehicles::{Ackermann, Vehicles};
 use crate::walkers::Walkers;
 
 mod check;
@@ -73,9 +73,12 @@ pub struct World {
     /// The walkers. Last but one, so a keyframe of before walkers
     /// (layout 2) reads with an empty list appended (`keyframe.rs`).
     pub(crate) walkers: Walkers,
-    /// The traffic lights and signs. Last, so a keyframe of before them
-    /// (layout 3) reads with empty lists appended.
+    /// The traffic lights and signs. Last but one, so a keyframe of
+    /// before them (layout 3) reads with empty lists appended.
     pub(crate) lights: TrafficLights,
+    /// The vehicles driven by an Ackermann target. Last, so a keyframe of
+    /// before them (layout 4) reads with an empty list appended.
+    pub(crate) ackermann: Vec<Ackermann>,
 }
 
 impl std::fmt::Debug for World {
@@ -101,6 +104,7 @@ impl World {
             vehicles: Vehicles::default(),
             walkers: Walkers::default(),
             lights: TrafficLights::default(),
+            ackermann: Vec::new(),
             pushed: Vec::new(),
             held: Vec::new(),
             contact_starts: Vec::new(),
@@ -141,6 +145,7 @@ impl World {
             vehicles: self.vehicles.clone(),
             walkers: self.walkers.clone(),
             lights: self.lights.clone(),
+            ackermann: self.ackermann.clone(),
             pushed: self.pushed.clone(),
             held: self.held.clone(),
             contact_starts: Vec::new(),
@@ -244,7 +249,7 @@ impl World {
         let mut contacts = std::mem::take(&mut self.contact_starts);
         for _ in 0..plan.count {
             self.vehicles
-                .update(&mut self.physics, plan.substep_seconds);
+                .update(&mut self.physics, plan.substep_seconds, &mut self.ackermann);
             self.walkers.update(&mut self.physics, plan.substep_seconds);
             for &(handle, local) in &self.held {
                 if let Some(body) = self.physics.bodies.get_mut(handle) {

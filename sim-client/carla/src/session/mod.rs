@@ -14,7 +14,7 @@ mod physics;
 mod recorder;
 mod spawned;
 pub(crate) mod traffic;
-mod vehicle_lights;
+mod vehicle_state;
 pub(crate) mod weather;
 mod world;
 
@@ -57,6 +57,8 @@ const VOID_CALLS: &[&str] = &[
     "set_vehicle_light_state",
     "open_vehicle_door",
     "close_vehicle_door",
+    "apply_ackermann_control_to_vehicle",
+    "apply_ackermann_controller_settings",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -95,6 +97,8 @@ fn call_of(method: &str) -> Option<Call> {
         "get_vehicle_light_state" => Session::on_get_vehicle_light_state,
         "set_vehicle_light_state" => Session::on_set_vehicle_light_state,
         "open_vehicle_door" | "close_vehicle_door" => Session::on_vehicle_door,
+        "get_ackermann_controller_settings" => Session::on_get_ackermann_settings,
+        "apply_ackermann_controller_settings" => Session::on_apply_ackermann_settings,
         "get_actors_by_id" => Session::on_get_actors_by_id,
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,

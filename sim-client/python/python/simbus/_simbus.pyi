@@ -443,6 +443,19 @@ class ApplyVehicleControl(Command):
     @property
     def reverse(self) -> bool: ...
 
+class ApplyVehicleAckermannControl(Command):
+    """Drives a vehicle to a steering angle (rad, positive left) and a speed
+    (m/s, negative backwards)."""
+
+    def __init__(
+        self,
+        actor_id: int,
+        steer: float = 0.0,
+        steer_speed: float = 0.0,
+        speed: float = 0.0,
+        acceleration: float = 0.0,
+    ) -> None: ...
+
 class ApplyWalkerControl(Command):
     def __init__(
         self, actor_id: int, direction: Sequence[float] | None = None, speed: float = 0.0, jump: bool = False

@@ -192,6 +192,11 @@ pub(super) fn describe(w: &Wire) -> String {
                 ""
             }
         ),
+        CommandKind::VehicleAckermann => format!(
+            "ApplyVehicleAckermannControl({id}, steer={:?}, steer_speed={:?}, speed={:?}, \
+             acceleration={:?})",
+            p[0], p[1], p[2], p[3]
+        ),
         CommandKind::TrafficLightState
         | CommandKind::TrafficLightTimes
         | CommandKind::FreezeTrafficLights

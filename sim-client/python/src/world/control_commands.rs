@@ -113,9 +113,41 @@ impl ApplyWalkerControl {
     }
 }
 
+/// Drives a vehicle to a steering angle and a speed (CARLA's
+/// `VehicleAckermannControl`): `steer` radians (positive: left) reached at
+/// `steer_speed` rad/s (0: at once), `speed` m/s (negative: backwards)
+/// reached at `acceleration` m/s² (0: as hard as it can). Holds until an
+/// `ApplyVehicleControl` or another target replaces it.
+#[pyclass(module = "simbus", extends = Command, frozen)]
+#[derive(Debug)]
+pub(crate) struct ApplyVehicleAckermannControl;
+
+#[pymethods]
+impl ApplyVehicleAckermannControl {
+    #[new]
+    #[pyo3(signature = (actor_id, steer = 0.0, steer_speed = 0.0, speed = 0.0, acceleration = 0.0))]
+    fn new(
+        actor_id: &Bound<'_, PyAny>,
+        steer: f64,
+        steer_speed: f64,
+        speed: f64,
+        acceleration: f64,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let wire = Wire::vehicle_ackermann(
+            self::actor_id(actor_id)?,
+            finite("steer", steer)?,
+            finite("steer_speed", steer_speed)?,
+            finite("speed", speed)?,
+            finite("acceleration", acceleration)?,
+        );
+        Ok(subclass(Self, wire))
+    }
+}
+
 /// Adds the control command classes to the extension module.
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ApplyVehicleControl>()?;
     m.add_class::<ApplyWalkerControl>()?;
+    m.add_class::<ApplyVehicleAckermannControl>()?;
     Ok(())
 }

@@ -1,7 +1,8 @@
-//! A vehicle's lights and doors, as CARLA's calls set and read them: the
-//! gateway keeps each vehicle's `VehicleLightState` flags (simbus draws
-//! no light: they are state for scripts and the traffic manager's
-//! `update_vehicle_lights`), and doors open and close as accepted calls.
+//! What the gateway keeps of a vehicle beyond simbus's: its
+//! `VehicleLightState` flags (simbus draws no light: they are state for
+//! scripts and the traffic manager's `update_vehicle_lights`), its
+//! Ackermann controller settings (read back as set; simbus's controller
+//! has its own loop), and doors that open and close as accepted calls.
 
 use rmpv::Value;
 use shared_types::ActorKind;
@@ -11,6 +12,10 @@ use crate::commands;
 use crate::error::CallError;
 use crate::locks::lock;
 use crate::rpc::Answer;
+
+/// CARLA's `AckermannControllerSettings` defaults: speed kp, ki, kd,
+/// acceleration kp, ki, kd.
+const ACKERMANN_DEFAULTS: [f32; 6] = [0.15, 0.0, 0.25, 0.01, 0.0, 0.01];
 
 impl Session {
     /// The vehicle argument 0 of `method` names.
@@ -100,6 +105,49 @@ impl Session {
             })
             .collect();
         Ok(Answer::Value(Value::Array(list)))
+    }
+
+    /// CARLA's `get_ackermann_controller_settings()`: as last set, CARLA's
+    /// defaults until then.
+    pub(super) fn on_get_ackermann_settings(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        let id = self.vehicle_arg(args, "get_ackermann_controller_settings")?;
+        let settings = lock(&self.hub.registry)
+            .ackermann_settings
+            .get(&id)
+            .copied()
+            .unwrap_or(ACKERMANN_DEFAULTS);
+        Ok(Answer::Value(Value::Array(
+            settings.iter().map(|&v| Value::F32(v)).collect(),
+        )))
+    }
+
+    /// CARLA's `apply_ackermann_controller_settings(settings)`: kept and
+    /// read back (simbus's Ackermann loop has its own gains).
+    pub(super) fn on_apply_ackermann_settings(
+        &mut self,
+        args: &[Value],
+    ) -> Result<Answer, CallError> {
+        const METHOD: &str = "apply_ackermann_controller_settings";
+        let id = self.vehicle_arg(args, METHOD)?;
+        let bad = CallError::Shape {
+            method: METHOD,
+            what: "no AckermannControllerSettings of six numbers",
+        };
+        let fields = args.get(1).and_then(Value::as_array).ok_or(bad.clone())?;
+        if fields.len() != 6 {
+            return Err(bad);
+        }
+        let mut settings = [0.0; 6];
+        for (slot, field) in settings.iter_mut().zip(fields) {
+            *slot = commands::number(field).ok_or(bad.clone())? as f32;
+        }
+        lock(&self.hub.registry)
+            .ackermann_settings
+            .insert(id, settings);
+        Ok(Answer::Done)
     }
 
     /// CARLA's `open_door` / `close_door`: accepted on a vehicle (simbus's

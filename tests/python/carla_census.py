@@ -1,0 +1,193 @@
+"""The CARLA census: every script of CARLA 0.9.16's `PythonAPI/examples`
+and `PythonAPI/util` run against a fresh simbus server and CARLA gateway
+of its own, headless, and the table the CARLA chapter shows written from
+what happened.
+
+    python tests/python/carla_census.py --python-api ~/carla/PythonAPI \\
+        --bin-dir target/release --out census.md [--json census.json]
+
+For each script: a `sim-server --scene town` on a world of its own and a
+`sim-client carla-gateway` on `--port` (CARLA's 2000 by default, which
+the scripts use), then the script itself, with `SDL_VIDEODRIVER=dummy`, its
+own folder as the working directory and `PythonAPI/carla` on the path (for
+`agents`), given `--port` when it takes one, and the arguments
+`SCRIPT_ARGS` lists. A script still running after `--seconds` gets Ctrl-C
+(SIGINT), and is killed 10 s later; every process is reaped.
+
+A result is one of:
+- `runs`: it exited 0 (or, stopped with Ctrl-C, ended on
+  `KeyboardInterrupt` or cleanly: a script that loops until stopped);
+- `fails`: it exited otherwise; the why is the last line of its traceback
+  (or of its output);
+- `not run`: `NOT_RUN` says why (it needs what only CARLA has).
+"""
+
+import argparse
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+# Scripts that need more than a server to start: the arguments they get.
+SCRIPT_ARGS = {
+    "start_replaying.py": ["-f", "census_recording.log"],
+    "show_recorder_file_info.py": ["-f", "census_recording.log"],
+    "show_recorder_collisions.py": ["-f", "census_recording.log", "-t", "va"],
+    "show_recorder_actors_blocked.py": ["-f", "census_recording.log"],
+}
+
+# Scripts not run, and why (what only CARLA has).
+NOT_RUN = {}
+
+# How long a script may take to start before its run counts (seconds).
+GRACE = 10
+
+
+def takes_port(path):
+    """Whether the script reads `--port` (CARLA's scripts that connect)."""
+    with open(path, errors="replace") as f:
+        return "--port" in f.read()
+
+
+def why(output):
+    """The last line of a traceback in `output`, else its last line."""
+    lines = [l.strip() for l in output.splitlines() if l.strip()]
+    if "Traceback (most recent call last):" in output:
+        tail = output.split("Traceback (most recent call last):")[-1]
+        tail_lines = [l.strip() for l in tail.splitlines() if l.strip()]
+        if tail_lines:
+            return tail_lines[-1]
+    return lines[-1] if lines else "no output"
+
+
+def start_pair(bin_dir, world, port, log):
+    """A server on `world` (the town) and a gateway on `port`; both
+    processes, once the gateway says it listens."""
+    server = subprocess.Popen(
+        [os.path.join(bin_dir, "sim-server"), "--world", world, "--scene", "town"],
+        stdout=subprocess.DEVNULL, stderr=log, start_new_session=True)
+    gateway = subprocess.Popen(
+        [os.path.join(bin_dir, "sim-client"), "--world", world, "--timeout", "10",
+         "carla-gateway", "--port", str(port), "--json"],
+        stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True)
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        line = gateway.stdout.readline()
+        if '"streaming_port"' in line:
+            return [server, gateway]
+        if not line and gateway.poll() is not None:
+            break
+    stop([server, gateway])
+    raise RuntimeError(f"the gateway on port {port} did not start")
+
+
+def stop(procs):
+    """Kills and reaps every process (and its group)."""
+    for proc in reversed(procs):
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=10)
+
+
+def run_script(path, python_api, port, seconds):
+    """Runs one script; its result, why, and its output's tail."""
+    args = [sys.executable, path]
+    if takes_port(path):
+        args += ["--port", str(port)]
+    args += SCRIPT_ARGS.get(os.path.basename(path), [])
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy",
+           "PYTHONPATH": os.pathsep.join(
+               [os.path.join(python_api, "carla"), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen(args, cwd=os.path.dirname(path), env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    interrupted = False
+    try:
+        output, _ = proc.communicate(timeout=seconds)
+    except subprocess.TimeoutExpired:
+        interrupted = True
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            output, _ = proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            output, _ = proc.communicate()
+            return "fails", f"did not stop within 10 s of Ctrl-C after {seconds} s", output
+    stopped_by_us = interrupted and (
+        "Traceback" not in output or why(output).startswith("KeyboardInterrupt"))
+    if proc.returncode == 0 or stopped_by_us:
+        note = f"looped until Ctrl-C after {seconds} s" if interrupted else "exited 0"
+        return "runs", note, output
+    return "fails", why(output), output
+
+
+def scripts(python_api):
+    """Every script of `examples/` and `util/`, in order."""
+    found = []
+    for folder in ("examples", "util"):
+        directory = os.path.join(python_api, folder)
+        if os.path.isdir(directory):
+            found += [os.path.join(directory, n) for n in sorted(os.listdir(directory))
+                      if n.endswith(".py")]
+    return found
+
+
+def census(python_api, bin_dir, port, seconds, log):
+    """One row per script: (folder/name, result, why)."""
+    rows = []
+    for i, path in enumerate(scripts(python_api)):
+        name = os.path.relpath(path, python_api)
+        reason = NOT_RUN.get(os.path.basename(path))
+        if reason:
+            rows.append((name, "not run", reason))
+            continue
+        procs = start_pair(bin_dir, f"census-{os.getpid()}-{i}", port, log)
+        try:
+            result, note, _ = run_script(path, python_api, port, seconds)
+        finally:
+            stop(procs)
+        rows.append((name, result, note))
+    return rows
+
+
+def table(rows):
+    """The census as the CARLA chapter's markdown table."""
+    out = ["| script | result | why |", "|---|---|---|"]
+    for name, result, note in rows:
+        note = re.sub(r"\|", "\\|", note)
+        out.append(f"| {name} | {result} | {note} |")
+    return "\n".join(out) + "\n"
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--python-api", required=True, help="CARLA 0.9.16's PythonAPI folder")
+    parser.add_argument("--bin-dir", default=os.environ.get("SIMBUS_BIN_DIR", "target/release"),
+                        help="where sim-server and sim-client are")
+    parser.add_argument("--port", type=int, default=2000, help="the gateway's port")
+    parser.add_argument("--seconds", type=float, default=30.0,
+                        help="Ctrl-C a script still running after this long")
+    parser.add_argument("--out", help="write the markdown table here (default: stdout)")
+    parser.add_argument("--json", help="also write the rows as JSON here")
+    args = parser.parse_args()
+    with tempfile.TemporaryFile("w+") as log:
+        rows = census(os.path.abspath(args.python_api), os.path.abspath(args.bin_dir),
+                      args.port, args.seconds, log)
+    text = table(rows)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text)
+    else:
+        sys.stdout.write(text)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump([{"script": n, "result": r, "why": w} for n, r, w in rows], f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -66,9 +66,10 @@ def run_script(argv, limit=RUN_LIMIT):
     return script.returncode, out, err
 
 
-def on_fresh_pairs(request, attempts, server_args=()):
+def on_fresh_pairs(request, attempts, server_args=(), gateway_args=()):
     """Calls each of `attempts` with a gateway of its own, a fresh server +
-    gateway pair (on `server_args`), and returns their results; an attempt
+    gateway pair (on `server_args`, the gateway with `gateway_args`), and
+    returns their results; an attempt
     that meets CARLA's deadlock is made again on another fresh pair, up to
     ATTEMPTS times in all."""
     results = []
@@ -76,7 +77,8 @@ def on_fresh_pairs(request, attempts, server_args=()):
         for tries in range(1, ATTEMPTS + 1):
             procs = []
             try:
-                gateway = start(world_name(request, f"-{run}-{tries}"), list(server_args), procs)
+                gateway = start(world_name(request, f"-{run}-{tries}"), list(server_args), procs,
+                                gateway_args=list(gateway_args))
                 results.append(attempt(gateway))
                 break
             except CarlaTrafficManagerDeadlock:

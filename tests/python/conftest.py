@@ -129,9 +129,14 @@ def world_name(request, suffix=""):
 
 @pytest.fixture
 def gateway(request):
+    """A server + gateway pair; parametrized (indirect) with the server's
+    arguments, or {"server": [...], "gateway": [...]}."""
+    param = getattr(request, "param", [])
+    server_args, gateway_args = ((param.get("server", []), param.get("gateway", []))
+                                 if isinstance(param, dict) else (param, []))
     procs = []
     try:
-        yield start(world_name(request), getattr(request, "param", []), procs)
+        yield start(world_name(request), server_args, procs, gateway_args=gateway_args)
     finally:
         kill_all(procs)
 

@@ -19,12 +19,12 @@ from carla_tm_deadlock import on_fresh_pairs, run_script
 from test_carla_traffic_manager import free_port
 
 GENERATE_TRAFFIC = """
-import json, sys, time
+import json, math, sys, time
 import carla
 from numpy import random
 
 port, tm_port, vehicles, asynch = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4] == "asynch"
-walkers, frames = 0, 200
+walkers, frames = int(sys.argv[5]), int(sys.argv[6])
 
 
 def blueprints_of(world, pattern, generation):
@@ -34,7 +34,7 @@ def blueprints_of(world, pattern, generation):
     return [bp for bp in found if int(bp.get_attribute("generation")) == int(generation)]
 
 
-vehicles_list, walkers_list, all_id = [], [], []
+vehicles_list, walkers_list, all_id, walked = [], [], [], []
 client = carla.Client("127.0.0.1", port)
 client.set_timeout(10.0)
 random.seed(int(time.time()))
@@ -89,16 +89,64 @@ try:
         else:
             vehicles_list.append(response.actor_id)
 
-    # Zero walkers: no locations, empty spawn batches, no controllers.
-    results = client.apply_batch_sync([], do_tick=True)
+    # Walkers: random locations from the navigation, one batch of walkers,
+    # one of their AI controllers.
+    spawn_points = []
+    for i in range(walkers):
+        spawn_point = carla.Transform()
+        loc = world.get_random_location_from_navigation()
+        if loc != None:
+            spawn_point.location = loc
+            spawn_points.append(spawn_point)
+    batch, walker_speed = [], []
+    for spawn_point in spawn_points:
+        walker_bp = random.choice(walker_blueprints)
+        probability = random.randint(0, 100 + 1)
+        if walker_bp.has_attribute("is_invincible"):
+            walker_bp.set_attribute("is_invincible", "false")
+        if walker_bp.has_attribute("can_use_wheelchair") and probability < 11:
+            walker_bp.set_attribute("use_wheelchair", "true")
+        if walker_bp.has_attribute("speed"):
+            walker_speed.append(walker_bp.get_attribute("speed").recommended_values[1])
+        else:
+            print("Walker has no speed")
+            walker_speed.append(0.0)
+        batch.append(carla.command.SpawnActor(walker_bp, spawn_point))
+    results = client.apply_batch_sync(batch, True)
+    walker_speed2 = []
+    for i in range(len(results)):
+        if results[i].error:
+            print("ERROR: " + results[i].error)
+        else:
+            walkers_list.append({"id": results[i].actor_id})
+            walker_speed2.append(walker_speed[i])
+    walker_speed = walker_speed2
+    batch = []
     controller_bp = world.get_blueprint_library().find("controller.ai.walker")
-    results = client.apply_batch_sync([], do_tick=True)
+    for i in range(len(walkers_list)):
+        batch.append(carla.command.SpawnActor(controller_bp, carla.Transform(), walkers_list[i]["id"]))
+    results = client.apply_batch_sync(batch, True)
+    for i in range(len(results)):
+        if results[i].error:
+            print("ERROR: " + results[i].error)
+        else:
+            walkers_list[i]["con"] = results[i].actor_id
+    for i in range(len(walkers_list)):
+        all_id.append(walkers_list[i]["con"])
+        all_id.append(walkers_list[i]["id"])
     all_actors = world.get_actors(all_id)
     if asynch:
         world.wait_for_tick()
     else:
         world.tick()
     world.set_pedestrians_cross_factor(0.0)
+    for i in range(0, len(all_id), 2):
+        all_actors[i].start()
+        all_actors[i].go_to_location(world.get_random_location_from_navigation())
+        all_actors[i].set_max_speed(float(walker_speed[int(i / 2)]))
+    walker_ids = [w["id"] for w in walkers_list]
+    walker_start = {w.id: [w.get_location().x, w.get_location().y] for w in world.get_actors(walker_ids)}
+    by_id = {a.id: a for a in world.get_actors(vehicles_list)}
     print("spawned %d vehicles and %d walkers, press Ctrl+C to exit." % (len(vehicles_list), len(walkers_list)))
     tm.global_percentage_speed_difference(30.0)
 
@@ -115,10 +163,19 @@ try:
         for actor_id in vehicles_list:
             state = snapshot.find(actor_id)
             if state is not None:
-                at = state.get_transform().location
-                seen = track.setdefault(actor_id, {"first": [at.x, at.y, at.z], "frames": 0})
+                t = state.get_transform()
+                at, v = t.location, state.get_velocity()
+                seen = track.setdefault(actor_id, {"first": [at.x, at.y, at.z], "frames": 0,
+                                                   "red_stops": 0, "tilted": 0})
                 seen["last"] = [at.x, at.y, at.z]
                 seen["frames"] += 1
+                seen["tilted"] += abs(t.rotation.roll) > 30 or abs(t.rotation.pitch) > 30
+                vehicle = by_id[actor_id]
+                if (vehicle.is_at_traffic_light() and math.hypot(v.x, v.y) < 0.3
+                        and vehicle.get_traffic_light_state() == carla.TrafficLightState.Red):
+                    seen["red_stops"] += 1
+    walked = [math.dist(walker_start[w.id], [w.get_location().x, w.get_location().y])
+              for w in world.get_actors(walker_ids)]
 finally:
     if not asynch:
         settings = original if original else world.get_settings()
@@ -126,33 +183,38 @@ finally:
         world.apply_settings(settings)
     print("\\ndestroying %d vehicles" % len(vehicles_list))
     client.apply_batch([carla.command.DestroyActor(x) for x in vehicles_list])
+    for i in range(0, len(all_id), 2):
+        all_actors[i].stop()
     print("\\ndestroying %d walkers" % len(walkers_list))
     client.apply_batch([carla.command.DestroyActor(x) for x in all_id])
     print("\\ndone.")
-    print(json.dumps({"track": track, "ticks": ticks}))
+    print(json.dumps({"track": track, "ticks": ticks, "walked": walked}))
 """
 
 
-def generate_traffic(request, mode):
-    """Runs the mirror with `-n 30 -w 0` (and `--asynch` when `mode` is
-    "asynch") against a fresh pair on the town (again on another should
-    CARLA's traffic manager deadlock: `carla_tm_deadlock.py`); returns
-    (its lines, each vehicle's positions per frame)."""
+def generate_traffic(request, mode, walkers=0, frames=200, gateway_args=()):
+    """Runs the mirror with `-n 30 -w WALKERS` (and `--asynch` when `mode`
+    is "asynch") for `frames` frames against a fresh pair on the town (with
+    `gateway_args`; again on another should CARLA's own traffic manager
+    deadlock: `carla_tm_deadlock.py`); returns (its lines, each vehicle's
+    track, how far each walker walked)."""
     def attempt(gateway):
         status, out, err = run_script([
             sys.executable, "-c", GENERATE_TRAFFIC,
-            str(gateway.port), str(free_port()), "30", mode,
+            str(gateway.port), str(free_port()), "30", mode, str(walkers), str(frames),
         ])
         assert status == 0, f"exit {status}\n{err[-3000:]}"
         assert "terminate called" not in err, err[-3000:]
         return out
-    [out] = on_fresh_pairs(request, [attempt], server_args=["--scene", "town"])
+    [out] = on_fresh_pairs(request, [attempt], server_args=["--scene", "town"],
+                           gateway_args=gateway_args)
     lines = out.splitlines()
-    return lines[:-1], json.loads(lines[-1])["track"]
+    result = json.loads(lines[-1])
+    return lines[:-1], result["track"], result["walked"]
 
 
-def assert_traffic_drove(lines, track):
-    assert "spawned 30 vehicles and 0 walkers, press Ctrl+C to exit." in lines, lines
+def assert_traffic_drove(lines, track, walkers=0):
+    assert f"spawned 30 vehicles and {walkers} walkers, press Ctrl+C to exit." in lines, lines
     assert not [l for l in lines if l.startswith(("ERROR", "WARNING"))], lines
     assert len(track) == 30
     moved = [math.dist(p["first"][:2], p["last"][:2]) for p in track.values()]
@@ -161,7 +223,7 @@ def assert_traffic_drove(lines, track):
     assert sum(m > 5.0 for m in moved) >= 20, moved
     assert all(-1.0 < p["last"][2] < 3.0 for p in track.values()), track
     assert [l for l in lines if l.strip()][-3:] == [
-        "destroying 30 vehicles", "destroying 0 walkers", "done."], lines
+        "destroying 30 vehicles", f"destroying {walkers} walkers", "done."], lines
 
 
 def test_generate_traffic_30_vehicles_synchronous_200_frames(request):
@@ -170,7 +232,7 @@ def test_generate_traffic_30_vehicles_synchronous_200_frames(request):
     world at 0.05 s frames, 30 autopilot vehicles spawned in one
     `SpawnActor.then(SetAutopilot)` batch, 200 ticks, the settings put
     back (0.9.16 puts back the object it changed: synchronous stays on)."""
-    lines, track = generate_traffic(request, "sync")
+    lines, track, _ = generate_traffic(request, "sync", gateway_args=["--client-traffic-manager"])
     assert "synchronous_mode=False" in lines[0], lines
     assert lines[1].startswith("apply_world_settings WorldSettings(synchronous_mode=True"), lines
     assert "fixed_delta_seconds=0.05" in lines[1], lines
@@ -186,9 +248,28 @@ def test_generate_traffic_30_vehicles_asynchronous_200_frames(request):
     (CARLA 0.9.16): the world left asynchronous (the script says so), 30
     autopilot vehicles, 200 frames (and 10 simulated seconds) waited for,
     nothing put back."""
-    lines, track = generate_traffic(request, "asynch")
+    lines, track, _ = generate_traffic(request, "asynch")
     assert "synchronous_mode=False" in lines[0], lines
     assert lines[1] == "You are currently in asynchronous mode.", lines
     assert lines[2].startswith("apply_world_settings WorldSettings(synchronous_mode=False"), lines
     assert not [l for l in lines if l.startswith("restore world_settings")], lines
     assert_traffic_drove(lines, track)
+
+
+def test_generate_traffic_defaults_2000_synchronous_frames_on_the_native_traffic_manager(request):
+    """Mirrors PythonAPI/examples/generate_traffic.py with its defaults
+    (CARLA 0.9.16: 30 vehicles, 10 walkers, synchronous) for 2 000 frames
+    against the gateway's own traffic manager: no thread of CARLA's runs
+    in the script, so nothing can deadlock; the vehicles drive the town,
+    stop at red lights and go on, none rolls over; the walkers walk."""
+    lines, track, walked = generate_traffic(request, "sync", walkers=10, frames=2000)
+    assert_traffic_drove(lines, track, walkers=10)
+    assert all(p["frames"] == 2000 for p in track.values()), "every vehicle in every tick"
+    assert not [p for p in track.values() if p["tilted"]], "no vehicle rolled over"
+    stopped = [p for p in track.values() if p["red_stops"] > 0]
+    assert len(stopped) >= 5, "vehicles wait at red lights"
+    # A vehicle stopped at a red light went on: it waited less than the
+    # whole run there.
+    assert any(0 < p["red_stops"] < 1500 and math.dist(p["first"][:2], p["last"][:2]) > 50
+               for p in stopped), stopped
+    assert len(walked) == 10 and sum(w > 5.0 for w in walked) >= 8, walked

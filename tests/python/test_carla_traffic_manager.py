@@ -1,13 +1,19 @@
 """CARLA's traffic manager against the gateway, with the real `carla`
-wheel: the traffic manager runs inside the script's process (CARLA 0.9.16's
-client) and drives vehicles through ordinary RPCs; the gateway keeps the
-registry of running traffic managers and the streamed vehicle state it
-reads (speed limit, traffic-light state, elapsed time).
+wheel, both ways a script can get one:
+
+- the gateway's own (the default): CARLA's client finds a traffic manager
+  running on the port it asks for and drives it remotely over CARLA's
+  traffic-manager RPC protocol; the gateway steps it in lockstep with the
+  world, so nothing of CARLA's traffic manager runs in the script;
+- CARLA's (`--client-traffic-manager`): it runs inside the script's
+  process and drives vehicles through ordinary RPCs; the gateway keeps the
+  registry of running traffic managers and the streamed vehicle state it
+  reads (speed limit, traffic-light state, elapsed time). CARLA 0.9.16's
+  can deadlock in synchronous mode on its own (`carla_tm_deadlock.py`):
+  such a run is made again on a fresh pair.
 
 Scripts run as their own processes (`carla_tm_run.py`): a traffic manager
-binds its port and keeps threads until its process ends. CARLA 0.9.16's
-traffic manager can deadlock in synchronous mode on its own
-(`carla_tm_deadlock.py`): such a run is made again on a fresh pair."""
+in a script binds its port and keeps threads until its process ends."""
 
 import json
 import math
@@ -17,11 +23,17 @@ import subprocess
 import sys
 import time
 
-from test_carla_actors_sensors import Raw
+import msgpack
+import pytest
+
+from conftest import Raw, synced
 
 from carla_tm_deadlock import on_fresh_pairs, run_script
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+
+# The gateway flags of each traffic manager.
+MANAGERS = {"native": [], "client": ["--client-traffic-manager"]}
 
 
 def free_port():
@@ -43,8 +55,10 @@ def tm_run(*args):
     return attempt
 
 
-def test_autopilot_vehicles_drive_along_the_town_roads(request):
-    [out] = on_fresh_pairs(request, [tm_run("--vehicles", "10", "--ticks", "200")])
+@pytest.mark.parametrize("manager", MANAGERS)
+def test_autopilot_vehicles_drive_along_the_town_roads(request, manager):
+    [out] = on_fresh_pairs(request, [tm_run("--vehicles", "10", "--ticks", "200")],
+                           gateway_args=MANAGERS[manager])
     assert out["map"].startswith("simbus/town"), out["map"]
     assert out["spawn_points"] >= 100
     first, last = out["ticks"][0], out["ticks"][-1]
@@ -58,12 +72,13 @@ def test_autopilot_vehicles_drive_along_the_town_roads(request):
     assert all(-1.0 < row[3] < 3.0 for row in last), last
 
 
-def test_the_seeds_determinism_example_repeats_exactly(request):
+@pytest.mark.parametrize("manager", MANAGERS)
+def test_the_seeds_determinism_example_repeats_exactly(request, manager):
     """Two fresh server + gateway pairs, the same seed: every vehicle's
     transform identical at every tick; a third with another seed differs."""
     runs = on_fresh_pairs(request, [
         tm_run("--seed", str(seed), "--vehicles", "30", "--ticks", "500") for seed in (7, 7, 8)
-    ])
+    ], gateway_args=MANAGERS[manager])
     a, b, c = runs
     assert len(a["ticks"]) == 500 and len(a["ids"]) == 30
     assert a["ticks"] == b["ticks"], "the same seed gives the same run, tick by tick"
@@ -72,6 +87,10 @@ def test_the_seeds_determinism_example_repeats_exactly(request):
     assert sum(m > 5.0 for m in moved) >= 20, moved
 
 
+CLIENT_SIDE = [{"gateway": MANAGERS["client"]}]
+
+
+@pytest.mark.parametrize("gateway", CLIENT_SIDE, indirect=True)
 def test_the_registry_forgets_a_traffic_manager_whose_client_left(gateway):
     """A script that started a traffic manager and exited leaves no entry:
     the next one starts its own at once instead of waiting for a dead one."""
@@ -90,6 +109,7 @@ print(json.dumps({{"port": tm.get_port()}}))
         assert "not responding" not in done.stderr, done.stderr
 
 
+@pytest.mark.parametrize("gateway", CLIENT_SIDE, indirect=True)
 def test_the_registry_answers_as_carlas_and_drops_a_closed_connections_entry(gateway):
     owner, other = Raw(gateway.port), Raw(gateway.port)
     port = free_port()
@@ -111,3 +131,117 @@ def test_the_registry_answers_as_carlas_and_drops_a_closed_connections_entry(gat
     assert other.call("add_traffic_manager_running", ["127.0.0.1", port]) == [[1, True]]
     assert other.call("destroy_traffic_manager", port) == [[1, True]]
     assert other.call("destroy_traffic_manager", port) == [[1, False]]
+
+
+class TrafficManagerRpc:
+    """A plain rpclib connection, as CARLA's `TrafficManagerClient` makes
+    one (no CARLA metadata element)."""
+
+    def __init__(self, port):
+        self.sock = socket.create_connection(("127.0.0.1", port))
+        self.sock.settimeout(10)
+        self.unpacker = msgpack.Unpacker(raw=False)
+        self.msgid = 0
+
+    def send(self, data):
+        self.sock.sendall(data)
+
+    def call(self, method, *args):
+        """(error, result) of `method`."""
+        self.msgid += 1
+        self.send(msgpack.packb([0, self.msgid, method, list(args)]))
+        while True:
+            for message in self.unpacker:
+                assert message[0] == 1 and message[1] == self.msgid, message
+                return message[2], message[3]
+            data = self.sock.recv(65536)
+            assert data, "the traffic manager closed the connection"
+            self.unpacker.feed(data)
+
+
+def test_the_native_traffic_manager_answers_carlas_calls_and_refuses_garbage(gateway):
+    """The gateway says a traffic manager runs on any port a client asks
+    about (CARLA's client then drives it remotely), at the address the
+    client reached; a script cannot register one of its own there; its
+    protocol answers every call CARLA's `TrafficManagerClient` makes and
+    refuses bad arguments, unknown calls and garbage without harm."""
+    raw = Raw(gateway.port)
+    port = free_port()
+    assert raw.call("is_traffic_manager_running", port) == [[1, True]]
+    assert raw.call("get_traffic_manager_running", port) == [[1, ["127.0.0.1", port]]]
+    assert raw.call("add_traffic_manager_running", ["127.0.0.1", port]) == [[1, False]]
+    tm = TrafficManagerRpc(port)
+    assert tm.call("health_check_remote_TM") == (None, None)
+    assert tm.call("synchronous_tick") == (None, True)
+    for method, args in [
+        ("set_synchronous_mode", [True]),
+        ("set_random_device_seed", [42]),
+        ("set_global_distance_to_leading_vehicle", [2.5]),
+        ("set_global_percentage_speed_difference", [30.0]),
+        ("set_hybrid_physics_mode", [True]),
+        ("set_hybrid_physics_radius", [70.0]),
+        ("set_respawn_dormant_vehicles", [True]),
+        ("set_boundaries_respawn_dormant_vehicles", [25.0, 50.0]),
+        ("set_percentage_running_light", [[7, 0, [0, "vehicle.x", []]], 50.0]),
+        ("set_desired_speed", [[7, 0, [0, "vehicle.x", []]], 40.0]),
+        ("set_path", [[7, 0, [0, "vehicle.x", []]], [[1.0, 2.0, 0.0]], True]),
+        ("set_imported_route", [[7, 0, [0, "vehicle.x", []]], b"\x01\x02\x03", True]),
+        ("keep_slow_lane_rule_percentage", [[7, 0, [0, "vehicle.x", []]], 10.0]),
+        ("get_next_action", [7]),
+    ]:
+        assert tm.call(method, *args) == (None, None), method
+    error, _ = tm.call("set_percentage_running_light", [7, 0, []], 150.0)
+    assert "percentage" in error, error
+    error, _ = tm.call("set_desired_speed", "seven", 40.0)
+    assert "actor" in error, error
+    error, _ = tm.call("set_global_distance_to_leading_vehicle")
+    assert "arguments" in error, error
+    error, _ = tm.call("no_such_call", 1)
+    assert "no_such_call" in error, error
+    # Garbage closes that connection only.
+    bad = TrafficManagerRpc(port)
+    bad.send(b"\xc1\xc1\xc1 not msgpack")
+    assert bad.sock.recv(100) == b""
+    assert tm.call("health_check_remote_TM") == (None, None)
+    assert raw.call("is_traffic_manager_running", port) == [[1, True]]
+
+
+SYNC_TOWN = [["--scene", "town"]]
+
+
+@pytest.mark.parametrize("gateway", SYNC_TOWN, indirect=True)
+def test_the_native_traffic_manager_obeys_its_settings_per_vehicle(gateway):
+    """Two autopilot vehicles far apart, one told to go 50 % under the
+    limit and one at 18 km/h: each holds its own speed, and reports the
+    controls it was given. Nothing of CARLA's traffic manager runs here:
+    the script's calls go to the gateway's (lights, walkers and the
+    percentages that ignore them: the planner's unit tests)."""
+    client, world = synced(gateway)
+    tm = client.get_trafficmanager(free_port())
+    tm.set_synchronous_mode(True)
+    tm.set_random_device_seed(3)
+    library = world.get_blueprint_library()
+    bp = library.find("vehicle.tesla.model3")
+    town = world.get_map()
+    # Two spawn points on long straights, far apart.
+    points = sorted(town.get_spawn_points(), key=lambda t: (round(t.location.x), round(t.location.y)))
+    slow = world.spawn_actor(bp, points[0])
+    fixed = world.spawn_actor(bp, points[len(points) // 2])
+    for v in (slow, fixed):
+        v.set_autopilot(True, tm.get_port())
+    tm.vehicle_percentage_speed_difference(slow, 50.0)
+    tm.set_desired_speed(fixed, 18.0)
+    speeds = {slow.id: [], fixed.id: []}
+    for _ in range(300):
+        world.tick()
+        for v in (slow, fixed):
+            vel = v.get_velocity()
+            speeds[v.id].append(math.hypot(vel.x, vel.y))
+    # Cruising speeds: the fastest each held over the last 10 s.
+    assert 2.0 < max(speeds[slow.id][100:]) < 4.17 * 1.15, max(speeds[slow.id][100:])
+    assert 3.0 < max(speeds[fixed.id][100:]) < 5.0 * 1.15, max(speeds[fixed.id][100:])
+    # The controls it sends are what the vehicles report.
+    control = slow.get_control()
+    assert 0.0 <= control.throttle <= 1.0 and 0.0 <= control.brake <= 1.0
+    for v in (slow, fixed):
+        v.set_autopilot(False, tm.get_port())

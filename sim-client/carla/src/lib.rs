@@ -28,6 +28,7 @@ mod session;
 mod signals;
 mod stop;
 mod stream;
+mod traffic_manager;
 mod traffic_managers;
 pub mod wire;
 
@@ -64,6 +65,10 @@ pub struct Config {
     /// Refuse to load CARLA's towns (`Town01`…`Town15`) instead of
     /// loading simbus's `town` in their place (`--strict-maps`).
     pub strict_maps: bool,
+    /// Let CARLA's client run its own traffic manager (in the script's
+    /// process) instead of the gateway's native one
+    /// (`--client-traffic-manager`).
+    pub client_traffic_manager: bool,
 }
 
 /// Where the gateway listens, once it does: the ports actually bound.
@@ -150,6 +155,8 @@ pub fn serve(
     rpc.set_nonblocking(true).map_err(GatewayError::Wait)?;
     let mut hub = Hub::default();
     hub.maps = maps::Maps::new(config.strict_maps);
+    hub.natives =
+        traffic_manager::Natives::new(!config.client_traffic_manager, host, world.as_str());
     let hub = Arc::new(hub);
     {
         let hub = hub.clone();

@@ -102,6 +102,11 @@ pub(crate) struct EpisodeMap {
 }
 
 impl EpisodeMap {
+    /// Whether the map is an OpenDRIVE of a client's own (not a scene's).
+    pub(crate) fn is_foreign(&self) -> bool {
+        self.opendrive.is_some()
+    }
+
     /// The map of a load in place of CARLA's `town`: simbus's town.
     pub(crate) fn substitute(town: &str) -> Self {
         Self {

@@ -57,8 +57,21 @@ impl<R: Read> Read for Limited<'_, R> {
     }
 }
 
-/// Reads the next request from `reader`.
+/// Reads the next request from `reader`: CARLA's, whose first parameter
+/// is its call metadata.
 pub(crate) fn read_request<R: Read>(reader: &mut R) -> Result<Request, ReadError> {
+    let mut request = read_plain_request(reader)?;
+    // CARLA's first parameter is its call metadata: [asynchronous].
+    if let Some(Value::Array(meta)) = request.args.first() {
+        request.asynchronous = meta.first().and_then(Value::as_bool).unwrap_or(false);
+        request.args.remove(0);
+    }
+    Ok(request)
+}
+
+/// Reads the next request from `reader` as plain rpclib sends it (CARLA's
+/// traffic manager protocol: no metadata; every call is waited for).
+pub(crate) fn read_plain_request<R: Read>(reader: &mut R) -> Result<Request, ReadError> {
     let mut limited = Limited {
         inner: reader,
         left: MAX_REQUEST_BYTES,
@@ -82,22 +95,13 @@ pub(crate) fn read_request<R: Read>(reader: &mut R) -> Result<Request, ReadError
     let Some(method) = method.as_str().map(str::to_string) else {
         return Err(ReadError::NotRequest("the method is not a string"));
     };
-    let Value::Array(mut args) = params else {
+    let Value::Array(args) = params else {
         return Err(ReadError::NotRequest("the params are not an array"));
-    };
-    // CARLA's first parameter is its call metadata: [asynchronous].
-    let asynchronous = match args.first() {
-        Some(Value::Array(meta)) => {
-            let asynchronous = meta.first().and_then(Value::as_bool).unwrap_or(false);
-            args.remove(0);
-            asynchronous
-        }
-        _ => false,
     };
     Ok(Request {
         id,
         method,
-        asynchronous,
+        asynchronous: false,
         args,
     })
 }

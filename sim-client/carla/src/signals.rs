@@ -91,6 +91,17 @@ impl Signals {
         }
     }
 
+    /// What each light of the last frame observed shows, by its signal's
+    /// OpenDRIVE id, into `out`.
+    pub(crate) fn light_states(&self, out: &mut HashMap<u32, LightState>) {
+        out.clear();
+        for &(actor, state) in &self.frame_lights {
+            if let Some(signal) = self.signal(actor) {
+                out.insert(signal.id, state);
+            }
+        }
+    }
+
     /// The signal actor `id` is.
     pub(crate) fn signal(&self, id: u32) -> Option<&'static Signal> {
         self.of_actor.get(&id).map(|&i| &town().signals[i])

@@ -164,6 +164,8 @@ pub(crate) struct Hub {
     pub(crate) maps: crate::maps::Maps,
     /// The traffic managers CARLA clients run, by port.
     pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
+    /// The gateway's own traffic managers, by port.
+    pub(crate) natives: crate::traffic_manager::Natives,
     /// The weather CARLA clients set (simbus renders no sky).
     pub(crate) weather: Mutex<carla::Weather>,
     /// The town's traffic lights and signs, as seen in its frames.
@@ -189,6 +191,7 @@ impl Default for Hub {
             spectator: Mutex::default(),
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
+            natives: crate::traffic_manager::Natives::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
             signals: Mutex::default(),
             world_streams: AtomicU32::new(0),
@@ -267,6 +270,11 @@ impl Hub {
             hub: self.clone(),
             began: None,
         }
+    }
+
+    /// (run pid, episode, frame) of the last world state sent.
+    pub(crate) fn last_sent(&self) -> (u32, u64, u64) {
+        *lock(&self.sent)
     }
 
     /// The frame of the last world state sent.

@@ -160,18 +160,29 @@ pub(super) fn definitions() -> &'static [Definition] {
 /// Walker `n`'s blueprint.
 fn walker_definition(n: u32) -> Definition {
     let w = catalog::walker(n);
+    let mut attributes = vec![
+        Attr::fixed("age", Kind::String, w.age),
+        Attr::fixed("can_use_wheelchair", Kind::Bool, w.wheelchair),
+        Attr::fixed("gender", Kind::String, w.gender),
+        Attr::fixed("generation", Kind::Int, w.generation),
+        Attr::choice("is_invincible", Kind::Bool, &["true"], false),
+        Attr::choice("role_name", Kind::String, &["pedestrian"], false),
+        Attr::choice("speed", Kind::Float, &w.speeds, false),
+    ];
+    // CARLA's: only walkers that can use one have the switch (the walker
+    // keeps its shape: simbus has no wheelchair).
+    if w.wheelchair {
+        attributes.push(Attr::choice(
+            "use_wheelchair",
+            Kind::Bool,
+            &["false"],
+            false,
+        ));
+    }
     Definition {
         uid: ActorKind::Walker as u32,
         tags: tags_of(&w.id),
-        attributes: vec![
-            Attr::fixed("age", Kind::String, w.age),
-            Attr::fixed("can_use_wheelchair", Kind::Bool, w.wheelchair),
-            Attr::fixed("gender", Kind::String, w.gender),
-            Attr::fixed("generation", Kind::Int, w.generation),
-            Attr::choice("is_invincible", Kind::Bool, &["true"], false),
-            Attr::choice("role_name", Kind::String, &["pedestrian"], false),
-            Attr::choice("speed", Kind::Float, &w.speeds, false),
-        ],
+        attributes,
         id: w.id,
     }
 }

@@ -136,6 +136,8 @@ pub(crate) struct Session {
     world: String,
     timeout: Duration,
     peer: SocketAddr,
+    /// The gateway's address this connection reached.
+    local: Option<SocketAddr>,
     streaming_port: u16,
     hub: Arc<Hub>,
     client: Option<Client>,
@@ -173,6 +175,7 @@ impl Session {
             world,
             timeout,
             peer,
+            local: None,
             streaming_port,
             hub,
             client: None,
@@ -187,6 +190,7 @@ impl Session {
     /// (and its tick ownership) ends with it.
     pub(crate) fn serve(mut self, socket: TcpStream) {
         let peer = self.peer;
+        self.local = socket.local_addr().ok();
         let _ = socket.set_nodelay(true);
         // A client that stops reading its answers is dropped.
         let _ = socket.set_write_timeout(Some(WRITE_TIMEOUT));

@@ -33,7 +33,9 @@ impl Session {
         args: &[Value],
     ) -> Result<Answer, CallError> {
         let port = arg_port(args, 0, "is_traffic_manager_running")?;
-        let running = lock(&self.hub.traffic_managers).contains_key(&port);
+        // A script's own, or the gateway's (started for the asking).
+        let running = lock(&self.hub.traffic_managers).contains_key(&port)
+            || self.hub.natives.ensure(&self.hub, port);
         Ok(Answer::Value(Value::Boolean(running)))
     }
 
@@ -44,9 +46,15 @@ impl Session {
         args: &[Value],
     ) -> Result<Answer, CallError> {
         let port = arg_port(args, 0, "get_traffic_manager_running")?;
-        let (host, port) = lock(&self.hub.traffic_managers)
+        let client_side = lock(&self.hub.traffic_managers)
             .get(&port)
-            .map_or((String::new(), 0), |tm| (tm.host.clone(), tm.port));
+            .map(|tm| (tm.host.clone(), tm.port));
+        let native = || {
+            // The gateway's: at the address this client reached it on.
+            let host = self.local.map(|a| a.ip().to_string()).unwrap_or_default();
+            self.hub.natives.is_running(port).then_some((host, port))
+        };
+        let (host, port) = client_side.or_else(native).unwrap_or((String::new(), 0));
         Ok(Answer::Value(Value::Array(vec![
             Value::from(host),
             Value::from(port),
@@ -70,7 +78,7 @@ impl Session {
             }
         })?;
         let mut registry = lock(&self.hub.traffic_managers);
-        if registry.contains_key(&port) {
+        if registry.contains_key(&port) || self.hub.natives.is_running(port) {
             return Ok(Answer::Value(Value::Boolean(false)));
         }
         info!(peer = %self.peer, "a traffic manager runs in the CARLA client, at {host}:{port}");

@@ -37,6 +37,12 @@ pub(crate) struct GatewayArgs {
     /// their place and says so (in the log and in the map's name).
     #[arg(long)]
     strict_maps: bool,
+    /// Let CARLA's client run its own traffic manager inside the script
+    /// (CARLA's behaviour) instead of the gateway's native one. The native
+    /// one answers `client.get_trafficmanager(port)` from the gateway,
+    /// steps in lockstep with the world and cannot deadlock.
+    #[arg(long)]
+    client_traffic_manager: bool,
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Result<(), Failure> {
@@ -46,6 +52,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         streaming_port: args.streaming_port,
         timeout,
         strict_maps: args.strict_maps,
+        client_traffic_manager: args.client_traffic_manager,
     };
     let host = config.host.as_str();
     // Ctrl-C / SIGTERM end the gateway: they wake it, it never polls.

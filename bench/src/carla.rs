@@ -2,9 +2,10 @@
 //! `sim-client carla-gateway`, next to the native client, in one run: the
 //! `world.tick()` round trip, `wait_for_tick` latency (publish → returned),
 //! 640x480 depth and 800x600 RGB frames per second through
-//! `camera.listen`, and CARLA's
-//! traffic manager (in the script's process) driving 30 and 100 vehicles
-//! on simbus's town, with the time of `get_map()` + `generate_waypoints`.
+//! `camera.listen`, and the traffic manager driving 30 and 100 vehicles
+//! (and 100 vehicles with 100 AI walkers) on simbus's town, the gateway's
+//! native one beside CARLA's own (in the script's process), with the time
+//! of `get_map()` + `generate_waypoints`.
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
@@ -173,12 +174,14 @@ pub(crate) fn latencies(answer: &serde_json::Value, key: &str) -> anyhow::Result
 }
 
 /// Starts `sim-client carla-gateway` for `world` on `port` (and its
-/// sensor streams on `streams`), once it says it listens.
+/// sensor streams on `streams`), with `extra` flags, once it says it
+/// listens.
 pub(crate) fn start_gateway(
     sim_client: &Path,
     world: &str,
     port: u16,
     streams: u16,
+    extra: &[&str],
 ) -> anyhow::Result<ChildGuard> {
     let mut child: Child = Command::new(sim_client)
         .args(["--world", world, "--timeout", "30", "carla-gateway"])
@@ -188,6 +191,7 @@ pub(crate) fn start_gateway(
             "--streaming-port",
             &streams.to_string(),
         ])
+        .args(extra)
         .env("RUST_LOG", "error")
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
@@ -203,16 +207,17 @@ pub(crate) fn start_gateway(
     Ok(guard)
 }
 
-/// A server of `scene` and a gateway in front of it (both stopped when
-/// dropped), and the gateway's RPC port.
+/// A server of `scene` and a gateway in front of it with `extra` flags
+/// (both stopped when dropped), and the gateway's RPC port.
 fn gateway_on(
     name: &str,
     scene: &str,
     sim_client: &Path,
+    extra: &[&str],
 ) -> anyhow::Result<(BenchServer, ChildGuard, String)> {
     let server = BenchServer::start(name, &["--scene", scene])?;
     let (port, streams) = (free_port()?, free_port()?);
-    let gateway = start_gateway(sim_client, &server.world, port, streams)?;
+    let gateway = start_gateway(sim_client, &server.world, port, streams, extra)?;
     Ok((server, gateway, port.to_string()))
 }
 
@@ -231,45 +236,97 @@ struct Measured {
     traffic: Traffic,
 }
 
-/// The traffic manager's rows: ticks per second with 30 and 100 autopilot
-/// vehicles, and `get_map()` + `generate_waypoints(2.0)` on the town.
+/// The traffic manager's rows, and `get_map()` + `generate_waypoints(2.0)`
+/// on the town.
 struct Traffic {
-    ticks_per_s_30: f64,
-    ticks_per_s_100: f64,
+    rows: Vec<TrafficRow>,
     map: Latencies,
     waypoints: u64,
 }
 
-/// The traffic manager's rows, on a server of the town and a gateway of
-/// their own.
+/// Ticks per second through CARLA's client with one traffic manager.
+struct TrafficRow {
+    /// "native" (the gateway's) or "CARLA's" (in the script).
+    manager: &'static str,
+    vehicles: u64,
+    walkers: u64,
+    /// `None`: it deadlocked (after that many timed ticks).
+    ticks_per_s: Option<f64>,
+    deadlocked_after: Option<u64>,
+}
+
+/// The traffic manager's rows, each on a server of the town and a gateway
+/// of its own: the native one and CARLA's, with 30 and 100 vehicles, and
+/// 100 vehicles with 100 walkers.
 fn traffic(
     args: &CarlaArgs,
     sim_client: &Path,
     python: &Path,
     script: &Path,
 ) -> anyhow::Result<Traffic> {
-    let (_server, _gateway, port) = gateway_on("carla-town", "town", sim_client)?;
+    let ticks = args.traffic_ticks.to_string();
+    let mut rows = Vec::new();
+    for (manager, flags) in [
+        ("native", &[][..]),
+        ("CARLA's", &["--client-traffic-manager"][..]),
+    ] {
+        for (vehicles, walkers) in [("30", "0"), ("100", "0"), ("100", "100")] {
+            let (_server, _gateway, port) = gateway_on("carla-town", "town", sim_client, flags)?;
+            let carla = ScriptSide {
+                python,
+                script,
+                target: &port,
+            };
+            let tm_port = free_port()?.to_string();
+            let answer = script_side(
+                carla,
+                "traffic",
+                &[&ticks, vehicles, &tm_port, walkers],
+                |_| Ok(()),
+            )?;
+            rows.push(TrafficRow {
+                manager,
+                vehicles: answer["vehicles"].as_u64().unwrap_or(0),
+                walkers: answer["walkers"].as_u64().unwrap_or(0),
+                ticks_per_s: answer["ticks_per_s"].as_f64(),
+                deadlocked_after: answer["deadlocked_after"].as_u64(),
+            });
+        }
+    }
+    let (_server, _gateway, port) = gateway_on("carla-town", "town", sim_client, &[])?;
     let carla = ScriptSide {
         python,
         script,
         target: &port,
     };
-    let ticks = args.traffic_ticks.to_string();
-    let rate = |vehicles: &str| -> anyhow::Result<f64> {
-        let tm_port = free_port()?.to_string();
-        let answer = script_side(carla, "traffic", &[&ticks, vehicles, &tm_port], |_| Ok(()))?;
-        answer["ticks_per_s"]
-            .as_f64()
-            .context("no ticks per second")
-    };
-    let (ticks_per_s_30, ticks_per_s_100) = (rate("30")?, rate("100")?);
     let answer = script_side(carla, "map", &["5"], |_| Ok(()))?;
     Ok(Traffic {
-        ticks_per_s_30,
-        ticks_per_s_100,
+        rows,
         map: latencies(&answer, "ns")?,
         waypoints: answer["waypoints"].as_u64().unwrap_or(0),
     })
+}
+
+impl TrafficRow {
+    fn json(&self) -> serde_json::Value {
+        serde_json::json!({"manager": self.manager, "vehicles": self.vehicles,
+            "walkers": self.walkers, "ticks_per_s": self.ticks_per_s,
+            "deadlocked_after": self.deadlocked_after})
+    }
+
+    fn line(&self) -> String {
+        let what = format!(
+            "{} traffic manager, {} vehicles, {} walkers",
+            self.manager, self.vehicles, self.walkers
+        );
+        match (self.ticks_per_s, self.deadlocked_after) {
+            (Some(rate), _) => format!("{what}: {rate:.0} ticks/s"),
+            (None, after) => format!(
+                "{what}: deadlocked after {} timed ticks (CARLA's #9172)",
+                after.unwrap_or(0)
+            ),
+        }
+    }
 }
 
 fn measure(
@@ -279,7 +336,7 @@ fn measure(
     script: &Path,
 ) -> anyhow::Result<()> {
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    let (server, _gateway, port) = gateway_on("carla", "empty", sim_client)?;
+    let (server, _gateway, port) = gateway_on("carla", "empty", sim_client, &[])?;
     let carla = ScriptSide {
         python,
         script,
@@ -536,8 +593,7 @@ fn report(args: &CarlaArgs, m: &Measured) {
                 "wait_for_tick": {"native": native_wait.json(), "carla": carla_wait.json(),
                     "carla_over_native_p50": p50(carla_wait) / p50(native_wait)},
                 "listen": listen_json,
-                "traffic_manager_ticks_per_s": {"vehicles_30": traffic.ticks_per_s_30,
-                    "vehicles_100": traffic.ticks_per_s_100},
+                "traffic_manager": traffic.rows.iter().map(TrafficRow::json).collect::<Vec<_>>(),
                 "get_map_generate_waypoints_ms_p50": map_ms,
                 "waypoints": traffic.waypoints,
             })
@@ -568,9 +624,11 @@ fn report(args: &CarlaArgs, m: &Measured) {
         );
     }
     println!(
-        "CARLA's traffic manager on the town, synchronous, 0.05 s steps: {:.0} ticks/s with 30 vehicles, {:.0} with 100",
-        traffic.ticks_per_s_30, traffic.ticks_per_s_100
+        "Traffic managers on the town, synchronous, 0.05 s steps, ticks through CARLA's client:"
     );
+    for row in &traffic.rows {
+        println!("  {}", row.line());
+    }
     println!(
         "get_map() + generate_waypoints(2.0) on the town: {map_ms:.0} ms (p50 of 5; {} waypoints)",
         traffic.waypoints

@@ -7,10 +7,13 @@ against the gateway. Prints one JSON object on its last line.
     carla_bench.py sensor PORT N BLUEPRINT [NAME=VALUE ...]
                                    N captures of a sensor of BLUEPRINT (with
                                    those attributes) through sensor.listen
-    carla_bench.py traffic PORT N VEHICLES TM_PORT
+    carla_bench.py traffic PORT N VEHICLES TM_PORT WALKERS
                                    the traffic manager in synchronous mode on
-                                   simbus's town: VEHICLES autopilot vehicles,
-                                   N world.tick() timed (the TM step included)
+                                   simbus's town: VEHICLES autopilot vehicles
+                                   and WALKERS walkers with CARLA's AI
+                                   controller, N world.tick() timed (the TM
+                                   step included); a tick that takes 30 s is
+                                   a deadlock (reported, the run ends)
     carla_bench.py map PORT N      world.get_map() + generate_waypoints(2.0)
                                    on the town, N times
     carla_bench.py capture PORT N W H
@@ -88,7 +91,7 @@ def main():
         sync(world, False)
         print(json.dumps({"fps": n / elapsed}))
     elif mode == "traffic":
-        print(json.dumps(traffic(client, n, int(sys.argv[4]), int(sys.argv[5]))))
+        print(json.dumps(traffic(client, n, int(sys.argv[4]), int(sys.argv[5]), int(sys.argv[6]))))
     elif mode == "map":
         client.load_world("town")
         world = client.get_world()
@@ -105,9 +108,13 @@ def main():
         raise SystemExit(f"unknown mode {mode}")
 
 
-def traffic(client, n, vehicles, tm_port):
-    """Ticks per second with `vehicles` autopilot vehicles on the town, the
-    traffic manager in synchronous mode (its step rides in each tick)."""
+def traffic(client, n, vehicles, tm_port, walkers):
+    """Ticks per second with `vehicles` autopilot vehicles and `walkers` AI
+    walkers on the town, the traffic manager in synchronous mode (its step
+    rides in each tick, or in the world's lockstep)."""
+    import os
+    import threading
+
     client.load_world("town")
     world = client.get_world()
     settings = world.get_settings()
@@ -117,7 +124,8 @@ def traffic(client, n, vehicles, tm_port):
     tm = client.get_trafficmanager(tm_port)
     tm.set_synchronous_mode(True)
     tm.set_random_device_seed(1)
-    blueprints = world.get_blueprint_library().filter("vehicle.*")
+    library = world.get_blueprint_library()
+    blueprints = library.filter("vehicle.*")
     points = world.get_map().get_spawn_points()
     if len(points) < vehicles:
         raise SystemExit(f"{vehicles} vehicles asked, {len(points)} spawn points")
@@ -127,13 +135,43 @@ def traffic(client, n, vehicles, tm_port):
         for i, point in enumerate(points[:vehicles])
     ]
     spawned = [r.actor_id for r in client.apply_batch_sync(batch, True) if not r.error]
+    world.set_pedestrians_seed(1)
+    walker_bps = library.filter("walker.pedestrian.*")
+    batch = [carla.command.SpawnActor(walker_bps[i % len(walker_bps)],
+                                      carla.Transform(world.get_random_location_from_navigation()))
+             for i in range(walkers)]
+    people = [r.actor_id for r in client.apply_batch_sync(batch, True) if not r.error]
+    controller = library.find("controller.ai.walker")
+    results = client.apply_batch_sync(
+        [carla.command.SpawnActor(controller, carla.Transform(), w) for w in people], True)
+    world.tick()
+    for ai in world.get_actors([r.actor_id for r in results if not r.error]):
+        ai.start()
+        ai.go_to_location(world.get_random_location_from_navigation())
+        ai.set_max_speed(1.4)
+    # CARLA's own traffic manager can deadlock in synchronous mode
+    # (carla-simulator/carla#9172): a tick that never returns is reported.
+    done = [0]
+
+    def watchdog():
+        last = -1
+        while True:
+            time.sleep(30)
+            if done[0] == last:
+                print(json.dumps({"deadlocked_after": done[0], "vehicles": len(spawned),
+                                  "walkers": len(people)}), flush=True)
+                os._exit(0)
+            last = done[0]
+
+    threading.Thread(target=watchdog, daemon=True).start()
     for _ in range(20):
         world.tick()
     start = time.perf_counter()
     for _ in range(n):
         world.tick()
+        done[0] += 1
     elapsed = time.perf_counter() - start
-    return {"ticks_per_s": n / elapsed, "vehicles": len(spawned)}
+    return {"ticks_per_s": n / elapsed, "vehicles": len(spawned), "walkers": len(people)}
 
 
 def capture(world, n, width, height):

@@ -275,7 +275,7 @@ fn measure(
     let load = load_average();
     let server = BenchServer::start("python", &["--scene", "empty"])?;
     let (port, streams) = (carla::free_port()?, carla::free_port()?);
-    let _gateway = carla::start_gateway(sim_client, &server.world, port, streams)?;
+    let _gateway = carla::start_gateway(sim_client, &server.world, port, streams, &[])?;
     let port = port.to_string();
     let package = ScriptSide {
         python,

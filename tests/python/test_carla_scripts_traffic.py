@@ -273,3 +273,12 @@ def test_generate_traffic_defaults_2000_synchronous_frames_on_the_native_traffic
     assert any(0 < p["red_stops"] < 1500 and math.dist(p["first"][:2], p["last"][:2]) > 50
                for p in stopped), stopped
     assert len(walked) == 10 and sum(w > 5.0 for w in walked) >= 8, walked
+
+
+def test_the_native_traffic_managers_soak_runs_twice_short_with_no_hang():
+    """The fault suite's soak (carla_tm_soak.py, 100 runs of 2 000 ticks
+    there), twice with 300 ticks here: each run on a fresh pair, none
+    hangs or fails."""
+    import carla_tm_soak
+    result = carla_tm_soak.soak(runs=2, ticks=300, walkers=10, limit=120, prefix="soak-test")
+    assert (result["runs"], result["hangs"], result["failures"]) == (2, 0, 0), result

@@ -169,16 +169,15 @@ fn walker_definition(n: u32) -> Definition {
         Attr::choice("role_name", Kind::String, &["pedestrian"], false),
         Attr::choice("speed", Kind::Float, &w.speeds, false),
     ];
-    // CARLA's: only walkers that can use one have the switch (the walker
-    // keeps its shape: simbus has no wheelchair).
-    if w.wheelchair {
-        attributes.push(Attr::choice(
-            "use_wheelchair",
-            Kind::Bool,
-            &["false"],
-            false,
-        ));
-    }
+    // CARLA's switch on every walker, "true" recommended only where it
+    // can use one (kept: the walker keeps its shape, simbus has no
+    // wheelchair).
+    let wheelchair: &[&str] = if w.wheelchair {
+        &["false", "true"]
+    } else {
+        &["false"]
+    };
+    attributes.push(Attr::choice("use_wheelchair", Kind::Bool, wheelchair, true));
     Definition {
         uid: ActorKind::Walker as u32,
         tags: tags_of(&w.id),

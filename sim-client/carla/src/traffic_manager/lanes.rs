@@ -49,6 +49,8 @@ pub(crate) struct Lanes {
     stops: HashMap<LaneRef, Vec<StopLine>>,
     /// Speed-limit signs on each lane: (progress, km/h).
     limits: HashMap<LaneRef, Vec<(f64, f64)>>,
+    /// Each junction's middle and radius (x, y, metres).
+    areas: HashMap<u32, (f64, f64, f64)>,
 }
 
 /// `a` wrapped into (-π, π].
@@ -73,7 +75,13 @@ impl Lanes {
             next: HashMap::new(),
             stops: HashMap::new(),
             limits: HashMap::new(),
+            areas: HashMap::new(),
         };
+        for junction in &lanes.network.junctions {
+            if let Some(area) = area_of(&lanes.network, junction.id) {
+                lanes.areas.insert(junction.id, area);
+            }
+        }
         let all: Vec<LaneRef> = lanes.all().collect();
         for lane in all {
             let next = lanes.successors(lane);
@@ -268,24 +276,7 @@ impl Lanes {
     /// The middle of junction `junction` and how far from it its
     /// connecting roads reach, metres.
     pub(crate) fn junction_area(&self, junction: u32) -> Option<(f64, f64, f64)> {
-        let ends: Vec<Pose2> = self
-            .network
-            .roads
-            .iter()
-            .filter(|r| r.junction == Some(junction))
-            .flat_map(|r| [r.pose_at(0.0), r.pose_at(r.length())])
-            .collect();
-        if ends.is_empty() {
-            return None;
-        }
-        let n = ends.len() as f64;
-        let cx = ends.iter().map(|p| p.x).sum::<f64>() / n;
-        let cy = ends.iter().map(|p| p.y).sum::<f64>() / n;
-        let radius = ends
-            .iter()
-            .map(|p| (p.x - cx).hypot(p.y - cy))
-            .fold(0.0, f64::max);
-        Some((cx, cy, radius))
+        self.areas.get(&junction).copied()
     }
 
     /// How much lane `lane` turns from its start to its end, radians
@@ -294,6 +285,28 @@ impl Lanes {
         let length = self.length(lane);
         wrap(self.point(lane, length, 0.0).hdg - self.point(lane, 0.0, 0.0).hdg)
     }
+}
+
+/// The middle of junction `junction` and how far from it its connecting
+/// roads reach.
+fn area_of(network: &RoadNetwork, junction: u32) -> Option<(f64, f64, f64)> {
+    let ends: Vec<Pose2> = network
+        .roads
+        .iter()
+        .filter(|r| r.junction == Some(junction))
+        .flat_map(|r| [r.pose_at(0.0), r.pose_at(r.length())])
+        .collect();
+    if ends.is_empty() {
+        return None;
+    }
+    let n = ends.len() as f64;
+    let cx = ends.iter().map(|p| p.x).sum::<f64>() / n;
+    let cy = ends.iter().map(|p| p.y).sum::<f64>() / n;
+    let radius = ends
+        .iter()
+        .map(|p| (p.x - cx).hypot(p.y - cy))
+        .fold(0.0, f64::max);
+    Some((cx, cy, radius))
 }
 
 /// Where `(x, y)` is along `segment` starting at `start`: (s, not

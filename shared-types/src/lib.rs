@@ -36,6 +36,10 @@ pub mod limits;
 
 mod command;
 mod control;
+pub mod debug_shapes;
+pub use debug_shapes::{
+    DebugRequest, DebugRequestKind, DebugResponseHeader, DebugShape, DebugShapeError, ShapeKind,
+};
 mod frame;
 mod lockstep;
 mod names;

@@ -120,6 +120,9 @@ pub struct ServiceNames {
     /// Request-response: [`RecorderRequest`](crate::recorder::RecorderRequest) → [`RecorderResponse`](crate::recorder::RecorderResponse)
     /// (recorder and replayer).
     pub recorder: String,
+    /// Request-response: [`DebugRequest`](crate::debug_shapes::DebugRequest) → a slice of
+    /// [`DebugShape`](crate::debug_shapes::DebugShape) (debug drawing).
+    pub debug: String,
     prefix: String,
 }
 
@@ -145,12 +148,14 @@ wire_enum! {
         Sensors = 5,
         /// [`ServiceNames::recorder`].
         Recorder = 6,
+        /// [`ServiceNames::debug`].
+        Debug = 7,
     }
 }
 
 impl Doorbell {
     /// The largest event id rung: the wake-up event's `event_id_max_value`.
-    pub const MAX_ID: usize = Doorbell::Recorder as usize;
+    pub const MAX_ID: usize = Doorbell::Debug as usize;
 
     /// The event id this doorbell rings.
     pub fn event_id(self) -> usize {
@@ -172,6 +177,7 @@ impl ServiceNames {
             lockstep: format!("{prefix}/lockstep"),
             sensors: format!("{prefix}/sensors"),
             recorder: format!("{prefix}/recorder"),
+            debug: format!("{prefix}/debug"),
             prefix,
         }
     }

@@ -209,7 +209,7 @@ pub(crate) use responses;
 /// Version of the simbus wire protocol. Every payload carries it; a peer that
 /// speaks another version gets [`ResponseStatus::ProtocolMismatch`] (or a
 /// service it cannot open) instead of misread bytes.
-pub const PROTOCOL_VERSION: u32 = 9;
+pub const PROTOCOL_VERSION: u32 = 10;
 
 /// This process's id, read once: every request carries it, and asking the
 /// kernel for it on every request would be a syscall on the hot path.

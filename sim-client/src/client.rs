@@ -98,6 +98,7 @@ pub struct Client {
     pub(crate) sensor_port: OnceCell<crate::sensor::SensorRequestClient>,
     /// The recorder port, opened on first use.
     pub(crate) recorder_port: OnceCell<crate::recorder::RecorderClient>,
+    debug_port: OnceCell<debug::DebugClient>,
     pub(crate) names: ServiceNames,
     pub(crate) frames: FrameStream,
     pub(crate) server_pid: u32,
@@ -128,6 +129,8 @@ fn default_ticker_name() -> String {
     }
 }
 
+mod debug;
+pub use debug::DrawError;
 mod roles;
 mod sensors;
 mod settings;
@@ -222,6 +225,7 @@ impl Client {
             batch: OnceCell::new(),
             sensor_port: OnceCell::new(),
             recorder_port: OnceCell::new(),
+            debug_port: OnceCell::new(),
             names,
             frames,
             server_pid: header.server_pid,

@@ -53,6 +53,7 @@ mod wait;
 pub use batch::{BatchError, BatchResponse, CommandError};
 pub use builder::{ClientBuilder, DEFAULT_CONNECT_TIMEOUT};
 pub use capture::Capture;
+pub use client::DrawError;
 pub use client::{Client, DEFAULT_REQUEST_TIMEOUT};
 pub use error::{
     ApplySettingsError, ConnectError, LoadWorldError, RequestError, TickError, TransportError,

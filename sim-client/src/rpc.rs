@@ -16,9 +16,9 @@ use iceoryx2::service::builder::request_response::RequestResponseOpenError;
 use iceoryx2::service::port_factory::client::ClientCreateError;
 use shared_types::limits::MAX_CLIENTS_FLAG;
 use shared_types::{
-    BatchResponseHeader, CommandResult, ControlResponse, Doorbell, LockstepResponse,
-    RecorderResponse, Response, ResponseStatus, SensorInfo, SensorResponseHeader, TickResponse,
-    PROTOCOL_VERSION,
+    BatchResponseHeader, CommandResult, ControlResponse, DebugResponseHeader, DebugShape, Doorbell,
+    LockstepResponse, RecorderResponse, Response, ResponseStatus, SensorInfo, SensorResponseHeader,
+    TickResponse, PROTOCOL_VERSION,
 };
 use simbus_transport::Bus;
 use tracing::debug;
@@ -193,7 +193,11 @@ macro_rules! slice_answers {
         }
     )*};
 }
-slice_answers!(CommandResult => BatchResponseHeader, SensorInfo => SensorResponseHeader);
+slice_answers!(
+    CommandResult => BatchResponseHeader,
+    SensorInfo => SensorResponseHeader,
+    DebugShape => DebugResponseHeader
+);
 
 /// A typed request port of one world's service: send, wake, await, check.
 /// A port opened on its own node has its own wake-up notifier; the ports

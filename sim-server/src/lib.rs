@@ -63,6 +63,7 @@ pub mod clock;
 pub(crate) mod commands;
 pub(crate) mod config;
 pub(crate) mod control;
+pub(crate) mod debug_shapes;
 pub mod error;
 pub mod journal;
 pub(crate) mod keyframe;

@@ -47,3 +47,44 @@ def test_a_constant_velocity_holds_along_the_vehicles_heading(gateway):
     for _ in range(40):
         world.tick()
     assert car.get_velocity().length() < 1.0, "let go, the brakes stop it"
+
+
+def test_debug_drawing_is_kept_for_its_life_time_in_simulation_time(gateway):
+    """`world.debug.draw_*` as CARLA's scripts call them (`draw_point`,
+    `draw_line`, `draw_arrow`, `draw_box`, `draw_string`, `draw_hud_point`):
+    each shape is shown from the next frame, in simbus's axes, for its
+    `life_time` in simulation time (below 0: one frame; 0: for good), then
+    gone; what the Foxglove view and a recording's scene draw."""
+    import simbus
+
+    client, world = synced(gateway)
+    native = simbus.connect(gateway.world, timeout=10.0)
+    debug = world.debug
+    green = carla.Color(0, 255, 0)
+    debug.draw_point(carla.Location(10.0, 2.0, 1.0), 0.2, green, 1.0)
+    debug.draw_line(carla.Location(0, 0, 0), carla.Location(5, 0, 0), 0.1, green, 0.0)
+    debug.draw_arrow(carla.Location(0, 0, 1), carla.Location(0, 5, 1), 0.1, 0.2, green, -1.0)
+    box = carla.BoundingBox(carla.Location(3, 0, 1), carla.Vector3D(1, 2, 0.5))
+    debug.draw_box(box, carla.Rotation(0, 90, 0), 0.05, green, 2.0)
+    debug.draw_string(carla.Location(0, 0, 3), "spawn 7", False, green, 1.0)
+    debug.draw_hud_point(carla.Location(1, 1, 1), 0.1, green, 1.0)
+    world.tick()
+    kinds = sorted(s["kind"] for s in native.debug_shapes())
+    assert kinds == ["arrow", "box", "line", "point", "point", "text"], kinds
+    point = next(s for s in native.debug_shapes() if s["kind"] == "point" and s["size"] > 0.15)
+    # CARLA (x, y, z) is simbus (x, z, y).
+    assert point["a"] == [10.0, 1.0, 2.0] and point["color"] == [0, 255, 0, 255]
+    assert [s["text"] for s in native.debug_shapes() if s["kind"] == "text"] == ["spawn 7"]
+    world.tick()
+    # The one-frame arrow is gone.
+    assert sorted(s["kind"] for s in native.debug_shapes()) == ["box", "line", "point", "point", "text"]
+    for _ in range(20):
+        world.tick()
+    # 1.05 s later: the 1 s shapes are gone, the 2 s box and the line stay.
+    assert sorted(s["kind"] for s in native.debug_shapes()) == ["box", "line"]
+    for _ in range(20):
+        world.tick()
+    assert [s["kind"] for s in native.debug_shapes()] == ["line"]
+    native.clear_debug_shapes()
+    world.tick()
+    assert native.debug_shapes() == []

@@ -155,3 +155,50 @@ def test_the_scene_clock_and_a_depth_camera_reach_a_foxglove_client(request, tmp
             assert abs(cloud.pose.position.y - 2.0) < 1e-6
     finally:
         kill_all(procs)
+
+
+def test_debug_shapes_clients_draw_join_the_foxglove_scene(request, tmp_path):
+    """Shapes a client draws (`client.draw_*`, what the CARLA gateway's
+    `world.debug.draw_*` become) reach a Foxglove client as one `debug`
+    entity of the scene: points as spheres, lines and boxes as line lists,
+    texts as billboards, in the world's frame."""
+    import simbus
+
+    world = world_name(request)
+    procs = []
+    try:
+        server = subprocess.Popen(
+            [os.path.join(BIN, "sim-server"), "--world", world, "--scene", "empty"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        )
+        procs.append(server)
+        client = simbus.connect(world, timeout=20.0)
+        client.draw_point([1.0, 2.0, 3.0], size=0.5, color=[0, 255, 0], life_time=0.0)
+        client.draw_line([0.0, 0.0, 0.0], [5.0, 0.0, 0.0], thickness=0.05, life_time=0.0)
+        client.draw_box([0.0, 1.0, 0.0], [1.0, 1.0, 2.0], life_time=0.0)
+        client.draw_string([0.0, 3.0, 0.0], "hello", color=[255, 255, 255, 128], life_time=0.0)
+        log = tmp_path / "bridge.log"
+        bridge = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "foxglove", "--port", "0", "--max-hz", "0"],
+            stdout=subprocess.PIPE, stderr=open(log, "w"), text=True, start_new_session=True,
+        )
+        procs.append(bridge)
+        line = wait_line(bridge, "foxglove:")
+        port = int(line.split("ws://127.0.0.1:")[1].split()[0])
+        try:
+            got, _ = asyncio.run(collect(port, ["/simbus/scene"], 3))
+        except AssertionError as e:
+            raise AssertionError(f"{e}\nthe bridge's log:\n{log.read_text()[-4000:]}") from None
+        for _, update in got["/simbus/scene"]:
+            [debug] = [e for e in update.entities if e.id == "debug"]
+            assert debug.frame_id == "world"
+            [point] = debug.spheres
+            assert (point.pose.position.x, point.pose.position.y, point.pose.position.z) == (1.0, 2.0, 3.0)
+            assert (point.color.g, point.size.x) == (1.0, 0.5)
+            line, box = debug.lines
+            assert len(line.points) == 2 and len(box.points) == 24, "a box's 12 edges"
+            [text] = debug.texts
+            assert text.text == "hello" and text.billboard and abs(text.color.a - 128 / 255) < 1e-6
+        client.clear_debug_shapes()
+    finally:
+        kill_all(procs)

@@ -34,9 +34,9 @@ use shared_types::limits::{
 };
 use shared_types::{
     ActorState, BatchHeader, BatchResponseHeader, Command, CommandResult, ControlRequest,
-    ControlResponse, Doorbell, FrameHeader, LockstepRequest, LockstepResponse, RecorderRequest,
-    RecorderResponse, SensorHeader, SensorInfo, SensorRequest, SensorResponseHeader, ServiceNames,
-    TickRequest, TickResponse,
+    ControlResponse, DebugRequest, DebugResponseHeader, DebugShape, Doorbell, FrameHeader,
+    LockstepRequest, LockstepResponse, RecorderRequest, RecorderResponse, SensorHeader, SensorInfo,
+    SensorRequest, SensorResponseHeader, ServiceNames, TickRequest, TickResponse,
 };
 
 /// The payload types a description stands for (it holds none).
@@ -464,6 +464,8 @@ pub type LockstepSpec = RequestSpec<LockstepRequest, (), LockstepResponse, ()>;
 pub type SensorsSpec = RequestSpec<SensorRequest, (), [SensorInfo], SensorResponseHeader>;
 /// The recorder service (recorder and replayer).
 pub type RecorderSpec = RequestSpec<RecorderRequest, (), RecorderResponse, ()>;
+/// The debug-drawing service (draw, list, clear).
+pub type DebugSpec = RequestSpec<DebugRequest, (), [DebugShape], DebugResponseHeader>;
 
 /// Every service of one world, described once.
 #[derive(Debug)]
@@ -486,6 +488,8 @@ pub struct WorldServices {
     pub sensors: SensorsSpec,
     /// Recorder requests ([`ServiceNames::recorder`]).
     pub recorder: RecorderSpec,
+    /// Debug drawing ([`ServiceNames::debug`]).
+    pub debug: DebugSpec,
     names: ServiceNames,
 }
 
@@ -532,6 +536,10 @@ impl WorldServices {
         let mut sensors =
             RequestSpec::new(&names.sensors, Doorbell::Sensors, Limit::Clients, 2, 1)?;
         sensors.initial_slice_len = 16;
+        // A list answers every shape kept: the answer's memory grows with
+        // them.
+        let mut debug = RequestSpec::new(&names.debug, Doorbell::Debug, Limit::Clients, 4, 2)?;
+        debug.initial_slice_len = 64;
         Ok(Self {
             frames,
             frame_ready: event(&names.frame_ready, Limit::Fixed(4), 0)?,
@@ -545,6 +553,7 @@ impl WorldServices {
             lockstep: RequestSpec::new(&names.lockstep, Doorbell::Lockstep, Limit::Clients, 4, 2)?,
             sensors,
             recorder: RequestSpec::new(&names.recorder, Doorbell::Recorder, Limit::Clients, 2, 2)?,
+            debug,
             names: names.clone(),
         })
     }

@@ -21,11 +21,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use foxglove::messages::SceneUpdate;
+use foxglove::messages::{SceneEntityDeletion, SceneUpdate};
 use foxglove::websocket::Capability;
 use foxglove::{Channel, Context, FoxgloveError, WebSocketServer, WebSocketServerHandle};
 use shared_types::WorldName;
 use sim_client::{Client, ConnectError, FrameView, SensorError, WaitError, WaitMode};
+use tracing::debug;
 
 mod scene;
 mod sensors;
@@ -146,6 +147,8 @@ struct View {
     last_sent: Option<Instant>,
     last_look: Option<Instant>,
     sent: u64,
+    /// Whether the last scene sent had the debug shapes' entity.
+    drew_debug: bool,
 }
 
 impl View {
@@ -192,6 +195,7 @@ impl View {
             last_sent: None,
             last_look: Some(Instant::now()),
             sent: 0,
+            drew_debug: false,
         })
     }
 
@@ -224,9 +228,33 @@ impl View {
         let elapsed_ns = frame.timestamp().elapsed_ns;
         let time = scene::stamp(elapsed_ns);
         let actors = frame.actors();
+        // What clients drew, asked for each frame sent (a viewer's pace).
+        let shapes = match self.client.debug_shapes() {
+            Ok(shapes) => shapes,
+            Err(e) => {
+                debug!("no debug shapes: {e}");
+                Vec::new()
+            }
+        };
+        let debug = scene::debug_entity(&shapes, time);
+        // The debug entity goes when the last shape does.
+        let deletions = if debug.is_none() && self.drew_debug {
+            vec![SceneEntityDeletion {
+                timestamp: Some(time),
+                r#type: 0,
+                id: "debug".into(),
+            }]
+        } else {
+            Vec::new()
+        };
+        self.drew_debug = debug.is_some();
         let update = SceneUpdate {
-            deletions: Vec::new(),
-            entities: actors.iter().map(|a| scene::entity(a, time)).collect(),
+            deletions,
+            entities: actors
+                .iter()
+                .map(|a| scene::entity(a, time))
+                .chain(debug)
+                .collect(),
         };
         self.server.broadcast_time(elapsed_ns);
         self.scene.log_with_time(&update, elapsed_ns);

@@ -1,11 +1,12 @@
 //! Frames as Foxglove's scene: every actor a `foxglove.SceneUpdate`
 //! entity in frame `world`, stamped with the frame's simulation time.
 
+use foxglove::messages::line_primitive::Type as LineType;
 use foxglove::messages::{
-    Color, CubePrimitive, CylinderPrimitive, Pose, Quaternion, SceneEntity, SpherePrimitive,
-    Timestamp, Vector3,
+    Color, CubePrimitive, CylinderPrimitive, LinePrimitive, Point3, Pose, Quaternion, SceneEntity,
+    SpherePrimitive, TextPrimitive, Timestamp, Vector3,
 };
-use shared_types::{ActorKind, ActorState, LightState, NANOS_PER_SECOND};
+use shared_types::{ActorKind, ActorState, DebugShape, LightState, ShapeKind, NANOS_PER_SECOND};
 use simbus_pose::compose;
 
 /// A frame's simulation time as a Foxglove timestamp.
@@ -119,4 +120,63 @@ pub(crate) fn entity(actor: &ActorState, time: Timestamp) -> SceneEntity {
 pub(crate) fn placed(actor: &ActorState, offset: ([f32; 3], [f32; 4])) -> Pose {
     let (position, rotation) = compose((actor.position, actor.rotation), offset);
     pose(position, rotation)
+}
+
+/// The debug shapes clients drew, as one entity (`debug`): points as
+/// spheres, lines, arrows and boxes as line lists, texts as billboards;
+/// none without shapes.
+pub(crate) fn debug_entity(shapes: &[DebugShape], time: Timestamp) -> Option<SceneEntity> {
+    if shapes.is_empty() {
+        return None;
+    }
+    let mut entity = SceneEntity {
+        timestamp: Some(time),
+        frame_id: "world".into(),
+        id: "debug".into(),
+        ..Default::default()
+    };
+    let point = |p: [f32; 3]| Point3 {
+        x: f64::from(p[0]),
+        y: f64::from(p[1]),
+        z: f64::from(p[2]),
+    };
+    for s in shapes {
+        let [r, g, b, a] = s.color.map(|c| f64::from(c) / 255.0);
+        let color = Some(Color { r, g, b, a });
+        let lines = |points: Vec<Point3>| LinePrimitive {
+            r#type: LineType::LineList as i32,
+            pose: Some(pose([0.0; 3], IDENTITY)),
+            thickness: f64::from(s.size.max(0.01)),
+            scale_invariant: false,
+            points,
+            color,
+            ..Default::default()
+        };
+        match s.shape_kind() {
+            Some(ShapeKind::Point) => entity.spheres.push(SpherePrimitive {
+                pose: Some(pose(s.a, IDENTITY)),
+                size: Some(vector([s.size; 3])),
+                color,
+            }),
+            Some(ShapeKind::Line) => entity.lines.push(lines(vec![point(s.a), point(s.b)])),
+            Some(ShapeKind::Arrow) => {
+                let mut points = vec![point(s.a), point(s.b)];
+                points.extend(s.arrow_head().into_iter().flatten().map(point));
+                entity.lines.push(lines(points));
+            }
+            Some(ShapeKind::Box) => {
+                entity.lines.push(lines(s.box_edges().map(point).to_vec()));
+            }
+            Some(ShapeKind::Text) => entity.texts.push(TextPrimitive {
+                pose: Some(pose(s.a, IDENTITY)),
+                billboard: true,
+                font_size: 14.0,
+                scale_invariant: true,
+                color,
+                text: s.text.to_string_lossy(),
+            }),
+            None => {}
+        }
+    }
+    Some(entity)
 }

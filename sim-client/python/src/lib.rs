@@ -13,6 +13,7 @@ use pyo3::prelude::*;
 
 mod args;
 mod client;
+mod debug;
 mod durability;
 mod errors;
 mod frame;

@@ -114,6 +114,8 @@ pub(crate) struct Recorder {
     pub(crate) last: LastRecording,
     collisions: Vec<RecordedCollision>,
     captures: Vec<(SensorHeader, Vec<u8>)>,
+    /// The debug shapes the next frame shows.
+    shapes: Vec<shared_types::DebugShape>,
     /// The header of the last frame published: a recording starts with
     /// that frame as it was sent (its substeps, flags and time).
     published: Option<FrameHeader>,
@@ -366,6 +368,13 @@ impl Recorder {
     /// Records a published frame, the collisions and captures of its step,
     /// and a keyframe when one is due.
     /// `scene` is named in a keyframe only (formatted when one is due).
+    /// The debug shapes the next recorded frame shows (its scene draws
+    /// them).
+    pub(crate) fn draw(&mut self, shapes: &[shared_types::DebugShape]) {
+        self.shapes.clear();
+        self.shapes.extend_from_slice(shapes);
+    }
+
     pub(crate) fn frame(&mut self, header: &FrameHeader, world: &World, scene: &dyn Display) {
         if self.active.is_some() {
             self.record_frame(header, world, scene, false);
@@ -407,10 +416,12 @@ impl Recorder {
             active.next_keyframe_ns = log_ns.saturating_add(active.keyframe_every_ns);
         }
         let actors = world.states();
+        let shapes = self.shapes.clone();
         self.send(Item::Frame {
             log_ns,
             header: *header,
             actors,
+            shapes,
         });
         for mut collision in std::mem::take(&mut self.collisions) {
             collision.frame = header.timestamp.frame;

@@ -2,7 +2,7 @@
 
 use serde::Serialize;
 use serde_json::json;
-use shared_types::{ActorKind, ActorState, FrameHeader};
+use shared_types::{ActorKind, ActorState, DebugShape, FrameHeader, ShapeKind};
 
 /// A `foxglove.SceneUpdate` (JSON encoding) with one entity per actor: a
 /// cube for boxes, statics and vehicles, a sphere, or a cylinder for a
@@ -12,7 +12,7 @@ use shared_types::{ActorKind, ActorState, FrameHeader};
 pub(super) fn scene_update(
     out: &mut Vec<u8>,
     header: &FrameHeader,
-    actors: &[ActorState],
+    (actors, shapes): (&[ActorState], &[DebugShape]),
     log_ns: u64,
 ) {
     let stamp = Time {
@@ -20,7 +20,10 @@ pub(super) fn scene_update(
         nsec: (log_ns % 1_000_000_000) as u32,
     };
     let frame = header.timestamp.frame;
-    let entities = actors.iter().map(|a| entity(a, stamp, frame));
+    let entities = actors
+        .iter()
+        .map(|a| entity(a, stamp, frame))
+        .chain(debug_entity(shapes, stamp));
     let update = SceneUpdate {
         deletions: [Deletion {
             timestamp: stamp,
@@ -31,6 +34,92 @@ pub(super) fn scene_update(
     };
     // Serializing plain numbers and strings into a Vec cannot fail.
     let _ = serde_json::to_writer(out, &update);
+}
+
+/// The debug shapes as one entity (`debug`): points as spheres, lines,
+/// arrows and boxes as line lists, texts as billboards; none without
+/// shapes.
+fn debug_entity(shapes: &[DebugShape], stamp: Time) -> Option<Entity> {
+    if shapes.is_empty() {
+        return None;
+    }
+    let at = |p: [f32; 3]| Xyz {
+        x: p[0],
+        y: -p[2],
+        z: p[1],
+    };
+    let color = |s: &DebugShape| {
+        let [r, g, b, a] = s.color.map(|c| f32::from(c) / 255.0);
+        Color { r, g, b, a }
+    };
+    let placed = |p: [f32; 3]| Pose {
+        position: at(p),
+        orientation: Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        },
+    };
+    let (mut spheres, mut lines, mut texts) = (Vec::new(), Vec::new(), Vec::new());
+    for s in shapes {
+        let line = |points: Vec<Xyz>| Line {
+            r#type: 2,
+            pose: placed([0.0; 3]),
+            thickness: s.size.max(0.01),
+            scale_invariant: false,
+            points,
+            color: color(s),
+        };
+        match s.shape_kind() {
+            Some(ShapeKind::Point) => spheres.push(Primitive {
+                pose: placed(s.a),
+                size: Xyz {
+                    x: s.size,
+                    y: s.size,
+                    z: s.size,
+                },
+                color: color(s),
+            }),
+            Some(ShapeKind::Line) => lines.push(line(vec![at(s.a), at(s.b)])),
+            Some(ShapeKind::Arrow) => {
+                let mut points = vec![at(s.a), at(s.b)];
+                points.extend(s.arrow_head().into_iter().flatten().map(at));
+                lines.push(line(points));
+            }
+            Some(ShapeKind::Box) => lines.push(line(s.box_edges().map(at).to_vec())),
+            Some(ShapeKind::Text) => texts.push(TextPrimitive {
+                pose: placed(s.a),
+                billboard: true,
+                font_size: 14.0,
+                scale_invariant: true,
+                color: color(s),
+                text: s.text.to_string_lossy(),
+            }),
+            None => {}
+        }
+    }
+    Some(Entity {
+        timestamp: stamp,
+        frame_id: "simbus",
+        id: DEBUG_ENTITY,
+        metadata: (
+            KeyValue {
+                key: "kind",
+                value: Text("debug"),
+            },
+            KeyValue {
+                key: "frame",
+                value: Text(0),
+            },
+        ),
+        cubes: None,
+        spheres: None,
+        cylinders: None,
+        debug_spheres: spheres,
+        lines,
+        texts,
+    })
 }
 
 /// One actor's entity, drawn as its kind's primitive in its kind's colour.
@@ -67,6 +156,9 @@ fn entity(a: &ActorState, stamp: Time, frame: u64) -> Entity {
         cubes,
         spheres,
         cylinders,
+        debug_spheres: Vec::new(),
+        lines: Vec::new(),
+        texts: Vec::new(),
     }
 }
 
@@ -187,6 +279,38 @@ struct Entity {
     spheres: Option<Primitive>,
     #[serde(skip_serializing_if = "Option::is_none", serialize_with = "one")]
     cylinders: Option<Primitive>,
+    /// The debug entity's points (Foxglove's `spheres`, many).
+    #[serde(skip_serializing_if = "Vec::is_empty", rename = "spheres")]
+    debug_spheres: Vec<Primitive>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    lines: Vec<Line>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    texts: Vec<TextPrimitive>,
+}
+
+/// The id of the debug shapes' entity (no actor has id 0).
+const DEBUG_ENTITY: u64 = 0;
+
+/// Foxglove's `LinePrimitive` (`type` 2: a list of segments).
+#[derive(Serialize)]
+struct Line {
+    r#type: u32,
+    pose: Pose,
+    thickness: f32,
+    scale_invariant: bool,
+    points: Vec<Xyz>,
+    color: Color,
+}
+
+/// Foxglove's `TextPrimitive`.
+#[derive(Serialize)]
+struct TextPrimitive {
+    pose: Pose,
+    billboard: bool,
+    font_size: f32,
+    scale_invariant: bool,
+    color: Color,
+    text: String,
 }
 
 /// A primitive as the one-element list Foxglove expects.
@@ -232,4 +356,48 @@ pub(super) fn scene_update_schema() -> serde_json::Value {
             "entities": {"type": "array"}
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shared_types::FixedText;
+
+    #[test]
+    fn debug_shapes_join_the_scene_as_one_entity_of_spheres_lines_and_texts() {
+        let header = FrameHeader::default();
+        let point = DebugShape::default();
+        let arrow = DebugShape {
+            kind: ShapeKind::Arrow as u32,
+            b: [1.0, 0.0, 0.0],
+            ..DebugShape::default()
+        };
+        let label = DebugShape {
+            kind: ShapeKind::Text as u32,
+            a: [1.0, 2.0, 3.0],
+            text: FixedText::new("spawn 7"),
+            ..DebugShape::default()
+        };
+        let mut out = Vec::new();
+        scene_update(&mut out, &header, (&[], &[point, arrow, label]), 0);
+        let json: serde_json::Value = serde_json::from_slice(&out).unwrap();
+        let entities = json["entities"].as_array().unwrap();
+        assert_eq!(entities.len(), 1);
+        let debug = &entities[0];
+        assert_eq!(debug["spheres"].as_array().unwrap().len(), 1);
+        // The arrow: its shaft and its head's two strokes.
+        assert_eq!(debug["lines"][0]["points"].as_array().unwrap().len(), 6);
+        assert_eq!(debug["texts"][0]["text"], "spawn 7");
+        // Foxglove's Z up: simbus's (1, 2, 3) is (1, -3, 2).
+        let p = &debug["texts"][0]["pose"]["position"];
+        assert_eq!(
+            (p["x"].as_f64(), p["y"].as_f64(), p["z"].as_f64()),
+            (Some(1.0), Some(-3.0), Some(2.0))
+        );
+        // No shapes: no debug entity.
+        let mut empty = Vec::new();
+        scene_update(&mut empty, &header, (&[], &[]), 0);
+        let json: serde_json::Value = serde_json::from_slice(&empty).unwrap();
+        assert!(json["entities"].as_array().unwrap().is_empty());
+    }
 }

@@ -28,6 +28,8 @@ pub(crate) enum Item {
         log_ns: u64,
         header: FrameHeader,
         actors: Vec<ActorState>,
+        /// The debug shapes it shows.
+        shapes: Vec<shared_types::DebugShape>,
     },
     /// An applied command.
     Command {
@@ -423,7 +425,8 @@ impl Writer {
                 log_ns,
                 header,
                 actors,
-            } => self.write_frame(log_ns, &header, &actors)?,
+                shapes,
+            } => self.write_frame(log_ns, &header, &actors, &shapes)?,
             Item::Command { log_ns, command } => {
                 self.message(
                     self.commands,
@@ -484,6 +487,7 @@ impl Writer {
         log_ns: u64,
         header: &FrameHeader,
         actors: &[ActorState],
+        shapes: &[shared_types::DebugShape],
     ) -> McapResult<()> {
         let mut bytes = std::mem::take(&mut self.scratch);
         bytes.clear();
@@ -498,7 +502,7 @@ impl Writer {
         }
         let mut scene = std::mem::take(&mut self.scratch);
         scene.clear();
-        scene_update(&mut scene, header, actors, log_ns);
+        scene_update(&mut scene, header, (actors, shapes), log_ns);
         self.message(self.scene, t.frame, log_ns, t.elapsed_ns, &scene)?;
         self.scratch = scene;
         Ok(())

@@ -139,6 +139,8 @@ struct Domains {
     batches: Batches,
     lockstep: Lockstep,
     sensors: Sensors,
+    /// The shapes clients draw.
+    debug: crate::debug_shapes::DebugShapes,
     recorder: Recorder,
     replayer: Replayer,
     timers: Timers,
@@ -330,6 +332,7 @@ impl Domains {
         // Sensors first: whoever sees the frame's snapshot (or hears the
         // tick is done) finds its captures already queued. A replayed
         // frame's captures are not recorded again.
+        self.debug.stepped(frame, self.clock.elapsed_ns());
         let captures = match outgoing {
             Outgoing::Computed { .. } => self.recorder.captures(),
             Outgoing::Replayed(_) => None,
@@ -363,6 +366,7 @@ impl Domains {
         self.publication.publish(header, &self.world)?;
         self.recorder.published(&header);
         if self.recorder.is_recording() {
+            self.recorder.draw(self.debug.live());
             self.recorder
                 .frame(&header, &self.world, &self.runtime.scene);
         }
@@ -448,6 +452,7 @@ impl Domains {
         self.runtime.scene = scene;
         self.clock = Clock::new(now);
         self.runtime.episode += 1;
+        self.debug.new_episode();
         self.runtime.source_offset = None;
         self.runtime.pacer.reset();
         self.lockstep.new_episode();

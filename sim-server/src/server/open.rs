@@ -121,6 +121,7 @@ impl Server {
         let lockstep = Lockstep::open(&transport, &limits)?;
         let renderer = Renderer::new(config.render_threads)?;
         let sensors = Sensors::open(&transport, &limits, renderer)?;
+        let debug = crate::debug_shapes::DebugShapes::open(&transport, &limits)?;
         let recorder = RecorderPort::open(&transport, &limits)?;
         let mut runtime = Runtime::new(&config, settings);
         if let Some(r) = &resumed {
@@ -147,6 +148,7 @@ impl Server {
             batches,
             lockstep,
             sensors,
+            debug,
             recorder: Recorder::default(),
             replayer: Replayer::default(),
             timers: Timers {

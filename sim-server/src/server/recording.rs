@@ -268,6 +268,7 @@ impl Domains {
             Instant::now(),
         );
         self.runtime.episode += 1;
+        self.debug.new_episode();
         self.runtime.source_offset = None;
         self.runtime.pacer.reset();
         self.journal_episode(None);
@@ -303,6 +304,7 @@ impl Domains {
                 );
             }
             self.runtime.episode += 1;
+            self.debug.new_episode();
         }
         let recorded = frame.header.timestamp;
         // The server's own next frame: exact and resimulate step by the

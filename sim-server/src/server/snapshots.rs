@@ -108,6 +108,7 @@ impl Domains {
         self.clock = Clock::at(frame, info.elapsed_ns, delta_ns, Instant::now());
         self.runtime.source_offset = Some(frame - info.source_frame);
         self.runtime.episode += 1;
+        self.debug.new_episode();
         self.runtime.pacer.reset();
         self.lockstep.new_episode();
         self.respawn_sensors(&sensors);

@@ -93,6 +93,9 @@ impl Server {
                 .handle(&d.transport, &d.world, &d.clock, d.runtime.episode, follow)?;
         }
         d.note_sensors();
+        if rung.has(Doorbell::Debug) {
+            d.debug.handle(&d.clock)?;
+        }
         if rung.has(Doorbell::Tick) {
             d.ticker.handle(&mut d.runtime, &d.clock)?;
         }

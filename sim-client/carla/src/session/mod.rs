@@ -9,6 +9,7 @@
 
 mod actors;
 mod bones;
+mod debug;
 mod lights;
 mod physics;
 mod recorder;
@@ -59,6 +60,7 @@ const VOID_CALLS: &[&str] = &[
     "close_vehicle_door",
     "apply_ackermann_control_to_vehicle",
     "apply_ackermann_controller_settings",
+    "draw_debug_shape",
 ];
 
 /// How long a call waits for the world's server to answer a (re)connection.
@@ -100,6 +102,7 @@ fn call_of(method: &str) -> Option<Call> {
         "get_ackermann_controller_settings" => Session::on_get_ackermann_settings,
         "apply_ackermann_controller_settings" => Session::on_apply_ackermann_settings,
         "get_actors_by_id" => Session::on_get_actors_by_id,
+        "draw_debug_shape" => Session::on_draw_debug_shape,
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,
         "get_actor_bounding_box" => Session::on_get_actor_bounding_box,

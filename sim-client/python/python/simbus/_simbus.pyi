@@ -2,7 +2,7 @@
 
 from types import TracebackType
 from os import PathLike
-from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Type, Union
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Type, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -270,6 +270,36 @@ class Client:
         """Sends the commands; applied before the next frame (no answer)."""
     def apply_batch_sync(self, commands: Sequence[Command], tick: bool = False) -> List[CommandResult]:
         """Applies the commands; one result per command (and a frame, with tick)."""
+    def draw_point(
+        self, location: Sequence[float], size: float = 0.1,
+        color: Sequence[int] = (255, 0, 0), life_time: float = -1.0,
+    ) -> None:
+        """A dot the viewers show for life_time s of simulation time (< 0: one frame; 0: for good)."""
+    def draw_line(
+        self, begin: Sequence[float], end: Sequence[float], thickness: float = 0.1,
+        color: Sequence[int] = (255, 0, 0), life_time: float = -1.0,
+    ) -> None:
+        """A line the viewers show."""
+    def draw_arrow(
+        self, begin: Sequence[float], end: Sequence[float], thickness: float = 0.1,
+        arrow_size: float = 0.1, color: Sequence[int] = (255, 0, 0), life_time: float = -1.0,
+    ) -> None:
+        """An arrow the viewers show."""
+    def draw_box(
+        self, center: Sequence[float], half_extents: Sequence[float],
+        rotation: Sequence[float] = (0.0, 0.0, 0.0, 1.0), thickness: float = 0.1,
+        color: Sequence[int] = (255, 0, 0), life_time: float = -1.0,
+    ) -> None:
+        """A box's edges the viewers show."""
+    def draw_string(
+        self, location: Sequence[float], text: str,
+        color: Sequence[int] = (255, 0, 0), life_time: float = -1.0,
+    ) -> None:
+        """Text (at most 64 bytes) the viewers show."""
+    def debug_shapes(self) -> List[Dict[str, Any]]:
+        """The debug shapes the current frame shows."""
+    def clear_debug_shapes(self) -> None:
+        """Forgets every debug shape."""
     def spawn_sensor(
         self,
         kind: str,

@@ -51,7 +51,9 @@ def test_the_blueprint_library_has_simbus_actors_and_sensors(gateway):
     } <= ids
     assert {bp.id for bp in library.filter("sensor.*")} == {
         "sensor.camera.depth", "sensor.camera.rgb", "sensor.camera.semantic_segmentation",
-        "sensor.camera.instance_segmentation", "sensor.lidar.ray_cast",
+        "sensor.camera.instance_segmentation", "sensor.camera.normals",
+        "sensor.camera.optical_flow", "sensor.camera.dvs", "sensor.camera.cosmos_visualization",
+        "sensor.lidar.ray_cast",
         "sensor.lidar.ray_cast_semantic", "sensor.other.radar", "sensor.other.imu",
         "sensor.other.gnss", "sensor.other.lane_invasion", "sensor.other.collision",
         "sensor.other.obstacle"}

@@ -215,3 +215,83 @@ def test_bad_camera_attributes_and_a_broken_weather_are_refused_changing_nothing
     broken.sun_altitude_angle = float("nan")
     world.set_weather(broken)
     assert world.get_weather() == weather
+
+
+def frames_of(world, camera, ticks):
+    """`ticks` ticks' worth of `camera`'s data, each taken by its frame."""
+    q = queue.Queue()
+    camera.listen(q.put)
+    out = []
+    for _ in range(ticks):
+        frame = world.tick()
+        data = q.get(timeout=10)
+        while data.frame < frame:
+            data = q.get(timeout=10)
+        out.append(data)
+    camera.stop()
+    return out
+
+
+@pytest.mark.parametrize("gateway", TOWN, indirect=True)
+def test_normals_optical_flow_dvs_and_cosmos_cameras_from_simbus_s_casts(gateway):
+    """The cameras manual_control.py lists beside the usual ones, computed
+    by the gateway from simbus's ray casts: `sensor.camera.normals` (the
+    ground below a level camera faces up: blue), `optical_flow` (nothing
+    moves: no flow; a camera driven forward: the ground streams down the
+    screen), `dvs` (a still scene: no events; a moving one: events of
+    both polarities, in time order) and `cosmos_visualization` (the road
+    in Cosmos's lane colour, cars red)."""
+    client = gateway.client(timeout=10.0)
+    world = client.get_world()
+    sync(world)
+    library = world.get_blueprint_library()
+    spawn = world.get_map().get_spawn_points()[0]
+    car = world.spawn_actor(library.find("vehicle.tesla.model3"), spawn)
+    ahead = world.spawn_actor(library.find("vehicle.tesla.model3"), carla.Transform(
+        spawn.transform(carla.Location(x=12.0)), spawn.rotation))
+    level = carla.Transform(carla.Location(x=1.5, z=1.6))
+    small = dict(image_size_x=64, image_size_y=48)
+    cameras = {name: world.spawn_actor(blueprint(library, f"sensor.camera.{name}", **small),
+                                       level, attach_to=car)
+               for name in ("normals", "optical_flow", "dvs", "cosmos_visualization")}
+    # The cars settle on their springs.
+    for _ in range(60):
+        world.tick()
+
+    [normals] = frames_of(world, cameras["normals"], 1)
+    rgb = pixels(normals)
+    assert (normals.width, normals.height) == (64, 48)
+    # The bottom rows see the road: its normal is up (CARLA's z: blue).
+    r, g, b = (int(c) for c in rgb[-2, 32])
+    assert b > 240 and abs(r - 128) < 20 and abs(g - 128) < 20, (r, g, b)
+
+    still = frames_of(world, cameras["optical_flow"], 2)[-1]
+    assert isinstance(still, carla.OpticalFlowImage)
+    flow = np.frombuffer(still.raw_data, dtype=np.float32).reshape(48, 64, 2)
+    assert np.abs(flow).max() < 1e-3, "nothing moves: no flow"
+    [events] = frames_of(world, cameras["dvs"], 2)[-1:]
+    assert isinstance(events, carla.DVSEventArray) and len(events) == 0, "a still scene"
+
+    [cosmos] = frames_of(world, cameras["cosmos_visualization"], 1)
+    seen = colours(pixels(cosmos))
+    assert (56, 103, 221) in seen, "the road in Cosmos's lane colour"
+    assert (255, 0, 0) in seen, "the car ahead is red"
+
+    # Driving on at 5 m/s: the ground streams down the screen, and the
+    # changing image fires events.
+    car.enable_constant_velocity(carla.Vector3D(5.0, 0.0, 0.0))
+    for _ in range(3):
+        world.tick()
+    moving = frames_of(world, cameras["optical_flow"], 2)[-1]
+    flow = np.frombuffer(moving.raw_data, dtype=np.float32).reshape(48, 64, 2)
+    bottom = flow[-3:, 24:40]
+    assert (bottom[:, :, 1] < -1e-3).all(), bottom[:, :, 1]
+    dvs = frames_of(world, cameras["dvs"], 3)
+    events = [e for batch in dvs[1:] for e in batch]
+    assert events and {e.pol for e in events} == {True, False}
+    times = [e.t for e in events[:len(dvs[1])]]
+    assert times == sorted(times) and all(0 <= e.x < 64 and 0 <= e.y < 48 for e in events)
+    for camera in cameras.values():
+        camera.destroy()
+    car.destroy()
+    ahead.destroy()

@@ -25,8 +25,8 @@ def test_every_carla_vehicle_is_listed_with_carlas_attributes(gateway):
     vehicles = library.filter("vehicle.*")
     # CARLA 0.9.16's 41 vehicles and simbus's own.
     assert len(vehicles) == 42
-    # simbus's 3 props and 12 sensors, 51 walkers, the walker controller.
-    assert len(library.filter("*")) == len(vehicles) + 3 + 12 + 51 + 1
+    # simbus's 3 props and 16 sensors, 51 walkers, the walker controller.
+    assert len(library.filter("*")) == len(vehicles) + 3 + 16 + 51 + 1
     for bp in vehicles:
         for name in VEHICLE_ATTRIBUTES:
             assert bp.has_attribute(name), (bp.id, name)

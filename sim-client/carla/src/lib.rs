@@ -15,6 +15,7 @@
 mod blueprints;
 mod commands;
 mod convert;
+mod derived;
 mod episode_settings;
 mod error;
 mod locks;

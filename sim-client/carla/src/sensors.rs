@@ -13,6 +13,7 @@ use sim_client::{Capture, Client, Sensor, WaitError};
 use tracing::{debug, info};
 
 use crate::convert;
+use crate::derived::{self, Derived};
 use crate::error::{CallError, Source};
 use crate::locks::lock;
 use crate::records::record_of;
@@ -47,11 +48,16 @@ pub(crate) fn expect(
             .sensors
             .get(&stream)
             .filter(|s| !s.gone && s.simbus_id != 0)
-            .map(|s| (s.simbus_id, s.spec))
+            .map(|s| (s.simbus_id, s.spec, s.description.clone(), s.parent))
     };
-    let Some((simbus_id, spec)) = spec else {
+    let Some((simbus_id, spec, description, parent)) = spec else {
         return Err(CallError::NoSensorStream(stream));
     };
+    // A camera the gateway computes from the simbus one.
+    let derived = description
+        .as_array()
+        .and_then(|d| d.get(1)?.as_str())
+        .and_then(|id| Derived::of(id, |name| derived::attribute(&description, name)));
     if !hub.expect(stream) {
         return Ok(());
     }
@@ -61,11 +67,12 @@ pub(crate) fn expect(
         stream,
         simbus_id,
         spec,
+        parent,
         streaming_port,
         run_pid,
         follow: timeout,
     };
-    std::thread::spawn(move || forward(&hub2, &world, source, &ready));
+    std::thread::spawn(move || forward(&hub2, &world, source, derived, &ready));
     match started.recv_timeout(timeout) {
         Ok(Ok(())) => Ok(()),
         Ok(Err(e)) => {
@@ -85,6 +92,8 @@ struct Forwarded {
     stream: u32,
     simbus_id: u64,
     spec: SensorSpec,
+    /// The CARLA id of the actor it rides on (0: none).
+    parent: u32,
     /// Where CARLA's clients read streams (an event's actors carry tokens).
     streaming_port: u16,
     /// The run of the world's server ([`sim_client::Status::run_pid`]).
@@ -135,11 +144,18 @@ fn follow_restart(
     Some(sensor)
 }
 
-fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Result<(), CallError>>) {
+fn forward(
+    hub: &Hub,
+    world: &str,
+    source: Forwarded,
+    mut derived: Option<Derived>,
+    ready: &mpsc::Sender<Result<(), CallError>>,
+) {
     let Forwarded {
         stream,
         simbus_id,
         spec,
+        parent,
         streaming_port,
         run_pid,
         follow,
@@ -165,7 +181,17 @@ fn forward(hub: &Hub, world: &str, source: Forwarded, ready: &mpsc::Sender<Resul
                 let h = capture.header();
                 hub.after_world_state(run_pid, h.episode, h.frame, WORLD_STATE_FIRST);
                 let actor = |id: u32| record_of(hub, id, streaming_port);
-                let sent = messages(&capture, &spec, stream, actor).is_some_and(|messages| {
+                let converted = match &mut derived {
+                    Some(derived) => {
+                        // A copy: the frame's pump is not held up meanwhile.
+                        let actors = lock(&hub.actors).clone();
+                        derived
+                            .message(&capture, &spec, actors.get(&parent), &actors)
+                            .map(|m| vec![m])
+                    }
+                    None => messages(&capture, &spec, stream, actor),
+                };
+                let sent = converted.is_some_and(|messages| {
                     messages
                         .iter()
                         .all(|m| hub.send_capture(stream, run_pid, h.episode, m))

@@ -18,9 +18,9 @@ type V3 = [f32; 3];
 
 /// A colour given as (r, g, b) or (r, g, b, a), 0..=255.
 fn colour(color: Vec<u8>) -> PyResult<[u8; 4]> {
-    match color.as_slice() {
-        &[r, g, b] => Ok([r, g, b, 255]),
-        &[r, g, b, a] => Ok([r, g, b, a]),
+    match *color.as_slice() {
+        [r, g, b] => Ok([r, g, b, 255]),
+        [r, g, b, a] => Ok([r, g, b, a]),
         _ => Err(PyValueError::new_err(
             "color: (r, g, b) or (r, g, b, a), each 0 to 255",
         )),

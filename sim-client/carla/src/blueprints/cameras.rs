@@ -71,3 +71,15 @@ pub(super) const RGB: &[Attribute] = camera_attributes!(
     float("white_clip", "0.04"),
     int("blade_count", "5"),
 );
+
+/// The DVS camera's attributes (`sensor.camera.dvs`): an RGB camera's and
+/// its event thresholds (CARLA's defaults).
+pub(super) const DVS: &[Attribute] = camera_attributes!(
+    float("positive_threshold", "0.3"),
+    float("negative_threshold", "0.3"),
+    float("sigma_positive_threshold", "0.0"),
+    float("sigma_negative_threshold", "0.0"),
+    int("refractory_period_ns", "0"),
+    text("use_log", Kind::Bool, "true"),
+    float("log_eps", "0.001"),
+);

@@ -137,6 +137,30 @@ const LIBRARY: &[Blueprint] = &[
         attributes: cameras::SEGMENTATION,
     },
     Blueprint {
+        uid: 18,
+        id: "sensor.camera.normals",
+        tags: "sensor,camera,normals",
+        attributes: cameras::SEGMENTATION,
+    },
+    Blueprint {
+        uid: 19,
+        id: "sensor.camera.optical_flow",
+        tags: "sensor,camera,optical_flow",
+        attributes: cameras::SEGMENTATION,
+    },
+    Blueprint {
+        uid: 20,
+        id: "sensor.camera.dvs",
+        tags: "sensor,camera,dvs",
+        attributes: cameras::DVS,
+    },
+    Blueprint {
+        uid: 21,
+        id: "sensor.camera.cosmos_visualization",
+        tags: "sensor,camera,cosmos_visualization",
+        attributes: cameras::SEGMENTATION,
+    },
+    Blueprint {
         uid: 7,
         id: "sensor.lidar.ray_cast",
         tags: "sensor,lidar,ray_cast",
@@ -386,6 +410,11 @@ impl Description {
             }
             "sensor.camera.instance_segmentation" => {
                 self.camera(SensorKind::Instance, position, rotation)
+            }
+            // Computed by the gateway from a simbus camera (`derived.rs`).
+            id if crate::derived::Derived::source(id).is_some() => {
+                let kind = crate::derived::Derived::source(id).unwrap_or(SensorKind::Depth);
+                self.camera(kind, position, rotation)
             }
             "sensor.lidar.ray_cast" => self.lidar(SensorKind::Lidar, position, rotation),
             "sensor.lidar.ray_cast_semantic" => {

@@ -9,6 +9,8 @@ is at that light (`is_at_traffic_light`, `get_traffic_light`), in a stop
 sign's sees red without a light (what makes CARLA's traffic manager
 stop there)."""
 
+import re
+
 import carla
 import pytest
 
@@ -176,3 +178,29 @@ def test_a_vehicle_in_a_lights_trigger_volume_is_at_that_light_and_at_a_stop_see
     tick(world, 5)
     assert not car.is_at_traffic_light()
     assert car.get_traffic_light_state() == RED
+
+
+@pytest.mark.parametrize("gateway", TOWN, indirect=True)
+def test_a_recording_lists_the_lights_state_changes_as_carlas_file_info(gateway, tmp_path):
+    """`show_recorder_file_info(name, True)` on a recording of the town:
+    the first frame lists every light's state (CARLA's `State traffic
+    lights: N`, then `Id: .. state: .. frozen: .. elapsedTime: ..`, the
+    state as CARLA's digit: 0 red, 1 yellow, 2 green), and later frames
+    only the lights that changed: 10 s in, the first green ones turn
+    yellow."""
+    client, world = synced(gateway)
+    path = str(tmp_path / "lights.log")
+    client.start_recorder(path)
+    for _ in range(240):
+        world.tick()
+    client.stop_recorder()
+    info = client.show_recorder_file_info(path, True)
+    blocks = re.findall(r"^ State traffic lights: (\d+)\n((?:  Id: .*\n)+)", info, re.M)
+    assert blocks, info[:2000]
+    first_count, first = blocks[0]
+    rows = re.findall(r"^  Id: (\d+) state: (\d) frozen: (\d) elapsedTime: (\S+)$", first, re.M)
+    assert int(first_count) == len(rows) == 16
+    assert {state for _, state, _, _ in rows} == {"0", "2"}, "green in turn, the others red"
+    later = [re.findall(r"state: (\d)", rows) for _, rows in blocks[1:]]
+    assert any("1" in states for states in later), "a green light turned yellow"
+    assert all(0 < len(states) < 16 for states in later), "only the lights that changed"

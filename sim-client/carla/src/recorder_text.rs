@@ -25,7 +25,9 @@
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 
-use shared_types::{ActorKind, ActorState, NANOS_PER_SECOND};
+use shared_types::{
+    ActorKind, ActorState, CommandKind, CommandStatus, LightReading, NANOS_PER_SECOND,
+};
 use simbus_recording::inspect::{self, BlockedActor};
 use simbus_recording::{
     Entry, RecordedCollision, RecordingError, RecordingHeader, RecordingReader,
@@ -181,6 +183,8 @@ struct InfoText<'a> {
     current: Option<FrameText>,
     /// Collisions read before their frame.
     pending: Vec<RecordedCollision>,
+    /// Each traffic light's last state and whether it was frozen.
+    lights: std::collections::HashMap<u64, (u8, bool)>,
 }
 
 impl<'a> InfoText<'a> {
@@ -195,6 +199,7 @@ impl<'a> InfoText<'a> {
             collisions: 0,
             current: None,
             pending: Vec::new(),
+            lights: std::collections::HashMap::new(),
         }
     }
 
@@ -205,6 +210,22 @@ impl<'a> InfoText<'a> {
                 header,
                 actors,
             } => self.frame(*log_ns, header.timestamp.frame, actors),
+            // A destroyed actor's `Destroy` in the frame it went (the
+            // next frame, which shows it gone, may not be in the file).
+            Entry::Command(c)
+                if c.command.kind == CommandKind::Destroy as u32
+                    && c.result.status == CommandStatus::Ok as u32 =>
+            {
+                if let Some(current) = &mut self.current {
+                    if self.alive.remove(&c.command.actor) {
+                        let _ = writeln!(
+                            current.events,
+                            " Destroy {}",
+                            convert::actor_id(c.command.actor)
+                        );
+                    }
+                }
+            }
             Entry::Collision(c) => match &mut self.current {
                 Some(current) if current.frame == c.frame => {
                     collision_line(&mut current.events, self.collisions, c);
@@ -252,6 +273,31 @@ impl<'a> InfoText<'a> {
             self.collisions += 1;
         }
         if self.show_all {
+            // The lights whose state changed (all of them at first), as
+            // CARLA's recorder keeps them.
+            let changed: Vec<(u64, LightReading)> = actors
+                .iter()
+                .filter_map(|a| Some((a.id, a.light()?)))
+                .filter(|(id, light)| {
+                    self.lights.get(id).is_none_or(|&(state, frozen)| {
+                        (state, frozen) != (light.state as u8, light.frozen)
+                    })
+                })
+                .collect();
+            if !changed.is_empty() {
+                let _ = writeln!(text.events, " State traffic lights: {}", changed.len());
+            }
+            for (id, light) in changed {
+                let state = char::from(b'0' + light.state as u8);
+                let _ = writeln!(
+                    text.events,
+                    "  Id: {} state: {state} frozen: {} elapsedTime: {}",
+                    convert::actor_id(id),
+                    u8::from(light.frozen),
+                    cpp_number(light.elapsed_seconds)
+                );
+                self.lights.insert(id, (light.state as u8, light.frozen));
+            }
             let _ = writeln!(text.positions, " Positions: {}", actors.len());
             for a in actors {
                 let _ = writeln!(
@@ -320,6 +366,49 @@ pub fn file_info(path: &str, show_all: bool) -> Result<String, RecordingError> {
 /// say less (the gateway knows which catalog model each vehicle it
 /// spawned is).
 pub type Names = std::collections::HashMap<u32, String>;
+
+/// Where the type ids of recording `path`'s actors are kept: beside it.
+fn names_path(path: &std::path::Path) -> std::path::PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".carla-names.json");
+    std::path::PathBuf::from(name)
+}
+
+/// The largest type-id file read, bytes.
+const MAX_NAMES_BYTES: u64 = 16 << 20;
+
+/// Writes `names` beside recording `path` (a JSON object of CARLA id to
+/// type id).
+///
+/// # Errors
+///
+/// Returns the I/O error of writing the file.
+pub fn write_names(path: &std::path::Path, names: &Names) -> std::io::Result<()> {
+    let object: serde_json::Map<String, serde_json::Value> = names
+        .iter()
+        .map(|(id, name)| (id.to_string(), serde_json::Value::from(name.as_str())))
+        .collect();
+    std::fs::write(names_path(path), serde_json::Value::Object(object).to_string())
+}
+
+/// The type ids written beside recording `path`, if there are any: none
+/// for a missing, too large or malformed file (the kinds' names stand).
+pub fn read_names(path: &std::path::Path) -> Names {
+    let file = names_path(path);
+    let fits = std::fs::metadata(&file).is_ok_and(|m| m.len() <= MAX_NAMES_BYTES);
+    let text = if fits {
+        std::fs::read_to_string(&file).unwrap_or_default()
+    } else {
+        String::new()
+    };
+    let Ok(serde_json::Value::Object(object)) = serde_json::from_str(&text) else {
+        return Names::new();
+    };
+    object
+        .into_iter()
+        .filter_map(|(id, name)| Some((id.parse().ok()?, name.as_str()?.to_owned())))
+        .collect()
+}
 
 /// The type id of simbus actor `id` of `kind`: its name in `names`, else
 /// its kind's.

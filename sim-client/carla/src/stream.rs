@@ -166,6 +166,8 @@ pub(crate) struct Hub {
     pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
     /// The gateway's own traffic managers, by port.
     pub(crate) natives: crate::traffic_manager::Natives,
+    /// The recording a CARLA client started, while it runs.
+    pub(crate) recording: Mutex<Option<std::path::PathBuf>>,
     /// The weather CARLA clients set (simbus renders no sky).
     pub(crate) weather: Mutex<carla::Weather>,
     /// The town's traffic lights and signs, as seen in its frames.
@@ -192,6 +194,7 @@ impl Default for Hub {
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
             natives: crate::traffic_manager::Natives::default(),
+            recording: Mutex::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
             signals: Mutex::default(),
             world_streams: AtomicU32::new(0),

@@ -54,6 +54,7 @@ impl Session {
             .client()?
             .start_recorder(&name, sensors)
             .map_err(CallError::simbus)?;
+        *lock(&self.hub.recording) = Some(path.clone());
         Ok(Answer::Value(Value::from(
             path.to_string_lossy().into_owned(),
         )))
@@ -61,6 +62,15 @@ impl Session {
 
     pub(super) fn on_stop_recorder(&mut self, _: &[Value]) -> Result<Answer, CallError> {
         self.client()?.stop_recorder().map_err(CallError::simbus)?;
+        // The type ids of the actors spawned through the gateway go beside
+        // the file (a recording keeps kinds only), for whoever reads it
+        // later through another gateway.
+        if let Some(path) = lock(&self.hub.recording).take() {
+            let names = self.type_ids(None);
+            if let Err(e) = recorder_text::write_names(&path, &names) {
+                tracing::warn!("the recording's type ids were not written beside it: {e}");
+            }
+        }
         Ok(Answer::Done)
     }
 
@@ -127,7 +137,7 @@ impl Session {
     ) -> Result<Answer, CallError> {
         let name = arg_str(args, 0, "show_recorder_file_info")?;
         let all = arg_flag(args, 1);
-        let names = self.type_ids();
+        let names = self.type_ids(Some(&name));
         text(recorder_text::file_info_named(&name, all, &names).map_err(CallError::recording)?)
     }
 
@@ -147,18 +157,23 @@ impl Session {
             (in_category(kind1, a) && in_category(kind2, b))
                 || (in_category(kind1, b) && in_category(kind2, a))
         };
-        let names = self.type_ids();
+        let names = self.type_ids(Some(&name));
         text(recorder_text::collisions(&name, keep, &names).map_err(CallError::recording)?)
     }
 
     /// The type ids of the actors CARLA clients spawned through the
-    /// gateway (the recording knows only their kinds).
-    fn type_ids(&self) -> recorder_text::Names {
-        lock(&self.hub.registry)
+    /// gateway (the recording knows only their kinds), and those written
+    /// beside recording `path` when it stopped.
+    fn type_ids(&self, path: Option<&str>) -> recorder_text::Names {
+        let mut names: recorder_text::Names = lock(&self.hub.registry)
             .descriptions
             .iter()
             .filter_map(|(&id, d)| Some((id, d.as_array()?.get(1)?.as_str()?.to_string())))
-            .collect()
+            .collect();
+        if let Some(path) = path {
+            names.extend(recorder_text::read_names(std::path::Path::new(path)));
+        }
+        names
     }
 
     pub(super) fn on_show_recorder_actors_blocked(

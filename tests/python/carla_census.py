@@ -33,12 +33,19 @@ import tempfile
 import time
 
 # Scripts that need more than a server to start: the arguments they get.
+# `{recording}`: the file `start_recording.py` (run first) records, by
+# its absolute path (each script runs in its own folder, each pair anew).
 SCRIPT_ARGS = {
-    "start_replaying.py": ["-f", "census_recording.log"],
-    "show_recorder_file_info.py": ["-f", "census_recording.log"],
-    "show_recorder_collisions.py": ["-f", "census_recording.log", "-t", "va"],
-    "show_recorder_actors_blocked.py": ["-f", "census_recording.log"],
+    "start_recording.py": ["-f", "{recording}"],
+    "start_replaying.py": ["-f", "{recording}"],
+    "show_recorder_file_info.py": ["-f", "{recording}"],
+    "show_recorder_collisions.py": ["-f", "{recording}", "-t", "va"],
+    "show_recorder_actors_blocked.py": ["-f", "{recording}"],
 }
+
+# Scripts run before the others, in this order (what they make, the
+# others read).
+FIRST = ["start_recording.py"]
 
 # Scripts not run, and why (what only CARLA has).
 NOT_RUN = {}
@@ -95,12 +102,14 @@ def stop(procs):
         proc.wait(timeout=10)
 
 
-def run_script(path, python_api, port, seconds):
-    """Runs one script; its result, why, and its output's tail."""
+def run_script(path, python_api, port, seconds, recording="census_recording.log"):
+    """Runs one script (`{recording}` in its arguments: `recording`); its
+    result, why, and its output's tail."""
     args = [sys.executable, path]
     if takes_port(path):
         args += ["--port", str(port)]
-    args += SCRIPT_ARGS.get(os.path.basename(path), [])
+    args += [a.replace("{recording}", recording)
+             for a in SCRIPT_ARGS.get(os.path.basename(path), [])]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy",
            "PYTHONPATH": os.pathsep.join(
                [os.path.join(python_api, "carla"), os.environ.get("PYTHONPATH", "")])}
@@ -134,12 +143,14 @@ def scripts(python_api):
         if os.path.isdir(directory):
             found += [os.path.join(directory, n) for n in sorted(os.listdir(directory))
                       if n.endswith(".py")]
-    return found
+    first = [p for name in FIRST for p in found if os.path.basename(p) == name]
+    return first + [p for p in found if p not in first]
 
 
 def census(python_api, bin_dir, port, seconds, log):
     """One row per script: (folder/name, result, why)."""
     rows = []
+    recording = os.path.join(tempfile.mkdtemp(prefix="carla-census-"), "census_recording.log")
     for i, path in enumerate(scripts(python_api)):
         name = os.path.relpath(path, python_api)
         reason = NOT_RUN.get(os.path.basename(path))
@@ -148,7 +159,7 @@ def census(python_api, bin_dir, port, seconds, log):
             continue
         procs = start_pair(bin_dir, f"census-{os.getpid()}-{i}", port, log)
         try:
-            result, note, _ = run_script(path, python_api, port, seconds)
+            result, note, _ = run_script(path, python_api, port, seconds, recording)
         finally:
             stop(procs)
         rows.append((name, result, note))

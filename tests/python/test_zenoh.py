@@ -334,3 +334,49 @@ print("poses", counts)
         assert child.stdout.strip() == "poses [17, 17, 17, 17, 17]", child.stdout
     finally:
         kill_all(procs)
+
+
+def test_a_walker_crosses_to_the_mirror_and_walks_there(request, tmp_path):
+    """A walker spawned on the server's host, walking with its control,
+    is in the mirror's frames on the other host: kind walker (6), its size,
+    and the same steps frame by frame as the server computes them."""
+    import simbus
+
+    world = world_name(request)
+    procs = []
+    try:
+        endpoint, _ = start_export(world, procs)
+        origin = simbus.connect(world, timeout=20)
+        walker = origin.spawn("walker", at=(-20.0, 1.0, 5.0), radius=0.3, half_height=0.9)
+        origin.apply_batch_sync([simbus.ApplyWalkerControl(walker, (1.0, 0.0, 0.0), 1.4)])
+        _, mirror_env = start_mirror(world, endpoint, tmp_path, procs)
+        code = f"""
+import simbus
+client = simbus.connect({world!r}, timeout=20)
+xs = []
+with client.ticker() as ticker:
+    for _ in range(20):
+        ticked = ticker.tick()
+        frame = client.wait_for_frame(timeout=10)
+        while frame.frame < ticked:
+            frame.release()
+            frame = client.wait_for_frame(timeout=10)
+        with frame:
+            actors = frame.actors
+            [me] = actors[actors["id"] == {walker}]
+            assert me["kind"] == 6, me["kind"]
+            assert abs(float(me["extent"][0]) - 0.3) < 1e-6
+            xs.append(float(me["position"][0]))
+            del actors, me
+print("xs", xs)
+"""
+        child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                               timeout=120, env=mirror_env)
+        assert child.returncode == 0, child.stderr
+        xs = [float(x) for x in child.stdout.split("[")[1].split("]")[0].split(",")]
+        assert len(xs) == 20
+        # 1 s at 1.4 m/s along +x.
+        assert 1.0 < xs[-1] - xs[0] < 1.6, xs
+        assert all(b >= a for a, b in zip(xs, xs[1:])), xs
+    finally:
+        kill_all(procs)

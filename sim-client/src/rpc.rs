@@ -199,6 +199,20 @@ slice_answers!(
     DebugShape => DebugResponseHeader
 );
 
+/// How a request port's errors name it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PortNames {
+    /// The service ("sensor service").
+    pub(crate) service: &'static str,
+    /// The client port ("sensor client").
+    pub(crate) client: &'static str,
+    /// A send on it ("sensor send").
+    pub(crate) send: &'static str,
+    /// Its clients, in a full service's error ("clients sending sensor
+    /// requests").
+    pub(crate) clients: &'static str,
+}
+
 /// A typed request port of one world's service: send, wake, await, check.
 /// A port opened on its own node has its own wake-up notifier; the ports
 /// of a [`Client`] wake the server through the client's.

@@ -151,18 +151,21 @@ def census(python_api, bin_dir, port, seconds, log):
     """One row per script: (folder/name, result, why)."""
     rows = []
     recording = os.path.join(tempfile.mkdtemp(prefix="carla-census-"), "census_recording.log")
-    for i, path in enumerate(scripts(python_api)):
+    every = scripts(python_api)
+    for i, path in enumerate(every):
         name = os.path.relpath(path, python_api)
         reason = NOT_RUN.get(os.path.basename(path))
         if reason:
             rows.append((name, "not run", reason))
-            continue
-        procs = start_pair(bin_dir, f"census-{os.getpid()}-{i}", port, log)
-        try:
-            result, note, _ = run_script(path, python_api, port, seconds, recording)
-        finally:
-            stop(procs)
-        rows.append((name, result, note))
+        else:
+            procs = start_pair(bin_dir, f"census-{os.getpid()}-{i}", port, log)
+            try:
+                result, note, _ = run_script(path, python_api, port, seconds, recording)
+            finally:
+                stop(procs)
+            rows.append((name, result, note))
+        # Progress, for the person waiting.
+        print(f"[{i + 1}/{len(every)}] {name}: {rows[-1][1]}", file=sys.stderr, flush=True)
     return rows
 
 

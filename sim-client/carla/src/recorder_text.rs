@@ -388,7 +388,10 @@ pub fn write_names(path: &std::path::Path, names: &Names) -> std::io::Result<()>
         .iter()
         .map(|(id, name)| (id.to_string(), serde_json::Value::from(name.as_str())))
         .collect();
-    std::fs::write(names_path(path), serde_json::Value::Object(object).to_string())
+    std::fs::write(
+        names_path(path),
+        serde_json::Value::Object(object).to_string(),
+    )
 }
 
 /// The type ids written beside recording `path`, if there are any: none

@@ -2,7 +2,6 @@
 //! world keeps for a while and its viewers show (CARLA's
 //! `world.debug.draw_*`).
 
-use iceoryx2::prelude::*;
 use shared_types::debug_shapes::MAX_DEBUG_SHAPES;
 use shared_types::{
     DebugRequest, DebugRequestKind, DebugResponseHeader, DebugShape, DebugShapeError,
@@ -10,7 +9,7 @@ use shared_types::{
 };
 use simbus_transport::spec::WorldServices;
 
-use crate::rpc::{client_error, RequestPort};
+use crate::rpc::{PortNames, RequestPort};
 use crate::wait::Wait;
 use crate::{Client, RequestError};
 
@@ -39,22 +38,13 @@ impl Client {
         }
         let specs = WorldServices::new(&self.names)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let service = specs
-            .debug
-            .open(&self.node)
-            .map_err(|e| RequestError::transport("debug service", e))?;
-        let client = service.client_builder().create().map_err(|e| {
-            let max = service.static_config().max_clients();
-            client_error(e, max, "clients drawing debug shapes", "debug client")
-        })?;
-        let port = RequestPort::new(
-            client,
-            None,
-            specs.debug.doorbell,
-            "debug send",
-            self.world.as_str(),
-            self.server_pid,
-        );
+        let names = PortNames {
+            service: "debug service",
+            client: "debug client",
+            send: "debug send",
+            clients: "clients drawing debug shapes",
+        };
+        let port = self.slice_answer_port(&specs.debug, names)?;
         Ok(self.debug_port.get_or_init(|| port))
     }
 

@@ -5,9 +5,9 @@ use iceoryx2::prelude::*;
 use shared_types::{
     ResponseStatus, SensorInfo, SensorRefusal, SensorRequest, SensorRequestKind, SensorSpec,
 };
-use simbus_transport::spec::WorldServices;
+use simbus_transport::spec::{RequestSpec, WorldServices};
 
-use crate::rpc::{client_error, RequestPort};
+use crate::rpc::{client_error, Answer, PortNames, RequestPort};
 use crate::sensor::SensorRequestClient;
 use crate::wait::Wait;
 use crate::{Client, RequestError, Sensor, SensorError};
@@ -20,23 +20,44 @@ impl Client {
         }
         let specs = WorldServices::new(&self.names)
             .map_err(|e| RequestError::transport("service name", e))?;
-        let service = specs
-            .sensors
+        let names = PortNames {
+            service: "sensor service",
+            client: "sensor client",
+            send: "sensor send",
+            clients: "clients sending sensor requests",
+        };
+        let port = self.slice_answer_port(&specs.sensors, names)?;
+        Ok(self.sensor_port.get_or_init(|| port))
+    }
+
+    /// A request port of `spec`, a service answering slices, its errors
+    /// saying `names`.
+    pub(crate) fn slice_answer_port<Req, Resp, Header>(
+        &self,
+        spec: &RequestSpec<Req, (), [Resp], Header>,
+        names: PortNames,
+    ) -> Result<RequestPort<Req, [Resp], (), Header>, RequestError>
+    where
+        Req: std::fmt::Debug + ZeroCopySend + 'static,
+        Resp: std::fmt::Debug + ZeroCopySend + 'static,
+        Header: std::fmt::Debug + ZeroCopySend + 'static,
+        [Resp]: Answer<Header>,
+    {
+        let service = spec
             .open(&self.node)
-            .map_err(|e| RequestError::transport("sensor service", e))?;
+            .map_err(|e| RequestError::transport(names.service, e))?;
         let client = service.client_builder().create().map_err(|e| {
             let max = service.static_config().max_clients();
-            client_error(e, max, "clients sending sensor requests", "sensor client")
+            client_error(e, max, names.clients, names.client)
         })?;
-        let port = RequestPort::new(
+        Ok(RequestPort::new(
             client,
             None,
-            specs.sensors.doorbell,
-            "sensor send",
+            spec.doorbell,
+            names.send,
             self.world.as_str(),
             self.server_pid,
-        );
-        Ok(self.sensor_port.get_or_init(|| port))
+        ))
     }
 
     fn sensor_request(&self, request: SensorRequest) -> Result<Vec<SensorInfo>, SensorError> {

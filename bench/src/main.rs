@@ -24,6 +24,7 @@ mod baselines;
 mod blob;
 mod breakdown;
 mod carla;
+mod carla_traffic;
 mod commands;
 mod failover;
 mod fanout;

@@ -41,6 +41,8 @@ SCRIPT_ARGS = {
     "show_recorder_file_info.py": ["-f", "{recording}"],
     "show_recorder_collisions.py": ["-f", "{recording}", "-t", "va"],
     "show_recorder_actors_blocked.py": ["-f", "{recording}"],
+    "environment.py": ["--sun", "sunset", "--weather", "wetcloudy"],
+    "extract_spawn_points.py": ["-o", "{scratch}"],
 }
 
 # Scripts run before the others, in this order (what they make, the
@@ -48,7 +50,22 @@ SCRIPT_ARGS = {
 FIRST = ["start_recording.py"]
 
 # Scripts not run, and why (what only CARLA has).
-NOT_RUN = {}
+NOT_RUN = {
+    "V2XDemo.py": "CARLA's V2X sensors (`sensor.other.v2x`, `v2x_custom`) simulate radio links between Unreal actors",
+    "test_addsecondvx.py": "CARLA's V2X sensors (`sensor.other.v2x`)",
+    "get_component_test.py": "Unreal's actor components (`get_actor_component_world_transform` of a mesh's parts)",
+    "tutorial_gbuffer.py": "Unreal's render G-buffer textures (`enable_gbuffers`)",
+    "apply_texture.py": "Unreal's materials and textures (`apply_color_texture_to_object`)",
+    "invertedai_traffic.py": "Inverted AI's cloud service (the `invertedai` package and an API key)",
+}
+
+# What a result owes to the script or the machine, not to simbus.
+NOTES = {
+    "check_lidar_bb.py": "it spawns its cars at Town10HD's coordinates: a building of simbus's town stands at one",
+    "vehicle_physics_tester.py": "it spawns its cars at Town10HD's coordinates: a building of simbus's town stands at one",
+    "start_replaying.py": "this PythonAPI's script passes `replay_file` an `offset` the 0.9.16 client does not take",
+    "open3d_lidar.py": "Open3D needs `libusb-1.0` on the machine",
+}
 
 # How long a script may take to start before its run counts (seconds).
 GRACE = 10
@@ -61,14 +78,26 @@ def takes_port(path):
 
 
 def why(output):
-    """The last line of a traceback in `output`, else its last line."""
+    """The exception a traceback in `output` ends on (not the warnings
+    printed after it), else its last line."""
     lines = [l.strip() for l in output.splitlines() if l.strip()]
     if "Traceback (most recent call last):" in output:
         tail = output.split("Traceback (most recent call last):")[-1]
         tail_lines = [l.strip() for l in tail.splitlines() if l.strip()]
+        raised = [l for l in tail_lines
+                  if re.match(r"^[A-Za-z_.]*(Error|Exception|Interrupt|Exit)\b", l)]
+        if raised:
+            return raised[-1]
         if tail_lines:
             return tail_lines[-1]
     return lines[-1] if lines else "no output"
+
+
+def ctrl_c_reaches():
+    """In the script's process: Ctrl-C interrupts Python (a runner started
+    in the background of a shell inherits SIGINT ignored, and so would the
+    scripts, which then never stop)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def start_pair(bin_dir, world, port, log):
@@ -102,19 +131,21 @@ def stop(procs):
         proc.wait(timeout=10)
 
 
-def run_script(path, python_api, port, seconds, recording="census_recording.log"):
-    """Runs one script (`{recording}` in its arguments: `recording`); its
-    result, why, and its output's tail."""
+def run_script(path, python_api, port, seconds, recording="census_recording.log", scratch="."):
+    """Runs one script (`{recording}` in its arguments: `recording`;
+    `{scratch}`: a folder for what it writes); its result, why, and its
+    output's tail."""
     args = [sys.executable, path]
     if takes_port(path):
         args += ["--port", str(port)]
-    args += [a.replace("{recording}", recording)
+    args += [a.replace("{recording}", recording).replace("{scratch}", scratch)
              for a in SCRIPT_ARGS.get(os.path.basename(path), [])]
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy",
            "PYTHONPATH": os.pathsep.join(
                [os.path.join(python_api, "carla"), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen(args, cwd=os.path.dirname(path), env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            preexec_fn=ctrl_c_reaches)
     interrupted = False
     try:
         output, _ = proc.communicate(timeout=seconds)
@@ -150,7 +181,8 @@ def scripts(python_api):
 def census(python_api, bin_dir, port, seconds, log):
     """One row per script: (folder/name, result, why)."""
     rows = []
-    recording = os.path.join(tempfile.mkdtemp(prefix="carla-census-"), "census_recording.log")
+    scratch = tempfile.mkdtemp(prefix="carla-census-")
+    recording = os.path.join(scratch, "census_recording.log")
     every = scripts(python_api)
     for i, path in enumerate(every):
         name = os.path.relpath(path, python_api)
@@ -160,9 +192,12 @@ def census(python_api, bin_dir, port, seconds, log):
         else:
             procs = start_pair(bin_dir, f"census-{os.getpid()}-{i}", port, log)
             try:
-                result, note, _ = run_script(path, python_api, port, seconds, recording)
+                result, note, _ = run_script(path, python_api, port, seconds, recording, scratch)
             finally:
                 stop(procs)
+            extra = NOTES.get(os.path.basename(path))
+            if extra and result != "runs":
+                note = f"{note} ({extra})"
             rows.append((name, result, note))
         # Progress, for the person waiting.
         print(f"[{i + 1}/{len(every)}] {name}: {rows[-1][1]}", file=sys.stderr, flush=True)

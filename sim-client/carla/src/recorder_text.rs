@@ -185,6 +185,8 @@ struct InfoText<'a> {
     pending: Vec<RecordedCollision>,
     /// Each traffic light's last state and whether it was frozen.
     lights: std::collections::HashMap<u64, (u8, bool)>,
+    /// Actors destroyed since the last frame began.
+    destroyed: Vec<u64>,
 }
 
 impl<'a> InfoText<'a> {
@@ -200,6 +202,7 @@ impl<'a> InfoText<'a> {
             current: None,
             pending: Vec::new(),
             lights: std::collections::HashMap::new(),
+            destroyed: Vec::new(),
         }
     }
 
@@ -210,21 +213,14 @@ impl<'a> InfoText<'a> {
                 header,
                 actors,
             } => self.frame(*log_ns, header.timestamp.frame, actors),
-            // A destroyed actor's `Destroy` in the frame it went (the
-            // next frame, which shows it gone, may not be in the file).
+            // A destroyed actor: its `Destroy` comes with the frame that
+            // shows it gone, or, when the file ends before that frame, in
+            // the last one.
             Entry::Command(c)
                 if c.command.kind == CommandKind::Destroy as u32
                     && c.result.status == CommandStatus::Ok as u32 =>
             {
-                if let Some(current) = &mut self.current {
-                    if self.alive.remove(&c.command.actor) {
-                        let _ = writeln!(
-                            current.events,
-                            " Destroy {}",
-                            convert::actor_id(c.command.actor)
-                        );
-                    }
-                }
+                self.destroyed.push(c.command.actor);
             }
             Entry::Collision(c) => match &mut self.current {
                 Some(current) if current.frame == c.frame => {
@@ -267,6 +263,7 @@ impl<'a> InfoText<'a> {
         for id in self.alive.difference(&now) {
             let _ = writeln!(text.events, " Destroy {}", convert::actor_id(*id));
         }
+        self.destroyed.clear();
         self.alive = now;
         for c in std::mem::take(&mut self.pending) {
             collision_line(&mut text.events, self.collisions, &c);
@@ -326,6 +323,11 @@ impl<'a> InfoText<'a> {
 
     fn finish(mut self) -> String {
         if let Some(current) = &mut self.current {
+            for id in std::mem::take(&mut self.destroyed) {
+                if self.alive.contains(&id) {
+                    let _ = writeln!(current.events, " Destroy {}", convert::actor_id(id));
+                }
+            }
             for c in &self.pending {
                 collision_line(&mut current.events, self.collisions, c);
                 self.collisions += 1;

@@ -25,6 +25,27 @@ pub(crate) fn type_id(kind: u32) -> &'static str {
     }
 }
 
+/// CARLA's semantic tags of an actor of `kind` spawned as `type_id`
+/// (`actor.semantic_tags`): what its camera pixels say.
+fn semantic_tags(kind: u32, type_id: &str) -> Vec<u8> {
+    use shared_types::SemanticTag as T;
+    let tag = match ActorKind::from_u32(kind) {
+        Some(ActorKind::Vehicle) => match blueprints::vehicle_class(type_id) {
+            Some(blueprints::Class::Truck | blueprints::Class::Van) => T::Truck,
+            Some(blueprints::Class::Bus) => T::Bus,
+            Some(blueprints::Class::Motorcycle) => T::Motorcycle,
+            Some(blueprints::Class::Bicycle) => T::Bicycle,
+            _ => T::Car,
+        },
+        Some(ActorKind::Walker) => T::Pedestrians,
+        Some(ActorKind::TrafficLight) => T::TrafficLight,
+        Some(ActorKind::TrafficSign) => T::TrafficSigns,
+        Some(ActorKind::Box | ActorKind::Sphere | ActorKind::Capsule) => T::Dynamic,
+        _ => T::Static,
+    };
+    vec![tag as u8]
+}
+
 /// The spectator's `rpc::Actor`: CARLA's type id `spectator`, no
 /// attributes, no extent.
 fn spectator_record() -> Value {
@@ -113,13 +134,16 @@ pub(crate) fn record_of(hub: &crate::stream::Hub, id: u32, streaming_port: u16) 
         .get(&id)
         .cloned()
         .unwrap_or_else(|| blueprints::scene_description(kind, type_id(kind)));
-    Some(actor_record(
-        id,
-        0,
-        description,
-        extent,
-        Value::Binary(Vec::new()),
-    ))
+    let blueprint = description
+        .as_array()
+        .and_then(|d| d.get(1)?.as_str())
+        .unwrap_or_default();
+    let tags = semantic_tags(kind, blueprint);
+    let mut record = actor_record(id, 0, description, extent, Value::Binary(Vec::new()));
+    if let Value::Array(fields) = &mut record {
+        fields[4] = Value::Binary(tags);
+    }
+    Some(record)
 }
 
 /// The `rpc::Actor` of traffic light or sign `id`: CARLA's type id for
@@ -137,7 +161,7 @@ fn signal_record(hub: &crate::stream::Hub, id: u32, actor: &ActorInfo) -> Option
         Value::from(0u32),
         description,
         located_box(id, location, extent, [0.0; 3]),
-        Value::Binary(Vec::new()),
+        Value::Binary(semantic_tags(actor.kind, &type_id)),
         Value::Binary(Vec::new()),
     ]))
 }

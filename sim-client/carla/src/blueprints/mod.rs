@@ -9,7 +9,13 @@ mod library;
 mod sensors;
 
 use library::definition;
+pub(crate) use catalog::Class;
 pub(crate) use library::{library, scene_description, spawned_extent, vehicle_build};
+
+/// The class (car, truck, bus, ...) of catalog vehicle `id`, if it is one.
+pub(crate) fn vehicle_class(id: &str) -> Option<Class> {
+    catalog::vehicle(id).map(|v| v.class)
+}
 
 use std::collections::HashMap;
 

@@ -57,6 +57,7 @@ NOT_RUN = {
     "tutorial_gbuffer.py": "Unreal's render G-buffer textures (`enable_gbuffers`)",
     "apply_texture.py": "Unreal's materials and textures (`apply_color_texture_to_object`)",
     "invertedai_traffic.py": "Inverted AI's cloud service (the `invertedai` package and an API key)",
+    "manual_control_fisheye.py": "not a 0.9.16 script: its wide-angle lens cameras are not in 0.9.16's client",
 }
 
 # What a result owes to the script or the machine, not to simbus.
@@ -65,6 +66,7 @@ NOTES = {
     "vehicle_physics_tester.py": "it spawns its cars at Town10HD's coordinates: a building of simbus's town stands at one",
     "start_replaying.py": "this PythonAPI's script passes `replay_file` an `offset` the 0.9.16 client does not take",
     "open3d_lidar.py": "Open3D needs `libusb-1.0` on the machine",
+    "manual_control_steeringwheel.py": "it needs a steering wheel (joystick 0) on the machine",
 }
 
 # How long a script may take to start before its run counts (seconds).
@@ -85,7 +87,7 @@ def why(output):
         tail = output.split("Traceback (most recent call last):")[-1]
         tail_lines = [l.strip() for l in tail.splitlines() if l.strip()]
         raised = [l for l in tail_lines
-                  if re.match(r"^[A-Za-z_.]*(Error|Exception|Interrupt|Exit)\b", l)]
+                  if re.match(r"^[A-Za-z_.]*(Error|Exception|Interrupt|Exit|\.error)\b", l)]
         if raised:
             return raised[-1]
         if tail_lines:

@@ -119,7 +119,9 @@ def test_list_names_the_scenes_and_blueprints_filter(gateway):
     # -b 'sensor.*'
     _, world, _ = run(gateway)
     ids = sorted(bp.id for bp in world.get_blueprint_library().filter("sensor.*"))
-    assert ids == ["sensor.camera.depth", "sensor.camera.instance_segmentation",
+    assert ids == ["sensor.camera.cosmos_visualization", "sensor.camera.depth",
+                   "sensor.camera.dvs", "sensor.camera.instance_segmentation",
+                   "sensor.camera.normals", "sensor.camera.optical_flow",
                    "sensor.camera.rgb", "sensor.camera.semantic_segmentation",
                    "sensor.lidar.ray_cast", "sensor.lidar.ray_cast_semantic",
                    "sensor.other.collision", "sensor.other.gnss", "sensor.other.imu",

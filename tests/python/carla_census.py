@@ -41,7 +41,7 @@ SCRIPT_ARGS = {
     "show_recorder_file_info.py": ["-f", "{recording}"],
     "show_recorder_collisions.py": ["-f", "{recording}", "-t", "va"],
     "show_recorder_actors_blocked.py": ["-f", "{recording}"],
-    "environment.py": ["--sun", "sunset", "--weather", "wetcloudy"],
+    "environment.py": ["--sun", "sunset", "--weather", "rain"],
     "extract_spawn_points.py": ["-o", "{scratch}"],
 }
 
@@ -67,6 +67,8 @@ NOTES = {
     "start_replaying.py": "this PythonAPI's script passes `replay_file` an `offset` the 0.9.16 client does not take",
     "open3d_lidar.py": "Open3D needs `libusb-1.0` on the machine",
     "manual_control_steeringwheel.py": "it needs a steering wheel (joystick 0) on the machine",
+    "draw_skeleton.py": "it ends its loop and cleans up on Ctrl-C; then its multiprocessing helper, interrupted too, keeps the process from exiting (as on CARLA)",
+    "performance_benchmark.py": "it needs `tr`, `cpuinfo`, `psutil` and `GPUtil` in the Python it runs with",
 }
 
 # How long a script may take to start before its run counts (seconds).

@@ -67,7 +67,7 @@ NOTES = {
     "start_replaying.py": "this PythonAPI's script passes `replay_file` an `offset` the 0.9.16 client does not take",
     "open3d_lidar.py": "Open3D needs `libusb-1.0` on the machine",
     "manual_control_steeringwheel.py": "it needs a steering wheel (joystick 0) on the machine",
-    "draw_skeleton.py": "it ends its loop and cleans up on Ctrl-C; then its multiprocessing helper, interrupted too, keeps the process from exiting (as on CARLA)",
+    "draw_skeleton.py": "it ends its loop and cleans up on Ctrl-C; then its multiprocessing helper, interrupted by the same Ctrl-C, keeps the process from exiting: the script's own matter",
     "performance_benchmark.py": "it needs `tr`, `cpuinfo`, `psutil` and `GPUtil` in the Python it runs with",
 }
 

@@ -27,6 +27,7 @@ def main():
     parser.add_argument("--vehicles", type=int, default=30)
     parser.add_argument("--ticks", type=int, default=500)
     parser.add_argument("--map", default="Town10HD_Opt")
+    parser.add_argument("--walkers", type=int, default=0)
     args = parser.parse_args()
     client = carla.Client("127.0.0.1", args.port)
     client.set_timeout(10.0)
@@ -68,12 +69,32 @@ def main():
             raise SystemExit(f"spawn failed: {response.error}")
         ids.append(response.actor_id)
 
+    # generate_traffic.py's walkers: navigation points, AI controllers
+    # (CARLA's client walks them), seeded.
+    walkers = []
+    if args.walkers:
+        world.set_pedestrians_seed(args.seed)
+        walker_bps = sorted(world.get_blueprint_library().filter("walker.pedestrian.*"),
+                            key=lambda bp: bp.id)
+        batch = [carla.command.SpawnActor(random.choice(walker_bps),
+                                          carla.Transform(world.get_random_location_from_navigation()))
+                 for _ in range(args.walkers)]
+        walkers = [r.actor_id for r in client.apply_batch_sync(batch, True) if not r.error]
+        controller = world.get_blueprint_library().find("controller.ai.walker")
+        results = client.apply_batch_sync(
+            [carla.command.SpawnActor(controller, carla.Transform(), w) for w in walkers], True)
+        world.tick()
+        world.set_pedestrians_cross_factor(0.0)
+        for ai in world.get_actors([r.actor_id for r in results]):
+            ai.start()
+            ai.go_to_location(world.get_random_location_from_navigation())
+            ai.set_max_speed(1.4)
     ticks = []
     for _ in range(args.ticks):
         world.tick()
         snapshot = world.get_snapshot()
         row = []
-        for actor_id in ids:
+        for actor_id in ids + walkers:
             state = snapshot.find(actor_id)
             t = state.get_transform()
             row.append([actor_id, t.location.x, t.location.y, t.location.z, t.rotation.yaw])
@@ -81,6 +102,7 @@ def main():
     print(json.dumps({
         "map": world.get_map().name,
         "ids": ids,
+        "walkers": walkers,
         "spawn_points": len(spawn_points),
         "ticks": ticks,
     }))

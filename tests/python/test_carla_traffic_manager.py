@@ -75,12 +75,17 @@ def test_autopilot_vehicles_drive_along_the_town_roads(request, manager):
 @pytest.mark.parametrize("manager", MANAGERS)
 def test_the_seeds_determinism_example_repeats_exactly(request, manager):
     """Two fresh server + gateway pairs, the same seed: every vehicle's
-    transform identical at every tick; a third with another seed differs."""
+    and (with the gateway's traffic manager) every AI walker's transform
+    identical at every tick, on the town with its lights cycling; a third
+    with another seed differs."""
+    walkers = ["--walkers", "10"] if manager == "native" else []
     runs = on_fresh_pairs(request, [
-        tm_run("--seed", str(seed), "--vehicles", "30", "--ticks", "500") for seed in (7, 7, 8)
+        tm_run("--seed", str(seed), "--vehicles", "30", "--ticks", "500", *walkers)
+        for seed in (7, 7, 8)
     ], gateway_args=MANAGERS[manager])
     a, b, c = runs
     assert len(a["ticks"]) == 500 and len(a["ids"]) == 30
+    assert len(a["walkers"]) == (10 if walkers else 0)
     assert a["ticks"] == b["ticks"], "the same seed gives the same run, tick by tick"
     assert a["ticks"] != c["ticks"], "another seed gives another run"
     moved = [math.dist(p[1:3], q[1:3]) for p, q in zip(a["ticks"][0], a["ticks"][-1])]
@@ -245,3 +250,32 @@ def test_the_native_traffic_manager_obeys_its_settings_per_vehicle(gateway):
     assert 0.0 <= control.throttle <= 1.0 and 0.0 <= control.brake <= 1.0
     for v in (slow, fixed):
         v.set_autopilot(False, tm.get_port())
+
+
+def test_the_native_traffic_manager_drives_the_world_a_script_loads_after_it(gateway):
+    """A traffic manager asked for on the default scene, then a load of
+    CARLA's town (simbus's in its place): the vehicles spawned on autopilot
+    there follow the town's roads (the manager reads each episode's
+    scene)."""
+    client = gateway.client(timeout=20.0)
+    tm = client.get_trafficmanager(free_port())
+    world = client.load_world("Town10HD_Opt")
+    settings = world.get_settings()
+    settings.synchronous_mode = True
+    settings.fixed_delta_seconds = 0.05
+    world.apply_settings(settings)
+    tm.set_synchronous_mode(True)
+    library = world.get_blueprint_library()
+    points = world.get_map().get_spawn_points()[:6]
+    cars = [world.spawn_actor(library.find("vehicle.tesla.model3"), p) for p in points]
+    for car in cars:
+        car.set_autopilot(True, tm.get_port())
+    start = [c.get_location() for c in cars]
+    for _ in range(200):
+        world.tick()
+    town = world.get_map()
+    moved = [c.get_location().distance(s) for c, s in zip(cars, start)]
+    assert sum(m > 10.0 for m in moved) >= 4, moved
+    for car in cars:
+        on = town.get_waypoint(car.get_location(), project_to_road=False)
+        assert on is not None, car.get_location()

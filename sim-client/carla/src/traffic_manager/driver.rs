@@ -60,7 +60,6 @@ pub(super) fn run(shared: &Arc<Shared>, world: &str, hub: &Arc<Hub>) {
         let Ok(status) = client.status() else {
             continue;
         };
-        let scene = status.scene.parse::<SceneName>().ok();
         // In step with the world from the start: a script's first
         // vehicles are driven from a frame its own calls decide.
         let mut participant = join(&client, shared.port);
@@ -79,6 +78,11 @@ pub(super) fn run(shared: &Arc<Shared>, world: &str, hub: &Arc<Hub>) {
             };
             let key = (status.run_pid, frame.episode());
             if driver.episode != Some(key) {
+                // A load may have changed the scene.
+                let scene = client
+                    .status()
+                    .ok()
+                    .and_then(|s| s.scene.parse::<SceneName>().ok());
                 driver.new_episode(key, scene, hub);
             }
             shared.due(

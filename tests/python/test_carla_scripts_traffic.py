@@ -35,6 +35,7 @@ def blueprints_of(world, pattern, generation):
 
 
 vehicles_list, walkers_list, all_id, walked = [], [], [], []
+crossed, floating, inside = set(), 0, 0
 client = carla.Client("127.0.0.1", port)
 client.set_timeout(10.0)
 random.seed(int(time.time()))
@@ -145,7 +146,12 @@ try:
         all_actors[i].go_to_location(world.get_random_location_from_navigation())
         all_actors[i].set_max_speed(float(walker_speed[int(i / 2)]))
     walker_ids = [w["id"] for w in walkers_list]
-    walker_start = {w.id: [w.get_location().x, w.get_location().y] for w in world.get_actors(walker_ids)}
+    walker_actors = list(world.get_actors(walker_ids))
+    walker_start = {w.id: [w.get_location().x, w.get_location().y] for w in walker_actors}
+    town = world.get_map()
+    buildings = [b for b in world.get_actors().filter("static.prop.fixed")
+                 if b.bounding_box.extent.z < 50 and b.get_location().z > 0.5]
+    crossed, floating, inside = set(), 0, 0
     by_id = {a.id: a for a in world.get_actors(vehicles_list)}
     print("spawned %d vehicles and %d walkers, press Ctrl+C to exit." % (len(vehicles_list), len(walkers_list)))
     tm.global_percentage_speed_difference(30.0)
@@ -166,14 +172,23 @@ try:
                 t = state.get_transform()
                 at, v = t.location, state.get_velocity()
                 seen = track.setdefault(actor_id, {"first": [at.x, at.y, at.z], "frames": 0,
-                                                   "red_stops": 0, "tilted": 0})
+                                                   "red_stops": 0, "tilted": 0,
+                                                   "type": by_id[actor_id].type_id})
                 seen["last"] = [at.x, at.y, at.z]
                 seen["frames"] += 1
-                seen["tilted"] += abs(t.rotation.roll) > 30 or abs(t.rotation.pitch) > 30
+                seen["tilted"] = max(seen["tilted"], abs(t.rotation.roll), abs(t.rotation.pitch))
                 vehicle = by_id[actor_id]
                 if (vehicle.is_at_traffic_light() and math.hypot(v.x, v.y) < 0.3
                         and vehicle.get_traffic_light_state() == carla.TrafficLightState.Red):
                     seen["red_stops"] += 1
+        if ticks % 10 == 0:
+            for w in walker_actors:
+                at = w.get_location()
+                # On a driving lane: crossing the road (at a crosswalk).
+                if town.get_waypoint(at, project_to_road=False, lane_type=carla.LaneType.Driving):
+                    crossed.add(w.id)
+                floating += abs(at.z - w.bounding_box.extent.z) > 0.3
+                inside += any(b.bounding_box.contains(at, b.get_transform()) for b in buildings)
     walked = [math.dist(walker_start[w.id], [w.get_location().x, w.get_location().y])
               for w in world.get_actors(walker_ids)]
 finally:
@@ -188,7 +203,8 @@ finally:
     print("\\ndestroying %d walkers" % len(walkers_list))
     client.apply_batch([carla.command.DestroyActor(x) for x in all_id])
     print("\\ndone.")
-    print(json.dumps({"track": track, "ticks": ticks, "walked": walked}))
+    print(json.dumps({"track": track, "ticks": ticks, "walked": walked,
+                      "crossed": len(crossed), "floating": floating, "inside": inside}))
 """
 
 
@@ -210,12 +226,21 @@ def generate_traffic(request, mode, walkers=0, frames=200, gateway_args=()):
                            gateway_args=gateway_args)
     lines = out.splitlines()
     result = json.loads(lines[-1])
+    generate_traffic.walkers = result
     return lines[:-1], result["track"], result["walked"]
 
 
 def assert_traffic_drove(lines, track, walkers=0):
-    assert f"spawned 30 vehicles and {walkers} walkers, press Ctrl+C to exit." in lines, lines
-    assert not [l for l in lines if l.startswith(("ERROR", "WARNING"))], lines
+    """What generate_traffic.py shows of a good run: its 30 vehicles, and
+    its walkers but any whose random navigation point another walker took
+    (CARLA logs such a spawn's error and goes on, as the mirror does)."""
+    spawned = [l for l in lines if l.startswith("spawned 30 vehicles and ")]
+    assert len(spawned) == 1, lines
+    placed = int(spawned[0].split()[4])
+    assert walkers - 1 <= placed <= walkers, spawned
+    errors = [l for l in lines if l.startswith(("ERROR", "WARNING"))]
+    assert len(errors) == walkers - placed, lines
+    assert all("collision at spawn position" in l for l in errors), errors
     assert len(track) == 30
     moved = [math.dist(p["first"][:2], p["last"][:2]) for p in track.values()]
     assert all(math.isfinite(m) for m in moved), moved
@@ -223,7 +248,7 @@ def assert_traffic_drove(lines, track, walkers=0):
     assert sum(m > 5.0 for m in moved) >= 20, moved
     assert all(-1.0 < p["last"][2] < 3.0 for p in track.values()), track
     assert [l for l in lines if l.strip()][-3:] == [
-        "destroying 30 vehicles", f"destroying {walkers} walkers", "done."], lines
+        "destroying 30 vehicles", f"destroying {placed} walkers", "done."], lines
 
 
 def test_generate_traffic_30_vehicles_synchronous_200_frames(request):
@@ -265,14 +290,20 @@ def test_generate_traffic_defaults_2000_synchronous_frames_on_the_native_traffic
     lines, track, walked = generate_traffic(request, "sync", walkers=10, frames=2000)
     assert_traffic_drove(lines, track, walkers=10)
     assert all(p["frames"] == 2000 for p in track.values()), "every vehicle in every tick"
-    assert not [p for p in track.values() if p["tilted"]], "no vehicle rolled over"
+    assert not [p for p in track.values() if p["tilted"] > 30], "no vehicle reared or rolled"
     stopped = [p for p in track.values() if p["red_stops"] > 0]
     assert len(stopped) >= 5, "vehicles wait at red lights"
     # A vehicle stopped at a red light went on: it waited less than the
     # whole run there.
     assert any(0 < p["red_stops"] < 1500 and math.dist(p["first"][:2], p["last"][:2]) > 50
                for p in stopped), stopped
-    assert len(walked) == 10 and sum(w > 5.0 for w in walked) >= 8, walked
+    assert len(walked) >= 9 and sum(w > 5.0 for w in walked) >= len(walked) - 2, walked
+    # Every controller walked its walker on the ground, never through a
+    # building; some crossed a road (at its crosswalks: the cross factor
+    # is 0).
+    result = generate_traffic.walkers
+    assert result["floating"] == 0 and result["inside"] == 0, result
+    assert result["crossed"] >= 1, result
 
 
 def test_the_native_traffic_managers_soak_runs_twice_short_with_no_hang():

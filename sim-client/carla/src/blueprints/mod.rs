@@ -8,8 +8,8 @@ mod catalog;
 mod library;
 mod sensors;
 
-use library::definition;
 pub(crate) use catalog::Class;
+use library::definition;
 pub(crate) use library::{library, scene_description, spawned_extent, vehicle_build};
 
 /// The class (car, truck, bus, ...) of catalog vehicle `id`, if it is one.

@@ -43,6 +43,11 @@ const LOST: f64 = 3.0;
 const WALKER_HALF_WIDTH: f64 = 0.4;
 /// Room kept beside a vehicle's path, metres.
 const SIDE_MARGIN: f64 = 0.4;
+/// The most throttle from rest, and how much more each m/s allows.
+const LAUNCH_THROTTLE: f64 = 0.4;
+const LAUNCH_GAIN: f64 = 0.15;
+/// The nose-up pitch (its sine, about 6°) past which no throttle is given.
+const MAX_NOSE_UP: f64 = 0.1;
 /// Time kept to the vehicle ahead on top of the distance, seconds.
 const HEADWAY: f64 = 0.5;
 /// How close to a path point (`set_path`) counts as reaching it, metres.
@@ -102,6 +107,8 @@ struct Body {
     half_length: f64,
     half_width: f64,
     walker: bool,
+    /// The sine of its nose-up pitch.
+    nose_up: f64,
 }
 
 impl Body {
@@ -127,6 +134,7 @@ impl Body {
                 f64::from(ez)
             },
             walker,
+            nose_up: f64::from(forward[1]),
         }
     }
 
@@ -508,6 +516,14 @@ impl Planner {
         } else if acceleration >= -0.3 {
             driven.integral = (driven.integral + error * delta).clamp(-5.0, 20.0);
             let throttle = acceleration / FULL_ACCELERATION + 0.05 + 0.03 * driven.integral;
+            // Pulling away gently, and never lifting the nose: a light car
+            // at full throttle from rest would rear up (traction control).
+            let gentle = LAUNCH_THROTTLE + LAUNCH_GAIN * speed.max(0.0);
+            let throttle = if body.nose_up > MAX_NOSE_UP {
+                0.0
+            } else {
+                throttle.min(gentle)
+            };
             (throttle.clamp(0.0, 1.0), 0.0)
         } else {
             driven.integral = 0.0;

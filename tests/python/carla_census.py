@@ -112,7 +112,9 @@ def start_pair(bin_dir, world, port, log):
         stdout=subprocess.DEVNULL, stderr=log, start_new_session=True)
     gateway = subprocess.Popen(
         [os.path.join(bin_dir, "sim-client"), "--world", world, "--timeout", "10",
-         "carla-gateway", "--port", str(port), "--json"],
+         # Any free streaming port: the scripts connect to the RPC port
+         # only (port + 1 may be another process's).
+         "carla-gateway", "--port", str(port), "--streaming-port", "0", "--json"],
         stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True)
     deadline = time.time() + 60
     while time.time() < deadline:

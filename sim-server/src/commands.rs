@@ -340,6 +340,11 @@ pub(crate) mod tests {
         world
     }
 
+    /// A 1 850 kg sedan of CARLA's size, standing on the ground at the origin.
+    fn sedan() -> Command {
+        Command::spawn_sized_vehicle([0.0, 1.1, 0.0], [2.4, 0.74, 1.08], 1850.0)
+    }
+
     /// Steps `world` `frames` frames of 0.05 s (substeps of 0.01 s).
     pub(crate) fn step(world: &mut World, frames: usize) {
         let settings = WorldSettings {
@@ -424,11 +429,7 @@ pub(crate) mod tests {
     #[test]
     fn a_sleeping_parked_car_stays_still_and_a_control_wakes_it() {
         let mut world = world_on_ground();
-        let r = world.apply(&Command::spawn_sized_vehicle(
-            [0.0, 1.1, 0.0],
-            [2.4, 0.74, 1.08],
-            1850.0,
-        ));
+        let r = world.apply(&sedan());
         step(&mut world, 100);
         let body = world.body_of(r.actor).expect("a body");
         world.physics.bodies[body].sleep();
@@ -449,11 +450,7 @@ pub(crate) mod tests {
     #[test]
     fn the_reverse_gear_drives_a_car_backwards() {
         let mut world = world_on_ground();
-        let r = world.apply(&Command::spawn_sized_vehicle(
-            [0.0, 1.1, 0.0],
-            [2.4, 0.74, 1.08],
-            1850.0,
-        ));
+        let r = world.apply(&sedan());
         step(&mut world, 20);
         let start = state(&world, r.actor).position[0];
         world.apply(&Command::vehicle_control(r.actor, 1.0, 0.0, 0.0, false).in_reverse(true));
@@ -470,11 +467,7 @@ pub(crate) mod tests {
     #[test]
     fn an_ackermann_target_reaches_its_speed_and_a_control_ends_it() {
         let mut world = world_on_ground();
-        let r = world.apply(&Command::spawn_sized_vehicle(
-            [0.0, 1.1, 0.0],
-            [2.4, 0.74, 1.08],
-            1850.0,
-        ));
+        let r = world.apply(&sedan());
         step(&mut world, 20);
         let ok = world.apply(&Command::vehicle_ackermann(r.actor, 0.0, 0.0, 6.0, 2.0));
         assert_eq!(ok.status, CommandStatus::Ok as u32);

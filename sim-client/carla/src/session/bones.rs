@@ -9,7 +9,6 @@ use rmpv::Value;
 use shared_types::ActorKind;
 
 use super::Session;
-use crate::commands;
 use crate::convert;
 use crate::error::CallError;
 use crate::locks::lock;
@@ -88,21 +87,7 @@ fn transform(location: [f32; 3], rotation: [f32; 3]) -> Value {
 impl Session {
     /// The walker a bone call names.
     fn walker_arg(&self, args: &[Value], method: &'static str) -> Result<u32, CallError> {
-        let id = args
-            .first()
-            .and_then(commands::actor_id)
-            .ok_or(CallError::Shape {
-                method,
-                what: "no actor id",
-            })?;
-        match lock(&self.hub.actors)
-            .get(&id)
-            .map(|a| ActorKind::from_u32(a.kind))
-        {
-            Some(Some(ActorKind::Walker)) => Ok(id),
-            Some(_) => Err(CallError::NotAWalker(id)),
-            None => Err(CallError::UnknownActor(id)),
-        }
+        self.actor_of_kind(args, method, ActorKind::Walker, CallError::NotAWalker)
     }
 
     /// CARLA's `walker.get_bones()`: every bone's name and its world,

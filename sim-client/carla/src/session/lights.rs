@@ -7,7 +7,7 @@ use rmpv::Value;
 use shared_types::ActorKind;
 
 use super::Session;
-use crate::commands::{self, BatchCommand, Op};
+use crate::commands::{BatchCommand, Op};
 use crate::convert;
 use crate::error::CallError;
 use crate::locks::lock;
@@ -48,21 +48,12 @@ impl Session {
 
     /// The id of the traffic light argument `method` names.
     fn light_arg(&self, args: &[Value], method: &'static str) -> Result<u32, CallError> {
-        let id = args
-            .first()
-            .and_then(commands::actor_id)
-            .ok_or(CallError::Shape {
-                method,
-                what: "no actor id",
-            })?;
-        match lock(&self.hub.actors)
-            .get(&id)
-            .map(|a| ActorKind::from_u32(a.kind))
-        {
-            Some(Some(ActorKind::TrafficLight)) => Ok(id),
-            Some(_) => Err(CallError::NotATrafficLight(id)),
-            None => Err(CallError::UnknownActor(id)),
-        }
+        self.actor_of_kind(
+            args,
+            method,
+            ActorKind::TrafficLight,
+            CallError::NotATrafficLight,
+        )
     }
 
     /// CARLA's `TrafficLight.get_group_traffic_lights()`: the lights of

@@ -305,6 +305,38 @@ impl Session {
     }
 }
 
+/// Argument 0 of `method`: an actor id.
+fn actor_id_arg(args: &[Value], method: &'static str) -> Result<u32, CallError> {
+    args.first()
+        .and_then(commands::actor_id)
+        .ok_or(CallError::Shape {
+            method,
+            what: "no actor id",
+        })
+}
+
+impl Session {
+    /// Argument 0 of `method`: an actor of `kind` in the last frame
+    /// (`wrong` names one of another kind).
+    fn actor_of_kind(
+        &self,
+        args: &[Value],
+        method: &'static str,
+        kind: shared_types::ActorKind,
+        wrong: fn(u32) -> CallError,
+    ) -> Result<u32, CallError> {
+        let id = actor_id_arg(args, method)?;
+        let found = crate::locks::lock(&self.hub.actors)
+            .get(&id)
+            .map(|a| shared_types::ActorKind::from_u32(a.kind));
+        match found {
+            Some(k) if k == Some(kind) => Ok(id),
+            Some(_) => Err(wrong(id)),
+            None => Err(CallError::UnknownActor(id)),
+        }
+    }
+}
+
 /// Argument `i` as an unsigned integer.
 fn arg_u64(args: &[Value], i: usize, method: &'static str) -> Result<u64, CallError> {
     arg(args, i, method, "an integer", Value::as_u64)

@@ -20,14 +20,7 @@ const ACKERMANN_DEFAULTS: [f32; 6] = [0.15, 0.0, 0.25, 0.01, 0.0, 0.01];
 impl Session {
     /// The vehicle argument 0 of `method` names.
     fn vehicle_arg(&self, args: &[Value], method: &'static str) -> Result<u32, CallError> {
-        let id = args
-            .first()
-            .and_then(commands::actor_id)
-            .ok_or(CallError::Shape {
-                method,
-                what: "no actor id",
-            })?;
-        self.vehicle(id)
+        self.vehicle(super::actor_id_arg(args, method)?)
     }
 
     /// `id`, if it is a vehicle of the last frame (or just spawned

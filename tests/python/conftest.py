@@ -96,6 +96,7 @@ def start(world, server_args, procs, gateway_args=(), log=subprocess.DEVNULL, en
         env=None if env is None else {**os.environ, **env},
     )
     procs.append(server)
+    wait_until_up(world, server)
     gateway = subprocess.Popen(
         [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", "10",
          "carla-gateway", "--port", "0", "--json", *gateway_args],
@@ -107,6 +108,20 @@ def start(world, server_args, procs, gateway_args=(), log=subprocess.DEVNULL, en
     started = Gateway(world, listening["port"], listening["streaming_port"], procs)
     started.proc = gateway
     return started
+
+
+def wait_until_up(world, server, timeout=60):
+    """Waits until the server of `world` answers `status`: the gateway's
+    first call waits only 2 s for a server (CARLA's client fails fast on a
+    world with none), and a server still starting on a loaded machine can
+    take longer."""
+    up = subprocess.run(
+        [os.path.join(BIN, "sim-client"), "--world", world, "--timeout", str(timeout), "status"],
+        capture_output=True, text=True, timeout=timeout + 30,
+    )
+    if up.returncode != 0:
+        exited = server.poll()
+        raise RuntimeError(f"the server of {world} did not come up (exit status {exited}): {up.stderr}")
 
 
 def kill_all(procs):

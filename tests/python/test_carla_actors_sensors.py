@@ -30,6 +30,19 @@ def synced(gateway):
     return client, world, world.get_blueprint_library()
 
 
+def settle(world, near, radius=5.0, ticks=200):
+    """Ticks until no actor within `radius` of the location `near` moves
+    (the scene's boxes dropped from height have landed), at most `ticks`
+    ticks."""
+    for _ in range(ticks):
+        moving = [f"{a.type_id} at {a.get_location()}" for a in world.get_actors()
+                  if a.get_location().distance(near) < radius and a.get_velocity().length() >= 0.01]
+        if not moving:
+            return
+        world.tick()
+    raise AssertionError(f"still moving after {ticks} ticks: {moving}")
+
+
 def blueprint(library, type_id, **attributes):
     """The blueprint `type_id` of `library` with `attributes` set."""
     found = library.find(type_id)
@@ -239,8 +252,10 @@ def test_a_lidar_drops_points_as_carla_by_default_and_keeps_them_with_the_recipe
     share above 1 is refused, naming the attributes."""
     client, world, library = synced(gateway)
     wall = blueprint(library, "static.prop.box", extent_x=0.5, extent_y=30, extent_z=30)
-    # Clear of the ground and of the scene's boxes: a spawn into them is
-    # refused, as CARLA refuses it.
+    # Clear of the ground and of the scene's boxes once they have landed: a
+    # spawn into them is refused, as CARLA refuses it (a young world's boxes
+    # are still falling through the wall's place).
+    settle(world, carla.Location(x=12.0))
     world.spawn_actor(wall, carla.Transform(carla.Location(x=12.0, z=30.8))).set_enable_gravity(False)
     recipe = dict(dropoff_general_rate=0.0, dropoff_intensity_limit=1.0, dropoff_zero_intensity=0.0)
     shape = dict(channels=8, points_per_second=16000, rotation_frequency=20, upper_fov=5, lower_fov=-5,

@@ -75,6 +75,17 @@ enum Command {
     /// ends it (a resumed one too: start it again).
     #[cfg(feature = "foxglove")]
     Foxglove(cli::foxglove::FoxgloveArgs),
+    /// Publish the world on ROS 2 over DDS, for stock ROS 2 nodes (rclpy,
+    /// rviz2, rosbag2) with no ROS install here.
+    ///
+    /// `/clock` every frame (the frame's exact time, for `use_sim_time`),
+    /// every sensor in `sensor_msgs` under `<namespace>/sensor_<id>/`,
+    /// every actor's pose on `/tf`, sensor mounts on `/tf_static`, each
+    /// vehicle's odometry and control topics, the scene as markers; with
+    /// --tick-from-ros a ROS node ticks the world. Every message is stamped
+    /// with the simulation time of its frame.
+    #[cfg(feature = "ros2")]
+    Ros2(cli::ros2::Ros2Args),
     /// Bridge the world to other hosts: `bridge zenoh --listen` exports it
     /// from the server's host, `bridge zenoh --connect` mirrors it into
     /// another host's shared memory for unmodified local clients.
@@ -166,8 +177,10 @@ fn init_logging(verbose: u8) {
     let default = match verbose {
         // Zenoh's own warnings (a connection being retried) are not the
         // user's business unless asked for (-v, RUST_LOG): the bridge
-        // says itself what failed.
-        0 => "warn,zenoh=error",
+        // says itself what failed. DDS's likewise (RustDDS logs a foreign
+        // participant's quirks as errors; the ROS 2 adapter reports what
+        // it dropped).
+        0 => "warn,zenoh=error,rustdds=off,ros2_client=error",
         1 => "debug",
         _ => "trace",
     };
@@ -195,6 +208,8 @@ fn main() -> ExitCode {
         Command::Top(a) => cli::top::run(world, timeout, a),
         #[cfg(feature = "foxglove")]
         Command::Foxglove(a) => cli::foxglove::run(world, timeout, a),
+        #[cfg(feature = "ros2")]
+        Command::Ros2(a) => cli::ros2::run(world, timeout, a),
         #[cfg(feature = "zenoh")]
         Command::Bridge(a) => cli::bridge::run(world, timeout, a),
         Command::Config(a) => cli::config::run(world, timeout, a),

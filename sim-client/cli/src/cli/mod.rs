@@ -57,6 +57,8 @@ pub(crate) mod output;
 pub(crate) mod parse;
 pub(crate) mod pictures;
 pub(crate) mod recorder;
+#[cfg(feature = "ros2")]
+pub(crate) mod ros2;
 pub(crate) mod sensor;
 mod sensor_capture;
 mod sensor_save;

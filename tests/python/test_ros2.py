@@ -1,0 +1,225 @@
+"""`sim-client ros2` read and driven by a stock rclpy (ROS 2 Kilted's
+wheels from PyPI, over Fast DDS; no ROS install): /clock frame-exact for
+use_sim_time, one tick's sensors on one stamp with simbus's own bytes,
+odometry, control from ROS (and a malformed control dropped and
+counted), and a ROS node as the world's ticker under the single-ticker
+rule. Each test on a world and a DDS domain of its own, localhost only."""
+
+import itertools
+import json
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from simbus_support import BIN, server  # noqa: F401  (the fixture)
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+import rclpy  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import Image, Imu, PointCloud2  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from std_msgs.msg import Empty, Float32MultiArray  # noqa: E402
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")  # rclpy's lark
+
+_domains = itertools.count((os.getpid() % 50) * 4 + 20)
+RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def ns(stamp):
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class Adapter:
+    """`sim-client ros2 --json` on `world`, its JSON lines kept (to wait
+    for one); killed and reaped by `stop`."""
+
+    def __init__(self, world, domain, *args):
+        self.proc = subprocess.Popen(
+            [os.path.join(BIN, "sim-client"), "--world", world, "ros2", "--json",
+             "--domain-id", str(domain), *args],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        )
+        self.lines = []
+        self.said = threading.Condition()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            with self.said:
+                self.lines.append(json.loads(line))
+                self.said.notify_all()
+
+    def wait_event(self, event, timeout=30, **fields):
+        def found():
+            return next((l for l in self.lines if l.get("event") == event
+                         and all(l.get(k) == v for k, v in fields.items())), None)
+        with self.said:
+            if not self.said.wait_for(found, timeout):
+                self.proc.kill()
+                raise AssertionError(f"the adapter never said {event}: {self.lines}\n{self.proc.stderr.read()}")
+            return found()
+
+    def stop(self):
+        self.proc.kill()
+        self.proc.wait()
+
+
+@pytest.fixture
+def ros(request):
+    """`ros(world, *ARGS)`: an Adapter on a DDS domain of the test's own,
+    and an rclpy node on it (with use_sim_time); all stopped after."""
+    started = []
+    domain = next(_domains)
+    context = rclpy.context.Context()
+    rclpy.init(context=context, domain_id=domain)
+    node = Node("simbus_test", context=context,
+                parameter_overrides=[Parameter("use_sim_time", value=True)])
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+
+    class Ros:
+        def __init__(self):
+            self.node, self.domain = node, domain
+
+        def adapter(self, world, *args):
+            started.append(Adapter(world, domain, *args))
+            started[-1].wait_event("ready")
+            return started[-1]
+
+        def spin_until(self, done, timeout=20):
+            deadline = time.time() + timeout
+            while not done():
+                assert time.time() < deadline, "timed out spinning"
+                executor.spin_once(timeout_sec=0.05)
+
+        def collect(self, msg_type, topic, qos=RELIABLE):
+            got = []
+            node.create_subscription(msg_type, topic, got.append, qos)
+            return got
+
+    yield Ros()
+    for a in started:
+        a.stop()
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def wait_matched(ros, topic, publishers=1):
+    ros.spin_until(lambda: ros.node.count_publishers(topic) >= publishers)
+
+
+def frame_ns(client, frame_id):
+    """The simulation time of frame `frame_id` (waiting for it)."""
+    while True:
+        with client.wait_for_frame(timeout=10) as frame:
+            if frame.frame >= frame_id:
+                assert frame.frame == frame_id
+                return frame.elapsed_ns
+
+
+def test_clock_follows_every_tick_exactly_and_now_is_the_frame_time(server, ros):
+    world = server()
+    client = world.client()
+    ticker = client.ticker(0.05)
+    ros.adapter(world.world)
+    clock = ros.collect(Clock, "/clock")
+    wait_matched(ros, "/clock")
+    # Until the adapter's writer has matched this reader too (DDS discovers
+    # both ways): a tick whose clock comes.
+    for _ in range(200):
+        when = frame_ns(client, ticker.tick())
+        try:
+            ros.spin_until(lambda: clock and ns(clock[-1].clock) == when, timeout=0.5)
+            break
+        except AssertionError:
+            continue
+    first = ticker.tick()
+    start = frame_ns(client, first)
+    for _ in range(999):
+        last = ticker.tick()
+    end = frame_ns(client, last)
+    assert end == start + 999 * 50_000_000
+    ros.spin_until(lambda: clock and ns(clock[-1].clock) == end)
+    ticked = [ns(m.clock) for m in clock if ns(m.clock) >= start]
+    # Every tick once, in order, exactly 0.05 s apart (integer ns: no drift).
+    assert ticked == [start + 50_000_000 * i for i in range(1000)], ticked[:3] + ticked[-3:]
+    ros.spin_until(lambda: ros.node.get_clock().now().nanoseconds == end)
+    ticker.release()
+
+
+def test_one_ticks_sensors_share_its_stamp_and_carry_simbus_own_bytes(server, ros):
+    world = server()
+    client = world.client()
+    ticker = client.ticker(0.05)
+    car = client.spawn("vehicle", at=(0.0, 1.0, 20.0))
+    rgb = client.spawn_sensor("rgb", parent=car, at=(0.5, 1.5, 0.0), width=64, height=48, fov=90)
+    depth = client.spawn_sensor("depth", parent=car, at=(0.5, 1.5, 0.0), width=64, height=48, fov=90)
+    lidar = client.spawn_sensor("lidar", parent=car, at=(0.0, 2.0, 0.0), channels=8, points=90, range=40)
+    imu = client.spawn_sensor("imu", parent=car)
+    adapter = ros.adapter(world.world)
+    for sensor in (rgb, depth, lidar, imu):
+        adapter.wait_event("publishing", sensor=sensor.id)
+    topic = lambda s, leaf: f"/simbus/sensor_{s.id}/{leaf}"
+    got = {
+        "rgb": ros.collect(Image, topic(rgb, "image"), qos_profile_sensor_data),
+        "depth": ros.collect(Image, topic(depth, "image"), qos_profile_sensor_data),
+        "lidar": ros.collect(PointCloud2, topic(lidar, "point_cloud"), qos_profile_sensor_data),
+        "imu": ros.collect(Imu, topic(imu, "imu"), qos_profile_sensor_data),
+    }
+    # Ticks until the adapter's writers have matched this node's readers
+    # (DDS discovers both ways; a best-effort sample sent before is lost),
+    # then takes a tick whose four messages all came.
+    for _ in range(100):
+        frame = ticker.tick()
+        when = frame_ns(client, frame)
+        try:
+            ros.spin_until(lambda: all(any(ns(m.header.stamp) == when for m in msgs)
+                                       for msgs in got.values()), timeout=1)
+            break
+        except AssertionError:
+            continue
+    else:
+        raise AssertionError({name: [ns(m.header.stamp) for m in msgs] for name, msgs in got.items()})
+    of_frame = {name: next(m for m in msgs if ns(m.header.stamp) == when) for name, msgs in got.items()}
+    captures = {}
+    for name, sensor in (("rgb", rgb), ("depth", depth), ("lidar", lidar), ("imu", imu)):
+        while True:
+            capture = sensor.read(timeout=10).copy()
+            if capture.frame == frame:
+                captures[name] = capture
+                break
+    image = of_frame["rgb"]
+    assert (image.encoding, image.width, image.height, image.step) == ("bgra8", 64, 48, 256)
+    assert bytes(image.data) == captures["rgb"].array.tobytes()
+    assert image.header.frame_id == f"sensor_{rgb.id}_optical"
+    d = of_frame["depth"]
+    assert d.encoding == "32FC1"
+    assert bytes(d.data) == captures["depth"].array.astype("<f4").tobytes()
+    cloud = of_frame["lidar"]
+    assert [f.name for f in cloud.fields] == ["x", "y", "z", "intensity"] and cloud.point_step == 16
+    points = np.frombuffer(bytes(cloud.data), dtype="<f4").reshape(-1, 4)
+    simbus_points = captures["lidar"].array
+    assert len(points) == len(simbus_points) > 0
+    # simbus's axes (X forward, Y up, Z right) to ROS's (X forward, Y left, Z up).
+    np.testing.assert_array_equal(points[:, 0], simbus_points[:, 0])
+    np.testing.assert_array_equal(points[:, 1], -simbus_points[:, 2])
+    np.testing.assert_array_equal(points[:, 2], simbus_points[:, 1])
+    reading = of_frame["imu"]
+    measured = captures["imu"].array
+    accel, gyro = measured["accelerometer"][0], measured["gyroscope"][0]
+    to_ros = lambda v: pytest.approx([v[0], -v[2], v[1]], abs=1e-6)
+    a, w = reading.linear_acceleration, reading.angular_velocity
+    assert [a.x, a.y, a.z] == to_ros(accel) and [w.x, w.y, w.z] == to_ros(gyro)
+    ticker.release()

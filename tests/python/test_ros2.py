@@ -49,7 +49,8 @@ class Adapter:
         self.proc = subprocess.Popen(
             [os.path.join(BIN, "sim-client"), "--world", world, "ros2", "--json",
              "--domain-id", str(domain), *args],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT if False else open(os.devnull, "w") if not os.environ.get("ROS2_TEST_LOG") else open(os.environ["ROS2_TEST_LOG"], "a"),
+            text=True, start_new_session=True,
         )
         self.lines = []
         self.said = threading.Condition()
@@ -68,7 +69,7 @@ class Adapter:
         with self.said:
             if not self.said.wait_for(found, timeout):
                 self.proc.kill()
-                raise AssertionError(f"the adapter never said {event}: {self.lines}\n{self.proc.stderr.read()}")
+                raise AssertionError(f"the adapter never said {event}: {self.lines}")
             return found()
 
     def stop(self):
@@ -223,3 +224,125 @@ def test_one_ticks_sensors_share_its_stamp_and_carry_simbus_own_bytes(server, ro
     a, w = reading.linear_acceleration, reading.angular_velocity
     assert [a.x, a.y, a.z] == to_ros(accel) and [w.x, w.y, w.z] == to_ros(gyro)
     ticker.release()
+
+
+def actor(frame, actor_id):
+    """Actor `actor_id`'s state in `frame`."""
+    return next(a for a in frame.actors if a["id"] == actor_id)
+
+
+def test_a_vehicle_driven_from_ros_accelerates_its_odometry_matches_and_bad_controls_are_dropped(server, ros):
+    world = server()
+    client = world.client()
+    ticker = client.ticker(0.05)
+    car = client.spawn("vehicle", at=(0.0, 0.6, 20.0))
+    for _ in range(20):  # onto its wheels
+        ticker.tick()
+    adapter = ros.adapter(world.world, "--vehicles", str(car))
+    base = f"/simbus/vehicle_{car}"
+    odometry = ros.collect(Odometry, f"{base}/odometry")
+    control = ros.node.create_publisher(Float32MultiArray, f"{base}/control", 10)
+    ros.spin_until(lambda: control.get_subscription_count() >= 1)
+    wait_matched(ros, f"{base}/odometry")
+    # Full throttle, until the vehicle is seen moving (the adapter's reader
+    # may match this publisher a little after it was seen).
+    for _ in range(200):
+        control.publish(Float32MultiArray(data=[1.0, 0.0, 0.0]))
+        frame = ticker.tick_and_read(client).copy()
+        if np.linalg.norm(actor(frame, car)["linear_velocity"]) > 1.0:
+            break
+    else:
+        raise AssertionError(f"the vehicle never moved: {adapter.lines}")
+    # Its odometry: the pose in map, the velocity along its own X.
+    when = frame.elapsed_ns
+    state = actor(frame, car)
+    ros.spin_until(lambda: any(ns(m.header.stamp) == when for m in odometry))
+    seen = next(m for m in odometry if ns(m.header.stamp) == when)
+    assert seen.header.frame_id == "map" and seen.child_frame_id == f"vehicle_{car}"
+    speed = float(np.linalg.norm(state["linear_velocity"]))
+    v = seen.twist.twist.linear
+    # The same velocity, in the vehicle's axes: forward (X) mostly.
+    assert float(np.linalg.norm([v.x, v.y, v.z])) == pytest.approx(speed, rel=1e-4)
+    assert v.x > 0.9 * speed
+    x, y, z = state["position"]
+    p = seen.pose.pose.position
+    assert (p.x, p.y, p.z) == pytest.approx((x, -z, y), abs=1e-4)
+    # Out of range: dropped, counted, named; the vehicle keeps full throttle.
+    control.publish(Float32MultiArray(data=[2.0, 0.0, 0.0]))
+    ticker.tick()
+    dropped = adapter.wait_event("control_dropped", vehicle=car)
+    assert "throttle 2" in dropped["reason"] and dropped["dropped"] == 1
+    # Not CDR of the message at all: dropped too.
+    control.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7f")
+    ticker.tick()
+    garbled = adapter.wait_event("control_dropped", vehicle=car, dropped=2)
+    assert "malformed" in garbled["reason"]
+    before = speed
+    for _ in range(10):
+        frame = ticker.tick_and_read(client).copy()
+    assert np.linalg.norm(actor(frame, car)["linear_velocity"]) > before
+    ticker.release()
+
+
+TICKING_NODE = """
+import sys, time, rclpy
+from rclpy.node import Node
+from std_msgs.msg import Empty
+rclpy.init(domain_id=int(sys.argv[1]))
+node = Node("ros_ticker")
+ticks = node.create_publisher(Empty, sys.argv[2], 10)
+print("up", flush=True)
+for line in sys.stdin:
+    ticks.publish(Empty())
+    rclpy.spin_once(node, timeout_sec=0)
+    print("sent", flush=True)
+"""
+
+
+def test_a_ros_node_ticks_the_world_a_second_ticker_is_refused_and_killing_the_node_frees_it(server, ros):
+    world = server()
+    adapter = ros.adapter(world.world, "--tick-from-ros", "--delta-seconds", "0.1")
+    assert adapter.wait_event("ready")["ticker"] is True
+    clock = ros.collect(Clock, "/clock")
+    wait_matched(ros, "/clock")
+    node = subprocess.Popen(
+        [sys.executable, "-c", TICKING_NODE, str(ros.domain), "/simbus/tick"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    try:
+        assert node.stdout.readline() == "up\n"
+
+        def tick():
+            node.stdin.write("\n")
+            node.stdin.flush()
+            assert node.stdout.readline() == "sent\n"
+
+        # Until the adapter's reader has matched the node: a tick that comes.
+        for _ in range(10):
+            seen = len(clock)
+            tick()
+            try:
+                ros.spin_until(lambda: len(clock) > seen, timeout=0.5)
+                break
+            except AssertionError:
+                continue
+        assert clock, (adapter.lines, world.sim_client("status", stdout=subprocess.PIPE, text=True).communicate()[0])
+        start = ns(clock[-1].clock)
+        for i in range(1, 21):
+            tick()
+            ros.spin_until(lambda: ns(clock[-1].clock) == start + i * 100_000_000)
+        # Exactly one frame per message: twenty ticks, twenty steps of 0.1 s.
+        assert ns(clock[-1].clock) == start + 2_000_000_000
+        second = world.sim_client("tick", "--count", "1", stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
+        _, err = second.communicate(timeout=60)
+        assert second.returncode != 0 and f"ros2-simbus_{world.world}".replace("-", "_") in err.replace("-", "_"), err
+    finally:
+        node.kill()
+        node.wait()
+    # The node is gone (killed: DDS notices when its lease runs out).
+    assert "left" in adapter.wait_event("ticker_released", timeout=60)["reason"]
+    third = world.sim_client("tick", "--count", "1", stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    out, err = third.communicate(timeout=60)
+    assert third.returncode == 0, err

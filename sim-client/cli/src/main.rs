@@ -180,7 +180,7 @@ fn init_logging(verbose: u8) {
         // says itself what failed. DDS's likewise (RustDDS logs a foreign
         // participant's quirks as errors; the ROS 2 adapter reports what
         // it dropped).
-        0 => "warn,zenoh=error,rustdds=off,ros2_client=error",
+        0 => "warn,zenoh=error,rustdds=off,ros2_client=off",
         1 => "debug",
         _ => "trace",
     };

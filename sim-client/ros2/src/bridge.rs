@@ -25,6 +25,8 @@ const LOOK_EVERY: Duration = Duration::from_millis(500);
 const SLICE: Duration = Duration::from_millis(100);
 /// The same while ticking from ROS: tick messages are read between waits.
 const TICKING_SLICE: Duration = Duration::from_millis(1);
+/// How often the ROS peers ticking the world are counted.
+const PEER_CHECK: Duration = Duration::from_millis(100);
 
 /// An adapter to be run, whose [`Selection`] another thread may change
 /// while it runs (the gateway's `enable_for_ros`).
@@ -90,6 +92,8 @@ struct Ticking {
     ticker: Option<Ticker>,
     /// Whether a ROS peer was seen on the tick topic.
     had_peer: bool,
+    /// When the peers were last counted.
+    counted: Option<Instant>,
 }
 
 /// One running adapter.
@@ -168,6 +172,7 @@ impl<F: FnMut(Event)> Run<F> {
                 ticks,
                 ticker: Some(ticker),
                 had_peer: false,
+                counted: None,
             });
         } else {
             participant = Some(client.join_lockstep(&format!("ros2:{node}"))?);
@@ -247,7 +252,13 @@ impl<F: FnMut(Event)> Run<F> {
         let Some(ticking) = &mut self.ticking else {
             return Ok(());
         };
-        let peers = self.dds.publishers_of(&ticking.ticks);
+        if ticking.counted.is_some_and(|at| at.elapsed() < PEER_CHECK) {
+            return self.take_tick();
+        }
+        ticking.counted = Some(Instant::now());
+        let peers = self
+            .dds
+            .writers_of::<Empty>(&self.naming.world_topic("tick"));
         if peers > 0 {
             ticking.had_peer = true;
         }
@@ -273,8 +284,15 @@ impl<F: FnMut(Event)> Run<F> {
             ticking.ticker = Some(ticker);
             (self.on_event)(Event::TickerClaimed);
         }
-        // One tick per message; messages beyond the first wait for the
-        // next turn, after this frame is published.
+        self.take_tick()
+    }
+
+    /// One tick per message; messages beyond the first wait for the next
+    /// turn, after this frame is published.
+    fn take_tick(&mut self) -> Result<(), Ros2Error> {
+        let Some(ticking) = &mut self.ticking else {
+            return Ok(());
+        };
         match ticking.ticks.take() {
             Ok(Some(_)) => {
                 if let Some(ticker) = &mut ticking.ticker {

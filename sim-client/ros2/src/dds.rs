@@ -180,12 +180,21 @@ impl Dds {
             })
     }
 
-    /// How many DDS writers `subscription` (made by this node) is matched
-    /// with now.
-    pub fn publishers_of<M: Message>(&self, subscription: &Subscription<M>) -> usize {
-        self.node
-            .as_ref()
-            .map_or(0, |node| subscription.get_publisher_count(node))
+    /// How many writers of `M` on the ROS topic `name` the domain has now
+    /// (from discovery: a writer whose participant left, or went silent
+    /// past its lease, is gone).
+    pub fn writers_of<M: Message>(&self, name: &str) -> usize {
+        let topic = format!("rt{name}");
+        let type_name = MessageTypeName::new(M::PACKAGE, M::NAME).dds_msg_type();
+        self.context
+            .domain_participant()
+            .discovered_writers()
+            .iter()
+            .filter(|w| {
+                w.publication_topic_data.topic_name == topic
+                    && w.publication_topic_data.type_name == type_name
+            })
+            .count()
     }
 
     fn node_mut(&mut self) -> &mut Node {

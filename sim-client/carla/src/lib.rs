@@ -23,6 +23,7 @@ mod maps;
 mod navigation;
 pub mod recorder_text;
 mod records;
+mod ros2;
 mod rpc;
 mod sensors;
 mod session;
@@ -70,6 +71,9 @@ pub struct Config {
     /// process) instead of the gateway's native one
     /// (`--client-traffic-manager`).
     pub client_traffic_manager: bool,
+    /// CARLA's native ROS 2 (`--ros2`): publish the sensors scripts enable
+    /// for ROS, and take `hero` vehicles' control, on this DDS domain.
+    pub ros2: Option<u16>,
 }
 
 /// Where the gateway listens, once it does: the ports actually bound.
@@ -158,6 +162,9 @@ pub fn serve(
     hub.maps = maps::Maps::new(config.strict_maps);
     hub.natives =
         traffic_manager::Natives::new(!config.client_traffic_manager, host, world.as_str());
+    if let Some(domain_id) = config.ros2 {
+        hub.ros2 = ros2::Ros2::start(world.as_str(), domain_id, config.timeout);
+    }
     let hub = Arc::new(hub);
     {
         let hub = hub.clone();

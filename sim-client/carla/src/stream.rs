@@ -166,6 +166,8 @@ pub(crate) struct Hub {
     pub(crate) traffic_managers: Mutex<crate::traffic_managers::Registry>,
     /// The gateway's own traffic managers, by port.
     pub(crate) natives: crate::traffic_manager::Natives,
+    /// CARLA's native ROS 2: the sensors enabled for it, and its adapter.
+    pub(crate) ros2: crate::ros2::Ros2,
     /// The recording a CARLA client started, while it runs.
     pub(crate) recording: Mutex<Option<std::path::PathBuf>>,
     /// The weather CARLA clients set (simbus renders no sky).
@@ -194,6 +196,7 @@ impl Default for Hub {
             maps: crate::maps::Maps::default(),
             traffic_managers: Mutex::default(),
             natives: crate::traffic_manager::Natives::default(),
+            ros2: crate::ros2::Ros2::default(),
             recording: Mutex::default(),
             weather: Mutex::new(carla::CLEAR_NOON),
             signals: Mutex::default(),

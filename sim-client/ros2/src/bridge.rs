@@ -149,7 +149,13 @@ impl<F: FnMut(Event)> Run<F> {
         let node = format!("simbus_{}", sanitize(world));
         let mut dds = Dds::join(config.domain_id, &node, config.lockstep)?;
         let naming = config.naming.clone();
-        let clock = dds.publisher("/clock", Qos::Clock)?;
+        // CARLA's clock is latched like its other topics (a reader asking
+        // for transient local gets it); simbus's keeps every tick.
+        let clock_qos = match naming {
+            Naming::Carla => Qos::Carla,
+            Naming::Simbus { .. } => Qos::Clock,
+        };
+        let clock = dds.publisher("/clock", clock_qos)?;
         let tf = dds.publisher("/tf", Qos::Reliable)?;
         let tf_static = dds.publisher("/tf_static", Qos::Latched)?;
         let markers = if config.markers {

@@ -51,6 +51,9 @@ impl Naming {
 
     /// The frame of an actor known only by id (a sensor's parent).
     pub fn parent_frame(&self, id: u64, actors: &[ActorState], selection: &Selection) -> String {
+        if let Some(name) = selection.actor_names.get(&id) {
+            return name.clone();
+        }
         actors
             .iter()
             .find(|a| a.id == id)

@@ -153,6 +153,15 @@ pub(super) fn definitions() -> &'static [Definition] {
             tags: "controller,ai,walker".to_string(),
             attributes: vec![Attr::choice("role_name", Kind::String, &[""], false)],
         });
+        // CARLA gives every blueprint its ROS 2 names (native ROS 2,
+        // `--ros2`): the topic and frame names, and whether it sends /tf.
+        for definition in &mut all {
+            definition.attributes.extend([
+                Attr::choice("ros_name", Kind::String, &[""], false),
+                Attr::choice("ros_frame_id", Kind::String, &[""], false),
+                Attr::choice("ros_publish_tf", Kind::Bool, &["true"], false),
+            ]);
+        }
         all
     })
 }

@@ -314,6 +314,11 @@ impl Description {
         })
     }
 
+    /// The value of attribute `name` (the script's, or the default).
+    pub(crate) fn value(&self, name: &str) -> Option<&str> {
+        self.values.get(name).map(String::as_str)
+    }
+
     /// The description as an actor's record carries it: the blueprint's
     /// uid (a body's uid is its simbus kind), its id, and every attribute
     /// of the blueprint with the value the script set (or the default).

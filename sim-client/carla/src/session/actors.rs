@@ -106,6 +106,7 @@ impl Session {
             ),
         };
         let id = self.spawn(&description, &transform, parent)?;
+        self.hub.ros2.spawned(id, &description);
         self.show_spawned(&[id]);
         let record = self.actor_record(id).ok_or(CallError::Vanished(id))?;
         Ok(Answer::Value(record))

@@ -13,6 +13,7 @@ mod debug;
 mod lights;
 mod physics;
 mod recorder;
+mod ros2;
 mod spawned;
 pub(crate) mod traffic;
 mod vehicle_state;
@@ -105,6 +106,9 @@ fn call_of(method: &str) -> Option<Call> {
         "draw_debug_shape" => Session::on_draw_debug_shape,
         "get_spectator" => Session::on_get_spectator,
         "get_actor_definitions" => Session::on_get_actor_definitions,
+        "enable_sensor_for_ros" => Session::on_enable_sensor_for_ros,
+        "disable_sensor_for_ros" => Session::on_disable_sensor_for_ros,
+        "is_sensor_enabled_for_ros" => Session::on_is_sensor_enabled_for_ros,
         "get_actor_bounding_box" => Session::on_get_actor_bounding_box,
         "get_physics_control" => Session::on_get_physics_control,
         "apply_physics_control" => Session::on_apply_physics_control,

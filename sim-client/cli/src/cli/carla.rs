@@ -43,9 +43,24 @@ pub(crate) struct GatewayArgs {
     /// steps in lockstep with the world and cannot deadlock.
     #[arg(long)]
     client_traffic_manager: bool,
+    /// CARLA's native ROS 2 (CARLA's server flag): publish /clock every
+    /// frame and the sensors scripts enable with `enable_for_ros()` under
+    /// CARLA's topic names (/carla/<parent ros_name>/<ros_name>/...), and
+    /// drive `hero` vehicles from /carla/<ros_name>/vehicle_control_cmd.
+    #[arg(long)]
+    ros2: bool,
+    /// The ROS 2 domain with --ros2 (DDS domain id, 0..=232).
+    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    ros_domain_id: u16,
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Result<(), Failure> {
+    if args.ros_domain_id > 232 {
+        return Err(Failure::Refused(anyhow::anyhow!(
+            "ROS domain id {} is out of range: 0..=232",
+            args.ros_domain_id
+        )));
+    }
     let config = Config {
         host: args.host,
         port: args.port,
@@ -53,6 +68,7 @@ pub(crate) fn run(world: &WorldName, timeout: Duration, args: GatewayArgs) -> Re
         timeout,
         strict_maps: args.strict_maps,
         client_traffic_manager: args.client_traffic_manager,
+        ros2: args.ros2.then_some(args.ros_domain_id),
     };
     let host = config.host.as_str();
     // Ctrl-C / SIGTERM end the gateway: they wake it, it never polls.

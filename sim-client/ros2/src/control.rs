@@ -27,10 +27,12 @@ fn within(name: &str, value: f32, lo: f32, hi: f32) -> Result<f32, String> {
 
 /// A 0/1 flag.
 fn flag(name: &str, value: f32) -> Result<bool, String> {
-    match value {
-        v if v == 0.0 => Ok(false),
-        v if v == 1.0 => Ok(true),
-        v => Err(format!("{name} {v} is neither 0 nor 1")),
+    if value == 0.0 {
+        Ok(false)
+    } else if value == 1.0 {
+        Ok(true)
+    } else {
+        Err(format!("{name} {value} is neither 0 nor 1"))
     }
 }
 
@@ -48,6 +50,11 @@ fn drive(
 }
 
 /// simbus's own control array.
+///
+/// # Errors
+///
+/// The reason, naming the value, if the array holds fewer than 3 or more
+/// than 7 values or one is out of range (or not a number).
 pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, String> {
     let d = &message.data;
     if !(3..=7).contains(&d.len()) {
@@ -68,6 +75,10 @@ pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, 
 }
 
 /// CARLA's control message (steer positive right).
+///
+/// # Errors
+///
+/// The reason, naming the field, if one is out of range (or not a number).
 pub fn from_carla(vehicle: u64, message: &CarlaEgoVehicleControl) -> Result<Command, String> {
     let steer = within("steer", message.steer, -1.0, 1.0)?;
     drive(
@@ -79,6 +90,10 @@ pub fn from_carla(vehicle: u64, message: &CarlaEgoVehicleControl) -> Result<Comm
 }
 
 /// An Ackermann target.
+///
+/// # Errors
+///
+/// The reason, naming the field, if one is out of range (or not a number).
 pub fn from_ackermann(vehicle: u64, message: &AckermannDriveStamped) -> Result<Command, String> {
     let d = &message.drive;
     let half_turn = std::f32::consts::FRAC_PI_2;

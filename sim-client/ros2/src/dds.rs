@@ -94,6 +94,11 @@ impl std::fmt::Debug for Dds {
 impl Dds {
     /// Joins DDS domain `domain_id` as the node `name` (in `/`).
     /// `lockstep`: sensor data and the clock are reliable and blocking.
+    ///
+    /// # Errors
+    ///
+    /// [`Ros2Error::Dds`] if DDS cannot join the domain (its ports are
+    /// taken, the id is out of range) or make the node.
     pub fn join(domain_id: u16, name: &str, lockstep: bool) -> Result<Self, Ros2Error> {
         let dds = |what: &str| {
             let what = what.to_owned();
@@ -133,6 +138,11 @@ impl Dds {
     }
 
     /// A publisher of `M` on the ROS topic `name` (absolute: `/clock`).
+    ///
+    /// # Errors
+    ///
+    /// [`Ros2Error::Topic`] if DDS refuses the topic (the domain has it
+    /// with another type) or the publisher.
     pub fn publisher<M: Message>(
         &mut self,
         name: &str,
@@ -159,6 +169,10 @@ impl Dds {
     }
 
     /// A subscription to `M` on the ROS topic `name`.
+    ///
+    /// # Errors
+    ///
+    /// [`Ros2Error::Topic`] if DDS refuses the topic or the subscription.
     pub fn subscription<M: Message>(&mut self, name: &str) -> Result<Subscription<M>, Ros2Error> {
         let profile = Qos::Command.profile(false);
         let topic = self

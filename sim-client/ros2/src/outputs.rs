@@ -16,7 +16,7 @@ use crate::Ros2Error;
 /// Where one sensor's captures go.
 pub(crate) enum Out {
     /// A camera: the image and its model.
-    Camera(Publisher<Image>, Publisher<CameraInfo>, Camera),
+    Camera(Box<(Publisher<Image>, Publisher<CameraInfo>, Camera)>),
     /// A lidar, semantic lidar or radar.
     Cloud(Publisher<PointCloud2>),
     /// An IMU.
@@ -63,7 +63,7 @@ impl SensorOut {
                 };
                 let info = dds.publisher(&info, qos)?;
                 (
-                    Out::Camera(dds.publisher(&at, qos)?, info, camera),
+                    Out::Camera(Box::new((dds.publisher(&at, qos)?, info, camera))),
                     naming.image_frame(frame),
                 )
             }
@@ -91,7 +91,8 @@ impl SensorOut {
     pub(crate) fn publish(&self, capture: &Capture) -> bool {
         let frame_id = self.frame_id.as_str();
         match &self.out {
-            Out::Camera(image, info, camera) => {
+            Out::Camera(camera) => {
+                let (image, info, camera) = camera.as_ref();
                 let Some(message) = convert::image(capture, frame_id) else {
                     return true;
                 };

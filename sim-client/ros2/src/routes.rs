@@ -152,6 +152,10 @@ impl Naming {
 /// in the form topics are built from (`/simbus`, `""`), or why not: ROS
 /// names are letters, digits and `_`, each part starting with a letter or
 /// `_`.
+///
+/// # Errors
+///
+/// Why `given` is not a namespace.
 pub fn namespace(given: &str) -> Result<String, String> {
     let trimmed = given.trim_matches('/');
     if trimmed.is_empty() {

@@ -35,6 +35,7 @@ mod peer;
 mod plot;
 mod python;
 mod recorder;
+mod ros2;
 mod scaling;
 mod sensors;
 mod shapes;
@@ -99,6 +100,11 @@ enum Command {
     /// 1 and 8 MiB captures across the link; ticks per second with 1000
     /// actors; the ownership release bound after the link drops.
     Zenoh(zenoh::ZenohArgs),
+    /// ROS 2: `sim-client ros2` to a stock rclpy node, beside rclpy to
+    /// rclpy (the DDS floor): /clock and 800x600 image latency, /clock
+    /// ticks per second with none missed, four 800x600 cameras' frames per
+    /// second (needs `cargo build --release` and the test suite's venv).
+    Ros2(ros2::Ros2Args),
     /// The measuring client of `zenoh` (run in the host it measures from).
     #[command(hide = true)]
     ZenohPeer(zenoh_peer::ZenohPeerArgs),
@@ -125,6 +131,7 @@ fn main() -> ExitCode {
         Command::Substeps(a) => substeps::run(a),
         Command::Walkers(a) => walkers::run(a),
         Command::Zenoh(a) => zenoh::run(a),
+        Command::Ros2(a) => ros2::run(a),
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => peer::peer(a),

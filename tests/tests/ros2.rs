@@ -40,6 +40,9 @@ fn tf_holds_every_moving_actor_in_ros_axes_and_carla_control_drives_a_vehicle() 
     let car = client
         .spawn_actor(shared_types::Command::spawn_vehicle([0.0, 0.6, 20.0]))
         .expect("a vehicle");
+    // The spawn shows from the next frame on (the adapter drives vehicles
+    // the world has).
+    ticker.tick(Duration::from_secs(10)).expect("a tick");
     let domain = domain(0);
     let _adapter = adapter(&world, domain, &["--vehicles", &car.to_string()]);
     let mut dds = Dds::join(domain, "simbus_test", false).expect("a DDS node");
@@ -134,6 +137,13 @@ fn bad_input_is_refused_with_the_reason_and_a_second_ticker_names_the_first() {
     assert!(
         namespace.stderr.contains("not a ROS namespace"),
         "{namespace}"
+    );
+
+    let unknown = world.cli(&["ros2", "--domain-id", "231", "--vehicles", "999"]);
+    unknown.assert_code(1);
+    assert!(
+        unknown.stderr.contains("vehicle 999 is not in world"),
+        "{unknown}"
     );
 
     let domain = domain(7);

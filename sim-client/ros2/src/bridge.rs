@@ -115,6 +115,8 @@ struct Run<F> {
     last_look: Option<Instant>,
     /// The sensors' mounts last sent on `/tf_static`.
     mounts: Vec<TransformStamped>,
+    /// The last frame's actors.
+    actors: Vec<ActorState>,
     /// The last frame published: (episode, frame).
     last: Option<(u64, u64)>,
     published: Published,
@@ -146,6 +148,10 @@ impl<F: FnMut(Event)> Run<F> {
         let mut client = Client::connect(world, config.timeout)?;
         client.set_request_timeout(config.timeout);
         client.set_wait_mode(WaitMode::Hybrid);
+        // The world's actors now (the current frame, which a new reader
+        // gets once): the sensors' parents and the vehicles before a tick.
+        let actors = client.wait_for_frame(config.timeout)?.actors().to_vec();
+        check_selection(&client, &config.selection, &actors)?;
         let node = format!("simbus_{}", sanitize(world));
         let mut dds = Dds::join(config.domain_id, &node, config.lockstep)?;
         let naming = config.naming.clone();
@@ -204,6 +210,7 @@ impl<F: FnMut(Event)> Run<F> {
             selection: Selection::default(),
             last_look: None,
             mounts: Vec::new(),
+            actors,
             last: None,
             published: Published::default(),
             on_event,
@@ -223,7 +230,10 @@ impl<F: FnMut(Event)> Run<F> {
                 Ok(frame) => frame,
                 // A paused world (synchronous, nobody ticking): keep serving.
                 Err(WaitError::Timeout { .. }) => {
-                    self.look(None)?;
+                    let actors = std::mem::take(&mut self.actors);
+                    let looked = self.look(&actors);
+                    self.actors = actors;
+                    looked?;
                     continue;
                 }
                 Err(e) => return Err(e.into()),
@@ -233,7 +243,10 @@ impl<F: FnMut(Event)> Run<F> {
                 continue; // the current frame, given again to a new reader
             }
             self.published.missed_frames += frame.missed();
-            self.look(Some(frame.actors()))?;
+            // Kept for the looks between frames (no allocation once grown).
+            self.actors.clear();
+            self.actors.extend_from_slice(frame.actors());
+            self.look(frame.actors())?;
             self.publish(&frame);
             self.apply_controls();
             self.last = Some(key);
@@ -315,7 +328,7 @@ impl<F: FnMut(Event)> Run<F> {
     /// Applies the shared selection if it changed, and looks for sensors
     /// and vehicles come or gone (at most every [`LOOK_EVERY`] unless the
     /// selection changed).
-    fn look(&mut self, actors: Option<&[ActorState]>) -> Result<(), Ros2Error> {
+    fn look(&mut self, actors: &[ActorState]) -> Result<(), Ros2Error> {
         let current = self
             .shared
             .lock()
@@ -330,13 +343,16 @@ impl<F: FnMut(Event)> Run<F> {
         let infos: Vec<SensorInfo> = self.client.list_sensors()?;
         let wanted =
             |id: u64, s: &Selection| s.sensors.as_ref().is_none_or(|only| only.contains(&id));
-        self.sensors
-            .retain(|id, _| infos.iter().any(|i| i.id == *id) && wanted(*id, &self.selection));
-        if changed {
-            // Renamed sensors get new topics.
-            self.sensors.clear();
-        }
-        let actors = actors.unwrap_or_default();
+        let (naming, selection) = (&self.naming, &self.selection);
+        // Sensors gone, no longer selected, or renamed (their topics change).
+        self.sensors.retain(|id, out| {
+            infos.iter().find(|i| i.id == *id).is_some_and(|info| {
+                let parent = (info.spec.attach_to != 0)
+                    .then(|| naming.parent_frame(info.spec.attach_to, actors, selection));
+                wanted(*id, selection)
+                    && naming.sensor_topic(*id, parent.as_deref(), selection) == out.topic
+            })
+        });
         for info in &infos {
             if self.sensors.contains_key(&info.id) || !wanted(info.id, &self.selection) {
                 continue;
@@ -562,6 +578,38 @@ fn drain<M: crate::msg::Message>(
             Err(e) => parsed.push(Err(format!("malformed {}: {e:?}", M::NAME))),
         }
     }
+}
+
+/// Refuses a selection naming a vehicle or sensor the world does not have
+/// (now: one spawned later is not yet known).
+fn check_selection(
+    client: &Client,
+    selection: &Selection,
+    actors: &[ActorState],
+) -> Result<(), Ros2Error> {
+    if let Some(vehicles) = &selection.vehicles {
+        let known: BTreeSet<u64> = actors
+            .iter()
+            .filter(|a| a.actor_kind() == Some(ActorKind::Vehicle))
+            .map(|a| a.id)
+            .collect();
+        if let Some(unknown) = vehicles.iter().find(|v| !known.contains(v)) {
+            return Err(Ros2Error::Unknown(format!(
+                "vehicle {unknown} is not in world '{}' (its vehicles: {known:?})",
+                client.world()
+            )));
+        }
+    }
+    if let Some(sensors) = &selection.sensors {
+        let known: BTreeSet<u64> = client.list_sensors()?.iter().map(|i| i.id).collect();
+        if let Some(unknown) = sensors.iter().find(|s| !known.contains(s)) {
+            return Err(Ros2Error::Unknown(format!(
+                "sensor {unknown} is not in world '{}' (its sensors: {known:?})",
+                client.world()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// `world` as a ROS node name's part: letters, digits and `_`.

@@ -13,6 +13,13 @@ use ros2_client::{
 use crate::msg::Message;
 use crate::Ros2Error;
 
+/// How long a reliable publication waits for room in its send window
+/// (readers acknowledge what they got when the writer's heartbeat asks,
+/// every 100 ms while one is behind): past it the message is dropped and
+/// counted. A reader that is gone holds the adapter this long per message
+/// until DDS notices (its lease).
+const ACK_WAIT: Duration = Duration::from_millis(500);
+
 /// The QoS of one publication.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Qos {
@@ -20,7 +27,7 @@ pub enum Qos {
     /// `qos_profile_sensor_data`); with `--lockstep`, reliable and
     /// blocking instead, so a slow reader holds the world.
     SensorData,
-    /// `/clock`: reliable, volatile, the last 4096 (rclpy's time source
+    /// `/clock`: reliable, volatile, the last 16384 (rclpy's time source
     /// reads it best effort, depth 1; a reliable reader gets every tick).
     Clock,
     /// `/tf`, odometry, markers, events: reliable, volatile, the last 100
@@ -51,13 +58,13 @@ impl Qos {
                 .reliability(reliable(WhenFull::Block))
                 .history(History::KeepAll),
             // A reader acknowledges in batches (a heartbeat apart): at
-            // thousands of ticks a second the clock keeps a second's worth
-            // so that a reliable reader misses none.
+            // ten thousand ticks a second the clock keeps over a second's
+            // worth, so that a reliable reader misses none.
             Self::Clock => base
-                .reliability(reliable(WhenFull::Wait(Duration::from_millis(100))))
-                .history(keep(4096)),
+                .reliability(reliable(WhenFull::Wait(ACK_WAIT)))
+                .history(keep(16384)),
             Self::Reliable => base
-                .reliability(reliable(WhenFull::Wait(Duration::from_millis(100))))
+                .reliability(reliable(WhenFull::Wait(ACK_WAIT)))
                 .history(keep(100)),
             Self::Latched => base
                 .reliability(reliable(WhenFull::Wait(Duration::from_millis(100))))

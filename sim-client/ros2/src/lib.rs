@@ -145,6 +145,9 @@ pub enum Ros2Error {
     /// Refused input: nothing was started.
     #[error("{0}")]
     Refused(String),
+    /// A vehicle or sensor asked for is not in the world (named).
+    #[error("{0}")]
+    Unknown(String),
     /// DDS failed.
     #[error("ROS 2: {what}: {reason}")]
     Dds {

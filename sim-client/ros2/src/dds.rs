@@ -5,6 +5,7 @@
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use ros2_client::dds::rustdds::Topic;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Node, NodeName, NodeOptions, Publisher, Subscription,
@@ -156,23 +157,10 @@ impl Dds {
         qos: Qos,
     ) -> Result<Publisher<M>, Ros2Error> {
         let profile = qos.profile(self.lockstep);
-        let topic = self
-            .context
-            .create_topic(
-                format!("rt{name}"),
-                MessageTypeName::new(M::PACKAGE, M::NAME),
-                &profile,
-            )
-            .map_err(|e| Ros2Error::Topic {
-                topic: name.to_owned(),
-                reason: e.to_string(),
-            })?;
+        let topic = self.topic::<M>(name, &profile)?;
         self.node_mut()
             .create_publisher(&topic, Some(profile))
-            .map_err(|e| Ros2Error::Topic {
-                topic: name.to_owned(),
-                reason: e.to_string(),
-            })
+            .map_err(|e| refused(name, &e))
     }
 
     /// A subscription to `M` on the ROS topic `name`.
@@ -182,23 +170,21 @@ impl Dds {
     /// [`Ros2Error::Topic`] if DDS refuses the topic or the subscription.
     pub fn subscription<M: Message>(&mut self, name: &str) -> Result<Subscription<M>, Ros2Error> {
         let profile = Qos::Command.profile(false);
-        let topic = self
-            .context
+        let topic = self.topic::<M>(name, &profile)?;
+        self.node_mut()
+            .create_subscription(&topic, Some(profile))
+            .map_err(|e| refused(name, &e))
+    }
+
+    /// The DDS topic of ROS topic `name` (`rt` + the name) carrying `M`.
+    fn topic<M: Message>(&self, name: &str, profile: &QosProfile) -> Result<Topic, Ros2Error> {
+        self.context
             .create_topic(
                 format!("rt{name}"),
                 MessageTypeName::new(M::PACKAGE, M::NAME),
-                &profile,
+                profile,
             )
-            .map_err(|e| Ros2Error::Topic {
-                topic: name.to_owned(),
-                reason: e.to_string(),
-            })?;
-        self.node_mut()
-            .create_subscription(&topic, Some(profile))
-            .map_err(|e| Ros2Error::Topic {
-                topic: name.to_owned(),
-                reason: e.to_string(),
-            })
+            .map_err(|e| refused(name, &e))
     }
 
     /// How many writers of `M` on the ROS topic `name` the domain has now
@@ -222,6 +208,14 @@ impl Dds {
         self.node
             .as_mut()
             .expect("the node lives until the adapter is dropped")
+    }
+}
+
+/// DDS's refusal of topic `name`.
+fn refused(name: &str, error: &dyn std::fmt::Display) -> Ros2Error {
+    Ros2Error::Topic {
+        topic: name.to_owned(),
+        reason: error.to_string(),
     }
 }
 

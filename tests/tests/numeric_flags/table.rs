@@ -279,6 +279,24 @@ pub(crate) const FLAGS: &[Flag] = &[
         &[],
         ZERO,
     ),
+    client_flag(
+        &["carla-gateway", "--port", "0"],
+        "--ros-domain-id",
+        "{}",
+        &[],
+        ZERO,
+    ),
+    // ROS 2 (a domain 0..=232; ids of sensors and vehicles)
+    client_flag(&["ros2"], "--domain-id", "{}", &[], ZERO),
+    client_flag(&["ros2"], "--sensors", "{}", &[], ZERO),
+    client_flag(&["ros2"], "--vehicles", "{}", &[], ZERO),
+    client_flag(
+        &["ros2", "--tick-from-ros"],
+        "--delta-seconds",
+        "{}",
+        &[],
+        NONE,
+    ),
 ];
 
 /// Options and arguments that take a value but not a number.
@@ -298,6 +316,7 @@ pub(crate) const NOT_NUMERIC: &[&str] = &[
     "--kind1",
     "--kind2",
     "--mode",
+    "--namespace",
     "<FILE>",
     "<KIND>",
     "<COMMAND>",

@@ -50,7 +50,12 @@ pub(crate) struct GatewayArgs {
     #[arg(long)]
     ros2: bool,
     /// The ROS 2 domain with --ros2 (DDS domain id, 0..=232).
-    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    #[arg(
+        long,
+        env = "ROS_DOMAIN_ID",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     ros_domain_id: u16,
 }
 

@@ -14,7 +14,12 @@ use crate::cli::failure::Failure;
 #[derive(Debug, Args)]
 pub(crate) struct Ros2Args {
     /// The ROS 2 domain (DDS domain id, 0..=232).
-    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    #[arg(
+        long,
+        env = "ROS_DOMAIN_ID",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     domain_id: u16,
     /// The namespace of the world's topics (`/clock`, `/tf` and
     /// `/tf_static` stay at the root, where ROS looks for them).
@@ -22,11 +27,21 @@ pub(crate) struct Ros2Args {
     namespace: String,
     /// Publish only these sensors (ids, comma-separated; default: every
     /// sensor of the world, and those spawned later).
-    #[arg(long, value_delimiter = ',', value_name = "IDS")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "IDS",
+        allow_negative_numbers = true
+    )]
     sensors: Option<Vec<u64>>,
     /// Drive only these vehicles from ROS (ids, comma-separated; default:
     /// every vehicle).
-    #[arg(long, value_delimiter = ',', value_name = "IDS")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "IDS",
+        allow_negative_numbers = true
+    )]
     vehicles: Option<Vec<u64>>,
     /// Be the world's ticker: synchronous mode with --delta-seconds, one
     /// frame per message on `<namespace>/tick` (std_msgs/Empty). The ticker
@@ -35,7 +50,7 @@ pub(crate) struct Ros2Args {
     #[arg(long)]
     tick_from_ros: bool,
     /// The fixed step while ticking from ROS, seconds.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    #[arg(long, value_name = "S", default_value_t = 0.05, allow_negative_numbers = true, value_parser = simbus_input::fixed_step)]
     delta_seconds: f64,
     /// Every publication reliable and blocking: in synchronous mode a slow
     /// ROS reader holds the world instead of missing a frame.

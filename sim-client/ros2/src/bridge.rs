@@ -6,18 +6,23 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use ros2_client::{Publisher, Subscription};
-use shared_types::{ActorKind, ActorState, Command, SensorInfo, WorldSettings};
-use sim_client::{Client, FrameView, Participant, Ticker, WaitError, WaitMode};
+use ros2_client::Publisher;
+use shared_types::{ActorKind, ActorState, SensorInfo, WorldSettings};
+use sim_client::{Client, FrameView, Participant, WaitError, WaitMode};
 use tracing::{debug, info, warn};
 
 use crate::dds::{Dds, Qos};
 use crate::msg::{
-    Clock, Empty, Header, MarkerArray, TfMessage, Time, Transform, TransformStamped, Vector3,
+    Clock, Header, MarkerArray, TfMessage, Time, Transform, TransformStamped, Vector3,
 };
 use crate::outputs::{SensorOut, VehicleOut};
 use crate::routes::{Naming, Selection};
-use crate::{axes, control, scene, Config, Event, Published, Ros2Error};
+use crate::{axes, scene, Config, Event, Published, Ros2Error};
+
+mod controls;
+mod ticking;
+
+use ticking::Ticking;
 
 /// How often the adapter looks for sensors and vehicles spawned since.
 const LOOK_EVERY: Duration = Duration::from_millis(500);
@@ -83,17 +88,6 @@ pub fn run(
     on_event: impl FnMut(Event),
 ) -> Result<Published, Ros2Error> {
     Bridge::new(config.clone()).run(world, stop, on_event)
-}
-
-/// Ticking from ROS: the tick topic and, while a ROS peer publishes on
-/// it, the world's ticker.
-struct Ticking {
-    ticks: Subscription<Empty>,
-    ticker: Option<Ticker>,
-    /// Whether a ROS peer was seen on the tick topic.
-    had_peer: bool,
-    /// When the peers were last counted.
-    counted: Option<Instant>,
 }
 
 /// One running adapter.
@@ -263,66 +257,6 @@ impl<F: FnMut(Event)> Run<F> {
             }
         }
         Ok(self.published)
-    }
-
-    /// Takes the tick topic's messages: one frame each; claims or lets go
-    /// of the ticker as the ROS peer comes and goes.
-    fn serve_ticks(&mut self) -> Result<(), Ros2Error> {
-        let Some(ticking) = &mut self.ticking else {
-            return Ok(());
-        };
-        if ticking.counted.is_some_and(|at| at.elapsed() < PEER_CHECK) {
-            return self.take_tick();
-        }
-        ticking.counted = Some(Instant::now());
-        let peers = self
-            .dds
-            .writers_of::<Empty>(&self.naming.world_topic("tick"));
-        if peers > 0 {
-            ticking.had_peer = true;
-        }
-        if peers == 0 && ticking.had_peer {
-            if let Some(ticker) = ticking.ticker.take() {
-                let _ = ticker.release();
-                (self.on_event)(Event::TickerReleased {
-                    reason: "the ROS node ticking the world left".into(),
-                });
-            }
-            ticking.had_peer = false;
-        }
-        if peers > 0 && ticking.ticker.is_none() {
-            let mut ticker = self.client.claim_ticker_as(&format!(
-                "ros2-simbus_{}",
-                sanitize(self.client.world().as_str())
-            ))?;
-            ticker.apply_settings(WorldSettings {
-                synchronous_mode: true,
-                fixed_delta_seconds: Some(self.config.delta_seconds),
-                ..self.client.get_settings()?
-            })?;
-            ticking.ticker = Some(ticker);
-            (self.on_event)(Event::TickerClaimed);
-        }
-        self.take_tick()
-    }
-
-    /// One tick per message; messages beyond the first wait for the next
-    /// turn, after this frame is published.
-    fn take_tick(&mut self) -> Result<(), Ros2Error> {
-        let Some(ticking) = &mut self.ticking else {
-            return Ok(());
-        };
-        match ticking.ticks.take() {
-            Ok(Some(_)) => {
-                if let Some(ticker) = &mut ticking.ticker {
-                    ticker.tick(self.config.timeout)?;
-                    self.published.ticks += 1;
-                }
-            }
-            Ok(None) => {}
-            Err(e) => debug!("a tick message could not be read: {e:?}"),
-        }
-        Ok(())
     }
 
     /// Applies the shared selection if it changed, and looks for sensors
@@ -512,71 +446,6 @@ impl<F: FnMut(Event)> Run<F> {
         }
         self.published.send_failures += failures;
         self.published.frames += 1;
-    }
-
-    /// Each vehicle's newest valid control from ROS, applied in one batch
-    /// (before this frame's `done`: it lands in the next step).
-    fn apply_controls(&mut self) {
-        let mut commands: Vec<Command> = Vec::new();
-        let mut refused: Vec<(u64, String)> = Vec::new();
-        for (&id, vehicle) in &self.vehicles {
-            let mut parsed: Vec<Result<Command, String>> = Vec::new();
-            if let Some(control) = &vehicle.control {
-                drain(control, |m| control::from_array(id, m), &mut parsed);
-            }
-            drain(&vehicle.carla, |m| control::from_carla(id, m), &mut parsed);
-            drain(
-                &vehicle.ackermann,
-                |m| control::from_ackermann(id, m),
-                &mut parsed,
-            );
-            let mut newest = None;
-            for result in parsed {
-                match result {
-                    Ok(command) => newest = Some(command),
-                    Err(reason) => refused.push((id, reason)),
-                }
-            }
-            commands.extend(newest);
-        }
-        if !commands.is_empty() {
-            match self.client.apply_batch_sync(&commands, false) {
-                Ok(response) => {
-                    for (i, status) in response.errors() {
-                        let vehicle = commands.get(i).map_or(0, |c| c.actor);
-                        refused.push((vehicle, format!("simbus refused it: {status}")));
-                    }
-                    let applied = commands.len() - response.errors().len();
-                    self.published.controls_applied += applied as u64;
-                }
-                Err(e) => warn!("vehicle controls from ROS not applied: {e}"),
-            }
-        }
-        for (vehicle, reason) in refused {
-            self.published.controls_dropped += 1;
-            warn!(vehicle, "control from ROS dropped: {reason}");
-            (self.on_event)(Event::ControlDropped {
-                vehicle,
-                reason,
-                dropped: self.published.controls_dropped,
-            });
-        }
-    }
-}
-
-/// Every message waiting on `subscription`, each as `parse` reads it; a
-/// message that cannot be read (malformed CDR) is refused.
-fn drain<M: crate::msg::Message>(
-    subscription: &Subscription<M>,
-    parse: impl Fn(&M) -> Result<Command, String>,
-    parsed: &mut Vec<Result<Command, String>>,
-) {
-    loop {
-        match subscription.take() {
-            Ok(Some((message, _))) => parsed.push(parse(&message)),
-            Ok(None) => return,
-            Err(e) => parsed.push(Err(format!("malformed {}: {e:?}", M::NAME))),
-        }
     }
 }
 

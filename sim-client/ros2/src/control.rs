@@ -16,23 +16,68 @@ use shared_types::Command;
 
 use crate::msg::{AckermannDriveStamped, CarlaEgoVehicleControl, Float32MultiArray};
 
+/// Why a control message was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ControlError {
+    /// A value out of its range, or not a number.
+    #[error("{name} {value} is outside {lo}..={hi}")]
+    OutOfRange {
+        /// The field.
+        name: &'static str,
+        /// Its value.
+        value: f32,
+        /// The least it may be.
+        lo: f32,
+        /// The most it may be.
+        hi: f32,
+    },
+    /// A 0/1 flag of another value.
+    #[error("{name} {value} is neither 0 nor 1")]
+    NotAFlag {
+        /// The field.
+        name: &'static str,
+        /// Its value.
+        value: f32,
+    },
+    /// A gear that is not a whole number in -1..=10.
+    #[error("gear {0} is not a whole number in -1..=10")]
+    Gear(f32),
+    /// A control array of the wrong length.
+    #[error("{0} values; the control array holds 3 to 7 (throttle, steer, brake, hand_brake, reverse, manual_gear_shift, gear)")]
+    Length(usize),
+    /// Bytes that are not the topic's message (CDR that does not decode).
+    #[error("malformed {message}: {reason}")]
+    Malformed {
+        /// The message expected.
+        message: &'static str,
+        /// The decoder's reason.
+        reason: String,
+    },
+}
+
 /// `value` if finite and within `lo..=hi`, else why not.
-fn within(name: &str, value: f32, lo: f32, hi: f32) -> Result<f32, String> {
+fn within(name: &'static str, value: f32, lo: f32, hi: f32) -> Result<f32, ControlError> {
     if value.is_finite() && (lo..=hi).contains(&value) {
         Ok(value)
     } else {
-        Err(format!("{name} {value} is outside {lo}..={hi}"))
+        Err(ControlError::OutOfRange {
+            name,
+            value,
+            lo,
+            hi,
+        })
     }
 }
 
 /// A 0/1 flag.
-fn flag(name: &str, value: f32) -> Result<bool, String> {
+fn flag(name: &'static str, value: f32) -> Result<bool, ControlError> {
     if value == 0.0 {
         Ok(false)
     } else if value == 1.0 {
         Ok(true)
     } else {
-        Err(format!("{name} {value} is neither 0 nor 1"))
+        Err(ControlError::NotAFlag { name, value })
     }
 }
 
@@ -42,7 +87,7 @@ fn drive(
     (throttle, steer_left, brake): (f32, f32, f32),
     hand_brake: bool,
     reverse: bool,
-) -> Result<Command, String> {
+) -> Result<Command, ControlError> {
     let throttle = within("throttle", throttle, 0.0, 1.0)?;
     let steer = within("steer", steer_left, -1.0, 1.0)?;
     let brake = within("brake", brake, 0.0, 1.0)?;
@@ -55,13 +100,10 @@ fn drive(
 ///
 /// The reason, naming the value, if the array holds fewer than 3 or more
 /// than 7 values or one is out of range (or not a number).
-pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, String> {
+pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, ControlError> {
     let d = &message.data;
     if !(3..=7).contains(&d.len()) {
-        return Err(format!(
-            "{} values; the control array holds 3 to 7 (throttle, steer, brake, hand_brake, reverse, manual_gear_shift, gear)",
-            d.len()
-        ));
+        return Err(ControlError::Length(d.len()));
     }
     let at = |i: usize| d.get(i).copied().unwrap_or(0.0);
     let hand_brake = flag("hand_brake", at(3))?;
@@ -69,7 +111,7 @@ pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, 
     flag("manual_gear_shift", at(5))?;
     let gear = at(6);
     if !(gear.is_finite() && gear.fract() == 0.0 && (-1.0..=10.0).contains(&gear)) {
-        return Err(format!("gear {gear} is not a whole number in -1..=10"));
+        return Err(ControlError::Gear(gear));
     }
     drive(vehicle, (d[0], d[1], d[2]), hand_brake, reverse)
 }
@@ -79,7 +121,7 @@ pub fn from_array(vehicle: u64, message: &Float32MultiArray) -> Result<Command, 
 /// # Errors
 ///
 /// The reason, naming the field, if one is out of range (or not a number).
-pub fn from_carla(vehicle: u64, message: &CarlaEgoVehicleControl) -> Result<Command, String> {
+pub fn from_carla(vehicle: u64, message: &CarlaEgoVehicleControl) -> Result<Command, ControlError> {
     let steer = within("steer", message.steer, -1.0, 1.0)?;
     drive(
         vehicle,
@@ -94,7 +136,10 @@ pub fn from_carla(vehicle: u64, message: &CarlaEgoVehicleControl) -> Result<Comm
 /// # Errors
 ///
 /// The reason, naming the field, if one is out of range (or not a number).
-pub fn from_ackermann(vehicle: u64, message: &AckermannDriveStamped) -> Result<Command, String> {
+pub fn from_ackermann(
+    vehicle: u64,
+    message: &AckermannDriveStamped,
+) -> Result<Command, ControlError> {
     let d = &message.drive;
     let half_turn = std::f32::consts::FRAC_PI_2;
     let steer = within("steering_angle", d.steering_angle, -half_turn, half_turn)?;
@@ -134,15 +179,19 @@ mod tests {
         assert_eq!(command.flags & Command::REVERSE, Command::REVERSE);
         assert!(from_array(7, &array(&[2.0, 0.0, 0.0]))
             .unwrap_err()
+            .to_string()
             .contains("throttle 2"));
         assert!(from_array(7, &array(&[f32::NAN, 0.0, 0.0]))
             .unwrap_err()
+            .to_string()
             .contains("throttle NaN"));
         assert!(from_array(7, &array(&[0.0, 0.0]))
             .unwrap_err()
+            .to_string()
             .contains("2 values"));
         assert!(from_array(7, &array(&[0.0, 0.0, 0.0, 0.5]))
             .unwrap_err()
+            .to_string()
             .contains("hand_brake"));
     }
 

@@ -148,6 +148,14 @@ impl Naming {
     }
 }
 
+/// A namespace ROS cannot have.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{given:?} is not a ROS namespace: each part is letters, digits and _, starting with a letter or _")]
+pub struct NamespaceError {
+    /// What was given.
+    pub given: String,
+}
+
 /// A namespace as given on the command line (`simbus`, `/simbus/`, `/`)
 /// in the form topics are built from (`/simbus`, `""`), or why not: ROS
 /// names are letters, digits and `_`, each part starting with a letter or
@@ -156,7 +164,7 @@ impl Naming {
 /// # Errors
 ///
 /// Why `given` is not a namespace.
-pub fn namespace(given: &str) -> Result<String, String> {
+pub fn namespace(given: &str) -> Result<String, NamespaceError> {
     let trimmed = given.trim_matches('/');
     if trimmed.is_empty() {
         return Ok(String::new());
@@ -167,9 +175,9 @@ pub fn namespace(given: &str) -> Result<String, String> {
             .next()
             .is_some_and(|c| c.is_ascii_alphabetic() || c == '_');
         if !starts_well || !part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-            return Err(format!(
-                "{given:?} is not a ROS namespace: each part is letters, digits and _, starting with a letter or _"
-            ));
+            return Err(NamespaceError {
+                given: given.to_owned(),
+            });
         }
     }
     Ok(format!("/{trimmed}"))

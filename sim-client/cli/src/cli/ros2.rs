@@ -65,8 +65,7 @@ pub(crate) struct Ros2Args {
 }
 
 pub(crate) fn run(world: &WorldName, timeout: Duration, args: Ros2Args) -> Result<(), Failure> {
-    let refused = |e: String| Failure::Refused(anyhow::anyhow!(e));
-    let namespace = routes::namespace(&args.namespace).map_err(refused)?;
+    let namespace = routes::namespace(&args.namespace).map_err(|e| Failure::Refused(e.into()))?;
     let only = |ids: Option<Vec<u64>>| ids.map(|ids| ids.into_iter().collect::<BTreeSet<_>>());
     let config = Config {
         domain_id: args.domain_id,

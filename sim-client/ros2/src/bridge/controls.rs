@@ -6,7 +6,8 @@ use shared_types::Command;
 use tracing::warn;
 
 use super::Run;
-use crate::{control, Event};
+use crate::control::{self, ControlError};
+use crate::Event;
 
 impl<F: FnMut(Event)> Run<F> {
     /// Each vehicle's newest valid control from ROS, applied in one batch
@@ -15,7 +16,7 @@ impl<F: FnMut(Event)> Run<F> {
         let mut commands: Vec<Command> = Vec::new();
         let mut refused: Vec<(u64, String)> = Vec::new();
         for (&id, vehicle) in &self.vehicles {
-            let mut parsed: Vec<Result<Command, String>> = Vec::new();
+            let mut parsed: Vec<Result<Command, ControlError>> = Vec::new();
             if let Some(control) = &vehicle.control {
                 drain(control, |m| control::from_array(id, m), &mut parsed);
             }
@@ -29,7 +30,7 @@ impl<F: FnMut(Event)> Run<F> {
             for result in parsed {
                 match result {
                     Ok(command) => newest = Some(command),
-                    Err(reason) => refused.push((id, reason)),
+                    Err(reason) => refused.push((id, reason.to_string())),
                 }
             }
             commands.extend(newest);
@@ -63,14 +64,17 @@ impl<F: FnMut(Event)> Run<F> {
 /// message that cannot be read (malformed CDR) is refused.
 fn drain<M: crate::msg::Message>(
     subscription: &Subscription<M>,
-    parse: impl Fn(&M) -> Result<Command, String>,
-    parsed: &mut Vec<Result<Command, String>>,
+    parse: impl Fn(&M) -> Result<Command, ControlError>,
+    parsed: &mut Vec<Result<Command, ControlError>>,
 ) {
     loop {
         match subscription.take() {
             Ok(Some((message, _))) => parsed.push(parse(&message)),
             Ok(None) => return,
-            Err(e) => parsed.push(Err(format!("malformed {}: {e:?}", M::NAME))),
+            Err(e) => parsed.push(Err(ControlError::Malformed {
+                message: M::NAME,
+                reason: format!("{e:?}"),
+            })),
         }
     }
 }

@@ -30,18 +30,26 @@ impl Session {
     }
 
     pub(super) fn on_enable_sensor_for_ros(&mut self, args: &[Value]) -> Result<Answer, CallError> {
-        if let Some(sensor) = self.ros_sensor("enable_sensor_for_ros", args)? {
-            self.hub.ros2.enable(sensor, true);
-        }
-        Ok(Answer::Done)
+        self.set_sensor_for_ros("enable_sensor_for_ros", args, true)
     }
 
     pub(super) fn on_disable_sensor_for_ros(
         &mut self,
         args: &[Value],
     ) -> Result<Answer, CallError> {
-        if let Some(sensor) = self.ros_sensor("disable_sensor_for_ros", args)? {
-            self.hub.ros2.enable(sensor, false);
+        self.set_sensor_for_ros("disable_sensor_for_ros", args, false)
+    }
+
+    /// `method` (enable or disable): the sensor in `args` published (`on`)
+    /// or not.
+    fn set_sensor_for_ros(
+        &mut self,
+        method: &'static str,
+        args: &[Value],
+        on: bool,
+    ) -> Result<Answer, CallError> {
+        if let Some(sensor) = self.ros_sensor(method, args)? {
+            self.hub.ros2.enable(sensor, on);
         }
         Ok(Answer::Done)
     }

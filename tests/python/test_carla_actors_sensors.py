@@ -255,6 +255,11 @@ def test_a_lidar_drops_points_as_carla_by_default_and_keeps_them_with_the_recipe
     # Clear of the ground and of the scene's boxes once they have landed: a
     # spawn into them is refused, as CARLA refuses it (a young world's boxes
     # are still falling through the wall's place).
+    # From the scene's start (a world too young for its boxes to have begun
+    # falling is still too): their fall, then still.
+    world = client.reload_world(False)
+    for _ in range(60):
+        world.tick()
     settle(world, carla.Location(x=12.0))
     world.spawn_actor(wall, carla.Transform(carla.Location(x=12.0, z=30.8))).set_enable_gravity(False)
     recipe = dict(dropoff_general_rate=0.0, dropoff_intensity_limit=1.0, dropoff_zero_intensity=0.0)

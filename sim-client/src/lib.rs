@@ -73,7 +73,7 @@ pub use shared_types::WaitMode;
 pub use snapshot::{FrameView, WorldSnapshot};
 pub use standby::{StandbyTicker, TakeOver};
 pub use status::{JournalStatus, ParticipantStatus, Status, TickerStatus};
-pub use ticker::Ticker;
+pub use ticker::{TickInFlight, Ticker};
 pub use wait::{process_alive, set_interrupt_check};
 
 /// What most programs use: `use sim_client::prelude::*;`.

@@ -97,6 +97,9 @@ pub struct Ticker {
 const RELEASE_TIMEOUT: Duration = Duration::from_secs(1);
 
 mod handover;
+mod in_flight;
+
+pub use in_flight::TickInFlight;
 
 impl Ticker {
     /// Claims tick ownership of `world`. `owner` names the current ticker

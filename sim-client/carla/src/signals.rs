@@ -11,14 +11,11 @@ use std::sync::OnceLock;
 
 use shared_types::roads::{self, RoadNetwork, Signal, SignalKind};
 use shared_types::scene::SceneName;
-use shared_types::{ActorKind, ActorState, LightState};
+use shared_types::{ActorState, LightState};
 
 use crate::convert;
 use crate::wire::{CarlaLight, VehicleSignals};
 
-/// How far from a signal's head a light or sign actor may stand and still
-/// be that signal, metres.
-const MATCH_DISTANCE: f32 = 0.5;
 /// Height of the trigger volume's centre above the road, metres, and its
 /// half height.
 const TRIGGER_HEIGHT: f32 = 1.0;
@@ -27,12 +24,6 @@ const TRIGGER_HEIGHT: f32 = 1.0;
 fn town() -> &'static RoadNetwork {
     static TOWN: OnceLock<RoadNetwork> = OnceLock::new();
     TOWN.get_or_init(|| roads::network(SceneName::Town))
-}
-
-/// A signal's head in simbus's world axes.
-fn head(signal: &Signal) -> [f32; 3] {
-    let p = signal.pose;
-    [p.x as f32, signal.height() as f32, -p.y as f32]
 }
 
 /// A point on the ground in OpenDRIVE's axes as simbus's.
@@ -68,23 +59,11 @@ impl Signals {
                 self.frame_lights
                     .push((convert::actor_id(actor.id), light.state));
             }
-            let kind = actor.actor_kind();
-            if !matches!(kind, Some(ActorKind::TrafficLight | ActorKind::TrafficSign)) {
-                continue;
-            }
             let id = convert::actor_id(actor.id);
             if self.of_actor.contains_key(&id) {
                 continue;
             }
-            let found = town().signals.iter().position(|signal| {
-                let lit = signal.kind == SignalKind::TrafficLight;
-                let h = head(signal);
-                let d = (0..3)
-                    .map(|i| (h[i] - actor.position[i]).powi(2))
-                    .sum::<f32>();
-                lit == (kind == Some(ActorKind::TrafficLight)) && d.sqrt() < MATCH_DISTANCE
-            });
-            if let Some(index) = found {
+            if let Some(index) = simbus_traffic::signal_index(town(), actor) {
                 self.of_actor.insert(id, index);
                 self.actor_of.insert(town().signals[index].id, id);
             }

@@ -12,14 +12,12 @@ use shared_types::{roads, Command, LightState};
 use sim_client::{Client, Participant, WaitError};
 use tracing::{debug, info, warn};
 
-use super::lanes::Lanes;
-use super::parameters::{Change, GlobalChange, Parameters, VehicleChange};
-use super::planner::{Control, Planner};
 use super::Shared;
 use crate::locks::lock;
 use crate::signals::Signals;
 use crate::stream::Hub;
 use crate::wire::CarlaVehicleControl;
+use simbus_traffic::{Change, Control, GlobalChange, Lanes, Parameters, Planner, VehicleChange};
 
 /// How long a connection waits for the world's server.
 const SERVER_WAIT: Duration = Duration::from_secs(5);

@@ -4,7 +4,7 @@
 //! of starting its own threads. The gateway answers yes and serves that
 //! protocol itself ([`server`]); a driver thread ([`driver`]) joins the
 //! world's lockstep and, every frame, turns the frame into one control per
-//! registered vehicle ([`planner`]) over the scene's lanes ([`lanes`]).
+//! registered vehicle (`simbus_traffic`'s planner) over the scene's lanes.
 //!
 //! So no thread of CARLA's own traffic manager runs in the script: its
 //! synchronous-mode deadlock (carla-simulator/carla#9172) cannot happen,
@@ -14,9 +14,6 @@
 //! so a script's calls and ticks give the same run every time.
 
 mod driver;
-mod lanes;
-mod parameters;
-mod planner;
 mod server;
 
 use std::collections::HashMap;
@@ -29,7 +26,7 @@ use tracing::{info, warn};
 
 use crate::locks::lock;
 use crate::stream::Hub;
-use parameters::Change;
+use simbus_traffic::Change;
 
 /// How long a new traffic manager waits to join the world's lockstep
 /// before it answers.

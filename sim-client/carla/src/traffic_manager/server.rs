@@ -11,9 +11,9 @@ use std::sync::Arc;
 use rmpv::Value;
 use tracing::{debug, info, warn};
 
-use super::parameters::{Change, GlobalChange, Turn, VehicleChange};
 use super::Shared;
 use crate::rpc::{self, Answer, ReadError};
+use simbus_traffic::{Change, GlobalChange, Turn, VehicleChange};
 
 /// Accepts CARLA clients of the traffic manager until it shuts down.
 pub(super) fn accept(listener: TcpListener, shared: Arc<Shared>) {

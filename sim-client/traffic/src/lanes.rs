@@ -10,37 +10,42 @@ use shared_types::roads::{Contact, Link, Pose2, RoadNetwork, Segment, SignalKind
 /// One driving lane of one road, travelled one way: lane -1 along the
 /// road's reference line (s growing), lane 1 against it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub(crate) struct LaneRef {
-    pub(crate) road: u32,
-    pub(crate) lane: i32,
+pub struct LaneRef {
+    /// The road's id (its index in the network).
+    pub road: u32,
+    /// -1 along the road's reference line, 1 against it.
+    pub lane: i32,
 }
 
 /// A stop line on a lane: a light's or a stop sign's.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct StopLine {
+pub struct StopLine {
     /// The signal's OpenDRIVE id.
-    pub(crate) signal: u32,
+    pub signal: u32,
     /// Whether it is a light (else a stop sign).
-    pub(crate) light: bool,
+    pub light: bool,
     /// How far along the lane (in its direction of travel) the line is.
-    pub(crate) progress: f64,
+    pub progress: f64,
     /// The junction it guards.
-    pub(crate) junction: Option<u32>,
+    pub junction: Option<u32>,
 }
 
 /// Where a point is on a lane: how far along it (its direction of
 /// travel), and how far left of its centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct OnLane {
-    pub(crate) lane: LaneRef,
-    pub(crate) progress: f64,
-    pub(crate) left: f64,
+pub struct OnLane {
+    /// The lane.
+    pub lane: LaneRef,
+    /// Metres along it, in its direction of travel.
+    pub progress: f64,
+    /// Metres left of its centre (negative: right).
+    pub left: f64,
 }
 
 /// A network's lanes, with what the traffic manager looks up per step
 /// computed once.
 #[derive(Debug)]
-pub(crate) struct Lanes {
+pub struct Lanes {
     network: RoadNetwork,
     lengths: Vec<f64>,
     /// Each segment's start (s, pose), per road.
@@ -54,7 +59,7 @@ pub(crate) struct Lanes {
 }
 
 /// `a` wrapped into (-π, π].
-pub(crate) fn wrap(a: f64) -> f64 {
+pub fn wrap(a: f64) -> f64 {
     let a = a.rem_euclid(2.0 * PI);
     if a > PI {
         a - 2.0 * PI
@@ -65,7 +70,7 @@ pub(crate) fn wrap(a: f64) -> f64 {
 
 impl Lanes {
     /// The lanes of `network`.
-    pub(crate) fn new(network: RoadNetwork) -> Self {
+    pub fn new(network: RoadNetwork) -> Self {
         let lengths = network.roads.iter().map(|r| r.length()).collect();
         let starts = network.roads.iter().map(|r| r.segment_starts()).collect();
         let mut lanes = Self {
@@ -126,34 +131,44 @@ impl Lanes {
         })
     }
 
+    /// The road network the lanes are of.
+    pub fn network(&self) -> &RoadNetwork {
+        &self.network
+    }
+
+    /// Every driving lane, in the network's order.
+    pub fn lanes(&self) -> impl Iterator<Item = LaneRef> + '_ {
+        self.all()
+    }
+
     /// Lane `lane`'s length, metres (its road's reference line).
-    pub(crate) fn length(&self, lane: LaneRef) -> f64 {
+    pub fn length(&self, lane: LaneRef) -> f64 {
         self.lengths.get(lane.road as usize).copied().unwrap_or(0.0)
     }
 
     /// The junction lane `lane` crosses, if it is a connecting road's.
-    pub(crate) fn junction(&self, lane: LaneRef) -> Option<u32> {
+    pub fn junction(&self, lane: LaneRef) -> Option<u32> {
         self.network.roads.get(lane.road as usize)?.junction
     }
 
     /// The lanes lane `lane` leads into, in the network's order.
-    pub(crate) fn next(&self, lane: LaneRef) -> &[LaneRef] {
+    pub fn next(&self, lane: LaneRef) -> &[LaneRef] {
         self.next.get(&lane).map_or(&[], Vec::as_slice)
     }
 
     /// The stop lines on lane `lane`, in the network's order.
-    pub(crate) fn stops(&self, lane: LaneRef) -> &[StopLine] {
+    pub fn stops(&self, lane: LaneRef) -> &[StopLine] {
         self.stops.get(&lane).map_or(&[], Vec::as_slice)
     }
 
     /// The speed-limit signs on lane `lane`: (progress, km/h).
-    pub(crate) fn limits(&self, lane: LaneRef) -> &[(f64, f64)] {
+    pub fn limits(&self, lane: LaneRef) -> &[(f64, f64)] {
         self.limits.get(&lane).map_or(&[], Vec::as_slice)
     }
 
     /// The centre of lane `lane` `progress` metres along it, heading its
     /// way, moved `left` metres to the left.
-    pub(crate) fn point(&self, lane: LaneRef, progress: f64, left: f64) -> Pose2 {
+    pub fn point(&self, lane: LaneRef, progress: f64, left: f64) -> Pose2 {
         let Some(road) = self.network.roads.get(lane.road as usize) else {
             return Pose2::new(0.0, 0.0, 0.0);
         };
@@ -171,7 +186,7 @@ impl Lanes {
 
     /// Where `(x, y)` is on lane `lane`: `None` past either end by more
     /// than a lane's width.
-    pub(crate) fn project_on(&self, lane: LaneRef, x: f64, y: f64) -> Option<OnLane> {
+    pub fn project_on(&self, lane: LaneRef, x: f64, y: f64) -> Option<OnLane> {
         let road = self.network.roads.get(lane.road as usize)?;
         let starts = self.starts.get(lane.road as usize)?;
         let length = self.length(lane);
@@ -212,7 +227,7 @@ impl Lanes {
     /// The lane a vehicle at `(x, y)` heading `hdg` drives on: the nearest
     /// lane centre within a lane's width whose way is the vehicle's (to
     /// within 60°).
-    pub(crate) fn locate(&self, x: f64, y: f64, hdg: f64) -> Option<OnLane> {
+    pub fn locate(&self, x: f64, y: f64, hdg: f64) -> Option<OnLane> {
         let mut best: Option<OnLane> = None;
         for lane in self.all() {
             let Some(on) = self.project_on(lane, x, y) else {
@@ -275,13 +290,13 @@ impl Lanes {
 
     /// The middle of junction `junction` and how far from it its
     /// connecting roads reach, metres.
-    pub(crate) fn junction_area(&self, junction: u32) -> Option<(f64, f64, f64)> {
+    pub fn junction_area(&self, junction: u32) -> Option<(f64, f64, f64)> {
         self.areas.get(&junction).copied()
     }
 
     /// How much lane `lane` turns from its start to its end, radians
     /// (positive: left).
-    pub(crate) fn turn(&self, lane: LaneRef) -> f64 {
+    pub fn turn(&self, lane: LaneRef) -> f64 {
         let length = self.length(lane);
         wrap(self.point(lane, length, 0.0).hdg - self.point(lane, 0.0, 0.0).hdg)
     }

@@ -60,14 +60,17 @@ const LEFT_BLINKER: u32 = 32;
 
 /// One vehicle's control for the next step.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Control {
-    pub(crate) vehicle: u32,
-    pub(crate) throttle: f32,
+pub struct Control {
+    /// The vehicle's actor id.
+    pub vehicle: u32,
+    /// 0..=1.
+    pub throttle: f32,
     /// simbus's: positive to the left.
-    pub(crate) steer: f32,
-    pub(crate) brake: f32,
+    pub steer: f32,
+    /// 0..=1.
+    pub brake: f32,
     /// CARLA's light flags, for a vehicle whose lights it sets.
-    pub(crate) lights: Option<u32>,
+    pub lights: Option<u32>,
 }
 
 /// One driven vehicle's own state.
@@ -154,7 +157,7 @@ struct Sample {
 
 /// The native traffic manager's driving: its vehicles, in id order.
 #[derive(Debug, Default)]
-pub(crate) struct Planner {
+pub struct Planner {
     vehicles: BTreeMap<u32, Driven>,
     /// Per junction with stop signs, the vehicles waiting at them, in
     /// the order they came to rest.
@@ -167,17 +170,17 @@ pub(crate) struct Planner {
 
 impl Planner {
     /// Whether any vehicle is driven.
-    pub(crate) fn is_empty(&self) -> bool {
+    pub fn is_empty(&self) -> bool {
         self.vehicles.is_empty()
     }
 
     /// The vehicles driven, in id order.
-    pub(crate) fn vehicles(&self) -> impl Iterator<Item = u32> + '_ {
+    pub fn vehicles(&self) -> impl Iterator<Item = u32> + '_ {
         self.vehicles.keys().copied()
     }
 
     /// Starts driving `id` with randomness from `seed`.
-    pub(crate) fn register(&mut self, id: u32, seed: u64) {
+    pub fn register(&mut self, id: u32, seed: u64) {
         self.vehicles.entry(id).or_insert_with(|| Driven {
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ u64::from(id).wrapping_mul(0x9e37_79b9_7f4a_7c15),
@@ -193,7 +196,7 @@ impl Planner {
     }
 
     /// Stops driving `id`.
-    pub(crate) fn unregister(&mut self, id: u32) {
+    pub fn unregister(&mut self, id: u32) {
         self.vehicles.remove(&id);
         for queue in self.queues.values_mut() {
             queue.retain(|&v| v != id);
@@ -201,7 +204,7 @@ impl Planner {
     }
 
     /// Every vehicle's randomness starts again from `seed`.
-    pub(crate) fn reseed(&mut self, seed: u64) {
+    pub fn reseed(&mut self, seed: u64) {
         for (&id, driven) in &mut self.vehicles {
             driven.rng =
                 ChaCha8Rng::seed_from_u64(seed ^ u64::from(id).wrapping_mul(0x9e37_79b9_7f4a_7c15));
@@ -209,7 +212,7 @@ impl Planner {
     }
 
     /// Gives vehicle `id` points to drive through (CARLA's axes).
-    pub(crate) fn set_path(&mut self, id: u32, points: &[[f32; 3]]) {
+    pub fn set_path(&mut self, id: u32, points: &[[f32; 3]]) {
         if let Some(driven) = self.vehicles.get_mut(&id) {
             driven.path = points
                 .iter()
@@ -220,7 +223,7 @@ impl Planner {
     }
 
     /// Gives vehicle `id` the turns to take at the next junctions.
-    pub(crate) fn set_route(&mut self, id: u32, turns: &[Turn]) {
+    pub fn set_route(&mut self, id: u32, turns: &[Turn]) {
         if let Some(driven) = self.vehicles.get_mut(&id) {
             driven.route = turns.to_vec();
             driven.lanes.truncate(1);
@@ -230,7 +233,7 @@ impl Planner {
     /// The controls for the step after a frame of `actors` at `time`
     /// seconds, its lights showing `lights` (by signal id), on `lanes`.
     /// Vehicles not in the frame are no longer driven.
-    pub(crate) fn step(
+    pub fn step(
         &mut self,
         lanes: &Lanes,
         actors: &[ActorState],
@@ -245,7 +248,7 @@ impl Planner {
             actors
                 .iter()
                 .filter(|a| matches!(a.actor_kind(), Some(ActorKind::Vehicle | ActorKind::Walker)))
-                .map(|a| (crate::convert::actor_id(a.id), Body::of(a))),
+                .map(|a| (u32::try_from(a.id).unwrap_or(u32::MAX), Body::of(a))),
         );
         // Kept lists, not allocated per frame: the vehicles gone, then
         // those driven.

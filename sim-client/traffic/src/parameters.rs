@@ -5,9 +5,12 @@ use std::collections::HashMap;
 
 /// CARLA's `RoadOption`s a route (`set_route`) is made of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Turn {
+pub enum Turn {
+    /// Turn left.
     Left,
+    /// Turn right.
     Right,
+    /// Go straight on.
     Straight,
 }
 
@@ -15,7 +18,7 @@ impl Turn {
     /// CARLA's `RoadOption` byte (`Void 0, Left 1, Right 2, Straight 3,
     /// LaneFollow 4, ChangeLaneLeft 5, ChangeLaneRight 6, RoadEnd 7`):
     /// the turns a route takes at junctions; the others are not turns.
-    pub(crate) fn from_road_option(option: u8) -> Option<Self> {
+    pub fn from_road_option(option: u8) -> Option<Self> {
         match option {
             1 => Some(Self::Left),
             2 => Some(Self::Right),
@@ -28,58 +31,65 @@ impl Turn {
 /// One vehicle's parameters (CARLA's per-vehicle setters); `None`: the
 /// global value.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub(crate) struct VehicleParameters {
+pub struct VehicleParameters {
     /// Percent below the speed limit (negative: above).
-    pub(crate) speed_difference: Option<f32>,
+    pub speed_difference: Option<f32>,
     /// km/h, in place of the speed limit.
-    pub(crate) desired_speed: Option<f32>,
+    pub desired_speed: Option<f32>,
     /// Metres to the right of the lane's centre.
-    pub(crate) lane_offset: Option<f32>,
+    pub lane_offset: Option<f32>,
     /// Metres kept to the vehicle ahead.
-    pub(crate) distance: Option<f32>,
+    pub distance: Option<f32>,
     /// Percent of steps a red light is run.
-    pub(crate) running_light: f32,
+    pub running_light: f32,
     /// Percent of steps a stop sign is run.
-    pub(crate) running_sign: f32,
+    pub running_sign: f32,
     /// Percent of steps walkers are not braked for.
-    pub(crate) ignore_walkers: f32,
+    pub ignore_walkers: f32,
     /// Percent of steps vehicles are not braked for.
-    pub(crate) ignore_vehicles: f32,
+    pub ignore_vehicles: f32,
     /// Whether the traffic manager sets the vehicle's lights.
-    pub(crate) update_lights: bool,
+    pub update_lights: bool,
     /// Actors this vehicle does not brake for (`collision_detection(…, False)`).
-    pub(crate) ignored: Vec<u32>,
+    pub ignored: Vec<u32>,
     /// Points to drive through, CARLA's axes (`set_path`).
-    pub(crate) path: Vec<[f32; 3]>,
+    pub path: Vec<[f32; 3]>,
     /// Turns to take at the next junctions (`set_route`).
-    pub(crate) route: Vec<Turn>,
+    pub route: Vec<Turn>,
     /// Kept and answered only (one lane each way: nowhere to change to).
-    pub(crate) auto_lane_change: bool,
-    pub(crate) keep_right: f32,
-    pub(crate) random_left: f32,
-    pub(crate) random_right: f32,
+    pub auto_lane_change: bool,
+    /// Kept only.
+    pub keep_right: f32,
+    /// Kept only.
+    pub random_left: f32,
+    /// Kept only.
+    pub random_right: f32,
 }
 
 /// The traffic manager's global parameters.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Globals {
+pub struct Globals {
     /// Percent below the speed limit (negative: above).
-    pub(crate) speed_difference: f32,
+    pub speed_difference: f32,
     /// Metres to the right of the lanes' centre.
-    pub(crate) lane_offset: f32,
+    pub lane_offset: f32,
     /// Metres kept to the vehicle ahead.
-    pub(crate) distance: f32,
+    pub distance: f32,
     /// The seed of every vehicle's randomness.
-    pub(crate) seed: u64,
+    pub seed: u64,
     /// CARLA's synchronous mode for the traffic manager (simbus's is in
     /// step with the world in both: kept and answered).
-    pub(crate) synchronous: bool,
+    pub synchronous: bool,
     /// Kept only: every vehicle is simulated in full.
-    pub(crate) hybrid_physics: bool,
-    pub(crate) hybrid_radius: f32,
-    pub(crate) osm_mode: bool,
-    pub(crate) respawn_dormant: bool,
-    pub(crate) respawn_bounds: [f32; 2],
+    pub hybrid_physics: bool,
+    /// Kept only.
+    pub hybrid_radius: f32,
+    /// Kept only.
+    pub osm_mode: bool,
+    /// Kept only.
+    pub respawn_dormant: bool,
+    /// Kept only.
+    pub respawn_bounds: [f32; 2],
 }
 
 impl Default for Globals {
@@ -102,62 +112,94 @@ impl Default for Globals {
 
 /// One change a traffic-manager call makes.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Change {
+pub enum Change {
+    /// Drive these vehicles (`set_autopilot(True)`).
     Register(Vec<u32>),
+    /// Stop driving these vehicles.
     Unregister(Vec<u32>),
     /// Every vehicle unregistered (`shut_down`).
     ShutDown,
+    /// A change to one vehicle.
     Vehicle(u32, VehicleChange),
+    /// A change to every vehicle.
     Global(GlobalChange),
 }
 
 /// A per-vehicle setter.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum VehicleChange {
+pub enum VehicleChange {
+    /// Percent below the speed limit (negative: above).
     SpeedDifference(f32),
+    /// km/h in place of the speed limit.
     DesiredSpeed(f32),
+    /// Metres right of the lane's centre.
     LaneOffset(f32),
+    /// Metres kept to the vehicle ahead.
     Distance(f32),
+    /// Percent of steps a red light is run.
     RunningLight(f32),
+    /// Percent of steps a stop sign is run.
     RunningSign(f32),
+    /// Percent of steps walkers are not braked for.
     IgnoreWalkers(f32),
+    /// Percent of steps vehicles are not braked for.
     IgnoreVehicles(f32),
+    /// Whether the traffic manager sets the vehicle's lights.
     UpdateLights(bool),
+    /// Whether to brake for that actor.
     CollisionDetection(u32, bool),
+    /// Points to drive through, CARLA's axes.
     Path(Vec<[f32; 3]>),
+    /// Turns to take at the next junctions.
     Route(Vec<Turn>),
+    /// Kept only (one lane each way).
     AutoLaneChange(bool),
+    /// Kept only.
     KeepRight(f32),
+    /// Kept only.
     RandomLeft(f32),
+    /// Kept only.
     RandomRight(f32),
 }
 
 /// A global setter.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum GlobalChange {
+pub enum GlobalChange {
+    /// Percent below the speed limit (negative: above).
     SpeedDifference(f32),
+    /// Metres right of the lane's centre.
     LaneOffset(f32),
+    /// Metres kept to the vehicle ahead.
     Distance(f32),
+    /// The seed of every vehicle's randomness.
     Seed(u64),
+    /// CARLA's synchronous mode (kept).
     Synchronous(bool),
+    /// Kept only.
     HybridPhysics(bool),
+    /// Kept only.
     HybridRadius(f32),
+    /// Kept only.
     OsmMode(bool),
+    /// Kept only.
     RespawnDormant(bool),
+    /// Kept only.
     RespawnBounds([f32; 2]),
 }
 
 /// Every parameter, as the changes so far left them.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct Parameters {
-    pub(crate) globals: Globals,
-    pub(crate) vehicles: HashMap<u32, VehicleParameters>,
+pub struct Parameters {
+    /// The global parameters.
+    pub globals: Globals,
+    /// Each vehicle's own.
+    pub vehicles: HashMap<u32, VehicleParameters>,
 }
 
 impl Parameters {
     /// Applies a per-vehicle or global change (registrations are the
     /// driver's).
-    pub(crate) fn apply(&mut self, change: &Change) {
+    pub fn apply(&mut self, change: &Change) {
         match change {
             Change::Register(_) | Change::Unregister(_) | Change::ShutDown => {}
             Change::Global(g) => {

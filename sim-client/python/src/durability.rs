@@ -80,7 +80,7 @@ impl SnapshotInfo {
 }
 
 /// A snapshot error as its exception.
-fn snapshot_error(error: SnapshotError) -> PyErr {
+pub(crate) fn snapshot_error(error: SnapshotError) -> PyErr {
     match error {
         SnapshotError::Request(e) => errors::request(e),
         SnapshotError::NotTicker { .. } => raise("NotTickerError", message(&error)),

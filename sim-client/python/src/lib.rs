@@ -18,6 +18,7 @@ mod durability;
 mod errors;
 mod frame;
 mod gil;
+mod gym;
 mod loan;
 mod lockstep;
 mod recorder;
@@ -47,6 +48,7 @@ fn _simbus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     durability::register(m)?;
     lockstep::register(m)?;
     recorder::register(m)?;
+    gym::register(m)?;
     m.add("PROTOCOL_VERSION", shared_types::PROTOCOL_VERSION)?;
     Ok(())
 }

@@ -1,0 +1,684 @@
+//! [`DrivingWorld`]: one world of `simbus.gym`'s driving task, stepped from
+//! Rust. Its ego vehicles' observations are written straight into rows of
+//! the caller's batch arrays (EnvPool's design: no Python object per
+//! environment on the hot path), its traffic driven by
+//! `simbus_traffic`'s planner in this process, its episodes started by
+//! restoring one snapshot.
+
+use std::collections::HashMap;
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+use numpy::{PyReadonlyArray2, PyReadwriteArray1, PyReadwriteArray2, PyReadwriteArray4};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rand::RngExt;
+use shared_types::roads::{self, LANE_WIDTH, SIDEWALK_WIDTH};
+use shared_types::scene::SceneName;
+use shared_types::{ActorState, Command, SensorKind, SensorSpec, WorldSettings};
+use sim_client::{Client, Sensor, SnapshotId, TickInFlight, Ticker};
+use simbus_traffic::{Control, LightStates, Parameters, Planner};
+
+use super::task::{self, Ego, Outcome, TaskSpec, REWARD_TERMS};
+use crate::args::seconds;
+use crate::errors::{self, message, raise};
+
+/// Metres between the places vehicles may start.
+const START_SPACING: f64 = 12.0;
+/// How high above the road vehicles are put, metres.
+const VEHICLE_DROP: f32 = 1.1;
+/// A walker's radius and half height (CARLA's adult), metres.
+const WALKER_SIZE: (f32, f32) = (0.25, 0.9);
+/// How fast walkers walk, m/s.
+const WALKER_SPEED: f32 = 1.4;
+/// Frames the world runs after its actors are spawned, before the
+/// episodes' snapshot is saved (the vehicles settle on their wheels).
+const SETTLE_FRAMES: u32 = 20;
+/// The discrete actions: (steer, throttle minus brake).
+const DISCRETE: [(f32, f32); 9] = [
+    (0.0, 0.0),
+    (0.0, 0.6),
+    (0.0, -0.6),
+    (0.3, 0.4),
+    (-0.3, 0.4),
+    (0.6, 0.2),
+    (-0.6, 0.2),
+    (0.0, 1.0),
+    (0.0, -1.0),
+];
+
+/// The town's lanes, built once per process.
+fn town_lanes() -> Arc<simbus_traffic::Lanes> {
+    static TOWN: OnceLock<Arc<simbus_traffic::Lanes>> = OnceLock::new();
+    TOWN.get_or_init(|| Arc::new(simbus_traffic::Lanes::new(roads::network(SceneName::Town))))
+        .clone()
+}
+
+/// A walker of the traffic: the lane whose sidewalk it walks and which way.
+#[derive(Debug, Clone, Copy)]
+struct Walker {
+    id: u64,
+    lane: simbus_traffic::LaneRef,
+    forward: bool,
+}
+
+/// One world of the driving task: its connection, its ticker and its
+/// episode's state. Bound to the thread that made it.
+#[pyclass(module = "simbus._simbus", unsendable)]
+pub(crate) struct DrivingWorld {
+    client: Client,
+    ticker: Ticker,
+    lanes: Arc<simbus_traffic::Lanes>,
+    spec: TaskSpec,
+    egos: Vec<Ego>,
+    traffic: Vec<u64>,
+    walkers: Vec<Walker>,
+    cameras: Vec<(u64, Option<Sensor>)>,
+    camera_size: Option<(u32, u32)>,
+    planner: Planner,
+    parameters: Parameters,
+    lights: LightStates,
+    snapshot: SnapshotId,
+    actors: Vec<ActorState>,
+    time: (f64, f64),
+    frame: u64,
+    in_flight: Option<TickInFlight>,
+    /// The frame of a step whose answer `ready` took.
+    answered: Option<u64>,
+    commands: Vec<Command>,
+    controls: Vec<Control>,
+    steps: u64,
+    max_steps: u64,
+    timeout: Duration,
+    discrete: bool,
+}
+
+impl std::fmt::Debug for DrivingWorld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DrivingWorld")
+            .field("world", &self.client.world().as_str())
+            .field("frame", &self.frame)
+            .field("egos", &self.egos.len())
+            .finish_non_exhaustive()
+    }
+}
+
+fn error(e: impl std::error::Error) -> PyErr {
+    raise("Error", message(&e))
+}
+
+#[pymethods]
+impl DrivingWorld {
+    /// Connects to `world`, claims its ticker, sets a fixed step in
+    /// synchronous mode, loads the town, spawns the egos, traffic and
+    /// walkers, lets them settle and saves the snapshot every episode
+    /// starts from.
+    #[new]
+    #[pyo3(signature = (world, *, egos = 1, vehicles = 0, walkers = 0, delta_seconds = 0.1, max_substep_delta_time = 0.02, actors = 6, route_points = 10, route_length = 300.0, weights = [1.0, 10.0, 0.1, 5.0, 5.0], end_on_collision = true, max_episode_steps = 1000, camera = None, discrete = false, timeout = 10.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        world: &str,
+        egos: usize,
+        vehicles: usize,
+        walkers: usize,
+        delta_seconds: f64,
+        max_substep_delta_time: f64,
+        actors: usize,
+        route_points: usize,
+        route_length: f64,
+        weights: [f32; REWARD_TERMS],
+        end_on_collision: bool,
+        max_episode_steps: u64,
+        camera: Option<(u32, u32)>,
+        discrete: bool,
+        timeout: f64,
+    ) -> PyResult<Self> {
+        let timeout = seconds("timeout", timeout)?;
+        if egos == 0 || egos > 64 {
+            return Err(PyValueError::new_err(format!(
+                "egos must be 1..=64, not {egos}"
+            )));
+        }
+        if vehicles > 200 || walkers > 200 {
+            return Err(PyValueError::new_err(
+                "at most 200 vehicles and 200 walkers",
+            ));
+        }
+        if !(route_length.is_finite() && route_length > 0.0) {
+            return Err(PyValueError::new_err(
+                "route_length must be a positive number of metres",
+            ));
+        }
+        if actors > 64 || route_points > 64 {
+            return Err(PyValueError::new_err(
+                "at most 64 actors and 64 route points observed",
+            ));
+        }
+        let _ = py;
+        let client = Client::connect(world, timeout).map_err(errors::connect)?;
+        let mut ticker = client.claim_ticker().map_err(errors::tick)?;
+        let settings = WorldSettings {
+            synchronous_mode: true,
+            fixed_delta_seconds: Some(delta_seconds),
+            substepping: true,
+            max_substep_delta_time,
+            max_substeps: 16,
+            ..client.get_settings().map_err(errors::request)?
+        };
+        ticker.apply_settings(settings).map_err(errors::settings)?;
+        let status = client.load_world("town", false).map_err(errors::load)?;
+        let _ = status;
+        let spec = TaskSpec {
+            actors,
+            route_points,
+            route_length,
+            weights,
+            end_on_collision,
+        };
+        let mut this = Self {
+            client,
+            ticker,
+            lanes: town_lanes(),
+            spec,
+            egos: Vec::new(),
+            traffic: Vec::new(),
+            walkers: Vec::new(),
+            cameras: Vec::new(),
+            camera_size: camera,
+            planner: Planner::default(),
+            parameters: Parameters::default(),
+            lights: LightStates::default(),
+            snapshot: SnapshotId(0),
+            actors: Vec::new(),
+            time: (0.0, delta_seconds),
+            frame: 0,
+            in_flight: None,
+            answered: None,
+            commands: Vec::new(),
+            controls: Vec::new(),
+            steps: 0,
+            max_steps: max_episode_steps,
+            timeout,
+            discrete,
+        };
+        this.populate(egos, vehicles, walkers)?;
+        Ok(this)
+    }
+
+    /// Floats in one ego's observation row.
+    #[getter]
+    fn row(&self) -> usize {
+        self.spec.row()
+    }
+
+    /// The world's name.
+    #[getter]
+    fn world(&self) -> &str {
+        self.client.world().as_str()
+    }
+
+    /// The server's process id.
+    #[getter]
+    fn server_pid(&self) -> u32 {
+        self.client.server_pid()
+    }
+
+    /// The frame last read.
+    #[getter]
+    fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// The ego vehicles' actor ids.
+    #[getter]
+    fn egos(&self) -> Vec<u64> {
+        self.egos.iter().map(|e| e.id).collect()
+    }
+
+    /// The traffic's vehicles' and walkers' actor ids.
+    #[getter]
+    fn traffic(&self) -> (Vec<u64>, Vec<u64>) {
+        (
+            self.traffic.clone(),
+            self.walkers.iter().map(|w| w.id).collect(),
+        )
+    }
+
+    /// The last frame's digest-free summary: its id and simulation time.
+    #[getter]
+    fn elapsed_seconds(&self) -> f64 {
+        self.time.0
+    }
+
+    /// Starts an episode from the snapshot: the egos and traffic put where
+    /// `seed` says, the traffic's way seeded by it; writes each ego's
+    /// observation into `obs` (one row per ego) and returns the frame.
+    fn reset(
+        &mut self,
+        seed: u64,
+        mut obs: PyReadwriteArray2<'_, f32>,
+        camera: Option<PyReadwriteArray4<'_, u8>>,
+    ) -> PyResult<u64> {
+        if let Some(tick) = self.in_flight.take() {
+            self.ticker.finish_tick(tick).map_err(errors::tick)?;
+        }
+        self.answered = None;
+        self.client
+            .restore_snapshot(self.snapshot)
+            .map_err(crate::durability::snapshot_error)?;
+        let mut rng = task::episode_rng(seed, 1);
+        let places = task::start_places(&self.lanes, START_SPACING);
+        let mut order: Vec<usize> = (0..places.len()).collect();
+        for i in 0..order.len() {
+            let j = rng.random_range(i..order.len());
+            order.swap(i, j);
+        }
+        self.commands.clear();
+        let vehicles: Vec<u64> = self
+            .egos
+            .iter()
+            .map(|e| e.id)
+            .chain(self.traffic.iter().copied())
+            .collect();
+        for (&id, &index) in vehicles.iter().zip(&order) {
+            let (lane, progress) = places[index];
+            let (at, rotation) = task::placed(self.lanes.point(lane, progress, 0.0), VEHICLE_DROP);
+            self.commands.push(Command::set_transform(id, at, rotation));
+        }
+        for walker in &mut self.walkers {
+            let (lane, progress) = places[rng.random_range(0..places.len())];
+            walker.lane = lane;
+            walker.forward = rng.random_bool(0.5);
+            let side = -(LANE_WIDTH + SIDEWALK_WIDTH) / 2.0;
+            let (at, rotation) = task::placed(self.lanes.point(lane, progress, side), 1.0);
+            self.commands
+                .push(Command::set_transform(walker.id, at, rotation));
+        }
+        self.planner = Planner::default();
+        for &id in &self.traffic {
+            self.planner.register(id as u32, seed);
+        }
+        self.client
+            .apply_batch(&self.commands)
+            .map_err(errors::request)?;
+        self.reopen_cameras()?;
+        let frame = self.ticker.tick(self.timeout).map_err(errors::tick)?;
+        self.read(frame)?;
+        let mut route_rng = task::episode_rng(seed, 2);
+        for ego in &mut self.egos {
+            let start = self
+                .actors
+                .iter()
+                .find(|a| a.id == ego.id)
+                .map(|a| {
+                    let f = task::Flat::of(a);
+                    shared_types::roads::Pose2::new(f.x, f.y, f.hdg)
+                })
+                .unwrap_or(shared_types::roads::Pose2::new(0.0, 0.0, 0.0));
+            ego.route =
+                task::Route::plan(&self.lanes, start, self.spec.route_length, &mut route_rng);
+            ego.last = [0.0, 0.0];
+        }
+        self.steps = 0;
+        self.write(&mut obs, camera)?;
+        Ok(frame)
+    }
+
+    /// Sends the egos' `actions` (one row each: steer and throttle minus
+    /// brake in -1..=1, or one discrete action index in column 0) with the
+    /// traffic's controls, and the tick; `finish` collects the frame.
+    fn send(&mut self, actions: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
+        if self.in_flight.is_some() {
+            return Err(raise(
+                "Error",
+                "a step is already in flight: finish it first",
+            ));
+        }
+        let actions = actions.as_array();
+        if actions.nrows() != self.egos.len() {
+            return Err(PyValueError::new_err(format!(
+                "{} rows of actions for {} egos",
+                actions.nrows(),
+                self.egos.len()
+            )));
+        }
+        self.commands.clear();
+        for (ego, action) in self.egos.iter_mut().zip(actions.rows()) {
+            let (steer, pedal) = if self.discrete {
+                let index = action.get(0).copied().unwrap_or(0.0);
+                if !(index >= 0.0 && (index as usize) < DISCRETE.len() && index.fract() == 0.0) {
+                    return Err(PyValueError::new_err(format!(
+                        "a discrete action is 0..{}, not {index}",
+                        DISCRETE.len()
+                    )));
+                }
+                DISCRETE[index as usize]
+            } else {
+                let steer = action.get(0).copied().unwrap_or(0.0);
+                let pedal = action.get(1).copied().unwrap_or(0.0);
+                if !(steer.is_finite() && pedal.is_finite()) {
+                    return Err(PyValueError::new_err("actions must be finite numbers"));
+                }
+                (steer.clamp(-1.0, 1.0), pedal.clamp(-1.0, 1.0))
+            };
+            ego.last = [steer, pedal];
+            self.commands.push(Command::vehicle_control(
+                ego.id,
+                pedal.max(0.0),
+                steer,
+                (-pedal).max(0.0),
+                false,
+            ));
+        }
+        let lights = self.lights.observe(self.lanes.network(), &self.actors);
+        self.planner.step(
+            &self.lanes,
+            &self.actors,
+            lights,
+            self.time,
+            &self.parameters,
+            &mut self.controls,
+        );
+        for c in &self.controls {
+            self.commands.push(Command::vehicle_control(
+                u64::from(c.vehicle),
+                c.throttle,
+                c.steer,
+                c.brake,
+                false,
+            ));
+        }
+        self.walk();
+        self.client
+            .apply_batch(&self.commands)
+            .map_err(errors::request)?;
+        self.in_flight = Some(self.ticker.send_tick(self.timeout).map_err(errors::tick)?);
+        Ok(())
+    }
+
+    /// Whether the step sent has its frame (no waiting).
+    fn ready(&mut self) -> PyResult<bool> {
+        let Some(tick) = self.in_flight.as_mut() else {
+            return Ok(true);
+        };
+        match self.ticker.poll_tick(tick).map_err(errors::tick)? {
+            Some(frame) => {
+                self.in_flight = None;
+                self.answered = Some(frame);
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+
+    /// Waits for the step's frame and writes each ego's observation into
+    /// `obs`, its reward into `reward`, whether its episode ended into
+    /// `terminated` and `truncated`, and its reward terms into `terms`.
+    #[pyo3(signature = (obs, reward, terminated, truncated, terms, camera = None))]
+    fn finish(
+        &mut self,
+        mut obs: PyReadwriteArray2<'_, f32>,
+        mut reward: PyReadwriteArray1<'_, f32>,
+        mut terminated: PyReadwriteArray1<'_, bool>,
+        mut truncated: PyReadwriteArray1<'_, bool>,
+        mut terms: PyReadwriteArray2<'_, f32>,
+        camera: Option<PyReadwriteArray4<'_, u8>>,
+    ) -> PyResult<u64> {
+        let frame = match (self.in_flight.take(), self.answered.take()) {
+            (Some(tick), _) => self.ticker.finish_tick(tick).map_err(errors::tick)?,
+            (None, Some(frame)) => frame,
+            (None, None) => return Err(raise("Error", "no step was sent: send actions first")),
+        };
+        self.read(frame)?;
+        self.steps += 1;
+        let outcomes = self.write(&mut obs, camera)?;
+        let truncate = self.steps >= self.max_steps;
+        let (mut reward, mut terminated, mut truncated, mut terms) = (
+            reward.as_array_mut(),
+            terminated.as_array_mut(),
+            truncated.as_array_mut(),
+            terms.as_array_mut(),
+        );
+        for (i, outcome) in outcomes.iter().enumerate() {
+            if let Some(r) = reward.get_mut(i) {
+                *r = task::reward(&outcome.terms, &self.spec.weights);
+            }
+            if let Some(t) = terminated.get_mut(i) {
+                *t = outcome.terminated;
+            }
+            if let Some(t) = truncated.get_mut(i) {
+                *t = truncate && !outcome.terminated;
+            }
+            if let Some(mut row) = terms.rows_mut().into_iter().nth(i) {
+                for (slot, term) in row.iter_mut().zip(&outcome.terms) {
+                    *slot = *term;
+                }
+            }
+        }
+        Ok(frame)
+    }
+
+    /// Gives the world back: the ticker released (the world goes back to
+    /// the settings it had).
+    fn close(&mut self) -> PyResult<()> {
+        self.in_flight = None;
+        self.cameras.clear();
+        Ok(())
+    }
+}
+
+impl DrivingWorld {
+    /// Spawns the egos, traffic and walkers at the first start places,
+    /// settles them and saves the episodes' snapshot.
+    fn populate(&mut self, egos: usize, vehicles: usize, walkers: usize) -> PyResult<()> {
+        let places = task::start_places(&self.lanes, START_SPACING);
+        if egos + vehicles > places.len() {
+            return Err(PyValueError::new_err(format!(
+                "the town has {} places to start for {} vehicles",
+                places.len(),
+                egos + vehicles
+            )));
+        }
+        let mut spawns: Vec<Command> = places
+            .iter()
+            .take(egos + vehicles)
+            .map(|&(lane, progress)| {
+                let (at, rotation) =
+                    task::placed(self.lanes.point(lane, progress, 0.0), VEHICLE_DROP);
+                Command {
+                    rotation,
+                    ..Command::spawn_vehicle(at)
+                }
+            })
+            .collect();
+        let side = -(LANE_WIDTH + SIDEWALK_WIDTH) / 2.0;
+        let walker_places: Vec<_> = places.iter().rev().take(walkers).copied().collect();
+        for &(lane, progress) in &walker_places {
+            let (at, _) = task::placed(self.lanes.point(lane, progress, side), 1.0);
+            spawns.push(Command::spawn_walker(at, WALKER_SIZE.0, WALKER_SIZE.1));
+        }
+        let response = self
+            .client
+            .apply_batch_sync(&spawns, false)
+            .map_err(error)?;
+        if let Some((index, status)) = response.errors().first() {
+            return Err(raise(
+                "CommandError",
+                format!("spawning the task's actor {index} was refused: {status:?}"),
+            ));
+        }
+        let ids: Vec<u64> = response.results.iter().map(|r| r.actor).collect();
+        self.egos = ids[..egos]
+            .iter()
+            .map(|&id| Ego {
+                id,
+                ..Ego::default()
+            })
+            .collect();
+        self.traffic = ids[egos..egos + vehicles].to_vec();
+        self.walkers = ids[egos + vehicles..]
+            .iter()
+            .zip(&walker_places)
+            .map(|(&id, &(lane, _))| Walker {
+                id,
+                lane,
+                forward: true,
+            })
+            .collect();
+        if let Some((width, height)) = self.camera_size {
+            for ego in &self.egos {
+                let spec = SensorSpec::camera_of(
+                    SensorKind::Rgb,
+                    [0.5, 1.6, 0.0],
+                    (width, height),
+                    90.0,
+                    1000.0,
+                )
+                .ok_or_else(|| PyValueError::new_err("no such camera"))?
+                .attached_to(ego.id);
+                let sensor = self.client.spawn_sensor(spec).map_err(error)?;
+                self.cameras.push((sensor.id(), None));
+            }
+        }
+        let mut frame = 0;
+        for _ in 0..SETTLE_FRAMES {
+            frame = self.ticker.tick(self.timeout).map_err(errors::tick)?;
+        }
+        self.read(frame)?;
+        self.snapshot = self
+            .client
+            .save_snapshot()
+            .map_err(crate::durability::snapshot_error)?;
+        Ok(())
+    }
+
+    /// Opens the cameras' readers again (a restore ends them; they come
+    /// back under their ids).
+    fn reopen_cameras(&mut self) -> PyResult<()> {
+        for (id, reader) in &mut self.cameras {
+            *reader = None;
+            *reader = Some(self.client.sensor(*id).map_err(error)?);
+        }
+        Ok(())
+    }
+
+    /// Reads frame `frame` (passing over any older) into `actors`.
+    fn read(&mut self, frame: u64) -> PyResult<()> {
+        loop {
+            let view = self
+                .client
+                .wait_for_frame(self.timeout)
+                .map_err(errors::wait)?;
+            if view.frame() < frame {
+                continue;
+            }
+            self.actors.clear();
+            self.actors.extend_from_slice(view.actors());
+            let t = view.timestamp();
+            self.time = (t.elapsed_seconds(), t.delta_seconds());
+            self.frame = view.frame();
+            return Ok(());
+        }
+    }
+
+    /// Each walker's control: along its sidewalk, turning back at its end.
+    fn walk(&mut self) {
+        for walker in &mut self.walkers {
+            let Some(actor) = self.actors.iter().find(|a| a.id == walker.id) else {
+                continue;
+            };
+            let f = task::Flat::of(actor);
+            let Some(on) = self.lanes.project_on(walker.lane, f.x, f.y) else {
+                continue;
+            };
+            let length = self.lanes.length(walker.lane);
+            if on.progress > length - 1.0 {
+                walker.forward = false;
+            } else if on.progress < 1.0 {
+                walker.forward = true;
+            }
+            let pose = self
+                .lanes
+                .point(walker.lane, on.progress.clamp(0.0, length), 0.0);
+            let hdg = if walker.forward {
+                pose.hdg
+            } else {
+                pose.hdg + std::f64::consts::PI
+            };
+            self.commands.push(Command::walker_control(
+                walker.id,
+                [hdg.cos() as f32, 0.0, -hdg.sin() as f32],
+                WALKER_SPEED,
+                false,
+            ));
+        }
+    }
+
+    /// Writes each ego's observation (and camera image) from the frame read.
+    fn write(
+        &mut self,
+        obs: &mut PyReadwriteArray2<'_, f32>,
+        camera: Option<PyReadwriteArray4<'_, u8>>,
+    ) -> PyResult<Vec<Outcome>> {
+        let mut obs = obs.as_array_mut();
+        if obs.nrows() != self.egos.len() || obs.ncols() != self.spec.row() {
+            return Err(PyValueError::new_err(format!(
+                "observations must be {} x {} float32, not {:?}",
+                self.egos.len(),
+                self.spec.row(),
+                obs.shape()
+            )));
+        }
+        let lights: HashMap<u32, shared_types::LightState> = self
+            .lights
+            .observe(self.lanes.network(), &self.actors)
+            .clone();
+        let mut outcomes = Vec::with_capacity(self.egos.len());
+        for (ego, mut row) in self.egos.iter_mut().zip(obs.rows_mut()) {
+            let row = row
+                .as_slice_mut()
+                .ok_or_else(|| PyValueError::new_err("observation rows must be contiguous"))?;
+            outcomes.push(task::observe(&self.spec, ego, &self.actors, &lights, row));
+        }
+        if let Some(mut images) = camera {
+            self.capture(&mut images)?;
+        }
+        Ok(outcomes)
+    }
+
+    /// Copies each ego camera's capture of the frame read into `images`
+    /// (ego, height, width, RGB).
+    fn capture(&mut self, images: &mut PyReadwriteArray4<'_, u8>) -> PyResult<()> {
+        let mut images = images.as_array_mut();
+        let frame = self.frame;
+        for (i, (_, reader)) in self.cameras.iter_mut().enumerate() {
+            let Some(reader) = reader.as_mut() else {
+                continue;
+            };
+            let capture = loop {
+                let capture = reader.recv(self.timeout).map_err(errors::wait)?;
+                if capture.header().frame >= frame {
+                    break capture;
+                }
+            };
+            let Some(pixels) = capture.image() else {
+                continue;
+            };
+            let mut image = images.index_axis_mut(numpy::ndarray::Axis(0), i);
+            let (h, w) = (image.shape()[0], image.shape()[1]);
+            if pixels.len() != h * w {
+                return Err(PyValueError::new_err(
+                    "the camera array's size is not the camera's",
+                ));
+            }
+            for (k, p) in pixels.iter().enumerate() {
+                let (y, x) = (k / w, k % w);
+                image[[y, x, 0]] = p.r;
+                image[[y, x, 1]] = p.g;
+                image[[y, x, 2]] = p.b;
+            }
+        }
+        Ok(())
+    }
+}

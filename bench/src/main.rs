@@ -30,6 +30,7 @@ mod failover;
 mod fanout;
 mod frames;
 mod futex;
+mod gym;
 mod journal;
 mod peer;
 mod plot;
@@ -105,6 +106,11 @@ enum Command {
     /// ticks per second with none missed, four 800x600 cameras' frames per
     /// second (needs `cargo build --release` and the test suite's venv).
     Ros2(ros2::Ros2Args),
+    /// Reinforcement learning: `simbus.gym`'s VectorEnv (sync, async, a
+    /// camera) beside Gymnasium's Sync/AsyncVectorEnv and highway-env, in
+    /// steps and simulated seconds per second for N worlds; reset p50 and
+    /// Python's share of a step (needs the test suite's venv).
+    Gym(gym::GymArgs),
     /// The measuring client of `zenoh` (run in the host it measures from).
     #[command(hide = true)]
     ZenohPeer(zenoh_peer::ZenohPeerArgs),
@@ -132,6 +138,7 @@ fn main() -> ExitCode {
         Command::Walkers(a) => walkers::run(a),
         Command::Zenoh(a) => zenoh::run(a),
         Command::Ros2(a) => ros2::run(a),
+        Command::Gym(a) => gym::run(a),
         Command::ZenohPeer(a) => zenoh_peer::peer(a),
         Command::FanoutPeer(a) => fanout::peer(a),
         Command::Peer(a) => peer::peer(a),

@@ -2,8 +2,9 @@
 //! `VectorEnv` (sync and async, state observations and an 84x84 camera)
 //! beside Gymnasium's own `SyncVectorEnv` and `AsyncVectorEnv(shared_memory
 //! =True)` over the same single-world env, and highway-env's
-//! `highway-fast-v0` alone and vectorised the same ways, for N worlds, in
-//! one run; the reset's p50 and Python's share of a step. The measuring is
+//! `highway-fast-v0` alone and vectorised the same ways, and CARLA's own
+//! client driving the same task through the gateway, for N worlds, in one
+//! run; the reset's p50 and Python's share of a step. The measuring is
 //! `gym_bench.py`'s, run in the test suite's venv (highway-env from
 //! `bench/requirements-gym.txt`).
 
@@ -30,9 +31,16 @@ pub(crate) struct GymArgs {
     /// Traffic vehicles in each world.
     #[arg(long, default_value_t = 10)]
     vehicles: usize,
+    /// The physics substep of the driving worlds, seconds (0.1: one physics
+    /// step per 0.1 s step).
+    #[arg(long, default_value_t = 0.02)]
+    max_substep_delta_time: f64,
     /// Leave highway-env's rows out.
     #[arg(long)]
     skip_highway: bool,
+    /// Leave out the row of CARLA's client through the gateway.
+    #[arg(long)]
+    skip_carla: bool,
     /// A Python with simbus and gymnasium [default: the test suite's venv,
     /// target/simbus-venv; highway-env: `pip install -r
     /// bench/requirements-gym.txt` into it].
@@ -75,10 +83,17 @@ pub(crate) fn run(args: GymArgs) -> anyhow::Result<()> {
         .args(["--steps", &args.steps.to_string()])
         .args(["--highway-steps", &args.highway_steps.to_string()])
         .args(["--vehicles", &args.vehicles.to_string()])
+        .args([
+            "--max-substep-delta-time",
+            &args.max_substep_delta_time.to_string(),
+        ])
         .env("SIMBUS_BIN_DIR", &bin_dir)
         .env("SDL_VIDEODRIVER", "dummy");
     if args.skip_highway {
         command.arg("--skip-highway");
+    }
+    if args.skip_carla {
+        command.arg("--skip-carla");
     }
     if args.json {
         command.arg("--json");

@@ -88,6 +88,74 @@ def highway(kind, n, steps):
     return gym_vector(kind, n, steps, make)
 
 
+def carla_driving(steps, vehicles, sub):
+    """The same task as a CARLA user writes it today: CARLA's client through
+    simbus's gateway (the fastest CARLA server there is here), synchronous,
+    0.1 s steps, an ego and `vehicles` on the traffic manager's autopilot;
+    per step: the ego's control, world.tick(), and what a driving env
+    reads (the ego's transform and velocity, its waypoint, the vehicles)."""
+    import json as _json
+    import subprocess
+
+    import carla
+
+    bin_dir = os.environ["SIMBUS_BIN_DIR"]
+    world_name = sg.unique_world("gym-carla")
+    server = sg.ServerProcess(world_name)
+    gateway = None
+    try:
+        subprocess.run([os.path.join(bin_dir, "sim-client"), "--world", world_name, "--timeout", "60", "status"],
+                       capture_output=True, check=True, timeout=90)
+        gateway = subprocess.Popen(
+            [os.path.join(bin_dir, "sim-client"), "--world", world_name, "--timeout", "10",
+             "carla-gateway", "--port", "0", "--json"],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        port = None
+        while port is None:
+            line = gateway.stdout.readline()
+            if not line:
+                raise RuntimeError("the gateway exited")
+            if '"streaming_port"' in line:
+                port = _json.loads(line)["port"]
+        client = carla.Client("127.0.0.1", port)
+        client.set_timeout(20.0)
+        world = client.get_world()
+        settings = world.get_settings()
+        settings.synchronous_mode = True
+        settings.fixed_delta_seconds = DELTA
+        settings.max_substep_delta_time = sub
+        settings.max_substeps = 16
+        world.apply_settings(settings)
+        tm = client.get_trafficmanager(8000 + os.getpid() % 1000)
+        tm.set_synchronous_mode(True)
+        blueprints = world.get_blueprint_library().filter("vehicle.*")
+        points = world.get_map().get_spawn_points()
+        ego = world.spawn_actor(blueprints[0], points[0])
+        for k in range(vehicles):
+            v = world.try_spawn_actor(blueprints[0], points[(k + 1) * 7 % len(points)])
+            if v is not None:
+                v.set_autopilot(True, tm.get_port())
+        world.tick()
+        carla_map = world.get_map()
+        control = carla.VehicleControl(throttle=0.3)
+
+        def step():
+            ego.apply_control(control)
+            world.tick()
+            transform = ego.get_transform()
+            ego.get_velocity()
+            carla_map.get_waypoint(transform.location)
+            for actor in world.get_actors().filter("vehicle.*"):
+                actor.get_transform()
+
+        return steps / timed(step, steps)
+    finally:
+        if gateway is not None:
+            gateway.kill()
+            gateway.wait()
+        server.close()
+
+
 def reset_p50(task, count=100):
     env = sg.DrivingEnv(**task)
     try:
@@ -131,10 +199,13 @@ def main():
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--highway-steps", type=int, default=40)
     p.add_argument("--vehicles", type=int, default=10)
+    p.add_argument("--max-substep-delta-time", type=float, default=0.02)
     p.add_argument("--skip-highway", action="store_true")
+    p.add_argument("--skip-carla", action="store_true")
     p.add_argument("--json", action="store_true")
     args = p.parse_args()
-    task = dict(vehicles=args.vehicles, max_episode_steps=100000)
+    task = dict(vehicles=args.vehicles, max_episode_steps=100000,
+                max_substep_delta_time=args.max_substep_delta_time)
     make = lambda: sg.DrivingEnv(**task)  # noqa: E731
     rows = []
 
@@ -145,6 +216,9 @@ def main():
 
     for n in [int(x) for x in args.envs.split(",")]:
         s = args.steps
+        if n == 1 and not args.skip_carla:
+            row("CARLA's client through the gateway (same task)", 1,
+                carla_driving(max(20, s // 3), args.vehicles, args.max_substep_delta_time), DELTA)
         row("simbus.gym VectorEnv (sync)", n, simbus_sync(n, s, task), DELTA)
         if n > 1:
             row("simbus.gym VectorEnv (async, batch N/2)", n, simbus_async(n, s, task), DELTA)
@@ -160,6 +234,8 @@ def main():
     extra = {
         "reset_p50_ms": reset_p50(task),
         "python_overhead_share_n4": python_overhead(4, args.steps, task),
+        "max_substep_delta_time": args.max_substep_delta_time,
+        "vehicles": args.vehicles,
         "cpus": os.cpu_count(),
         "load": os.getloadavg()[0],
     }

@@ -277,3 +277,25 @@ def test_a_killed_world_is_reported_and_recovered_without_changing_the_batches()
     for t, (x, y) in enumerate(zip(a, b)):
         for u, v in zip(x, y):
             assert same(u, v), f"batch {t} differs after the world was restarted"
+
+
+def test_the_data_collection_example_writes_images_and_labels_at_the_fixed_step(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    example = os.path.join(os.path.dirname(__file__), "..", "..", "sim-client", "python", "examples", "gym",
+                           "collect_data.py")
+    done = subprocess.run([sys.executable, example, "--out", str(tmp_path), "--envs", "2", "--steps", "5",
+                           "--width", "64", "--height", "48"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    lines = [json.loads(line) for line in (tmp_path / "labels.jsonl").read_text().splitlines()]
+    assert len(lines) == 10
+    assert [x["simulated_seconds"] for x in lines if x["world"] == 0] == [0.0, 0.1, 0.2, 0.3, 0.4]
+    for label in lines:
+        image = Image.open(tmp_path / label["image"])
+        assert image.size == (64, 48)
+        assert set(label["ego"]) >= {"speed", "left_of_route", "heading_error"}
+        assert len(label["route"]) == 10

@@ -5,7 +5,6 @@
 //! `simbus_traffic`'s planner in this process, its episodes started by
 //! restoring one snapshot.
 
-use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -15,13 +14,15 @@ use pyo3::prelude::*;
 use rand::RngExt;
 use shared_types::roads::{self, LANE_WIDTH, SIDEWALK_WIDTH};
 use shared_types::scene::SceneName;
-use shared_types::{ActorState, Command, SensorKind, SensorSpec, WorldSettings};
+use shared_types::{ActorState, Command, WorldSettings};
 use sim_client::{Client, Sensor, SnapshotId, TickInFlight, Ticker};
 use simbus_traffic::{Control, LightStates, Parameters, Planner};
 
 use super::task::{self, Ego, Outcome, TaskSpec, REWARD_TERMS};
 use crate::args::seconds;
 use crate::errors::{self, message, raise};
+
+mod episode;
 
 /// Metres between the places vehicles may start.
 const START_SPACING: f64 = 12.0;
@@ -371,11 +372,10 @@ impl DrivingWorld {
                 false,
             ));
         }
-        let lights = self.lights.observe(self.lanes.network(), &self.actors);
         self.planner.step(
             &self.lanes,
             &self.actors,
-            lights,
+            self.lights.states(),
             self.time,
             &self.parameters,
             &mut self.controls,
@@ -464,221 +464,6 @@ impl DrivingWorld {
     fn close(&mut self) -> PyResult<()> {
         self.in_flight = None;
         self.cameras.clear();
-        Ok(())
-    }
-}
-
-impl DrivingWorld {
-    /// Spawns the egos, traffic and walkers at the first start places,
-    /// settles them and saves the episodes' snapshot.
-    fn populate(&mut self, egos: usize, vehicles: usize, walkers: usize) -> PyResult<()> {
-        let places = task::start_places(&self.lanes, START_SPACING);
-        if egos + vehicles > places.len() {
-            return Err(PyValueError::new_err(format!(
-                "the town has {} places to start for {} vehicles",
-                places.len(),
-                egos + vehicles
-            )));
-        }
-        let mut spawns: Vec<Command> = places
-            .iter()
-            .take(egos + vehicles)
-            .map(|&(lane, progress)| {
-                let (at, rotation) =
-                    task::placed(self.lanes.point(lane, progress, 0.0), VEHICLE_DROP);
-                Command {
-                    rotation,
-                    ..Command::spawn_vehicle(at)
-                }
-            })
-            .collect();
-        let side = -(LANE_WIDTH + SIDEWALK_WIDTH) / 2.0;
-        let walker_places: Vec<_> = places.iter().rev().take(walkers).copied().collect();
-        for &(lane, progress) in &walker_places {
-            let (at, _) = task::placed(self.lanes.point(lane, progress, side), 1.0);
-            spawns.push(Command::spawn_walker(at, WALKER_SIZE.0, WALKER_SIZE.1));
-        }
-        let response = self
-            .client
-            .apply_batch_sync(&spawns, false)
-            .map_err(error)?;
-        if let Some((index, status)) = response.errors().first() {
-            return Err(raise(
-                "CommandError",
-                format!("spawning the task's actor {index} was refused: {status:?}"),
-            ));
-        }
-        let ids: Vec<u64> = response.results.iter().map(|r| r.actor).collect();
-        self.egos = ids[..egos]
-            .iter()
-            .map(|&id| Ego {
-                id,
-                ..Ego::default()
-            })
-            .collect();
-        self.traffic = ids[egos..egos + vehicles].to_vec();
-        self.walkers = ids[egos + vehicles..]
-            .iter()
-            .zip(&walker_places)
-            .map(|(&id, &(lane, _))| Walker {
-                id,
-                lane,
-                forward: true,
-            })
-            .collect();
-        if let Some((width, height)) = self.camera_size {
-            for ego in &self.egos {
-                let spec = SensorSpec::camera_of(
-                    SensorKind::Rgb,
-                    [0.5, 1.6, 0.0],
-                    (width, height),
-                    90.0,
-                    1000.0,
-                )
-                .ok_or_else(|| PyValueError::new_err("no such camera"))?
-                .attached_to(ego.id);
-                let sensor = self.client.spawn_sensor(spec).map_err(error)?;
-                self.cameras.push((sensor.id(), None));
-            }
-        }
-        let mut frame = 0;
-        for _ in 0..SETTLE_FRAMES {
-            frame = self.ticker.tick(self.timeout).map_err(errors::tick)?;
-        }
-        self.read(frame)?;
-        self.snapshot = self
-            .client
-            .save_snapshot()
-            .map_err(crate::durability::snapshot_error)?;
-        Ok(())
-    }
-
-    /// Opens the cameras' readers again (a restore ends them; they come
-    /// back under their ids).
-    fn reopen_cameras(&mut self) -> PyResult<()> {
-        for (id, reader) in &mut self.cameras {
-            *reader = None;
-            *reader = Some(self.client.sensor(*id).map_err(error)?);
-        }
-        Ok(())
-    }
-
-    /// Reads frame `frame` (passing over any older) into `actors`.
-    fn read(&mut self, frame: u64) -> PyResult<()> {
-        loop {
-            let view = self
-                .client
-                .wait_for_frame(self.timeout)
-                .map_err(errors::wait)?;
-            if view.frame() < frame {
-                continue;
-            }
-            self.actors.clear();
-            self.actors.extend_from_slice(view.actors());
-            let t = view.timestamp();
-            self.time = (t.elapsed_seconds(), t.delta_seconds());
-            self.frame = view.frame();
-            return Ok(());
-        }
-    }
-
-    /// Each walker's control: along its sidewalk, turning back at its end.
-    fn walk(&mut self) {
-        for walker in &mut self.walkers {
-            let Some(actor) = self.actors.iter().find(|a| a.id == walker.id) else {
-                continue;
-            };
-            let f = task::Flat::of(actor);
-            let Some(on) = self.lanes.project_on(walker.lane, f.x, f.y) else {
-                continue;
-            };
-            let length = self.lanes.length(walker.lane);
-            if on.progress > length - 1.0 {
-                walker.forward = false;
-            } else if on.progress < 1.0 {
-                walker.forward = true;
-            }
-            let pose = self
-                .lanes
-                .point(walker.lane, on.progress.clamp(0.0, length), 0.0);
-            let hdg = if walker.forward {
-                pose.hdg
-            } else {
-                pose.hdg + std::f64::consts::PI
-            };
-            self.commands.push(Command::walker_control(
-                walker.id,
-                [hdg.cos() as f32, 0.0, -hdg.sin() as f32],
-                WALKER_SPEED,
-                false,
-            ));
-        }
-    }
-
-    /// Writes each ego's observation (and camera image) from the frame read.
-    fn write(
-        &mut self,
-        obs: &mut PyReadwriteArray2<'_, f32>,
-        camera: Option<PyReadwriteArray4<'_, u8>>,
-    ) -> PyResult<Vec<Outcome>> {
-        let mut obs = obs.as_array_mut();
-        if obs.nrows() != self.egos.len() || obs.ncols() != self.spec.row() {
-            return Err(PyValueError::new_err(format!(
-                "observations must be {} x {} float32, not {:?}",
-                self.egos.len(),
-                self.spec.row(),
-                obs.shape()
-            )));
-        }
-        let lights: HashMap<u32, shared_types::LightState> = self
-            .lights
-            .observe(self.lanes.network(), &self.actors)
-            .clone();
-        let mut outcomes = Vec::with_capacity(self.egos.len());
-        for (ego, mut row) in self.egos.iter_mut().zip(obs.rows_mut()) {
-            let row = row
-                .as_slice_mut()
-                .ok_or_else(|| PyValueError::new_err("observation rows must be contiguous"))?;
-            outcomes.push(task::observe(&self.spec, ego, &self.actors, &lights, row));
-        }
-        if let Some(mut images) = camera {
-            self.capture(&mut images)?;
-        }
-        Ok(outcomes)
-    }
-
-    /// Copies each ego camera's capture of the frame read into `images`
-    /// (ego, height, width, RGB).
-    fn capture(&mut self, images: &mut PyReadwriteArray4<'_, u8>) -> PyResult<()> {
-        let mut images = images.as_array_mut();
-        let frame = self.frame;
-        for (i, (_, reader)) in self.cameras.iter_mut().enumerate() {
-            let Some(reader) = reader.as_mut() else {
-                continue;
-            };
-            let capture = loop {
-                let capture = reader.recv(self.timeout).map_err(errors::wait)?;
-                if capture.header().frame >= frame {
-                    break capture;
-                }
-            };
-            let Some(pixels) = capture.image() else {
-                continue;
-            };
-            let mut image = images.index_axis_mut(numpy::ndarray::Axis(0), i);
-            let (h, w) = (image.shape()[0], image.shape()[1]);
-            if pixels.len() != h * w {
-                return Err(PyValueError::new_err(
-                    "the camera array's size is not the camera's",
-                ));
-            }
-            for (k, p) in pixels.iter().enumerate() {
-                let (y, x) = (k / w, k % w);
-                image[[y, x, 0]] = p.r;
-                image[[y, x, 1]] = p.g;
-                image[[y, x, 2]] = p.b;
-            }
-        }
         Ok(())
     }
 }

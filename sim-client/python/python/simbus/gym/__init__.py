@@ -6,6 +6,7 @@ over simbus worlds (``pip install simbus[gym]``).
 - `VectorEnv`: N worlds as one `gymnasium.vector.VectorEnv`, observations
   written straight into batch arrays, sync or async (`send`/`recv`).
 - `ParallelEnv`: several egos in one world (PettingZoo).
+- `RayVectorEnv`: the worlds spread over a Ray cluster's nodes.
 
 >>> import simbus.gym
 >>> envs = simbus.gym.VectorEnv("driving", num_envs=8, seed=0)  # doctest: +SKIP
@@ -23,12 +24,22 @@ try:  # PettingZoo is optional
 except ImportError:  # pragma: no cover - without pettingzoo
     ParallelEnv = None  # type: ignore[assignment,misc]
 
+
+def __getattr__(name):
+    # Ray is optional and heavy: imported on first use only.
+    if name == "RayVectorEnv":
+        from .distributed import RayVectorEnv
+
+        return RayVectorEnv
+    raise AttributeError(name)
+
 __all__ = [
     "DEFAULT_WEIGHTS",
     "REWARD_TERMS",
     "DrivingConfig",
     "DrivingEnv",
     "ParallelEnv",
+    "RayVectorEnv",
     "ServerProcess",
     "VectorEnv",
     "WorldEnv",

@@ -72,6 +72,24 @@ def test_driving_env_passes_gymnasiums_checker_and_renders():
         env.close()
 
 
+def test_a_lidar_on_another_scenes_roads_sees_the_world():
+    from gymnasium.utils.env_checker import check_env
+
+    env = sg.DrivingEnv(scene="default", vehicles=2, lidar=(8, 90))
+    try:
+        check_env(env, skip_render_check=True)
+        obs, _ = env.reset(seed=2)
+        cloud = obs["lidar"]
+        assert cloud.shape == (720, 4) and cloud.dtype == np.float32
+        hits = cloud[cloud[:, 3] > 0]
+        assert len(hits) > 50, "the lidar hit nothing"
+        assert (np.linalg.norm(hits[:, :3], axis=1) <= 50.01).all()
+        # The ego follows the scene's ring road: its route is ahead of it.
+        assert obs["route"][0][0] > 0 and abs(obs["ego"][1]) < 1.0
+    finally:
+        env.close()
+
+
 def test_a_seed_gives_the_same_episode_bit_for_bit_and_another_seed_another():
     actions = policy(500)
     first = sg.DrivingEnv(**TASK)

@@ -33,6 +33,7 @@ thread_bound!(
     &mut sim_client::Client,
     &mut sim_client::Ticker,
     (&mut sim_client::Ticker, &mut sim_client::Client),
+    (&mut sim_client::Ticker, sim_client::TickInFlight),
     sim_client::Ticker,
     &mut sim_client::Sensor,
 );

@@ -206,6 +206,8 @@ pub(crate) struct Ego {
     pub(crate) route: Route,
     /// Its last action: steer, throttle minus brake.
     pub(crate) last: [f32; 2],
+    /// The actors near it in the last frame (distance, body, walker).
+    pub(crate) near: Vec<(f64, Flat, bool)>,
 }
 
 /// One ego's step: its reward terms and how the episode goes on.
@@ -269,16 +271,20 @@ pub(crate) fn observe(
     ];
     row[..EGO_VALUES].copy_from_slice(&ego_values);
     // The nearest actors that move (vehicles, walkers, dynamic bodies).
-    let mut near: Vec<(f64, Flat, bool)> = actors
-        .iter()
-        .filter(|a| a.id != ego.id && moves(a))
-        .map(|a| {
-            let f = Flat::of(a);
-            let d = ((f.x - body.x).powi(2) + (f.y - body.y).powi(2)).sqrt();
-            (d, f, a.actor_kind() == Some(ActorKind::Walker))
-        })
-        .filter(|(d, _, _)| *d <= SEEN_WITHIN)
-        .collect();
+    // Kept in the ego between steps: the hot path allocates nothing.
+    let mut near = std::mem::take(&mut ego.near);
+    near.clear();
+    near.extend(
+        actors
+            .iter()
+            .filter(|a| a.id != ego.id && moves(a))
+            .map(|a| {
+                let f = Flat::of(a);
+                let d = ((f.x - body.x).powi(2) + (f.y - body.y).powi(2)).sqrt();
+                (d, f, a.actor_kind() == Some(ActorKind::Walker))
+            })
+            .filter(|(d, _, _)| *d <= SEEN_WITHIN),
+    );
     near.sort_by(|a, b| a.0.total_cmp(&b.0));
     outcome.collided = me.acceleration.iter().map(|a| a * a).sum::<f32>().sqrt()
         > CRASH_ACCELERATION
@@ -312,6 +318,7 @@ pub(crate) fn observe(
         let (fwd, lft) = body.local(p.x, p.y);
         slot.copy_from_slice(&[fwd as f32, lft as f32]);
     }
+    ego.near = near;
     outcome.terms[0] = advanced as f32;
     outcome.terms[1] = if outcome.collided { -1.0 } else { 0.0 };
     outcome.terms[2] = -((left.abs() - LANE_WIDTH / 2.0).max(0.0) as f32);

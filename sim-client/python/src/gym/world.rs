@@ -5,24 +5,32 @@
 //! `simbus_traffic`'s planner in this process, its episodes started by
 //! restoring one snapshot.
 
-use std::sync::{Arc, OnceLock};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
-use numpy::{PyReadonlyArray2, PyReadwriteArray1, PyReadwriteArray2, PyReadwriteArray4};
+use numpy::{
+    PyReadonlyArray2, PyReadwriteArray1, PyReadwriteArray2, PyReadwriteArray3, PyReadwriteArray4,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rand::RngExt;
 use shared_types::roads::{self, LANE_WIDTH, SIDEWALK_WIDTH};
 use shared_types::scene::SceneName;
 use shared_types::{ActorState, Command, WorldSettings};
-use sim_client::{Client, Sensor, SnapshotId, TickInFlight, Ticker};
+use sim_client::{Client, SnapshotId, TickInFlight, Ticker};
 use simbus_traffic::{Control, LightStates, Parameters, Planner};
 
 use super::task::{self, Ego, Outcome, TaskSpec, REWARD_TERMS};
 use crate::args::seconds;
 use crate::errors::{self, message, raise};
+use crate::gil::detached;
 
 mod episode;
+mod sensors;
+
+pub(crate) use sensors::Captures;
+use sensors::EgoSensor;
 
 /// Metres between the places vehicles may start.
 const START_SPACING: f64 = 12.0;
@@ -48,10 +56,16 @@ const DISCRETE: [(f32, f32); 9] = [
     (0.0, -1.0),
 ];
 
-/// The town's lanes, built once per process.
-fn town_lanes() -> Arc<simbus_traffic::Lanes> {
-    static TOWN: OnceLock<Arc<simbus_traffic::Lanes>> = OnceLock::new();
-    TOWN.get_or_init(|| Arc::new(simbus_traffic::Lanes::new(roads::network(SceneName::Town))))
+/// A scene's lanes, built once per process and scene.
+fn lanes_of(scene: SceneName) -> Arc<simbus_traffic::Lanes> {
+    static LANES: OnceLock<Mutex<HashMap<String, Arc<simbus_traffic::Lanes>>>> = OnceLock::new();
+    let mut lanes = LANES
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    lanes
+        .entry(scene.to_string())
+        .or_insert_with(|| Arc::new(simbus_traffic::Lanes::new(roads::network(scene))))
         .clone()
 }
 
@@ -74,8 +88,10 @@ pub(crate) struct DrivingWorld {
     egos: Vec<Ego>,
     traffic: Vec<u64>,
     walkers: Vec<Walker>,
-    cameras: Vec<(u64, Option<Sensor>)>,
+    cameras: Vec<EgoSensor>,
     camera_size: Option<(u32, u32)>,
+    lidars: Vec<EgoSensor>,
+    lidar_size: Option<(u32, u32)>,
     planner: Planner,
     parameters: Parameters,
     lights: LightStates,
@@ -88,6 +104,8 @@ pub(crate) struct DrivingWorld {
     answered: Option<u64>,
     commands: Vec<Command>,
     controls: Vec<Control>,
+    /// Each ego's last outcome (kept: the hot path allocates nothing).
+    outcomes: Vec<Outcome>,
     steps: u64,
     max_steps: u64,
     timeout: Duration,
@@ -115,11 +133,12 @@ impl DrivingWorld {
     /// walkers, lets them settle and saves the snapshot every episode
     /// starts from.
     #[new]
-    #[pyo3(signature = (world, *, egos = 1, vehicles = 0, walkers = 0, delta_seconds = 0.1, max_substep_delta_time = 0.02, actors = 6, route_points = 10, route_length = 300.0, weights = [1.0, 10.0, 0.1, 5.0, 5.0], end_on_collision = true, max_episode_steps = 1000, camera = None, discrete = false, timeout = 10.0))]
+    #[pyo3(signature = (world, *, scene = "town", egos = 1, vehicles = 0, walkers = 0, delta_seconds = 0.1, max_substep_delta_time = 0.02, actors = 6, route_points = 10, route_length = 300.0, weights = [1.0, 10.0, 0.1, 5.0, 5.0], end_on_collision = true, max_episode_steps = 1000, camera = None, lidar = None, discrete = false, timeout = 10.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         world: &str,
+        scene: &str,
         egos: usize,
         vehicles: usize,
         walkers: usize,
@@ -132,10 +151,14 @@ impl DrivingWorld {
         end_on_collision: bool,
         max_episode_steps: u64,
         camera: Option<(u32, u32)>,
+        lidar: Option<(u32, u32)>,
         discrete: bool,
         timeout: f64,
     ) -> PyResult<Self> {
         let timeout = seconds("timeout", timeout)?;
+        let scene: SceneName = scene
+            .parse()
+            .map_err(|e| PyValueError::new_err(format!("scene: {e}")))?;
         if egos == 0 || egos > 64 {
             return Err(PyValueError::new_err(format!(
                 "egos must be 1..=64, not {egos}"
@@ -156,8 +179,8 @@ impl DrivingWorld {
                 "at most 64 actors and 64 route points observed",
             ));
         }
-        let _ = py;
-        let client = Client::connect(world, timeout).map_err(errors::connect)?;
+        let client =
+            detached(py, (), |()| Client::connect(world, timeout)).map_err(errors::connect)?;
         let mut ticker = client.claim_ticker().map_err(errors::tick)?;
         let settings = WorldSettings {
             synchronous_mode: true,
@@ -168,8 +191,8 @@ impl DrivingWorld {
             ..client.get_settings().map_err(errors::request)?
         };
         ticker.apply_settings(settings).map_err(errors::settings)?;
-        let status = client.load_world("town", false).map_err(errors::load)?;
-        let _ = status;
+        let name = scene.to_string();
+        detached(py, &client, |c| c.load_world(&name, false)).map_err(errors::load)?;
         let spec = TaskSpec {
             actors,
             route_points,
@@ -180,13 +203,15 @@ impl DrivingWorld {
         let mut this = Self {
             client,
             ticker,
-            lanes: town_lanes(),
+            lanes: lanes_of(scene),
             spec,
             egos: Vec::new(),
             traffic: Vec::new(),
             walkers: Vec::new(),
             cameras: Vec::new(),
             camera_size: camera,
+            lidars: Vec::new(),
+            lidar_size: lidar,
             planner: Planner::default(),
             parameters: Parameters::default(),
             lights: LightStates::default(),
@@ -198,12 +223,13 @@ impl DrivingWorld {
             answered: None,
             commands: Vec::new(),
             controls: Vec::new(),
+            outcomes: Vec::new(),
             steps: 0,
             max_steps: max_episode_steps,
             timeout,
             discrete,
         };
-        this.populate(egos, vehicles, walkers)?;
+        this.populate(py, egos, vehicles, walkers)?;
         Ok(this)
     }
 
@@ -246,7 +272,13 @@ impl DrivingWorld {
         )
     }
 
-    /// The last frame's digest-free summary: its id and simulation time.
+    /// Steps since the episode began (0 right after a reset).
+    #[getter]
+    fn episode_steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// The simulation time of the frame last read, seconds.
     #[getter]
     fn elapsed_seconds(&self) -> f64 {
         self.time.0
@@ -257,12 +289,17 @@ impl DrivingWorld {
     /// observation into `obs` (one row per ego) and returns the frame.
     fn reset(
         &mut self,
+        py: Python<'_>,
         seed: u64,
         mut obs: PyReadwriteArray2<'_, f32>,
         camera: Option<PyReadwriteArray4<'_, u8>>,
+        lidar: Option<PyReadwriteArray3<'_, f32>>,
     ) -> PyResult<u64> {
         if let Some(tick) = self.in_flight.take() {
-            self.ticker.finish_tick(tick).map_err(errors::tick)?;
+            detached(py, (&mut self.ticker, tick), |(t, tick)| {
+                t.finish_tick(tick)
+            })
+            .map_err(errors::tick)?;
         }
         self.answered = None;
         self.client
@@ -303,9 +340,10 @@ impl DrivingWorld {
         self.client
             .apply_batch(&self.commands)
             .map_err(errors::request)?;
-        self.reopen_cameras()?;
-        let frame = self.ticker.tick(self.timeout).map_err(errors::tick)?;
-        self.read(frame)?;
+        self.reopen_sensors()?;
+        let timeout = self.timeout;
+        let frame = detached(py, &mut self.ticker, |t| t.tick(timeout)).map_err(errors::tick)?;
+        self.read(py, frame)?;
         let mut route_rng = task::episode_rng(seed, 2);
         for ego in &mut self.egos {
             let start = self
@@ -322,7 +360,7 @@ impl DrivingWorld {
             ego.last = [0.0, 0.0];
         }
         self.steps = 0;
-        self.write(&mut obs, camera)?;
+        self.outcomes = self.write(&mut obs, Captures { camera, lidar })?;
         Ok(frame)
     }
 
@@ -415,24 +453,30 @@ impl DrivingWorld {
     /// Waits for the step's frame and writes each ego's observation into
     /// `obs`, its reward into `reward`, whether its episode ended into
     /// `terminated` and `truncated`, and its reward terms into `terms`.
-    #[pyo3(signature = (obs, reward, terminated, truncated, terms, camera = None))]
+    #[pyo3(signature = (obs, reward, terminated, truncated, terms, camera = None, lidar = None))]
+    #[allow(clippy::too_many_arguments)]
     fn finish(
         &mut self,
+        py: Python<'_>,
         mut obs: PyReadwriteArray2<'_, f32>,
         mut reward: PyReadwriteArray1<'_, f32>,
         mut terminated: PyReadwriteArray1<'_, bool>,
         mut truncated: PyReadwriteArray1<'_, bool>,
         mut terms: PyReadwriteArray2<'_, f32>,
         camera: Option<PyReadwriteArray4<'_, u8>>,
+        lidar: Option<PyReadwriteArray3<'_, f32>>,
     ) -> PyResult<u64> {
         let frame = match (self.in_flight.take(), self.answered.take()) {
-            (Some(tick), _) => self.ticker.finish_tick(tick).map_err(errors::tick)?,
+            (Some(tick), _) => detached(py, (&mut self.ticker, tick), |(t, tick)| {
+                t.finish_tick(tick)
+            })
+            .map_err(errors::tick)?,
             (None, Some(frame)) => frame,
             (None, None) => return Err(raise("Error", "no step was sent: send actions first")),
         };
-        self.read(frame)?;
+        self.read(py, frame)?;
         self.steps += 1;
-        let outcomes = self.write(&mut obs, camera)?;
+        let outcomes = self.write(&mut obs, Captures { camera, lidar })?;
         let truncate = self.steps >= self.max_steps;
         let (mut reward, mut terminated, mut truncated, mut terms) = (
             reward.as_array_mut(),
@@ -456,14 +500,15 @@ impl DrivingWorld {
                 }
             }
         }
+        self.outcomes = outcomes;
         Ok(frame)
     }
 
-    /// Gives the world back: the ticker released (the world goes back to
-    /// the settings it had).
+    /// Forgets a step in flight and closes the sensors' readers; the world
+    /// is given back (its ticker released) when this object goes.
     fn close(&mut self) -> PyResult<()> {
         self.in_flight = None;
-        self.cameras.clear();
+        self.close_sensors();
         Ok(())
     }
 }

@@ -13,6 +13,20 @@ from typing import Optional, Sequence
 
 _counter = itertools.count()
 
+#: Linux's prctl option that signals a child when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: SIGKILL when the process that started it
+    dies, so a killed trainer leaves no server behind."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
 
 def unique_world(prefix: str = "gym") -> str:
     """A world name no other process on this machine uses."""
@@ -56,6 +70,7 @@ class ServerProcess:
         self.process = subprocess.Popen(
             [self.binary, "--world", self.world, "--scene", self.scene, *self.args],
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=self._log,
+            preexec_fn=_die_with_parent,
         )
 
     @property

@@ -34,6 +34,7 @@ WORLD_LOST = (_errors.ServerGone, _errors.TimeoutError, _errors.Restarted)
 class DrivingConfig:
     """What a driving world holds and how its episodes go."""
 
+    scene: str = "town"
     vehicles: int = 0
     walkers: int = 0
     delta_seconds: float = 0.1
@@ -45,6 +46,7 @@ class DrivingConfig:
     end_on_collision: bool = True
     max_episode_steps: int = 1000
     camera: Optional[Tuple[int, int]] = None
+    lidar: Optional[Tuple[int, int]] = None
     discrete: bool = False
     timeout: float = 10.0
     server_binary: Optional[str] = None
@@ -57,11 +59,28 @@ class DrivingConfig:
         return [float(merged[t]) for t in REWARD_TERMS]
 
     @property
+    def lidar_points(self) -> int:
+        """Points in one lidar observation (channels x points per channel)."""
+        return 0 if self.lidar is None else int(self.lidar[0]) * int(self.lidar[1])
+
+    def arrays(self, rows: int):
+        """Zeroed batch arrays for `rows` egos: flat observations, camera,
+        lidar, reward, terminated, truncated, reward terms."""
+        camera = lidar = None
+        if self.camera is not None:
+            camera = np.zeros((rows, self.camera[1], self.camera[0], 3), np.uint8)
+        if self.lidar is not None:
+            lidar = np.zeros((rows, self.lidar_points, 4), np.float32)
+        return (np.zeros((rows, self.row), np.float32), camera, lidar, np.zeros(rows, np.float32),
+                np.zeros(rows, np.bool_), np.zeros(rows, np.bool_), np.zeros((rows, len(REWARD_TERMS)), np.float32))
+
+    @property
     def row(self) -> int:
         return DRIVING_EGO_VALUES + self.actors * DRIVING_ACTOR_VALUES + self.route_points * 2
 
 
-def observation_views(config: DrivingConfig, flat: np.ndarray, camera: Optional[np.ndarray]) -> Dict[str, np.ndarray]:
+def observation_views(config: DrivingConfig, flat: np.ndarray, camera: Optional[np.ndarray],
+                      lidar: Optional[np.ndarray] = None) -> Dict[str, np.ndarray]:
     """The Dict observation over `flat` (rows x config.row float32): views, not copies."""
     n = flat.shape[0]
     a = DRIVING_EGO_VALUES
@@ -73,24 +92,26 @@ def observation_views(config: DrivingConfig, flat: np.ndarray, camera: Optional[
     }
     if camera is not None:
         views["camera"] = camera
+    if lidar is not None:
+        views["lidar"] = lidar
     return views
 
 
 class Slot:
     """One world: `egos` ego vehicles, observed into rows of the caller's arrays."""
 
-    def __init__(self, config: DrivingConfig, *, egos: int, flat: np.ndarray, camera: Optional[np.ndarray],
-                 reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray, terms: np.ndarray,
-                 world: Optional[str] = None):
+    def __init__(self, config: DrivingConfig, *, egos: int, arrays, world: Optional[str] = None):
+        """`arrays`: this world's rows of the batch arrays (`DrivingConfig.arrays`' order)."""
         self.config = config
         self.egos = egos
-        self.flat, self.camera = flat, camera
+        flat, camera, lidar, reward, terminated, truncated, terms = arrays
+        self.flat, self.camera, self.lidar = flat, camera, lidar
         self.reward, self.terminated, self.truncated, self.terms = reward, terminated, truncated, terms
         self.attached = world is not None
         self.server: Optional[ServerProcess] = None
         if world is None:
             world = unique_world()
-            self.server = ServerProcess(world, binary=config.server_binary)
+            self.server = ServerProcess(world, scene=config.scene, binary=config.server_binary)
         self.world_name = world
         self.world: Optional[DrivingWorld] = None
         self.seed = 0
@@ -102,11 +123,11 @@ class Slot:
         c = self.config
         try:
             self.world = DrivingWorld(
-                self.world_name, egos=self.egos, vehicles=c.vehicles, walkers=c.walkers,
+                self.world_name, scene=c.scene, egos=self.egos, vehicles=c.vehicles, walkers=c.walkers,
                 delta_seconds=c.delta_seconds, max_substep_delta_time=c.max_substep_delta_time,
                 actors=c.actors, route_points=c.route_points, route_length=c.route_length,
                 weights=c.weight_list(), end_on_collision=c.end_on_collision,
-                max_episode_steps=c.max_episode_steps, camera=c.camera, discrete=c.discrete,
+                max_episode_steps=c.max_episode_steps, camera=c.camera, lidar=c.lidar, discrete=c.discrete,
                 timeout=c.timeout,
             )
         except _errors.TimeoutError as e:
@@ -118,7 +139,7 @@ class Slot:
     def reset(self, seed: int) -> None:
         self.seed = int(seed)
         self.actions.clear()
-        self.world.reset(self.seed, self.flat, self.camera)
+        self.world.reset(self.seed, self.flat, self.camera, self.lidar)
 
     def send(self, actions: np.ndarray) -> None:
         self.actions.append(np.array(actions, dtype=np.float32, copy=True))
@@ -128,7 +149,8 @@ class Slot:
         return self.world.ready()
 
     def finish(self) -> int:
-        return self.world.finish(self.flat, self.reward, self.terminated, self.truncated, self.terms, self.camera)
+        return self.world.finish(self.flat, self.reward, self.terminated, self.truncated, self.terms,
+                                 self.camera, self.lidar)
 
     def recover(self) -> str:
         """Brings the world back after its server died or stopped answering:

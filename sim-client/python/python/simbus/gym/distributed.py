@@ -19,13 +19,22 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector import VectorEnv as GymVectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
 from ._slot import DrivingConfig
 from .driving import action_rows, driving_spaces, episode_seed
 from .vector import VectorEnv
 
+#: Ray's errors that mean an actor (or its node) is gone or stuck.
+RAY_LOST = (ray.exceptions.RayActorError, ray.exceptions.GetTimeoutError,
+            ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError)
+#: How many times a lost actor's worlds are started again elsewhere.
+RECOVERY_ATTEMPTS = 3
+
 #: What a step of one actor's worlds returns: the observation rows, rewards,
-#: terminations, truncations and reward terms.
-Batch = Tuple[Dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+#: terminations, truncations, reward terms and each world's steps since its
+#: episode began.
+Batch = Tuple[Dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 class NodeWorlds:
@@ -43,8 +52,9 @@ class NodeWorlds:
 
     def _batch(self) -> Batch:
         e = self.envs
+        steps = np.array([s.world.episode_steps for s in e.slots], np.int64)
         return ({k: v.copy() for k, v in e._views.items()}, e._reward.copy(), e._terminated.copy(),
-                e._truncated.copy(), e._terms.copy())
+                e._truncated.copy(), e._terms.copy(), steps)
 
     def begin(self, seeds: Sequence[int]) -> Batch:
         """Starts every world's episode with its episode seed."""
@@ -123,26 +133,48 @@ class RayVectorEnv(GymVectorEnv):
         self._autoreset = np.zeros(num_envs, np.bool_)
         self._initial_seed = seed
 
-    def _start(self, count: int):
-        return self._remote.options(scheduling_strategy="SPREAD").remote(count, self.task, self.bin_dir)
+    def _start(self, count: int, node_id: Optional[str] = None):
+        if node_id is None:
+            strategy: Any = "SPREAD"
+        else:
+            strategy = NodeAffinitySchedulingStrategy(node_id=node_id, soft=False)
+        return self._remote.options(scheduling_strategy=strategy).remote(count, self.task, self.bin_dir)
 
     def _gather(self, batches: List[Batch]):
         obs = {k: np.concatenate([b[0][k] for b in batches]) for k in batches[0][0]}
-        return (obs, *[np.concatenate([b[j] for b in batches]) for j in range(1, 5)])
+        return (obs, *[np.concatenate([b[j] for b in batches]) for j in range(1, 6)])
+
+    def _live_node(self, lost: str) -> Optional[str]:
+        """A node Ray says is alive, not at address `lost` (the one whose
+        actor just failed: Ray may not have marked it dead yet), the one
+        holding the fewest of these worlds."""
+        load = {n: self.nodes.count(n) for n in self.nodes}
+        alive = [n for n in ray.nodes() if n.get("Alive") and n.get("NodeManagerAddress") != lost]
+        alive.sort(key=lambda n: load.get(n.get("NodeManagerAddress"), 0))
+        return alive[0]["NodeID"] if alive else None
 
     def _recover(self, k: int) -> str:
         """Starts actor `k`'s worlds again on a live node and replays their
         episodes (the step that found it dead not included)."""
+        old = self.nodes[k]
         try:
             ray.kill(self.actors[k])
         except Exception:
             pass
-        self.actors[k] = self._start(len(self.ranges[k]))
-        old = self.nodes[k]
-        self.nodes[k] = ray.get(self.actors[k].node.remote(), timeout=self.step_timeout)
-        ray.get([self.actors[k].replay.remote(j, self._seeds[i], self._log[i])
-                 for j, i in enumerate(self.ranges[k])], timeout=self.step_timeout)
-        return f"node {old} lost: its worlds restarted on {self.nodes[k]}, their episodes replayed"
+        for attempt in range(RECOVERY_ATTEMPTS):
+            node = self._live_node(old)
+            if node is None:
+                raise RuntimeError(f"node {old} was lost and no other node is alive to take its worlds")
+            self.actors[k] = self._start(len(self.ranges[k]), node)
+            try:
+                self.nodes[k] = ray.get(self.actors[k].node.remote(), timeout=self.step_timeout)
+                ray.get([self.actors[k].replay.remote(j, self._seeds[i], self._log[i])
+                         for j, i in enumerate(self.ranges[k])], timeout=self.step_timeout)
+                return f"node {old} lost: its worlds restarted on {self.nodes[k]}, their episodes replayed"
+            except RAY_LOST:
+                if attempt + 1 == RECOVERY_ATTEMPTS:
+                    raise
+        raise AssertionError("unreachable")
 
     def _call(self, make) -> Tuple[List[Batch], Dict[int, str]]:
         """Runs `make(k)` (a remote call) on every actor; an actor that
@@ -153,16 +185,16 @@ class RayVectorEnv(GymVectorEnv):
         for k, ref in enumerate(refs):
             try:
                 batches[k] = ray.get(ref, timeout=self.step_timeout)
-            except (ray.exceptions.RayActorError, ray.exceptions.GetTimeoutError,
-                    ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError) as e:
+            except RAY_LOST as e:
                 note = self._recover(k)
                 for i in self.ranges[k]:
                     restarted[i] = f"{note} ({type(e).__name__})"
                 batches[k] = ray.get(make(k), timeout=self.step_timeout)
         return batches, restarted  # type: ignore[return-value]
 
-    def _info(self, terms: np.ndarray, restarted: Dict[int, str]) -> Dict[str, Any]:
+    def _info(self, terms: np.ndarray, steps: np.ndarray, restarted: Dict[int, str]) -> Dict[str, Any]:
         info: Dict[str, Any] = {"reward_terms": terms, "_reward_terms": np.ones(self.num_envs, np.bool_),
+                                "episode_steps": steps,
                                 "nodes": np.array([self.nodes[k] for k, r in enumerate(self.ranges) for _ in r])}
         if restarted:
             info["restarted"] = np.array([restarted.get(i, "") for i in range(self.num_envs)], dtype=object)
@@ -180,8 +212,8 @@ class RayVectorEnv(GymVectorEnv):
         self._autoreset[:] = False
         batches, restarted = self._call(
             lambda k: self.actors[k].begin.remote([self._seeds[i] for i in self.ranges[k]]))
-        obs, _, _, _, terms = self._gather(batches)
-        return obs, self._info(terms, restarted)
+        obs, _, _, _, terms, steps = self._gather(batches)
+        return obs, self._info(terms, steps, restarted)
 
     def step(self, actions):
         rows = action_rows(self.config, actions, self.num_envs)
@@ -200,9 +232,9 @@ class RayVectorEnv(GymVectorEnv):
         for i in range(self.num_envs):
             if i not in resets:
                 self._log[i].append(rows[i:i + 1].copy())
-        obs, reward, terminated, truncated, terms = self._gather(batches)
+        obs, reward, terminated, truncated, terms, steps = self._gather(batches)
         self._autoreset = np.logical_or(terminated, truncated)
-        return obs, reward.astype(np.float64), terminated, truncated, self._info(terms, restarted)
+        return obs, reward.astype(np.float64), terminated, truncated, self._info(terms, steps, restarted)
 
     def close_extras(self, **kwargs: Any) -> None:
         for actor in getattr(self, "actors", []):

@@ -27,6 +27,8 @@ def driving_spaces(config: DrivingConfig) -> Tuple[spaces.Dict, spaces.Space]:
     if config.camera is not None:
         w, h = config.camera
         obs["camera"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+    if config.lidar is not None:
+        obs["lidar"] = spaces.Box(-inf, inf, (config.lidar_points, 4), np.float32)
     if config.discrete:
         action: spaces.Space = spaces.Discrete(9)
     else:
@@ -62,7 +64,9 @@ class DrivingEnv(gym.Env):
       limit m/s), ``actors`` (the nearest moving actors within 50 m: forward
       and left offsets, relative velocity forward and left, walker,
       present), ``route`` (the route's next points every 4 m, forward and
-      left, metres), and with ``camera=(w, h)`` an RGB image.
+      left, metres), with ``camera=(w, h)`` an RGB image from the roof, and
+      with ``lidar=(channels, points)`` the lidar's points (x forward, y up,
+      z right, intensity; unused rows 0).
     - **Reward**: the weighted sum of ``progress`` (metres advanced),
       ``collision``, ``lane`` (metres outside the lane), ``off_road`` and
       ``red_light``; ``info["reward_terms"]`` has each term, ``weights``
@@ -73,7 +77,8 @@ class DrivingEnv(gym.Env):
       the traffic and the walkers where `s` says: the same seed and actions
       give the same episode, bit for bit, even across a server crash.
 
-    The env starts its own ``sim-server`` (found as
+    ``scene`` is any simbus scene (its roads: the town's streets, a ring
+    road elsewhere). The env starts its own ``sim-server`` (found as
     `simbus.gym.find_server` says) unless ``world=`` names a running one.
     """
 
@@ -88,18 +93,10 @@ class DrivingEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.delta_seconds)}
         self.observation_space, self.action_space = driving_spaces(self.config)
-        self._flat = np.zeros((1, self.config.row), np.float32)
-        self._camera = None
-        if self.config.camera is not None:
-            w, h = self.config.camera
-            self._camera = np.zeros((1, h, w, 3), np.uint8)
-        self._reward = np.zeros(1, np.float32)
-        self._terminated = np.zeros(1, np.bool_)
-        self._truncated = np.zeros(1, np.bool_)
-        self._terms = np.zeros((1, 5), np.float32)
-        self._views = observation_views(self.config, self._flat, self._camera)
-        self._slot = Slot(self.config, egos=1, flat=self._flat, camera=self._camera, reward=self._reward,
-                          terminated=self._terminated, truncated=self._truncated, terms=self._terms, world=world)
+        arrays = self.config.arrays(1)
+        self._flat, self._camera, lidar, self._reward, self._terminated, self._truncated, self._terms = arrays
+        self._views = observation_views(self.config, self._flat, self._camera, lidar)
+        self._slot = Slot(self.config, egos=1, arrays=arrays, world=world)
 
     @property
     def world(self) -> str:

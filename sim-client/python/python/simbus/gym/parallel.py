@@ -28,20 +28,11 @@ class ParallelEnv(PettingZooParallelEnv):
         self.possible_agents = [f"ego_{i}" for i in range(agents)]
         self.agents = []
         self._obs_space, self._act_space = driving_spaces(self.config)
-        n = agents
-        self._flat = np.zeros((n, self.config.row), np.float32)
-        self._camera = None
-        if self.config.camera is not None:
-            w, h = self.config.camera
-            self._camera = np.zeros((n, h, w, 3), np.uint8)
-        self._reward = np.zeros(n, np.float32)
-        self._terminated = np.zeros(n, np.bool_)
-        self._truncated = np.zeros(n, np.bool_)
-        self._terms = np.zeros((n, len(REWARD_TERMS)), np.float32)
-        self._views = observation_views(self.config, self._flat, self._camera)
+        arrays = self.config.arrays(agents)
+        self._flat, self._camera, lidar, self._reward, self._terminated, self._truncated, self._terms = arrays
+        self._views = observation_views(self.config, self._flat, self._camera, lidar)
         self._rng = seeding.np_random(None)[0]
-        self._slot = Slot(self.config, egos=n, flat=self._flat, camera=self._camera, reward=self._reward,
-                          terminated=self._terminated, truncated=self._truncated, terms=self._terms, world=world)
+        self._slot = Slot(self.config, egos=agents, arrays=arrays, world=world)
 
     def observation_space(self, agent: str):
         return self._obs_space

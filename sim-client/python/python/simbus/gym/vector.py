@@ -65,27 +65,17 @@ class VectorEnv(GymVectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         n, c = num_envs, self.config
-        self._flat = np.zeros((n, c.row), np.float32)
-        self._camera = None
-        if c.camera is not None:
-            self._camera = np.zeros((n, c.camera[1], c.camera[0], 3), np.uint8)
-        self._reward = np.zeros(n, np.float32)
-        self._terminated = np.zeros(n, np.bool_)
-        self._truncated = np.zeros(n, np.bool_)
-        self._terms = np.zeros((n, len(REWARD_TERMS)), np.float32)
-        self._views = observation_views(c, self._flat, self._camera)
+        arrays = c.arrays(n)
+        self._flat, self._camera, self._lidar, self._reward, self._terminated, self._truncated, self._terms = arrays
+        self._views = observation_views(c, self._flat, self._camera, self._lidar)
         self._rngs: List[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
         self._autoreset = np.zeros(n, np.bool_)
         self._pending: List[int] = []
         self.slots: List[Slot] = []
         try:
             for i in range(n):
-                self.slots.append(Slot(
-                    c, egos=1, flat=self._flat[i:i + 1],
-                    camera=None if self._camera is None else self._camera[i:i + 1],
-                    reward=self._reward[i:i + 1], terminated=self._terminated[i:i + 1],
-                    truncated=self._truncated[i:i + 1], terms=self._terms[i:i + 1],
-                    world=None if worlds is None else worlds[i]))
+                rows = tuple(None if a is None else a[i:i + 1] for a in arrays)
+                self.slots.append(Slot(c, egos=1, arrays=rows, world=None if worlds is None else worlds[i]))
         except BaseException:
             self.close()
             raise

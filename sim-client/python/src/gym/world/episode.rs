@@ -1,17 +1,18 @@
 //! The driving world's own steps: building the episodes' start, reading a
 //! frame, walking the walkers, writing the observations and images.
 
-use numpy::{PyReadwriteArray2, PyReadwriteArray4};
+use numpy::PyReadwriteArray2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use shared_types::roads::{LANE_WIDTH, SIDEWALK_WIDTH};
-use shared_types::{Command, SensorKind, SensorSpec};
+use shared_types::Command;
 
 use super::{
     error, DrivingWorld, Ego, Outcome, Walker, SETTLE_FRAMES, START_SPACING, VEHICLE_DROP,
     WALKER_SIZE, WALKER_SPEED,
 };
 use crate::errors::{self, raise};
+use crate::gil::detached;
 use crate::gym::task;
 
 impl DrivingWorld {
@@ -19,6 +20,7 @@ impl DrivingWorld {
     /// settles them and saves the episodes' snapshot.
     pub(super) fn populate(
         &mut self,
+        py: Python<'_>,
         egos: usize,
         vehicles: usize,
         walkers: usize,
@@ -77,26 +79,17 @@ impl DrivingWorld {
                 forward: true,
             })
             .collect();
-        if let Some((width, height)) = self.camera_size {
-            for ego in &self.egos {
-                let spec = SensorSpec::camera_of(
-                    SensorKind::Rgb,
-                    [0.5, 1.6, 0.0],
-                    (width, height),
-                    90.0,
-                    1000.0,
-                )
-                .ok_or_else(|| PyValueError::new_err("no such camera"))?
-                .attached_to(ego.id);
-                let sensor = self.client.spawn_sensor(spec).map_err(error)?;
-                self.cameras.push((sensor.id(), None));
+        self.spawn_sensors()?;
+        let timeout = self.timeout;
+        let frame = detached(py, &mut self.ticker, |t| {
+            let mut frame = 0;
+            for _ in 0..SETTLE_FRAMES {
+                frame = t.tick(timeout)?;
             }
-        }
-        let mut frame = 0;
-        for _ in 0..SETTLE_FRAMES {
-            frame = self.ticker.tick(self.timeout).map_err(errors::tick)?;
-        }
-        self.read(frame)?;
+            Ok(frame)
+        })
+        .map_err(errors::tick)?;
+        self.read(py, frame)?;
         self.snapshot = self
             .client
             .save_snapshot()
@@ -104,22 +97,12 @@ impl DrivingWorld {
         Ok(())
     }
 
-    /// Opens the cameras' readers again (a restore ends them; they come
-    /// back under their ids).
-    pub(super) fn reopen_cameras(&mut self) -> PyResult<()> {
-        for (id, reader) in &mut self.cameras {
-            *reader = None;
-            *reader = Some(self.client.sensor(*id).map_err(error)?);
-        }
-        Ok(())
-    }
-
     /// Reads frame `frame` (passing over any older) into `actors`.
-    pub(super) fn read(&mut self, frame: u64) -> PyResult<()> {
+    /// Waits without the GIL.
+    pub(super) fn read(&mut self, py: Python<'_>, frame: u64) -> PyResult<()> {
+        let timeout = self.timeout;
         loop {
-            let view = self
-                .client
-                .wait_for_frame(self.timeout)
+            let view = detached(py, &mut self.client, |c| c.wait_for_frame(timeout))
                 .map_err(errors::wait)?;
             if view.frame() < frame {
                 continue;
@@ -168,11 +151,12 @@ impl DrivingWorld {
         }
     }
 
-    /// Writes each ego's observation (and camera image) from the frame read.
+    /// Writes each ego's observation (and its sensors' captures) from the
+    /// frame read.
     pub(super) fn write(
         &mut self,
         obs: &mut PyReadwriteArray2<'_, f32>,
-        camera: Option<PyReadwriteArray4<'_, u8>>,
+        captures: super::Captures<'_>,
     ) -> PyResult<Vec<Outcome>> {
         let mut obs = obs.as_array_mut();
         if obs.nrows() != self.egos.len() || obs.ncols() != self.spec.row() {
@@ -184,51 +168,15 @@ impl DrivingWorld {
             )));
         }
         let lights = self.lights.states();
-        let mut outcomes = Vec::with_capacity(self.egos.len());
+        let mut outcomes = std::mem::take(&mut self.outcomes);
+        outcomes.clear();
         for (ego, mut row) in self.egos.iter_mut().zip(obs.rows_mut()) {
             let row = row
                 .as_slice_mut()
                 .ok_or_else(|| PyValueError::new_err("observation rows must be contiguous"))?;
             outcomes.push(task::observe(&self.spec, ego, &self.actors, lights, row));
         }
-        if let Some(mut images) = camera {
-            self.capture(&mut images)?;
-        }
+        self.capture(captures)?;
         Ok(outcomes)
-    }
-
-    /// Copies each ego camera's capture of the frame read into `images`
-    /// (ego, height, width, RGB).
-    pub(super) fn capture(&mut self, images: &mut PyReadwriteArray4<'_, u8>) -> PyResult<()> {
-        let mut images = images.as_array_mut();
-        let frame = self.frame;
-        for (i, (_, reader)) in self.cameras.iter_mut().enumerate() {
-            let Some(reader) = reader.as_mut() else {
-                continue;
-            };
-            let capture = loop {
-                let capture = reader.recv(self.timeout).map_err(errors::wait)?;
-                if capture.header().frame >= frame {
-                    break capture;
-                }
-            };
-            let Some(pixels) = capture.image() else {
-                continue;
-            };
-            let mut image = images.index_axis_mut(numpy::ndarray::Axis(0), i);
-            let (h, w) = (image.shape()[0], image.shape()[1]);
-            if pixels.len() != h * w {
-                return Err(PyValueError::new_err(
-                    "the camera array's size is not the camera's",
-                ));
-            }
-            for (k, p) in pixels.iter().enumerate() {
-                let (y, x) = (k / w, k % w);
-                image[[y, x, 0]] = p.r;
-                image[[y, x, 1]] = p.g;
-                image[[y, x, 2]] = p.b;
-            }
-        }
-        Ok(())
     }
 }

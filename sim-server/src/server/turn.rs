@@ -115,6 +115,11 @@ impl Server {
         if ticked && d.lockstep.all_done(d.clock.frame()) {
             d.ticker.drop_abandoned();
             if d.ticker.has_pending() {
+                // A batch its client sent before this tick is in its queue
+                // now, but a full pass may have looked at the batches just
+                // before it came and at the ticks just after: take it now,
+                // so it applies to this frame as sent, whatever the timing.
+                d.answer_batches()?;
                 d.lockstep.stepped();
                 return d.step_frame(now, 1);
             }

@@ -197,6 +197,15 @@ impl ActorKind {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
+    /// Whether actors of this kind move: vehicles, walkers and dynamic
+    /// bodies (not fixed geometry, lights or signs).
+    pub fn moves(&self) -> bool {
+        matches!(
+            self,
+            Self::Vehicle | Self::Walker | Self::Box | Self::Sphere | Self::Capsule
+        )
+    }
+
     /// The lower-case name used in CLI output.
     pub fn name(&self) -> &'static str {
         match self {

@@ -278,16 +278,8 @@ fn flow(
     let moving: Vec<&ActorInfo> = actors
         .values()
         .filter(|a| {
-            matches!(
-                ActorKind::from_u32(a.kind),
-                Some(
-                    ActorKind::Vehicle
-                        | ActorKind::Walker
-                        | ActorKind::Box
-                        | ActorKind::Sphere
-                        | ActorKind::Capsule
-                )
-            ) && (dot(a.linear, a.linear) > 1e-8 || dot(a.angular, a.angular) > 1e-8)
+            ActorKind::from_u32(a.kind).is_some_and(|k| k.moves())
+                && (dot(a.linear, a.linear) > 1e-8 || dot(a.angular, a.angular) > 1e-8)
         })
         .collect();
     let to_world = |p: [f32; 3]| {

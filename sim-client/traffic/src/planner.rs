@@ -73,6 +73,20 @@ pub struct Control {
     pub lights: Option<u32>,
 }
 
+impl Control {
+    /// The control as the command that applies it (simbus's steer, no
+    /// hand brake).
+    pub fn command(&self) -> shared_types::Command {
+        shared_types::Command::vehicle_control(
+            u64::from(self.vehicle),
+            self.throttle,
+            self.steer,
+            self.brake,
+            false,
+        )
+    }
+}
+
 /// One driven vehicle's own state.
 #[derive(Debug)]
 struct Driven {

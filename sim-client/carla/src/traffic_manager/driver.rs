@@ -200,13 +200,7 @@ impl Driver {
         );
         let mut registry = lock(&hub.registry);
         for c in &self.controls {
-            self.commands.push(Command::vehicle_control(
-                u64::from(c.vehicle),
-                c.throttle,
-                c.steer,
-                c.brake,
-                false,
-            ));
+            self.commands.push(c.command());
             registry.controls.insert(
                 c.vehicle,
                 CarlaVehicleControl {

@@ -336,16 +336,7 @@ fn simbus_speed_limit() -> f64 {
 
 /// Whether an actor moves (and so is worth observing).
 fn moves(actor: &ActorState) -> bool {
-    matches!(
-        actor.actor_kind(),
-        Some(
-            ActorKind::Vehicle
-                | ActorKind::Walker
-                | ActorKind::Box
-                | ActorKind::Sphere
-                | ActorKind::Capsule
-        )
-    )
+    actor.actor_kind().is_some_and(|k| k.moves())
 }
 
 /// The reward of `terms` under `weights`.

@@ -418,15 +418,8 @@ impl DrivingWorld {
             &self.parameters,
             &mut self.controls,
         );
-        for c in &self.controls {
-            self.commands.push(Command::vehicle_control(
-                u64::from(c.vehicle),
-                c.throttle,
-                c.steer,
-                c.brake,
-                false,
-            ));
-        }
+        self.commands
+            .extend(self.controls.iter().map(|c| c.command()));
         self.walk();
         self.client
             .apply_batch(&self.commands)

@@ -5,6 +5,7 @@ returns whichever worlds finish first (EnvPool's design)."""
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any, Dict, List, Optional, Sequence, Union
 
@@ -182,6 +183,7 @@ class VectorEnv(GymVectorEnv):
         ready: List[int] = []
         deadline = time.monotonic() + (self.config.timeout if timeout is None else timeout)
         while len(ready) < self.batch_size:
+            before = len(ready)
             for i in self._pending:
                 if i in ready:
                     continue
@@ -192,6 +194,9 @@ class VectorEnv(GymVectorEnv):
                     ready.append(i)
                 if len(ready) == self.batch_size:
                     break
+            if len(ready) == before:
+                # Nothing finished this sweep: let the servers have the CPU.
+                os.sched_yield()
             if len(ready) < self.batch_size and time.monotonic() > deadline:
                 # Never a hang: the oldest pending world is taken (its finish waits its own timeout).
                 ready.extend(i for i in self._pending if i not in ready)

@@ -69,6 +69,29 @@ fn lanes_of(scene: SceneName) -> Arc<simbus_traffic::Lanes> {
         .clone()
 }
 
+/// One ego's (steer, pedal) from its row of actions: two numbers in
+/// -1..=1 (clamped), or in discrete mode the index of one of [`DISCRETE`].
+fn ego_action(discrete: bool, row: [Option<f32>; 2]) -> PyResult<(f32, f32)> {
+    if discrete {
+        let index = row[0].unwrap_or(f32::NAN);
+        if !(index >= 0.0 && (index as usize) < DISCRETE.len() && index.fract() == 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "a discrete action is 0..{}, not {index}",
+                DISCRETE.len()
+            )));
+        }
+        return Ok(DISCRETE[index as usize]);
+    }
+    match row {
+        [Some(steer), Some(pedal)] if steer.is_finite() && pedal.is_finite() => {
+            Ok((steer.clamp(-1.0, 1.0), pedal.clamp(-1.0, 1.0)))
+        }
+        _ => Err(PyValueError::new_err(
+            "an action is two finite numbers: steer and pedal",
+        )),
+    }
+}
+
 /// A walker of the traffic: the lane whose sidewalk it walks and which way.
 #[derive(Debug, Clone, Copy)]
 struct Walker {
@@ -368,7 +391,7 @@ impl DrivingWorld {
     /// brake in -1..=1, or one discrete action index in column 0) with the
     /// traffic's controls, and the tick; `finish` collects the frame.
     fn send(&mut self, actions: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
-        if self.in_flight.is_some() {
+        if self.in_flight.is_some() || self.answered.is_some() {
             return Err(raise(
                 "Error",
                 "a step is already in flight: finish it first",
@@ -382,25 +405,19 @@ impl DrivingWorld {
                 self.egos.len()
             )));
         }
+        // Every row checked before anything changes: a bad one changes nothing.
+        for action in actions.rows() {
+            ego_action(
+                self.discrete,
+                [action.get(0).copied(), action.get(1).copied()],
+            )?;
+        }
         self.commands.clear();
         for (ego, action) in self.egos.iter_mut().zip(actions.rows()) {
-            let (steer, pedal) = if self.discrete {
-                let index = action.get(0).copied().unwrap_or(0.0);
-                if !(index >= 0.0 && (index as usize) < DISCRETE.len() && index.fract() == 0.0) {
-                    return Err(PyValueError::new_err(format!(
-                        "a discrete action is 0..{}, not {index}",
-                        DISCRETE.len()
-                    )));
-                }
-                DISCRETE[index as usize]
-            } else {
-                let steer = action.get(0).copied().unwrap_or(0.0);
-                let pedal = action.get(1).copied().unwrap_or(0.0);
-                if !(steer.is_finite() && pedal.is_finite()) {
-                    return Err(PyValueError::new_err("actions must be finite numbers"));
-                }
-                (steer.clamp(-1.0, 1.0), pedal.clamp(-1.0, 1.0))
-            };
+            let (steer, pedal) = ego_action(
+                self.discrete,
+                [action.get(0).copied(), action.get(1).copied()],
+            )?;
             ego.last = [steer, pedal];
             self.commands.push(Command::vehicle_control(
                 ego.id,

@@ -142,8 +142,15 @@ class Slot:
         self.world.reset(self.seed, self.flat, self.camera, self.lidar)
 
     def send(self, actions: np.ndarray) -> None:
-        self.actions.append(np.array(actions, dtype=np.float32, copy=True))
-        self.world.send(actions)
+        """Sends a step; it joins the episode's log once sent, or when the
+        world was lost on the way (a recovery replays it), not when refused."""
+        step = np.array(actions, dtype=np.float32, copy=True)
+        try:
+            self.world.send(step)
+        except WORLD_LOST:
+            self.actions.append(step)
+            raise
+        self.actions.append(step)
 
     def ready(self) -> bool:
         return self.world.ready()

@@ -96,9 +96,9 @@ class WorldEnv(gym.Env):
 
     def _advance(self, action: Any):
         act, observe, reward, terminated = self._fns[1], self._fns[2], self._fns[3], self._fns[4]
+        commands = list(act(action, self.context))  # the user's: may refuse the action
         self._actions.append(action)
         self._steps += 1
-        commands = list(act(action, self.context))
         if commands:
             self.client.apply_batch(commands)
         with self.ticker.tick_and_read(self.client, self.timeout) as frame:

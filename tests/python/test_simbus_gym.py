@@ -90,6 +90,32 @@ def test_a_lidar_on_another_scenes_roads_sees_the_world():
         env.close()
 
 
+def test_walkers_cross_the_road_as_often_as_the_cross_factor_says():
+    braking = np.array([0.0, -1.0], np.float32)
+    counts = {}
+    for factor in (0.0, 1.0):
+        env = sg.DrivingEnv(walkers=12, cross_factor=factor, max_episode_steps=1000)
+        try:
+            env.reset(seed=3)
+            client = simbus.connect(env.world)
+            _, walkers = env._slot.world.traffic
+            with client.wait_for_frame() as frame:
+                start = {int(a["id"]): a["position"].copy() for a in frame.actors if a["id"] in walkers}
+            for _ in range(300):
+                env.step(braking)
+            with client.wait_for_frame() as frame:
+                end = {int(a["id"]): a["position"].copy() for a in frame.actors if a["id"] in walkers}
+            counts[factor] = env._slot.world.crossings
+            walked = [np.linalg.norm(end[w][[0, 2]] - start[w][[0, 2]]) for w in walkers]
+            assert max(walked) > 10.0, f"the walkers did not walk: {walked}"
+            assert all(0.5 < end[w][1] < 3.0 for w in walkers), "a walker left the ground"
+        finally:
+            env.close()
+    assert counts[0.0] == 0 and counts[1.0] >= 3, counts
+    with pytest.raises(ValueError, match="cross_factor"):
+        sg.DrivingEnv(walkers=1, cross_factor=1.5)
+
+
 def test_a_seed_gives_the_same_episode_bit_for_bit_and_another_seed_another():
     actions = policy(500)
     first = sg.DrivingEnv(**TASK)

@@ -854,6 +854,7 @@ class DrivingWorld:
 
     def __init__(
         self, world: str, *, scene: str = "town", egos: int = 1, vehicles: int = 0, walkers: int = 0,
+        cross_factor: float = 0.5,
         delta_seconds: float = 0.1, max_substep_delta_time: float = 0.02, actors: int = 6,
         route_points: int = 10, route_length: float = 300.0,
         weights: Sequence[float] = (1.0, 10.0, 0.1, 5.0, 5.0), end_on_collision: bool = True,
@@ -874,6 +875,8 @@ class DrivingWorld:
     def traffic(self) -> Tuple[List[int], List[int]]: ...
     @property
     def episode_steps(self) -> int: ...
+    @property
+    def crossings(self) -> int: ...
     @property
     def elapsed_seconds(self) -> float: ...
     def reset(self, seed: int, obs: npt.NDArray[np.float32],

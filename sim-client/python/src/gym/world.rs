@@ -15,6 +15,7 @@ use numpy::{
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
 use shared_types::roads::{self, LANE_WIDTH, SIDEWALK_WIDTH};
 use shared_types::scene::SceneName;
 use shared_types::{ActorState, Command, WorldSettings};
@@ -98,6 +99,8 @@ struct Walker {
     id: u64,
     lane: simbus_traffic::LaneRef,
     forward: bool,
+    /// Where on the far sidewalk it is crossing to (OpenDRIVE's axes).
+    crossing: Option<(f64, f64)>,
 }
 
 /// One world of the driving task: its connection, its ticker and its
@@ -118,6 +121,12 @@ pub(crate) struct DrivingWorld {
     planner: Planner,
     parameters: Parameters,
     lights: LightStates,
+    /// The walkers' choices (cross or turn back), seeded per episode.
+    walker_rng: ChaCha8Rng,
+    /// How often a walker at its sidewalk's end crosses (0..=1).
+    cross_factor: f64,
+    /// Road crossings walkers finished this episode.
+    crossings: u64,
     snapshot: SnapshotId,
     actors: Vec<ActorState>,
     time: (f64, f64),
@@ -156,7 +165,7 @@ impl DrivingWorld {
     /// walkers, lets them settle and saves the snapshot every episode
     /// starts from.
     #[new]
-    #[pyo3(signature = (world, *, scene = "town", egos = 1, vehicles = 0, walkers = 0, delta_seconds = 0.1, max_substep_delta_time = 0.02, actors = 6, route_points = 10, route_length = 300.0, weights = [1.0, 10.0, 0.1, 5.0, 5.0], end_on_collision = true, max_episode_steps = 1000, camera = None, lidar = None, discrete = false, timeout = 10.0))]
+    #[pyo3(signature = (world, *, scene = "town", egos = 1, vehicles = 0, walkers = 0, cross_factor = 0.5, delta_seconds = 0.1, max_substep_delta_time = 0.02, actors = 6, route_points = 10, route_length = 300.0, weights = [1.0, 10.0, 0.1, 5.0, 5.0], end_on_collision = true, max_episode_steps = 1000, camera = None, lidar = None, discrete = false, timeout = 10.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -165,6 +174,7 @@ impl DrivingWorld {
         egos: usize,
         vehicles: usize,
         walkers: usize,
+        cross_factor: f64,
         delta_seconds: f64,
         max_substep_delta_time: f64,
         actors: usize,
@@ -191,6 +201,11 @@ impl DrivingWorld {
             return Err(PyValueError::new_err(
                 "at most 200 vehicles and 200 walkers",
             ));
+        }
+        if !(0.0..=1.0).contains(&cross_factor) {
+            return Err(PyValueError::new_err(format!(
+                "cross_factor is 0..=1 (how often a walker crosses), not {cross_factor}"
+            )));
         }
         if !(route_length.is_finite() && route_length > 0.0) {
             return Err(PyValueError::new_err(
@@ -238,6 +253,9 @@ impl DrivingWorld {
             planner: Planner::default(),
             parameters: Parameters::default(),
             lights: LightStates::default(),
+            walker_rng: task::episode_rng(0, 3),
+            cross_factor,
+            crossings: 0,
             snapshot: SnapshotId(0),
             actors: Vec::new(),
             time: (0.0, delta_seconds),
@@ -293,6 +311,12 @@ impl DrivingWorld {
             self.traffic.clone(),
             self.walkers.iter().map(|w| w.id).collect(),
         )
+    }
+
+    /// Road crossings the walkers finished this episode.
+    #[getter]
+    fn crossings(&self) -> u64 {
+        self.crossings
     }
 
     /// Steps since the episode began (0 right after a reset).
@@ -351,11 +375,14 @@ impl DrivingWorld {
             let (lane, progress) = places[rng.random_range(0..places.len())];
             walker.lane = lane;
             walker.forward = rng.random_bool(0.5);
+            walker.crossing = None;
             let side = -(LANE_WIDTH + SIDEWALK_WIDTH) / 2.0;
             let (at, rotation) = task::placed(self.lanes.point(lane, progress, side), 1.0);
             self.commands
                 .push(Command::set_transform(walker.id, at, rotation));
         }
+        self.walker_rng = task::episode_rng(seed, 3);
+        self.crossings = 0;
         self.planner = Planner::default();
         for &id in &self.traffic {
             self.planner.register(id as u32, seed);

@@ -37,6 +37,7 @@ class DrivingConfig:
     scene: str = "town"
     vehicles: int = 0
     walkers: int = 0
+    cross_factor: float = 0.5
     delta_seconds: float = 0.1
     max_substep_delta_time: float = 0.02
     actors: int = 6
@@ -117,13 +118,18 @@ class Slot:
         self.seed = 0
         self.actions: List[np.ndarray] = []
         self.restarts = 0
-        self._connect()
+        try:
+            self._connect()
+        except BaseException:
+            self.close()
+            raise
 
     def _connect(self) -> None:
         c = self.config
         try:
             self.world = DrivingWorld(
                 self.world_name, scene=c.scene, egos=self.egos, vehicles=c.vehicles, walkers=c.walkers,
+                cross_factor=c.cross_factor,
                 delta_seconds=c.delta_seconds, max_substep_delta_time=c.max_substep_delta_time,
                 actors=c.actors, route_points=c.route_points, route_length=c.route_length,
                 weights=c.weight_list(), end_on_collision=c.end_on_collision,

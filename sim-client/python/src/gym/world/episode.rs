@@ -4,6 +4,7 @@
 use numpy::PyReadwriteArray2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use rand::RngExt;
 use shared_types::roads::{LANE_WIDTH, SIDEWALK_WIDTH};
 use shared_types::Command;
 
@@ -77,6 +78,7 @@ impl DrivingWorld {
                 id,
                 lane,
                 forward: true,
+                crossing: None,
             })
             .collect();
         self.spawn_sensors()?;
@@ -118,21 +120,55 @@ impl DrivingWorld {
         }
     }
 
-    /// Each walker's control: along its sidewalk, turning back at its end.
+    /// Each walker's control: along its sidewalk; at its end, across the
+    /// road to the other sidewalk (one in `cross_factor`, seeded) or back.
     pub(super) fn walk(&mut self) {
+        let side = -(LANE_WIDTH + SIDEWALK_WIDTH) / 2.0;
         for walker in &mut self.walkers {
             let Some(actor) = self.actors.iter().find(|a| a.id == walker.id) else {
                 continue;
             };
             let f = task::Flat::of(actor);
+            let length = self.lanes.length(walker.lane);
+            if let Some((x, y)) = walker.crossing {
+                if (x - f.x).hypot(y - f.y) > CROSSED {
+                    self.commands
+                        .push(walker_toward(walker.id, (y - f.y).atan2(x - f.x)));
+                    continue;
+                }
+                // Across: on along the other sidewalk, the same way.
+                walker.crossing = None;
+                self.crossings += 1;
+                walker.lane = simbus_traffic::LaneRef {
+                    road: walker.lane.road,
+                    lane: -walker.lane.lane,
+                };
+            }
             let Some(on) = self.lanes.project_on(walker.lane, f.x, f.y) else {
                 continue;
             };
-            let length = self.lanes.length(walker.lane);
-            if on.progress > length - 1.0 {
-                walker.forward = false;
-            } else if on.progress < 1.0 {
-                walker.forward = true;
+            let at_end = if walker.forward {
+                on.progress > length - 1.0
+            } else {
+                on.progress < 1.0
+            };
+            if at_end {
+                if self.walker_rng.random_bool(self.cross_factor) {
+                    let other = simbus_traffic::LaneRef {
+                        road: walker.lane.road,
+                        lane: -walker.lane.lane,
+                    };
+                    let there =
+                        self.lanes
+                            .point(other, (length - on.progress).clamp(0.0, length), side);
+                    walker.crossing = Some((there.x, there.y));
+                    self.commands.push(walker_toward(
+                        walker.id,
+                        (there.y - f.y).atan2(there.x - f.x),
+                    ));
+                    continue;
+                }
+                walker.forward = !walker.forward;
             }
             let pose = self
                 .lanes
@@ -142,12 +178,7 @@ impl DrivingWorld {
             } else {
                 pose.hdg + std::f64::consts::PI
             };
-            self.commands.push(Command::walker_control(
-                walker.id,
-                [hdg.cos() as f32, 0.0, -hdg.sin() as f32],
-                WALKER_SPEED,
-                false,
-            ));
+            self.commands.push(walker_toward(walker.id, hdg));
         }
     }
 
@@ -179,4 +210,18 @@ impl DrivingWorld {
         self.capture(captures)?;
         Ok(outcomes)
     }
+}
+
+/// How close to the far sidewalk's point a crossing walker has crossed, metres.
+const CROSSED: f64 = 0.5;
+
+/// Walker `id` walking at walking speed towards heading `hdg` (OpenDRIVE's
+/// axes, radians).
+fn walker_toward(id: u64, hdg: f64) -> Command {
+    Command::walker_control(
+        id,
+        [hdg.cos() as f32, 0.0, -hdg.sin() as f32],
+        WALKER_SPEED,
+        false,
+    )
 }

@@ -107,7 +107,11 @@ sys.exit(0 if recovered and not miscounted and got == reference else 1)
 
 
 def sh(*args, check=True, **kw):
-    return subprocess.run(list(args), check=check, capture_output=True, text=True, **kw)
+    """Runs a command; a failure raises with what it printed."""
+    done = subprocess.run(list(args), capture_output=True, text=True, **kw)
+    if check and done.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
+    return done
 
 
 def netns_pids(ns):

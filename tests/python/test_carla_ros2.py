@@ -93,9 +93,12 @@ def test_ros2_native_calls_publish_carla_topics_on_frame_stamps(gateway):
         # (DDS matches this reader in its own time; CARLA's writers keep
         # the last message, so a late reader gets the newest).
         def on_frame(elapsed):
+            # /clock too: its reader may match later than the sensors' (DDS
+            # discovery in its own time; a loaded machine once saw none yet).
             latest = {t: m[-1].header.stamp for t, m in got.items() if m}
-            return len(latest) == len(TOPICS) and all(
+            on_stamp = len(latest) == len(TOPICS) and all(
                 abs(s.sec + s.nanosec * 1e-9 - elapsed) < 1e-6 for s in latest.values())
+            return on_stamp and any(abs(m.clock.sec + m.clock.nanosec * 1e-9 - elapsed) < 1e-6 for m in clock)
 
         for _ in range(50):
             world.tick()
